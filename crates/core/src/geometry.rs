@@ -1,0 +1,146 @@
+//! The beam frame B, the body frame V (FRD) and the attitude R_BV of
+//! MODEL.md. Vectors carry their frame in their type so that a body vector
+//! cannot be added to a beam vector by mistake.
+
+use crate::Angle;
+
+/// A vector in the beam frame B (origin at the beacon, +x along its axis,
+/// +z up, +y = z × x).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BeamVec(pub [f64; 3]);
+
+/// A vector in the vehicle's body frame V (forward, right, down).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BodyVec(pub [f64; 3]);
+
+impl BeamVec {
+    #[inline]
+    pub fn norm(&self) -> f64 {
+        let [x, y, z] = self.0;
+        (x * x + y * y + z * z).sqrt()
+    }
+    #[inline]
+    pub fn dot(&self, o: &BeamVec) -> f64 {
+        self.0[0] * o.0[0] + self.0[1] * o.0[1] + self.0[2] * o.0[2]
+    }
+    #[inline]
+    pub fn add(&self, o: &BeamVec) -> BeamVec {
+        BeamVec([self.0[0] + o.0[0], self.0[1] + o.0[1], self.0[2] + o.0[2]])
+    }
+}
+
+/// Pitch θ and yaw ψ of the vehicle in B (roll is not observable and is 0).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Attitude {
+    pub pitch: Angle,
+    pub yaw: Angle,
+}
+
+impl Attitude {
+    pub fn new(pitch: Angle, yaw: Angle) -> Self {
+        Attitude { pitch, yaw }
+    }
+
+    /// R_BV = R0 · Rz(ψ) · Ry(θ), R0 = diag(−1, 1, −1), row-major.
+    #[inline]
+    pub fn r_bv(&self) -> [[f64; 3]; 3] {
+        let (st, ct) = self.pitch.sin_cos();
+        let (sp, cp) = self.yaw.sin_cos();
+        // Rz·Ry = [[cψcθ, −sψ, cψsθ], [sψcθ, cψ, sψsθ], [−sθ, 0, cθ]]
+        [
+            [-cp * ct, sp, -cp * st],
+            [sp * ct, cp, sp * st],
+            [st, 0.0, -ct],
+        ]
+    }
+
+    /// Rotate a body vector into B.
+    #[inline]
+    pub fn to_beam(&self, v: &BodyVec) -> BeamVec {
+        let r = self.r_bv();
+        let [a, b, c] = v.0;
+        BeamVec([
+            r[0][0] * a + r[0][1] * b + r[0][2] * c,
+            r[1][0] * a + r[1][1] * b + r[1][2] * c,
+            r[2][0] * a + r[2][1] * b + r[2][2] * c,
+        ])
+    }
+
+    /// The vehicle's forward axis in B: (−cθcψ, cθsψ, sθ).
+    #[inline]
+    pub fn forward(&self) -> BeamVec {
+        self.to_beam(&BodyVec([1.0, 0.0, 0.0]))
+    }
+}
+
+/// The vehicle's pose in B: position of the hemisphere centre and attitude.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Pose {
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+    pub pitch: Angle,
+    pub yaw: Angle,
+}
+
+impl Pose {
+    pub fn new(x: f64, y: f64, z: f64, pitch: Angle, yaw: Angle) -> Self {
+        Pose {
+            x,
+            y,
+            z,
+            pitch,
+            yaw,
+        }
+    }
+    #[inline]
+    pub fn position(&self) -> BeamVec {
+        BeamVec([self.x, self.y, self.z])
+    }
+    #[inline]
+    pub fn attitude(&self) -> Attitude {
+        Attitude::new(self.pitch, self.yaw)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: [f64; 3], b: [f64; 3]) -> bool {
+        a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12)
+    }
+
+    #[test]
+    fn zero_attitude_faces_the_beacon() {
+        let a = Attitude::default();
+        assert!(close(a.forward().0, [-1.0, 0.0, 0.0]));
+        assert!(close(
+            a.to_beam(&BodyVec([0.0, 1.0, 0.0])).0,
+            [0.0, 1.0, 0.0]
+        ));
+        assert!(close(
+            a.to_beam(&BodyVec([0.0, 0.0, 1.0])).0,
+            [0.0, 0.0, -1.0]
+        ));
+    }
+
+    #[test]
+    fn forward_axis_matches_model_md() {
+        let (t, p) = (0.3f64, -0.7f64);
+        let a = Attitude::new(Angle::from_rad(t), Angle::from_rad(p));
+        let f = a.forward().0;
+        assert!(close(f, [-t.cos() * p.cos(), t.cos() * p.sin(), t.sin()]));
+    }
+
+    #[test]
+    fn r_bv_is_a_rotation() {
+        let r = Attitude::new(Angle::from_deg(13.0), Angle::from_deg(-41.0)).r_bv();
+        for i in 0..3 {
+            for j in 0..3 {
+                let d: f64 = (0..3).map(|k| r[k][i] * r[k][j]).sum();
+                assert!((d - if i == j { 1.0 } else { 0.0 }).abs() < 1e-12);
+            }
+        }
+    }
+}

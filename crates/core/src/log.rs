@@ -1,0 +1,631 @@
+//! The intensity log of FORMATS.md: JSON Lines, a HEADER then one FRAME per
+//! line. Read and written as a stream, so a log of a million frames never
+//! sits in memory whole. The reader names the line of anything it refuses,
+//! and treats a cut-short last line (power loss) as the end of the log.
+
+use crate::frame::full_scale;
+use crate::{Angle, AttitudeReading, Frame, Pose, Truth, COLS, NDET, ROWS};
+use serde::{Deserialize, Serialize};
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, BufWriter, Write};
+use std::path::Path;
+
+pub const FORMAT: &str = "lightpose-intensity";
+pub const VERSION: u32 = 1;
+
+#[derive(Debug, thiserror::Error)]
+pub enum LogError {
+    #[error("{name}: {source}")]
+    Io {
+        name: String,
+        #[source]
+        source: io::Error,
+    },
+    #[error("{name}:{line}: {msg}")]
+    Line {
+        name: String,
+        line: usize,
+        msg: String,
+    },
+    #[error("{name}: empty log (no HEADER line)")]
+    Empty { name: String },
+}
+
+/// The first line of a log. Fields this reader does not know are kept and
+/// written back, so a log passes through unchanged.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogHeader {
+    pub adc_bits: u8,
+    pub rate_hz: f64,
+    /// Everything else the header carried (scene, board, date, notes).
+    pub extra: serde_json::Map<String, serde_json::Value>,
+}
+
+impl LogHeader {
+    pub fn new(adc_bits: u8, rate_hz: f64) -> Self {
+        LogHeader {
+            adc_bits,
+            rate_hz,
+            extra: serde_json::Map::new(),
+        }
+    }
+
+    fn to_json(&self) -> serde_json::Value {
+        let mut m = serde_json::Map::new();
+        m.insert("class".into(), "HEADER".into());
+        m.insert("format".into(), FORMAT.into());
+        m.insert("version".into(), VERSION.into());
+        m.insert("rows".into(), ROWS.into());
+        m.insert("cols".into(), COLS.into());
+        m.insert("adc_bits".into(), self.adc_bits.into());
+        m.insert(
+            "rate_hz".into(),
+            crate::finite(self.rate_hz).map_or(serde_json::Value::Null, Into::into),
+        );
+        for (k, v) in &self.extra {
+            m.entry(k.clone()).or_insert_with(|| v.clone());
+        }
+        serde_json::Value::Object(m)
+    }
+
+    fn parse(v: serde_json::Value) -> Result<Self, String> {
+        let serde_json::Value::Object(mut m) = v else {
+            return Err("header is not a JSON object".into());
+        };
+        let class = m.remove("class");
+        if class.as_ref().and_then(|c| c.as_str()) != Some("HEADER") {
+            return Err(format!(
+                "first line must be class HEADER, found {}",
+                class.map_or("no class".to_string(), |c| c.to_string())
+            ));
+        }
+        let format = m.remove("format");
+        if format.as_ref().and_then(|c| c.as_str()) != Some(FORMAT) {
+            return Err(format!("header format must be \"{FORMAT}\""));
+        }
+        match m.remove("version").and_then(|v| v.as_u64()) {
+            Some(1) => {}
+            Some(v) => return Err(format!("header version {v} is not supported (only 1)")),
+            None => return Err("header has no integer version".into()),
+        }
+        for (key, want) in [("rows", ROWS), ("cols", COLS)] {
+            match m.remove(key).and_then(|v| v.as_u64()) {
+                Some(v) if v as usize == want => {}
+                Some(v) => {
+                    return Err(format!(
+                        "header {key} = {v}: only a 5 × 5 array is supported"
+                    ))
+                }
+                None => return Err(format!("header has no integer {key}")),
+            }
+        }
+        let adc_bits = match m.remove("adc_bits").and_then(|v| v.as_u64()) {
+            Some(b @ 1..=16) => b as u8,
+            Some(b) => return Err(format!("header adc_bits = {b}: must be 1..16")),
+            None => return Err("header has no integer adc_bits".into()),
+        };
+        let rate_hz = match m.remove("rate_hz").and_then(|v| v.as_f64()) {
+            Some(r) if r > 0.0 && r.is_finite() => r,
+            Some(r) => return Err(format!("header rate_hz = {r}: must be positive")),
+            None => return Err("header has no number rate_hz".into()),
+        };
+        Ok(LogHeader {
+            adc_bits,
+            rate_hz,
+            extra: m,
+        })
+    }
+}
+
+#[derive(Deserialize)]
+struct RawLine {
+    class: Option<String>,
+    seq: Option<serde_json::Value>,
+    t: Option<f64>,
+    counts: Option<Vec<serde_json::Value>>,
+    temp_c: Option<f64>,
+    truth: Option<RawTruth>,
+    attitude: Option<RawAttitude>,
+}
+
+#[derive(Deserialize, Serialize)]
+struct RawTruth {
+    x: f64,
+    y: f64,
+    z: f64,
+    pitch: f64,
+    yaw: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    surge: Option<f64>,
+}
+
+#[derive(Deserialize, Serialize)]
+struct RawAttitude {
+    pitch: f64,
+    yaw: f64,
+}
+
+/// Streaming reader. Iterate to get frames; an `Err` names a line that was
+/// refused, and iteration may go on past it.
+pub struct LogReader<R> {
+    src: R,
+    name: String,
+    header: LogHeader,
+    line_no: usize,
+    buf: String,
+    truncated_at: Option<usize>,
+    done: bool,
+    other_lines: u64,
+    last_seq: Option<u64>,
+    seq_gaps: u64,
+    lost_frames: u64,
+}
+
+impl LogReader<BufReader<File>> {
+    /// Open a log file and read its header.
+    pub fn open(path: &Path) -> Result<Self, LogError> {
+        let name = path.display().to_string();
+        let f = File::open(path).map_err(|source| LogError::Io {
+            name: name.clone(),
+            source,
+        })?;
+        LogReader::new(BufReader::with_capacity(1 << 16, f), name)
+    }
+}
+
+impl<R: BufRead> LogReader<R> {
+    /// Read the header from `src`; `name` is how errors refer to it.
+    pub fn new(mut src: R, name: impl Into<String>) -> Result<Self, LogError> {
+        let name = name.into();
+        let mut buf = String::new();
+        let mut line_no = 0;
+        loop {
+            buf.clear();
+            let n = read_line(&mut src, &mut buf, &name, line_no + 1)?;
+            if n == 0 {
+                return Err(LogError::Empty { name });
+            }
+            line_no += 1;
+            if !buf.trim().is_empty() {
+                break;
+            }
+        }
+        let v: serde_json::Value =
+            serde_json::from_str(buf.trim()).map_err(|e| LogError::Line {
+                name: name.clone(),
+                line: line_no,
+                msg: format!("header is not valid JSON: {e}"),
+            })?;
+        let header = LogHeader::parse(v).map_err(|msg| LogError::Line {
+            name: name.clone(),
+            line: line_no,
+            msg,
+        })?;
+        Ok(LogReader {
+            src,
+            name,
+            header,
+            line_no,
+            buf,
+            truncated_at: None,
+            done: false,
+            other_lines: 0,
+            last_seq: None,
+            seq_gaps: 0,
+            lost_frames: 0,
+        })
+    }
+
+    pub fn header(&self) -> &LogHeader {
+        &self.header
+    }
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// Line number of a last line that was cut short, if the log ended so.
+    pub fn truncated_at(&self) -> Option<usize> {
+        self.truncated_at
+    }
+    /// Lines of other classes that were passed over.
+    pub fn other_lines(&self) -> u64 {
+        self.other_lines
+    }
+    /// Number of gaps in `seq`, and the frames they lost.
+    pub fn seq_gaps(&self) -> (u64, u64) {
+        (self.seq_gaps, self.lost_frames)
+    }
+
+    fn line_err(&self, msg: impl Into<String>) -> LogError {
+        LogError::Line {
+            name: self.name.clone(),
+            line: self.line_no,
+            msg: msg.into(),
+        }
+    }
+
+    /// The next frame, `None` at the end of the log.
+    pub fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
+        loop {
+            if self.done {
+                return None;
+            }
+            self.buf.clear();
+            let n = match read_line(&mut self.src, &mut self.buf, &self.name, self.line_no + 1) {
+                Ok(n) => n,
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e));
+                }
+            };
+            if n == 0 {
+                self.done = true;
+                return None;
+            }
+            self.line_no += 1;
+            let complete = self.buf.ends_with('\n');
+            let text = self.buf.trim();
+            if text.is_empty() {
+                continue;
+            }
+            let raw: RawLine = match serde_json::from_str(text) {
+                Ok(r) => r,
+                Err(e) => {
+                    if !complete && at_eof(&mut self.src) {
+                        // A last line without its newline that does not parse
+                        // is a write cut short by a power loss: the log ends.
+                        self.truncated_at = Some(self.line_no);
+                        self.done = true;
+                        return None;
+                    }
+                    return Some(Err(self.line_err(format!("not valid JSON: {e}"))));
+                }
+            };
+            match raw.class.as_deref() {
+                Some("FRAME") => {}
+                Some(_) => {
+                    self.other_lines += 1;
+                    continue;
+                }
+                None => return Some(Err(self.line_err("line has no class field"))),
+            }
+            let r = self.frame_from(raw);
+            if let Ok(f) = &r {
+                if let Some(last) = self.last_seq {
+                    if f.seq > last + 1 {
+                        self.seq_gaps += 1;
+                        self.lost_frames += f.seq - last - 1;
+                    }
+                }
+                self.last_seq = Some(f.seq);
+            }
+            return Some(r);
+        }
+    }
+
+    fn frame_from(&self, raw: RawLine) -> Result<Frame, LogError> {
+        let seq = raw
+            .seq
+            .as_ref()
+            .and_then(|v| v.as_u64())
+            .ok_or_else(|| self.line_err("FRAME needs a non-negative integer seq"))?;
+        let t = raw
+            .t
+            .filter(|t| t.is_finite())
+            .ok_or_else(|| self.line_err("FRAME needs a finite number t"))?;
+        let values = raw
+            .counts
+            .ok_or_else(|| self.line_err("FRAME has no counts"))?;
+        if values.len() != NDET {
+            return Err(self.line_err(format!(
+                "counts has {} values, expected {NDET}",
+                values.len()
+            )));
+        }
+        let fs = full_scale(self.header.adc_bits) as u64;
+        let mut counts = [0u16; NDET];
+        for (k, (v, c)) in values.iter().zip(counts.iter_mut()).enumerate() {
+            match v.as_u64() {
+                Some(n) if n <= fs => *c = n as u16,
+                _ => {
+                    return Err(
+                        self.line_err(format!("counts[{k}] = {v} is not an integer in 0..{fs}"))
+                    )
+                }
+            }
+        }
+        if let Some(tc) = raw.temp_c {
+            if !tc.is_finite() {
+                return Err(self.line_err("temp_c is not finite"));
+            }
+        }
+        let truth = match raw.truth {
+            None => None,
+            Some(tr) => {
+                let vals = [tr.x, tr.y, tr.z, tr.pitch, tr.yaw];
+                if vals.iter().any(|v| !v.is_finite()) || tr.surge.is_some_and(|s| !s.is_finite()) {
+                    return Err(self.line_err("truth has a value that is not finite"));
+                }
+                Some(Truth {
+                    pose: Pose::new(
+                        tr.x,
+                        tr.y,
+                        tr.z,
+                        Angle::from_deg(tr.pitch),
+                        Angle::from_deg(tr.yaw),
+                    ),
+                    surge: tr.surge,
+                })
+            }
+        };
+        let attitude = match raw.attitude {
+            None => None,
+            Some(a) if a.pitch.is_finite() && a.yaw.is_finite() => Some(AttitudeReading {
+                pitch: Angle::from_deg(a.pitch),
+                yaw: Angle::from_deg(a.yaw),
+            }),
+            Some(_) => return Err(self.line_err("attitude has a value that is not finite")),
+        };
+        Ok(Frame {
+            seq,
+            t,
+            adc_bits: self.header.adc_bits,
+            counts,
+            temp_c: raw.temp_c,
+            truth,
+            attitude,
+        })
+    }
+}
+
+impl<R: BufRead> Iterator for LogReader<R> {
+    type Item = Result<Frame, LogError>;
+    fn next(&mut self) -> Option<Self::Item> {
+        self.next_frame()
+    }
+}
+
+fn read_line<R: BufRead>(
+    src: &mut R,
+    buf: &mut String,
+    name: &str,
+    line: usize,
+) -> Result<usize, LogError> {
+    src.read_line(buf).map_err(|e| {
+        if e.kind() == io::ErrorKind::InvalidData {
+            LogError::Line {
+                name: name.to_string(),
+                line,
+                msg: "not valid UTF-8".into(),
+            }
+        } else {
+            LogError::Io {
+                name: name.to_string(),
+                source: e,
+            }
+        }
+    })
+}
+
+fn at_eof<R: BufRead>(src: &mut R) -> bool {
+    src.fill_buf().map(|b| b.is_empty()).unwrap_or(true)
+}
+
+#[derive(Serialize)]
+struct FrameOut<'a> {
+    class: &'static str,
+    seq: u64,
+    t: Option<f64>,
+    counts: &'a [u16; NDET],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    temp_c: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    truth: Option<RawTruth>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    attitude: Option<RawAttitude>,
+}
+
+/// Streaming writer: each line is formatted whole in a reused buffer and
+/// handed to the sink in one `write_all`, so a reader never sees half a
+/// frame except after a crash mid-write (which the reader handles).
+pub struct LogWriter<W: Write> {
+    sink: W,
+    line: Vec<u8>,
+    frames: u64,
+}
+
+impl LogWriter<BufWriter<File>> {
+    /// Create (truncate) a log file and write its header.
+    pub fn create(path: &Path, header: &LogHeader) -> io::Result<Self> {
+        let f = File::create(path)?;
+        LogWriter::new(BufWriter::with_capacity(1 << 16, f), header)
+    }
+}
+
+impl<W: Write> LogWriter<W> {
+    pub fn new(mut sink: W, header: &LogHeader) -> io::Result<Self> {
+        let mut line = serde_json::to_vec(&header.to_json())?;
+        line.push(b'\n');
+        sink.write_all(&line)?;
+        Ok(LogWriter {
+            sink,
+            line,
+            frames: 0,
+        })
+    }
+
+    /// Append one frame as one line.
+    pub fn write_frame(&mut self, f: &Frame) -> io::Result<()> {
+        self.line.clear();
+        let out = FrameOut {
+            class: "FRAME",
+            seq: f.seq,
+            t: crate::finite(f.t),
+            counts: &f.counts,
+            temp_c: f.temp_c.and_then(crate::finite),
+            truth: f.truth.map(|tr| RawTruth {
+                x: tr.pose.x,
+                y: tr.pose.y,
+                z: tr.pose.z,
+                pitch: tr.pose.pitch.deg(),
+                yaw: tr.pose.yaw.deg(),
+                surge: tr.surge.and_then(crate::finite),
+            }),
+            attitude: f.attitude.map(|a| RawAttitude {
+                pitch: a.pitch.deg(),
+                yaw: a.yaw.deg(),
+            }),
+        };
+        serde_json::to_writer(&mut self.line, &out)?;
+        self.line.push(b'\n');
+        self.sink.write_all(&self.line)?;
+        self.frames += 1;
+        Ok(())
+    }
+
+    pub fn frames_written(&self) -> u64 {
+        self.frames
+    }
+    pub fn flush(&mut self) -> io::Result<()> {
+        self.sink.flush()
+    }
+    pub fn get_ref(&self) -> &W {
+        &self.sink
+    }
+    pub fn get_mut(&mut self) -> &mut W {
+        &mut self.sink
+    }
+    pub fn into_inner(self) -> W {
+        self.sink
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(seq: u64) -> Frame {
+        let mut counts = [0u16; NDET];
+        for (k, c) in counts.iter_mut().enumerate() {
+            *c = (k * 40) as u16;
+        }
+        Frame {
+            seq,
+            t: seq as f64 * 0.2,
+            adc_bits: 10,
+            counts,
+            temp_c: Some(19.9),
+            truth: Some(Truth {
+                pose: Pose::new(7.8, 0.0, 0.12, Angle::from_deg(9.6), Angle::ZERO),
+                surge: Some(0.5),
+            }),
+            attitude: None,
+        }
+    }
+
+    fn write(frames: &[Frame]) -> Vec<u8> {
+        let mut w = LogWriter::new(Vec::new(), &LogHeader::new(10, 5.0)).unwrap();
+        for f in frames {
+            w.write_frame(f).unwrap();
+        }
+        w.into_inner()
+    }
+
+    fn read_all(bytes: &[u8]) -> (Vec<Result<Frame, LogError>>, Option<usize>) {
+        let mut r = LogReader::new(bytes, "test.jsonl").unwrap();
+        let v: Vec<_> = r.by_ref().collect();
+        (v, r.truncated_at())
+    }
+
+    #[test]
+    fn round_trip() {
+        let frames: Vec<_> = (0..5).map(frame).collect();
+        let bytes = write(&frames);
+        let (got, trunc) = read_all(&bytes);
+        assert_eq!(trunc, None);
+        let got: Vec<Frame> = got.into_iter().map(|r| r.unwrap()).collect();
+        assert_eq!(got.len(), 5);
+        for (a, b) in got.iter().zip(&frames) {
+            assert_eq!(a.counts, b.counts);
+            assert_eq!(a.seq, b.seq);
+            assert_eq!(a.temp_c, b.temp_c);
+            let (ta, tb) = (a.truth.unwrap().pose, b.truth.unwrap().pose);
+            assert!((ta.pitch.deg() - tb.pitch.deg()).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn cut_short_last_line_ends_the_log() {
+        let mut bytes = write(&(0..3).map(frame).collect::<Vec<_>>());
+        bytes.truncate(bytes.len() - 20);
+        let (got, trunc) = read_all(&bytes);
+        assert_eq!(got.len(), 2);
+        assert!(got.iter().all(|r| r.is_ok()));
+        assert_eq!(trunc, Some(4));
+    }
+
+    #[test]
+    fn bad_lines_are_named_and_reading_goes_on() {
+        let mut bytes = write(&[frame(0)]);
+        bytes.extend_from_slice(b"\n{\"class\":\"FRAME\",\"seq\":1,\"t\":0.2,\"counts\":[1,2]}\n");
+        bytes.extend_from_slice(b"{\"class\":\"FRAME\",\"seq\":2,\"t\":0.4,\"counts\":[1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16,17,18,19,20,21,22,23,24,2000]}\n");
+        bytes.extend_from_slice(b"garbage\n");
+        bytes.extend_from_slice(b"{\"class\":\"STATUS\",\"seq\":9}\n");
+        bytes.extend_from_slice(
+            &write(&[frame(5)])[..]
+                .split(|&b| b == b'\n')
+                .nth(1)
+                .unwrap()
+                .to_vec(),
+        );
+        bytes.push(b'\n');
+        let mut r = LogReader::new(&bytes[..], "x.jsonl").unwrap();
+        let got: Vec<_> = r.by_ref().collect();
+        assert_eq!(got.len(), 5);
+        let msgs: Vec<String> = got
+            .iter()
+            .filter_map(|g| g.as_ref().err().map(|e| e.to_string()))
+            .collect();
+        assert_eq!(msgs.len(), 3);
+        assert!(
+            msgs[0].starts_with("x.jsonl:4: counts has 2 values"),
+            "{}",
+            msgs[0]
+        );
+        assert!(
+            msgs[1].starts_with("x.jsonl:5: counts[24] = 2000"),
+            "{}",
+            msgs[1]
+        );
+        assert!(
+            msgs[2].starts_with("x.jsonl:6: not valid JSON"),
+            "{}",
+            msgs[2]
+        );
+        assert_eq!(r.other_lines(), 1);
+        assert_eq!(r.seq_gaps(), (1, 4));
+    }
+
+    #[test]
+    fn bad_headers_are_refused() {
+        for (text, want) in [
+            ("", "empty log"),
+            ("{\"class\":\"FRAME\"}\n", "class HEADER"),
+            ("{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":2,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":5}\n", "version 2"),
+            ("{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":4,\"cols\":5,\"adc_bits\":10,\"rate_hz\":5}\n", "rows = 4"),
+            ("{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":0,\"rate_hz\":5}\n", "adc_bits = 0"),
+        ] {
+            let e = LogReader::new(text.as_bytes(), "h.jsonl").err().expect(text);
+            assert!(e.to_string().contains(want), "{e} lacks {want}");
+        }
+    }
+
+    #[test]
+    fn header_extras_pass_through() {
+        let mut h = LogHeader::new(12, 5.0);
+        h.extra.insert("scene".into(), "tank".into());
+        let w = LogWriter::new(Vec::new(), &h).unwrap();
+        let bytes = w.into_inner();
+        let r = LogReader::new(&bytes[..], "h").unwrap();
+        assert_eq!(r.header(), &h);
+    }
+}

@@ -1,0 +1,217 @@
+//! What an estimator says about one frame, and its POSE message
+//! (FORMATS.md): fields that are not known are `null`, never NaN.
+
+use serde::ser::{Serialize, SerializeMap, Serializer};
+
+/// Why a pose is or is not trustworthy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Status {
+    /// Every field is trustworthy.
+    Ok,
+    /// Too little light on the array to tell anything.
+    NoLight,
+    /// Pixels at full scale distort the image.
+    Saturated,
+    /// Outside the range of poses the calibration covered.
+    OutOfRange,
+    /// The estimator needs more frames before it can say everything.
+    Initialising,
+    /// The frame itself is unusable (wrong resolution, garbage).
+    BadFrame,
+    /// The solver did not converge.
+    Diverged,
+}
+
+impl Status {
+    pub const ALL: [Status; 7] = [
+        Status::Ok,
+        Status::NoLight,
+        Status::Saturated,
+        Status::OutOfRange,
+        Status::Initialising,
+        Status::BadFrame,
+        Status::Diverged,
+    ];
+
+    /// The word of FORMATS.md's `status` field.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Ok => "ok",
+            Status::NoLight => "no_light",
+            Status::Saturated => "saturated",
+            Status::OutOfRange => "out_of_range",
+            Status::Initialising => "initialising",
+            Status::BadFrame => "bad_frame",
+            Status::Diverged => "diverged",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Status> {
+        Status::ALL.into_iter().find(|st| st.as_str() == s)
+    }
+}
+
+/// 1σ uncertainty of each field where the estimator knows it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StdDev {
+    pub x: Option<f64>,
+    pub y: Option<f64>,
+    pub z: Option<f64>,
+    /// degrees
+    pub pitch: Option<f64>,
+    /// degrees
+    pub yaw: Option<f64>,
+    pub surge: Option<f64>,
+}
+
+impl StdDev {
+    pub fn is_empty(&self) -> bool {
+        self.x.is_none()
+            && self.y.is_none()
+            && self.z.is_none()
+            && self.pitch.is_none()
+            && self.yaw.is_none()
+            && self.surge.is_none()
+    }
+}
+
+/// One estimate. Angles in degrees, as they go on the wire.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseEstimate {
+    pub seq: u64,
+    pub t: f64,
+    pub status: Status,
+    pub x: Option<f64>,
+    pub y: Option<f64>,
+    pub z: Option<f64>,
+    pub pitch_deg: Option<f64>,
+    pub yaw_deg: Option<f64>,
+    pub surge: Option<f64>,
+    pub std: StdDev,
+    /// Name of the estimator that produced it.
+    pub estimator: &'static str,
+}
+
+impl PoseEstimate {
+    /// An estimate that knows nothing but why.
+    pub fn empty(seq: u64, t: f64, status: Status, estimator: &'static str) -> Self {
+        PoseEstimate {
+            seq,
+            t,
+            status,
+            x: None,
+            y: None,
+            z: None,
+            pitch_deg: None,
+            yaw_deg: None,
+            surge: None,
+            std: StdDev::default(),
+            estimator,
+        }
+    }
+
+    /// Serialize as a POSE message, optionally with the wall-clock capture
+    /// time (Unix seconds), into `out` (cleared first; reused by callers
+    /// so that the hot path does not allocate once warm).
+    pub fn write_json(&self, capture_unix: Option<f64>, out: &mut Vec<u8>) {
+        out.clear();
+        let msg = PoseMessage {
+            est: self,
+            capture_unix,
+        };
+        // Writing into a Vec cannot fail and every value is finite or null.
+        if serde_json::to_writer(&mut *out, &msg).is_err() {
+            out.clear();
+        }
+    }
+}
+
+struct PoseMessage<'a> {
+    est: &'a PoseEstimate,
+    capture_unix: Option<f64>,
+}
+
+struct StdMessage<'a>(&'a StdDev);
+
+fn fin(v: Option<f64>) -> Option<f64> {
+    v.and_then(crate::finite)
+}
+
+impl Serialize for StdMessage<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let d = self.0;
+        let mut m = s.serialize_map(None)?;
+        for (k, v) in [
+            ("x", d.x),
+            ("y", d.y),
+            ("z", d.z),
+            ("pitch", d.pitch),
+            ("yaw", d.yaw),
+            ("surge", d.surge),
+        ] {
+            if let Some(v) = fin(v) {
+                m.serialize_entry(k, &v)?;
+            }
+        }
+        m.end()
+    }
+}
+
+impl Serialize for PoseMessage<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let e = self.est;
+        let mut m = s.serialize_map(None)?;
+        m.serialize_entry("class", "POSE")?;
+        m.serialize_entry("seq", &e.seq)?;
+        m.serialize_entry("t", &crate::finite(e.t))?;
+        if let Some(w) = self.capture_unix.and_then(crate::finite) {
+            m.serialize_entry("time", &w)?;
+        }
+        m.serialize_entry("status", e.status.as_str())?;
+        m.serialize_entry("x", &fin(e.x))?;
+        m.serialize_entry("y", &fin(e.y))?;
+        m.serialize_entry("z", &fin(e.z))?;
+        m.serialize_entry("pitch", &fin(e.pitch_deg))?;
+        m.serialize_entry("yaw", &fin(e.yaw_deg))?;
+        m.serialize_entry("surge", &fin(e.surge))?;
+        if !e.std.is_empty() {
+            m.serialize_entry("std", &StdMessage(&e.std))?;
+        }
+        m.serialize_entry("estimator", e.estimator)?;
+        m.end()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nan_becomes_null_and_std_only_when_known() {
+        let mut e = PoseEstimate::empty(3, 0.6, Status::NoLight, "moments");
+        e.x = Some(f64::NAN);
+        e.y = Some(0.25);
+        let mut buf = Vec::new();
+        e.write_json(None, &mut buf);
+        let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
+        assert_eq!(v["class"], "POSE");
+        assert_eq!(v["status"], "no_light");
+        assert!(v["x"].is_null());
+        assert_eq!(v["y"], 0.25);
+        assert!(v.get("std").is_none());
+        e.std.x = Some(0.2);
+        e.std.y = Some(f64::INFINITY);
+        e.write_json(Some(1.7e9), &mut buf);
+        let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
+        assert_eq!(v["std"]["x"], 0.2);
+        assert!(v["std"].get("y").is_none());
+        assert_eq!(v["time"], 1.7e9);
+    }
+
+    #[test]
+    fn status_words_round_trip() {
+        for s in Status::ALL {
+            assert_eq!(Status::parse(s.as_str()), Some(s));
+        }
+    }
+}
