@@ -1,1 +1,50 @@
-fn main() {}
+//! `lightpose`: the operator command. Thin: it parses arguments, calls the
+//! libraries and maps errors to one line and an exit code.
+
+mod calibrate;
+mod montecarlo;
+mod replay;
+mod simulate;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "lightpose", version, about = "Simulate, calibrate, replay and analyse the lightpose detector array")]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Simulate a trajectory through a scene and write an intensity log.
+    Simulate(simulate::SimulateArgs),
+    /// Write the calibration sweeps of MODEL.md as an intensity log.
+    Sweep(simulate::SweepArgs),
+    /// Fit a calibration from truth-labelled sweep logs.
+    Calibrate(calibrate::CalibrateArgs),
+    /// Run an estimator over a recorded log and write POSE lines.
+    Replay(replay::ReplayArgs),
+    /// Monte Carlo uncertainty of an estimator along a trajectory.
+    Montecarlo(montecarlo::MontecarloArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let r = match cli.cmd {
+        Cmd::Simulate(a) => simulate::simulate(a),
+        Cmd::Sweep(a) => simulate::sweep(a),
+        Cmd::Calibrate(a) => calibrate::run(a),
+        Cmd::Replay(a) => replay::run(a),
+        Cmd::Montecarlo(a) => montecarlo::run(a),
+    };
+    match r {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // One line: the chain of causes joined, the place named first.
+            eprintln!("lightpose: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
