@@ -1,0 +1,311 @@
+//! Censored, weighted Levenberg–Marquardt fit of one frame's 25 counts to
+//! the light equation.
+//!
+//! Why censored: a channel at full scale only says "at least this bright",
+//! one at zero only "at most this dark". Fitting them as data would drag the
+//! pose towards a dimmer (or brighter) image than the truth, so such pixels
+//! add a penalty only when the model crosses the bound they prove. A channel
+//! at or below its own dark offset is handled the same way (one-sided): it
+//! proves there is no more light than that, and never pulls the model below
+//! the offset, which the light equation cannot go anyway.
+//!
+//! Everything is fixed-size (5 × 5 normal equations on the stack) so that a
+//! frame costs no allocation.
+
+use lightpose_core::NDET;
+use nalgebra::{SMatrix, SVector};
+
+use super::light::{predict, predict_with_grad, PoseVec};
+use super::SensorModel;
+
+type M5 = SMatrix<f64, 5, 5>;
+
+/// How one channel's count enters the fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Censoring {
+    /// An ordinary, Gaussian measurement.
+    Data,
+    /// At full scale: the true value is at least `full_scale − ½`.
+    Saturated,
+    /// At or below the channel's dark offset (or at zero): the true value
+    /// is at most what was read.
+    Dark,
+}
+
+impl Censoring {
+    /// Classify the channels of one frame.
+    pub fn classify(m: &SensorModel, counts: &[u16; NDET]) -> [Censoring; NDET] {
+        let fs = m.full_scale();
+        let cpv = m.counts_per_volt();
+        let mut out = [Censoring::Data; NDET];
+        for k in 0..NDET {
+            let c = counts[k] as f64;
+            out[k] = if c >= fs {
+                Censoring::Saturated
+            } else if c <= 0.0 || c <= m.offset_v[k] * cpv {
+                Censoring::Dark
+            } else {
+                Censoring::Data
+            };
+        }
+        out
+    }
+}
+
+/// A Gaussian prior on some pose coordinates (pitch and yaw from an
+/// attitude sensor, typically). `inv_sigma[i] = 0` means none on i.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prior {
+    pub mean: PoseVec,
+    pub inv_sigma: PoseVec,
+}
+
+impl Prior {
+    pub fn none() -> Self {
+        Prior {
+            mean: PoseVec::zeros(),
+            inv_sigma: PoseVec::zeros(),
+        }
+    }
+}
+
+/// Knobs of one solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolveOptions {
+    /// Which of x, y, z, θ, ψ are estimated; the others stay at the start.
+    pub free: [bool; 5],
+    pub max_iter: usize,
+    /// Range of x the solver may visit (metres); steps outside are refused.
+    pub x_min: f64,
+    pub x_max: f64,
+    /// |y|, |z| may not exceed this times x (the beam is long gone beyond).
+    pub max_lateral_ratio: f64,
+    /// |θ|, |ψ| may not exceed this (radians).
+    pub max_angle: f64,
+    /// K_D used for the light equation.
+    pub k_d: f64,
+    /// Temperature gain g_T of this frame.
+    pub gt: f64,
+}
+
+/// Outcome of one solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LmResult {
+    pub q: PoseVec,
+    /// Covariance of the free coordinates from (JᵀWJ + prior)⁻¹ at the
+    /// optimum; zero rows and columns for fixed ones.
+    pub cov: M5,
+    /// Σ of squared normalized residuals (data and active penalties).
+    pub chi2: f64,
+    /// Total cost, chi2 plus prior.
+    pub cost: f64,
+    /// Channels that entered as data (uncensored).
+    pub n_data: usize,
+    pub n_saturated: usize,
+    pub iterations: usize,
+    pub converged: bool,
+}
+
+fn residuals(
+    counts: &[u16; NDET],
+    kinds: &[Censoring; NDET],
+    pred: &SVector<f64, NDET>,
+    w: &[f64; NDET],
+    fs: f64,
+    out: &mut [f64; NDET],
+) -> f64 {
+    let mut chi2 = 0.0;
+    for k in 0..NDET {
+        let obs = counts[k] as f64;
+        let r = match kinds[k] {
+            Censoring::Data => pred[k] - obs,
+            Censoring::Saturated => (pred[k] - (fs - 0.5)).min(0.0),
+            Censoring::Dark => (pred[k] - obs.max(0.5)).max(0.0),
+        } * w[k];
+        out[k] = r;
+        chi2 += r * r;
+    }
+    chi2
+}
+
+fn prior_cost(q: &PoseVec, p: &Prior) -> f64 {
+    let d = (q - p.mean).component_mul(&p.inv_sigma);
+    d.norm_squared()
+}
+
+fn admissible(q: &PoseVec, o: &SolveOptions) -> bool {
+    q.iter().all(|v| v.is_finite())
+        && q[0] >= o.x_min
+        && q[0] <= o.x_max
+        && q[1].abs() <= o.max_lateral_ratio * q[0]
+        && q[2].abs() <= o.max_lateral_ratio * q[0]
+        && q[3].abs() <= o.max_angle
+        && q[4].abs() <= o.max_angle
+}
+
+/// Minimize the censored, weighted squared residuals plus the prior,
+/// starting from `q0`. Weights come from the noise model at the current
+/// iterate (iteratively reweighted), so κ > 0 is handled too.
+pub fn solve(
+    m: &SensorModel,
+    counts: &[u16; NDET],
+    q0: &PoseVec,
+    prior: &Prior,
+    o: &SolveOptions,
+) -> LmResult {
+    let kinds = Censoring::classify(m, counts);
+    let fs = m.full_scale();
+    let n_saturated = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
+    let n_data = kinds.iter().filter(|k| **k == Censoring::Data).count();
+    let mut q = *q0;
+    let mut lambda = 1e-3;
+    let mut w = [0.0; NDET];
+    let mut r = [0.0; NDET];
+    let mut rt = [0.0; NDET];
+    let mut converged = false;
+    let mut iterations = 0;
+    let mut h = M5::zeros();
+    let mut chi2 = f64::INFINITY;
+    let mut cost = f64::INFINITY;
+    for it in 0..o.max_iter {
+        iterations = it + 1;
+        let (pred, irr, jac) = predict_with_grad(m, &q, o.k_d, o.gt);
+        for k in 0..NDET {
+            w[k] = 1.0 / m.count_variance(irr[k] * m.gain[k] * o.gt).sqrt();
+        }
+        chi2 = residuals(counts, &kinds, &pred, &w, fs, &mut r);
+        cost = chi2 + prior_cost(&q, prior);
+        // Normal equations; a censored row whose bound is not crossed has a
+        // zero residual and contributes no curvature either.
+        h = M5::zeros();
+        let mut g = SVector::<f64, 5>::zeros();
+        for k in 0..NDET {
+            let active = kinds[k] == Censoring::Data || r[k] != 0.0;
+            if !active {
+                continue;
+            }
+            let row = jac.fixed_view::<1, 5>(k, 0).transpose() * w[k];
+            h += row * row.transpose();
+            g += row * r[k];
+        }
+        for i in 0..5 {
+            let s2 = prior.inv_sigma[i] * prior.inv_sigma[i];
+            h[(i, i)] += s2;
+            g[i] += s2 * (q[i] - prior.mean[i]);
+        }
+        for i in 0..5 {
+            if !o.free[i] {
+                for j in 0..5 {
+                    h[(i, j)] = 0.0;
+                    h[(j, i)] = 0.0;
+                }
+                h[(i, i)] = 1.0;
+                g[i] = 0.0;
+            }
+        }
+        let mut accepted = false;
+        let mut step_small = false;
+        for _ in 0..12 {
+            let mut a = h;
+            for i in 0..5 {
+                a[(i, i)] += lambda * h[(i, i)] + 1e-12;
+            }
+            let Some(ch) = a.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let delta = -ch.solve(&g);
+            let qn = q + delta;
+            // A step that is tiny against the current uncertainty ends it.
+            step_small = (0..5).all(|i| (delta[i] * delta[i] * h[(i, i)]) < 1e-8);
+            if !admissible(&qn, o) {
+                lambda *= 4.0;
+                continue;
+            }
+            let (pn, _) = predict(m, &qn, o.k_d, o.gt);
+            let cn = residuals(counts, &kinds, &pn, &w, fs, &mut rt) + prior_cost(&qn, prior);
+            if cn.is_finite() && cn <= cost {
+                let rel = (cost - cn) / cost.max(1e-300);
+                q = qn;
+                lambda = (lambda / 3.0).max(1e-9);
+                accepted = true;
+                if rel < 1e-12 {
+                    step_small = true;
+                }
+                break;
+            }
+            lambda *= 4.0;
+        }
+        if step_small || !accepted {
+            // Either converged, or no admissible downhill step exists here:
+            // a local minimum at the current damping.
+            converged = step_small || lambda < 1e3;
+            break;
+        }
+    }
+    // Covariance at the final point (recompute curvature there).
+    let (pred, irr, jac) = predict_with_grad(m, &q, o.k_d, o.gt);
+    for k in 0..NDET {
+        w[k] = 1.0 / m.count_variance(irr[k] * m.gain[k] * o.gt).sqrt();
+    }
+    let chi2_end = residuals(counts, &kinds, &pred, &w, fs, &mut r);
+    if chi2_end.is_finite() {
+        chi2 = chi2_end;
+        cost = chi2 + prior_cost(&q, prior);
+        h = M5::zeros();
+        for k in 0..NDET {
+            if kinds[k] == Censoring::Data || r[k] != 0.0 {
+                let row = jac.fixed_view::<1, 5>(k, 0).transpose() * w[k];
+                h += row * row.transpose();
+            }
+        }
+        for i in 0..5 {
+            h[(i, i)] += prior.inv_sigma[i] * prior.inv_sigma[i];
+        }
+    }
+    let cov = covariance(&h, &o.free);
+    LmResult {
+        q,
+        cov,
+        chi2,
+        cost,
+        n_data,
+        n_saturated,
+        iterations,
+        converged,
+    }
+}
+
+/// Inverse of the information matrix restricted to the free coordinates;
+/// infinite variance where the information is singular.
+fn covariance(h: &M5, free: &[bool; 5]) -> M5 {
+    let mut a = *h;
+    for i in 0..5 {
+        if !free[i] {
+            for j in 0..5 {
+                a[(i, j)] = 0.0;
+                a[(j, i)] = 0.0;
+            }
+            a[(i, i)] = 1.0;
+        }
+    }
+    let mut cov = match a.try_inverse() {
+        Some(c) if c.iter().all(|v| v.is_finite()) => c,
+        _ => {
+            let mut c = M5::zeros();
+            for i in 0..5 {
+                c[(i, i)] = f64::INFINITY;
+            }
+            c
+        }
+    };
+    for i in 0..5 {
+        if !free[i] {
+            for j in 0..5 {
+                cov[(i, j)] = 0.0;
+                cov[(j, i)] = 0.0;
+            }
+        }
+    }
+    cov
+}
