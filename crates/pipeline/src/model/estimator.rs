@@ -44,6 +44,10 @@ pub struct ModelConfig {
     /// The attitude sensor's 1σ (MODEL.md defaults).
     pub attitude_sigma_pitch_deg: f64,
     pub attitude_sigma_yaw_deg: f64,
+    /// With `dof = "full"` and no attitude reading: a weak prior of
+    /// pitch = yaw = 0 with this σ (degrees), for vehicles known to keep
+    /// roughly facing the beacon. Absent: no prior at all.
+    pub attitude_envelope_deg: Option<f64>,
     /// Range of x for which an estimate is `ok` (the calibrated range).
     pub x_range: [f64; 2],
     /// How far the solver may search, as multiples of that range's ends.
@@ -73,6 +77,7 @@ impl Default for ModelConfig {
             use_attitude: true,
             attitude_sigma_pitch_deg: 0.3,
             attitude_sigma_yaw_deg: 1.5,
+            attitude_envelope_deg: None,
             x_range: [3.0, 12.0],
             search_margin: 2.0,
             max_lateral_ratio: 0.7,
@@ -112,6 +117,11 @@ impl ModelConfig {
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!("{name} = {v} must be positive"));
+            }
+        }
+        if let Some(v) = self.attitude_envelope_deg {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("attitude_envelope_deg = {v} must be positive"));
             }
         }
         if !(self.fixed_pitch_deg.is_finite() && self.fixed_yaw_deg.is_finite()) {
@@ -166,6 +176,18 @@ impl ModelEstimator {
         &self.cfg
     }
 
+    /// Whether some channel stands clearly (`min_signal_sigma`) above its
+    /// own dark level; without that a frame says nothing about pose.
+    pub fn has_light(&self, frame: &Frame) -> bool {
+        let m = &self.model;
+        let cpv = m.counts_per_volt();
+        let sigma0 = m.count_variance(0.0).sqrt();
+        let best = (0..NDET)
+            .map(|k| (frame.counts[k] as f64 - m.offset_v[k] * cpv) / sigma0)
+            .fold(f64::NEG_INFINITY, f64::max);
+        best >= self.cfg.min_signal_sigma
+    }
+
     /// Solve one frame; `warm` is a starting pose to try first.
     pub(crate) fn fit_frame(&self, frame: &Frame, warm: Option<PoseVec>) -> FrameFit {
         let m = &self.model;
@@ -183,13 +205,7 @@ impl ModelEstimator {
             Some(_) => return none(Status::BadFrame),
             None => 1.0,
         };
-        // No light: nothing stands clearly above its own dark level.
-        let cpv = m.counts_per_volt();
-        let sigma0 = m.count_variance(0.0).sqrt();
-        let best = (0..NDET)
-            .map(|k| (frame.counts[k] as f64 - m.offset_v[k] * cpv) / sigma0)
-            .fold(f64::NEG_INFINITY, f64::max);
-        if !(best >= c.min_signal_sigma) {
+        if !self.has_light(frame) {
             return none(Status::NoLight);
         }
 
@@ -213,7 +229,14 @@ impl ModelEstimator {
                 p.inv_sigma[4] = 1.0 / c.attitude_sigma_yaw_deg.to_radians();
                 ([true; 5], p, Some((a.pitch.rad(), a.yaw.rad())))
             }
-            (super::Dof::Full, None) => ([true; 5], Prior::none(), None),
+            (super::Dof::Full, None) => {
+                let mut p = Prior::none();
+                if let Some(s) = c.attitude_envelope_deg {
+                    p.inv_sigma[3] = 1.0 / s.to_radians();
+                    p.inv_sigma[4] = 1.0 / s.to_radians();
+                }
+                ([true; 5], p, None)
+            }
         };
         let opts = SolveOptions {
             free,

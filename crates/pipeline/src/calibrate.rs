@@ -1,0 +1,492 @@
+//! Fitting a [`Calibration`] from truth-labelled sweep logs (MODEL.md
+//! "Calibration sweeps"; paper section 2.2.1), streamed frame by frame into
+//! least-squares accumulators so that 61,600 frames never sit in memory.
+//!
+//! Which frames feed which fit follows the paper: x (eqs. 2–3) and y, z
+//! (eqs. 6–7) from the translation grid (pitch = yaw = 0), pitch and yaw
+//! (eqs. 4–5) from the orientation fans (y = z = 0). Every candidate
+//! feature (each moment ratio, each first moment, each about the peak and
+//! about the array centre) is fitted, and the data pick which one tracks
+//! each quantity: that is how "M23/M33 for pitch or for yaw" is decided.
+
+use crate::calibration::{
+    Calibration, Coverage, Dark, Feature, Fits, Limits, LinearFit, Meta, RangeFit, SceneFacts,
+    FORMAT, VERSION,
+};
+use crate::fit::{FitError, Line, LineAcc};
+use crate::steps;
+use lightpose_core::{frame::full_scale, Frame, LogError, LogReader, NDET};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrateError {
+    /// A log could not be opened or read on, or its header is refused.
+    #[error(transparent)]
+    Log(LogError),
+    /// The data cannot give a calibration; says why.
+    #[error("cannot calibrate: {0}")]
+    Refused(String),
+}
+
+/// What to calibrate from, and the facts the logs do not carry.
+#[derive(Debug, Clone)]
+pub struct CalibrateOptions {
+    pub sweeps: Vec<PathBuf>,
+    /// A log of beacon-off frames for the dark offsets.
+    pub dark: Option<PathBuf>,
+    /// ADC reference, volts (a log header's `v_ref` overrides it).
+    pub v_ref: f64,
+    /// Temperature assumed for frames that report none.
+    pub default_temp_c: f64,
+    /// Samples the surge slope is fitted over (paper: 10).
+    pub surge_window: usize,
+    /// Written into `meta.created_by`.
+    pub created_by: String,
+}
+
+impl CalibrateOptions {
+    /// MODEL.md's defaults: 5 V reference, 20 °C, a 10-sample window.
+    pub fn new(sweeps: Vec<PathBuf>) -> Self {
+        CalibrateOptions {
+            sweeps,
+            dark: None,
+            v_ref: 5.0,
+            default_temp_c: lightpose_core::light::T_REF_C,
+            surge_window: 10,
+            created_by: format!("lightpose-pipeline {}", env!("CARGO_PKG_VERSION")),
+        }
+    }
+}
+
+/// MODEL.md's nominal dark offset, volts: the fallback when no dark frames
+/// exist (see docs/pipeline.md for why not the darkest pixels).
+pub const NOMINAL_OFFSET_V: f64 = 0.15;
+/// MODEL.md's nominal electronic noise, volts: the no-light threshold's
+/// basis when no dark frames exist.
+pub const NOMINAL_SIGMA_V: f64 = 0.05;
+/// A peak this many noise σ above the offset is light, not noise: the
+/// largest of 25 channels of pure noise exceeds 5σ about once in 10⁵ frames.
+pub const NO_LIGHT_SIGMAS: f64 = 5.0;
+
+/// Per-channel mean and spread of dark frames (Welford).
+#[derive(Debug, Clone, Copy, Default)]
+struct DarkAcc {
+    n: u64,
+    mean: [f64; NDET],
+    m2: [f64; NDET],
+    lsb: f64,
+}
+
+impl DarkAcc {
+    fn push(&mut self, f: &Frame, v_ref: f64) {
+        self.n += 1;
+        let n = self.n as f64;
+        let scale = v_ref / full_scale(f.adc_bits) as f64;
+        self.lsb = self.lsb.max(scale);
+        for k in 0..NDET {
+            let v = f.counts[k] as f64 * scale;
+            let d = v - self.mean[k];
+            self.mean[k] += d / n;
+            self.m2[k] += d * (v - self.mean[k]);
+        }
+    }
+}
+
+/// Everything accumulated from the lit frames.
+#[derive(Debug, Default)]
+struct Accs {
+    /// ln PD_max against x, translation frames.
+    x: LineAcc,
+    pitch: BTreeMap<Feature, LineAcc>,
+    yaw: BTreeMap<Feature, LineAcc>,
+    y: BTreeMap<Feature, LineAcc>,
+    z: BTreeMap<Feature, LineAcc>,
+    /// Ranges of truth over the frames used: x, y, z, pitch, yaw.
+    cov: [Option<[f64; 2]>; 5],
+    used: u64,
+    skipped: BTreeMap<&'static str, u64>,
+    translation: u64,
+    orientation: u64,
+}
+
+fn widen(r: &mut Option<[f64; 2]>, v: f64) {
+    *r = Some(match *r {
+        None => [v, v],
+        Some([lo, hi]) => [lo.min(v), hi.max(v)],
+    });
+}
+
+/// A truth value of zero, to the precision a log carries it.
+fn zero(v: f64) -> bool {
+    v.abs() < 1e-9
+}
+
+impl Accs {
+    fn push(
+        &mut self,
+        f: &Frame,
+        v_ref: f64,
+        dark: &[f64; NDET],
+        default_temp_c: f64,
+        no_light_v: f64,
+    ) {
+        let Some(truth) = f.truth else {
+            *self.skipped.entry("no truth").or_default() += 1;
+            return;
+        };
+        let p = match steps::prepare(f, v_ref, dark, default_temp_c, no_light_v) {
+            Ok(p) => p,
+            Err(st) => {
+                *self.skipped.entry(st.as_str()).or_default() += 1;
+                return;
+            }
+        };
+        let pose = truth.pose;
+        let (pitch, yaw) = (pose.pitch.deg(), pose.yaw.deg());
+        let level = zero(pitch) && zero(yaw);
+        let centred = zero(pose.y) && zero(pose.z);
+        if !level && !centred {
+            // Neither a translation nor an orientation calibration pose.
+            *self.skipped.entry("mixed pose").or_default() += 1;
+            return;
+        }
+        self.used += 1;
+        if level {
+            self.translation += 1;
+            self.x.push(pose.x, p.peak.value.ln());
+            for f in Feature::FIRST {
+                if let Some(v) = steps::feature_value(f, &p.moments) {
+                    self.y.entry(f).or_default().push(v, pose.y);
+                    self.z.entry(f).or_default().push(v, pose.z);
+                }
+            }
+            widen(&mut self.cov[0], pose.x);
+            widen(&mut self.cov[1], pose.y);
+            widen(&mut self.cov[2], pose.z);
+        }
+        if centred {
+            self.orientation += 1;
+            for f in Feature::RATIOS {
+                if let Some(v) = steps::feature_value(f, &p.moments) {
+                    self.pitch.entry(f).or_default().push(v, pitch);
+                    self.yaw.entry(f).or_default().push(v, yaw);
+                }
+            }
+            widen(&mut self.cov[0], pose.x);
+            widen(&mut self.cov[3], pitch);
+            widen(&mut self.cov[4], yaw);
+        }
+    }
+}
+
+/// Open a log and feed every frame to `each`; bad lines to `on_bad_line`.
+fn stream(
+    path: &PathBuf,
+    mut each: impl FnMut(&Frame, &lightpose_core::LogHeader),
+    on_bad_line: &mut dyn FnMut(&LogError),
+    bad: &mut u64,
+) -> Result<lightpose_core::LogHeader, CalibrateError> {
+    let mut r = LogReader::open(path).map_err(CalibrateError::Log)?;
+    let header = r.header().clone();
+    while let Some(item) = r.next_frame() {
+        match item {
+            Ok(f) => each(&f, &header),
+            Err(e @ LogError::Line { .. }) => {
+                *bad += 1;
+                on_bad_line(&e);
+            }
+            Err(e) => return Err(CalibrateError::Log(e)),
+        }
+    }
+    Ok(header)
+}
+
+fn header_v_ref(h: &lightpose_core::LogHeader, default: f64) -> f64 {
+    h.extra
+        .get("v_ref")
+        .and_then(|v| v.as_f64())
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .unwrap_or(default)
+}
+
+fn is_dark_sweep(h: &lightpose_core::LogHeader) -> bool {
+    h.extra.get("sweep").and_then(|v| v.as_str()) == Some("dark")
+}
+
+/// The best of `cands` for one quantity, by R².
+fn fitted(cands: &BTreeMap<Feature, LineAcc>) -> BTreeMap<Feature, Line> {
+    cands
+        .iter()
+        .filter_map(|(f, a)| a.solve().ok().map(|l| (*f, l)))
+        .collect()
+}
+
+/// Choose features for two quantities that must use different moments
+/// (pitch and yaw; y and z), maximising the sum of R².
+fn assign(
+    a: &BTreeMap<Feature, Line>,
+    b: &BTreeMap<Feature, Line>,
+) -> Option<((Feature, Line), (Feature, Line))> {
+    let mut best: Option<((Feature, Line), (Feature, Line))> = None;
+    for (fa, la) in a {
+        for (fb, lb) in b {
+            if fa.moment == fb.moment {
+                continue;
+            }
+            let better = best
+                .as_ref()
+                .map_or(true, |(x, y)| la.r2 + lb.r2 > x.1.r2 + y.1.r2);
+            if better {
+                best = Some(((*fa, *la), (*fb, *lb)));
+            }
+        }
+    }
+    best
+}
+
+fn linear(f: Feature, l: Line) -> LinearFit {
+    LinearFit {
+        feature: f,
+        a: l.slope,
+        b: l.intercept,
+        r2: l.r2,
+        sigma: l.sigma,
+        n: l.n,
+    }
+}
+
+/// Fit a calibration. Refused lines are handed to `on_bad_line` and skipped.
+pub fn calibrate(
+    opts: &CalibrateOptions,
+    mut on_bad_line: impl FnMut(&LogError),
+) -> Result<Calibration, CalibrateError> {
+    if opts.sweeps.is_empty() {
+        return Err(CalibrateError::Refused("no sweep log given".into()));
+    }
+    if !(2..=crate::calibration::MAX_SURGE_WINDOW).contains(&opts.surge_window) {
+        return Err(CalibrateError::Refused(format!(
+            "surge window {} must be 2..{}",
+            opts.surge_window,
+            crate::calibration::MAX_SURGE_WINDOW
+        )));
+    }
+    let mut bad = 0u64;
+
+    // Pass 1: dark frames, from the dark log or from dark sweeps.
+    let mut dark = DarkAcc::default();
+    let mut dark_source = Vec::new();
+    let mut v_ref = opts.v_ref;
+    if let Some(p) = &opts.dark {
+        stream(
+            p,
+            |f, h| dark.push(f, header_v_ref(h, opts.v_ref)),
+            &mut on_bad_line,
+            &mut bad,
+        )?;
+        dark_source.push(p.display().to_string());
+    }
+    for p in &opts.sweeps {
+        let h = LogReader::open(p)
+            .map_err(CalibrateError::Log)?
+            .header()
+            .clone();
+        if is_dark_sweep(&h) {
+            stream(
+                p,
+                |f, h| dark.push(f, header_v_ref(h, opts.v_ref)),
+                &mut on_bad_line,
+                &mut bad,
+            )?;
+            dark_source.push(p.display().to_string());
+        }
+    }
+    let (offsets, sigma, no_light_v, dark_source) = if dark.n >= 2 {
+        let sig: Vec<f64> = dark
+            .m2
+            .iter()
+            .map(|m| (m / (dark.n - 1) as f64).sqrt())
+            .collect();
+        let worst = sig.iter().cloned().fold(0.0, f64::max);
+        // At least two LSB, so that a noise-free scene is not "lit" by one
+        // count of rounding.
+        let thr = (NO_LIGHT_SIGMAS * worst).max(2.0 * dark.lsb);
+        (dark.mean, Some(sig), thr, dark_source.join(", "))
+    } else if dark.n == 1 {
+        return Err(CalibrateError::Refused(
+            "only one dark frame: the offsets need several to average the noise".into(),
+        ));
+    } else {
+        (
+            [NOMINAL_OFFSET_V; NDET],
+            None,
+            NO_LIGHT_SIGMAS * NOMINAL_SIGMA_V,
+            "nominal".to_string(),
+        )
+    };
+
+    // Pass 2: the lit, truth-labelled frames.
+    let mut accs = Accs::default();
+    let mut first_header = None;
+    let mut sweeps = Vec::new();
+    for p in &opts.sweeps {
+        let h = LogReader::open(p)
+            .map_err(CalibrateError::Log)?
+            .header()
+            .clone();
+        sweeps.push(p.display().to_string());
+        if is_dark_sweep(&h) {
+            continue;
+        }
+        v_ref = header_v_ref(&h, opts.v_ref);
+        let header = stream(
+            p,
+            |f, _| accs.push(f, v_ref, &offsets, opts.default_temp_c, no_light_v),
+            &mut on_bad_line,
+            &mut bad,
+        )?;
+        first_header.get_or_insert(header);
+    }
+    let Some(header) = first_header else {
+        return Err(CalibrateError::Refused(
+            "every sweep given is a dark sweep: no lit frames".into(),
+        ));
+    };
+    let skipped = || {
+        accs.skipped
+            .iter()
+            .map(|(k, v)| format!("{v} {k}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if accs.translation == 0 {
+        return Err(CalibrateError::Refused(format!(
+            "no usable translation frames (pitch = yaw = 0 with light and no saturation); skipped: {}",
+            skipped()
+        )));
+    }
+    if accs.orientation == 0 {
+        return Err(CalibrateError::Refused(format!(
+            "no usable orientation frames (y = z = 0 with pitch or yaw swept); skipped: {}",
+            skipped()
+        )));
+    }
+
+    // x: ln PD = ln a1 − b1·x.
+    let x_line = accs.x.solve().map_err(|e| {
+        CalibrateError::Refused(match e {
+            FitError::InputConstant => format!(
+                "the translation frames cover only x = {} m: the range fit needs at least two distances",
+                accs.cov[0].map_or(f64::NAN, |r| r[0])
+            ),
+            e => format!("range fit (x from PD_max): {e}"),
+        })
+    })?;
+    // The fit is ln PD against x; swap roles: u = x, v = ln PD.
+    if !(x_line.slope < 0.0) {
+        return Err(CalibrateError::Refused(format!(
+            "the peak does not fall with distance (d ln PD/dx = {:.4}): not a beacon sweep",
+            x_line.slope
+        )));
+    }
+    let b1 = -x_line.slope;
+    let x_fit = RangeFit {
+        a1: x_line.intercept.exp(),
+        b1,
+        r2: x_line.r2,
+        sigma_ln: x_line.sigma,
+        sigma_m: x_line.sigma / b1,
+        n: x_line.n,
+    };
+
+    let (pitch_c, yaw_c) = (fitted(&accs.pitch), fitted(&accs.yaw));
+    let check_varies =
+        |acc: &BTreeMap<Feature, LineAcc>, what: &str| -> Result<(), CalibrateError> {
+            match acc.values().next().map(|a| a.solve()) {
+                Some(Err(FitError::TargetConstant)) => Err(CalibrateError::Refused(format!(
+                    "{what} never varies in the sweep: the fit needs it swept"
+                ))),
+                _ => Ok(()),
+            }
+        };
+    check_varies(&accs.pitch, "pitch (orientation frames)")?;
+    check_varies(&accs.yaw, "yaw (orientation frames)")?;
+    check_varies(&accs.y, "y (translation frames)")?;
+    check_varies(&accs.z, "z (translation frames)")?;
+    let ((fp, lp), (fy, ly)) = assign(&pitch_c, &yaw_c).ok_or_else(|| {
+        CalibrateError::Refused("no moment ratio could be fitted to pitch and yaw".into())
+    })?;
+    let (y_c, z_c) = (fitted(&accs.y), fitted(&accs.z));
+    let ((fyy, lyy), (fz, lz)) = assign(&y_c, &z_c).ok_or_else(|| {
+        CalibrateError::Refused("no first moment could be fitted to y and z".into())
+    })?;
+
+    let mut selection: BTreeMap<String, BTreeMap<String, f64>> = BTreeMap::new();
+    for (q, c) in [
+        ("pitch", &pitch_c),
+        ("yaw", &yaw_c),
+        ("y", &y_c),
+        ("z", &z_c),
+    ] {
+        selection.insert(
+            q.into(),
+            c.iter().map(|(f, l)| (f.to_string(), l.r2)).collect(),
+        );
+    }
+
+    let cov = |i: usize| accs.cov[i].unwrap_or([0.0, 0.0]);
+    let cal = Calibration {
+        meta: Meta {
+            format: FORMAT.into(),
+            version: VERSION,
+            created_by: opts.created_by.clone(),
+            sweeps,
+            dark_source,
+            frames: accs.used,
+            bad_lines: bad,
+        },
+        scene: SceneFacts {
+            adc_bits: header.adc_bits,
+            v_ref,
+            t_ref_c: lightpose_core::light::T_REF_C,
+            default_temp_c: opts.default_temp_c,
+            rate_hz: header.rate_hz,
+        },
+        dark: Dark {
+            offset_v: offsets.to_vec(),
+            sigma_v: sigma,
+            frames: dark.n,
+        },
+        fits: Fits {
+            x: x_fit,
+            pitch: linear(fp, lp),
+            yaw: linear(fy, ly),
+            y: linear(fyy, lyy),
+            z: linear(fz, lz),
+        },
+        coverage: Coverage {
+            x_m: cov(0),
+            y_m: cov(1),
+            z_m: cov(2),
+            pitch_deg: cov(3),
+            yaw_deg: cov(4),
+        },
+        limits: Limits {
+            no_light_v,
+            surge_window: opts.surge_window,
+            // The paper's requirements (x ±0.5 m, y, z ±0.2 m, angles ±5°):
+            // an estimate that far outside the covered range is beyond
+            // what the sweep can vouch for.
+            margin_x_m: 0.5,
+            margin_yz_m: 0.2,
+            margin_angle_deg: 5.0,
+            // Ten frames at the paper's 5 Hz.
+            max_gap_s: 10.0 / header.rate_hz,
+        },
+        selection,
+        physical: None,
+    };
+    cal.check()
+        .map_err(|(t, k, m)| CalibrateError::Refused(format!("the fit gave {t}.{k}: {m}")))?;
+    Ok(cal)
+}

@@ -1,0 +1,705 @@
+//! The calibration file: every coefficient of the paper's pose equations,
+//! how well each was fitted, the range of poses it is valid over, the scene
+//! facts it assumed and the files it came from. It is the contract between
+//! `lightpose calibrate` (which writes it) and every estimator, the daemon
+//! and the Monte Carlo (which read it), so it is typed and checked on load:
+//! unknown keys and impossible values are refused with file, line and key.
+//!
+//! A later `[physical]` table (light-model parameters for a model-based
+//! estimator) is kept as a raw TOML table until its owner types it.
+
+use lightpose_core::{light::temperature_gain, NDET};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::Path;
+
+/// `meta.format` of every calibration file.
+pub const FORMAT: &str = "lightpose-calibration";
+/// `meta.version` this code reads and writes.
+pub const VERSION: u32 = 1;
+/// Longest surge window the estimator holds (fixed so it never allocates).
+pub const MAX_SURGE_WINDOW: usize = 64;
+
+#[derive(Debug, thiserror::Error)]
+pub enum CalError {
+    #[error("{file}: {source}")]
+    Io {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// TOML syntax, a wrong type, a missing or an unknown key.
+    #[error("{file}:{line}: {msg}")]
+    Parse {
+        file: String,
+        line: usize,
+        msg: String,
+    },
+    /// A value that parses but cannot be right.
+    #[error("{file}:{line}: {key}: {msg}")]
+    Invalid {
+        file: String,
+        line: usize,
+        key: String,
+        msg: String,
+    },
+    #[error("{file}: cannot serialize calibration: {msg}")]
+    Serialize { file: String, msg: String },
+}
+
+/// Where a moment is taken about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Origin {
+    /// The brightest pixel, refined to sub-pixel accuracy (the paper's eq. 1).
+    Peak,
+    /// The centre detector (2, 2) of the array.
+    Centre,
+}
+
+/// A scalar taken from the 3 × 3 moment matrix. Indices are 0-based
+/// `M_pq`, p the power of the column offset (across the array, as y and yaw
+/// move the spot), q that of the row offset (as z and pitch move it). The
+/// paper's 1-based M21, M12, M23, M32, M33 are M10, M01, M12, M21, M22 here.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Moment {
+    M10,
+    M01,
+    /// M12 / M22 (the paper's M23/M33).
+    M12OverM22,
+    /// M21 / M22 (the paper's M32/M33).
+    M21OverM22,
+}
+
+/// A moment about an origin: what a linear fit maps to a pose quantity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub struct Feature {
+    pub moment: Moment,
+    pub origin: Origin,
+}
+
+impl Feature {
+    pub const fn new(moment: Moment, origin: Origin) -> Self {
+        Feature { moment, origin }
+    }
+
+    /// Candidates for pitch and yaw (the paper's moment ratios).
+    pub const RATIOS: [Feature; 4] = [
+        Feature::new(Moment::M12OverM22, Origin::Peak),
+        Feature::new(Moment::M21OverM22, Origin::Peak),
+        Feature::new(Moment::M12OverM22, Origin::Centre),
+        Feature::new(Moment::M21OverM22, Origin::Centre),
+    ];
+    /// Candidates for y and z (the paper's first-order moments).
+    pub const FIRST: [Feature; 4] = [
+        Feature::new(Moment::M10, Origin::Peak),
+        Feature::new(Moment::M01, Origin::Peak),
+        Feature::new(Moment::M10, Origin::Centre),
+        Feature::new(Moment::M01, Origin::Centre),
+    ];
+}
+
+impl fmt::Display for Feature {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let m = match self.moment {
+            Moment::M10 => "m10",
+            Moment::M01 => "m01",
+            Moment::M12OverM22 => "m12/m22",
+            Moment::M21OverM22 => "m21/m22",
+        };
+        let o = match self.origin {
+            Origin::Peak => "peak",
+            Origin::Centre => "centre",
+        };
+        write!(f, "{m}@{o}")
+    }
+}
+
+impl TryFrom<String> for Feature {
+    type Error = String;
+    fn try_from(s: String) -> Result<Self, String> {
+        let (m, o) = s.split_once('@').ok_or_else(|| {
+            format!("feature \"{s}\" must be MOMENT@ORIGIN, e.g. \"m12/m22@peak\"")
+        })?;
+        let moment = match m {
+            "m10" => Moment::M10,
+            "m01" => Moment::M01,
+            "m12/m22" => Moment::M12OverM22,
+            "m21/m22" => Moment::M21OverM22,
+            _ => {
+                return Err(format!(
+                    "unknown moment \"{m}\" (m10, m01, m12/m22, m21/m22)"
+                ))
+            }
+        };
+        let origin = match o {
+            "peak" => Origin::Peak,
+            "centre" => Origin::Centre,
+            _ => return Err(format!("unknown origin \"{o}\" (peak, centre)")),
+        };
+        Ok(Feature { moment, origin })
+    }
+}
+
+impl From<Feature> for String {
+    fn from(f: Feature) -> String {
+        f.to_string()
+    }
+}
+
+/// Provenance of the calibration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Meta {
+    pub format: String,
+    pub version: u32,
+    pub created_by: String,
+    /// The sweep logs it was fitted from, as given on the command line.
+    pub sweeps: Vec<String>,
+    /// Where the dark offsets came from: a dark log's path, "sweep" (beacon-off
+    /// frames inside the sweeps) or "nominal" (MODEL.md's 0.15 V, no dark data).
+    pub dark_source: String,
+    /// Frames that went into the fits, and log lines refused.
+    pub frames: u64,
+    pub bad_lines: u64,
+}
+
+/// The scene facts the fit assumed; replay converts counts with the same.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFacts {
+    /// Resolution of the sweep logs (frames of other resolutions convert
+    /// by their own; this is a record, not a restriction).
+    pub adc_bits: u8,
+    /// ADC reference, volts: counts → volts.
+    pub v_ref: f64,
+    /// Reference temperature of eq. 14 (g_T = 1 there).
+    pub t_ref_c: f64,
+    /// Water temperature assumed for frames that report none.
+    pub default_temp_c: f64,
+    pub rate_hz: f64,
+}
+
+/// Each channel's dark offset (volts), subtracted before anything else.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Dark {
+    pub offset_v: Vec<f64>,
+    /// Each channel's noise (1σ, volts) when dark frames were available.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_v: Option<Vec<f64>>,
+    #[serde(default)]
+    pub frames: u64,
+}
+
+/// x from the peak: PD_max = a1 · exp(−b1 · x) (eqs. 2–3), fitted as a line
+/// in ln PD_max.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RangeFit {
+    /// volts
+    pub a1: f64,
+    /// 1/m
+    pub b1: f64,
+    pub r2: f64,
+    /// Residual σ of ln PD_max.
+    pub sigma_ln: f64,
+    /// The same as metres of x (σ_ln / b1).
+    pub sigma_m: f64,
+    pub n: u64,
+}
+
+/// quantity = a · feature + b (eqs. 4–7).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinearFit {
+    pub feature: Feature,
+    pub a: f64,
+    pub b: f64,
+    pub r2: f64,
+    /// Residual σ in the quantity's unit (metres or degrees).
+    pub sigma: f64,
+    pub n: u64,
+}
+
+impl LinearFit {
+    #[inline]
+    pub fn eval(&self, f: f64) -> f64 {
+        self.a * f + self.b
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fits {
+    pub x: RangeFit,
+    /// degrees
+    pub pitch: LinearFit,
+    /// degrees
+    pub yaw: LinearFit,
+    /// metres
+    pub y: LinearFit,
+    /// metres
+    pub z: LinearFit,
+}
+
+/// The poses the sweeps covered, [min, max].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Coverage {
+    pub x_m: [f64; 2],
+    pub y_m: [f64; 2],
+    pub z_m: [f64; 2],
+    pub pitch_deg: [f64; 2],
+    pub yaw_deg: [f64; 2],
+}
+
+/// Thresholds of the status word and the surge smoothing.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    /// Peak signal (volts, after offset and temperature) below which a
+    /// frame has no light.
+    pub no_light_v: f64,
+    /// Samples of x the surge slope is fitted over (paper: 10).
+    pub surge_window: usize,
+    /// How far outside the covered range an estimate may go before its
+    /// status says out_of_range.
+    pub margin_x_m: f64,
+    pub margin_yz_m: f64,
+    pub margin_angle_deg: f64,
+    /// A gap longer than this between usable frames restarts y, z and surge.
+    pub max_gap_s: f64,
+}
+
+/// A typed calibration (see the module doc).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Calibration {
+    pub meta: Meta,
+    pub scene: SceneFacts,
+    pub dark: Dark,
+    pub fits: Fits,
+    pub coverage: Coverage,
+    pub limits: Limits,
+    /// R² of every candidate feature for each quantity: the evidence for
+    /// the features that `fits` chose.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub selection: BTreeMap<String, BTreeMap<String, f64>>,
+    /// Light-model parameters for a model-based estimator (typed by its
+    /// owner; kept verbatim here).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub physical: Option<toml::Table>,
+}
+
+/// Line (1-based) of a byte offset.
+fn line_of_offset(text: &str, offset: usize) -> usize {
+    text.as_bytes()[..offset.min(text.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
+}
+
+/// Line of `key` in `[table]` (best effort), else of the table header, else 1.
+fn line_of_key(text: &str, table: &str, key: &str) -> usize {
+    let mut in_table = table.is_empty();
+    let mut header = 1;
+    for (i, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if l.starts_with('[') {
+            in_table = l.trim_matches(|c| c == '[' || c == ']').trim() == table;
+            if in_table {
+                header = i + 1;
+            }
+            continue;
+        }
+        if in_table {
+            if let Some((k, _)) = l.split_once('=') {
+                if k.trim() == key {
+                    return i + 1;
+                }
+            }
+        }
+    }
+    header
+}
+
+impl Calibration {
+    /// Read, parse and check a calibration file.
+    pub fn load(path: &Path) -> Result<Calibration, CalError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| CalError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        Calibration::parse(&text, &file)
+    }
+
+    /// Parse and check calibration text; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Calibration, CalError> {
+        let cal: Calibration = toml::from_str(text).map_err(|e| CalError::Parse {
+            file: file.to_string(),
+            line: e.span().map_or(1, |s| line_of_offset(text, s.start)),
+            msg: e.message().trim().replace('\n', " "),
+        })?;
+        cal.check().map_err(|(table, key, msg)| CalError::Invalid {
+            file: file.to_string(),
+            line: line_of_key(text, table, key),
+            key: if table.is_empty() {
+                key.to_string()
+            } else {
+                format!("{table}.{key}")
+            },
+            msg,
+        })?;
+        Ok(cal)
+    }
+
+    /// The TOML text of this calibration.
+    pub fn to_toml(&self) -> Result<String, String> {
+        toml::to_string(self).map_err(|e| e.to_string())
+    }
+
+    /// Write the calibration (checked first, so that what is written loads).
+    pub fn save(&self, path: &Path) -> Result<(), CalError> {
+        let file = path.display().to_string();
+        self.check()
+            .map_err(|(table, key, msg)| CalError::Invalid {
+                file: file.clone(),
+                line: 0,
+                key: format!("{table}.{key}"),
+                msg,
+            })?;
+        let mut text = String::from(
+            "# lightpose calibration: coefficients of the paper's pose equations\n\
+             # (eqs. 2-7), fitted by `lightpose calibrate`. See docs/pipeline.md.\n\n",
+        );
+        text.push_str(&self.to_toml().map_err(|msg| CalError::Serialize {
+            file: file.clone(),
+            msg,
+        })?);
+        std::fs::write(path, text).map_err(|source| CalError::Io { file, source })
+    }
+
+    /// Every value that parses but cannot be right, as (table, key, why).
+    pub fn check(&self) -> Result<(), (&'static str, &'static str, String)> {
+        fn finite(
+            t: &'static str,
+            k: &'static str,
+            v: f64,
+        ) -> Result<(), (&'static str, &'static str, String)> {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err((t, k, format!("{v} is not a finite number")))
+            }
+        }
+        fn positive(
+            t: &'static str,
+            k: &'static str,
+            v: f64,
+        ) -> Result<(), (&'static str, &'static str, String)> {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err((t, k, format!("{v} must be a positive number")))
+            }
+        }
+        let m = &self.meta;
+        if m.format != FORMAT {
+            return Err((
+                "meta",
+                "format",
+                format!("\"{}\" is not \"{FORMAT}\"", m.format),
+            ));
+        }
+        if m.version != VERSION {
+            return Err((
+                "meta",
+                "version",
+                format!("{} is not supported (only {VERSION})", m.version),
+            ));
+        }
+        let s = &self.scene;
+        if !(1..=16).contains(&s.adc_bits) {
+            return Err(("scene", "adc_bits", format!("{} must be 1..16", s.adc_bits)));
+        }
+        positive("scene", "v_ref", s.v_ref)?;
+        positive("scene", "rate_hz", s.rate_hz)?;
+        finite("scene", "t_ref_c", s.t_ref_c)?;
+        if (s.t_ref_c - lightpose_core::light::T_REF_C).abs() > 1e-9 {
+            return Err((
+                "scene",
+                "t_ref_c",
+                format!(
+                    "{} differs from the {} °C that eq. 14 is referred to in this build",
+                    s.t_ref_c,
+                    lightpose_core::light::T_REF_C
+                ),
+            ));
+        }
+        if !(s.default_temp_c.is_finite() && temperature_gain(s.default_temp_c) > 0.0) {
+            return Err((
+                "scene",
+                "default_temp_c",
+                format!("{} °C is not a water temperature", s.default_temp_c),
+            ));
+        }
+        let d = &self.dark;
+        if d.offset_v.len() != NDET {
+            return Err((
+                "dark",
+                "offset_v",
+                format!("has {} values, expected {NDET}", d.offset_v.len()),
+            ));
+        }
+        if let Some(v) = d.offset_v.iter().find(|v| !v.is_finite()) {
+            return Err(("dark", "offset_v", format!("{v} is not a finite number")));
+        }
+        if let Some(sig) = &d.sigma_v {
+            if sig.len() != NDET || sig.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+                return Err((
+                    "dark",
+                    "sigma_v",
+                    format!("must be {NDET} non-negative numbers"),
+                ));
+            }
+        }
+        let x = &self.fits.x;
+        positive("fits.x", "a1", x.a1)?;
+        positive("fits.x", "b1", x.b1)?;
+        finite("fits.x", "r2", x.r2)?;
+        finite("fits.x", "sigma_ln", x.sigma_ln)?;
+        finite("fits.x", "sigma_m", x.sigma_m)?;
+        for (t, f) in [
+            ("fits.pitch", &self.fits.pitch),
+            ("fits.yaw", &self.fits.yaw),
+            ("fits.y", &self.fits.y),
+            ("fits.z", &self.fits.z),
+        ] {
+            finite(t, "a", f.a)?;
+            finite(t, "b", f.b)?;
+            finite(t, "r2", f.r2)?;
+            finite(t, "sigma", f.sigma)?;
+        }
+        let first = |f: &LinearFit| matches!(f.feature.moment, Moment::M10 | Moment::M01);
+        if first(&self.fits.pitch) {
+            return Err((
+                "fits.pitch",
+                "feature",
+                "must be a moment ratio (m12/m22 or m21/m22)".into(),
+            ));
+        }
+        if first(&self.fits.yaw) {
+            return Err((
+                "fits.yaw",
+                "feature",
+                "must be a moment ratio (m12/m22 or m21/m22)".into(),
+            ));
+        }
+        if !first(&self.fits.y) {
+            return Err((
+                "fits.y",
+                "feature",
+                "must be a first moment (m10 or m01)".into(),
+            ));
+        }
+        if !first(&self.fits.z) {
+            return Err((
+                "fits.z",
+                "feature",
+                "must be a first moment (m10 or m01)".into(),
+            ));
+        }
+        let c = &self.coverage;
+        for (k, r) in [
+            ("x_m", c.x_m),
+            ("y_m", c.y_m),
+            ("z_m", c.z_m),
+            ("pitch_deg", c.pitch_deg),
+            ("yaw_deg", c.yaw_deg),
+        ] {
+            if !(r[0].is_finite() && r[1].is_finite() && r[0] <= r[1]) {
+                return Err((
+                    "coverage",
+                    k,
+                    format!("[{}, {}] is not a range", r[0], r[1]),
+                ));
+            }
+        }
+        let l = &self.limits;
+        positive("limits", "no_light_v", l.no_light_v)?;
+        if !(2..=MAX_SURGE_WINDOW).contains(&l.surge_window) {
+            return Err((
+                "limits",
+                "surge_window",
+                format!("{} must be 2..{MAX_SURGE_WINDOW}", l.surge_window),
+            ));
+        }
+        for (k, v) in [
+            ("margin_x_m", l.margin_x_m),
+            ("margin_yz_m", l.margin_yz_m),
+            ("margin_angle_deg", l.margin_angle_deg),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(("limits", k, format!("{v} must be ≥ 0")));
+            }
+        }
+        positive("limits", "max_gap_s", l.max_gap_s)?;
+        Ok(())
+    }
+
+    /// Dark offsets as a fixed array (checked to have NDET values).
+    pub fn dark_offsets(&self) -> [f64; NDET] {
+        let mut o = [0.0; NDET];
+        for (d, s) in o.iter_mut().zip(&self.dark.offset_v) {
+            *d = *s;
+        }
+        o
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// A plausible calibration for tests (not a fit of anything).
+    pub(crate) fn sample() -> Calibration {
+        let lin = |feature: &str, a: f64, b: f64| LinearFit {
+            feature: Feature::try_from(feature.to_string()).unwrap(),
+            a,
+            b,
+            r2: 0.99,
+            sigma: 0.1,
+            n: 100,
+        };
+        Calibration {
+            meta: Meta {
+                format: FORMAT.into(),
+                version: VERSION,
+                created_by: "test".into(),
+                sweeps: vec!["sweep.jsonl".into()],
+                dark_source: "nominal".into(),
+                frames: 100,
+                bad_lines: 0,
+            },
+            scene: SceneFacts {
+                adc_bits: 10,
+                v_ref: 5.0,
+                t_ref_c: 20.0,
+                default_temp_c: 20.0,
+                rate_hz: 5.0,
+            },
+            dark: Dark {
+                offset_v: vec![0.15; NDET],
+                sigma_v: None,
+                frames: 0,
+            },
+            fits: Fits {
+                x: RangeFit {
+                    a1: 33.0,
+                    b1: 0.44,
+                    r2: 0.99,
+                    sigma_ln: 0.02,
+                    sigma_m: 0.07,
+                    n: 100,
+                },
+                pitch: lin("m21/m22@peak", -20.0, 0.0),
+                yaw: lin("m12/m22@peak", -20.0, 0.0),
+                y: lin("m10@centre", -0.5, 0.0),
+                z: lin("m01@centre", 0.5, 0.0),
+            },
+            coverage: Coverage {
+                x_m: [4.5, 8.5],
+                y_m: [-0.6, 0.6],
+                z_m: [0.0, 0.8],
+                pitch_deg: [-15.0, 15.0],
+                yaw_deg: [-15.0, 15.0],
+            },
+            limits: Limits {
+                no_light_v: 0.25,
+                surge_window: 10,
+                margin_x_m: 0.5,
+                margin_yz_m: 0.2,
+                margin_angle_deg: 5.0,
+                max_gap_s: 2.0,
+            },
+            selection: BTreeMap::new(),
+            physical: None,
+        }
+    }
+
+    #[test]
+    fn save_load_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cal.toml");
+        let mut c = sample();
+        c.selection
+            .entry("pitch".into())
+            .or_default()
+            .insert("m21/m22@peak".into(), 0.98);
+        c.save(&p).unwrap();
+        let back = Calibration::load(&p).unwrap();
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn unknown_key_is_named_with_its_line() {
+        let text = sample()
+            .to_toml()
+            .unwrap()
+            .replace("[limits]\n", "[limits]\nbogus = 3\n");
+        let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+        let line = text.lines().position(|l| l.starts_with("bogus")).unwrap() + 1;
+        assert!(e.starts_with(&format!("c.toml:{line}: ")), "{e}");
+        assert!(e.contains("bogus"), "{e}");
+    }
+
+    #[test]
+    fn impossible_value_is_named_with_key_and_line() {
+        let text = sample()
+            .to_toml()
+            .unwrap()
+            .replace("b1 = 0.44", "b1 = -0.44");
+        let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+        let line = text.lines().position(|l| l.starts_with("b1 =")).unwrap() + 1;
+        assert_eq!(
+            e,
+            format!("c.toml:{line}: fits.x.b1: -0.44 must be a positive number")
+        );
+    }
+
+    #[test]
+    fn missing_key_and_bad_feature_are_refused() {
+        let text = sample()
+            .to_toml()
+            .unwrap()
+            .replace("surge_window = 10\n", "");
+        let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+        assert!(e.contains("surge_window"), "{e}");
+        let text = sample()
+            .to_toml()
+            .unwrap()
+            .replace("m10@centre", "m11@centre");
+        let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+        assert!(e.contains("unknown moment \"m11\""), "{e}");
+    }
+
+    #[test]
+    fn a_physical_table_is_kept() {
+        let mut text = sample().to_toml().unwrap();
+        text.push_str("\n[physical]\nv1 = 135.0\nk_d = 0.09\n");
+        let c = Calibration::parse(&text, "c.toml").unwrap();
+        let p = c.physical.as_ref().unwrap();
+        assert_eq!(p.get("v1").and_then(|v| v.as_float()), Some(135.0));
+    }
+
+    #[test]
+    fn features_round_trip_as_words() {
+        for f in Feature::RATIOS.iter().chain(Feature::FIRST.iter()) {
+            assert_eq!(Feature::try_from(f.to_string()), Ok(*f));
+        }
+    }
+}

@@ -1,0 +1,598 @@
+//! The `"tracker"` estimator: an extended Kalman filter over pose and its
+//! rates (and optionally K_D), measuring the raw counts through the light
+//! equation.
+//!
+//! Why: one frame barely separates y from yaw and z from pitch, and gives
+//! no velocity at all (MODEL.md). Following the vehicle through time does
+//! both: a constant-velocity motion model ties successive frames together,
+//! so the ridge of one frame is crossed by the next, and surge comes out of
+//! the state with its own uncertainty. The update is iterated (IEKF) because
+//! the light equation is far from linear over one frame's uncertainty at
+//! start-up. Saturated and dark channels are censored: they enter the
+//! update only when the prediction crosses the bound they prove.
+//!
+//! Fixed-size matrices throughout: no allocation per frame.
+
+use lightpose_core::light::temperature_gain;
+use lightpose_core::{Estimator, Frame, PoseEstimate, Status, StdDev, NDET};
+use nalgebra::{SMatrix, SVector};
+use serde::{Deserialize, Serialize};
+
+use crate::model::estimator::{Dof, ModelConfig, ModelError, ModelEstimator};
+use crate::model::light::{predict_with_grad, PoseVec};
+use crate::model::solver::Censoring;
+use crate::model::SensorModel;
+
+/// State: x, y, z, θ, ψ, ẋ, ẏ, ż, θ̇, ψ̇, K_D.
+const NS: usize = 11;
+/// Measurements: 25 counts, pitch and yaw readings.
+const NM: usize = NDET + 2;
+const KD: usize = 10;
+
+type Vs = SVector<f64, NS>;
+type Ms = SMatrix<f64, NS, NS>;
+type Hm = SMatrix<f64, NM, NS>;
+
+/// Settings of the tracker (a TOML table with every key optional).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrackerConfig {
+    /// White-acceleration spectral density of the position, (m/s²)²/Hz.
+    pub accel_psd: f64,
+    /// White angular-acceleration spectral density, (°/s²)²/Hz.
+    pub ang_accel_psd_deg: f64,
+    /// Estimate K_D as a slowly varying random walk (turbid or changing
+    /// water); otherwise it is the calibration's value, fixed.
+    pub estimate_k_d: bool,
+    /// Initial 1σ of K_D about the calibration's value, m⁻¹.
+    pub k_d_sigma: f64,
+    /// Random-walk density of K_D, (m⁻¹)²/s.
+    pub k_d_walk_psd: f64,
+    /// Start-up 1σ of velocity (m/s) and of angular rates (°/s).
+    pub init_velocity_sigma: f64,
+    pub init_rate_sigma_deg: f64,
+    /// Start-up attitude envelope without a sensor: pitch = yaw = 0 ± this.
+    pub init_attitude_sigma_deg: f64,
+    /// Use `Frame.attitude` when present, with these 1σ.
+    pub use_attitude: bool,
+    pub attitude_sigma_pitch_deg: f64,
+    pub attitude_sigma_yaw_deg: f64,
+    /// Range of x for which an estimate is `ok`.
+    pub x_range: [f64; 2],
+    /// Frames after (re)start reported as `initialising`.
+    pub init_frames: u32,
+    /// Gauss–Newton iterations of the iterated update.
+    pub update_iterations: usize,
+    /// Normalized innovation squared per measurement above which a frame
+    /// is not used; this many such frames in a row restart the filter.
+    pub nis_gate: f64,
+    pub max_rejected: u32,
+    /// A gap in time longer than this restarts the filter (seconds).
+    pub max_gap_s: f64,
+    /// More channels at full scale than this gives `saturated`.
+    pub max_saturated: usize,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        TrackerConfig {
+            accel_psd: 0.05,
+            ang_accel_psd_deg: 20.0,
+            estimate_k_d: false,
+            k_d_sigma: 0.015,
+            k_d_walk_psd: 1e-6,
+            init_velocity_sigma: 0.7,
+            init_rate_sigma_deg: 10.0,
+            init_attitude_sigma_deg: 10.0,
+            use_attitude: true,
+            attitude_sigma_pitch_deg: 0.3,
+            attitude_sigma_yaw_deg: 1.5,
+            x_range: [3.0, 12.0],
+            init_frames: 5,
+            update_iterations: 3,
+            nis_gate: 25.0,
+            max_rejected: 3,
+            max_gap_s: 2.0,
+            max_saturated: 4,
+        }
+    }
+}
+
+impl TrackerConfig {
+    pub fn validate(&self) -> Result<(), ModelError> {
+        let bad = |m: String| Err(ModelError::Config(m));
+        for (name, v) in [
+            ("accel_psd", self.accel_psd),
+            ("ang_accel_psd_deg", self.ang_accel_psd_deg),
+            ("k_d_sigma", self.k_d_sigma),
+            ("k_d_walk_psd", self.k_d_walk_psd),
+            ("init_velocity_sigma", self.init_velocity_sigma),
+            ("init_rate_sigma_deg", self.init_rate_sigma_deg),
+            ("init_attitude_sigma_deg", self.init_attitude_sigma_deg),
+            ("attitude_sigma_pitch_deg", self.attitude_sigma_pitch_deg),
+            ("attitude_sigma_yaw_deg", self.attitude_sigma_yaw_deg),
+            ("nis_gate", self.nis_gate),
+            ("max_gap_s", self.max_gap_s),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("tracker {name} = {v} must be positive"));
+            }
+        }
+        let [lo, hi] = self.x_range;
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
+            return bad(format!("tracker x_range = [{lo}, {hi}] must be 0 < lo < hi"));
+        }
+        if self.update_iterations == 0 {
+            return bad("tracker update_iterations must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct State {
+    x: Vs,
+    p: Ms,
+    t: f64,
+    frames: u32,
+    rejected: u32,
+}
+
+/// EKF tracker (name `"tracker"`).
+#[derive(Debug, Clone)]
+pub struct Tracker {
+    model: SensorModel,
+    cfg: TrackerConfig,
+    /// Single-frame fits that start (and restart) the filter.
+    init: ModelEstimator,
+    state: Option<State>,
+}
+
+impl Tracker {
+    pub const NAME: &'static str = "tracker";
+
+    pub fn new(model: SensorModel, cfg: TrackerConfig) -> Result<Self, ModelError> {
+        cfg.validate()?;
+        let init_cfg = ModelConfig {
+            dof: Dof::Full,
+            use_attitude: cfg.use_attitude,
+            attitude_sigma_pitch_deg: cfg.attitude_sigma_pitch_deg,
+            attitude_sigma_yaw_deg: cfg.attitude_sigma_yaw_deg,
+            attitude_envelope_deg: Some(cfg.init_attitude_sigma_deg),
+            x_range: cfg.x_range,
+            max_saturated: cfg.max_saturated,
+            ..ModelConfig::default()
+        };
+        let init = ModelEstimator::new(model.clone(), init_cfg)?;
+        Ok(Tracker {
+            model,
+            cfg,
+            init,
+            state: None,
+        })
+    }
+
+    pub fn config(&self) -> &TrackerConfig {
+        &self.cfg
+    }
+
+    /// Start from a single-frame fit of `frame`.
+    fn start(&mut self, frame: &Frame) -> Result<State, Status> {
+        let f = self.init.fit_frame(frame, None);
+        let fit = match (f.status, f.fit) {
+            (Status::Ok | Status::Saturated | Status::OutOfRange, Some(r)) => r,
+            (s, _) => return Err(s),
+        };
+        let mut x = Vs::zeros();
+        let mut p = Ms::zeros();
+        for i in 0..5 {
+            x[i] = fit.q[i];
+            for j in 0..5 {
+                p[(i, j)] = fit.cov[(i, j)];
+            }
+        }
+        let c = &self.cfg;
+        for i in 5..8 {
+            p[(i, i)] = c.init_velocity_sigma.powi(2);
+        }
+        for i in 8..10 {
+            p[(i, i)] = c.init_rate_sigma_deg.to_radians().powi(2);
+        }
+        x[KD] = self.model.light.k_d;
+        if c.estimate_k_d {
+            p[(KD, KD)] = c.k_d_sigma.powi(2);
+        }
+        if !(x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite())) {
+            return Err(Status::Diverged);
+        }
+        Ok(State {
+            x,
+            p,
+            t: frame.t,
+            frames: 1,
+            rejected: 0,
+        })
+    }
+
+    fn predict(&self, s: &mut State, dt: f64) {
+        let mut f = Ms::identity();
+        for i in 0..5 {
+            f[(i, i + 5)] = dt;
+        }
+        let mut q = Ms::zeros();
+        // ang_accel_psd_deg is a density in (°/s²)²/Hz: convert to rad.
+        let qa = self.cfg.ang_accel_psd_deg * (std::f64::consts::PI / 180.0).powi(2);
+        for i in 0..5 {
+            let qq = if i < 3 { self.cfg.accel_psd } else { qa };
+            q[(i, i)] = qq * dt.powi(3) / 3.0;
+            q[(i, i + 5)] = qq * dt.powi(2) / 2.0;
+            q[(i + 5, i)] = qq * dt.powi(2) / 2.0;
+            q[(i + 5, i + 5)] = qq * dt;
+        }
+        if self.cfg.estimate_k_d {
+            q[(KD, KD)] = self.cfg.k_d_walk_psd * dt;
+        }
+        s.x = f * s.x;
+        s.p = f * s.p * f.transpose() + q;
+        s.p = (s.p + s.p.transpose()) * 0.5;
+    }
+
+    /// Iterated EKF update with the frame's counts and attitude reading.
+    /// Returns the normalized innovation squared per measurement at the
+    /// prediction, the number of saturated channels, and whether the update
+    /// was applied.
+    fn update(&self, s: &mut State, frame: &Frame) -> (f64, usize, bool) {
+        let m = &self.model;
+        let gt = frame
+            .temp_c
+            .filter(|t| t.is_finite() && (-5.0..=60.0).contains(t))
+            .map_or(1.0, temperature_gain);
+        let kinds = Censoring::classify(m, &frame.counts);
+        let n_sat = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
+        let fs = m.full_scale();
+        let att = frame.attitude.filter(|_| self.cfg.use_attitude);
+        let xbar = s.x;
+        let pbar = s.p;
+        let mut xi = xbar;
+        let mut nis0 = 0.0;
+        let mut last: Option<(Hm, SMatrix<f64, NM, NM>, SMatrix<f64, NS, NM>)> = None;
+        for it in 0..self.cfg.update_iterations {
+            let q = PoseVec::from_fn(|i, _| xi[i]);
+            let kd = xi[KD].max(0.0);
+            let (pred, irr, jac) = predict_with_grad(m, &q, kd, gt);
+            let mut h = Hm::zeros();
+            let mut y = SVector::<f64, NM>::zeros();
+            let mut r = SMatrix::<f64, NM, NM>::identity();
+            let mut n_used = 0usize;
+            for k in 0..NDET {
+                let obs = frame.counts[k] as f64;
+                let z = match kinds[k] {
+                    Censoring::Data => Some(obs),
+                    Censoring::Saturated => (pred[k] < fs - 0.5).then_some(fs - 0.5),
+                    Censoring::Dark => (pred[k] > obs.max(0.5)).then_some(obs.max(0.5)),
+                };
+                let Some(z) = z else { continue };
+                for j in 0..5 {
+                    h[(k, j)] = jac[(k, j)];
+                }
+                h[(k, KD)] = jac[(k, 5)];
+                y[k] = z - pred[k];
+                r[(k, k)] = m.count_variance(irr[k] * m.gain[k] * gt);
+                n_used += 1;
+            }
+            if let Some(a) = att {
+                let sp = self.cfg.attitude_sigma_pitch_deg.to_radians();
+                let sy = self.cfg.attitude_sigma_yaw_deg.to_radians();
+                h[(NDET, 3)] = 1.0;
+                h[(NDET + 1, 4)] = 1.0;
+                y[NDET] = a.pitch.rad() - xi[3];
+                y[NDET + 1] = a.yaw.rad() - xi[4];
+                r[(NDET, NDET)] = sp * sp;
+                r[(NDET + 1, NDET + 1)] = sy * sy;
+                n_used += 2;
+            }
+            // IEKF: innovation about the linearization point.
+            let innov = y - h * (xbar - xi);
+            let sm = h * pbar * h.transpose() + r;
+            let Some(ch) = sm.cholesky() else {
+                return (f64::INFINITY, n_sat, false);
+            };
+            if it == 0 {
+                nis0 = innov.dot(&ch.solve(&innov)) / (n_used.max(1) as f64);
+                if !(nis0 <= self.cfg.nis_gate) {
+                    return (nis0, n_sat, false);
+                }
+            }
+            let k = pbar * h.transpose() * ch.inverse();
+            let xn = xbar + k * innov;
+            if !xn.iter().all(|v| v.is_finite()) {
+                return (f64::INFINITY, n_sat, false);
+            }
+            let step = (xn - xi).norm();
+            xi = xn;
+            last = Some((h, r, k));
+            if step < 1e-7 {
+                break;
+            }
+        }
+        let Some((h, r, k)) = last else {
+            return (nis0, n_sat, false);
+        };
+        // Joseph form keeps P symmetric and positive through round-off.
+        let ikh = Ms::identity() - k * h;
+        let p = ikh * pbar * ikh.transpose() + k * r * k.transpose();
+        s.x = xi;
+        s.x[KD] = s.x[KD].max(0.0);
+        s.p = (p + p.transpose()) * 0.5;
+        (nis0, n_sat, true)
+    }
+
+    fn to_estimate(&self, frame: &Frame, s: &State, status: Status) -> PoseEstimate {
+        let mut e = PoseEstimate::empty(frame.seq, frame.t, status, Self::NAME);
+        let x = &s.x;
+        let p = &s.p;
+        let sd = |i: usize| lightpose_core::finite(p[(i, i)].max(0.0).sqrt());
+        e.x = lightpose_core::finite(x[0]);
+        e.y = lightpose_core::finite(x[1]);
+        e.z = lightpose_core::finite(x[2]);
+        e.pitch_deg = lightpose_core::finite(x[3].to_degrees());
+        e.yaw_deg = lightpose_core::finite(x[4].to_degrees());
+        // Surge = forward axis · velocity, forward = (−cθcψ, cθsψ, sθ).
+        let (st, ct) = x[3].sin_cos();
+        let (sp, cp) = x[4].sin_cos();
+        let fwd = [-ct * cp, ct * sp, st];
+        let v = [x[5], x[6], x[7]];
+        let surge = fwd[0] * v[0] + fwd[1] * v[1] + fwd[2] * v[2];
+        let mut g = Vs::zeros();
+        g[5] = fwd[0];
+        g[6] = fwd[1];
+        g[7] = fwd[2];
+        g[3] = st * cp * v[0] - st * sp * v[1] + ct * v[2];
+        g[4] = ct * sp * v[0] + ct * cp * v[1];
+        let var_s = (g.transpose() * p * g)[(0, 0)];
+        e.surge = lightpose_core::finite(surge);
+        e.std = StdDev {
+            x: sd(0),
+            y: sd(1),
+            z: sd(2),
+            pitch: sd(3).map(f64::to_degrees),
+            yaw: sd(4).map(f64::to_degrees),
+            surge: lightpose_core::finite(var_s.max(0.0).sqrt()),
+        };
+        e
+    }
+
+    /// Current K_D of the filter and its 1σ (when it is estimated).
+    pub fn k_d(&self) -> Option<(f64, f64)> {
+        self.state
+            .as_ref()
+            .map(|s| (s.x[KD], s.p[(KD, KD)].max(0.0).sqrt()))
+    }
+}
+
+impl Estimator for Tracker {
+    fn name(&self) -> &'static str {
+        Self::NAME
+    }
+
+    fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
+        if frame.adc_bits != self.model.adc_bits {
+            return PoseEstimate::empty(frame.seq, frame.t, Status::BadFrame, Self::NAME);
+        }
+        let mut state = match self.state.take() {
+            Some(s) => {
+                let dt = frame.t - s.t;
+                if dt.is_finite() && (0.0..=self.cfg.max_gap_s).contains(&dt) {
+                    Some(s)
+                } else {
+                    None
+                }
+            }
+            None => None,
+        };
+        let Some(mut s) = state.take() else {
+            return match self.start(frame) {
+                Ok(s) => {
+                    let e = self.to_estimate(frame, &s, Status::Initialising);
+                    self.state = Some(s);
+                    e
+                }
+                Err(st) => PoseEstimate::empty(frame.seq, frame.t, st, Self::NAME),
+            };
+        };
+        let dt = frame.t - s.t;
+        self.predict(&mut s, dt);
+        s.t = frame.t;
+        // A frame without light says nothing; coast on the prediction.
+        if !self.init.has_light(frame) {
+            self.state = Some(s);
+            return PoseEstimate::empty(frame.seq, frame.t, Status::NoLight, Self::NAME);
+        }
+        let (_nis, n_sat, applied) = self.update(&mut s, frame);
+        if applied {
+            s.rejected = 0;
+        } else {
+            s.rejected += 1;
+            if s.rejected >= self.cfg.max_rejected {
+                // The filter has lost the vehicle: start again from this frame.
+                return match self.start(frame) {
+                    Ok(ns) => {
+                        let e = self.to_estimate(frame, &ns, Status::Initialising);
+                        self.state = Some(ns);
+                        e
+                    }
+                    Err(st) => PoseEstimate::empty(frame.seq, frame.t, st, Self::NAME),
+                };
+            }
+        }
+        s.frames = s.frames.saturating_add(1);
+        let x = s.x[0];
+        let sane = s.x.iter().all(|v| v.is_finite())
+            && s.p.iter().all(|v| v.is_finite())
+            && x > 0.0
+            && s.x[3].abs() < 1.4
+            && s.x[4].abs() < 1.4;
+        if !sane {
+            self.state = None;
+            return PoseEstimate::empty(frame.seq, frame.t, Status::Diverged, Self::NAME);
+        }
+        let status = if !applied {
+            Status::Diverged
+        } else if s.frames <= self.cfg.init_frames {
+            Status::Initialising
+        } else if x < self.cfg.x_range[0] || x > self.cfg.x_range[1] {
+            Status::OutOfRange
+        } else if n_sat > self.cfg.max_saturated {
+            Status::Saturated
+        } else {
+            Status::Ok
+        };
+        let e = self.to_estimate(frame, &s, status);
+        self.state = Some(s);
+        e
+    }
+
+    fn reset(&mut self) {
+        self.state = None;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::testutil::{synth_frame, Rng};
+    use lightpose_core::{Angle, Pose};
+    use proptest::prelude::*;
+
+    /// A zigzag approach like the paper's case II: 0.5 m/s in from 8.5 m,
+    /// y and z weaving, pitch and yaw swinging by about 10°.
+    fn zigzag(t: f64) -> (Pose, f64) {
+        let x = 8.5 - 0.5 * t;
+        let y = 0.2 + 0.1 * (0.8 * t).sin();
+        let z = -0.1 + 0.08 * (0.6 * t).sin();
+        let th = 9f64.to_radians() * (0.7 * t).sin();
+        let ps = 10f64.to_radians() * (0.6 * t).cos();
+        let v = [-0.5, 0.08 * (0.8 * t).cos(), 0.048 * (0.6 * t).cos()];
+        let fwd = [-th.cos() * ps.cos(), th.cos() * ps.sin(), th.sin()];
+        let surge = fwd[0] * v[0] + fwd[1] * v[1] + fwd[2] * v[2];
+        (
+            Pose::new(x, y, z, Angle::from_rad(th), Angle::from_rad(ps)),
+            surge,
+        )
+    }
+
+    /// Run `runs` noisy passes; return the ±2σ coverage of each of x, y, z,
+    /// pitch, yaw, surge over `ok` frames, and the RMS errors.
+    fn run(cfg: TrackerConfig, att: Option<(f64, f64)>, runs: u64) -> ([f64; 6], [f64; 6]) {
+        let m = SensorModel::default();
+        let mut tr = Tracker::new(m.clone(), cfg).unwrap();
+        let (mut inside, mut n, mut sq) = ([0usize; 6], 0usize, [0.0; 6]);
+        for seed in 0..runs {
+            tr.reset();
+            let mut rng = Rng::new(1000 + seed);
+            for i in 0..41u64 {
+                let t = i as f64 * 0.2;
+                let (pose, surge) = zigzag(t);
+                let f = synth_frame(&m, &pose, i, t, att, &mut rng);
+                let e = tr.estimate(&f);
+                if e.status != Status::Ok {
+                    assert!(i <= 6 || e.status == Status::Initialising, "{e:?}");
+                    continue;
+                }
+                let truth = [
+                    pose.x,
+                    pose.y,
+                    pose.z,
+                    pose.pitch.deg(),
+                    pose.yaw.deg(),
+                    surge,
+                ];
+                let got = [e.x, e.y, e.z, e.pitch_deg, e.yaw_deg, e.surge];
+                let sd = [
+                    e.std.x,
+                    e.std.y,
+                    e.std.z,
+                    e.std.pitch,
+                    e.std.yaw,
+                    e.std.surge,
+                ];
+                n += 1;
+                for c in 0..6 {
+                    let err = got[c].unwrap() - truth[c];
+                    sq[c] += err * err;
+                    if err.abs() <= 2.0 * sd[c].unwrap() {
+                        inside[c] += 1;
+                    }
+                }
+            }
+        }
+        assert!(n > 0);
+        (
+            inside.map(|k| k as f64 / n as f64),
+            sq.map(|s| (s / n as f64).sqrt()),
+        )
+    }
+
+    #[test]
+    fn tracks_zigzag_with_attitude_sensor_honestly() {
+        let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
+        let (cover, rms) = run(TrackerConfig::default(), att, 40);
+        eprintln!("with AHRS: coverage {cover:.3?}, rms {rms:.3?}");
+        for c in cover {
+            assert!((0.88..=0.995).contains(&c), "coverage {cover:?}");
+        }
+        // Paper tolerances: x ±0.5, y,z ±0.2 m, angles ±5°, surge ±0.2 m/s.
+        assert!(rms[0] < 0.25 && rms[1] < 0.1 && rms[2] < 0.1, "{rms:?}");
+        assert!(rms[3] < 2.5 && rms[4] < 2.5 && rms[5] < 0.1, "{rms:?}");
+    }
+
+    #[test]
+    fn tune_scan() {
+        if std::env::var("TUNE").is_err() { return; }
+        let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
+        for (a, w) in [(0.002, 20.0), (0.005, 20.0), (0.01, 20.0), (0.01, 5.0), (0.01, 80.0)] {
+            let cfg = TrackerConfig { accel_psd: a, ang_accel_psd_deg: w, ..TrackerConfig::default() };
+            let (c1, r1) = run(cfg.clone(), att, 30);
+            let (c2, r2) = run(cfg, None, 30);
+            eprintln!("a {a} w {w}: AHRS cov {c1:.3?} rms {r1:.3?}\n    none cov {c2:.3?} rms {r2:.3?}");
+        }
+    }
+
+    #[test]
+    fn tracks_zigzag_without_attitude_sensor() {
+        let (cover, rms) = run(TrackerConfig::default(), None, 40);
+        eprintln!("no AHRS: coverage {cover:.3?}, rms {rms:.3?}");
+        for c in cover {
+            assert!((0.85..=0.995).contains(&c), "coverage {cover:?}");
+        }
+        assert!(rms[0] < 0.5 && rms[5] < 0.2, "{rms:?}");
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn any_counts_sequence_gives_no_nan_and_no_panic(
+            frames in prop::collection::vec(
+                (prop::array::uniform25(0u16..=1023), 0.0f64..0.5, any::<bool>()), 1..12),
+        ) {
+            let mut tr = Tracker::new(SensorModel::default(), TrackerConfig {
+                estimate_k_d: true,
+                ..TrackerConfig::default()
+            }).unwrap();
+            let mut t = 0.0;
+            for (i, (counts, dt, att)) in frames.into_iter().enumerate() {
+                t += dt;
+                let f = Frame {
+                    seq: i as u64, t, adc_bits: 10, counts, temp_c: Some(20.0), truth: None,
+                    attitude: att.then_some(lightpose_core::AttitudeReading {
+                        pitch: Angle::ZERO, yaw: Angle::ZERO }),
+                };
+                let e = tr.estimate(&f);
+                for v in [e.x, e.y, e.z, e.pitch_deg, e.yaw_deg, e.surge,
+                          e.std.x, e.std.y, e.std.z, e.std.pitch, e.std.yaw, e.std.surge] {
+                    prop_assert!(v.is_none_or(|v| v.is_finite()));
+                }
+            }
+        }
+    }
+}
