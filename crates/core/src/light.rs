@@ -100,7 +100,8 @@ impl LightParams {
     /// Irradiance E_k at one detector from its view.
     #[inline]
     pub fn irradiance_at(&self, v: &DetectorView) -> f64 {
-        if !(v.d > 0.0) {
+        // d = 0 or NaN (the beacon inside the dome): no meaningful light.
+        if v.d.is_nan() || v.d <= 0.0 {
             return 0.0;
         }
         let sb = self.sigma_b.rad();

@@ -15,12 +15,8 @@ pub const VERSION: u32 = 1;
 
 #[derive(Debug, thiserror::Error)]
 pub enum LogError {
-    #[error("{name}: {source}")]
-    Io {
-        name: String,
-        #[source]
-        source: io::Error,
-    },
+    #[error("{name}: {err}")]
+    Io { name: String, err: io::Error },
     #[error("{name}:{line}: {msg}")]
     Line {
         name: String,
@@ -165,9 +161,9 @@ impl LogReader<BufReader<File>> {
     /// Open a log file and read its header.
     pub fn open(path: &Path) -> Result<Self, LogError> {
         let name = path.display().to_string();
-        let f = File::open(path).map_err(|source| LogError::Io {
+        let f = File::open(path).map_err(|err| LogError::Io {
             name: name.clone(),
-            source,
+            err,
         })?;
         LogReader::new(BufReader::with_capacity(1 << 16, f), name)
     }
@@ -400,7 +396,7 @@ fn read_line<R: BufRead>(
         } else {
             LogError::Io {
                 name: name.to_string(),
-                source: e,
+                err: e,
             }
         }
     })

@@ -1,0 +1,538 @@
+//! The scene file: the beacon, the water, the array, the ADC, the noise, the
+//! Monte Carlo spreads and the attitude sensor, with exactly the keys of
+//! `scene-example.toml`. A table that is left out turns its effect off
+//! (scattering, noise, attitude sensor); a key left out of a present table
+//! takes MODEL.md's default. Unknown keys, wrong types and impossible values
+//! are refused with the file, the line and the key.
+
+use lightpose_core::{Angle, ArrayGeometry, LightParams, Scattering, COLS, NDET, ROWS};
+use serde::Deserialize;
+use std::path::Path;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{file}: {err}")]
+    Io { file: String, err: std::io::Error },
+    #[error("{file}:{line}: {msg}")]
+    Invalid {
+        file: String,
+        line: usize,
+        msg: String,
+    },
+}
+
+/// ADC resolution, reference and frame rate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Adc {
+    pub bits: u8,
+    pub v_ref: f64,
+    pub rate_hz: f64,
+}
+
+/// Per-sample noise; absent means a noise-free scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Noise {
+    /// Electronic noise, 1σ, volts.
+    pub sigma_e_v: f64,
+    /// Signal shot-noise factor, volts (variance κ·E).
+    pub kappa_v: f64,
+    /// Noise of the reported temperature, °C.
+    pub sigma_temp_c: f64,
+}
+
+/// Spread across Monte Carlo realizations (paper Table 1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct McSpread {
+    pub sigma_temp_c: f64,
+    pub sigma_k_d: f64,
+}
+
+/// The vehicle's attitude sensor noise (1σ).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttitudeNoise {
+    pub sigma_pitch: Angle,
+    pub sigma_yaw: Angle,
+}
+
+/// A validated scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    pub light: LightParams,
+    pub geometry: ArrayGeometry,
+    /// True water temperature, °C.
+    pub temp_c: f64,
+    pub gain: [f64; NDET],
+    pub offset_v: [f64; NDET],
+    pub adc: Adc,
+    pub noise: Option<Noise>,
+    pub montecarlo: McSpread,
+    pub attitude: Option<AttitudeNoise>,
+}
+
+impl Default for Scene {
+    /// The paper's tank with every effect of `scene-example.toml` on
+    /// (scattering and noise; no attitude sensor).
+    fn default() -> Self {
+        Scene {
+            light: LightParams::default(),
+            geometry: ArrayGeometry::paper(),
+            temp_c: 20.0,
+            gain: [1.0; NDET],
+            offset_v: [0.15; NDET],
+            adc: Adc {
+                bits: 10,
+                v_ref: 5.0,
+                rate_hz: 5.0,
+            },
+            noise: Some(Noise {
+                sigma_e_v: 0.05,
+                kappa_v: 0.0,
+                sigma_temp_c: 0.1,
+            }),
+            montecarlo: McSpread {
+                sigma_temp_c: 3.0,
+                sigma_k_d: 0.015,
+            },
+            attitude: None,
+        }
+    }
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    beacon: Option<RawBeacon>,
+    water: Option<RawWater>,
+    scattering: Option<RawScattering>,
+    array: Option<RawArray>,
+    adc: Option<RawAdc>,
+    noise: Option<RawNoise>,
+    montecarlo: Option<RawMc>,
+    attitude: Option<RawAttitude>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawBeacon {
+    v1: Option<f64>,
+    sigma_b_deg: Option<f64>,
+}
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawWater {
+    k_d: Option<f64>,
+    temp_c: Option<f64>,
+}
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawScattering {
+    omega: Option<f64>,
+    sigma_h_deg: Option<f64>,
+}
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawArray {
+    rows: Option<i64>,
+    cols: Option<i64>,
+    spacing_deg: Option<f64>,
+    radius_m: Option<f64>,
+    sigma_r_deg: Option<f64>,
+    gain: Option<PerChannel>,
+    offset_v: Option<PerChannel>,
+}
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum PerChannel {
+    One(f64),
+    List(Vec<f64>),
+}
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawAdc {
+    bits: Option<i64>,
+    v_ref: Option<f64>,
+    rate_hz: Option<f64>,
+}
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawNoise {
+    sigma_e_v: Option<f64>,
+    kappa_v: Option<f64>,
+    sigma_temp_c: Option<f64>,
+}
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawMc {
+    sigma_temp_c: Option<f64>,
+    sigma_k_d: Option<f64>,
+}
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawAttitude {
+    sigma_pitch_deg: Option<f64>,
+    sigma_yaw_deg: Option<f64>,
+}
+
+/// Line (1-based) of a byte offset in `text`.
+pub fn line_of_offset(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())]
+        .bytes()
+        .filter(|&b| b == b'\n')
+        .count()
+        + 1
+}
+
+/// Line of `key` inside `[table]` of a TOML text (best effort: the first
+/// line after the table header that assigns the key), else the header's.
+pub fn line_of_key(text: &str, table: &str, key: &str) -> usize {
+    let mut in_table = table.is_empty();
+    let mut header_line = 1;
+    for (i, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if l.starts_with('[') {
+            in_table = l.trim_start_matches('[').trim_end_matches(']').trim() == table;
+            if in_table {
+                header_line = i + 1;
+            }
+            continue;
+        }
+        if in_table {
+            if let Some((k, _)) = l.split_once('=') {
+                if k.trim() == key {
+                    return i + 1;
+                }
+            }
+        }
+    }
+    header_line
+}
+
+struct Checker<'a> {
+    file: &'a str,
+    text: &'a str,
+}
+
+impl Checker<'_> {
+    fn err(&self, table: &str, key: &str, msg: impl std::fmt::Display) -> SceneError {
+        SceneError::Invalid {
+            file: self.file.to_string(),
+            line: line_of_key(self.text, table, key),
+            msg: format!("[{table}] {key}: {msg}"),
+        }
+    }
+
+    /// Take `v` or the default, and require `ok(v)`.
+    fn num(
+        &self,
+        table: &str,
+        key: &str,
+        v: Option<f64>,
+        default: f64,
+        ok: fn(f64) -> bool,
+        what: &str,
+    ) -> Result<f64, SceneError> {
+        let x = v.unwrap_or(default);
+        if x.is_finite() && ok(x) {
+            Ok(x)
+        } else {
+            Err(self.err(table, key, format!("{x} is impossible: must be {what}")))
+        }
+    }
+
+    fn per_channel(
+        &self,
+        key: &str,
+        v: Option<PerChannel>,
+        default: f64,
+        ok: fn(f64) -> bool,
+        what: &str,
+    ) -> Result<[f64; NDET], SceneError> {
+        let mut out = [default; NDET];
+        match v {
+            None => {}
+            Some(PerChannel::One(x)) => out = [x; NDET],
+            Some(PerChannel::List(list)) => {
+                if list.len() != NDET {
+                    return Err(self.err(
+                        "array",
+                        key,
+                        format!(
+                            "list has {} values, expected rows·cols = {NDET}",
+                            list.len()
+                        ),
+                    ));
+                }
+                out.copy_from_slice(&list);
+            }
+        }
+        if let Some((k, x)) = out
+            .iter()
+            .enumerate()
+            .find(|(_, x)| !(x.is_finite() && ok(**x)))
+        {
+            return Err(self.err(
+                "array",
+                key,
+                format!("channel {k} = {x} is impossible: must be {what}"),
+            ));
+        }
+        Ok(out)
+    }
+}
+
+fn positive(x: f64) -> bool {
+    x > 0.0
+}
+fn non_negative(x: f64) -> bool {
+    x >= 0.0
+}
+
+impl Scene {
+    /// Read and validate a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|err| SceneError::Io {
+            file: file.clone(),
+            err,
+        })?;
+        Scene::parse(&text, &file)
+    }
+
+    /// Parse and validate a scene from TOML text; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
+        let raw: RawScene = toml::from_str(text).map_err(|e| SceneError::Invalid {
+            file: file.to_string(),
+            line: e.span().map_or(1, |s| line_of_offset(text, s.start)),
+            msg: e.message().trim().replace('\n', " "),
+        })?;
+        let c = Checker { file, text };
+        let d = Scene::default();
+
+        let b = raw.beacon.unwrap_or_default();
+        let v1 = c.num("beacon", "v1", b.v1, d.light.v1, non_negative, "≥ 0")?;
+        let sigma_b = c.num(
+            "beacon",
+            "sigma_b_deg",
+            b.sigma_b_deg,
+            12.0,
+            |x| x > 0.0 && x < 90.0,
+            "in (0, 90)",
+        )?;
+
+        let w = raw.water.unwrap_or_default();
+        let k_d = c.num("water", "k_d", w.k_d, 0.09, non_negative, "≥ 0")?;
+        let temp_c = c.num(
+            "water",
+            "temp_c",
+            w.temp_c,
+            20.0,
+            |t| (-5.0..=60.0).contains(&t),
+            "in −5..60 °C",
+        )?;
+
+        let scattering = match raw.scattering {
+            None => None,
+            Some(s) => Some(Scattering {
+                omega: c.num("scattering", "omega", s.omega, 0.5, non_negative, "≥ 0")?,
+                sigma_h: Angle::from_deg(c.num(
+                    "scattering",
+                    "sigma_h_deg",
+                    s.sigma_h_deg,
+                    20.0,
+                    |x| x > 0.0 && x < 90.0,
+                    "in (0, 90)",
+                )?),
+            }),
+        };
+
+        let a = raw.array.unwrap_or_default();
+        for (key, v, want) in [("rows", a.rows, ROWS), ("cols", a.cols, COLS)] {
+            if let Some(n) = v {
+                if n != want as i64 {
+                    return Err(c.err(
+                        "array",
+                        key,
+                        format!("{n}: only a {ROWS} × {COLS} array is supported"),
+                    ));
+                }
+            }
+        }
+        let spacing = c.num(
+            "array",
+            "spacing_deg",
+            a.spacing_deg,
+            15.0,
+            |x| x > 0.0 && x <= 22.5,
+            "in (0, 22.5] so the dome stays a hemisphere",
+        )?;
+        let radius = c.num("array", "radius_m", a.radius_m, 0.229, positive, "> 0")?;
+        let sigma_r = c.num(
+            "array",
+            "sigma_r_deg",
+            a.sigma_r_deg,
+            18.0,
+            |x| x > 0.0 && x < 90.0,
+            "in (0, 90)",
+        )?;
+        let gain = c.per_channel("gain", a.gain, 1.0, positive, "> 0")?;
+        let offset_v =
+            c.per_channel("offset_v", a.offset_v, 0.15, |x| x.abs() < 1e3, "a voltage")?;
+
+        let ad = raw.adc.unwrap_or_default();
+        let bits = match ad.bits {
+            None => 10,
+            Some(n @ 1..=16) => n as u8,
+            Some(n) => {
+                return Err(c.err("adc", "bits", format!("{n} is impossible: must be 1..16")))
+            }
+        };
+        let v_ref = c.num("adc", "v_ref", ad.v_ref, 5.0, positive, "> 0")?;
+        let rate_hz = c.num(
+            "adc",
+            "rate_hz",
+            ad.rate_hz,
+            5.0,
+            |x| x > 0.0 && x <= 1e6,
+            "in (0, 1e6]",
+        )?;
+
+        let noise = match raw.noise {
+            None => None,
+            Some(n) => Some(Noise {
+                sigma_e_v: c.num("noise", "sigma_e_v", n.sigma_e_v, 0.05, non_negative, "≥ 0")?,
+                kappa_v: c.num("noise", "kappa_v", n.kappa_v, 0.0, non_negative, "≥ 0")?,
+                sigma_temp_c: c.num(
+                    "noise",
+                    "sigma_temp_c",
+                    n.sigma_temp_c,
+                    0.1,
+                    non_negative,
+                    "≥ 0",
+                )?,
+            }),
+        };
+        let m = raw.montecarlo.unwrap_or_default();
+        let montecarlo = McSpread {
+            sigma_temp_c: c.num(
+                "montecarlo",
+                "sigma_temp_c",
+                m.sigma_temp_c,
+                3.0,
+                non_negative,
+                "≥ 0",
+            )?,
+            sigma_k_d: c.num(
+                "montecarlo",
+                "sigma_k_d",
+                m.sigma_k_d,
+                0.015,
+                non_negative,
+                "≥ 0",
+            )?,
+        };
+        let attitude = match raw.attitude {
+            None => None,
+            Some(at) => Some(AttitudeNoise {
+                sigma_pitch: Angle::from_deg(c.num(
+                    "attitude",
+                    "sigma_pitch_deg",
+                    at.sigma_pitch_deg,
+                    0.3,
+                    non_negative,
+                    "≥ 0",
+                )?),
+                sigma_yaw: Angle::from_deg(c.num(
+                    "attitude",
+                    "sigma_yaw_deg",
+                    at.sigma_yaw_deg,
+                    1.5,
+                    non_negative,
+                    "≥ 0",
+                )?),
+            }),
+        };
+
+        Ok(Scene {
+            light: LightParams {
+                v1,
+                sigma_b: Angle::from_deg(sigma_b),
+                sigma_r: Angle::from_deg(sigma_r),
+                k_d,
+                scattering,
+            },
+            geometry: ArrayGeometry::new(Angle::from_deg(spacing), radius),
+            temp_c,
+            gain,
+            offset_v,
+            adc: Adc {
+                bits,
+                v_ref,
+                rate_hz,
+            },
+            noise,
+            montecarlo,
+            attitude,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const EXAMPLE: &str = include_str!("../../../../shared/spec/scene-example.toml");
+
+    #[test]
+    fn example_scene_is_the_default_tank_plus_attitude() {
+        let s = Scene::parse(EXAMPLE, "scene-example.toml").unwrap();
+        let mut want = Scene::default();
+        want.attitude = Some(AttitudeNoise {
+            sigma_pitch: Angle::from_deg(0.3),
+            sigma_yaw: Angle::from_deg(1.5),
+        });
+        assert_eq!(s, want);
+    }
+
+    #[test]
+    fn left_out_tables_turn_effects_off() {
+        let s = Scene::parse("[water]\nk_d = 0.2\n", "h.toml").unwrap();
+        assert!(s.light.scattering.is_none());
+        assert!(s.noise.is_none());
+        assert!(s.attitude.is_none());
+        assert_eq!(s.light.k_d, 0.2);
+        assert_eq!(s.light.v1, 135.0);
+        // a present table with no keys takes the defaults
+        let s = Scene::parse("[noise]\n", "n.toml").unwrap();
+        assert_eq!(s.noise.unwrap().sigma_e_v, 0.05);
+    }
+
+    fn refused(text: &str) -> String {
+        Scene::parse(text, "bad.toml").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn bad_scenes_name_file_line_and_key() {
+        let e = refused("[water]\nk_d = -0.1\n");
+        assert!(e.starts_with("bad.toml:2: [water] k_d"), "{e}");
+        let e = refused("[adc]\nbits = 0\n");
+        assert!(e.starts_with("bad.toml:2: [adc] bits"), "{e}");
+        let e = refused("[beacon]\nv1 = 1\n\n[array]\ngain = [1.0, 2.0]\n");
+        assert!(
+            e.starts_with("bad.toml:5: [array] gain: list has 2 values"),
+            "{e}"
+        );
+        let e = refused("[water]\nk_d = 0.1\ncolour = \"green\"\n");
+        assert!(e.starts_with("bad.toml:3:") && e.contains("colour"), "{e}");
+        let e = refused("[water]\nk_d = \"clear\"\n");
+        assert!(e.starts_with("bad.toml:2:"), "{e}");
+        let e = refused("[lamp]\nv1 = 3\n");
+        assert!(e.starts_with("bad.toml:1:") && e.contains("lamp"), "{e}");
+        let e = refused("[array]\nrows = 4\n");
+        assert!(e.contains("rows") && e.contains("5 × 5"), "{e}");
+        let e = refused("[array]\noffset_v = [0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, nan]\n");
+        assert!(e.contains("channel 24"), "{e}");
+        for line in e.lines().skip(1) {
+            panic!("error spans lines: {line}");
+        }
+    }
+}

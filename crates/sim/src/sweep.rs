@@ -1,0 +1,201 @@
+//! The calibration sweeps of MODEL.md (paper section 2.2.1): the
+//! translation grid, the orientation fans at three ranges, and dark frames
+//! with the beacon off. Every lit frame carries its true pose.
+
+use crate::{Scene, Simulator};
+use lightpose_core::{Angle, Frame, LogHeader, LogWriter, Pose};
+use std::io::Write;
+
+/// Which sweep to write.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SweepKind {
+    Translation,
+    Orientation,
+    /// Beacon off (V1 = 0), for each channel's dark offset.
+    Dark,
+    /// Translation then orientation: the 125 + 183 lit poses.
+    All,
+}
+
+impl SweepKind {
+    pub fn parse(s: &str) -> Option<SweepKind> {
+        match s {
+            "translation" => Some(SweepKind::Translation),
+            "orientation" => Some(SweepKind::Orientation),
+            "dark" => Some(SweepKind::Dark),
+            "all" => Some(SweepKind::All),
+            _ => None,
+        }
+    }
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SweepKind::Translation => "translation",
+            SweepKind::Orientation => "orientation",
+            SweepKind::Dark => "dark",
+            SweepKind::All => "all",
+        }
+    }
+}
+
+/// x = 4.5..8.5 step 1, y = −0.6..0.6 step 0.3, z = 0..0.8 step 0.2: 125.
+pub fn translation_poses() -> Vec<Pose> {
+    let mut v = Vec::with_capacity(125);
+    for i in 0..5 {
+        for j in 0..5 {
+            for k in 0..5 {
+                let x = 4.5 + i as f64;
+                let y = -0.6 + 0.3 * j as f64;
+                let z = 0.2 * k as f64;
+                v.push(Pose::new(x, y, z, Angle::ZERO, Angle::ZERO));
+            }
+        }
+    }
+    v
+}
+
+/// Pitch and yaw each −15..15° step 1° with the other 0, (0, 0) once, at
+/// x = 4.5, 6.5 and 8.5 m: 61 poses per range, 183 in all.
+pub fn orientation_poses() -> Vec<Pose> {
+    let mut v = Vec::with_capacity(183);
+    for x in [4.5, 6.5, 8.5] {
+        v.push(Pose::new(x, 0.0, 0.0, Angle::ZERO, Angle::ZERO));
+        for d in -15..=15 {
+            if d != 0 {
+                v.push(Pose::new(
+                    x,
+                    0.0,
+                    0.0,
+                    Angle::from_deg(d as f64),
+                    Angle::ZERO,
+                ));
+            }
+        }
+        for d in -15..=15 {
+            if d != 0 {
+                v.push(Pose::new(
+                    x,
+                    0.0,
+                    0.0,
+                    Angle::ZERO,
+                    Angle::from_deg(d as f64),
+                ));
+            }
+        }
+    }
+    v
+}
+
+/// What a sweep will write.
+#[derive(Debug, Clone)]
+pub struct SweepPlan {
+    pub kind: SweepKind,
+    pub samples: u32,
+    /// Lit poses in order (empty for a dark sweep).
+    pub poses: Vec<Pose>,
+}
+
+impl SweepPlan {
+    pub fn new(kind: SweepKind, samples: u32) -> Self {
+        let poses = match kind {
+            SweepKind::Translation => translation_poses(),
+            SweepKind::Orientation => orientation_poses(),
+            SweepKind::Dark => Vec::new(),
+            SweepKind::All => {
+                let mut v = translation_poses();
+                v.extend(orientation_poses());
+                v
+            }
+        };
+        SweepPlan {
+            kind,
+            samples,
+            poses,
+        }
+    }
+
+    /// Number of frames it writes.
+    pub fn frames(&self) -> u64 {
+        match self.kind {
+            SweepKind::Dark => self.samples as u64,
+            _ => self.poses.len() as u64 * self.samples as u64,
+        }
+    }
+
+    /// Call `sink` with every frame of the sweep, in order.
+    pub fn run(
+        &self,
+        scene: &Scene,
+        seed: u64,
+        mut sink: impl FnMut(&Frame) -> std::io::Result<()>,
+    ) -> std::io::Result<u64> {
+        let mut sim = Simulator::new(scene.clone(), seed);
+        let dt = 1.0 / scene.adc.rate_hz;
+        let mut seq = 0u64;
+        let mut emit = |sim: &mut Simulator, pose: &Pose, truth: bool| {
+            let mut f = sim.frame(seq, seq as f64 * dt, pose, Some(0.0));
+            if !truth {
+                f.truth = None;
+            }
+            seq += 1;
+            sink(&f)
+        };
+        if self.kind == SweepKind::Dark {
+            sim.set_beacon(false);
+            // Dark frames carry no truth: with the beacon off the pose is moot.
+            let pose = Pose::new(4.5, 0.0, 0.0, Angle::ZERO, Angle::ZERO);
+            for _ in 0..self.samples {
+                emit(&mut sim, &pose, false)?;
+            }
+        } else {
+            for pose in &self.poses {
+                for _ in 0..self.samples {
+                    emit(&mut sim, pose, true)?;
+                }
+            }
+        }
+        Ok(seq)
+    }
+
+    /// Write the sweep as an intensity log.
+    pub fn write<W: Write>(&self, scene: &Scene, seed: u64, out: W) -> std::io::Result<u64> {
+        let mut header = LogHeader::new(scene.adc.bits, scene.adc.rate_hz);
+        header
+            .extra
+            .insert("sweep".into(), self.kind.as_str().into());
+        header.extra.insert("samples".into(), self.samples.into());
+        header.extra.insert("seed".into(), seed.into());
+        let mut w = LogWriter::new(out, &header)?;
+        let n = self.run(scene, seed, |f| w.write_frame(f))?;
+        w.flush()?;
+        Ok(n)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_counts_match_model_md() {
+        assert_eq!(translation_poses().len(), 125);
+        assert_eq!(orientation_poses().len(), 183);
+        assert_eq!(SweepPlan::new(SweepKind::All, 200).frames(), 61_600);
+        let t = translation_poses();
+        assert_eq!((t[0].x, t[0].y, t[0].z), (4.5, -0.6, 0.0));
+        let last = t[124];
+        assert!(
+            (last.x - 8.5).abs() < 1e-12
+                && (last.y - 0.6).abs() < 1e-12
+                && (last.z - 0.8).abs() < 1e-12
+        );
+        let o = orientation_poses();
+        let zeros = o
+            .iter()
+            .filter(|p| p.pitch == Angle::ZERO && p.yaw == Angle::ZERO)
+            .count();
+        assert_eq!(zeros, 3);
+        assert!(o
+            .iter()
+            .all(|p| p.pitch.deg().abs() <= 15.0 + 1e-9 && p.yaw.deg().abs() <= 15.0 + 1e-9));
+    }
+}
