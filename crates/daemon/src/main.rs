@@ -1,1 +1,150 @@
-fn main() {}
+//! The `lightposed` binary, kept thin: parse arguments, load and validate
+//! the config, set up logging and signals, call `lightposed::run`, and map
+//! the outcome to an exit code (0 clean, 1 runtime failure, 2 bad config).
+
+use anyhow::Context;
+use clap::Parser;
+use lightposed::config::LogFormat;
+use lightposed::{Config, Publisher};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "lightposed",
+    version,
+    about = "Pose of an underwater vehicle from a 5×5 photodiode dome, published over UDP"
+)]
+struct Args {
+    /// Config file (TOML). Without it: the embedded simulated tank,
+    /// publishing to 127.0.0.1:17150.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Validate a config file and exit (0 valid, 2 refused).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["config", "bench"])]
+    check_config: Option<PathBuf>,
+    /// Run the simulator backend as fast as it goes and print throughput,
+    /// latency, CPU and memory.
+    #[arg(long)]
+    bench: bool,
+    /// Frames for --bench.
+    #[arg(long, default_value_t = 100_000, requires = "bench")]
+    frames: u64,
+}
+
+fn load(path: Option<&PathBuf>) -> Result<Config, lightposed::ConfigError> {
+    match path {
+        Some(p) => Config::load(p),
+        None => Config::embedded_default(),
+    }
+}
+
+fn init_logging(cfg: &Config) {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(&cfg.logging.level));
+    // Under systemd the journal stamps and colours lines itself.
+    let journald = std::env::var_os("JOURNAL_STREAM").is_some();
+    let b = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
+    match (cfg.logging.format, journald) {
+        (LogFormat::Json, _) => b.json().init(),
+        (LogFormat::Plain, true) => b.without_time().with_ansi(false).with_target(false).init(),
+        (LogFormat::Plain, false) => b.with_target(false).init(),
+    }
+}
+
+async fn serve(cfg: Config) -> anyhow::Result<lightposed::Summary> {
+    use tokio::signal::unix::{signal, SignalKind};
+    let publisher = Publisher::open(&cfg.outputs)?;
+    let mut term = signal(SignalKind::terminate()).context("SIGTERM handler")?;
+    let mut int = signal(SignalKind::interrupt()).context("SIGINT handler")?;
+    let mut hup = signal(SignalKind::hangup()).context("SIGHUP handler")?;
+    let (reload_tx, reload_rx) = tokio::sync::mpsc::channel(4);
+    tokio::spawn(async move {
+        while hup.recv().await.is_some() {
+            tracing::info!("SIGHUP: reloading the calibration");
+            let _ = reload_tx.try_send(());
+        }
+    });
+    let shutdown = async move {
+        tokio::select! {
+            _ = term.recv() => tracing::info!("SIGTERM"),
+            _ = int.recv() => tracing::info!("SIGINT"),
+        }
+    };
+    Ok(lightposed::run_with_reload(cfg, publisher, shutdown, reload_rx).await?)
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    if let Some(p) = &args.check_config {
+        return match Config::load(p) {
+            Ok(_) => {
+                println!("{}: ok", p.display());
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("lightposed: {e}");
+                ExitCode::from(2)
+            }
+        };
+    }
+    let cfg = match load(args.config.as_ref()) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("lightposed: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    if args.bench {
+        return match lightposed::bench::bench(&cfg, args.frames) {
+            Ok(r) => {
+                println!("{r}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("lightposed: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
+    init_logging(&cfg);
+    tracing::info!(
+        "lightposed {} ({}): publishing to {}{}; {}",
+        env!("CARGO_PKG_VERSION"),
+        cfg.origin,
+        cfg.outputs
+            .destinations
+            .iter()
+            .map(|d| d.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        cfg.outputs
+            .multicast
+            .as_ref()
+            .map_or(String::new(), |m| format!(
+                " + multicast {} ttl {}",
+                m.group, m.ttl
+            )),
+        lightposed::publish::listen_hint(&cfg.outputs)
+    );
+    let rt = match tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("lightposed: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match rt.block_on(serve(cfg)) {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!("{e:#}");
+            eprintln!("lightposed: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

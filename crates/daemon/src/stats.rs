@@ -1,0 +1,212 @@
+//! Counters shared between the acquisition thread (which writes them without
+//! locks or allocation, once per frame) and the async side (which reads them
+//! for STATUS once a second), and a fixed latency histogram so that p50/p99
+//! frame-to-datagram latency is known in flight, not only in benchmarks.
+
+use std::sync::atomic::{AtomicU64, AtomicU8, Ordering::Relaxed};
+use std::sync::Mutex;
+use std::time::Duration;
+
+/// Where the temperature of the last frame came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum TempSource {
+    /// No frame yet.
+    None = 0,
+    /// The frame carried it (board sensor, simulator, log).
+    Frame = 1,
+    /// The frame had none: the configured fallback was used.
+    Fallback = 2,
+    /// The frame had none and there is no fallback.
+    Missing = 3,
+}
+
+impl TempSource {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            TempSource::None => "none",
+            TempSource::Frame => "frame",
+            TempSource::Fallback => "fallback",
+            TempSource::Missing => "missing",
+        }
+    }
+    fn from_u8(v: u8) -> Self {
+        match v {
+            1 => TempSource::Frame,
+            2 => TempSource::Fallback,
+            3 => TempSource::Missing,
+            _ => TempSource::None,
+        }
+    }
+}
+
+/// State of the acquisition side as STATUS reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum BackendState {
+    Starting = 0,
+    Running = 1,
+    /// The last attempt to read a frame failed.
+    Failing = 2,
+    /// The source said it has no more frames (end of a log).
+    Ended = 3,
+    Stopped = 4,
+}
+
+impl BackendState {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            BackendState::Starting => "starting",
+            BackendState::Running => "running",
+            BackendState::Failing => "failing",
+            BackendState::Ended => "ended",
+            BackendState::Stopped => "stopped",
+        }
+    }
+    fn from_u8(v: u8) -> Self {
+        match v {
+            1 => BackendState::Running,
+            2 => BackendState::Failing,
+            3 => BackendState::Ended,
+            4 => BackendState::Stopped,
+            _ => BackendState::Starting,
+        }
+    }
+}
+
+/// Latency histogram: 1 µs buckets to 20 ms, then one overflow bucket.
+/// Fixed size so that recording a sample is an index and an increment.
+pub struct Histogram {
+    buckets: Box<[AtomicU64]>,
+    max_ns: AtomicU64,
+}
+
+const BUCKETS: usize = 20_000;
+
+impl Default for Histogram {
+    fn default() -> Self {
+        Histogram {
+            buckets: (0..=BUCKETS).map(|_| AtomicU64::new(0)).collect(),
+            max_ns: AtomicU64::new(0),
+        }
+    }
+}
+
+impl Histogram {
+    #[inline]
+    pub fn record(&self, d: Duration) {
+        let us = d.as_micros().min(BUCKETS as u128) as usize;
+        self.buckets[us].fetch_add(1, Relaxed);
+        self.max_ns
+            .fetch_max(d.as_nanos().min(u64::MAX as u128) as u64, Relaxed);
+    }
+
+    pub fn count(&self) -> u64 {
+        self.buckets.iter().map(|b| b.load(Relaxed)).sum()
+    }
+
+    /// Upper edge of the bucket holding quantile `q` (0..1), in seconds;
+    /// `None` before any sample.
+    pub fn quantile(&self, q: f64) -> Option<f64> {
+        let n = self.count();
+        if n == 0 {
+            return None;
+        }
+        let rank = ((q.clamp(0.0, 1.0) * n as f64).ceil() as u64).max(1);
+        let mut acc = 0;
+        for (i, b) in self.buckets.iter().enumerate() {
+            acc += b.load(Relaxed);
+            if acc >= rank {
+                if i == BUCKETS {
+                    return Some(self.max_ns.load(Relaxed) as f64 * 1e-9);
+                }
+                return Some((i + 1) as f64 * 1e-6);
+            }
+        }
+        Some(self.max_ns.load(Relaxed) as f64 * 1e-9)
+    }
+
+    pub fn max(&self) -> Option<f64> {
+        let m = self.max_ns.load(Relaxed);
+        (self.count() > 0).then_some(m as f64 * 1e-9)
+    }
+}
+
+/// Per-destination send accounting: one unreachable destination shows here
+/// and does not stop the others.
+#[derive(Default)]
+pub struct DestStats {
+    pub sent: AtomicU64,
+    pub errors: AtomicU64,
+    /// Last error text; written only when an error happens.
+    pub last_error: Mutex<Option<String>>,
+}
+
+/// Everything STATUS says about frames.
+#[derive(Default)]
+pub struct Stats {
+    pub frames: AtomicU64,
+    pub late: AtomicU64,
+    pub failed: AtomicU64,
+    /// Frames the source skipped (gaps in `seq`).
+    pub lost: AtomicU64,
+    pub last_seq: AtomicU64,
+    pub state: AtomicU8,
+    pub temp_source: AtomicU8,
+    /// f64 bits of the last temperature used; NaN bits when none.
+    pub temp_bits: AtomicU64,
+    /// Index into lightpose_core::Status::ALL of the last estimate.
+    pub last_status: AtomicU8,
+    /// Estimates per status word, in Status::ALL order.
+    pub by_status: [AtomicU64; 7],
+    pub frames_with_attitude: AtomicU64,
+    pub latency: Histogram,
+    /// Monotonic nanoseconds since start of the acquisition thread's last
+    /// loop: the watchdog pings only while this moves.
+    pub heartbeat_ns: AtomicU64,
+    /// Last error of the source, for STATUS.
+    pub last_error: Mutex<Option<String>>,
+    pub calibration_reloads: AtomicU64,
+}
+
+impl Stats {
+    pub fn state(&self) -> BackendState {
+        BackendState::from_u8(self.state.load(Relaxed))
+    }
+    pub fn set_state(&self, s: BackendState) {
+        self.state.store(s as u8, Relaxed);
+    }
+    pub fn temp(&self) -> (Option<f64>, TempSource) {
+        let t = f64::from_bits(self.temp_bits.load(Relaxed));
+        (
+            t.is_finite().then_some(t),
+            TempSource::from_u8(self.temp_source.load(Relaxed)),
+        )
+    }
+    pub fn set_temp(&self, t: Option<f64>, src: TempSource) {
+        self.temp_bits
+            .store(t.unwrap_or(f64::NAN).to_bits(), Relaxed);
+        self.temp_source.store(src as u8, Relaxed);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_of_known_samples() {
+        let h = Histogram::default();
+        assert_eq!(h.quantile(0.5), None);
+        for us in 1..=100u64 {
+            h.record(Duration::from_micros(us));
+        }
+        // 100 samples at 1..100 µs: the median sits in the 50 µs bucket.
+        let p50 = h.quantile(0.5).unwrap();
+        assert!((p50 - 51e-6).abs() < 1e-9, "{p50}");
+        let p99 = h.quantile(0.99).unwrap();
+        assert!((p99 - 100e-6).abs() < 1e-9, "{p99}");
+        h.record(Duration::from_secs(1));
+        assert_eq!(h.quantile(1.0), Some(1.0));
+    }
+}
