@@ -1,8 +1,42 @@
 //! Hardware abstraction: every way the daemon can get a frame of the array
 //! (ADC boards over SPI, I²C and serial, the simulator-driven mock, a
 //! recorded log) behind one trait, so that the daemon cannot tell them apart.
+//!
+//! The daemon calls [`open_source`] with the `[source]` table of its config
+//! ([`BackendConfig`]) and then [`FrameSource::next_frame`] in a loop;
+//! [`FrameSource::health`] gives the counters worth reporting.
+//!
+//! - [`drivers`]: MCP3008/MCP3208 (SPI), ADS1115 and ADS7828 (I²C), generic
+//!   over embedded-hal 1.0;
+//! - [`serial`]: the `$LPADC` line protocol of microcontroller boards;
+//! - [`chanmap`]: which board channel feeds which detector;
+//! - [`bank`]: boards read together into one frame, paced ([`pace`]);
+//! - [`temp`]: fixed, DS18B20 and thermistor temperature with fallback;
+//! - [`mock`]: the simulator as a source, with injectable faults;
+//! - [`config`]: what the config file says, validated.
+//!
+//! Feature `linux` adds the real spidev / i2c-dev buses; without it the
+//! SPI and I²C kinds are refused by [`open_source`] with a clear error, so a
+//! simulator build needs no device files. Serial boards work everywhere.
 
 use lightpose_core::Frame;
+
+pub mod bank;
+pub mod chanmap;
+pub mod config;
+pub mod drivers;
+#[cfg(feature = "linux")]
+pub mod linux;
+#[cfg(feature = "sim")]
+pub mod mock;
+pub mod pace;
+pub mod serial;
+pub mod temp;
+
+pub use bank::{Bank, BoardSource};
+pub use chanmap::{ChannelMap, MapEntry, MapError};
+pub use config::{BackendConfig, TempConfig, ValidBackend};
+pub use temp::TempHealth;
 
 /// Why a source could not give a frame. The daemon counts and logs these and
 /// keeps going; `Ended` means there will be no more frames (a log or a
@@ -21,15 +55,93 @@ pub enum SourceError {
     Ended,
 }
 
+/// Counters a source keeps for the daemon's health report. All are totals
+/// since the source was opened.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SourceHealth {
+    /// The temperature source, if the source has one of ours.
+    pub temp: Option<TempHealth>,
+    /// Serial lines that did not parse (garbage, wrong checksum, ...).
+    pub bad_lines: u64,
+    /// Serial lines from a board id not expected on that port.
+    pub wrong_board_lines: u64,
+    /// The last bad line's error.
+    pub last_bad_line: Option<String>,
+    /// Devices reopened after a failure.
+    pub reopens: u64,
+    /// Faults the mock injected (bus errors, drops).
+    pub injected_faults: u64,
+}
+
 /// "Give me the next frame": 25 channels in MODEL.md's order, the ADC
 /// resolution, the capture time and the temperature.
 ///
 /// `next_frame` blocks until the frame is due (a source paces itself at its
-/// configured rate, or as fast as possible where that is configured).
+/// configured rate, or as fast as possible where that is configured). After
+/// an error other than `Ended`, the next call tries again.
 pub trait FrameSource: Send {
     fn next_frame(&mut self) -> Result<Frame, SourceError>;
     /// ADC resolution of the frames this source gives.
     fn adc_bits(&self) -> u8;
     /// One line saying what this source is (for logs and STATUS).
     fn describe(&self) -> String;
+    /// Counters for the health report (temperature fallbacks, skipped
+    /// lines, reopens, injected faults).
+    fn health(&self) -> SourceHealth {
+        SourceHealth::default()
+    }
+}
+
+/// Why a source could not be opened.
+#[derive(Debug, thiserror::Error)]
+pub enum HalError {
+    /// A config value is wrong; `key` is relative to the source's table.
+    #[error("source config: {key}: {msg}")]
+    Config { key: String, msg: String },
+    #[error("source config: {0}")]
+    Map(#[from] MapError),
+    /// A device could not be opened or set up.
+    #[error("{place}: {msg}")]
+    Open { place: String, msg: String },
+    /// The kind needs a feature this build does not have.
+    #[error("source kind \"{kind}\" needs lightpose-hal built with feature \"{feature}\"")]
+    NotBuilt {
+        kind: &'static str,
+        feature: &'static str,
+    },
+}
+
+/// Validate `cfg` and open the source it describes.
+pub fn open_source(cfg: &BackendConfig) -> Result<Box<dyn FrameSource>, HalError> {
+    open_validated(cfg.validate()?, cfg.kind())
+}
+
+/// Open an already validated backend (`kind` only names it in errors).
+pub fn open_validated(v: ValidBackend, kind: &'static str) -> Result<Box<dyn FrameSource>, HalError> {
+    match v {
+        ValidBackend::Serial {
+            boards,
+            timeout,
+            common,
+        } => {
+            let bank = serial::SerialBank::new(boards, common.bits, timeout);
+            Ok(Box::new(BoardSource::new(
+                bank,
+                common.map,
+                common.temp.start(),
+                pace::Pacer::from_rate(common.rate_hz),
+            )))
+        }
+        #[cfg(feature = "sim")]
+        ValidBackend::Sim(c) => Ok(Box::new(mock::MockSource::open(&c)?)),
+        #[cfg(not(feature = "sim"))]
+        ValidBackend::Sim(_) => Err(HalError::NotBuilt { kind, feature: "sim" }),
+        #[cfg(feature = "linux")]
+        hw => linux::open(hw),
+        #[cfg(not(feature = "linux"))]
+        _ => Err(HalError::NotBuilt {
+            kind,
+            feature: "linux",
+        }),
+    }
 }

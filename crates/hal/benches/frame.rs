@@ -1,0 +1,2 @@
+// placeholder until the hal bench lands
+fn main() {}
