@@ -117,7 +117,10 @@ pub fn open_source(cfg: &BackendConfig) -> Result<Box<dyn FrameSource>, HalError
 }
 
 /// Open an already validated backend (`kind` only names it in errors).
-pub fn open_validated(v: ValidBackend, kind: &'static str) -> Result<Box<dyn FrameSource>, HalError> {
+pub fn open_validated(
+    v: ValidBackend,
+    kind: &'static str,
+) -> Result<Box<dyn FrameSource>, HalError> {
     match v {
         ValidBackend::Serial {
             boards,
@@ -135,7 +138,10 @@ pub fn open_validated(v: ValidBackend, kind: &'static str) -> Result<Box<dyn Fra
         #[cfg(feature = "sim")]
         ValidBackend::Sim(c) => Ok(Box::new(mock::MockSource::open(&c)?)),
         #[cfg(not(feature = "sim"))]
-        ValidBackend::Sim(_) => Err(HalError::NotBuilt { kind, feature: "sim" }),
+        ValidBackend::Sim(_) => Err(HalError::NotBuilt {
+            kind,
+            feature: "sim",
+        }),
         #[cfg(feature = "linux")]
         hw => linux::open(hw),
         #[cfg(not(feature = "linux"))]

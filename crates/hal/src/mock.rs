@@ -1,0 +1,322 @@
+//! The mock backend: frames from the simulator, flown along a trajectory,
+//! through the same [`FrameSource`] trait as the boards, so that the daemon
+//! runs unchanged without hardware; plus injected faults (bus errors,
+//! dropped frames, stuck channels) for robustness tests of the daemon.
+//!
+//! Time: frame k has `t` = k / rate (k counting dropped and failed frames,
+//! since a board's clock runs on through them too), the time a paced board
+//! would stamp, and it samples the trajectory at t0 + t (modulo its length
+//! when looping). Free-running (`rate_hz = 0`) uses the scene's ADC rate
+//! for `t`, so that the trajectory is flown at its speed in simulated time.
+
+use std::path::Path;
+
+use lightpose_core::frame::full_scale;
+use lightpose_core::{Frame, COLS, NDET};
+use lightpose_sim::{Scene, Simulator, Trajectory};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::config::{FaultConfig, SimConfig};
+use crate::pace::Pacer;
+use crate::{FrameSource, HalError, SourceError, SourceHealth};
+
+/// Faults to inject, validated.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Faults {
+    pub bus_error_every: Option<u64>,
+    pub bus_error_prob: f64,
+    pub drop_every: Option<u64>,
+    pub drop_prob: f64,
+    /// (detector index, value)
+    pub stuck: Vec<(usize, u16)>,
+    pub seed: u64,
+}
+
+impl From<&FaultConfig> for Faults {
+    fn from(f: &FaultConfig) -> Self {
+        Faults {
+            bus_error_every: f.bus_error_every,
+            bus_error_prob: f.bus_error_prob,
+            drop_every: f.drop_every,
+            drop_prob: f.drop_prob,
+            stuck: f
+                .stuck
+                .iter()
+                .map(|s| (s.r * COLS + s.c, s.value))
+                .collect(),
+            seed: f.seed,
+        }
+    }
+}
+
+/// The simulator as a frame source.
+pub struct MockSource {
+    sim: Simulator,
+    traj: Trajectory,
+    looping: bool,
+    /// Seconds of simulated time per frame.
+    dt: f64,
+    pacer: Pacer,
+    faults: Faults,
+    rng: ChaCha8Rng,
+    seq: u64,
+    injected: u64,
+    describe: String,
+}
+
+impl MockSource {
+    /// `rate_hz = None`: as fast as possible.
+    pub fn new(
+        sim: Simulator,
+        traj: Trajectory,
+        rate_hz: Option<f64>,
+        looping: bool,
+        faults: Faults,
+    ) -> Self {
+        let nominal = rate_hz.unwrap_or(sim.scene().adc.rate_hz);
+        let dt = if nominal.is_finite() && nominal > 0.0 {
+            1.0 / nominal
+        } else {
+            0.2
+        };
+        let describe = format!(
+            "simulator ({}-bit, {}, {} s trajectory{}){}",
+            sim.scene().adc.bits,
+            match rate_hz {
+                Some(r) => format!("{r:.2} Hz"),
+                None => "free-running".into(),
+            },
+            traj.t_end() - traj.t0(),
+            if looping { ", looping" } else { "" },
+            if faults == Faults::default() {
+                ""
+            } else {
+                " with injected faults"
+            },
+        );
+        MockSource {
+            rng: ChaCha8Rng::seed_from_u64(faults.seed),
+            sim,
+            traj,
+            looping,
+            dt,
+            pacer: Pacer::from_rate(rate_hz),
+            faults,
+            seq: 0,
+            injected: 0,
+            describe,
+        }
+    }
+
+    /// Open from the config: load the scene (or the default tank) and the
+    /// trajectory.
+    pub fn open(c: &SimConfig) -> Result<Self, HalError> {
+        let scene = match &c.scene {
+            Some(p) => Scene::load(p).map_err(|e| HalError::Open {
+                place: p.display().to_string(),
+                msg: e.to_string(),
+            })?,
+            None => Scene::default(),
+        };
+        let traj = load_trajectory(&c.trajectory)?;
+        let bits = scene.adc.bits;
+        if let Some(s) = c.faults.stuck.iter().find(|s| s.value > full_scale(bits)) {
+            return Err(HalError::Config {
+                key: "faults.stuck".into(),
+                msg: format!(
+                    "value {} exceeds the scene's {bits}-bit full scale",
+                    s.value
+                ),
+            });
+        }
+        let rate = (c.rate_hz > 0.0).then_some(c.rate_hz);
+        Ok(Self::new(
+            Simulator::new(scene, c.seed),
+            traj,
+            rate,
+            c.looping,
+            Faults::from(&c.faults),
+        ))
+    }
+
+    fn hit(&mut self, every: Option<u64>, prob: f64, seq: u64) -> bool {
+        let periodic = every.is_some_and(|n| (seq + 1) % n == 0);
+        // draw every frame so that the fault sequence depends only on seq
+        let random = prob > 0.0 && self.rng.gen::<f64>() < prob;
+        periodic || random
+    }
+}
+
+fn load_trajectory(p: &Path) -> Result<Trajectory, HalError> {
+    Trajectory::load(p).map_err(|e| HalError::Open {
+        place: p.display().to_string(),
+        msg: e.to_string(),
+    })
+}
+
+impl FrameSource for MockSource {
+    fn next_frame(&mut self) -> Result<Frame, SourceError> {
+        loop {
+            let seq = self.seq;
+            let t = seq as f64 * self.dt;
+            let (t0, len) = (self.traj.t0(), self.traj.t_end() - self.traj.t0());
+            let tt = if t <= len {
+                t0 + t
+            } else if self.looping && len > 0.0 {
+                t0 + t % len
+            } else {
+                return Err(SourceError::Ended);
+            };
+            self.pacer.wait();
+            self.seq += 1;
+            let (fe, fp) = (self.faults.drop_every, self.faults.drop_prob);
+            if self.hit(fe, fp, seq) {
+                // a lost frame: its seq is skipped, as a board's would be
+                self.injected += 1;
+                continue;
+            }
+            let (be, bp) = (self.faults.bus_error_every, self.faults.bus_error_prob);
+            if self.hit(be, bp, seq) {
+                self.injected += 1;
+                let k = (seq % NDET as u64) as usize;
+                return Err(SourceError::Bus {
+                    place: format!("sim board channel {k} (injected, frame {seq})"),
+                    msg: "injected fault".into(),
+                });
+            }
+            let (pose, surge) = self.traj.sample(tt);
+            let mut f = self.sim.frame(seq, t, &pose, Some(surge));
+            for &(k, v) in &self.faults.stuck {
+                f.counts[k] = v;
+            }
+            return Ok(f);
+        }
+    }
+    fn adc_bits(&self) -> u8 {
+        self.sim.scene().adc.bits
+    }
+    fn describe(&self) -> String {
+        self.describe.clone()
+    }
+    fn health(&self) -> SourceHealth {
+        SourceHealth {
+            injected_faults: self.injected,
+            ..SourceHealth::default()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lightpose_core::Angle;
+    use lightpose_sim::trajectory::Knot;
+
+    fn traj() -> Trajectory {
+        let k = |t: f64, x: f64| Knot {
+            t,
+            pose: lightpose_core::Pose::new(x, 0.0, 0.1, Angle::ZERO, Angle::ZERO),
+        };
+        Trajectory::from_knots(vec![k(0.0, 8.0), k(1.0, 7.0), k(2.0, 6.0)])
+    }
+
+    fn src(looping: bool, faults: Faults) -> MockSource {
+        MockSource::new(
+            Simulator::new(Scene::default(), 7),
+            traj(),
+            None,
+            looping,
+            faults,
+        )
+    }
+
+    #[test]
+    fn gives_simulator_frames_with_truth_and_ends_or_loops() {
+        let mut s = src(false, Faults::default());
+        let bits = s.adc_bits();
+        let dt = s.dt;
+        let mut n = 0;
+        let mut last = None;
+        loop {
+            match s.next_frame() {
+                Ok(f) => {
+                    assert_eq!(f.seq, n);
+                    assert!((f.t - n as f64 * dt).abs() < 1e-12);
+                    assert_eq!(f.adc_bits, bits);
+                    let truth = f.truth.expect("sim frames carry truth");
+                    assert!(truth.pose.x <= 8.0 + 1e-9 && truth.pose.x >= 6.0 - 1e-9);
+                    assert!(
+                        f.counts.iter().any(|&c| c > 0),
+                        "beacon at 6-8 m must be seen"
+                    );
+                    last = Some(f);
+                    n += 1;
+                }
+                Err(SourceError::Ended) => break,
+                Err(e) => panic!("{e}"),
+            }
+            assert!(n < 10_000);
+        }
+        assert_eq!(n, (2.0 / dt).floor() as u64 + 1);
+        assert!((last.unwrap().truth.unwrap().pose.x - 6.0).abs() < 0.1);
+
+        let mut l = src(true, Faults::default());
+        for _ in 0..(3 * n) {
+            let f = l.next_frame().unwrap();
+            let x = f.truth.unwrap().pose.x;
+            assert!((6.0 - 1e-9..=8.0 + 1e-9).contains(&x));
+        }
+    }
+
+    #[test]
+    fn injects_bus_errors_drops_and_stuck_channels() {
+        let faults = Faults {
+            bus_error_every: Some(5),
+            drop_every: Some(7),
+            stuck: vec![(12, 999)],
+            ..Faults::default()
+        };
+        let mut s = src(true, faults);
+        let mut seqs = Vec::new();
+        let mut errors = 0;
+        for _ in 0..30 {
+            match s.next_frame() {
+                Ok(f) => {
+                    assert_eq!(f.counts[12], 999);
+                    seqs.push(f.seq);
+                }
+                Err(SourceError::Bus { place, .. }) => {
+                    assert!(place.contains("injected"), "{place}");
+                    errors += 1;
+                }
+                Err(e) => panic!("{e}"),
+            }
+        }
+        // seq 6, 13, 20, ... dropped; 4, 9, 14, ... bus errors
+        assert!(!seqs.contains(&6) && !seqs.contains(&13));
+        assert!(!seqs.contains(&4) && !seqs.contains(&9));
+        assert!(seqs.contains(&5) && seqs.contains(&7));
+        assert!(errors >= 5);
+        let drops = (0..s.seq).filter(|q| (q + 1) % 7 == 0).count() as u64;
+        assert!(drops >= 4);
+        assert_eq!(s.health().injected_faults, errors + drops);
+    }
+
+    #[test]
+    fn random_faults_follow_their_probability_and_seed() {
+        let f = Faults {
+            bus_error_prob: 0.2,
+            seed: 3,
+            ..Faults::default()
+        };
+        let run = |f: Faults| -> Vec<bool> {
+            let mut s = src(true, f);
+            (0..500).map(|_| s.next_frame().is_err()).collect()
+        };
+        let a = run(f.clone());
+        assert_eq!(a, run(f));
+        let rate = a.iter().filter(|&&e| e).count() as f64 / 500.0;
+        assert!((rate - 0.2).abs() < 0.06, "{rate}");
+    }
+}
