@@ -1,0 +1,188 @@
+//! The serial reader against real pseudo-terminals: a pty pair stands for
+//! each board's USB serial port (the slave is what the reader opens, the
+//! master is the board), reached through a symlink as udev would give it,
+//! so that "unplug and replug" is: close the master, make a new pair, move
+//! the link.
+
+use std::fs::File;
+use std::io::Write;
+use std::os::fd::OwnedFd;
+use std::path::{Path, PathBuf};
+use std::thread;
+use std::time::Duration;
+
+use lightpose_core::NDET;
+use lightpose_hal::bank::BoardSource;
+use lightpose_hal::chanmap::ChannelMap;
+use lightpose_hal::pace::Pacer;
+use lightpose_hal::serial::protocol::format_line;
+use lightpose_hal::serial::{SerialBank, SerialBoard};
+use lightpose_hal::temp::{TempKind, TempReader};
+use lightpose_hal::{FrameSource, SourceError};
+use nix::pty::openpty;
+use nix::sys::termios::{cfmakeraw, tcgetattr, tcsetattr, SetArg};
+
+/// One fake board: the master side and the slave fd kept open (so that the
+/// pty lives until the test says otherwise).
+struct FakeBoard {
+    master: File,
+    _slave: OwnedFd,
+}
+
+fn fake_board(link: &Path) -> FakeBoard {
+    let pty = openpty(None, None).expect("openpty");
+    let mut t = tcgetattr(&pty.slave).expect("tcgetattr");
+    cfmakeraw(&mut t);
+    tcsetattr(&pty.slave, SetArg::TCSANOW, &t).expect("tcsetattr");
+    let name = nix::unistd::ttyname(&pty.slave).expect("ttyname");
+    let _ = std::fs::remove_file(link);
+    std::os::unix::fs::symlink(name, link).expect("symlink");
+    FakeBoard {
+        master: File::from(pty.master),
+        _slave: pty.slave,
+    }
+}
+
+fn line(board: u8, seq: u32, base: u16) -> Vec<u8> {
+    let values: Vec<u16> = (0..16).map(|c| base + c).collect();
+    let mut out = Vec::new();
+    format_line(board, seq, 10, &values, &mut out);
+    out
+}
+
+/// Write `bytes` after `delay`, from another thread (a board that speaks
+/// only once the reader is listening).
+fn later(master: &File, delay: Duration, bytes: Vec<u8>) -> thread::JoinHandle<()> {
+    let mut m = master.try_clone().expect("clone master");
+    thread::spawn(move || {
+        thread::sleep(delay);
+        // the reader may have given up already; that is the test's business
+        let _ = m.write_all(&bytes);
+    })
+}
+
+fn source(paths: &[PathBuf], timeout_ms: u64) -> BoardSource<SerialBank> {
+    let boards = paths
+        .iter()
+        .enumerate()
+        .map(|(i, p)| SerialBoard {
+            name: format!("b{i}"),
+            id: i as u8,
+            path: p.display().to_string(),
+            baud: 115_200,
+            channels: 16,
+        })
+        .collect();
+    let bank = SerialBank::new(boards, 10, Duration::from_millis(timeout_ms));
+    BoardSource::new(
+        bank,
+        ChannelMap::sequential(16),
+        TempReader::new(TempKind::None, 0.0),
+        Pacer::new(None),
+    )
+}
+
+#[test]
+fn serial_boards_on_ptys() {
+    let dir = tempfile::tempdir().unwrap();
+    let paths = [dir.path().join("lpadc0"), dir.path().join("lpadc1")];
+    let mut b0 = fake_board(&paths[0]);
+    let mut b1 = fake_board(&paths[1]);
+    let mut src = source(&paths, 300);
+
+    // 1. Nothing sent yet: board b0 times out, named.
+    let e = src.next_frame().unwrap_err();
+    assert!(matches!(e, SourceError::Timeout { .. }), "{e}");
+    assert!(e.to_string().contains("board b0"), "{e}");
+
+    // 2. b0 speaks, b1 is silent: the missing board is named.
+    b0.master.write_all(&line(0, 1, 100)).unwrap();
+    let e = src.next_frame().unwrap_err();
+    assert!(e.to_string().contains("board b1"), "{e}");
+    assert!(matches!(e, SourceError::Timeout { .. }));
+
+    // 3. Garbage, a wrong checksum, another board's line and an overlong
+    //    line, then good lines; b1's good line arrives split in two writes
+    //    40 ms apart.
+    b0.master
+        .write_all(b"\x00\xffgarbage without dollar\r\n")
+        .unwrap();
+    let mut bad = line(0, 2, 500);
+    let star = bad.iter().position(|&c| c == b'*').unwrap();
+    bad[star + 1] = if bad[star + 1] == b'0' { b'1' } else { b'0' };
+    b0.master.write_all(&bad).unwrap();
+    b0.master.write_all(&line(7, 3, 600)).unwrap();
+    b0.master.write_all(&[b'$'; 300]).unwrap();
+    b0.master.write_all(b"\n").unwrap();
+    b0.master.write_all(&line(0, 4, 200)).unwrap();
+    b0.master.write_all(&line(0, 5, 300)).unwrap(); // newest: this one is used
+    let l1 = line(1, 9, 400);
+    let (first, second) = l1.split_at(11);
+    b1.master.write_all(first).unwrap();
+    let w = later(&b1.master, Duration::from_millis(40), second.to_vec());
+    let f = src.next_frame().unwrap();
+    w.join().unwrap();
+    assert_eq!(f.adc_bits, 10);
+    for k in 0..16 {
+        assert_eq!(f.counts[k], 300 + k as u16, "detector {k} from b0");
+    }
+    for k in 16..NDET {
+        assert_eq!(f.counts[k], 400 + (k - 16) as u16, "detector {k} from b1");
+    }
+    let h = src.health();
+    assert_eq!(h.bad_lines, 3, "garbage, checksum, overlong: {h:?}");
+    assert_eq!(h.wrong_board_lines, 1);
+    assert!(h.last_bad_line.is_some());
+
+    // 4. A line is used once: without a new line the next frame times out.
+    b1.master.write_all(&line(1, 10, 0)).unwrap();
+    let e = src.next_frame().unwrap_err();
+    assert!(e.to_string().contains("board b0"), "{e}");
+
+    // 5. b0 is unplugged: the device closes, the frame says so.
+    drop(b0);
+    let e = src.next_frame().unwrap_err();
+    assert!(matches!(e, SourceError::Unavailable { .. }), "{e}");
+    assert!(e.to_string().contains("board b0"), "{e}");
+
+    // 6. Still unplugged (the link points at nothing live): still an error.
+    let _ = std::fs::remove_file(&paths[0]);
+    let e = src.next_frame().unwrap_err();
+    assert!(matches!(e, SourceError::Unavailable { .. }), "{e}");
+
+    // 7. Replugged at the same path: reopened and reading again.
+    let b0 = fake_board(&paths[0]);
+    let w0 = later(&b0.master, Duration::from_millis(50), line(0, 1, 700));
+    let w1 = later(&b1.master, Duration::from_millis(50), line(1, 11, 800));
+    let f = src.next_frame().unwrap();
+    w0.join().unwrap();
+    w1.join().unwrap();
+    assert_eq!(f.counts[0], 700);
+    assert_eq!(f.counts[16], 800);
+    assert_eq!(src.health().reopens, 1);
+}
+
+#[test]
+fn wrong_resolution_and_short_lines_are_bad_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let paths = [dir.path().join("a"), dir.path().join("b")];
+    let b0 = fake_board(&paths[0]);
+    let b1 = fake_board(&paths[1]);
+    let mut src = source(&paths, 300);
+    // 12-bit line where 10 bits are configured
+    let mut l12 = Vec::new();
+    format_line(0, 1, 12, &[1; 16], &mut l12);
+    let w = later(&b0.master, Duration::from_millis(30), l12);
+    let e = src.next_frame().unwrap_err();
+    w.join().unwrap();
+    assert!(matches!(e, SourceError::BadData { .. }), "{e}");
+    assert!(e.to_string().contains("12 bits"), "{e}");
+    // a line with 4 values where channel 15 is mapped
+    let mut short = Vec::new();
+    format_line(0, 2, 10, &[1, 2, 3, 4], &mut short);
+    let w = later(&b0.master, Duration::from_millis(30), short);
+    let e = src.next_frame().unwrap_err();
+    w.join().unwrap();
+    assert!(e.to_string().contains("4 values"), "{e}");
+    drop(b1);
+}
