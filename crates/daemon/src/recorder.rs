@@ -180,7 +180,10 @@ impl Worker {
             self.write(&f);
         }
         self.close();
-        self.stats.set_state(RecState::Closed);
+        // A refusing disk stays visible in the last STATUS.
+        if self.stats.state() != RecState::Error {
+            self.stats.set_state(RecState::Closed);
+        }
     }
 
     fn fail(&mut self, what: String) {

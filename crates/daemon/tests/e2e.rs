@@ -1,0 +1,646 @@
+//! End-to-end tests of lightposed: the simulator backend on loopback, real
+//! UDP sockets, the real binary where signals and exit codes matter, and a
+//! Python standard-library subscriber as a client that is not ours. Each
+//! runs a few seconds at most (high frame rates).
+
+use lightpose_core::LogReader;
+use lightposed::{Config, Publisher};
+use serde_json::Value;
+use std::io::{BufRead, BufReader};
+use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// The shipped scene, trajectory and calibration (written by other parts
+/// of the project); a test that needs them says so if they are absent.
+fn shipped() -> Option<(PathBuf, PathBuf, PathBuf)> {
+    let r = root();
+    let files = (
+        r.join("config/scenes/tank.toml"),
+        r.join("config/trajectories/zigzag.csv"),
+        r.join("config/calibration/tank.toml"),
+    );
+    for p in [&files.0, &files.1, &files.2] {
+        if !p.is_file() {
+            eprintln!("skipped: {} does not exist yet", p.display());
+            return None;
+        }
+    }
+    Some(files)
+}
+
+/// A config for the simulated tank at `rate` Hz sending to `dests`, plus
+/// `extra` TOML appended (tables).
+fn sim_config(rate: f64, dests: &[SocketAddr], backend_extra: &str, extra: &str) -> Option<String> {
+    let (scene, traj, cal) = shipped()?;
+    let d: Vec<String> = dests.iter().map(|d| format!("\"{d}\"")).collect();
+    Some(format!(
+        r#"rate_hz = {rate}
+calibration = "{}"
+[backend]
+kind = "sim"
+scene = "{}"
+trajectory = "{}"
+{backend_extra}
+[outputs]
+destinations = [{}]
+status_interval_s = 1.0
+{extra}
+"#,
+        cal.display(),
+        scene.display(),
+        traj.display(),
+        d.join(", ")
+    ))
+}
+
+fn subscriber() -> (UdpSocket, SocketAddr) {
+    let s = UdpSocket::bind("127.0.0.1:0").expect("bind subscriber");
+    s.set_read_timeout(Some(Duration::from_millis(100)))
+        .expect("timeout");
+    let a = s.local_addr().expect("addr");
+    (s, a)
+}
+
+/// Every datagram that arrives within `d`, each with its arrival time.
+fn collect(s: &UdpSocket, d: Duration) -> Vec<(Instant, Value)> {
+    let mut out = Vec::new();
+    let mut buf = vec![0u8; 65536];
+    let end = Instant::now() + d;
+    while Instant::now() < end {
+        if let Ok(n) = s.recv(&mut buf) {
+            let v: Value =
+                serde_json::from_slice(&buf[..n]).expect("every datagram is one JSON object");
+            out.push((Instant::now(), v));
+        }
+    }
+    out
+}
+
+fn of_class<'a>(msgs: &'a [(Instant, Value)], class: &str) -> Vec<&'a (Instant, Value)> {
+    msgs.iter().filter(|(_, v)| v["class"] == class).collect()
+}
+
+/// Run the daemon in-process on a thread of its own for `run_for`.
+fn run_in_process(cfg: Config, run_for: Duration) -> std::thread::JoinHandle<lightposed::Summary> {
+    std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        rt.block_on(async move {
+            let p = Publisher::open(&cfg.outputs).expect("publisher");
+            lightposed::run(cfg, p, tokio::time::sleep(run_for))
+                .await
+                .expect("daemon runs")
+        })
+    })
+}
+
+fn assert_pose_fields(v: &Value) {
+    for k in [
+        "class", "seq", "t", "time", "status", "x", "y", "z", "pitch", "yaw", "surge",
+    ] {
+        assert!(v.get(k).is_some(), "POSE lacks {k}: {v}");
+    }
+    assert!(v["seq"].is_u64());
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    let time = v["time"].as_f64().expect("time is a number");
+    assert!(
+        (now - time).abs() < 10.0,
+        "time {time} is not the wall clock {now}"
+    );
+    if v["status"] == "ok" {
+        let x = v["x"].as_f64().expect("ok pose has x");
+        assert!((2.0..12.0).contains(&x), "x = {x} outside the tank: {v}");
+        assert!(v["pitch"].as_f64().is_some_and(|p| p.abs() < 45.0), "{v}");
+    }
+}
+
+#[test]
+fn pose_at_the_configured_rate_and_status_every_second() {
+    let (sub, addr) = subscriber();
+    let Some(text) = sim_config(100.0, &[addr], "", "") else {
+        return;
+    };
+    let cfg = Config::parse(&text, "test.toml", None).expect("valid config");
+    let h = run_in_process(cfg, Duration::from_millis(2600));
+    let msgs = collect(&sub, Duration::from_millis(2900));
+    let summary = h.join().expect("daemon thread");
+
+    let version = of_class(&msgs, "VERSION");
+    assert_eq!(version.len(), 1, "one VERSION at start");
+    assert_eq!(version[0].1["name"], "lightposed");
+    assert_eq!(msgs[0].1["class"], "VERSION", "VERSION comes first");
+
+    let poses = of_class(&msgs, "POSE");
+    // 2.6 s at 100 Hz: 260 frames, give or take start-up.
+    assert!(
+        (220..=275).contains(&poses.len()),
+        "{} POSE datagrams",
+        poses.len()
+    );
+    for (_, v) in &poses {
+        assert_pose_fields(v);
+    }
+    let seqs: Vec<u64> = poses
+        .iter()
+        .filter_map(|(_, v)| v["seq"].as_u64())
+        .collect();
+    assert!(seqs.windows(2).all(|w| w[1] == w[0] + 1), "consecutive seq");
+    // Status words are the estimator's business; here: known words, and
+    // some poses fully known.
+    let words = [
+        "ok",
+        "no_light",
+        "saturated",
+        "out_of_range",
+        "initialising",
+        "bad_frame",
+        "diverged",
+    ];
+    assert!(poses
+        .iter()
+        .all(|(_, v)| words.iter().any(|w| v["status"] == *w)));
+    let ok = poses.iter().filter(|(_, v)| v["status"] == "ok").count();
+    assert!(ok > 0, "no pose is ok");
+    // Measured rate between first and last POSE.
+    let span = poses.last().unwrap().0 - poses[0].0;
+    let rate = (poses.len() - 1) as f64 / span.as_secs_f64();
+    assert!((85.0..115.0).contains(&rate), "POSE rate {rate:.1} Hz");
+
+    let status = of_class(&msgs, "STATUS");
+    // Ticks at 0, 1, 2 s and a last one at stop.
+    assert!(status.len() >= 3, "{} STATUS", status.len());
+    for w in status.windows(2).take(2) {
+        let gap = (w[1].0 - w[0].0).as_secs_f64();
+        assert!((0.8..1.2).contains(&gap), "STATUS gap {gap:.3} s");
+    }
+    let last = &status.last().unwrap().1;
+    for k in [
+        "seq",
+        "t",
+        "uptime",
+        "frames",
+        "late",
+        "failed",
+        "backend",
+        "estimator",
+        "temperature",
+        "recording",
+        "outputs",
+    ] {
+        assert!(last.get(k).is_some(), "STATUS lacks {k}: {last}");
+    }
+    assert_eq!(last["backend"]["kind"], "sim");
+    assert_eq!(last["temperature"]["source"], "frame");
+    assert_eq!(last["recording"]["state"], "off");
+    assert_eq!(last["failed"], 0);
+    assert!(
+        last["latency"]["p99"].as_f64().is_some_and(|p| p < 0.05),
+        "{last}"
+    );
+    assert_eq!(summary.frames, last["frames"].as_u64().unwrap());
+    assert_eq!(last["outputs"][0]["errors"], 0);
+}
+
+#[test]
+fn python_stdlib_subscriber_reads_the_stream() {
+    let script = root().join("tests/python/subscriber.py");
+    let mut child = match Command::new("python3")
+        .arg(&script)
+        .args(["--seconds", "2.5"])
+        .stdout(Stdio::piped())
+        .spawn()
+    {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("skipped: cannot run python3: {e}");
+            return;
+        }
+    };
+    let mut out = BufReader::new(child.stdout.take().expect("stdout"));
+    let mut line = String::new();
+    out.read_line(&mut line).expect("port line");
+    let port: u16 = line.trim().parse().expect("python prints its port first");
+    let Some(text) = sim_config(
+        100.0,
+        &[SocketAddr::from((Ipv4Addr::LOCALHOST, port))],
+        "",
+        "",
+    ) else {
+        let _ = child.kill();
+        return;
+    };
+    let cfg = Config::parse(&text, "test.toml", None).expect("valid");
+    let h = run_in_process(cfg, Duration::from_millis(2200));
+    line.clear();
+    out.read_line(&mut line).expect("summary line");
+    let status = child.wait().expect("python exits");
+    h.join().expect("daemon");
+    let v: Value = serde_json::from_str(&line).expect("python prints JSON");
+    assert!(status.success(), "python subscriber found problems: {v}");
+    assert_eq!(v["problems"].as_array().map(|a| a.len()), Some(0), "{v}");
+    assert!(v["counts"]["POSE"].as_u64().unwrap_or(0) > 150, "{v}");
+    assert!(v["counts"]["STATUS"].as_u64().unwrap_or(0) >= 2, "{v}");
+    assert_eq!(v["counts"]["VERSION"], 1, "{v}");
+    assert_eq!(v["seq_increasing"], true);
+    assert!(v["ok_poses"].as_u64().unwrap_or(0) > 0, "{v}");
+}
+
+#[test]
+fn multicast_on_loopback() {
+    let group = Ipv4Addr::new(239, 255, 71, 50);
+    let rx = match UdpSocket::bind((Ipv4Addr::UNSPECIFIED, 0)) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("skipped: cannot bind: {e}");
+            return;
+        }
+    };
+    let port = rx.local_addr().expect("addr").port();
+    if let Err(e) = rx.join_multicast_v4(&group, &Ipv4Addr::LOCALHOST) {
+        eprintln!("skipped: this machine refuses to join {group} on lo: {e}");
+        return;
+    }
+    rx.set_read_timeout(Some(Duration::from_millis(100)))
+        .expect("timeout");
+    // Probe with a plain socket first: some sandboxes drop multicast on lo.
+    let probe = UdpSocket::bind("127.0.0.1:0").expect("probe socket");
+    let _ = probe.set_multicast_loop_v4(true);
+    let sent = probe.send_to(b"{\"class\":\"PROBE\",\"seq\":0,\"t\":0}", (group, port));
+    let mut buf = [0u8; 256];
+    if sent.is_err() || rx.recv(&mut buf).is_err() {
+        eprintln!("skipped: multicast is not delivered on loopback here ({sent:?})");
+        return;
+    }
+    let extra = format!(
+        "[outputs.multicast]\ngroup = \"{group}:{port}\"\nttl = 0\ninterface = \"127.0.0.1\"\nloopback = true\n"
+    );
+    let Some(text) = sim_config(100.0, &[], "", &extra) else {
+        return;
+    };
+    let cfg = Config::parse(&text, "test.toml", None).expect("valid");
+    let h = run_in_process(cfg, Duration::from_millis(1300));
+    let msgs = collect(&rx, Duration::from_millis(1500));
+    h.join().expect("daemon");
+    let poses = of_class(&msgs, "POSE");
+    assert!(poses.len() > 80, "{} POSE by multicast", poses.len());
+    assert!(!of_class(&msgs, "STATUS").is_empty());
+    assert_eq!(
+        of_class(&msgs, "STATUS")[0].1["outputs"][0]["multicast"],
+        true
+    );
+}
+
+#[test]
+fn record_then_replay_gives_the_same_poses() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rec = dir.path().join("rec");
+    // Live: the whole zigzag (8 s) at 50 Hz, as fast as possible, recorded.
+    let (sub, addr) = subscriber();
+    let _ = socket2::SockRef::from(&sub).set_recv_buffer_size(8 << 20);
+    let extra = format!("[recording]\ndir = \"{}\"\n", rec.display());
+    let Some(text) = sim_config(50.0, &[addr], "pace = \"fast\"\nloop = false", &extra) else {
+        return;
+    };
+    let cfg = Config::parse(&text, "live.toml", None).expect("valid");
+    let h = run_in_process(cfg, Duration::from_secs(20));
+    let live = collect(&sub, Duration::from_millis(1500));
+    let s = h.join().expect("daemon");
+    assert!(s.source_ended, "a non-looping sim ends");
+    assert_eq!(s.frames, 401);
+    assert_eq!(s.recorded, 401);
+
+    let logs: Vec<PathBuf> = std::fs::read_dir(&rec)
+        .expect("recorded")
+        .map(|e| e.expect("entry").path())
+        .collect();
+    assert_eq!(logs.len(), 1, "{logs:?}");
+    let replay_text = format!(
+        "rate_hz = 50.0\ncalibration = \"{}\"\n[backend]\nkind = \"replay\"\nlog = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{addr}\"]\n",
+        root().join("config/calibration/tank.toml").display(),
+        logs[0].display()
+    );
+    let cfg = Config::parse(&replay_text, "replay.toml", None).expect("valid");
+    let h = run_in_process(cfg, Duration::from_secs(20));
+    let replayed = collect(&sub, Duration::from_millis(1500));
+    let s2 = h.join().expect("daemon");
+    assert!(s2.source_ended);
+    assert_eq!(s2.frames, 401);
+
+    let key = |v: &Value| {
+        let mut v = v.clone();
+        if let Some(o) = v.as_object_mut() {
+            o.remove("time");
+        }
+        v
+    };
+    let a: std::collections::BTreeMap<u64, Value> = of_class(&live, "POSE")
+        .iter()
+        .map(|(_, v)| (v["seq"].as_u64().unwrap(), key(v)))
+        .collect();
+    let b: std::collections::BTreeMap<u64, Value> = of_class(&replayed, "POSE")
+        .iter()
+        .map(|(_, v)| (v["seq"].as_u64().unwrap(), key(v)))
+        .collect();
+    let common: Vec<u64> = a.keys().filter(|k| b.contains_key(k)).copied().collect();
+    assert!(
+        common.len() > 360,
+        "{} poses seen in both runs",
+        common.len()
+    );
+    for k in common {
+        assert_eq!(a[&k], b[&k], "pose {k} differs between live and replay");
+    }
+}
+
+#[test]
+fn refusing_disk_is_reported_and_publishing_goes_on() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = dir.path().join("not-a-dir");
+    std::fs::write(&file, b"x").expect("write");
+    let (sub, addr) = subscriber();
+    let extra = format!("[recording]\ndir = \"{}\"\n", file.join("rec").display());
+    let Some(text) = sim_config(100.0, &[addr], "", &extra) else {
+        return;
+    };
+    let cfg = Config::parse(&text, "t.toml", None).expect("valid");
+    let h = run_in_process(cfg, Duration::from_millis(1300));
+    let msgs = collect(&sub, Duration::from_millis(1500));
+    h.join().expect("daemon");
+    assert!(of_class(&msgs, "POSE").len() > 100);
+    let st = &of_class(&msgs, "STATUS").last().expect("a STATUS").1;
+    assert_eq!(st["recording"]["state"], "error", "{st}");
+    assert!(
+        st["recording"]["error"]
+            .as_str()
+            .unwrap_or("")
+            .contains("not-a-dir"),
+        "{st}"
+    );
+    assert!(
+        st["recording"]["failed"].as_u64().unwrap_or(0) > 100,
+        "{st}"
+    );
+}
+
+#[test]
+fn attitude_readings_ride_with_frames_and_are_recorded() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rec = dir.path().join("rec");
+    let port = UdpSocket::bind("127.0.0.1:0")
+        .expect("free port")
+        .local_addr()
+        .expect("addr")
+        .port();
+    let (sub, addr) = subscriber();
+    let extra = format!(
+        "[recording]\ndir = \"{}\"\n[attitude]\nenabled = true\nlisten = \"127.0.0.1:{port}\"\nbeacon_axis_heading_deg = 90.0\nmax_age_s = 0.5\n",
+        rec.display()
+    );
+    let Some(text) = sim_config(100.0, &[addr], "", &extra) else {
+        return;
+    };
+    let cfg = Config::parse(&text, "t.toml", None).expect("valid");
+    let h = run_in_process(cfg, Duration::from_millis(1400));
+    let ahrs = UdpSocket::bind("127.0.0.1:0").expect("ahrs");
+    let t0 = Instant::now();
+    // Heading 280° with the beam to the east (90°): yaw 10° in B.
+    while t0.elapsed() < Duration::from_millis(1000) {
+        let _ = ahrs.send_to(
+            br#"{"class":"ATTITUDE","t":1.0,"pitch":4.0,"yaw":280.0}"#,
+            ("127.0.0.1", port),
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let msgs = collect(&sub, Duration::from_millis(600));
+    h.join().expect("daemon");
+    let st = &of_class(&msgs, "STATUS").last().expect("STATUS").1;
+    assert!(
+        st["attitude"]["frames_with"].as_u64().unwrap_or(0) > 50,
+        "{st}"
+    );
+    let log = std::fs::read_dir(&rec)
+        .expect("rec")
+        .next()
+        .expect("a log")
+        .expect("entry")
+        .path();
+    let with: Vec<_> = LogReader::open(&log)
+        .expect("log")
+        .filter_map(|f| f.ok().and_then(|f| f.attitude))
+        .collect();
+    assert!(
+        with.len() > 50,
+        "{} recorded frames with attitude",
+        with.len()
+    );
+    assert!((with[0].yaw.deg() - 10.0).abs() < 1e-9 && (with[0].pitch.deg() - 4.0).abs() < 1e-9);
+}
+
+// ---- the real binary -------------------------------------------------------
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_lightposed"))
+}
+
+/// Start the binary with `cfg_text`; wait until POSE flows to `sub`.
+fn spawn_daemon(dir: &Path, cfg_text: &str, sub: &UdpSocket) -> std::process::Child {
+    let cfg = dir.join("lightposed.toml");
+    std::fs::write(&cfg, cfg_text).expect("write config");
+    let child = bin()
+        .arg("--config")
+        .arg(&cfg)
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn lightposed");
+    let mut buf = [0u8; 65536];
+    let t0 = Instant::now();
+    loop {
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "no POSE from the binary"
+        );
+        if let Ok(n) = sub.recv(&mut buf) {
+            if serde_json::from_slice::<Value>(&buf[..n]).is_ok_and(|v| v["class"] == "POSE") {
+                return child;
+            }
+        }
+    }
+}
+
+fn signal(child: &std::process::Child, sig: nix::sys::signal::Signal) {
+    nix::sys::signal::kill(nix::unistd::Pid::from_raw(child.id() as i32), sig).expect("signal");
+}
+
+fn wait_exit(child: &mut std::process::Child, within: Duration) -> std::process::ExitStatus {
+    let t0 = Instant::now();
+    loop {
+        if let Some(s) = child.try_wait().expect("wait") {
+            return s;
+        }
+        if t0.elapsed() > within {
+            let _ = child.kill();
+            panic!("lightposed did not exit within {within:?}");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Frames of every log in `dir`, and whether any log ended cut short.
+fn read_logs(dir: &Path) -> (Vec<u64>, bool) {
+    let mut logs: Vec<PathBuf> = std::fs::read_dir(dir)
+        .expect("dir")
+        .map(|e| e.expect("e").path())
+        .collect();
+    logs.sort();
+    let (mut seqs, mut cut) = (Vec::new(), false);
+    for l in logs {
+        let mut r = LogReader::open(&l).expect("log opens");
+        for f in r.by_ref() {
+            seqs.push(f.expect("every line reads back").seq);
+        }
+        cut |= r.truncated_at().is_some();
+    }
+    (seqs, cut)
+}
+
+#[test]
+fn sigterm_exits_0_with_recording_complete_and_sighup_reloads() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rec = dir.path().join("rec");
+    let (sub, addr) = subscriber();
+    let extra = format!(
+        "[recording]\ndir = \"{}\"\nrotate_mb = 0.05\n",
+        rec.display()
+    );
+    let Some(text) = sim_config(200.0, &[addr], "", &extra) else {
+        return;
+    };
+    let mut child = spawn_daemon(dir.path(), &text, &sub);
+    signal(&child, nix::sys::signal::Signal::SIGHUP);
+    let msgs = collect(&sub, Duration::from_millis(1300));
+    let reloads = of_class(&msgs, "STATUS")
+        .last()
+        .map(|(_, v)| v["estimator"]["reloads"].as_u64().unwrap_or(0));
+    assert_eq!(reloads, Some(1), "SIGHUP reloads the calibration once");
+    signal(&child, nix::sys::signal::Signal::SIGTERM);
+    let status = wait_exit(&mut child, Duration::from_secs(5));
+    assert_eq!(status.code(), Some(0), "SIGTERM exits 0");
+    let last_status = collect(&sub, Duration::from_millis(300));
+    let fin = of_class(&last_status, "STATUS");
+    let fin = &fin.last().expect("a final STATUS at stop").1;
+    let (seqs, cut) = read_logs(&rec);
+    assert!(!cut, "a clean stop leaves no cut line");
+    assert!(seqs.len() > 250, "{} frames recorded", seqs.len());
+    assert!(
+        seqs.windows(2).all(|w| w[1] == w[0] + 1),
+        "recorded seq contiguous"
+    );
+    assert_eq!(
+        seqs.len() as u64,
+        fin["frames"].as_u64().unwrap(),
+        "every published frame recorded"
+    );
+    assert!(
+        fin["recording"]["files"].as_u64().unwrap() > 1,
+        "rotated by size: {fin}"
+    );
+}
+
+#[test]
+fn kill_9_leaves_a_log_complete_to_its_last_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rec = dir.path().join("rec");
+    let (sub, addr) = subscriber();
+    let extra = format!("[recording]\ndir = \"{}\"\n", rec.display());
+    let Some(text) = sim_config(500.0, &[addr], "", &extra) else {
+        return;
+    };
+    let mut child = spawn_daemon(dir.path(), &text, &sub);
+    std::thread::sleep(Duration::from_millis(600));
+    signal(&child, nix::sys::signal::Signal::SIGKILL);
+    wait_exit(&mut child, Duration::from_secs(5));
+    let (seqs, _cut) = read_logs(&rec);
+    assert!(seqs.len() > 100, "{} frames", seqs.len());
+    assert!(seqs.windows(2).all(|w| w[1] == w[0] + 1));
+}
+
+#[test]
+fn bad_config_exits_nonzero_with_one_clear_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "rate_hz = 5.0\ncalibration = \"c.toml\"\n[backend]\nkind = \"sim\"\n[outputs]\ndestinations = [\"127.0.0.1\"]\n")
+        .expect("write");
+    for flag in ["--config", "--check-config"] {
+        let out = bin().arg(flag).arg(&bad).output().expect("run");
+        assert_eq!(out.status.code(), Some(2), "{flag}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(err.lines().count(), 1, "one line: {err}");
+        assert!(err.contains("bad.toml:6: outputs.destinations:"), "{err}");
+    }
+    let out = bin()
+        .arg("--config")
+        .arg(dir.path().join("none.toml"))
+        .output()
+        .expect("run");
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("none.toml"));
+}
+
+#[test]
+fn shipped_configs_validate_and_version_prints() {
+    let out = bin().arg("--version").output().expect("run");
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stdout).starts_with("lightposed "));
+    let mut files = vec![root().join("config/lightposed.toml")];
+    if let Ok(rd) = std::fs::read_dir(root().join("config/examples")) {
+        files.extend(
+            rd.filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|x| x == "toml")),
+        );
+    }
+    for f in files {
+        let out = bin().arg("--check-config").arg(&f).output().expect("run");
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            f.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}
+
+#[test]
+fn embedded_default_runs_from_anywhere() {
+    if shipped().is_none() {
+        return;
+    }
+    // The default publishes to 127.0.0.1:17150; run it briefly from /
+    // and check it starts and says where it publishes.
+    let mut child = bin()
+        .current_dir("/")
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let mut err = BufReader::new(child.stderr.take().expect("stderr"));
+    let mut first = String::new();
+    err.read_line(&mut first).expect("first log line");
+    std::thread::sleep(Duration::from_millis(300));
+    signal(&child, nix::sys::signal::Signal::SIGTERM);
+    let st = wait_exit(&mut child, Duration::from_secs(5));
+    assert!(
+        first.contains("127.0.0.1:17150") && first.contains("listen with"),
+        "{first}"
+    );
+    assert_eq!(st.code(), Some(0));
+}
