@@ -8,6 +8,11 @@
 //! with the Monte Carlo's spread as prior, so is the unknown temperature
 //! (a common gain), and the attitude sensor adds a prior on pitch and yaw.
 
+// `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Channel loops index several parallel per-detector arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{Angle, Pose, NDET};
 use nalgebra::{SMatrix, SVector};
@@ -202,6 +207,9 @@ mod tests {
         // Unknown K_D by 0.015 at 8.5 m is ≈ 0.015·8.3/(0.09 + 2/8.3) ≈ 0.4 m
         // of range if intensity alone gave range; the image's spread helps
         // little, so the bound stays of that order.
-        assert!(with_spread.x > 0.1 && with_spread.x < 1.0, "{with_spread:?}");
+        assert!(
+            with_spread.x > 0.1 && with_spread.x < 1.0,
+            "{with_spread:?}"
+        );
     }
 }

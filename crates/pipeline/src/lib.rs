@@ -7,11 +7,14 @@
 
 pub mod calibrate;
 pub mod calibration;
+pub mod crb;
 pub mod estimators;
 pub mod fit;
+pub mod model;
 pub mod moments;
 pub mod replay;
 pub mod steps;
+pub mod tracker;
 
 pub use calibration::{CalError, Calibration};
 pub use estimators::{build_estimator, BuildError};

@@ -13,6 +13,11 @@
 //!
 //! Fixed-size matrices throughout: no allocation per frame.
 
+// `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Channel loops index several parallel per-detector arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{Estimator, Frame, PoseEstimate, Status, StdDev, NDET};
 use nalgebra::{SMatrix, SVector};
@@ -120,7 +125,9 @@ impl TrackerConfig {
         }
         let [lo, hi] = self.x_range;
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
-            return bad(format!("tracker x_range = [{lo}, {hi}] must be 0 < lo < hi"));
+            return bad(format!(
+                "tracker x_range = [{lo}, {hi}] must be 0 < lo < hi"
+            ));
         }
         if self.update_iterations == 0 {
             return bad("tracker update_iterations must be at least 1".into());

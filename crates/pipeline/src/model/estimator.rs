@@ -9,6 +9,11 @@
 //! coarse start (peak brightness for range, sub-pixel peak for direction)
 //! when there is none.
 
+// `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Channel loops index several parallel per-detector arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 use lightpose_core::{Estimator, Frame, PoseEstimate, Status, StdDev, NDET};
 use serde::{Deserialize, Serialize};
 
@@ -446,13 +451,7 @@ pub(crate) fn coarse_start(
     );
     // The beacon lies along u in V, so p = −range·R_BV·u.
     let u_b = att_q.to_beam(&lightpose_core::BodyVec(u_v)).0;
-    let mut q = PoseVec::new(
-        -range * u_b[0],
-        -range * u_b[1],
-        -range * u_b[2],
-        th,
-        ps,
-    );
+    let mut q = PoseVec::new(-range * u_b[0], -range * u_b[1], -range * u_b[2], th, ps);
     q[0] = q[0].clamp(o.x_min, o.x_max);
     let lat = o.max_lateral_ratio * q[0] * 0.99;
     q[1] = q[1].clamp(-lat, lat);
@@ -502,13 +501,7 @@ mod tests {
                 (0.3, -0.2, 5.0, -4.0),
                 (-0.5, 0.6, -9.0, 10.0),
             ] {
-                v.push(Pose::new(
-                    x,
-                    y,
-                    z,
-                    Angle::from_deg(th),
-                    Angle::from_deg(ps),
-                ));
+                v.push(Pose::new(x, y, z, Angle::from_deg(th), Angle::from_deg(ps)));
             }
         }
         v
@@ -530,13 +523,7 @@ mod tests {
                 let f = synth_frame(&m, pose, (i * 100 + j) as u64, 0.0, Some(sig), &mut rng);
                 let e = est.estimate(&f);
                 assert_eq!(e.status, Status::Ok, "{pose:?}");
-                let truth = [
-                    pose.x,
-                    pose.y,
-                    pose.z,
-                    pose.pitch.deg(),
-                    pose.yaw.deg(),
-                ];
+                let truth = [pose.x, pose.y, pose.z, pose.pitch.deg(), pose.yaw.deg()];
                 let got = [e.x, e.y, e.z, e.pitch_deg, e.yaw_deg];
                 let sd = [e.std.x, e.std.y, e.std.z, e.std.pitch, e.std.yaw];
                 for c in 0..5 {
@@ -562,7 +549,10 @@ mod tests {
         }
         let cover = inside as f64 / total as f64;
         assert!((0.90..=0.99).contains(&cover), "coverage {cover}");
-        assert!(beyond_3sx * 50 <= total / 5, "{beyond_3sx} x errors beyond 3σ");
+        assert!(
+            beyond_3sx * 50 <= total / 5,
+            "{beyond_3sx} x errors beyond 3σ"
+        );
     }
 
     #[test]

@@ -9,6 +9,11 @@
 //! and uses α² and β² (smooth everywhere) rather than α and β (which have
 //! cone points on the axis).
 
+// `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Channel loops index several parallel per-detector arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 use lightpose_core::{Angle, NDET};
 use nalgebra::{SMatrix, SVector};
 

@@ -10,15 +10,23 @@
 //! - [`calibrate`]: the physical calibration that fits the light equation's
 //!   parameters and each channel's gain and offset from truth-labelled sweeps.
 
-//TMP pub mod calibrate;
+// `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Channel loops index several parallel per-detector arrays at once.
+#![allow(clippy::needless_range_loop)]
+
+pub mod calibrate;
 pub mod estimator;
 pub mod light;
 pub mod solver;
 #[cfg(test)]
 pub(crate) mod testutil;
 
-//TMP pub use calibrate::{fit_physical, CalibError, FitOptions, ParamEstimate, PhysicalCalibration, ScatterFit};
-pub use estimator::{Dof, ModelConfig, ModelEstimator};
+pub use calibrate::{
+    fit_physical, CalibError, FitOptions, ParamEstimate, PhysicalCalibration, PhysicalFitter,
+    ScatterFit,
+};
+pub use estimator::{Dof, ModelConfig, ModelError, ModelEstimator};
 pub use light::{predict, predict_with_grad, PoseJacobian, NGRAD};
 pub use solver::{solve, Censoring, LmResult, Prior, SolveOptions};
 
@@ -113,7 +121,10 @@ impl SensorModel {
             return Err(format!("adc_bits = {} must be 1..16", self.adc_bits));
         }
         if !(self.sigma_e_v.is_finite() && self.sigma_e_v >= 0.0) {
-            return Err(format!("sigma_e_v = {} must be non-negative", self.sigma_e_v));
+            return Err(format!(
+                "sigma_e_v = {} must be non-negative",
+                self.sigma_e_v
+            ));
         }
         if !(self.kappa_v.is_finite() && self.kappa_v >= 0.0) {
             return Err(format!("kappa_v = {} must be non-negative", self.kappa_v));

@@ -12,6 +12,11 @@
 //! Everything is fixed-size (5 × 5 normal equations on the stack) so that a
 //! frame costs no allocation.
 
+// `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Channel loops index several parallel per-detector arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 use lightpose_core::NDET;
 use nalgebra::{SMatrix, SVector};
 

@@ -2,6 +2,11 @@
 //! the ADC rule, so that the numerics can be tested without the simulator,
 //! with a small deterministic generator (the crate has no `rand`).
 
+// `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Channel loops index several parallel per-detector arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 use lightpose_core::frame::volts_to_counts;
 use lightpose_core::{AttitudeReading, Frame, Pose, Truth, NDET};
 
