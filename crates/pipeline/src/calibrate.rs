@@ -17,7 +17,7 @@ use crate::fit::{FitError, Line, LineAcc};
 use crate::steps;
 use lightpose_core::{frame::full_scale, Frame, LogError, LogReader, NDET};
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
 pub enum CalibrateError {
@@ -182,7 +182,7 @@ impl Accs {
 
 /// Open a log and feed every frame to `each`; bad lines to `on_bad_line`.
 fn stream(
-    path: &PathBuf,
+    path: &Path,
     mut each: impl FnMut(&Frame, &lightpose_core::LogHeader),
     on_bad_line: &mut dyn FnMut(&LogError),
     bad: &mut u64,
@@ -236,7 +236,7 @@ fn assign(
             }
             let better = best
                 .as_ref()
-                .map_or(true, |(x, y)| la.r2 + lb.r2 > x.1.r2 + y.1.r2);
+                .is_none_or(|(x, y)| la.r2 + lb.r2 > x.1.r2 + y.1.r2);
             if better {
                 best = Some(((*fa, *la), (*fb, *lb)));
             }
@@ -383,7 +383,8 @@ pub fn calibrate(
         })
     })?;
     // The fit is ln PD against x; swap roles: u = x, v = ln PD.
-    if !(x_line.slope < 0.0) {
+    // (A NaN slope is refused too.)
+    if x_line.slope.is_nan() || x_line.slope >= 0.0 {
         return Err(CalibrateError::Refused(format!(
             "the peak does not fall with distance (d ln PD/dx = {:.4}): not a beacon sweep",
             x_line.slope

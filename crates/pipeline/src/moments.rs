@@ -74,7 +74,7 @@ impl Ring {
             stt += dt * dt;
             stx += dt * (self.x[i] - mx);
         }
-        if !(stt > 1e-12) {
+        if stt.is_nan() || stt <= 1e-12 {
             return None;
         }
         let s = stx / stt;

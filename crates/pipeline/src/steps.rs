@@ -77,7 +77,7 @@ pub fn subpixel_offset(before: f64, mid: f64, after: f64) -> f64 {
     };
     let curv = a - 2.0 * b + c;
     // Relative threshold: a curvature at rounding level of the values is flat.
-    if !(curv < -1e-12 * (a.abs() + b.abs() + c.abs() + f64::MIN_POSITIVE)) {
+    if curv.is_nan() || curv >= -1e-12 * (a.abs() + b.abs() + c.abs() + f64::MIN_POSITIVE) {
         return 0.0;
     }
     let off = (a - c) / (2.0 * curv);
@@ -220,7 +220,7 @@ pub const MIN_COS_PRODUCT: f64 = 0.05;
 #[inline]
 pub fn travel_along_bow(dx: f64, pitch_rad: f64, yaw_rad: f64) -> Option<f64> {
     let k = pitch_rad.cos() * yaw_rad.cos();
-    if !(k.abs() >= MIN_COS_PRODUCT) || !dx.is_finite() {
+    if k.is_nan() || k.abs() < MIN_COS_PRODUCT || !dx.is_finite() {
         return None;
     }
     Some(-dx / k)
@@ -270,7 +270,8 @@ pub fn prepare(
         return Err(Status::BadFrame);
     }
     let peak = find_peak(&img);
-    if !(peak.value >= no_light_v) {
+    // NaN peaks (impossible from counts, but guarded) count as no light.
+    if peak.value.is_nan() || peak.value < no_light_v {
         return Err(Status::NoLight);
     }
     if saturated {
