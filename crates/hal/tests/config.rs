@@ -1,0 +1,277 @@
+//! The config as the daemon's file gives it: TOML into [`BackendConfig`],
+//! validation errors that name the key, and `open_source`.
+
+use lightpose_hal::config::{TempPlan, ValidBackend};
+use lightpose_hal::{open_source, BackendConfig, HalError};
+
+fn parse(text: &str) -> Result<BackendConfig, String> {
+    toml::from_str::<BackendConfig>(text).map_err(|e| e.to_string())
+}
+
+/// A full MCP3008 map: 4 chips, detector k on chip k / 8, channel k % 8.
+fn mcp_map() -> String {
+    let mut s = String::new();
+    for k in 0..25 {
+        s += &format!(
+            "[[map]]\nr = {}\nc = {}\nboard = \"u{}\"\nchannel = {}\n",
+            k / 5,
+            k % 5,
+            k / 8,
+            k % 8
+        );
+    }
+    s
+}
+
+const MCP_HEAD: &str = r#"
+kind = "mcp3008"
+rate_hz = 10.0
+chips = [
+  { name = "u0", device = "/dev/spidev0.0" },
+  { name = "u1", device = "/dev/spidev0.1" },
+  { name = "u2", device = "/dev/spidev1.0", max_speed_hz = 1000000 },
+  { name = "u3", device = "/dev/spidev1.1" },
+]
+"#;
+
+fn validate(text: &str) -> Result<ValidBackend, String> {
+    parse(text)?.validate().map_err(|e| e.to_string())
+}
+
+#[test]
+fn mcp3008_config_validates_with_thermistor() {
+    let text = format!(
+        "{MCP_HEAD}\n[temperature]\nkind = \"thermistor\"\nfallback_c = 20.0\nboard = \"u3\"\nchannel = 7\nr_fixed_ohm = 10000.0\n{}",
+        mcp_map()
+    );
+    let v = validate(&text).unwrap();
+    let ValidBackend::Spi {
+        kind,
+        chips,
+        common,
+    } = v
+    else {
+        panic!("not SPI: {v:?}")
+    };
+    assert_eq!(kind.bits(), 10);
+    assert_eq!(chips[0].max_speed_hz, 3_600_000);
+    assert_eq!(chips[2].max_speed_hz, 1_000_000);
+    assert_eq!(common.rate_hz, Some(10.0));
+    assert_eq!(common.map.source_of(24), (3, 0));
+    assert!(matches!(common.temp, TempPlan::Thermistor { fallback_c, .. } if fallback_c == 20.0));
+}
+
+#[test]
+fn unknown_keys_are_refused() {
+    let e = parse(&format!("{MCP_HEAD}\nspeed = 3\n{}", mcp_map())).unwrap_err();
+    assert!(e.contains("speed"), "{e}");
+    let e = parse(&format!(
+        "{MCP_HEAD}\n[temperature]\nkind = \"fixed\"\nvalue_c = 3\nvalu = 4\n{}",
+        mcp_map()
+    ))
+    .unwrap_err();
+    assert!(e.contains("valu"), "{e}");
+    let e = parse("kind = \"mcp9999\"").unwrap_err();
+    assert!(e.contains("mcp9999"), "{e}");
+}
+
+#[test]
+fn validation_errors_name_the_key() {
+    let cases: Vec<(String, &str)> = vec![
+        (
+            format!("{}{}", MCP_HEAD.replace("rate_hz = 10.0", "rate_hz = -1.0"), mcp_map()),
+            "rate_hz",
+        ),
+        (
+            format!("{}{}", MCP_HEAD.replace("spidev1.1", "spidev0.0"), mcp_map()),
+            "/dev/spidev0.0 is used by two chips",
+        ),
+        (
+            format!("{}{}", MCP_HEAD.replace("1000000", "5000000"), mcp_map()),
+            "chips.u2.max_speed_hz",
+        ),
+        (
+            format!("{}{}", MCP_HEAD, mcp_map().replace("board = \"u3\"", "board = \"u9\"")),
+            "unknown board \"u9\"",
+        ),
+        (
+            format!(
+                "{MCP_HEAD}\n[temperature]\nkind = \"thermistor\"\nfallback_c = 20.0\nboard = \"u0\"\nchannel = 3\nr_fixed_ohm = 1e4\n{}",
+                mcp_map()
+            ),
+            "already feeds a detector",
+        ),
+    ];
+    for (text, want) in cases {
+        let e = validate(&text).unwrap_err();
+        assert!(e.contains(want), "wanted {want:?} in {e:?}");
+    }
+}
+
+#[test]
+fn i2c_configs_check_addresses_fsr_and_reference() {
+    let chips = |a: &str| {
+        format!("chips = [{{ name = \"a0\", bus = \"/dev/i2c-1\", address = 0x48 }}, {{ name = \"a1\", bus = \"/dev/i2c-1\", address = {a} }}]\n")
+    };
+    let map: String = (0..25)
+        .map(|k| {
+            format!(
+                "[[map]]\nr = {}\nc = {}\nboard = \"a{}\"\nchannel = {}\n",
+                k / 5,
+                k % 5,
+                k / 16,
+                k % 8
+            )
+        })
+        .collect();
+    // ADS7828: 8 channels per chip → this map uses channels 0..8 of a0 twice
+    let e = validate(&format!("kind = \"ads7828\"\n{}{map}", chips("0x49"))).unwrap_err();
+    assert!(e.contains("feeds two detectors"), "{e}");
+    let map7828: String = (0..25)
+        .map(|k| {
+            format!(
+                "[[map]]\nr = {}\nc = {}\nboard = \"a{}\"\nchannel = {}\n",
+                k / 5,
+                k % 5,
+                k / 8,
+                k % 8
+            )
+        })
+        .collect();
+    let four = "chips = [{ name = \"a0\", bus = \"/dev/i2c-1\", address = 0x48 }, { name = \"a1\", bus = \"/dev/i2c-1\", address = 0x49 }, { name = \"a2\", bus = \"/dev/i2c-1\", address = 0x4A }, { name = \"a3\", bus = \"/dev/i2c-1\", address = 0x4B }]\n";
+    let v = validate(&format!("kind = \"ads7828\"\n{four}{map7828}")).unwrap();
+    assert!(matches!(v, ValidBackend::Ads7828 { ref buses, .. } if buses.len() == 1));
+    let e = validate(&format!(
+        "kind = \"ads7828\"\n{}{map7828}",
+        four.replace("0x4B", "0x4C")
+    ))
+    .unwrap_err();
+    assert!(e.contains("chips.a3.address") && e.contains("0x4C"), "{e}");
+    let e = validate(&format!(
+        "kind = \"ads7828\"\n{}{map7828}",
+        four.replace("0x4B", "0x48")
+    ))
+    .unwrap_err();
+    assert!(e.contains("also chip \"a0\""), "{e}");
+    let e = validate(&format!(
+        "kind = \"ads7828\"\ninternal_ref = false\n{four}{map7828}"
+    ))
+    .unwrap_err();
+    assert!(e.contains("v_ref"), "{e}");
+    let e = validate(&format!("kind = \"ads1115\"\nfsr_v = 5.0\n{four}{map7828}")).unwrap_err();
+    assert!(e.contains("fsr_v"), "{e}");
+    let e = validate(&format!(
+        "kind = \"ads1115\"\ndata_rate_sps = 100\n{four}{map7828}"
+    ))
+    .unwrap_err();
+    assert!(e.contains("data_rate_sps"), "{e}");
+}
+
+#[test]
+fn serial_and_sim_configs() {
+    let map: String = (0..25)
+        .map(|k| {
+            format!(
+                "[[map]]\nr = {}\nc = {}\nboard = \"b{}\"\nchannel = {}\n",
+                k / 5,
+                k % 5,
+                k / 16,
+                k % 16
+            )
+        })
+        .collect();
+    let boards = "boards = [{ name = \"b0\", id = 0, path = \"/dev/ttyACM0\", channels = 16 }, { name = \"b1\", id = 1, path = \"/dev/ttyACM1\", channels = 16 }]\n";
+    let v = validate(&format!("kind = \"serial\"\nadc_bits = 12\n{boards}{map}")).unwrap();
+    assert!(matches!(v, ValidBackend::Serial { ref common, .. } if common.bits == 12));
+    let e = validate(&format!(
+        "kind = \"serial\"\n{}{map}",
+        boards.replace("id = 1", "id = 0")
+    ))
+    .unwrap_err();
+    assert!(e.contains("boards.b1.id"), "{e}");
+    // opening a serial source does not touch the ports yet (they open per frame)
+    let mut src = open_source(
+        &parse(&format!(
+            "kind = \"serial\"\ntimeout_ms = 50\n{boards}{map}"
+        ))
+        .unwrap(),
+    )
+    .unwrap();
+    let e = src.next_frame().unwrap_err().to_string();
+    assert!(e.contains("board b0 (/dev/ttyACM0)"), "{e}");
+
+    let e = validate("kind = \"sim\"\ntrajectory = \"t.csv\"\n[faults]\nbus_error_prob = 1.5\n")
+        .unwrap_err();
+    assert!(e.contains("faults.bus_error_prob"), "{e}");
+    let e = validate(
+        "kind = \"sim\"\ntrajectory = \"t.csv\"\n[[faults.stuck]]\nr = 5\nc = 0\nvalue = 1\n",
+    )
+    .unwrap_err();
+    assert!(e.contains("faults.stuck[0]"), "{e}");
+}
+
+#[test]
+fn open_source_sim_from_files_and_missing_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let traj = dir.path().join("t.csv");
+    std::fs::write(
+        &traj,
+        "t,x,y,z,pitch,yaw\n0,8,0,0.1,0,0\n4,5,0.5,0.1,5,-5\n",
+    )
+    .unwrap();
+    let text = format!(
+        "kind = \"sim\"\nrate_hz = 0\nlooping = false\ntrajectory = \"{}\"\n[faults]\ndrop_every = 3\n",
+        traj.display()
+    );
+    let mut src = open_source(&parse(&text).unwrap()).unwrap();
+    assert!(
+        src.describe().contains("injected faults"),
+        "{}",
+        src.describe()
+    );
+    let a = src.next_frame().unwrap();
+    let b = src.next_frame().unwrap();
+    assert_eq!((a.seq, b.seq), (0, 1));
+    assert_eq!(src.next_frame().unwrap().seq, 3, "seq 2 dropped");
+    let mut n = 0;
+    while src.next_frame().is_ok() {
+        n += 1;
+        assert!(n < 10_000);
+    }
+    assert!(matches!(
+        src.next_frame(),
+        Err(lightpose_hal::SourceError::Ended)
+    ));
+
+    let missing = parse("kind = \"sim\"\ntrajectory = \"/nonexistent/t.csv\"\n").unwrap();
+    let e = open_source(&missing).err().unwrap();
+    assert!(matches!(e, HalError::Open { .. }));
+    assert!(e.to_string().contains("/nonexistent/t.csv"), "{e}");
+}
+
+#[cfg(not(feature = "linux"))]
+#[test]
+fn hardware_kinds_need_the_linux_feature() {
+    let e = open_source(&parse(&format!("{MCP_HEAD}{}", mcp_map())).unwrap())
+        .err()
+        .unwrap();
+    assert_eq!(
+        e.to_string(),
+        "source kind \"mcp3008\" needs lightpose-hal built with feature \"linux\""
+    );
+}
+
+#[cfg(feature = "linux")]
+#[test]
+fn hardware_kinds_name_the_missing_device() {
+    let text = format!(
+        "{}{}",
+        MCP_HEAD.replace("/dev/spidev0.0", "/nonexistent/spidev9.9"),
+        mcp_map()
+    );
+    let e = open_source(&parse(&text).unwrap()).err().unwrap();
+    assert!(
+        e.to_string().contains("board u0 (/nonexistent/spidev9.9)"),
+        "{e}"
+    );
+}
