@@ -61,8 +61,14 @@ pub enum Backend {
     Sim(SimBackend),
     /// A recorded intensity log, through the same path as live frames.
     Replay(ReplayBackend),
-    /// A board handled by lightpose-hal; its table is passed on whole.
-    Hardware { kind: String, table: toml::Table },
+    /// A board (or hal's fault-injecting mock) handled by lightpose-hal,
+    /// validated by hal at load time.
+    Hardware {
+        kind: String,
+        /// Frames per second the board is paced at; `None` = free-running.
+        rate_hz: Option<f64>,
+        hal: Box<lightpose_hal::BackendConfig>,
+    },
 }
 
 impl Backend {
@@ -595,10 +601,57 @@ impl Config {
                             looping: r.looping.unwrap_or(false),
                         })
                     }
-                    _ => Backend::Hardware {
-                        kind,
-                        table: table.clone(),
-                    },
+                    "mcp3008" | "mcp3208" | "ads1115" | "ads7828" | "serial" | "mock" => {
+                        // hal's simulator with fault injection is its kind
+                        // "sim"; here "sim" is the daemon's own (embedded
+                        // files), so hal's is called "mock".
+                        let mut t = table.clone();
+                        if kind == "mock" {
+                            t.insert("kind".into(), "sim".into());
+                        }
+                        // The top-level rate paces the board unless its
+                        // table says otherwise.
+                        if !t.contains_key("rate_hz") {
+                            t.insert("rate_hz".into(), rate_hz.into());
+                        }
+                        let hal: lightpose_hal::BackendConfig = backend_kind(&ctx, &t, start)?;
+                        if let Err(e) = hal.validate() {
+                            let (key, msg) = match &e {
+                                lightpose_hal::HalError::Config { key, msg } => (key.clone(), msg.clone()),
+                                lightpose_hal::HalError::Map(m) => ("map".to_string(), m.to_string()),
+                                other => (String::new(), other.to_string()),
+                            };
+                            // hal names keys like "map[3].channel": the
+                            // first segment is what is written in the table.
+                            let first = key.split(['.', '[']).next().unwrap_or("");
+                            return Err(ConfigError::At {
+                                file: file.into(),
+                                line: line_of_key_in_table(src, start, first),
+                                key: if key.is_empty() { "backend".into() } else { format!("backend.{key}") },
+                                msg,
+                            });
+                        }
+                        let rate = match t.get("rate_hz") {
+                            Some(toml::Value::Float(r)) => *r,
+                            Some(toml::Value::Integer(r)) => *r as f64,
+                            _ => 5.0,
+                        };
+                        Backend::Hardware {
+                            kind,
+                            rate_hz: (rate > 0.0).then_some(rate),
+                            hal: Box::new(hal),
+                        }
+                    }
+                    other => {
+                        return Err(ConfigError::At {
+                            file: file.into(),
+                            line: line_of_key_in_table(src, start, "kind"),
+                            key: "backend.kind".into(),
+                            msg: format!(
+                                "unknown backend \"{other}\" (sim, replay, mock, mcp3008, mcp3208, ads1115, ads7828, serial)"
+                            ),
+                        })
+                    }
                 }
             }
         };

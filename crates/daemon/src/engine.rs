@@ -89,12 +89,16 @@ impl Engine {
     /// Run until stopped, the source ends, or `max_frames` frames.
     pub fn run(mut self) -> EndReason {
         let mut buf: Vec<u8> = Vec::with_capacity(1024);
-        let mut due: Option<Instant> = None;
+        let mut anchor: Option<(Instant, u64)> = None;
         let mut last_seq: Option<u64> = None;
+        // Failures since the last good frame: a board's seq runs on through
+        // them, and they are already counted as failed, not as lost.
+        let mut failed_since_ok = 0u64;
         let (mut late_log, mut fail_log, mut lost_log) =
             (RateLog::new(), RateLog::new(), RateLog::new());
         let stats = self.stats.clone();
         stats.set_state(BackendState::Running);
+        let mut health_at = Instant::now();
         let reason = loop {
             if self.stop.load(Relaxed) {
                 break EndReason::Stopped;
@@ -115,6 +119,13 @@ impl Engine {
             stats
                 .heartbeat_ns
                 .store(self.epoch.elapsed().as_nanos() as u64, Relaxed);
+            if health_at.elapsed() >= Duration::from_secs(1) {
+                // Once a second, not per frame: the copy allocates.
+                health_at = Instant::now();
+                if let Ok(mut h) = stats.source_health.lock() {
+                    *h = Some(self.source.health());
+                }
+            }
             let got = self.source.next_frame();
             let arrival = Instant::now();
             let wall = SystemTime::now()
@@ -132,6 +143,7 @@ impl Engine {
                 }
                 Err(e) => {
                     let n = stats.failed.fetch_add(1, Relaxed) + 1;
+                    failed_since_ok += 1;
                     stats.set_state(BackendState::Failing);
                     if let Some(k) = fail_log.tick(arrival) {
                         tracing::warn!(failed_total = n, since_last_line = k, "frame failed: {e}");
@@ -155,8 +167,11 @@ impl Engine {
             }
 
             if let Some(prev) = last_seq {
-                if frame.seq > prev + 1 {
-                    let gap = frame.seq - prev - 1;
+                let gap = frame
+                    .seq
+                    .saturating_sub(prev + 1)
+                    .saturating_sub(failed_since_ok);
+                if gap > 0 {
                     let n = stats.lost.fetch_add(gap, Relaxed) + gap;
                     if let Some(k) = lost_log.tick(arrival) {
                         tracing::warn!(
@@ -169,6 +184,7 @@ impl Engine {
                 }
             }
             last_seq = Some(frame.seq);
+            failed_since_ok = 0;
             stats.last_seq.store(frame.seq, Relaxed);
 
             if frame.attitude.is_none() {
@@ -210,7 +226,11 @@ impl Engine {
             stats.frames.fetch_add(1, Relaxed);
 
             if let Some(p) = self.period {
-                let d = *due.get_or_insert(arrival);
+                // Due time from the seq, so that the frame after a dropped
+                // or failed one is judged by its own slot.
+                let (a_at, a_seq) = *anchor.get_or_insert((arrival, frame.seq));
+                let slots = frame.seq.saturating_sub(a_seq).min(u32::MAX as u64) as u32;
+                let d = a_at + p * slots;
                 let tol = p.mul_f64(self.late_tolerance);
                 if done > d + tol {
                     let n = stats.late.fetch_add(1, Relaxed) + 1;
@@ -226,9 +246,7 @@ impl Engine {
                     }
                     // Re-anchor on this frame: one stall counts once, not
                     // every frame after it.
-                    due = Some(arrival + p);
-                } else {
-                    due = Some(d + p);
+                    anchor = Some((arrival, frame.seq));
                 }
             }
         };
@@ -239,5 +257,115 @@ impl Engine {
             stats.set_state(BackendState::Stopped);
         }
         reason
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Outputs;
+    use lightpose_core::{Frame, PoseEstimate, NDET};
+
+    /// Frames every `period`, except that one frame comes `stall` late.
+    struct Stalling {
+        k: u64,
+        start: Option<Instant>,
+        period: Duration,
+        stall_at: u64,
+        stall: Duration,
+        fail_at: u64,
+    }
+
+    impl FrameSource for Stalling {
+        fn next_frame(&mut self) -> Result<Frame, SourceError> {
+            let k = self.k;
+            self.k += 1;
+            let start = *self.start.get_or_insert_with(Instant::now);
+            let mut due = start + self.period * k as u32;
+            if k >= self.stall_at {
+                due += self.stall;
+            }
+            if let Some(w) = due.checked_duration_since(Instant::now()) {
+                std::thread::sleep(w);
+            }
+            if k == self.fail_at {
+                return Err(SourceError::Timeout {
+                    place: "test".into(),
+                });
+            }
+            Ok(Frame {
+                seq: k,
+                t: k as f64 * self.period.as_secs_f64(),
+                adc_bits: 10,
+                counts: [100; NDET],
+                temp_c: None,
+                truth: None,
+                attitude: None,
+            })
+        }
+        fn adc_bits(&self) -> u8 {
+            10
+        }
+        fn describe(&self) -> String {
+            "stalling test source".into()
+        }
+    }
+
+    struct Nothing;
+    impl Estimator for Nothing {
+        fn name(&self) -> &'static str {
+            "nothing"
+        }
+        fn estimate(&mut self, f: &Frame) -> PoseEstimate {
+            PoseEstimate::empty(f.seq, f.t, Status::NoLight, "nothing")
+        }
+        fn reset(&mut self) {}
+    }
+
+    #[test]
+    fn a_stall_counts_once_as_late_and_a_failure_as_failed() {
+        let period = Duration::from_millis(20);
+        let stats = Arc::new(Stats::default());
+        let e = Engine {
+            source: Box::new(Stalling {
+                k: 0,
+                start: None,
+                period,
+                stall_at: 10,
+                stall: Duration::from_millis(200),
+                fail_at: 20,
+            }),
+            estimator: Box::new(Nothing),
+            publisher: Arc::new(
+                Publisher::open(&Outputs {
+                    destinations: vec![],
+                    multicast: None,
+                    status_interval: Duration::from_secs(1),
+                })
+                .unwrap(),
+            ),
+            stats: stats.clone(),
+            recorder: None,
+            attitude: None,
+            stop: Arc::new(AtomicBool::new(false)),
+            reload: None,
+            period: Some(period),
+            // Generous: a loaded CI machine oversleeps by milliseconds.
+            late_tolerance: 2.0,
+            fallback_temp_c: Some(12.0),
+            max_frames: Some(30),
+            epoch: Instant::now(),
+        };
+        assert_eq!(e.run(), EndReason::FrameLimit);
+        assert_eq!(stats.frames.load(Relaxed), 30);
+        assert_eq!(stats.late.load(Relaxed), 1, "the stalled frame, once");
+        assert_eq!(stats.failed.load(Relaxed), 1);
+        assert_eq!(
+            stats.lost.load(Relaxed),
+            0,
+            "the failed frame is not counted again"
+        );
+        assert_eq!(stats.temp(), (Some(12.0), TempSource::Fallback));
+        assert_eq!(stats.by_status[1].load(Relaxed), 30);
     }
 }

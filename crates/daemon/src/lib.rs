@@ -91,11 +91,16 @@ pub fn open_source(cfg: &Config) -> Result<(Box<dyn FrameSource>, Option<Duratio
     let period = |rate: f64| Some(Duration::from_secs_f64(1.0 / rate));
     match &cfg.backend {
         Backend::Sim(s) => {
-            let src = simsource::SimSource::open(s, cfg.rate_hz).map_err(|e| DaemonError::Backend {
-                kind: "sim".into(),
-                msg: e.to_string(),
-            })?;
-            let p = if s.pace == Pace::Fast { None } else { period(cfg.rate_hz) };
+            let src =
+                simsource::SimSource::open(s, cfg.rate_hz).map_err(|e| DaemonError::Backend {
+                    kind: "sim".into(),
+                    msg: e.to_string(),
+                })?;
+            let p = if s.pace == Pace::Fast {
+                None
+            } else {
+                period(cfg.rate_hz)
+            };
             Ok((Box::new(src), p))
         }
         Backend::Replay(r) => {
@@ -104,13 +109,20 @@ pub fn open_source(cfg: &Config) -> Result<(Box<dyn FrameSource>, Option<Duratio
                 msg: e.to_string(),
             })?;
             // A replay keeps the log's own rate, not the config's.
-            let p = if r.pace == Pace::Fast { None } else { period(src.rate_hz()) };
+            let p = if r.pace == Pace::Fast {
+                None
+            } else {
+                period(src.rate_hz())
+            };
             Ok((Box::new(src), p))
         }
-        Backend::Hardware { kind, .. } => Err(DaemonError::Backend {
-            kind: kind.clone(),
-            msg: "hardware backends are opened through lightpose-hal, which this build does not link yet".into(),
-        }),
+        Backend::Hardware { kind, rate_hz, hal } => {
+            let src = lightpose_hal::open_source(hal).map_err(|e| DaemonError::Backend {
+                kind: kind.clone(),
+                msg: e.to_string(),
+            })?;
+            Ok((src, rate_hz.and_then(period)))
+        }
     }
 }
 
@@ -177,6 +189,22 @@ fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> serde_json::Value {
             "error": r.error.lock().ok().and_then(|g| g.clone()),
         }),
     };
+    let mut temperature = json!({
+        "c": opt(temp),
+        "source": tsrc.as_str(),
+        "fallback_c": opt(c.cfg.fallback_temp_c),
+    });
+    let health = s.source_health.lock().ok().and_then(|h| h.clone());
+    if let Some(h) = &health {
+        if let Some(t) = &h.temp {
+            temperature["sensor"] = json!({
+                "kind": t.source,
+                "fallback_active": t.fallback_active,
+                "fallbacks": t.fallbacks,
+                "last_error": t.last_error,
+            });
+        }
+    }
     let attitude = match c.att {
         None => json!({"enabled": false}),
         Some(a) => json!({
@@ -211,6 +239,13 @@ fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> serde_json::Value {
             "source": c.source,
             "state": s.state().as_str(),
             "last_error": s.last_error.lock().ok().and_then(|g| g.clone()),
+            "health": health.as_ref().map(|h| json!({
+                "bad_lines": h.bad_lines,
+                "wrong_board_lines": h.wrong_board_lines,
+                "last_bad_line": h.last_bad_line,
+                "reopens": h.reopens,
+                "injected_faults": h.injected_faults,
+            })),
         },
         "frames": s.frames.load(Relaxed),
         "late": s.late.load(Relaxed),
@@ -230,11 +265,7 @@ fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> serde_json::Value {
             "calibration": c.cfg.calibration.describe(),
             "reloads": s.calibration_reloads.load(Relaxed),
         },
-        "temperature": {
-            "c": opt(temp),
-            "source": tsrc.as_str(),
-            "fallback_c": opt(c.cfg.fallback_temp_c),
-        },
+        "temperature": temperature,
         "recording": recording,
         "attitude": attitude,
         "outputs": outputs,

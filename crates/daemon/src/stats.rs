@@ -167,6 +167,10 @@ pub struct Stats {
     /// Last error of the source, for STATUS.
     pub last_error: Mutex<Option<String>>,
     pub calibration_reloads: AtomicU64,
+    /// The source's own counters (temperature sensor and its fallback,
+    /// bad serial lines, reopens, injected faults), copied about once a
+    /// second by the frame thread.
+    pub source_health: Mutex<Option<lightpose_hal::SourceHealth>>,
 }
 
 impl Stats {

@@ -644,3 +644,57 @@ fn embedded_default_runs_from_anywhere() {
     );
     assert_eq!(st.code(), Some(0));
 }
+
+#[test]
+fn failed_and_dropped_frames_are_counted_not_hidden() {
+    // hal's mock backend with injected bus errors and dropped frames.
+    let Some((scene, traj, cal)) = shipped() else {
+        return;
+    };
+    let (sub, addr) = subscriber();
+    let text = format!(
+        r#"rate_hz = 200.0
+calibration = "{}"
+[backend]
+kind = "mock"
+scene = "{}"
+trajectory = "{}"
+faults = {{ bus_error_every = 10, drop_every = 15 }}
+[outputs]
+destinations = ["{addr}"]
+"#,
+        cal.display(),
+        scene.display(),
+        traj.display()
+    );
+    let cfg = Config::parse(&text, "mock.toml", None).expect("valid");
+    let h = run_in_process(cfg, Duration::from_millis(1300));
+    let msgs = collect(&sub, Duration::from_millis(1500));
+    let s = h.join().expect("daemon");
+    assert!(s.failed > 5, "{s:?}");
+    assert!(s.lost > 5, "{s:?}");
+    // seq s is dropped when (s+1) % 15 == 0, fails when (s+1) % 10 == 0
+    // (and not dropped): about as many of each. lost counts only the drops,
+    // not the failures a second time.
+    let ratio = s.lost as f64 / s.failed as f64;
+    assert!((0.6..1.6).contains(&ratio), "lost/failed = {ratio}: {s:?}");
+    // A frame after a drop or failure is judged by its own slot: not late.
+    assert!(s.late * 10 < s.frames, "{s:?}");
+    assert!(of_class(&msgs, "POSE").len() > 100, "publishing goes on");
+    let st = &of_class(&msgs, "STATUS").last().expect("STATUS").1;
+    assert_eq!(st["failed"].as_u64(), Some(s.failed), "{st}");
+    assert_eq!(st["lost"].as_u64(), Some(s.lost), "{st}");
+    assert!(
+        st["backend"]["last_error"]
+            .as_str()
+            .is_some_and(|e| !e.is_empty()),
+        "{st}"
+    );
+    assert!(
+        st["backend"]["health"]["injected_faults"]
+            .as_u64()
+            .unwrap_or(0)
+            > 10,
+        "{st}"
+    );
+}
