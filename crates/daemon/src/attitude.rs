@@ -97,7 +97,7 @@ pub async fn listen(
             Ok(r) => cell.store(Instant::now(), r),
             Err(e) => {
                 let k = cell.rejected.fetch_add(1, Relaxed) + 1;
-                if k == 1 || k % 100 == 0 {
+                if k == 1 || k.is_multiple_of(100) {
                     tracing::warn!(from = %from, rejected = k, "attitude: {e}");
                 }
             }

@@ -917,7 +917,7 @@ destinations = ["127.0.0.1:9999"]
     }
 
     fn err(s: &str) -> String {
-        parse(s).err().expect("must be refused").to_string()
+        parse(s).expect_err("must be refused").to_string()
     }
 
     #[test]

@@ -123,7 +123,7 @@ impl Publisher {
                     let n = d.stats.errors.fetch_add(1, Relaxed) + 1;
                     // Log the first error and then every 1000th, so a dead
                     // destination is visible without flooding the journal.
-                    if n == 1 || n % 1000 == 0 {
+                    if n == 1 || n.is_multiple_of(1000) {
                         tracing::warn!(destination = %d.addr, errors = n, "send failed: {e}");
                     }
                     if let Ok(mut g) = d.stats.last_error.lock() {

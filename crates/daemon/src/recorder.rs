@@ -134,7 +134,7 @@ impl Recorder {
             Ok(()) => {}
             Err(TrySendError::Full(_)) => {
                 let n = self.stats.dropped.fetch_add(1, Relaxed) + 1;
-                if n == 1 || n % 1000 == 0 {
+                if n == 1 || n.is_multiple_of(1000) {
                     tracing::warn!(
                         dropped = n,
                         "recording queue full: the disk is too slow, frame not recorded"
