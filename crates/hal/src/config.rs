@@ -491,7 +491,7 @@ fn temp_plan(
                     format!("board \"{board}\" channel {channel} already feeds a detector"),
                 ));
             }
-            if !(min_c < max_c) {
+            if min_c.partial_cmp(max_c) != Some(std::cmp::Ordering::Less) {
                 return Err(err("temperature.min_c", "must be below max_c"));
             }
             TempPlan::Thermistor {

@@ -117,6 +117,7 @@ pub fn open_source(cfg: &BackendConfig) -> Result<Box<dyn FrameSource>, HalError
 }
 
 /// Open an already validated backend (`kind` only names it in errors).
+#[cfg_attr(all(feature = "linux", feature = "sim"), allow(unused_variables))]
 pub fn open_validated(
     v: ValidBackend,
     kind: &'static str,

@@ -141,7 +141,7 @@ impl MockSource {
     }
 
     fn hit(&mut self, every: Option<u64>, prob: f64, seq: u64) -> bool {
-        let periodic = every.is_some_and(|n| (seq + 1) % n == 0);
+        let periodic = every.is_some_and(|n| (seq + 1).checked_rem(n) == Some(0));
         // draw every frame so that the fault sequence depends only on seq
         let random = prob > 0.0 && self.rng.gen::<f64>() < prob;
         periodic || random
