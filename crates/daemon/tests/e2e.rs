@@ -701,3 +701,50 @@ destinations = ["{addr}"]
         "{st}"
     );
 }
+
+#[test]
+fn tells_systemd_ready_status_and_watchdog() {
+    use std::os::unix::net::UnixDatagram;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let sock_path = dir.path().join("notify.sock");
+    let notify = UnixDatagram::bind(&sock_path).expect("bind notify socket");
+    notify
+        .set_read_timeout(Some(Duration::from_millis(200)))
+        .expect("timeout");
+    let (sub, addr) = subscriber();
+    let Some(text) = sim_config(50.0, &[addr], "", "") else {
+        return;
+    };
+    let cfg = dir.path().join("c.toml");
+    std::fs::write(&cfg, text).expect("write");
+    // systemd sets WATCHDOG_PID to the service's pid: a shell that execs
+    // the daemon knows it beforehand.
+    let mut child = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "WATCHDOG_PID=$$ exec '{}' --config '{}'",
+            env!("CARGO_BIN_EXE_lightposed"),
+            cfg.display()
+        ))
+        .env("NOTIFY_SOCKET", &sock_path)
+        .env("WATCHDOG_USEC", "1000000")
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let mut got = String::new();
+    let mut buf = [0u8; 4096];
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_millis(2500) {
+        if let Ok(n) = notify.recv(&mut buf) {
+            got.push_str(&String::from_utf8_lossy(&buf[..n]));
+            got.push('\n');
+        }
+    }
+    signal(&child, nix::sys::signal::Signal::SIGTERM);
+    let st = wait_exit(&mut child, Duration::from_secs(5));
+    drop(sub);
+    assert_eq!(st.code(), Some(0));
+    assert!(got.contains("READY=1"), "{got}");
+    assert!(got.contains("WATCHDOG=1"), "{got}");
+    assert!(got.contains("STATUS=") && got.contains("frames"), "{got}");
+}
