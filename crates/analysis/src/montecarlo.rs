@@ -1,0 +1,386 @@
+//! The Monte Carlo engine (paper section 3.1, MODEL.md "Monte Carlo
+//! uncertainty"): each realization draws its own water temperature and K_D,
+//! fixed over the run, simulates the trajectory with fresh electronic noise
+//! while the frames report the nominal temperature, and runs an estimator
+//! over it. The ensemble of estimates per time step is the paper's TPU.
+//!
+//! Realizations run in parallel with rayon, yet the result depends only on
+//! the seed: realization `i` draws everything from ChaCha8 seeded with
+//! `seed` on stream `i`, writes into its own slot of a preallocated buffer,
+//! and every reduction runs afterwards in index order.
+
+use crate::stats::{self, Coverage, StepStats};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use lightpose_core::{Estimator, Pose, PoseEstimate};
+use lightpose_sim::{Scene, Simulator, Trajectory};
+use rand::{RngCore, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
+use std::io::IsTerminal;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+/// The quantities an estimate is judged on, in the order of every table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Axis {
+    X,
+    Y,
+    Z,
+    Pitch,
+    Yaw,
+    Surge,
+}
+
+pub const NAXES: usize = 6;
+pub const AXES: [Axis; NAXES] = [
+    Axis::X,
+    Axis::Y,
+    Axis::Z,
+    Axis::Pitch,
+    Axis::Yaw,
+    Axis::Surge,
+];
+
+impl Axis {
+    /// Column prefix in the CSV and name in tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Axis::X => "x",
+            Axis::Y => "y",
+            Axis::Z => "z",
+            Axis::Pitch => "pitch",
+            Axis::Yaw => "yaw",
+            Axis::Surge => "surge",
+        }
+    }
+    pub fn unit(self) -> &'static str {
+        match self {
+            Axis::X | Axis::Y | Axis::Z => "m",
+            Axis::Pitch | Axis::Yaw => "°",
+            Axis::Surge => "m/s",
+        }
+    }
+    pub fn index(self) -> usize {
+        self as usize
+    }
+    /// The estimate's value of this axis (angles in degrees).
+    fn of(self, e: &PoseEstimate) -> Option<f64> {
+        match self {
+            Axis::X => e.x,
+            Axis::Y => e.y,
+            Axis::Z => e.z,
+            Axis::Pitch => e.pitch_deg,
+            Axis::Yaw => e.yaw_deg,
+            Axis::Surge => e.surge,
+        }
+    }
+    /// The estimate's own 1σ for this axis, if it reports one.
+    fn std_of(self, e: &PoseEstimate) -> Option<f64> {
+        match self {
+            Axis::X => e.std.x,
+            Axis::Y => e.std.y,
+            Axis::Z => e.std.z,
+            Axis::Pitch => e.std.pitch,
+            Axis::Yaw => e.std.yaw,
+            Axis::Surge => e.std.surge,
+        }
+    }
+}
+
+/// The true value of every axis at one step (angles in degrees).
+pub fn truth_row(pose: &Pose, surge: f64) -> [f64; NAXES] {
+    [
+        pose.x,
+        pose.y,
+        pose.z,
+        pose.pitch.deg(),
+        pose.yaw.deg(),
+        surge,
+    ]
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum McError {
+    #[error("runs must be at least 1")]
+    NoRuns,
+    #[error("the trajectory gives no frame at {rate_hz} Hz")]
+    NoFrames { rate_hz: f64 },
+    #[error("scene: {0}")]
+    Scene(String),
+    #[error("estimator: {0}")]
+    Estimator(String),
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot plot: {msg}")]
+    Plot { path: String, msg: String },
+    #[error("unknown case \"{0}\" (known: auto, none, dive-clear, zigzag-clear, zigzag-turbid)")]
+    UnknownCase(String),
+}
+
+/// What to simulate.
+#[derive(Debug, Clone)]
+pub struct McConfig {
+    /// The nominal scene: `temp_c` and `light.k_d` are T0 and K_D0, and
+    /// `montecarlo` gives the spreads drawn around them.
+    pub scene: Scene,
+    pub trajectory: Trajectory,
+    pub runs: usize,
+    pub seed: u64,
+}
+
+/// What one realization drew.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Draw {
+    /// True water temperature of the run, °C.
+    pub temp_c: f64,
+    /// K_D of the run, 1/m.
+    pub k_d: f64,
+}
+
+/// The ensemble and its statistics.
+#[derive(Debug, Clone)]
+pub struct McResult {
+    pub runs: usize,
+    pub seed: u64,
+    /// Name the estimator gives itself.
+    pub estimator: String,
+    /// Frame times, s.
+    pub times: Vec<f64>,
+    /// True value per step and axis.
+    pub truth: Vec<[f64; NAXES]>,
+    /// Per realization, in index order.
+    pub draws: Vec<Draw>,
+    /// Per step, in time order.
+    pub steps: Vec<StepStats>,
+    /// Per axis: how often truth lay within ±2 of the estimator's own σ
+    /// (`None` where the estimator reports no σ for that axis).
+    pub coverage: [Option<Coverage>; NAXES],
+    /// Every estimate, run-major (`[run][step][axis]`), NaN where the
+    /// estimator gave none: kept for trade tables and tests.
+    samples: Vec<f64>,
+    /// Wall time of the realizations (not of the statistics).
+    pub elapsed: Duration,
+    pub threads: usize,
+}
+
+impl McResult {
+    /// The estimate of `axis` at `step` in realization `run`, if it gave one.
+    pub fn sample(&self, run: usize, step: usize, axis: Axis) -> Option<f64> {
+        let n = self.times.len();
+        self.samples
+            .get((run * n + step) * NAXES + axis.index())
+            .copied()
+            .filter(|v| v.is_finite())
+    }
+
+    /// Realizations per second of wall time.
+    pub fn rate(&self) -> f64 {
+        self.runs as f64 / self.elapsed.as_secs_f64().max(1e-9)
+    }
+
+    /// True when two results hold bit-identical numbers (timing aside):
+    /// what "independent of the thread count" means.
+    pub fn same_numbers(&self, o: &McResult) -> bool {
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        self.runs == o.runs
+            && self.estimator == o.estimator
+            && self.draws == o.draws
+            && bits(&self.samples) == bits(&o.samples)
+            && self.steps == o.steps
+            && self.coverage == o.coverage
+    }
+}
+
+/// A progress bar for `len` realizations on stderr, drawn only when stderr
+/// is a terminal so that logs and pipes stay clean.
+pub fn progress_bar(len: u64) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+    if let Ok(style) = ProgressStyle::with_template(
+        "{spinner} montecarlo [{bar:40}] {pos}/{len} realizations ({per_sec}, eta {eta})",
+    ) {
+        pb.set_style(style.progress_chars("=> "));
+    }
+    pb
+}
+
+/// Per-step outcome codes of the coverage check, one byte per axis.
+const COV_NONE: u8 = 0;
+const COV_IN: u8 = 1;
+const COV_OUT: u8 = 2;
+
+/// Run the ensemble. `factory` makes one estimator per rayon worker (it is
+/// reset before every realization, so state never leaks between runs);
+/// `progress` advances once per realization (pass `ProgressBar::hidden()`
+/// for none).
+pub fn run<F, E>(cfg: &McConfig, factory: F, progress: &ProgressBar) -> Result<McResult, McError>
+where
+    F: Fn() -> Result<Box<dyn Estimator>, E> + Sync,
+    E: std::fmt::Display,
+{
+    if cfg.runs == 0 {
+        return Err(McError::NoRuns);
+    }
+    let rate = cfg.scene.adc.rate_hz;
+    let times: Vec<f64> = cfg.trajectory.frame_times(rate).collect();
+    if times.is_empty() || !(rate > 0.0) {
+        return Err(McError::NoFrames { rate_hz: rate });
+    }
+    let spread = cfg.scene.montecarlo;
+    if !(spread.sigma_temp_c >= 0.0 && spread.sigma_k_d >= 0.0) {
+        return Err(McError::Scene(format!(
+            "montecarlo spreads must be ≥ 0 (sigma_temp_c = {}, sigma_k_d = {})",
+            spread.sigma_temp_c, spread.sigma_k_d
+        )));
+    }
+    // One probe both names the estimator and turns a factory error into a
+    // clean error before any thread starts.
+    let name = factory()
+        .map_err(|e| McError::Estimator(e.to_string()))?
+        .name()
+        .to_string();
+
+    let truth_pose: Vec<(Pose, f64)> = times.iter().map(|&t| cfg.trajectory.sample(t)).collect();
+    let truth: Vec<[f64; NAXES]> = truth_pose.iter().map(|(p, s)| truth_row(p, *s)).collect();
+    let nsteps = times.len();
+    let per_run = nsteps * NAXES;
+
+    // Flat buffers, one slot per run: nothing is allocated per realization.
+    let mut samples = vec![f64::NAN; cfg.runs * per_run];
+    let mut ok = vec![false; cfg.runs * nsteps];
+    let mut cov = vec![COV_NONE; cfg.runs * per_run];
+    let mut draws = vec![Draw::default(); cfg.runs];
+    let failure: Mutex<Option<String>> = Mutex::new(None);
+
+    let start = Instant::now();
+    samples
+        .par_chunks_mut(per_run)
+        .zip(ok.par_chunks_mut(nsteps))
+        .zip(cov.par_chunks_mut(per_run))
+        .zip(draws.par_iter_mut())
+        .enumerate()
+        // Few, long jobs: each rayon job builds one estimator.
+        .with_min_len(8)
+        .for_each_init(
+            || factory().map_err(|e| e.to_string()),
+            |est, (i, (((vals, oks), covs), draw))| {
+                match est {
+                    Ok(est) => {
+                        *draw = realization(
+                            cfg,
+                            i as u64,
+                            &times,
+                            &truth_pose,
+                            est.as_mut(),
+                            vals,
+                            oks,
+                            covs,
+                        );
+                    }
+                    Err(msg) => {
+                        if let Ok(mut f) = failure.lock() {
+                            f.get_or_insert_with(|| msg.clone());
+                        }
+                    }
+                }
+                progress.inc(1);
+            },
+        );
+    let elapsed = start.elapsed();
+    if let Some(msg) = failure.into_inner().ok().flatten() {
+        return Err(McError::Estimator(msg));
+    }
+
+    let steps = stats::per_step(&samples, &ok, &times, cfg.runs);
+    let coverage = stats::coverage(&cov, |c| match c {
+        COV_IN => Some(true),
+        COV_OUT => Some(false),
+        _ => None,
+    });
+    Ok(McResult {
+        runs: cfg.runs,
+        seed: cfg.seed,
+        estimator: name,
+        times,
+        truth,
+        draws,
+        steps,
+        coverage,
+        samples,
+        elapsed,
+        threads: rayon::current_num_threads(),
+    })
+}
+
+/// One realization, written into its own slots. Everything random comes
+/// from ChaCha8(seed, stream = index), drawn in a fixed order: T, K_D, then
+/// the simulator's seed.
+#[allow(clippy::too_many_arguments)]
+fn realization(
+    cfg: &McConfig,
+    index: u64,
+    times: &[f64],
+    truth: &[(Pose, f64)],
+    est: &mut dyn Estimator,
+    vals: &mut [f64],
+    oks: &mut [bool],
+    covs: &mut [u8],
+) -> Draw {
+    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+    rng.set_stream(index);
+    let nominal = &cfg.scene;
+    let spread = nominal.montecarlo;
+    let n1: f64 = StandardNormal.sample(&mut rng);
+    let n2: f64 = StandardNormal.sample(&mut rng);
+    let draw = Draw {
+        temp_c: nominal.temp_c + spread.sigma_temp_c * n1,
+        // Water cannot amplify light: a (very unlikely) negative draw is
+        // clear water, not a gain.
+        k_d: (nominal.light.k_d + spread.sigma_k_d * n2).max(0.0),
+    };
+    let sim_seed = rng.next_u64();
+
+    let mut scene = nominal.clone();
+    scene.temp_c = draw.temp_c;
+    scene.light.k_d = draw.k_d;
+    let mut sim = Simulator::new(scene, sim_seed);
+    // The vehicle's sensor is believed: the frames report T0 exactly, so
+    // the temperature spread is an error source (MODEL.md, as the paper).
+    sim.set_reported_temp(Some(nominal.temp_c));
+
+    est.reset();
+    for (j, (&t, (pose, surge))) in times.iter().zip(truth).enumerate() {
+        let frame = sim.frame(j as u64, t, pose, Some(*surge));
+        let e = est.estimate(&frame);
+        oks[j] = e.status == lightpose_core::Status::Ok;
+        let tr = truth_row(pose, *surge);
+        for a in AXES {
+            let k = j * NAXES + a.index();
+            let v = a.of(&e).filter(|v| v.is_finite());
+            vals[k] = v.unwrap_or(f64::NAN);
+            covs[k] = match (v, a.std_of(&e).filter(|s| s.is_finite() && *s >= 0.0)) {
+                (Some(v), Some(s)) => {
+                    let mut err = v - tr[a.index()];
+                    if a == Axis::Yaw {
+                        // Yaw is an angle: an error of 359° is −1°.
+                        err = (err + 180.0).rem_euclid(360.0) - 180.0;
+                    }
+                    if err.abs() <= 2.0 * s {
+                        COV_IN
+                    } else {
+                        COV_OUT
+                    }
+                }
+                _ => COV_NONE,
+            };
+        }
+    }
+    draw
+}
