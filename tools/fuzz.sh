@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Coverage-guided fuzzing (libFuzzer via cargo fuzz) of every parser that
+# reads outside input: intensity logs, scene files, calibration files, the
+# serial line protocol and the daemon's configuration.
+#
+#   tools/fuzz.sh            # 60 s per target
+#   tools/fuzz.sh 3600       # the longer run: an hour per target
+#
+# cargo fuzz wants nightly flags; RUSTC_BOOTSTRAP lets the stable toolchain
+# accept them. A crash leaves its input in fuzz/artifacts/<target>/: turn it
+# into a regression test next to the parser's own tests.
+set -euo pipefail
+cd "$(dirname "$0")/../fuzz"
+secs=${1:-60}
+command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
+export RUSTC_BOOTSTRAP=1
+cargo fuzz build -O
+for t in log_reader scene calibration serial_line daemon_config; do
+  mkdir -p "corpus/$t"
+  echo "== $t ($secs s)"
+  cargo fuzz run -O "$t" "corpus/$t" "seeds/$t" -- -max_total_time="$secs" -rss_limit_mb=2048 2>&1 | grep -E "^(Done|==[0-9]+==|SUMMARY)|panicked" || true
+  if ls "artifacts/$t"/crash-* >/dev/null 2>&1; then
+    echo "fuzz: $t crashed; inputs in fuzz/artifacts/$t" >&2
+    exit 1
+  fi
+done
+echo "fuzz: no crash in $secs s per target"
