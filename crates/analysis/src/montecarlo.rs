@@ -230,7 +230,7 @@ where
     }
     let rate = cfg.scene.adc.rate_hz;
     let times: Vec<f64> = cfg.trajectory.frame_times(rate).collect();
-    if times.is_empty() || !(rate > 0.0) {
+    if times.is_empty() || rate.is_nan() || rate <= 0.0 {
         return Err(McError::NoFrames { rate_hz: rate });
     }
     let spread = cfg.scene.montecarlo;

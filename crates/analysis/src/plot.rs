@@ -70,7 +70,8 @@ fn span(values: impl Iterator<Item = f64>, min_width: f64) -> (f64, f64) {
         lo = lo.min(v);
         hi = hi.max(v);
     }
-    if !(lo <= hi) {
+    // No finite value at all: any range will do.
+    if lo > hi {
         return (-1.0, 1.0);
     }
     let pad = ((hi - lo) * 0.08).max(0.5 * (min_width - (hi - lo)).max(0.0));

@@ -75,13 +75,10 @@ fn decimals(a: Axis) -> usize {
 
 /// The stats of `axis` at the first and the last step that have any.
 fn ends(r: &McResult, a: Axis) -> Option<((usize, AxisStats), (usize, AxisStats))> {
-    let mut it = r
-        .steps
-        .iter()
-        .enumerate()
-        .filter_map(|(j, s)| s.axes[a.index()].map(|st| (j, st)));
-    let first = it.next()?;
-    let last = it.last().unwrap_or(first);
+    let at = |j: usize| r.steps[j].axes[a.index()].map(|st| (j, st));
+    let idx = 0..r.steps.len();
+    let first = idx.clone().find_map(at)?;
+    let last = idx.rev().find_map(at)?;
     Some((first, last))
 }
 

@@ -110,11 +110,13 @@ mod tests {
         }
     }
 
+    type Edit = dyn Fn(&mut MontecarloArgs);
+
     /// Each bad argument gives one line that names what is wrong.
     #[test]
     fn bad_arguments_give_one_clear_line() {
         let dir = tempfile::tempdir().unwrap();
-        let cases: Vec<(Box<dyn Fn(&mut MontecarloArgs)>, &str)> = vec![
+        let cases: Vec<(Box<Edit>, &str)> = vec![
             (
                 Box::new(|a| a.estimator = "kalman".into()),
                 "unknown estimator \"kalman\"",
