@@ -20,6 +20,7 @@ use serde::{Deserialize, Serialize};
 use super::light::{to_pose, PoseVec};
 use super::solver::{solve, LmResult, Prior, SolveOptions};
 use super::SensorModel;
+use lightpose_core::frame::full_scale;
 use lightpose_core::light::temperature_gain;
 
 /// Which pose coordinates one frame is asked for.
@@ -295,7 +296,22 @@ impl ModelEstimator {
         let Some(mut r) = result else {
             return none(Status::Diverged);
         };
+        // Issue 8: with most channels clipped the censored fit has no
+        // minimum to converge to (every pose close enough satisfies every
+        // bound), so a failed fit of such a frame is `saturated`, which
+        // says why, not `diverged`; and without a pose (nothing to start
+        // the tracker from).
+        let fs = full_scale(m.adc_bits);
+        let clipped = frame.counts.iter().filter(|&&k| k >= fs).count();
+        let failed = if clipped > c.max_saturated {
+            Status::Saturated
+        } else {
+            Status::Diverged
+        };
         if !r.converged || !r.q.iter().all(|v| v.is_finite()) {
+            if failed == Status::Saturated {
+                return none(failed);
+            }
             return FrameFit {
                 status: Status::Diverged,
                 fit: Some(r),
@@ -304,6 +320,9 @@ impl ModelEstimator {
         }
         let red = reduced(&r);
         if !(red <= c.max_reduced_chi2) {
+            if failed == Status::Saturated {
+                return none(failed);
+            }
             return FrameFit {
                 status: Status::Diverged,
                 fit: Some(r),
