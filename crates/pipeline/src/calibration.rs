@@ -23,12 +23,10 @@ pub const MAX_SURGE_WINDOW: usize = 64;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CalError {
-    #[error("{file}: {source}")]
-    Io {
-        file: String,
-        #[source]
-        source: std::io::Error,
-    },
+    // The I/O error is in the message, not chained as a source, so that a
+    // one-line `{:#}` report does not say it twice.
+    #[error("{file}: {err}")]
+    Io { file: String, err: std::io::Error },
     /// TOML syntax, a wrong type, a missing or an unknown key.
     #[error("{file}:{line}: {msg}")]
     Parse {
@@ -330,9 +328,9 @@ impl Calibration {
     /// Read, parse and check a calibration file.
     pub fn load(path: &Path) -> Result<Calibration, CalError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| CalError::Io {
+        let text = std::fs::read_to_string(path).map_err(|err| CalError::Io {
             file: file.clone(),
-            source,
+            err,
         })?;
         Calibration::parse(&text, &file)
     }
@@ -380,7 +378,7 @@ impl Calibration {
             file: file.clone(),
             msg,
         })?);
-        std::fs::write(path, text).map_err(|source| CalError::Io { file, source })
+        std::fs::write(path, text).map_err(|err| CalError::Io { file, err })
     }
 
     /// Every value that parses but cannot be right, as (table, key, why).
