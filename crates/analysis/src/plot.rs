@@ -137,7 +137,8 @@ fn path_panel<DB: DrawingBackend>(
         .y_desc(format!("{} (m)", across.name()))
         .label_style(font(12.0))
         .axis_desc_style(font(13.0))
-        .light_line_style(RGBColor(235, 235, 235))
+        .max_light_lines(1)
+        .light_line_style(RGBColor(240, 240, 240))
         .draw()
         .map_err(|e| e.to_string())?;
     chart
@@ -196,7 +197,8 @@ fn series_panel<DB: DrawingBackend>(
         .y_desc(format!("{} ({})", a.name(), a.unit()))
         .label_style(font(12.0))
         .axis_desc_style(font(13.0))
-        .light_line_style(RGBColor(235, 235, 235))
+        .max_light_lines(1)
+        .light_line_style(RGBColor(240, 240, 240))
         .draw()
         .map_err(|e| e.to_string())?;
     if st.is_empty() {
