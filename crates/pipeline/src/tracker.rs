@@ -23,7 +23,7 @@ use lightpose_core::{Estimator, Frame, PoseEstimate, Status, StdDev, NDET};
 use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 
-use crate::model::estimator::{Dof, ModelConfig, ModelError, ModelEstimator};
+use crate::model::estimator::{Dof, ModelConfig, ModelError, ModelEstimator, WATER_TEMP_C};
 use crate::model::light::{predict_with_grad, PoseVec};
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
@@ -252,7 +252,7 @@ impl Tracker {
         let m = &self.model;
         let gt = frame
             .temp_c
-            .filter(|t| t.is_finite() && (-5.0..=60.0).contains(t))
+            .filter(|t| t.is_finite() && WATER_TEMP_C.contains(t))
             .map_or(1.0, temperature_gain);
         let kinds = Censoring::classify(m, &frame.counts);
         let n_sat = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
@@ -384,6 +384,12 @@ impl Estimator for Tracker {
 
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
         if frame.adc_bits != self.model.adc_bits {
+            return PoseEstimate::empty(frame.seq, frame.t, Status::BadFrame, Self::NAME);
+        }
+        // Issue 8: a temperature that is not water's is a bad frame, as in
+        // the model estimator; the update used to correct such a frame as
+        // if at 20 °C (up to 10 % off in brightness, a jump in range).
+        if frame.temp_c.is_some_and(|t| !WATER_TEMP_C.contains(&t)) {
             return PoseEstimate::empty(frame.seq, frame.t, Status::BadFrame, Self::NAME);
         }
         let mut state = match self.state.take() {

@@ -510,3 +510,50 @@ fn all_saturated_regression_was_diverged() {
         }
     }
 }
+
+/// Regression (issue 8): in −5 °C water, the end of the envelope, the
+/// temperature sensor's own noise reports −5.1 °C about half the time. The
+/// model estimator called those frames `bad_frame`, and the tracker
+/// silently corrected them (and any temperature outside −5..60 °C) as if
+/// at 20 °C, 9 % off in brightness at −5 °C. Now both take them as water,
+/// and a temperature that is not water's (70 °C, NaN, −40 °C) is
+/// `bad_frame` for both instead of a silent 20 °C.
+#[test]
+fn cold_edge_regression_temperature_noise_is_not_a_bad_frame() {
+    let mut scene = tank().clone();
+    scene.temp_c = -5.0;
+    let mut sim = Simulator::new(scene, 21);
+    let mut ests = estimators(10);
+    for i in 0..20u64 {
+        let pose = Pose::new(6.5, 0.1, 0.1, Angle::ZERO, Angle::ZERO);
+        let mut f = sim.frame(i, i as f64 * 0.2, &pose, Some(0.0));
+        // Alternate either side of the envelope's end.
+        f.temp_c = Some(if i % 2 == 0 { -5.1 } else { -4.9 });
+        for e in ests.iter_mut() {
+            let got = e.estimate(&f);
+            check(&got, &format!("cold [{}] {i}", e.name())).unwrap();
+            assert_ne!(got.status, Status::BadFrame, "{} {i}", e.name());
+        }
+    }
+    for bad in [70.0, f64::NAN, f64::INFINITY, -40.0] {
+        for mut e in estimators(10) {
+            if e.name() == "moments" {
+                continue; // corrects any temperature with a positive gain
+            }
+            // A running filter first: a fresh tracker already refused it.
+            let pose = Pose::new(6.5, 0.0, 0.0, Angle::ZERO, Angle::ZERO);
+            for i in 0..3 {
+                let f = sim.frame(i, i as f64 * 0.2, &pose, None);
+                e.estimate(&f);
+            }
+            let mut f = sim.frame(3, 0.6, &pose, None);
+            f.temp_c = Some(bad);
+            assert_eq!(
+                e.estimate(&f).status,
+                Status::BadFrame,
+                "{} {bad}",
+                e.name()
+            );
+        }
+    }
+}

@@ -143,6 +143,13 @@ impl ModelConfig {
     }
 }
 
+/// Reported temperatures (°C) that are taken as water's; outside it a
+/// frame is `bad_frame`. Issue 8: the window used to end at −5 °C, the end
+/// of the operating envelope itself, so in −5 °C water the temperature
+/// sensor's own noise (0.1 °C) made half the frames `bad_frame`; the lower
+/// end now leaves room for that noise.
+pub(crate) const WATER_TEMP_C: std::ops::RangeInclusive<f64> = -10.0..=60.0;
+
 /// Single-frame model-based estimator (name `"model"`).
 #[derive(Debug, Clone)]
 pub struct ModelEstimator {
@@ -207,7 +214,7 @@ impl ModelEstimator {
             return none(Status::BadFrame);
         }
         let gt = match frame.temp_c {
-            Some(t) if t.is_finite() && (-5.0..=60.0).contains(&t) => temperature_gain(t),
+            Some(t) if t.is_finite() && WATER_TEMP_C.contains(&t) => temperature_gain(t),
             Some(_) => return none(Status::BadFrame),
             None => 1.0,
         };

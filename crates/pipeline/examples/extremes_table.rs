@@ -1,0 +1,384 @@
+//! Issue 8 part 2: what each estimator reports at the extremes, as the
+//! markdown tables of docs/extremes.md.
+//!
+//! Why a program: the tables must be reproducible from the code they
+//! describe, so that a change to an estimator shows up as a diff of the
+//! doc. Each scenario is the tank scene (config/scenes/tank.toml, noise on,
+//! no attitude sensor) with one thing changed, 50 frames at 5 Hz of a
+//! vehicle creeping towards the beacon at 0.1 m/s, with a fixed seed per
+//! scenario. Every estimator is built as a user builds it: moments from the
+//! shipped calibration by name, model and tracker from a sensor model
+//! written down from the scene (its ADC resolution is the board's).
+//!
+//! Usage: `extremes_table [DOC.md]`. Without an argument the tables go to
+//! stdout; with one, they replace the part of DOC.md between the
+//! `<!-- BEGIN GENERATED -->` and `<!-- END GENERATED -->` markers, so the
+//! prose around them survives a rerun (tools/extremes-table.sh).
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use lightpose_core::{Angle, Estimator, Pose, PoseEstimate, Status};
+use lightpose_pipeline::model::{ModelConfig, ModelEstimator, SensorModel};
+use lightpose_pipeline::tracker::{Tracker, TrackerConfig};
+use lightpose_pipeline::{build_estimator, Calibration};
+use lightpose_sim::{Scene, Simulator};
+
+const FRAMES: u64 = 50;
+const RATE_HZ: f64 = 5.0;
+/// Approach speed along −x: slow enough that a scenario stays at its
+/// range, fast enough that surge is not zero.
+const SPEED: f64 = 0.1;
+const SEED: u64 = 1000;
+const BEGIN: &str = "<!-- BEGIN GENERATED -->";
+const END: &str = "<!-- END GENERATED -->";
+
+/// One row: the tank scene with one thing changed.
+struct Scenario {
+    name: &'static str,
+    /// Range at the first frame, m.
+    x0: f64,
+    pitch_deg: f64,
+    yaw_deg: f64,
+    k_d: Option<f64>,
+    temp_c: Option<f64>,
+    bits: Option<u8>,
+    beacon: bool,
+}
+
+impl Scenario {
+    const fn base(name: &'static str) -> Self {
+        Scenario {
+            name,
+            x0: 6.5,
+            pitch_deg: 0.0,
+            yaw_deg: 0.0,
+            k_d: None,
+            temp_c: None,
+            bits: None,
+            beacon: true,
+        }
+    }
+}
+
+fn scenarios() -> Vec<Scenario> {
+    let b = Scenario::base;
+    vec![
+        b("baseline (6.5 m, 0°, tank)"),
+        Scenario {
+            beacon: false,
+            ..b("darkness (beacon off)")
+        },
+        Scenario {
+            x0: 1.0,
+            ..b("near range 1.0 m")
+        },
+        Scenario {
+            x0: 0.5 + SPEED * FRAMES as f64 / RATE_HZ,
+            ..b("near range 1.5→0.5 m")
+        },
+        Scenario {
+            x0: 15.0,
+            ..b("far range 15 m")
+        },
+        Scenario {
+            x0: 30.0,
+            ..b("far range 30 m")
+        },
+        Scenario {
+            pitch_deg: 30.0,
+            ..b("pitch 30°")
+        },
+        Scenario {
+            pitch_deg: 60.0,
+            ..b("pitch 60°")
+        },
+        Scenario {
+            yaw_deg: 30.0,
+            ..b("yaw 30°")
+        },
+        Scenario {
+            yaw_deg: 60.0,
+            ..b("yaw 60°")
+        },
+        Scenario {
+            k_d: Some(0.5),
+            ..b("turbid K_D 0.5")
+        },
+        Scenario {
+            k_d: Some(1.0),
+            ..b("turbid K_D 1.0")
+        },
+        Scenario {
+            temp_c: Some(-5.0),
+            ..b("cold water −5 °C")
+        },
+        Scenario {
+            temp_c: Some(40.0),
+            ..b("hot water 40 °C")
+        },
+        Scenario {
+            bits: Some(12),
+            ..b("12-bit ADC")
+        },
+        Scenario {
+            bits: Some(16),
+            ..b("16-bit ADC")
+        },
+    ]
+}
+
+/// The sensor model a user writes down from a scene (docs/estimators.md).
+fn sensor_model(scene: &Scene) -> SensorModel {
+    let (sigma_e_v, kappa_v) = scene.noise.map_or((0.0, 0.0), |n| (n.sigma_e_v, n.kappa_v));
+    SensorModel {
+        light: scene.light,
+        geometry: scene.geometry,
+        gain: scene.gain,
+        offset_v: scene.offset_v,
+        v_ref: scene.adc.v_ref,
+        adc_bits: scene.adc.bits,
+        sigma_e_v,
+        kappa_v,
+    }
+}
+
+/// What one estimator did over one scenario.
+#[derive(Default)]
+struct Tally {
+    n: usize,
+    ok: usize,
+    /// |error| of x, y, z (m), pitch, yaw (°), surge (m/s) over ok frames.
+    err: [Vec<f64>; 6],
+    /// Statuses of frames that were not ok.
+    refused: BTreeMap<&'static str, usize>,
+}
+
+impl Tally {
+    fn add(&mut self, e: &PoseEstimate, truth: &Pose, surge: f64) {
+        self.n += 1;
+        if e.status != Status::Ok {
+            *self.refused.entry(e.status.as_str()).or_default() += 1;
+            return;
+        }
+        self.ok += 1;
+        let t = [
+            truth.x,
+            truth.y,
+            truth.z,
+            truth.pitch.deg(),
+            truth.yaw.deg(),
+            surge,
+        ];
+        let g = [e.x, e.y, e.z, e.pitch_deg, e.yaw_deg, e.surge];
+        for i in 0..6 {
+            if let Some(v) = g[i] {
+                self.err[i].push((v - t[i]).abs());
+            }
+        }
+    }
+
+    fn median(v: &[f64]) -> Option<f64> {
+        let mut s: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+        if s.is_empty() {
+            return None;
+        }
+        s.sort_by(f64::total_cmp);
+        let m = s.len() / 2;
+        Some(if s.len() % 2 == 1 {
+            s[m]
+        } else {
+            0.5 * (s[m - 1] + s[m])
+        })
+    }
+
+    /// The most frequent refusal, with its share of all frames.
+    fn dominant(&self) -> String {
+        match self.refused.iter().max_by_key(|(_, n)| **n) {
+            Some((s, n)) => format!("{s} ({:.0} %)", 100.0 * *n as f64 / self.n.max(1) as f64),
+            None => "—".into(),
+        }
+    }
+}
+
+fn run(
+    sc: &Scenario,
+    seed: u64,
+    cal: &Calibration,
+    base: &Scene,
+) -> Result<Vec<(&'static str, Tally)>, String> {
+    let mut scene = base.clone();
+    if let Some(k) = sc.k_d {
+        scene.light.k_d = k;
+    }
+    if let Some(t) = sc.temp_c {
+        scene.temp_c = t;
+    }
+    if let Some(b) = sc.bits {
+        scene.adc.bits = b;
+    }
+    let model = sensor_model(&scene);
+    let mut ests: Vec<Box<dyn Estimator>> = vec![
+        build_estimator("moments", cal).map_err(|e| e.to_string())?,
+        Box::new(
+            ModelEstimator::new(model.clone(), ModelConfig::default())
+                .map_err(|e| e.to_string())?,
+        ),
+        Box::new(Tracker::new(model, TrackerConfig::default()).map_err(|e| e.to_string())?),
+    ];
+    let mut tallies: Vec<(&'static str, Tally)> =
+        ests.iter().map(|e| (e.name(), Tally::default())).collect();
+    let mut sim = Simulator::new(scene, seed);
+    sim.set_beacon(sc.beacon);
+    let (th, ps) = (sc.pitch_deg.to_radians(), sc.yaw_deg.to_radians());
+    for i in 0..FRAMES {
+        let t = i as f64 / RATE_HZ;
+        // Creeping along −x at SPEED with a small offset from the axis; the
+        // bow's attitude is the scenario's, so surge = SPEED·cosθ·cosψ.
+        let pose = Pose::new(
+            sc.x0 - SPEED * t,
+            0.1,
+            0.1,
+            Angle::from_deg(sc.pitch_deg),
+            Angle::from_deg(sc.yaw_deg),
+        );
+        let surge = SPEED * th.cos() * ps.cos();
+        let f = sim.frame(i, t, &pose, Some(surge));
+        for (e, (_, tally)) in ests.iter_mut().zip(tallies.iter_mut()) {
+            tally.add(&e.estimate(&f), &pose, surge);
+        }
+    }
+    Ok(tallies)
+}
+
+fn fmt_opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or("—".into(), |v| format!("{v:.digits$}"))
+}
+
+fn tables(cal: &Calibration, base: &Scene) -> Result<String, String> {
+    let scs = scenarios();
+    let mut results = Vec::new();
+    for sc in &scs {
+        // One fixed seed for every row: the tables are reproducible, and
+        // rows differ by the one thing changed, not by their noise draws.
+        results.push(run(sc, SEED, cal, base)?);
+    }
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "Generated by `tools/extremes-table.sh` ({FRAMES} frames per scenario at {RATE_HZ} Hz, seed {SEED} for every row)."
+    );
+    let _ = writeln!(out);
+    let _ = writeln!(
+        out,
+        "### Summary: fraction ok, and the dominant status where not ok"
+    );
+    let _ = writeln!(out);
+    let names: Vec<&str> = results[0].iter().map(|(n, _)| *n).collect();
+    let _ = write!(out, "| scenario |");
+    for n in &names {
+        let _ = write!(out, " {n} ok | {n} refuses with |");
+    }
+    let _ = writeln!(out);
+    let _ = write!(out, "|---|");
+    for _ in &names {
+        let _ = write!(out, "---:|---|");
+    }
+    let _ = writeln!(out);
+    for (sc, res) in scs.iter().zip(&results) {
+        let _ = write!(out, "| {} |", sc.name);
+        for (_, t) in res {
+            let _ = write!(
+                out,
+                " {:.0} % | {} |",
+                100.0 * t.ok as f64 / t.n.max(1) as f64,
+                t.dominant()
+            );
+        }
+        let _ = writeln!(out);
+    }
+    for (k, name) in names.iter().enumerate() {
+        let _ = writeln!(out);
+        let _ = writeln!(out, "### `{name}`: median |error| over its ok frames");
+        let _ = writeln!(out);
+        let _ = writeln!(
+            out,
+            "| scenario | ok | x (m) | y (m) | z (m) | pitch (°) | yaw (°) | surge (m/s) | dominant status where not ok |"
+        );
+        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---|");
+        for (sc, res) in scs.iter().zip(&results) {
+            let t = &res[k].1;
+            let m = |i: usize, d: usize| fmt_opt(Tally::median(&t.err[i]), d);
+            let _ = writeln!(
+                out,
+                "| {} | {}/{} | {} | {} | {} | {} | {} | {} | {} |",
+                sc.name,
+                t.ok,
+                t.n,
+                m(0, 2),
+                m(1, 2),
+                m(2, 2),
+                m(3, 1),
+                m(4, 1),
+                m(5, 2),
+                t.dominant()
+            );
+        }
+    }
+    Ok(out)
+}
+
+/// Put `generated` between the markers of `doc` (or make a bare doc).
+fn splice(doc: &Path, generated: &str) -> Result<(), String> {
+    let old = std::fs::read_to_string(doc).unwrap_or_default();
+    let block = format!("{BEGIN}\n{generated}{END}\n");
+    let new = match (old.find(BEGIN), old.find(END)) {
+        (Some(a), Some(b)) if b > a => {
+            let rest = &old[b + END.len()..];
+            format!(
+                "{}{block}{}",
+                &old[..a],
+                rest.strip_prefix('\n').unwrap_or(rest)
+            )
+        }
+        _ => format!("{old}{block}"),
+    };
+    std::fs::write(doc, new).map_err(|e| format!("{}: {e}", doc.display()))
+}
+
+fn main() -> ExitCode {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let cal = match Calibration::load(&root.join("config/calibration/tank.toml")) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("extremes_table: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let base = match Scene::load(&root.join("config/scenes/tank.toml")) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("extremes_table: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let out = match tables(&cal, &base) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("extremes_table: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match std::env::args().nth(1) {
+        Some(doc) => {
+            if let Err(e) = splice(Path::new(&doc), &out) {
+                eprintln!("extremes_table: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+        None => print!("{out}"),
+    }
+    ExitCode::SUCCESS
+}
