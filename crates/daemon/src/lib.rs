@@ -91,11 +91,10 @@ pub fn open_source(cfg: &Config) -> Result<(Box<dyn FrameSource>, Option<Duratio
     let period = |rate: f64| Some(Duration::from_secs_f64(1.0 / rate));
     match &cfg.backend {
         Backend::Sim(s) => {
-            let src =
-                simsource::SimSource::open(s, cfg.rate_hz).map_err(|e| DaemonError::Backend {
-                    kind: "sim".into(),
-                    msg: e.to_string(),
-                })?;
+            let src = simsource::open(s, cfg.rate_hz).map_err(|e| DaemonError::Backend {
+                kind: "sim".into(),
+                msg: e.to_string(),
+            })?;
             let p = if s.pace == Pace::Fast {
                 None
             } else {

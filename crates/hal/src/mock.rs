@@ -57,6 +57,9 @@ pub struct MockSource {
     looping: bool,
     /// Seconds of simulated time per frame.
     dt: f64,
+    /// Frames in one pass of the trajectory; a loop starts again at the
+    /// same frame times, so every pass samples exactly the same poses.
+    per_pass: u64,
     pacer: Pacer,
     faults: Faults,
     rng: ChaCha8Rng,
@@ -95,7 +98,9 @@ impl MockSource {
                 " with injected faults"
             },
         );
+        let per_pass = traj.frame_times(1.0 / dt).count().max(1) as u64;
         MockSource {
+            per_pass,
             rng: ChaCha8Rng::seed_from_u64(faults.seed),
             sim,
             traj,
@@ -140,6 +145,14 @@ impl MockSource {
         ))
     }
 
+    /// Keep the frame times of the configured rate but hand frames out as
+    /// fast as they are asked for (benchmarks, soak tests).
+    pub fn free_running(mut self) -> Self {
+        self.pacer = Pacer::from_rate(None);
+        self.describe.push_str(", as fast as possible");
+        self
+    }
+
     fn hit(&mut self, every: Option<u64>, prob: f64, seq: u64) -> bool {
         let periodic = every.is_some_and(|n| (seq + 1).checked_rem(n) == Some(0));
         // draw every frame so that the fault sequence depends only on seq
@@ -160,14 +173,14 @@ impl FrameSource for MockSource {
         loop {
             let seq = self.seq;
             let t = seq as f64 * self.dt;
-            let (t0, len) = (self.traj.t0(), self.traj.t_end() - self.traj.t0());
-            let tt = if t <= len {
-                t0 + t
-            } else if self.looping && len > 0.0 {
-                t0 + t % len
+            let in_pass = if seq < self.per_pass {
+                seq
+            } else if self.looping {
+                seq % self.per_pass
             } else {
                 return Err(SourceError::Ended);
             };
+            let tt = self.traj.t0() + in_pass as f64 * self.dt;
             self.pacer.wait();
             self.seq += 1;
             let (fe, fp) = (self.faults.drop_every, self.faults.drop_prob);
