@@ -8,12 +8,18 @@
 //! feature (each moment ratio, each first moment, each about the peak and
 //! about the array centre) is fitted, and the data pick which one tracks
 //! each quantity: that is how "M23/M33 for pitch or for yaw" is decided.
+//!
+//! The same two passes also feed the physical fitter (`model::calibrate`),
+//! so one command gives both the paper's coefficients and the light model
+//! the model-based estimators need; a sweep that cannot determine the light
+//! model still gives the paper's coefficients.
 
 use crate::calibration::{
     Calibration, Coverage, Dark, Feature, Fits, Limits, LinearFit, Meta, RangeFit, SceneFacts,
     FORMAT, VERSION,
 };
 use crate::fit::{FitError, Line, LineAcc};
+use crate::model::{CalibError, FitOptions, PhysicalFitter};
 use crate::steps;
 use lightpose_core::{frame::full_scale, Frame, LogError, LogReader, NDET};
 use std::collections::BTreeMap;
@@ -43,6 +49,16 @@ pub struct CalibrateOptions {
     pub surge_window: usize,
     /// Written into `meta.created_by`.
     pub created_by: String,
+    /// Fit the light model too (`[physical]`), with these options (their
+    /// `v_ref` is replaced by the logs'); `None` skips it.
+    pub physical: Option<FitOptions>,
+}
+
+/// A calibration and, when its `[physical]` table was left out, why.
+#[derive(Debug)]
+pub struct Calibrated {
+    pub cal: Calibration,
+    pub physical_skipped: Option<CalibError>,
 }
 
 impl CalibrateOptions {
@@ -55,6 +71,7 @@ impl CalibrateOptions {
             default_temp_c: lightpose_core::light::T_REF_C,
             surge_window: 10,
             created_by: format!("lightpose-pipeline {}", env!("CARGO_PKG_VERSION")),
+            physical: Some(FitOptions::default()),
         }
     }
 }
@@ -257,10 +274,35 @@ fn linear(f: Feature, l: Line) -> LinearFit {
 }
 
 /// Fit a calibration. Refused lines are handed to `on_bad_line` and skipped.
+/// The `[physical]` table is included when the sweeps determine it; see
+/// [`calibrate_full`] for the reason when they do not.
 pub fn calibrate(
     opts: &CalibrateOptions,
-    mut on_bad_line: impl FnMut(&LogError),
+    on_bad_line: impl FnMut(&LogError),
 ) -> Result<Calibration, CalibrateError> {
+    calibrate_full(opts, on_bad_line).map(|c| c.cal)
+}
+
+/// Feed one frame to the physical fitter; its first error stops it (and is
+/// kept as the reason), since a refused frame would bias the fit.
+fn feed(
+    fitter: &mut Option<PhysicalFitter>,
+    err: &mut Option<CalibError>,
+    r: impl FnOnce(&mut PhysicalFitter) -> Result<(), CalibError>,
+) {
+    if let Some(f) = fitter.as_mut() {
+        if let Err(e) = r(f) {
+            *err = Some(e);
+            *fitter = None;
+        }
+    }
+}
+
+/// [`calibrate`], also saying why `[physical]` was left out.
+pub fn calibrate_full(
+    opts: &CalibrateOptions,
+    mut on_bad_line: impl FnMut(&LogError),
+) -> Result<Calibrated, CalibrateError> {
     if opts.sweeps.is_empty() {
         return Err(CalibrateError::Refused("no sweep log given".into()));
     }
@@ -272,6 +314,8 @@ pub fn calibrate(
         )));
     }
     let mut bad = 0u64;
+    let mut phys = opts.physical.as_ref().map(|_| PhysicalFitter::new());
+    let mut phys_err: Option<CalibError> = None;
 
     // Pass 1: dark frames, from the dark log or from dark sweeps.
     let mut dark = DarkAcc::default();
@@ -280,7 +324,10 @@ pub fn calibrate(
     if let Some(p) = &opts.dark {
         stream(
             p,
-            |f, h| dark.push(f, header_v_ref(h, opts.v_ref)),
+            |f, h| {
+                dark.push(f, header_v_ref(h, opts.v_ref));
+                feed(&mut phys, &mut phys_err, |p| p.add_dark(f));
+            },
             &mut on_bad_line,
             &mut bad,
         )?;
@@ -294,7 +341,10 @@ pub fn calibrate(
         if is_dark_sweep(&h) {
             stream(
                 p,
-                |f, h| dark.push(f, header_v_ref(h, opts.v_ref)),
+                |f, h| {
+                dark.push(f, header_v_ref(h, opts.v_ref));
+                feed(&mut phys, &mut phys_err, |p| p.add_dark(f));
+            },
                 &mut on_bad_line,
                 &mut bad,
             )?;
@@ -341,7 +391,10 @@ pub fn calibrate(
         v_ref = header_v_ref(&h, opts.v_ref);
         let header = stream(
             p,
-            |f, _| accs.push(f, v_ref, &offsets, opts.default_temp_c, no_light_v),
+            |f, _| {
+                accs.push(f, v_ref, &offsets, opts.default_temp_c, no_light_v);
+                feed(&mut phys, &mut phys_err, |p| p.add_frame(f));
+            },
             &mut on_bad_line,
             &mut bad,
         )?;
@@ -486,8 +539,33 @@ pub fn calibrate(
         },
         selection,
         physical: None,
+        estimator: None,
     };
     cal.check()
         .map_err(|(t, k, m)| CalibrateError::Refused(format!("the fit gave {t}.{k}: {m}")))?;
-    Ok(cal)
+    let mut out = Calibrated {
+        cal,
+        physical_skipped: phys_err,
+    };
+    if let (Some(fitter), Some(o)) = (phys, &opts.physical) {
+        let o = FitOptions {
+            v_ref,
+            ..o.clone()
+        };
+        match fitter.fit(&o) {
+            Ok(p) => {
+                let mut with = out.cal.clone();
+                with.physical = Some(p);
+                // A fit that gives an unusable model is the same as none.
+                match with.check() {
+                    Ok(()) => out.cal = with,
+                    Err((_, _, m)) => {
+                        out.physical_skipped = Some(CalibError::NoConvergence(m));
+                    }
+                }
+            }
+            Err(e) => out.physical_skipped = Some(e),
+        }
+    }
+    Ok(out)
 }

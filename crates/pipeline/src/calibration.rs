@@ -5,9 +5,14 @@
 //! and the Monte Carlo (which read it), so it is typed and checked on load:
 //! unknown keys and impossible values are refused with file, line and key.
 //!
-//! A later `[physical]` table (light-model parameters for a model-based
-//! estimator) is kept as a raw TOML table until its owner types it.
+//! The optional `[physical]` table holds the light model fitted from the
+//! same sweeps (`model::PhysicalCalibration`), which the model-based
+//! estimators and the Cramér–Rao bound run on; the optional `[estimator]`
+//! table holds their settings (`EstimatorSettings`), so that what a scene
+//! requires (free DOF, K_D estimation) travels with its calibration.
 
+use crate::model::{ModelConfig, PhysicalCalibration};
+use crate::tracker::TrackerConfig;
 use lightpose_core::{light::temperature_gain, NDET};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -285,10 +290,25 @@ pub struct Calibration {
     /// the features that `fits` chose.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub selection: BTreeMap<String, BTreeMap<String, f64>>,
-    /// Light-model parameters for a model-based estimator (typed by its
-    /// owner; kept verbatim here).
+    /// Light-model parameters for the model-based estimators; absent when
+    /// the sweeps could not determine them (the moments part still works).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub physical: Option<toml::Table>,
+    pub physical: Option<PhysicalCalibration>,
+    /// Settings of the model-based estimators; absent means their defaults.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimator: Option<EstimatorSettings>,
+}
+
+/// The `[estimator]` table: what the model-based estimators model for this
+/// scene. Every key is optional. Scattering is not here: it is modelled
+/// exactly when the physical calibration kept it (`omega`, `sigma_h_deg`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EstimatorSettings {
+    /// `[estimator.model]`: the single-frame estimator.
+    pub model: ModelConfig,
+    /// `[estimator.tracker]`: the filter.
+    pub tracker: TrackerConfig,
 }
 
 /// Line (1-based) of a byte offset.
@@ -347,6 +367,8 @@ impl Calibration {
             line: line_of_key(text, table, key),
             key: if table.is_empty() {
                 key.to_string()
+            } else if key.is_empty() {
+                table.to_string()
             } else {
                 format!("{table}.{key}")
             },
@@ -546,6 +568,17 @@ impl Calibration {
             }
         }
         positive("limits", "max_gap_s", l.max_gap_s)?;
+        if let Some(p) = &self.physical {
+            p.validate().map_err(|m| ("physical", "", m))?;
+        }
+        if let Some(e) = &self.estimator {
+            e.model
+                .validate()
+                .map_err(|m| ("estimator", "model", m.to_string()))?;
+            e.tracker
+                .validate()
+                .map_err(|m| ("estimator", "tracker", m.to_string()))?;
+        }
         Ok(())
     }
 
@@ -626,6 +659,7 @@ pub(crate) mod tests {
             },
             selection: BTreeMap::new(),
             physical: None,
+            estimator: None,
         }
     }
 
@@ -685,13 +719,74 @@ pub(crate) mod tests {
         assert!(e.contains("unknown moment \"m11\""), "{e}");
     }
 
+    /// A physical table as the fitter writes it: V1 135, K_D 0.09, unit
+    /// gains, 0.15 V offsets, no scattering.
+    pub(crate) fn sample_physical() -> PhysicalCalibration {
+        let pe = |value: f64, std: f64| crate::model::ParamEstimate { value, std };
+        PhysicalCalibration {
+            v1: pe(135.0, 0.3),
+            sigma_b_deg: pe(12.0, 0.01),
+            sigma_r_deg: pe(18.0, 0.02),
+            k_d: pe(0.09, 0.0007),
+            omega: None,
+            sigma_h_deg: None,
+            gain: vec![pe(1.0, 0.001); NDET],
+            offset_v: vec![pe(0.15, 0.001); NDET],
+            sigma_e_v: 0.05,
+            kappa_v: 0.0,
+            v_ref: 5.0,
+            adc_bits: 10,
+            spacing_deg: 15.0,
+            radius_m: 0.229,
+            residual_rms_counts: vec![1.0; NDET],
+            residual_rms_normalized: vec![1.0; NDET],
+            chi2_per_dof: 1.05,
+            poses: 100,
+            frames: 20000,
+        }
+    }
+
     #[test]
-    fn a_physical_table_is_kept() {
+    fn physical_and_estimator_tables_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cal.toml");
+        let mut c = sample();
+        c.physical = Some(sample_physical());
+        let mut settings = EstimatorSettings::default();
+        settings.model.dof = crate::model::Dof::Position;
+        settings.tracker.estimate_k_d = true;
+        c.estimator = Some(settings);
+        c.save(&p).unwrap();
+        let back = Calibration::load(&p).unwrap();
+        assert_eq!(back, c);
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert!(text.contains("[physical.v1]") || text.contains("[physical]"), "{text}");
+        assert!(text.contains("estimate_k_d = true"), "{text}");
+    }
+
+    #[test]
+    fn a_bad_physical_table_is_refused_with_its_table() {
+        let mut c = sample();
+        let mut p = sample_physical();
+        p.gain.pop();
+        c.physical = Some(p);
+        let text = c.to_toml().unwrap();
+        let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+        assert!(e.contains("physical: gain and offset_v must have 25 entries"), "{e}");
+        // A partial table (the old raw form) is refused, naming the key.
         let mut text = sample().to_toml().unwrap();
-        text.push_str("\n[physical]\nv1 = 135.0\nk_d = 0.09\n");
-        let c = Calibration::parse(&text, "c.toml").unwrap();
-        let p = c.physical.as_ref().unwrap();
-        assert_eq!(p.get("v1").and_then(|v| v.as_float()), Some(135.0));
+        text.push_str("\n[physical]\nv1 = 135.0\n");
+        let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+        assert!(e.contains("c.toml:"), "{e}");
+    }
+
+    #[test]
+    fn a_bad_estimator_setting_is_refused() {
+        let mut text = sample().to_toml().unwrap();
+        text.push_str("\n[estimator.tracker]\nupdate_iterations = 0\n");
+        let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+        assert!(e.contains("estimator.tracker"), "{e}");
+        assert!(e.contains("update_iterations must be at least 1"), "{e}");
     }
 
     #[test]

@@ -1,24 +1,74 @@
-//! Choosing an estimator by name, so that replay, the daemon and the Monte
-//! Carlo accept the same `--estimator` words and get the same object.
+//! Choosing an estimator by name, so that replay, the daemon, the Monte
+//! Carlo and the trade table accept the same `--estimator` words and get the
+//! same object.
+//!
+//! What a model-based estimator models comes from the calibration, so that
+//! an effect the scene does not have costs nothing per frame: scattering is
+//! computed only when `[physical]` kept ω and σ_h; which DOF are free and
+//! whether K_D is estimated come from `[estimator.model]` and
+//! `[estimator.tracker]` (defaults when absent); an attitude reading is used
+//! exactly when a frame carries one.
 
 use crate::calibration::Calibration;
+use crate::model::{ModelEstimator, PhysicalCalibration};
 use crate::moments::MomentsEstimator;
+use crate::tracker::Tracker;
 use lightpose_core::Estimator;
 
 /// Names `build_estimator` accepts.
-pub const NAMES: &[&str] = &["auto", "moments"];
+pub const NAMES: &[&str] = &["auto", "moments", "model", "tracker"];
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum BuildError {
     #[error("unknown estimator \"{name}\" (known: {known})")]
     Unknown { name: String, known: String },
+    #[error(
+        "estimator \"{name}\" needs a [physical] table in the calibration \
+         (re-run `lightpose calibrate` on sweeps that determine the light model)"
+    )]
+    NoPhysical { name: String },
+    #[error("estimator \"{name}\": {msg}")]
+    Config { name: String, msg: String },
 }
 
-/// The estimator called `name` for calibration `cal`. "auto" is the best
-/// one this calibration supports (today the paper's moments estimator).
+/// The name "auto" resolves to for this calibration: the tracker (the most
+/// accurate, and it uses an attitude reading when frames carry one) when a
+/// light model is calibrated, else the paper's moments estimator.
+pub fn auto_choice(cal: &Calibration) -> &'static str {
+    if cal.physical.is_some() {
+        "tracker"
+    } else {
+        "moments"
+    }
+}
+
+fn physical<'a>(cal: &'a Calibration, name: &str) -> Result<&'a PhysicalCalibration, BuildError> {
+    cal.physical.as_ref().ok_or_else(|| BuildError::NoPhysical {
+        name: name.to_string(),
+    })
+}
+
+/// The estimator called `name` for calibration `cal` ("auto": see
+/// [`auto_choice`]). Its `name()` says which one it is.
 pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimator>, BuildError> {
-    match name {
-        "auto" | "moments" => Ok(Box::new(MomentsEstimator::new(cal))),
+    let resolved = if name == "auto" { auto_choice(cal) } else { name };
+    let settings = cal.estimator.clone().unwrap_or_default();
+    let config = |msg: String| BuildError::Config {
+        name: resolved.to_string(),
+        msg,
+    };
+    match resolved {
+        "moments" => Ok(Box::new(MomentsEstimator::new(cal))),
+        "model" => {
+            let m = physical(cal, resolved)?.sensor_model();
+            let e = ModelEstimator::new(m, settings.model).map_err(|e| config(e.to_string()))?;
+            Ok(Box::new(e))
+        }
+        "tracker" => {
+            let m = physical(cal, resolved)?.sensor_model();
+            let e = Tracker::new(m, settings.tracker).map_err(|e| config(e.to_string()))?;
+            Ok(Box::new(e))
+        }
         _ => Err(BuildError::Unknown {
             name: name.to_string(),
             known: NAMES.join(", "),
@@ -29,14 +79,53 @@ pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimato
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::tests::sample;
+    use crate::calibration::tests::{sample, sample_physical};
+    use crate::calibration::EstimatorSettings;
 
     #[test]
-    fn names() {
-        let cal = sample();
-        assert_eq!(build_estimator("auto", &cal).unwrap().name(), "moments");
-        assert_eq!(build_estimator("moments", &cal).unwrap().name(), "moments");
+    fn every_name_builds_the_estimator_it_names() {
+        let mut cal = sample();
+        cal.physical = Some(sample_physical());
+        for n in ["moments", "model", "tracker"] {
+            assert_eq!(build_estimator(n, &cal).unwrap().name(), n);
+        }
         let e = build_estimator("kalman", &cal).err().unwrap().to_string();
-        assert_eq!(e, "unknown estimator \"kalman\" (known: auto, moments)");
+        assert_eq!(
+            e,
+            "unknown estimator \"kalman\" (known: auto, moments, model, tracker)"
+        );
+    }
+
+    #[test]
+    fn auto_is_the_tracker_with_a_light_model_else_moments() {
+        let mut cal = sample();
+        assert_eq!(auto_choice(&cal), "moments");
+        assert_eq!(build_estimator("auto", &cal).unwrap().name(), "moments");
+        cal.physical = Some(sample_physical());
+        assert_eq!(auto_choice(&cal), "tracker");
+        assert_eq!(build_estimator("auto", &cal).unwrap().name(), "tracker");
+    }
+
+    #[test]
+    fn model_estimators_need_a_light_model() {
+        let cal = sample();
+        for n in ["model", "tracker"] {
+            let e = build_estimator(n, &cal).err().unwrap();
+            assert_eq!(e, BuildError::NoPhysical { name: n.into() });
+            assert!(e.to_string().contains("[physical]"), "{e}");
+        }
+    }
+
+    #[test]
+    fn estimator_settings_reach_the_estimator() {
+        let mut cal = sample();
+        cal.physical = Some(sample_physical());
+        let mut s = EstimatorSettings::default();
+        s.model.max_iter = 0;
+        cal.estimator = Some(s);
+        let e = build_estimator("model", &cal).err().unwrap().to_string();
+        assert!(e.contains("max_iter must be at least 1"), "{e}");
+        // The tracker's own settings are still the defaults: it builds.
+        assert_eq!(build_estimator("tracker", &cal).unwrap().name(), "tracker");
     }
 }

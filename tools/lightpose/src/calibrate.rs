@@ -1,10 +1,13 @@
 //! `lightpose calibrate`: fit the paper's pose equations from truth-labelled
 //! sweep logs and write the calibration file. Thin: the fit is
 //! `lightpose_pipeline::calibrate`; this parses arguments, names bad lines
-//! on stderr and prints what was chosen.
+//! on stderr and prints what was chosen, and the light model's parameters
+//! with their standard errors (or one line saying which one the sweeps could
+//! not determine).
 
 use anyhow::Context;
-use lightpose_pipeline::calibrate::{calibrate, CalibrateOptions};
+use lightpose_pipeline::calibrate::{calibrate_full, CalibrateOptions};
+use lightpose_pipeline::model::{ParamEstimate, ScatterFit};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -28,6 +31,13 @@ pub struct CalibrateArgs {
     /// Samples the surge estimate is smoothed over (the paper used 10).
     #[arg(long, default_value_t = 10)]
     surge_window: usize,
+    /// Light model's scattering term: auto (kept when the data demand it),
+    /// on or off.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "on", "off"])]
+    scattering: String,
+    /// Skip the light model ([physical]): the paper's coefficients only.
+    #[arg(long)]
+    no_physical: bool,
 }
 
 pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
@@ -37,13 +47,23 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
     opts.default_temp_c = a.default_temp;
     opts.surge_window = a.surge_window;
     opts.created_by = format!("lightpose calibrate {}", env!("CARGO_PKG_VERSION"));
+    if a.no_physical {
+        opts.physical = None;
+    } else if let Some(p) = opts.physical.as_mut() {
+        p.scattering = match a.scattering.as_str() {
+            "on" => ScatterFit::On,
+            "off" => ScatterFit::Off,
+            _ => ScatterFit::Auto,
+        };
+    }
     let mut bad = 0u64;
-    let cal = calibrate(&opts, |e| {
+    let out = calibrate_full(&opts, |e| {
         bad += 1;
         if bad <= 20 {
             eprintln!("lightpose: skipped {e}");
         }
     })?;
+    let cal = out.cal;
     if bad > 20 {
         eprintln!("lightpose: skipped {} more bad lines", bad - 20);
     }
@@ -69,6 +89,45 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
         eprintln!(
             "  {name:<6}: {:.5} * {} + {:.5}  R2 {:.4}  sigma {:.4} {unit}",
             fit.a, fit.feature, fit.b, fit.r2, fit.sigma
+        );
+    }
+    if let Some(e) = &out.physical_skipped {
+        eprintln!("lightpose: warning: no [physical] light model written: {e}");
+    }
+    if let Some(p) = &cal.physical {
+        let pm = |v: &ParamEstimate| format!("{:.5} ± {:.5}", v.value, v.std);
+        eprintln!(
+            "  light model ({} poses, {} frames, chi2/dof {:.2}):",
+            p.poses, p.frames, p.chi2_per_dof
+        );
+        eprintln!("    V1      = {} V", pm(&p.v1));
+        eprintln!("    sigma_b = {} deg", pm(&p.sigma_b_deg));
+        eprintln!("    sigma_R = {} deg", pm(&p.sigma_r_deg));
+        eprintln!("    K_D     = {} 1/m", pm(&p.k_d));
+        match (&p.omega, &p.sigma_h_deg) {
+            (Some(o), Some(h)) => {
+                eprintln!("    omega   = {}", pm(o));
+                eprintln!("    sigma_h = {} deg", pm(h));
+            }
+            _ => eprintln!("    scattering: not modelled"),
+        }
+        let worst = |v: &[ParamEstimate]| v.iter().map(|g| g.std).fold(0.0, f64::max);
+        let spread = |v: &[ParamEstimate]| {
+            let (lo, hi) = v.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), g| {
+                (l.min(g.value), h.max(g.value))
+            });
+            format!("{lo:.4}..{hi:.4}")
+        };
+        eprintln!(
+            "    gains   {} (worst ± {:.5}); offsets {} V (worst ± {:.5})",
+            spread(&p.gain),
+            worst(&p.gain),
+            spread(&p.offset_v),
+            worst(&p.offset_v)
+        );
+        eprintln!(
+            "    noise: sigma_e {:.4} V, kappa {:.5} V",
+            p.sigma_e_v, p.kappa_v
         );
     }
     Ok(())

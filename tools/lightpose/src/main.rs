@@ -1,6 +1,7 @@
 //! `lightpose`: the operator command. Thin: it parses arguments, calls the
 //! libraries and maps errors to one line and an exit code.
 
+mod bench;
 mod calibrate;
 mod montecarlo;
 mod replay;
@@ -10,7 +11,11 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "lightpose", version, about = "Simulate, calibrate, replay and analyse the lightpose detector array")]
+#[command(
+    name = "lightpose",
+    version,
+    about = "Simulate, calibrate, replay and analyse the lightpose detector array"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -28,6 +33,8 @@ enum Cmd {
     Replay(replay::ReplayArgs),
     /// Monte Carlo uncertainty of an estimator along a trajectory.
     Montecarlo(montecarlo::MontecarloArgs),
+    /// Trade table: every estimator's speed, accuracy and honesty on the paper's cases.
+    Bench(bench::BenchArgs),
 }
 
 fn main() -> ExitCode {
@@ -38,6 +45,7 @@ fn main() -> ExitCode {
         Cmd::Calibrate(a) => calibrate::run(a),
         Cmd::Replay(a) => replay::run(a),
         Cmd::Montecarlo(a) => montecarlo::run(a),
+        Cmd::Bench(a) => bench::run(a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

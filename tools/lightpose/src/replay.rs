@@ -20,8 +20,9 @@ pub struct ReplayArgs {
     /// Where to write the POSE lines (JSON Lines).
     #[arg(long)]
     out: PathBuf,
-    /// Estimator: auto (best available) or moments (the paper's).
-    #[arg(long, default_value = "auto")]
+    /// Estimator: auto (the tracker when the calibration has a light model,
+    /// else moments), moments (the paper's), model (single frame) or tracker.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "moments", "model", "tracker"])]
     estimator: String,
     /// Print each axis's error against the log's truth.
     #[arg(long)]
@@ -31,6 +32,8 @@ pub struct ReplayArgs {
 pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     let cal = Calibration::load(&a.calibration)?;
     let mut est = build_estimator(&a.estimator, &cal)?;
+    // Say which one "auto" chose, before any output.
+    eprintln!("lightpose: estimator {} ({})", est.name(), a.estimator);
     let mut log = LogReader::open(&a.log)?;
     let file = File::create(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let mut out = BufWriter::new(file);

@@ -543,6 +543,41 @@ impl Data {
         Ok(DMatrix::from_fn(n, n, |i, j| inv[(i, j)] * d[i] * d[j]))
     }
 
+    /// The covariance at `p`, or which parameter the data leave undetermined.
+    fn determined(
+        h: &DMatrix<f64>,
+        p: &[f64],
+        np: usize,
+        npar: usize,
+    ) -> Result<DMatrix<f64>, CalibError> {
+        let cov = Self::check_determined(h, np)?;
+        // A parameter whose marginal variance is vastly above its variance
+        // with the others held (variance inflation) is confounded with
+        // them; one whose standard error exceeds its value is not measured.
+        for i in 0..npar {
+            let vif = cov[(i, i)] * h[(i, i)];
+            if !(vif < 1e8) {
+                return Err(CalibError::Undetermined {
+                    parameter: Self::param_name(i, np),
+                    reason: format!("ill-conditioned Fisher matrix (variance inflation {vif:.1e})"),
+                });
+            }
+        }
+        for i in 0..np {
+            let se = cov[(i, i)].max(0.0).sqrt();
+            if !(se < p[i].abs()) {
+                return Err(CalibError::Undetermined {
+                    parameter: Self::param_name(i, np),
+                    reason: format!(
+                        "standard error {se:.3e} exceeds the value {:.3e} (Fisher information too small)",
+                        p[i]
+                    ),
+                });
+            }
+        }
+        Ok(cov)
+    }
+
     fn fit(&self, scat: bool, o: &FitOptions) -> Result<PhysicalCalibration, CalibError> {
         let np = Self::nphys(scat);
         let npar = Self::nparams(scat);
@@ -644,38 +679,19 @@ impl Data {
                 break;
             }
         }
+        let h = jac.transpose() * &jac;
         if !converged {
+            // LM crawling without end is most often a flat valley: a
+            // parameter the data cannot fix (ω → 0 in water that does not
+            // scatter). Name it when the Fisher matrix shows it; otherwise
+            // say the fit did not converge.
+            Self::determined(&h, &p, np, npar)?;
             return Err(CalibError::NoConvergence(format!(
                 "{} iterations, χ² = {cost:.1}",
                 o.max_iter
             )));
         }
-        let h = jac.transpose() * &jac;
-        let mut cov = Self::check_determined(&h, np)?;
-        // A parameter whose marginal variance is vastly above its variance
-        // with the others held (variance inflation) is confounded with
-        // them; one whose standard error exceeds its value is not measured.
-        for i in 0..npar {
-            let vif = cov[(i, i)] * h[(i, i)];
-            if !(vif < 1e8) {
-                return Err(CalibError::Undetermined {
-                    parameter: Self::param_name(i, np),
-                    reason: format!("ill-conditioned Fisher matrix (variance inflation {vif:.1e})"),
-                });
-            }
-        }
-        for i in 0..np {
-            let se = cov[(i, i)].max(0.0).sqrt();
-            if !(se < p[i].abs()) {
-                return Err(CalibError::Undetermined {
-                    parameter: Self::param_name(i, np),
-                    reason: format!(
-                        "standard error {se:.3e} exceeds the value {:.3e} (Fisher information too small)",
-                        p[i]
-                    ),
-                });
-            }
-        }
+        let mut cov = Self::determined(&h, &p, np, npar)?;
         let dof = self.dof(scat);
         let chi2_per_dof = cost / dof as f64;
         // Honest errors when the model fits worse than the noise says.

@@ -1,0 +1,159 @@
+//! End-to-end checks of the estimator integration through the `lightpose`
+//! binary: calibrate writes (or warns about) the light model, replay names
+//! the estimator "auto" chose, and `bench` produces its trade table.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+}
+
+fn lightpose(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_lightpose"))
+        .args(args)
+        .output()
+        .expect("runs lightpose");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+/// A small sweep of `scene` into `dir`, as (sweep, dark) paths.
+fn sweep(dir: &Path, scene: &Path) -> (PathBuf, PathBuf) {
+    let sw = dir.join("sweep.jsonl");
+    let dk = dir.join("dark.jsonl");
+    for (kind, n, out) in [("all", "8", &sw), ("dark", "200", &dk)] {
+        let (ok, _, err) = lightpose(&[
+            "sweep", "--scene", s(scene), "--kind", kind, "--samples", n, "--seed", "5", "--out",
+            s(out),
+        ]);
+        assert!(ok, "{err}");
+    }
+    (sw, dk)
+}
+
+#[test]
+fn calibrate_fits_the_light_model_and_auto_replay_uses_the_tracker() {
+    let dir = tempfile::tempdir().unwrap();
+    let (sw, dk) = sweep(dir.path(), &root().join("config/scenes/tank.toml"));
+    let cal = dir.path().join("cal.toml");
+    let (ok, _, err) = lightpose(&[
+        "calibrate", "--sweep", s(&sw), "--dark", s(&dk), "--out", s(&cal),
+    ]);
+    assert!(ok, "{err}");
+    // Each light-model parameter is printed with its standard error.
+    for p in ["V1      =", "sigma_b =", "sigma_R =", "K_D     =", "omega   =", "sigma_h ="] {
+        let line = err.lines().find(|l| l.contains(p)).unwrap_or_else(|| panic!("{p} in {err}"));
+        assert!(line.contains(" ± "), "{line}");
+    }
+    let text = std::fs::read_to_string(&cal).unwrap();
+    assert!(text.contains("[physical.k_d]"), "{text}");
+
+    // Replay a short simulated log with "auto": the tracker is chosen and
+    // named on stderr and in every POSE line.
+    let log = dir.path().join("dive.jsonl");
+    let (ok, _, err) = lightpose(&[
+        "simulate",
+        "--scene",
+        s(&root().join("config/scenes/tank.toml")),
+        "--trajectory",
+        s(&root().join("config/trajectories/dive.csv")),
+        "--seed",
+        "3",
+        "--out",
+        s(&log),
+    ]);
+    assert!(ok, "{err}");
+    let poses = dir.path().join("poses.jsonl");
+    let (ok, _, err) = lightpose(&[
+        "replay", "--calibration", s(&cal), "--log", s(&log), "--out", s(&poses),
+    ]);
+    assert!(ok, "{err}");
+    assert!(err.contains("estimator tracker (auto)"), "{err}");
+    let out = std::fs::read_to_string(&poses).unwrap();
+    assert!(out.lines().count() > 10, "{out}");
+    assert!(out.lines().all(|l| l.contains("\"estimator\":\"tracker\"")), "{out}");
+}
+
+#[test]
+fn a_light_model_the_sweep_cannot_determine_is_left_out_with_one_warning() {
+    // Clear water with no scattering, yet the fit is told to model it: the
+    // sweep cannot determine the halo, so [physical] is left out, the moments part
+    // still calibrates, and "auto" falls back to moments.
+    let dir = tempfile::tempdir().unwrap();
+    let scene_text = std::fs::read_to_string(root().join("config/scenes/tank.toml")).unwrap();
+    let no_scatter = scene_text
+        .replace("[scattering]\nomega = 0.5\nsigma_h_deg = 20.0\n", "");
+    assert_ne!(no_scatter, scene_text, "the tank scene's scattering table moved");
+    let scene = dir.path().join("clear.toml");
+    std::fs::write(&scene, no_scatter).unwrap();
+    let (sw, dk) = sweep(dir.path(), &scene);
+    let cal = dir.path().join("cal.toml");
+    let (ok, _, err) = lightpose(&[
+        "calibrate", "--sweep", s(&sw), "--dark", s(&dk), "--out", s(&cal), "--scattering", "on",
+    ]);
+    assert!(ok, "{err}");
+    let warnings: Vec<&str> = err.lines().filter(|l| l.contains("warning")).collect();
+    assert_eq!(warnings.len(), 1, "{err}");
+    // It names the parameter: with ω → 0 the halo's shape and K_D are
+    // confounded, so the weakest direction may be named by any of them.
+    assert!(warnings[0].contains("cannot determine"), "{err}");
+    assert!(
+        ["omega", "sigma_h", "k_d", "v1", "sigma_b", "sigma_r"]
+            .iter()
+            .any(|p| warnings[0].contains(&format!("determine {p}:"))),
+        "{err}"
+    );
+    let text = std::fs::read_to_string(&cal).unwrap();
+    assert!(!text.contains("[physical"), "{text}");
+    assert!(text.contains("[fits.x]"), "{text}");
+}
+
+#[test]
+fn bench_runs_every_estimator_on_one_case() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bench.md");
+    let (ok, stdout, err) = lightpose(&[
+        "bench",
+        "--runs",
+        "2",
+        "--timing-runs",
+        "1",
+        "--case",
+        "dive-tank",
+        "--attitude",
+        "on",
+        "--root",
+        s(&root()),
+        "--out",
+        s(&out),
+    ]);
+    assert!(ok, "{err}");
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), stdout);
+    assert!(stdout.contains("dive-tank — with attitude sensor (2 runs)"), "{stdout}");
+    for est in ["moments", "model", "tracker"] {
+        // Six axes per estimator, each row with a finite time per frame.
+        let rows: Vec<&str> = stdout
+            .lines()
+            .filter(|l| l.starts_with(&format!("| {est} |")))
+            .collect();
+        assert_eq!(rows.len(), 6, "{stdout}");
+        let us: f64 = rows[0].split('|').nth(2).unwrap().trim().parse().unwrap();
+        assert!(us > 0.0 && us.is_finite(), "{}", rows[0]);
+    }
+    // The bound stands beside x: finite at both ends.
+    let x = stdout.lines().find(|l| l.starts_with("| tracker |") && l.contains("| x (m) |")).unwrap();
+    let cells: Vec<&str> = x.split('|').map(str::trim).collect();
+    let crb_end: f64 = cells[10].parse().unwrap();
+    assert!(crb_end > 0.0 && crb_end < 2.0, "{x}");
+    let (ok, _, err) = lightpose(&["bench", "--case", "spiral", "--runs", "2"]);
+    assert!(!ok);
+    assert!(err.contains("unknown case \"spiral\""), "{err}");
+}
