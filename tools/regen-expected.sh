@@ -36,5 +36,5 @@ if [ "${1:-}" = "--logs" ]; then
 fi
 
 for log in $D/dive.jsonl $D/zigzag.jsonl $D/dive-12bit.jsonl $D/hard.jsonl; do
-    $L replay --calibration $CAL --log "$log" --out "${log%.jsonl}.poses.jsonl"
+    $L replay --estimator moments --calibration $CAL --log "$log" --out "${log%.jsonl}.poses.jsonl"
 done
