@@ -5,11 +5,11 @@
 //! describe, so that a change to an estimator shows up as a diff of the
 //! doc. Each scenario is the tank scene (config/scenes/tank.toml, noise on,
 //! no attitude sensor) with one thing changed, 5 runs × 50 frames at 5 Hz of a
-//! vehicle creeping towards the beacon at 0.1 m/s, with a fixed seed per
-//! scenario. Every estimator is built as a user builds it: moments from the
-//! shipped calibration by name, model and tracker from a sensor model
-//! written down from the tank scene, i.e. what was calibrated (only its ADC
-//! resolution follows the board): the water of a scenario is news to them.
+//! vehicle creeping towards the beacon at 0.1 m/s, with the same fixed
+//! seeds for every scenario. Every estimator is built as a user builds it, by name from the
+//! shipped calibration (config/calibration/tank.toml, with its `[physical]`
+//! light model); only the ADC resolution follows the board. The water of a
+//! scenario is news to them.
 //!
 //! Usage: `extremes_table [DOC.md]`. Without an argument the tables go to
 //! stdout; with one, they replace the part of DOC.md between the
@@ -22,8 +22,8 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use lightpose_core::{Angle, Estimator, Pose, PoseEstimate, Status};
-use lightpose_pipeline::model::{ModelConfig, ModelEstimator, SensorModel};
-use lightpose_pipeline::tracker::{Tracker, TrackerConfig};
+use lightpose_pipeline::model::ModelEstimator;
+use lightpose_pipeline::tracker::Tracker;
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{Scene, Simulator};
 
@@ -155,21 +155,6 @@ fn scenarios() -> Vec<Scenario> {
     ]
 }
 
-/// The sensor model a user writes down from a scene (docs/estimators.md).
-fn sensor_model(scene: &Scene) -> SensorModel {
-    let (sigma_e_v, kappa_v) = scene.noise.map_or((0.0, 0.0), |n| (n.sigma_e_v, n.kappa_v));
-    SensorModel {
-        light: scene.light,
-        geometry: scene.geometry,
-        gain: scene.gain,
-        offset_v: scene.offset_v,
-        v_ref: scene.adc.v_ref,
-        adc_bits: scene.adc.bits,
-        sigma_e_v,
-        kappa_v,
-    }
-}
-
 /// What one estimator did over one scenario.
 #[derive(Default)]
 struct Tally {
@@ -259,19 +244,27 @@ fn run(
     if let Some(b) = sc.bits {
         scene.adc.bits = b;
     }
-    // The estimators know what the user calibrated, the tank, and only
-    // the board's resolution: turbid or warm water is news to them.
-    let mut known = base.clone();
-    known.adc.bits = scene.adc.bits;
-    let model = sensor_model(&known);
-    let mut ests: Vec<Box<dyn Estimator>> = vec![
-        build_estimator("moments", cal).map_err(|e| e.to_string())?,
-        Box::new(
-            ModelEstimator::new(model.clone(), ModelConfig::default())
-                .map_err(|e| e.to_string())?,
-        ),
-        Box::new(Tracker::new(model, TrackerConfig::default()).map_err(|e| e.to_string())?),
-    ];
+    // The estimators know only what was calibrated, the tank: by name from
+    // the shipped calibration, as a user gets them. The calibration was
+    // made on a 10-bit board; for another resolution the model-based ones
+    // use the same light model at the board's resolution (what a
+    // calibration on that board would give: a 10-bit model refuses them).
+    let mut ests: Vec<Box<dyn Estimator>> = Vec::new();
+    for name in ["moments", "model", "tracker"] {
+        ests.push(build_estimator(name, cal).map_err(|e| e.to_string())?);
+    }
+    let phys = cal
+        .physical
+        .as_ref()
+        .ok_or("the calibration has no [physical] light model")?;
+    let mut m = phys.sensor_model();
+    if m.adc_bits != scene.adc.bits {
+        m.adc_bits = scene.adc.bits;
+        let settings = cal.estimator.clone().unwrap_or_default();
+        ests[1] =
+            Box::new(ModelEstimator::new(m.clone(), settings.model).map_err(|e| e.to_string())?);
+        ests[2] = Box::new(Tracker::new(m, settings.tracker).map_err(|e| e.to_string())?);
+    }
     let mut tallies: Vec<(&'static str, Tally)> =
         ests.iter().map(|e| (e.name(), Tally::default())).collect();
     let (th, ps) = (sc.pitch_deg.to_radians(), sc.yaw_deg.to_radians());

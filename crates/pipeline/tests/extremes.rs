@@ -18,8 +18,8 @@ use std::sync::OnceLock;
 use lightpose_core::frame::full_scale;
 use lightpose_core::{Angle, AttitudeReading, Estimator, Frame, Pose, PoseEstimate, Status, NDET};
 use lightpose_pipeline::calibration::{Feature, Moment, Origin};
-use lightpose_pipeline::model::{ModelConfig, ModelEstimator, SensorModel};
-use lightpose_pipeline::tracker::{Tracker, TrackerConfig};
+use lightpose_pipeline::model::ModelEstimator;
+use lightpose_pipeline::tracker::Tracker;
 use lightpose_pipeline::{build_estimator, steps, Calibration};
 use lightpose_sim::{Scene, Simulator};
 use proptest::prelude::*;
@@ -43,33 +43,29 @@ fn tank() -> &'static Scene {
     SCENE.get_or_init(|| Scene::load(&root().join("config/scenes/tank.toml")).expect("tank scene"))
 }
 
-/// A sensor model as a user writes it down from a scene (docs/estimators.md):
-/// its light, geometry, channel gains and offsets, ADC and noise. `bits` is
-/// the ADC of the board the user has: a 12-bit board gets a 12-bit model.
-fn sensor_model(scene: &Scene, bits: u8) -> SensorModel {
-    // A noise-free scene still has the ADC's quantization; σ_e = 0 is valid.
-    let (sigma_e_v, kappa_v) = scene.noise.map_or((0.0, 0.0), |n| (n.sigma_e_v, n.kappa_v));
-    SensorModel {
-        light: scene.light,
-        geometry: scene.geometry,
-        gain: scene.gain,
-        offset_v: scene.offset_v,
-        v_ref: scene.adc.v_ref,
-        adc_bits: bits,
-        sigma_e_v,
-        kappa_v,
-    }
-}
-
-/// All three estimators for a board with `bits`: moments from the shipped
-/// calibration by name, model and tracker from the tank scene with their
-/// default configurations.
+/// All three estimators as a user gets them: by name from the shipped
+/// calibration (its `[physical]` light model and `[estimator]` settings).
+/// The calibration was made with a 10-bit board; for a 12- or 16-bit board
+/// the model-based ones are built from the same light model with that
+/// board's resolution (what a calibration made on that board would give),
+/// since a 10-bit model refuses other frames (see
+/// `resolution_mismatch_is_bad_frame_for_the_model_based`).
 fn estimators(bits: u8) -> Vec<Box<dyn Estimator>> {
-    let m = sensor_model(tank(), bits);
+    let c = cal();
+    let phys = c.physical.as_ref().expect("tank.toml has [physical]");
+    let mut m = phys.sensor_model();
+    if m.adc_bits == bits {
+        return ["moments", "model", "tracker"]
+            .iter()
+            .map(|n| build_estimator(n, c).expect("estimator"))
+            .collect();
+    }
+    m.adc_bits = bits;
+    let settings = c.estimator.clone().unwrap_or_default();
     vec![
-        build_estimator("moments", cal()).expect("moments"),
-        Box::new(ModelEstimator::new(m.clone(), ModelConfig::default()).expect("model")),
-        Box::new(Tracker::new(m, TrackerConfig::default()).expect("tracker")),
+        build_estimator("moments", c).expect("moments"),
+        Box::new(ModelEstimator::new(m.clone(), settings.model).expect("model")),
+        Box::new(Tracker::new(m, settings.tracker).expect("tracker")),
     ]
 }
 
