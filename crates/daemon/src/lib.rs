@@ -21,7 +21,7 @@ use crate::attitude::AttitudeCell;
 use crate::config::{Backend, Pace};
 use crate::engine::{EndReason, Engine};
 use crate::recorder::{RecStats, Recorder};
-use crate::stats::Stats;
+use crate::stats::{Stats, TempSource};
 use lightpose_core::{Estimator, LogHeader, Status};
 use lightpose_hal::FrameSource;
 use lightpose_pipeline::Calibration;
@@ -188,21 +188,26 @@ fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> serde_json::Value {
             "error": r.error.lock().ok().and_then(|g| g.clone()),
         }),
     };
+    let health = s.source_health.lock().ok().and_then(|h| h.clone());
+    let sensor = health.as_ref().and_then(|h| h.temp.as_ref());
+    // hal stamps its own fallback on the frame when its sensor fails, so
+    // `source` alone would say "frame" during a sensor outage: `fallback`
+    // and `error` say plainly whether the value in use is a stand-in and why.
+    let sensor_fallback = sensor.is_some_and(|t| t.fallback_active);
     let mut temperature = json!({
         "c": opt(temp),
         "source": tsrc.as_str(),
         "fallback_c": opt(c.cfg.fallback_temp_c),
+        "fallback": sensor_fallback || tsrc == TempSource::Fallback,
+        "error": if sensor_fallback { sensor.and_then(|t| t.last_error.clone()) } else { None },
     });
-    let health = s.source_health.lock().ok().and_then(|h| h.clone());
-    if let Some(h) = &health {
-        if let Some(t) = &h.temp {
-            temperature["sensor"] = json!({
-                "kind": t.source,
-                "fallback_active": t.fallback_active,
-                "fallbacks": t.fallbacks,
-                "last_error": t.last_error,
-            });
-        }
+    if let Some(t) = sensor {
+        temperature["sensor"] = json!({
+            "kind": t.source,
+            "fallback_active": t.fallback_active,
+            "fallbacks": t.fallbacks,
+            "last_error": t.last_error,
+        });
     }
     let attitude = match c.att {
         None => json!({"enabled": false}),
