@@ -670,3 +670,114 @@ rotate_mb = 0.1
         "the acknowledged frames are seq 0..{acked}, in order, across files"
     );
 }
+
+// ---- a disk that fills up mid-line ---------------------------------------
+
+#[test]
+fn full_disk_mid_line_loses_no_acknowledged_frame() {
+    // e2e.rs covers a recording directory that cannot be created at all, and
+    // recorder.rs a log swapped for /dev/full. Here the real binary runs
+    // with RLIMIT_FSIZE at 48 KiB (SIGXFSZ ignored), so every log file hits
+    // "File too large" part-way through a line, as a filling disk does: the
+    // recorder must report the error, resume in a new file after its retry
+    // delay, and count as written exactly the lines that read back whole.
+    let Some((scene, traj, cal)) = shipped() else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rec = dir.path().join("rec");
+    let (sock, addr) = subscriber();
+    let text = format!(
+        r#"rate_hz = 500.0
+calibration = "{}"
+[backend]
+kind = "sim"
+scene = "{}"
+trajectory = "{}"
+[outputs]
+destinations = ["{addr}"]
+status_interval_s = 1.0
+[recording]
+dir = "{}"
+"#,
+        cal.display(),
+        scene.display(),
+        traj.display(),
+        rec.display()
+    );
+    let cfg_path = dir.path().join("lightposed.toml");
+    std::fs::write(&cfg_path, text).expect("write config");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lightposed"));
+    cmd.arg("--config").arg(&cfg_path).stderr(Stdio::null());
+    // SAFETY: between fork and exec only async-signal-safe system calls
+    // (setrlimit, sigaction), no allocation.
+    unsafe {
+        use std::os::unix::process::CommandExt;
+        cmd.pre_exec(|| {
+            use nix::sys::resource::{setrlimit, Resource};
+            use nix::sys::signal::{signal, SigHandler, Signal};
+            setrlimit(Resource::RLIMIT_FSIZE, 48 * 1024, 48 * 1024)?;
+            signal(Signal::SIGXFSZ, SigHandler::SigIgn)?;
+            Ok(())
+        });
+    }
+    let mut child = cmd.spawn().expect("spawn lightposed");
+    let mut inbox = Inbox::new(sock);
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let full = inbox.until(Duration::from_secs(10), "STATUS recording error", |v| {
+            v["class"] == "STATUS" && v["recording"]["state"] == "error"
+        });
+        let st = inbox.last("STATUS").cloned().unwrap_or(Value::Null);
+        let files = st["recording"]["files"].as_u64().unwrap_or(0);
+        let frames = st["recording"]["frames"].as_u64().unwrap_or(0);
+        // Resumed in a new file after the 2 s retry delay (which fills up in
+        // turn well within a STATUS interval, so `state` is seldom seen as
+        // "recording": the new file and its frames are the evidence).
+        let resumed = inbox.until(Duration::from_secs(5), "recording resumed", |v| {
+            v["class"] == "STATUS"
+                && v["recording"]["files"].as_u64().unwrap_or(0) > files
+                && v["recording"]["frames"].as_u64().unwrap_or(0) > frames
+        });
+        eprintln!("full disk: resumed {:?} after the error", resumed - full);
+    }));
+    let _ = nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(child.id() as i32),
+        nix::sys::signal::Signal::SIGTERM,
+    );
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().expect("wait") {
+            break Some(s);
+        }
+        if t0.elapsed() > Duration::from_secs(5) {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    if let Err(p) = r {
+        std::panic::resume_unwind(p);
+    }
+    assert_eq!(status.and_then(|s| s.code()), Some(0), "SIGTERM exits 0");
+    inbox.pump(Duration::from_millis(300));
+    assert_status_steady(&inbox);
+    let fin = inbox.last("STATUS").cloned().expect("final STATUS");
+    let err = fin["recording"]["error"].as_str().unwrap_or("");
+    assert!(err.contains("too large"), "{fin}");
+    assert!(
+        inbox.of_class("POSE").len() > 1000,
+        "publishing goes on while the disk refuses"
+    );
+    let acked = fin["recording"]["frames"].as_u64().expect("frames");
+    let failed = fin["recording"]["failed"].as_u64().expect("failed");
+    assert!(failed > 100, "refused frames counted: {fin}");
+    let (seqs, cut) = read_logs(&rec);
+    assert!(cut, "the limit cut a line in two");
+    assert_eq!(
+        seqs.len() as u64,
+        acked,
+        "lines that read back whole = frames acknowledged: {fin}"
+    );
+    assert!(seqs.windows(2).all(|w| w[1] > w[0]), "seq increasing");
+}
