@@ -23,7 +23,9 @@ use lightpose_core::{Estimator, Frame, PoseEstimate, Status, StdDev, NDET};
 use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 
-use crate::model::estimator::{Dof, ModelConfig, ModelError, ModelEstimator, WATER_TEMP_C};
+use crate::model::estimator::{
+    k_d_consider_sigma_x, Dof, ModelConfig, ModelError, ModelEstimator, WATER_TEMP_C,
+};
 use crate::model::light::{predict_with_grad, PoseVec};
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
@@ -49,7 +51,8 @@ pub struct TrackerConfig {
     /// Estimate K_D as a slowly varying random walk (turbid or changing
     /// water); otherwise it is the calibration's value, fixed.
     pub estimate_k_d: bool,
-    /// Initial 1σ of K_D about the calibration's value, m⁻¹.
+    /// 1σ of K_D about the calibration's value, m⁻¹: the filter's prior
+    /// when K_D is estimated, else added to the reported x std (0: known).
     pub k_d_sigma: f64,
     /// Random-walk density of K_D, (m⁻¹)²/s.
     pub k_d_walk_psd: f64,
@@ -109,7 +112,6 @@ impl TrackerConfig {
         for (name, v) in [
             ("accel_psd", self.accel_psd),
             ("ang_accel_psd_deg", self.ang_accel_psd_deg),
-            ("k_d_sigma", self.k_d_sigma),
             ("k_d_walk_psd", self.k_d_walk_psd),
             ("init_velocity_sigma", self.init_velocity_sigma),
             ("init_rate_sigma_deg", self.init_rate_sigma_deg),
@@ -122,6 +124,16 @@ impl TrackerConfig {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!("tracker {name} = {v} must be positive"));
             }
+        }
+        // 0 means "K_D known exactly", possible only when it is not
+        // estimated (the filter's prior on it must be positive).
+        if !(self.k_d_sigma.is_finite() && self.k_d_sigma >= 0.0)
+            || (self.estimate_k_d && self.k_d_sigma == 0.0)
+        {
+            return bad(format!(
+                "tracker k_d_sigma = {} must be positive (≥ 0 without estimate_k_d)",
+                self.k_d_sigma
+            ));
         }
         let [lo, hi] = self.x_range;
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
@@ -168,6 +180,7 @@ impl Tracker {
             attitude_envelope_deg: Some(cfg.init_attitude_sigma_deg),
             x_range: cfg.x_range,
             max_saturated: cfg.max_saturated,
+            k_d_sigma: if cfg.estimate_k_d { 0.0 } else { cfg.k_d_sigma },
             ..ModelConfig::default()
         };
         let init = ModelEstimator::new(model.clone(), init_cfg)?;
@@ -358,8 +371,15 @@ impl Tracker {
         g[4] = ct * sp * v[0] + ct * cp * v[1];
         let var_s = (g.transpose() * p * g)[(0, 0)];
         e.surge = lightpose_core::finite(surge);
+        // K_D held at the calibrated value: its doubt still belongs in σx
+        // (see `k_d_consider_sigma_x`); estimated, it is in P already.
+        let kd_x = if self.cfg.estimate_k_d {
+            0.0
+        } else {
+            k_d_consider_sigma_x(x[0], x[KD], self.cfg.k_d_sigma)
+        };
         e.std = StdDev {
-            x: sd(0),
+            x: sd(0).map(|s| s.hypot(kd_x)),
             y: sd(1),
             z: sd(2),
             pitch: sd(3).map(f64::to_degrees),
@@ -549,7 +569,12 @@ mod tests {
     #[test]
     fn tracks_zigzag_with_attitude_sensor_honestly() {
         let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
-        let (cover, rms) = run(TrackerConfig::default(), att, 40);
+        // The synthetic water has exactly the model's K_D: nothing to add.
+        let known_k_d = TrackerConfig {
+            k_d_sigma: 0.0,
+            ..TrackerConfig::default()
+        };
+        let (cover, rms) = run(known_k_d, att, 40);
         eprintln!("with AHRS: coverage {cover:.3?}, rms {rms:.3?}");
         for c in &cover[..5] {
             assert!((0.90..=0.98).contains(c), "coverage {cover:?}");

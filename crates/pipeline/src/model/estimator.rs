@@ -72,6 +72,23 @@ pub struct ModelConfig {
     pub max_reduced_chi2: f64,
     /// Warm start only across gaps shorter than this (seconds).
     pub max_gap_s: f64,
+    /// 1σ by which the water's K_D may differ from the calibrated value
+    /// (m⁻¹; MODEL.md's Monte Carlo spread 0.015). K_D is not fitted per
+    /// frame, so its doubt is added to the reported x std ("consider"
+    /// covariance); 0 means K_D is known exactly.
+    pub k_d_sigma: f64,
+}
+
+/// 1σ of x caused by a K_D error of `sigma_k_d` at range `x`: near the beam
+/// axis ln E = −K_D·x − 2 ln x + const, so a K_D error δ is read as a range
+/// error x·δ/(K_D + 2/x). Why: the single-frame Fisher bound (crb.rs) shows
+/// this term dominates σx in clear water (≈ 0.12 m at 4.5 m), and a std
+/// without it covers the truth only 20–40 % of the time.
+pub(crate) fn k_d_consider_sigma_x(x: f64, k_d: f64, sigma_k_d: f64) -> f64 {
+    if !(x > 0.0 && sigma_k_d > 0.0) {
+        return 0.0;
+    }
+    x * sigma_k_d / (k_d.max(0.0) + 2.0 / x)
 }
 
 impl Default for ModelConfig {
@@ -93,6 +110,7 @@ impl Default for ModelConfig {
             min_signal_sigma: 6.0,
             max_reduced_chi2: 100.0,
             max_gap_s: 2.0,
+            k_d_sigma: 0.015,
         }
     }
 }
@@ -124,6 +142,9 @@ impl ModelConfig {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!("{name} = {v} must be positive"));
             }
+        }
+        if !(self.k_d_sigma.is_finite() && self.k_d_sigma >= 0.0) {
+            return bad(format!("k_d_sigma = {} must be ≥ 0", self.k_d_sigma));
         }
         if let Some(v) = self.attitude_envelope_deg {
             if !(v.is_finite() && v > 0.0) {
@@ -388,8 +409,9 @@ impl ModelEstimator {
         e.z = lightpose_core::finite(pose.z);
         e.pitch_deg = lightpose_core::finite(pose.pitch.deg());
         e.yaw_deg = lightpose_core::finite(pose.yaw.deg());
+        let kd_x = k_d_consider_sigma_x(pose.x, self.model.light.k_d, self.cfg.k_d_sigma);
         e.std = StdDev {
-            x: sd(0, false),
+            x: sd(0, false).map(|s| s.hypot(kd_x)),
             y: sd(1, false),
             z: sd(2, false),
             pitch: sd(3, true),
@@ -538,7 +560,12 @@ mod tests {
     #[test]
     fn recovers_pose_with_attitude_prior_and_honest_std() {
         let m = SensorModel::default();
-        let mut est = ModelEstimator::new(m.clone(), ModelConfig::default()).unwrap();
+        // The synthetic water has exactly the model's K_D: nothing to add.
+        let cfg = ModelConfig {
+            k_d_sigma: 0.0,
+            ..ModelConfig::default()
+        };
+        let mut est = ModelEstimator::new(m.clone(), cfg).unwrap();
         let mut rng = Rng::new(7);
         let sig = (0.3f64.to_radians(), 1.5f64.to_radians());
         let (mut inside, mut total) = (0usize, 0usize);
@@ -599,6 +626,35 @@ mod tests {
             assert!((e.y.unwrap() - pose.y).abs() < 5.0 * sy, "{pose:?} {e:?}");
             assert!(e.std.pitch == Some(0.3) && e.std.yaw == Some(1.5));
         }
+    }
+
+    #[test]
+    fn k_d_doubt_widens_x_as_the_bound_says() {
+        // 0.015 m⁻¹ at 4.5 m in K_D = 0.09 water: 4.5·0.015/(0.09 + 2/4.5)
+        // = 0.126 m, the K_D share of crb.rs's σx there.
+        let s = k_d_consider_sigma_x(4.5, 0.09, 0.015);
+        assert!((s - 0.1263).abs() < 1e-3, "{s}");
+        assert_eq!(k_d_consider_sigma_x(4.5, 0.09, 0.0), 0.0);
+        assert_eq!(k_d_consider_sigma_x(f64::NAN, 0.09, 0.015), 0.0);
+        // And it reaches the reported std.
+        let m = SensorModel::default();
+        let pose = lightpose_core::Pose::new(4.5, 0.0, 0.0, Angle::ZERO, Angle::ZERO);
+        let mut rng = Rng::new(3);
+        let sig = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
+        let f = synth_frame(&m, &pose, 1, 0.0, sig, &mut rng);
+        let sx = |k_d_sigma| {
+            let cfg = ModelConfig {
+                k_d_sigma,
+                ..ModelConfig::default()
+            };
+            let mut e = ModelEstimator::new(m.clone(), cfg).unwrap();
+            let r = e.estimate(&f);
+            (r.x.unwrap(), r.std.x.unwrap())
+        };
+        let ((x, without), (_, with)) = (sx(0.0), sx(0.015));
+        let s = k_d_consider_sigma_x(x, m.light.k_d, 0.015);
+        assert!(with > without, "{with} vs {without}");
+        assert!((with * with - without * without - s * s).abs() < 1e-9, "{with} {without} {s}");
     }
 
     #[test]
