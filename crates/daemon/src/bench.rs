@@ -2,7 +2,8 @@
 //! POSE → UDP send) run as fast as it goes on the calling thread, to measure
 //! frames per second, frame-to-datagram latency, CPU share and peak memory
 //! against the targets (≥ 10,000 frames/s on one core, p99 < 1 ms,
-//! RSS < 20 MiB).
+//! RSS < 20 MiB); and `lightposed --soak`, the same path for an hour of
+//! frames with recording on, to show that latency and memory do not drift.
 
 use crate::config::{Backend, Config, Outputs, Pace};
 use crate::engine::Engine;
@@ -53,8 +54,17 @@ impl std::fmt::Display for BenchReport {
 
 /// VmHWM of this process in KiB.
 pub fn peak_rss_kib() -> Option<u64> {
+    proc_status_kib("VmHWM:")
+}
+
+/// VmRSS (resident now) of this process in KiB.
+pub fn rss_kib() -> Option<u64> {
+    proc_status_kib("VmRSS:")
+}
+
+fn proc_status_kib(key: &str) -> Option<u64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let line = s.lines().find(|l| l.starts_with(key))?;
     line.split_whitespace().nth(1)?.parse().ok()
 }
 
@@ -145,4 +155,280 @@ pub fn bench(cfg: &Config, frames: u64) -> Result<BenchReport, DaemonError> {
         estimator: est_name,
         source: source_desc,
     })
+}
+
+/// Frames of a simulated hour at 1 kHz: the soak's default.
+pub const SOAK_FRAMES: u64 = 3_600_000;
+
+/// Size at which the soak's recording rotates; the soak deletes all but the
+/// two newest files, so its disk use stays under about three of these.
+const SOAK_ROTATE_BYTES: u64 = 16 << 20;
+
+/// Latency of one stretch of the soak.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stretch {
+    pub frames: u64,
+    pub p50_s: f64,
+    pub p99_s: f64,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct SoakReport {
+    pub frames: u64,
+    pub seconds: f64,
+    pub fps: f64,
+    /// The first and the last 10 % of the frames.
+    pub first: Stretch,
+    pub last: Stretch,
+    pub max_s: f64,
+    /// VmRSS after the first 10 % and at the end, VmHWM at the end (KiB).
+    pub rss_early_kib: Option<u64>,
+    pub rss_end_kib: Option<u64>,
+    pub peak_rss_kib: Option<u64>,
+    pub recorded: u64,
+    pub rec_dropped: u64,
+    pub rec_failed: u64,
+    pub rec_files: u64,
+    /// Most bytes the recording directory held at one time.
+    pub disk_peak_bytes: u64,
+    pub source: String,
+    pub estimator: String,
+}
+
+impl std::fmt::Display for SoakReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mib = |k: Option<u64>| {
+            k.map_or("unknown".into(), |k| {
+                format!("{:.1} MiB", k as f64 / 1024.0)
+            })
+        };
+        writeln!(f, "source:     {}", self.source)?;
+        writeln!(f, "estimator:  {}", self.estimator)?;
+        writeln!(f, "frames:     {} in {:.1} s", self.frames, self.seconds)?;
+        writeln!(f, "rate:       {:.0} frames/s", self.fps)?;
+        writeln!(f, "latency (frame to datagram sent):")?;
+        writeln!(f, "                 first 10 %    last 10 %")?;
+        writeln!(
+            f,
+            "    frames      {:>10}   {:>10}",
+            self.first.frames, self.last.frames
+        )?;
+        writeln!(
+            f,
+            "    p50         {:>7.1} µs   {:>7.1} µs",
+            self.first.p50_s * 1e6,
+            self.last.p50_s * 1e6
+        )?;
+        writeln!(
+            f,
+            "    p99         {:>7.1} µs   {:>7.1} µs",
+            self.first.p99_s * 1e6,
+            self.last.p99_s * 1e6
+        )?;
+        writeln!(f, "    max (whole run) {:.1} µs", self.max_s * 1e6)?;
+        writeln!(
+            f,
+            "memory:     VmRSS {} after 10 %, {} at the end; VmHWM {}",
+            mib(self.rss_early_kib),
+            mib(self.rss_end_kib),
+            mib(self.peak_rss_kib)
+        )?;
+        write!(
+            f,
+            "recording:  {} frames in {} files, {} dropped (queue full), {} refused; disk peak {:.1} MiB",
+            self.recorded,
+            self.rec_files,
+            self.rec_dropped,
+            self.rec_failed,
+            self.disk_peak_bytes as f64 / (1024.0 * 1024.0)
+        )
+    }
+}
+
+/// Bytes in `dir`; deletes all but the `keep` newest logs first (the
+/// recorder names them by time and run number, so name order is age order
+/// and the newest is the one being written).
+fn prune(dir: &std::path::Path, keep: usize) -> u64 {
+    let Ok(rd) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    let mut logs: Vec<std::path::PathBuf> = rd.filter_map(|e| e.ok().map(|e| e.path())).collect();
+    logs.sort();
+    let total = logs
+        .iter()
+        .filter_map(|p| std::fs::metadata(p).ok())
+        .map(|m| m.len())
+        .sum();
+    let old = logs.len().saturating_sub(keep);
+    for p in &logs[..old] {
+        if let Err(e) = std::fs::remove_file(p) {
+            tracing::warn!("soak: cannot remove {}: {e}", p.display());
+        }
+    }
+    total
+}
+
+/// Push `frames` frames of the configured simulator through the whole
+/// path as fast as it goes: free-running source → estimator → POSE →
+/// `sendto` a loopback sink, with recording on (rotating, old files
+/// deleted) in a temporary directory. The engine runs in its own thread, as
+/// in the daemon; this thread watches it, snapshots the latency histogram
+/// at 10 % and 90 % of the frames, and keeps the disk use bounded.
+pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
+    let mut cfg = cfg.clone();
+    match &mut cfg.backend {
+        Backend::Sim(s) => {
+            s.pace = Pace::Fast;
+            s.looping = true;
+            // Simulated time runs at 1 kHz, so that the default 3.6 M
+            // frames are an hour of the board's clock (frame t, recording).
+            cfg.rate_hz = 1000.0;
+        }
+        Backend::Replay(r) => {
+            r.pace = Pace::Fast;
+            r.looping = true;
+        }
+        Backend::Hardware { kind, .. } => {
+            return Err(DaemonError::Backend {
+                kind: kind.clone(),
+                msg: "--soak runs the sim or replay backend only".into(),
+            })
+        }
+    }
+    let frames = frames.max(10);
+    let sock_err = |source| crate::publish::PublishError::Socket {
+        family: "IPv4",
+        source,
+    };
+    let sink = UdpSocket::bind("127.0.0.1:0").map_err(sock_err)?;
+    let addr = sink.local_addr().map_err(sock_err)?;
+    let publisher = Arc::new(Publisher::open(&Outputs {
+        destinations: vec![addr],
+        multicast: None,
+        status_interval: Duration::from_secs(1),
+    })?);
+    let dir = std::env::temp_dir().join(format!("lightposed-soak-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(DaemonError::Recorder)?;
+    let rec_cfg = crate::config::Recording {
+        dir: dir.clone(),
+        rotate_bytes: Some(SOAK_ROTATE_BYTES),
+        rotate_after: None,
+        queue: 4096,
+    };
+    let estimator = crate::build_estimator(&cfg)?;
+    let est_name = estimator.name().to_string();
+    let (source, _) = crate::open_source(&cfg)?;
+    let source_desc = source.describe();
+    let header = lightpose_core::LogHeader::new(source.adc_bits(), cfg.rate_hz);
+    let recorder =
+        crate::recorder::Recorder::start(&rec_cfg, header).map_err(DaemonError::Recorder)?;
+    let rec_stats = recorder.stats.clone();
+    let stats = Arc::new(Stats::default());
+    let engine = Engine {
+        source,
+        estimator,
+        publisher,
+        stats: stats.clone(),
+        recorder: Some(recorder),
+        attitude: None,
+        stop: Arc::new(AtomicBool::new(false)),
+        reload: None,
+        period: None,
+        late_tolerance: cfg.late_tolerance,
+        fallback_temp_c: cfg.fallback_temp_c,
+        max_frames: Some(frames),
+        epoch: Instant::now(),
+    };
+    let t0 = Instant::now();
+    let worker = std::thread::Builder::new()
+        .name("lightposed-frames".into())
+        .spawn(move || engine.run())
+        .map_err(DaemonError::Thread)?;
+    let (tenth, ninth) = (frames / 10, frames - frames / 10);
+    let (mut at_tenth, mut at_ninth, mut rss_early) = (None, None, None);
+    let mut disk_peak = 0u64;
+    let mut last_prune = Instant::now();
+    while !worker.is_finished() {
+        std::thread::sleep(Duration::from_millis(1));
+        let n = stats.frames.load(Relaxed);
+        if at_tenth.is_none() && n >= tenth {
+            at_tenth = Some((n, stats.latency.snapshot()));
+            rss_early = rss_kib();
+        }
+        if at_ninth.is_none() && n >= ninth {
+            at_ninth = Some((n, stats.latency.snapshot()));
+        }
+        if last_prune.elapsed() >= Duration::from_millis(500) {
+            last_prune = Instant::now();
+            disk_peak = disk_peak.max(prune(&dir, 2));
+        }
+    }
+    let _ = worker.join();
+    let wall = t0.elapsed().as_secs_f64();
+    disk_peak = disk_peak.max(prune(&dir, 2));
+    let n = stats.frames.load(Relaxed);
+    let end = stats.latency.snapshot();
+    let stretch = |count: u64, h: &crate::stats::HistSnapshot| Stretch {
+        frames: count,
+        p50_s: h.quantile(0.5).unwrap_or(f64::NAN),
+        p99_s: h.quantile(0.99).unwrap_or(f64::NAN),
+    };
+    let empty = crate::stats::Histogram::default().snapshot();
+    let first = match &at_tenth {
+        Some((k, h)) => stretch(*k, h),
+        None => stretch(0, &empty),
+    };
+    let last = match &at_ninth {
+        Some((k, h)) => stretch(n.saturating_sub(*k), &end.since(h)),
+        None => stretch(0, &empty),
+    };
+    let report = SoakReport {
+        frames: n,
+        seconds: wall,
+        fps: n as f64 / wall.max(1e-9),
+        first,
+        last,
+        max_s: stats.latency.max().unwrap_or(f64::NAN),
+        rss_early_kib: rss_early,
+        rss_end_kib: rss_kib(),
+        peak_rss_kib: peak_rss_kib(),
+        recorded: rec_stats.frames.load(Relaxed),
+        rec_dropped: rec_stats.dropped.load(Relaxed),
+        rec_failed: rec_stats.failed.load(Relaxed),
+        rec_files: rec_stats.files.load(Relaxed),
+        disk_peak_bytes: disk_peak,
+        source: source_desc,
+        estimator: est_name,
+    };
+    if let Err(e) = std::fs::remove_dir_all(&dir) {
+        tracing::warn!("soak: cannot remove {}: {e}", dir.display());
+    }
+    drop(sink);
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prune_keeps_the_newest_and_counts_bytes() {
+        let d = std::env::temp_dir().join(format!("lightposed-prune-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        for (name, len) in [
+            ("a-0001.jsonl", 10),
+            ("a-0002.jsonl", 20),
+            ("a-0003.jsonl", 30),
+        ] {
+            std::fs::write(d.join(name), vec![b'x'; len]).unwrap();
+        }
+        assert_eq!(prune(&d, 2), 60);
+        let mut left: Vec<String> = std::fs::read_dir(&d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["a-0002.jsonl", "a-0003.jsonl"]);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
 }

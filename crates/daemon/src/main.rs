@@ -21,15 +21,20 @@ struct Args {
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Validate a config file and exit (0 valid, 2 refused).
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["config", "bench"])]
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["config", "bench", "soak"])]
     check_config: Option<PathBuf>,
     /// Run the simulator backend as fast as it goes and print throughput,
     /// latency, CPU and memory.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "soak")]
     bench: bool,
-    /// Frames for --bench.
-    #[arg(long, default_value_t = 100_000, requires = "bench")]
-    frames: u64,
+    /// Soak: an hour of simulated 1 kHz frames (3.6 M) through the whole
+    /// path as fast as it goes, recording on (rotated, old files deleted);
+    /// prints frames/s, latency of the first and last 10 %, and memory.
+    #[arg(long)]
+    soak: bool,
+    /// Frames for --bench (default 100000) or --soak (default 3600000).
+    #[arg(long)]
+    frames: Option<u64>,
 }
 
 fn load(path: Option<&PathBuf>) -> Result<Config, lightposed::ConfigError> {
@@ -97,8 +102,25 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    if args.frames.is_some() && !(args.bench || args.soak) {
+        eprintln!("lightposed: --frames goes with --bench or --soak");
+        return ExitCode::from(2);
+    }
+    if args.soak {
+        let frames = args.frames.unwrap_or(lightposed::bench::SOAK_FRAMES);
+        return match lightposed::bench::soak(&cfg, frames) {
+            Ok(r) => {
+                println!("{r}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("lightposed: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     if args.bench {
-        return match lightposed::bench::bench(&cfg, args.frames) {
+        return match lightposed::bench::bench(&cfg, args.frames.unwrap_or(100_000)) {
             Ok(r) => {
                 println!("{r}");
                 ExitCode::SUCCESS

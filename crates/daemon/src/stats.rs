@@ -130,6 +130,52 @@ impl Histogram {
         let m = self.max_ns.load(Relaxed);
         (self.count() > 0).then_some(m as f64 * 1e-9)
     }
+
+    /// The bucket counts now, so that the soak can take the quantiles of
+    /// one stretch of a run (a later snapshot minus an earlier one).
+    pub fn snapshot(&self) -> HistSnapshot {
+        HistSnapshot(self.buckets.iter().map(|b| b.load(Relaxed)).collect())
+    }
+}
+
+/// Bucket counts of a [`Histogram`] at one moment (1 µs buckets, the last
+/// one holding everything from 20 ms up).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HistSnapshot(Vec<u64>);
+
+impl HistSnapshot {
+    pub fn count(&self) -> u64 {
+        self.0.iter().sum()
+    }
+
+    /// The samples recorded between `earlier` and `self`.
+    pub fn since(&self, earlier: &HistSnapshot) -> HistSnapshot {
+        HistSnapshot(
+            self.0
+                .iter()
+                .zip(earlier.0.iter().chain(std::iter::repeat(&0)))
+                .map(|(a, b)| a.saturating_sub(*b))
+                .collect(),
+        )
+    }
+
+    /// Upper edge of the bucket holding quantile `q`, in seconds (20 ms
+    /// for the overflow bucket: the snapshot has no max); `None` if empty.
+    pub fn quantile(&self, q: f64) -> Option<f64> {
+        let n = self.count();
+        if n == 0 {
+            return None;
+        }
+        let rank = ((q.clamp(0.0, 1.0) * n as f64).ceil() as u64).max(1);
+        let mut acc = 0;
+        for (i, b) in self.0.iter().enumerate() {
+            acc += b;
+            if acc >= rank {
+                return Some((i.min(BUCKETS - 1) + 1) as f64 * 1e-6);
+            }
+        }
+        Some(BUCKETS as f64 * 1e-6)
+    }
 }
 
 /// Per-destination send accounting: one unreachable destination shows here
@@ -212,5 +258,22 @@ mod tests {
         assert!((p99 - 100e-6).abs() < 1e-9, "{p99}");
         h.record(Duration::from_secs(1));
         assert_eq!(h.quantile(1.0), Some(1.0));
+    }
+
+    #[test]
+    fn snapshot_difference_is_the_stretch_between() {
+        let h = Histogram::default();
+        for _ in 0..100 {
+            h.record(Duration::from_micros(3));
+        }
+        let a = h.snapshot();
+        for _ in 0..100 {
+            h.record(Duration::from_micros(40));
+        }
+        let d = h.snapshot().since(&a);
+        assert_eq!(d.count(), 100);
+        assert!((d.quantile(0.5).unwrap() - 41e-6).abs() < 1e-12);
+        assert!((a.quantile(0.99).unwrap() - 4e-6).abs() < 1e-12);
+        assert_eq!(HistSnapshot(vec![]).quantile(0.5), None);
     }
 }
