@@ -635,10 +635,10 @@ rotate_mb = 0.1
             "a STATUS with frames recorded",
             acked,
         );
-        // The second such STATUS, after files have rotated; the kill lands
-        // right after it, mid-recording.
-        inbox.until(Duration::from_secs(3), "another STATUS", |v| {
-            v["class"] == "STATUS"
+        // Then one after the files have rotated; the kill lands right
+        // after it, mid-recording.
+        inbox.until(Duration::from_secs(10), "a STATUS after rotation", |v| {
+            v["class"] == "STATUS" && v["recording"]["files"].as_u64().unwrap_or(0) >= 2
         });
     }));
     let _ = nix::sys::signal::kill(
