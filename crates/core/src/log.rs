@@ -566,13 +566,8 @@ mod tests {
         bytes.extend_from_slice(b"{\"class\":\"FRAME\",\"seq\":2,\"t\":0.4,\"counts\":[1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16,17,18,19,20,21,22,23,24,2000]}\n");
         bytes.extend_from_slice(b"garbage\n");
         bytes.extend_from_slice(b"{\"class\":\"STATUS\",\"seq\":9}\n");
-        bytes.extend_from_slice(
-            &write(&[frame(5)])[..]
-                .split(|&b| b == b'\n')
-                .nth(1)
-                .unwrap()
-                .to_vec(),
-        );
+        let good = write(&[frame(5)]);
+        bytes.extend_from_slice(good.split(|&b| b == b'\n').nth(1).unwrap());
         bytes.push(b'\n');
         let mut r = LogReader::new(&bytes[..], "x.jsonl").unwrap();
         let got: Vec<_> = r.by_ref().collect();

@@ -35,9 +35,9 @@ fn zero_pose_centre_brightest_and_symmetric() {
     let s = Scene::default();
     let v = volts(&s, &pose(6.0, 0.0, 0.0, 0.0, 0.0));
     let centre = v[index(2, 2)];
-    for k in 0..NDET {
+    for (k, vk) in v.iter().enumerate() {
         if k != index(2, 2) {
-            assert!(v[k] < centre, "detector {k} brighter than centre");
+            assert!(*vk < centre, "detector {k} brighter than centre");
         }
     }
     for r in 0..5 {
@@ -144,7 +144,7 @@ fn detector_response_and_halo() {
     turbid.light.scattering = Some(lightpose_core::Scattering::default());
     let with = volts(&turbid, &pose(6.0, 0.0, 0.0, 0.0, 0.0))[12];
     let d = 6.0 - 0.229;
-    let f = 1.0 - (-0.5 * 0.09 * d as f64).exp();
+    let f = 1.0 - (-0.5 * 0.09 * d).exp();
     let ratio = 324.0 / (324.0 + 400.0);
     assert!((with / on - ((1.0 - f) + f * ratio)).abs() < 1e-12);
 }
@@ -174,10 +174,10 @@ fn adc_clamps_and_rounds() {
     let p = pose(7.0, 0.1, 0.2, 1.0, -2.0);
     let v = volts(&s, &p);
     let f = Simulator::new(s.clone(), 0).frame(0, 0.0, &p, None);
-    for k in 0..NDET {
-        assert_eq!(f.counts[k], volts_to_counts(v[k], 5.0, 10));
-        let exact = v[k] / 5.0 * 1023.0;
-        assert!((f.counts[k] as f64 - exact).abs() <= 0.5 + 1e-9);
+    for (c, vk) in f.counts.iter().zip(v) {
+        assert_eq!(*c, volts_to_counts(vk, 5.0, 10));
+        let exact = vk / 5.0 * 1023.0;
+        assert!((*c as f64 - exact).abs() <= 0.5 + 1e-9);
     }
     // 16-bit ADC uses the whole range.
     let mut s16 = bare();
