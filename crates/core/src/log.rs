@@ -509,7 +509,8 @@ mod tests {
             t: seq as f64 * 0.2,
             adc_bits: 10,
             counts,
-            temp_c: Some(19.9),
+            // An awkward value: it must read back to the same bits.
+            temp_c: Some(19.937845150646073 + seq as f64 * 1e-13),
             truth: Some(Truth {
                 pose: Pose::new(7.8, 0.0, 0.12, Angle::from_deg(9.6), Angle::ZERO),
                 surge: Some(0.5),
