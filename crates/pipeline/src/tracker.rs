@@ -69,7 +69,11 @@ pub struct TrackerConfig {
     pub x_range: [f64; 2],
     /// Frames after (re)start reported as `initialising`.
     pub init_frames: u32,
-    /// Gauss–Newton iterations of the iterated update.
+    /// Gauss–Newton iterations of the iterated update. 1 (a plain EKF
+    /// update) by default: at 5 Hz the prediction is close enough that
+    /// further iterations changed neither the Monte Carlo half-widths nor
+    /// the coverage (lightpose bench, 400 runs, all three cases, with and
+    /// without the attitude sensor) but cost ~2.4× the time (≈ 120 → 50 µs).
     pub update_iterations: usize,
     /// Normalized innovation squared per measurement above which a frame
     /// is not used; this many such frames in a row restart the filter.
@@ -97,7 +101,7 @@ impl Default for TrackerConfig {
             attitude_sigma_yaw_deg: 1.5,
             x_range: [3.0, 12.0],
             init_frames: 5,
-            update_iterations: 3,
+            update_iterations: 1,
             nis_gate: 25.0,
             max_rejected: 3,
             max_gap_s: 2.0,
