@@ -342,9 +342,9 @@ pub fn calibrate_full(
             stream(
                 p,
                 |f, h| {
-                dark.push(f, header_v_ref(h, opts.v_ref));
-                feed(&mut phys, &mut phys_err, |p| p.add_dark(f));
-            },
+                    dark.push(f, header_v_ref(h, opts.v_ref));
+                    feed(&mut phys, &mut phys_err, |p| p.add_dark(f));
+                },
                 &mut on_bad_line,
                 &mut bad,
             )?;
@@ -548,10 +548,7 @@ pub fn calibrate_full(
         physical_skipped: phys_err,
     };
     if let (Some(fitter), Some(o)) = (phys, &opts.physical) {
-        let o = FitOptions {
-            v_ref,
-            ..o.clone()
-        };
+        let o = FitOptions { v_ref, ..o.clone() };
         match fitter.fit(&o) {
             Ok(p) => {
                 let mut with = out.cal.clone();

@@ -760,7 +760,10 @@ pub(crate) mod tests {
         let back = Calibration::load(&p).unwrap();
         assert_eq!(back, c);
         let text = std::fs::read_to_string(&p).unwrap();
-        assert!(text.contains("[physical.v1]") || text.contains("[physical]"), "{text}");
+        assert!(
+            text.contains("[physical.v1]") || text.contains("[physical]"),
+            "{text}"
+        );
         assert!(text.contains("estimate_k_d = true"), "{text}");
     }
 
@@ -772,7 +775,10 @@ pub(crate) mod tests {
         c.physical = Some(p);
         let text = c.to_toml().unwrap();
         let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
-        assert!(e.contains("physical: gain and offset_v must have 25 entries"), "{e}");
+        assert!(
+            e.contains("physical: gain and offset_v must have 25 entries"),
+            "{e}"
+        );
         // A partial table (the old raw form) is refused, naming the key.
         let mut text = sample().to_toml().unwrap();
         text.push_str("\n[physical]\nv1 = 135.0\n");

@@ -51,7 +51,11 @@ fn physical<'a>(cal: &'a Calibration, name: &str) -> Result<&'a PhysicalCalibrat
 /// The estimator called `name` for calibration `cal` ("auto": see
 /// [`auto_choice`]). Its `name()` says which one it is.
 pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimator>, BuildError> {
-    let resolved = if name == "auto" { auto_choice(cal) } else { name };
+    let resolved = if name == "auto" {
+        auto_choice(cal)
+    } else {
+        name
+    };
     let settings = cal.estimator.clone().unwrap_or_default();
     let config = |msg: String| BuildError::Config {
         name: resolved.to_string(),

@@ -247,7 +247,9 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     let all = a.cases.iter().any(|c| c == "all");
     for c in &a.cases {
         if c != "all" && !CASES.iter().any(|k| k.name == c) {
-            anyhow::bail!("unknown case \"{c}\" (known: all, dive-tank, zigzag-tank, zigzag-harbour)");
+            anyhow::bail!(
+                "unknown case \"{c}\" (known: all, dive-tank, zigzag-tank, zigzag-harbour)"
+            );
         }
     }
     let modes: &[bool] = match a.attitude.as_str() {
@@ -256,7 +258,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         _ => &[false, true],
     };
     let mut text = String::new();
-    for case in CASES.iter().filter(|k| all || a.cases.iter().any(|c| c == k.name)) {
+    for case in CASES
+        .iter()
+        .filter(|k| all || a.cases.iter().any(|c| c == k.name))
+    {
         let (base, traj, cal) =
             load_case(&a.root, case).with_context(|| format!("case {}", case.name))?;
         for &ahrs in modes {

@@ -113,9 +113,11 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
         }
         let worst = |v: &[ParamEstimate]| v.iter().map(|g| g.std).fold(0.0, f64::max);
         let spread = |v: &[ParamEstimate]| {
-            let (lo, hi) = v.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), g| {
-                (l.min(g.value), h.max(g.value))
-            });
+            let (lo, hi) = v
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), g| {
+                    (l.min(g.value), h.max(g.value))
+                });
             format!("{lo:.4}..{hi:.4}")
         };
         eprintln!(

@@ -31,7 +31,16 @@ fn sweep(dir: &Path, scene: &Path) -> (PathBuf, PathBuf) {
     let dk = dir.join("dark.jsonl");
     for (kind, n, out) in [("all", "8", &sw), ("dark", "200", &dk)] {
         let (ok, _, err) = lightpose(&[
-            "sweep", "--scene", s(scene), "--kind", kind, "--samples", n, "--seed", "5", "--out",
+            "sweep",
+            "--scene",
+            s(scene),
+            "--kind",
+            kind,
+            "--samples",
+            n,
+            "--seed",
+            "5",
+            "--out",
             s(out),
         ]);
         assert!(ok, "{err}");
@@ -45,12 +54,28 @@ fn calibrate_fits_the_light_model_and_auto_replay_uses_the_tracker() {
     let (sw, dk) = sweep(dir.path(), &root().join("config/scenes/tank.toml"));
     let cal = dir.path().join("cal.toml");
     let (ok, _, err) = lightpose(&[
-        "calibrate", "--sweep", s(&sw), "--dark", s(&dk), "--out", s(&cal),
+        "calibrate",
+        "--sweep",
+        s(&sw),
+        "--dark",
+        s(&dk),
+        "--out",
+        s(&cal),
     ]);
     assert!(ok, "{err}");
     // Each light-model parameter is printed with its standard error.
-    for p in ["V1      =", "sigma_b =", "sigma_R =", "K_D     =", "omega   =", "sigma_h ="] {
-        let line = err.lines().find(|l| l.contains(p)).unwrap_or_else(|| panic!("{p} in {err}"));
+    for p in [
+        "V1      =",
+        "sigma_b =",
+        "sigma_R =",
+        "K_D     =",
+        "omega   =",
+        "sigma_h =",
+    ] {
+        let line = err
+            .lines()
+            .find(|l| l.contains(p))
+            .unwrap_or_else(|| panic!("{p} in {err}"));
         assert!(line.contains(" ± "), "{line}");
     }
     let text = std::fs::read_to_string(&cal).unwrap();
@@ -73,13 +98,22 @@ fn calibrate_fits_the_light_model_and_auto_replay_uses_the_tracker() {
     assert!(ok, "{err}");
     let poses = dir.path().join("poses.jsonl");
     let (ok, _, err) = lightpose(&[
-        "replay", "--calibration", s(&cal), "--log", s(&log), "--out", s(&poses),
+        "replay",
+        "--calibration",
+        s(&cal),
+        "--log",
+        s(&log),
+        "--out",
+        s(&poses),
     ]);
     assert!(ok, "{err}");
     assert!(err.contains("estimator tracker (auto)"), "{err}");
     let out = std::fs::read_to_string(&poses).unwrap();
     assert!(out.lines().count() > 10, "{out}");
-    assert!(out.lines().all(|l| l.contains("\"estimator\":\"tracker\"")), "{out}");
+    assert!(
+        out.lines().all(|l| l.contains("\"estimator\":\"tracker\"")),
+        "{out}"
+    );
 }
 
 #[test]
@@ -89,15 +123,25 @@ fn a_light_model_the_sweep_cannot_determine_is_left_out_with_one_warning() {
     // still calibrates, and "auto" falls back to moments.
     let dir = tempfile::tempdir().unwrap();
     let scene_text = std::fs::read_to_string(root().join("config/scenes/tank.toml")).unwrap();
-    let no_scatter = scene_text
-        .replace("[scattering]\nomega = 0.5\nsigma_h_deg = 20.0\n", "");
-    assert_ne!(no_scatter, scene_text, "the tank scene's scattering table moved");
+    let no_scatter = scene_text.replace("[scattering]\nomega = 0.5\nsigma_h_deg = 20.0\n", "");
+    assert_ne!(
+        no_scatter, scene_text,
+        "the tank scene's scattering table moved"
+    );
     let scene = dir.path().join("clear.toml");
     std::fs::write(&scene, no_scatter).unwrap();
     let (sw, dk) = sweep(dir.path(), &scene);
     let cal = dir.path().join("cal.toml");
     let (ok, _, err) = lightpose(&[
-        "calibrate", "--sweep", s(&sw), "--dark", s(&dk), "--out", s(&cal), "--scattering", "on",
+        "calibrate",
+        "--sweep",
+        s(&sw),
+        "--dark",
+        s(&dk),
+        "--out",
+        s(&cal),
+        "--scattering",
+        "on",
     ]);
     assert!(ok, "{err}");
     let warnings: Vec<&str> = err.lines().filter(|l| l.contains("warning")).collect();
@@ -137,7 +181,10 @@ fn bench_runs_every_estimator_on_one_case() {
     ]);
     assert!(ok, "{err}");
     assert_eq!(std::fs::read_to_string(&out).unwrap(), stdout);
-    assert!(stdout.contains("dive-tank — with attitude sensor (2 runs)"), "{stdout}");
+    assert!(
+        stdout.contains("dive-tank — with attitude sensor (2 runs)"),
+        "{stdout}"
+    );
     for est in ["moments", "model", "tracker"] {
         // Six axes per estimator, each row with a finite time per frame.
         let rows: Vec<&str> = stdout
@@ -149,7 +196,10 @@ fn bench_runs_every_estimator_on_one_case() {
         assert!(us > 0.0 && us.is_finite(), "{}", rows[0]);
     }
     // The bound stands beside x: finite at both ends.
-    let x = stdout.lines().find(|l| l.starts_with("| tracker |") && l.contains("| x (m) |")).unwrap();
+    let x = stdout
+        .lines()
+        .find(|l| l.starts_with("| tracker |") && l.contains("| x (m) |"))
+        .unwrap();
     let cells: Vec<&str> = x.split('|').map(str::trim).collect();
     let crb_end: f64 = cells[10].parse().unwrap();
     assert!(crb_end > 0.0 && crb_end < 2.0, "{x}");

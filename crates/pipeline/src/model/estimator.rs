@@ -654,7 +654,10 @@ mod tests {
         let ((x, without), (_, with)) = (sx(0.0), sx(0.015));
         let s = k_d_consider_sigma_x(x, m.light.k_d, 0.015);
         assert!(with > without, "{with} vs {without}");
-        assert!((with * with - without * without - s * s).abs() < 1e-9, "{with} {without} {s}");
+        assert!(
+            (with * with - without * without - s * s).abs() < 1e-9,
+            "{with} {without} {s}"
+        );
     }
 
     #[test]
