@@ -206,11 +206,28 @@ pub struct RangeFit {
     /// 1/m
     pub b1: f64,
     pub r2: f64,
-    /// Residual σ of ln PD_max.
+    /// Residual σ of ln PD_max: of every translation frame about the law
+    /// (off-axis dimming included), whatever frames the law was fitted on.
     pub sigma_ln: f64,
     /// The same as metres of x (σ_ln / b1).
     pub sigma_m: f64,
     pub n: u64,
+    /// Which frames the fit was taken from (a file without the key was
+    /// fitted over the whole grid).
+    #[serde(default)]
+    pub basis: RangeBasis,
+}
+
+/// The frames the range law is fitted on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RangeBasis {
+    /// On the beam axis, facing the beacon (y = z = 0, level): the paper's
+    /// reading, and what its tank errors show.
+    Axis,
+    /// Every translation frame, off-axis ones included.
+    #[default]
+    Grid,
 }
 
 /// quantity = a · feature + b (eqs. 4–7).
@@ -634,6 +651,7 @@ pub(crate) mod tests {
                     b1: 0.44,
                     r2: 0.99,
                     sigma_ln: 0.02,
+                    basis: RangeBasis::Axis,
                     sigma_m: 0.07,
                     n: 100,
                 },

@@ -76,6 +76,17 @@ impl LineAcc {
         [self.min_v, self.max_v]
     }
 
+    /// RMS of the residuals v − (intercept + slope·u) of the samples seen
+    /// against a line fitted elsewhere (e.g. a subset of them).
+    pub fn rms_about(&self, slope: f64, intercept: f64) -> f64 {
+        if self.n == 0 {
+            return f64::NAN;
+        }
+        let c = self.mean_v - intercept - slope * self.mean_u;
+        let ss = self.svv - 2.0 * slope * self.suv + slope * slope * self.suu;
+        ((ss.max(0.0) + self.n as f64 * c * c) / self.n as f64).sqrt()
+    }
+
     /// Solve the normal equations.
     pub fn solve(&self) -> Result<Line, FitError> {
         if self.n < 3 {
@@ -108,6 +119,16 @@ impl LineAcc {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn rms_about_another_line() {
+        let mut a = LineAcc::default();
+        for (u, v) in [(1.0, 2.0), (2.0, 3.0), (3.0, 7.0)] {
+            a.push(u, v);
+        }
+        // residuals against v = 1 + u: 0, 0, 3
+        assert!((a.rms_about(1.0, 1.0) - (9.0f64 / 3.0).sqrt()).abs() < 1e-12);
+    }
 
     #[test]
     fn exact_line_is_recovered() {
