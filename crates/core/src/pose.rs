@@ -20,10 +20,14 @@ pub enum Status {
     BadFrame,
     /// The solver did not converge.
     Diverged,
+    /// The fields are given, but some lie along a direction the frames do
+    /// not determine (without an attitude reading: y/yaw and z/pitch), so
+    /// their std is not a guarantee.
+    Unobservable,
 }
 
 impl Status {
-    pub const ALL: [Status; 7] = [
+    pub const ALL: [Status; 8] = [
         Status::Ok,
         Status::NoLight,
         Status::Saturated,
@@ -31,6 +35,7 @@ impl Status {
         Status::Initialising,
         Status::BadFrame,
         Status::Diverged,
+        Status::Unobservable,
     ];
 
     /// The word of FORMATS.md's `status` field.
@@ -43,6 +48,7 @@ impl Status {
             Status::Initialising => "initialising",
             Status::BadFrame => "bad_frame",
             Status::Diverged => "diverged",
+            Status::Unobservable => "unobservable",
         }
     }
 
@@ -213,5 +219,7 @@ mod tests {
         for s in Status::ALL {
             assert_eq!(Status::parse(s.as_str()), Some(s));
         }
+        assert_eq!(Status::parse("unobservable"), Some(Status::Unobservable));
+        assert_eq!(Status::parse("bogus"), None);
     }
 }
