@@ -4,6 +4,7 @@
 //! key (toml's byte span turned into a line number), never half-way through a
 //! dive.
 
+use lightpose_core::textpos::line_of_offset;
 use serde::Deserialize;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};
@@ -286,16 +287,6 @@ struct RawReplay {
 
 // ---- locating errors ------------------------------------------------------
 
-/// 1-based line of a byte offset.
-pub fn line_of(src: &str, offset: usize) -> usize {
-    let end = offset.min(src.len());
-    src.as_bytes()[..end]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count()
-        + 1
-}
-
 /// The key written on the line of `offset`, for errors whose span points at
 /// a value; "?" when the line holds no `key =`.
 fn key_on_line(src: &str, offset: usize) -> String {
@@ -322,7 +313,7 @@ fn key_on_line(src: &str, offset: usize) -> String {
 /// the table's own line when the key is not written there.
 fn line_of_key_in_table(src: &str, table_start: usize, key: &str) -> usize {
     let from = table_start.min(src.len());
-    let base = line_of(src, from);
+    let base = line_of_offset(src, from);
     for (i, line) in src[from..].lines().enumerate() {
         let t = line.trim_start();
         if i > 0 && t.starts_with('[') {
@@ -347,7 +338,7 @@ impl Ctx<'_> {
     fn err(&self, span: std::ops::Range<usize>, key: &str, msg: impl Into<String>) -> ConfigError {
         ConfigError::At {
             file: self.file.to_string(),
-            line: line_of(self.src, span.start),
+            line: line_of_offset(self.src, span.start),
             key: key.to_string(),
             msg: msg.into(),
         }
@@ -450,7 +441,7 @@ fn backend_kind<T: serde::de::DeserializeOwned>(
             .unwrap_or("")
             .to_string();
         let line = if key.is_empty() {
-            line_of(ctx.src, start)
+            line_of_offset(ctx.src, start)
         } else {
             line_of_key_in_table(ctx.src, start, &key)
         };
@@ -499,7 +490,7 @@ impl Config {
         };
         let raw: Raw = toml::from_str(src).map_err(|e| {
             let (line, key) = match e.span() {
-                Some(s) => (line_of(src, s.start), key_on_line(src, s.start)),
+                Some(s) => (line_of_offset(src, s.start), key_on_line(src, s.start)),
                 None => (0, "?".into()),
             };
             let msg = e.message().trim().replace('\n', " ");
@@ -565,7 +556,7 @@ impl Config {
                     None => {
                         return Err(ConfigError::At {
                             file: file.into(),
-                            line: line_of(src, start),
+                            line: line_of_offset(src, start),
                             key: "backend.kind".into(),
                             msg: "missing (\"sim\", \"replay\" or a board)".into(),
                         })
@@ -968,8 +959,8 @@ destinations = ["127.0.0.1:9999"]
     #[test]
     fn line_helpers() {
         let s = "a = 1\n[t]\nb = 2\n";
-        assert_eq!(line_of(s, 0), 1);
-        assert_eq!(line_of(s, 6), 2);
+        assert_eq!(line_of_offset(s, 0), 1);
+        assert_eq!(line_of_offset(s, 6), 2);
         assert_eq!(line_of_key_in_table(s, 6, "b"), 3);
         assert_eq!(key_on_line(s, 14), "b");
     }

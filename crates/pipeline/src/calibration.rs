@@ -13,6 +13,7 @@
 
 use crate::model::{ModelConfig, PhysicalCalibration};
 use crate::tracker::TrackerConfig;
+use lightpose_core::textpos::{line_of_key, line_of_offset};
 use lightpose_core::{light::temperature_gain, NDET};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -326,39 +327,6 @@ pub struct EstimatorSettings {
     pub model: ModelConfig,
     /// `[estimator.tracker]`: the filter.
     pub tracker: TrackerConfig,
-}
-
-/// Line (1-based) of a byte offset.
-fn line_of_offset(text: &str, offset: usize) -> usize {
-    text.as_bytes()[..offset.min(text.len())]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count()
-        + 1
-}
-
-/// Line of `key` in `[table]` (best effort), else of the table header, else 1.
-fn line_of_key(text: &str, table: &str, key: &str) -> usize {
-    let mut in_table = table.is_empty();
-    let mut header = 1;
-    for (i, line) in text.lines().enumerate() {
-        let l = line.trim();
-        if l.starts_with('[') {
-            in_table = l.trim_matches(|c| c == '[' || c == ']').trim() == table;
-            if in_table {
-                header = i + 1;
-            }
-            continue;
-        }
-        if in_table {
-            if let Some((k, _)) = l.split_once('=') {
-                if k.trim() == key {
-                    return i + 1;
-                }
-            }
-        }
-    }
-    header
 }
 
 impl Calibration {

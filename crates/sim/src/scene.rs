@@ -5,6 +5,7 @@
 //! takes MODEL.md's default. Unknown keys, wrong types and impossible values
 //! are refused with the file, the line and the key.
 
+use lightpose_core::textpos::{line_of_key, line_of_offset};
 use lightpose_core::{Angle, ArrayGeometry, LightParams, Scattering, COLS, NDET, ROWS};
 use serde::Deserialize;
 use std::path::Path;
@@ -171,40 +172,6 @@ struct RawMc {
 struct RawAttitude {
     sigma_pitch_deg: Option<f64>,
     sigma_yaw_deg: Option<f64>,
-}
-
-/// Line (1-based) of a byte offset in `text`.
-pub fn line_of_offset(text: &str, offset: usize) -> usize {
-    text[..offset.min(text.len())]
-        .bytes()
-        .filter(|&b| b == b'\n')
-        .count()
-        + 1
-}
-
-/// Line of `key` inside `[table]` of a TOML text (best effort: the first
-/// line after the table header that assigns the key), else the header's.
-pub fn line_of_key(text: &str, table: &str, key: &str) -> usize {
-    let mut in_table = table.is_empty();
-    let mut header_line = 1;
-    for (i, line) in text.lines().enumerate() {
-        let l = line.trim();
-        if l.starts_with('[') {
-            in_table = l.trim_start_matches('[').trim_end_matches(']').trim() == table;
-            if in_table {
-                header_line = i + 1;
-            }
-            continue;
-        }
-        if in_table {
-            if let Some((k, _)) = l.split_once('=') {
-                if k.trim() == key {
-                    return i + 1;
-                }
-            }
-        }
-    }
-    header_line
 }
 
 struct Checker<'a> {
