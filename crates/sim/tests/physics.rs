@@ -143,7 +143,7 @@ fn detector_response_and_halo() {
     let mut turbid = s.clone();
     turbid.light.scattering = Some(lightpose_core::Scattering::default());
     let with = volts(&turbid, &pose(6.0, 0.0, 0.0, 0.0, 0.0))[12];
-    let d = 6.0 - 0.229;
+    let d: f64 = 6.0 - 0.229;
     let f = 1.0 - (-0.5 * 0.09 * d).exp();
     let ratio = 324.0 / (324.0 + 400.0);
     assert!((with / on - ((1.0 - f) + f * ratio)).abs() < 1e-12);
