@@ -55,6 +55,12 @@ impl Status {
     pub fn parse(s: &str) -> Option<Status> {
         Status::ALL.into_iter().find(|st| st.as_str() == s)
     }
+
+    /// Position in [`Status::ALL`]: for tables of counts per status, sized
+    /// `Status::ALL.len()` so that a new word cannot overrun them.
+    pub fn index(self) -> usize {
+        self as usize
+    }
 }
 
 /// 1σ uncertainty of each field where the estimator knows it.
@@ -216,7 +222,8 @@ mod tests {
 
     #[test]
     fn status_words_round_trip() {
-        for s in Status::ALL {
+        for (i, s) in Status::ALL.into_iter().enumerate() {
+            assert_eq!(s.index(), i);
             assert_eq!(Status::parse(s.as_str()), Some(s));
         }
         assert_eq!(Status::parse("unobservable"), Some(Status::Unobservable));

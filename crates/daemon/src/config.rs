@@ -11,23 +11,29 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 use toml::Spanned;
 
-/// Resources compiled into the binary (see build.rs): the default config
-/// runs from anywhere because it refers to these by `embedded:NAME`.
+/// Resources compiled into the binary: the default config runs from
+/// anywhere because it refers to these by `embedded:NAME`.
 pub mod embedded {
-    include!(concat!(env!("OUT_DIR"), "/embedded.rs"));
+    pub const DEFAULT_CONFIG: &str = include_str!("../../../config/lightposed.toml");
 
-    /// The text of an `embedded:NAME` resource, if it was present at build.
+    /// The text of an `embedded:NAME` resource.
     pub fn lookup(name: &str) -> Option<&'static str> {
-        match name {
-            "tank-scene" => TANK_SCENE,
-            "zigzag" => ZIGZAG_TRAJECTORY,
-            "tank-calibration" => TANK_CALIBRATION,
-            _ => None,
-        }
+        Some(match name {
+            "tank-scene" => include_str!("../../../config/scenes/tank.toml"),
+            // The tank with the vehicle's attitude sensor (AHRS), as most
+            // vehicles carry one: the default run shows what `auto` gives.
+            "tank-ahrs-scene" => include_str!("../../../config/scenes/tank-ahrs.toml"),
+            "harbour-scene" => include_str!("../../../config/scenes/harbour.toml"),
+            "dive" => include_str!("../../../config/trajectories/dive.csv"),
+            "zigzag" => include_str!("../../../config/trajectories/zigzag.csv"),
+            "tank-calibration" => include_str!("../../../config/calibration/tank.toml"),
+            "harbour-calibration" => include_str!("../../../config/calibration/harbour.toml"),
+            _ => return None,
+        })
     }
 
     /// Every name `lookup` knows, for error messages.
-    pub const NAMES: &str = "tank-scene, zigzag, tank-calibration";
+    pub const NAMES: &str = "tank-scene, tank-ahrs-scene, harbour-scene, dive, zigzag, tank-calibration, harbour-calibration";
 }
 
 /// Where a config, scene, trajectory or calibration comes from.
@@ -472,12 +478,11 @@ impl Config {
     /// The embedded default: the simulated tank, looping, publishing to
     /// 127.0.0.1:17150.
     pub fn embedded_default() -> Result<Config, ConfigError> {
-        let src = embedded::DEFAULT_CONFIG.ok_or_else(|| ConfigError::Whole {
-            file: "embedded default".into(),
-            msg: "config/lightposed.toml was missing when this binary was built; pass --config"
-                .into(),
-        })?;
-        Config::parse(src, "embedded default (config/lightposed.toml)", None)
+        Config::parse(
+            embedded::DEFAULT_CONFIG,
+            "embedded default (config/lightposed.toml)",
+            None,
+        )
     }
 
     /// Parse and validate config text; `file` names it in errors and
@@ -522,7 +527,7 @@ impl Config {
                 return Err(ctx.err(v.span(), "estimator", "empty estimator name"))
             }
             Some(v) => v.get_ref().clone(),
-            None => "moments".into(),
+            None => "auto".into(),
         };
         let calibration = match &raw.calibration {
             Some(v) => ctx.resource(v.get_ref(), v.span(), "calibration")?,
@@ -889,7 +894,7 @@ destinations = ["127.0.0.1:9999"]
     fn minimal_file_validates_with_defaults() {
         let c = parse(MIN).expect("valid");
         assert_eq!(c.rate_hz, 50.0);
-        assert_eq!(c.estimator, "moments");
+        assert_eq!(c.estimator, "auto");
         assert_eq!(c.calibration, Resource::File("/etc/lp/cal.toml".into()));
         assert_eq!(
             c.backend,

@@ -16,7 +16,7 @@ use crate::attitude::AttitudeCell;
 use crate::publish::Publisher;
 use crate::recorder::Recorder;
 use crate::stats::{BackendState, Stats, TempSource};
-use lightpose_core::{Estimator, Status};
+use lightpose_core::Estimator;
 use lightpose_hal::{FrameSource, SourceError};
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::sync::mpsc::Receiver;
@@ -217,10 +217,7 @@ impl Engine {
             let done = Instant::now();
             stats.latency.record(done - arrival);
 
-            let si = Status::ALL
-                .iter()
-                .position(|s| *s == est.status)
-                .unwrap_or(0);
+            let si = est.status.index();
             stats.by_status[si].fetch_add(1, Relaxed);
             stats.last_status.store(si as u8, Relaxed);
             stats.frames.fetch_add(1, Relaxed);
@@ -264,7 +261,7 @@ impl Engine {
 mod tests {
     use super::*;
     use crate::config::Outputs;
-    use lightpose_core::{Frame, PoseEstimate, NDET};
+    use lightpose_core::{Frame, PoseEstimate, Status, NDET};
 
     /// Frames every `period`, except that one frame comes `stall` late.
     struct Stalling {

@@ -3,6 +3,7 @@
 //! for STATUS once a second), and a fixed latency histogram so that p50/p99
 //! frame-to-datagram latency is known in flight, not only in benchmarks.
 
+use lightpose_core::Status;
 use std::sync::atomic::{AtomicU64, AtomicU8, Ordering::Relaxed};
 use std::sync::Mutex;
 use std::time::Duration;
@@ -204,7 +205,7 @@ pub struct Stats {
     /// Index into lightpose_core::Status::ALL of the last estimate.
     pub last_status: AtomicU8,
     /// Estimates per status word, in Status::ALL order.
-    pub by_status: [AtomicU64; 7],
+    pub by_status: [AtomicU64; Status::ALL.len()],
     pub frames_with_attitude: AtomicU64,
     pub latency: Histogram,
     /// Monotonic nanoseconds since start of the acquisition thread's last

@@ -41,6 +41,7 @@ fn sim_config(rate: f64, dests: &[SocketAddr], backend_extra: &str, extra: &str)
     let d: Vec<String> = dests.iter().map(|d| format!("\"{d}\"")).collect();
     Some(format!(
         r#"rate_hz = {rate}
+estimator = "moments"
 calibration = "{}"
 [backend]
 kind = "sim"
@@ -326,7 +327,7 @@ fn record_then_replay_gives_the_same_poses() {
         .collect();
     assert_eq!(logs.len(), 1, "{logs:?}");
     let replay_text = format!(
-        "rate_hz = 50.0\ncalibration = \"{}\"\n[backend]\nkind = \"replay\"\nlog = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{addr}\"]\n",
+        "rate_hz = 50.0\nestimator = \"moments\"\ncalibration = \"{}\"\n[backend]\nkind = \"replay\"\nlog = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{addr}\"]\n",
         root().join("config/calibration/tank.toml").display(),
         logs[0].display()
     );
@@ -657,6 +658,7 @@ fn failed_and_dropped_frames_are_counted_not_hidden() {
     let (sub, addr) = subscriber();
     let text = format!(
         r#"rate_hz = 200.0
+estimator = "moments"
 calibration = "{}"
 [backend]
 kind = "mock"

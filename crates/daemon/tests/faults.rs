@@ -293,6 +293,7 @@ fn serial_config(
         .collect();
     Some(format!(
         r#"rate_hz = {rate}
+estimator = "moments"
 calibration = "{}"
 [backend]
 kind = "serial"
@@ -428,6 +429,7 @@ fn bus_errors_every_n_frames_are_counted_and_pose_goes_on() {
     // Every 7th frame is a bus error: frame s fails iff (s + 1) % 7 == 0.
     let text = format!(
         r#"rate_hz = 200.0
+estimator = "moments"
 calibration = "{}"
 [backend]
 kind = "mock"
@@ -601,6 +603,7 @@ fn kill_9_loses_no_acknowledged_frame() {
     let (sock, addr) = subscriber();
     let text = format!(
         r#"rate_hz = 500.0
+estimator = "moments"
 calibration = "{}"
 [backend]
 kind = "sim"
@@ -689,6 +692,7 @@ fn full_disk_mid_line_loses_no_acknowledged_frame() {
     let (sock, addr) = subscriber();
     let text = format!(
         r#"rate_hz = 500.0
+estimator = "moments"
 calibration = "{}"
 [backend]
 kind = "sim"
