@@ -39,9 +39,13 @@ done
 # from a checkout without it as well.
 export CARGO_TARGET_ARMV7_UNKNOWN_LINUX_GNUEABIHF_LINKER=arm-linux-gnueabihf-gcc
 export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc
+# One cargo invocation for every target: cargo schedules their crates
+# together, so both cores stay busy.
+target_args=()
+for t in $TARGETS; do target_args+=(--target "$t"); done
+echo "cross-build: $TARGETS"
+cargo build --release -p lightposed "${target_args[@]}"
 for t in $TARGETS; do
-    echo "cross-build: $t"
-    cargo build --release -p lightposed --target "$t"
     file "target/$t/release/lightposed" 2>/dev/null || ls -l "target/$t/release/lightposed"
 done
 
