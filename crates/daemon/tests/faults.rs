@@ -8,7 +8,9 @@
 //! Bounds are generous (a loaded 2-core CI machine); the daemon itself
 //! recovers much faster (see docs/daemon.md, "Faults").
 
-use lightpose_core::LogReader;
+mod common;
+use common::{read_logs, shipped, subscriber};
+
 use lightpose_hal::serial::protocol::format_line;
 use lightposed::{Config, Publisher};
 use serde_json::Value;
@@ -28,37 +30,6 @@ const STATUS_GAP_MAX: Duration = Duration::from_millis(1800);
 const SERIAL_RECOVERY: Duration = Duration::from_secs(2);
 /// DS18B20 file gone → STATUS says fallback; file back → STATUS says sensor.
 const TEMP_RECOVERY: Duration = Duration::from_secs(3);
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// The shipped scene, trajectory and calibration; a test that needs them
-/// says so if they are absent.
-fn shipped() -> Option<(PathBuf, PathBuf, PathBuf)> {
-    let r = root();
-    let files = (
-        r.join("config/scenes/tank.toml"),
-        r.join("config/trajectories/zigzag.csv"),
-        r.join("config/calibration/tank.toml"),
-    );
-    for p in [&files.0, &files.1, &files.2] {
-        if !p.is_file() {
-            eprintln!("skipped: {} does not exist yet", p.display());
-            return None;
-        }
-    }
-    Some(files)
-}
-
-fn subscriber() -> (UdpSocket, SocketAddr) {
-    let s = UdpSocket::bind("127.0.0.1:0").expect("bind subscriber");
-    s.set_read_timeout(Some(Duration::from_millis(50)))
-        .expect("timeout");
-    let _ = socket2::SockRef::from(&s).set_recv_buffer_size(4 << 20);
-    let a = s.local_addr().expect("addr");
-    (s, a)
-}
 
 /// Datagrams as they arrive, with their arrival time, kept by the test.
 struct Inbox {
@@ -149,25 +120,6 @@ fn run_in_process(
             lightposed::run(cfg, p, stopped).await.expect("daemon runs")
         })
     })
-}
-
-/// Frames of every log in `dir` in file order, and whether a log ended
-/// cut short.
-fn read_logs(dir: &Path) -> (Vec<u64>, bool) {
-    let mut logs: Vec<PathBuf> = std::fs::read_dir(dir)
-        .expect("dir")
-        .map(|e| e.expect("e").path())
-        .collect();
-    logs.sort();
-    let (mut seqs, mut cut) = (Vec::new(), false);
-    for l in logs {
-        let mut r = LogReader::open(&l).expect("log opens");
-        for f in r.by_ref() {
-            seqs.push(f.expect("every line reads back").seq);
-        }
-        cut |= r.truncated_at().is_some();
-    }
-    (seqs, cut)
 }
 
 // ---- serial boards on pseudo-terminals ----------------------------------
@@ -279,8 +231,8 @@ fn serial_config(
     sub: SocketAddr,
     temperature: &str,
     extra: &str,
-) -> Option<String> {
-    let (_, _, cal) = shipped()?;
+) -> String {
+    let (_, _, cal) = shipped();
     let map: Vec<String> = (0..25)
         .map(|k| {
             let (board, ch) = if k < 16 { ("m0", k) } else { ("m1", k - 16) };
@@ -291,7 +243,7 @@ fn serial_config(
             )
         })
         .collect();
-    Some(format!(
+    format!(
         r#"rate_hz = {rate}
 estimator = "moments"
 calibration = "{}"
@@ -316,7 +268,7 @@ status_interval_s = 1.0
         boards.links[0].display(),
         boards.links[1].display(),
         map.join(", ")
-    ))
+    )
 }
 
 #[test]
@@ -326,9 +278,7 @@ fn serial_board_unplugged_and_replugged() {
     let boards = Boards::start(dir.path());
     let (sock, addr) = subscriber();
     let extra = format!("[recording]\ndir = \"{}\"\n", rec.display());
-    let Some(text) = serial_config(100.0, &boards, addr, "", &extra) else {
-        return;
-    };
+    let text = serial_config(100.0, &boards, addr, "", &extra);
     let cfg = Config::parse(&text, "serial.toml", None).expect("valid config");
     let stop = Arc::new(AtomicBool::new(false));
     let h = run_in_process(cfg, stop.clone());
@@ -420,9 +370,7 @@ fn serial_board_unplugged_and_replugged() {
 
 #[test]
 fn bus_errors_every_n_frames_are_counted_and_pose_goes_on() {
-    let Some((scene, traj, cal)) = shipped() else {
-        return;
-    };
+    let (scene, traj, cal) = shipped();
     let dir = tempfile::tempdir().expect("tempdir");
     let rec = dir.path().join("rec");
     let (sock, addr) = subscriber();
@@ -516,9 +464,7 @@ fn temperature_sensor_vanishes_and_returns() {
         "temperature = {{ kind = \"ds18b20\", fallback_c = 11.5, root = \"{}\", interval_s = 0.05, max_age_s = 0.5 }}",
         w1.display()
     );
-    let Some(text) = serial_config(100.0, &boards, addr, &temperature, "") else {
-        return;
-    };
+    let text = serial_config(100.0, &boards, addr, &temperature, "");
     let cfg = Config::parse(&text, "ds18b20.toml", None).expect("valid config");
     let stop = Arc::new(AtomicBool::new(false));
     let h = run_in_process(cfg, stop.clone());
@@ -595,9 +541,7 @@ fn kill_9_loses_no_acknowledged_frame() {
     // e2e.rs checks that the log is whole to its last line after kill -9;
     // here: every frame the recorder had reported as written (STATUS
     // recording.frames) before the kill reads back, across rotations.
-    let Some((scene, traj, cal)) = shipped() else {
-        return;
-    };
+    let (scene, traj, cal) = shipped();
     let dir = tempfile::tempdir().expect("tempdir");
     let rec = dir.path().join("rec");
     let (sock, addr) = subscriber();
@@ -684,9 +628,7 @@ fn full_disk_mid_line_loses_no_acknowledged_frame() {
     // "File too large" part-way through a line, as a filling disk does: the
     // recorder must report the error, resume in a new file after its retry
     // delay, and count as written exactly the lines that read back whole.
-    let Some((scene, traj, cal)) = shipped() else {
-        return;
-    };
+    let (scene, traj, cal) = shipped();
     let dir = tempfile::tempdir().expect("tempdir");
     let rec = dir.path().join("rec");
     let (sock, addr) = subscriber();
