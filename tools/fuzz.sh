@@ -5,6 +5,11 @@
 #
 #   tools/fuzz.sh            # 60 s per target
 #   tools/fuzz.sh 3600       # the longer run: an hour per target
+#   FUZZ_SANITIZER=none tools/fuzz.sh 10   # CI: no AddressSanitizer
+#
+# The targets look for panics and broken invariants in safe Rust; ASan
+# (the default) also watches the few unsafe lines in dependencies and is
+# worth its build time on the long run, not on CI's ten seconds.
 #
 # cargo fuzz wants nightly flags; RUSTC_BOOTSTRAP lets the stable toolchain
 # accept them. A crash leaves its input in fuzz/artifacts/<target>/: turn it
@@ -14,11 +19,12 @@ cd "$(dirname "$0")/../fuzz"
 secs=${1:-60}
 command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
 export RUSTC_BOOTSTRAP=1
-cargo fuzz build -O
+san=(--sanitizer "${FUZZ_SANITIZER:-address}")
+cargo fuzz build -O "${san[@]}"
 for t in log_reader scene calibration serial_line daemon_config; do
   mkdir -p "corpus/$t"
   echo "== $t ($secs s)"
-  cargo fuzz run -O "$t" "corpus/$t" "seeds/$t" -- -max_total_time="$secs" -rss_limit_mb=2048 2>&1 | grep -E "^(Done|==[0-9]+==|SUMMARY)|panicked" || true
+  cargo fuzz run -O "${san[@]}" "$t" "corpus/$t" "seeds/$t" -- -max_total_time="$secs" -rss_limit_mb=2048 2>&1 | grep -E "^(Done|==[0-9]+==|SUMMARY)|panicked" || true
   if ls "artifacts/$t"/crash-* >/dev/null 2>&1; then
     echo "fuzz: $t crashed; inputs in fuzz/artifacts/$t" >&2
     exit 1

@@ -38,18 +38,18 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static A: Counting = Counting;
 
-/// Allocations made by the engine over `frames` frames.
-fn allocations(frames: u64, sink: &UdpSocket) -> Option<u64> {
+/// Allocations made by the engine over `frames` frames with `estimator`
+/// on `scene` (a file under config/scenes/).
+fn allocations(frames: u64, sink: &UdpSocket, estimator: &str, scene: &str) -> u64 {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let cal = root.join("config/calibration/tank.toml");
-    let scene = root.join("config/scenes/tank.toml");
+    let scene = root.join("config/scenes").join(scene);
     let traj = root.join("config/trajectories/zigzag.csv");
-    if !(cal.is_file() && scene.is_file() && traj.is_file()) {
-        eprintln!("skipped: shipped scene, trajectory or calibration missing");
-        return None;
+    for p in [&cal, &scene, &traj] {
+        assert!(p.is_file(), "{} is part of the project", p.display());
     }
     let text = format!(
-        "rate_hz = 50.0\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{}\"]\n",
+        "rate_hz = 50.0\nestimator = \"{estimator}\"\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{}\"]\n",
         cal.display(),
         scene.display(),
         traj.display(),
@@ -77,23 +77,27 @@ fn allocations(frames: u64, sink: &UdpSocket) -> Option<u64> {
     COUNTING.store(true, Relaxed);
     engine.run();
     COUNTING.store(false, Relaxed);
-    Some(ALLOCS.load(Relaxed))
+    ALLOCS.load(Relaxed)
 }
 
 #[test]
 fn hot_path_does_not_allocate_per_frame() {
     let sink = UdpSocket::bind("127.0.0.1:0").expect("sink");
-    let Some(few) = allocations(100, &sink) else {
-        return;
-    };
-    let Some(many) = allocations(3000, &sink) else {
-        return;
-    };
-    eprintln!("allocations: {few} for 100 frames, {many} for 3000");
-    // The start-up allocations (buffers, the first source health copy) are
-    // the same in both runs; 2900 more frames must add none.
-    assert!(
-        many <= few + 2,
-        "{few} allocations for 100 frames, {many} for 3000"
-    );
+    // Every estimator path the daemon runs: the paper's, and the tracker
+    // without and with the attitude sensor's readings in the frames.
+    for (estimator, scene) in [
+        ("moments", "tank.toml"),
+        ("tracker", "tank.toml"),
+        ("tracker", "tank-ahrs.toml"),
+    ] {
+        let few = allocations(50, &sink, estimator, scene);
+        let many = allocations(400, &sink, estimator, scene);
+        eprintln!("{estimator} on {scene}: {few} allocations for 50 frames, {many} for 400");
+        // The start-up allocations (buffers, the first source health copy)
+        // are the same in both runs; 350 more frames must add none.
+        assert!(
+            many <= few + 2,
+            "{estimator} on {scene}: {few} allocations for 50 frames, {many} for 400"
+        );
+    }
 }
