@@ -77,6 +77,11 @@ pub struct StdDev {
 }
 
 impl StdDev {
+    /// The six std's in message order (see [`PoseEstimate::values`]).
+    pub fn values(&self) -> [Option<f64>; 6] {
+        [self.x, self.y, self.z, self.pitch, self.yaw, self.surge]
+    }
+
     pub fn is_empty(&self) -> bool {
         self.x.is_none()
             && self.y.is_none()
@@ -104,7 +109,23 @@ pub struct PoseEstimate {
     pub estimator: &'static str,
 }
 
+/// Names of the six estimated fields, in message order.
+pub const FIELDS: [&str; 6] = ["x", "y", "z", "pitch", "yaw", "surge"];
+
 impl PoseEstimate {
+    /// x, y, z (m), pitch, yaw (degrees), surge (m/s), in [`FIELDS`] order:
+    /// for code that treats every axis alike (errors, coverage).
+    pub fn values(&self) -> [Option<f64>; 6] {
+        [
+            self.x,
+            self.y,
+            self.z,
+            self.pitch_deg,
+            self.yaw_deg,
+            self.surge,
+        ]
+    }
+
     /// An estimate that knows nothing but why.
     pub fn empty(seq: u64, t: f64, status: Status, estimator: &'static str) -> Self {
         PoseEstimate {
@@ -218,6 +239,21 @@ mod tests {
         assert_eq!(v["std"]["x"], 0.2);
         assert!(v["std"].get("y").is_none());
         assert_eq!(v["time"], 1.7e9);
+    }
+
+    #[test]
+    fn values_follow_the_message_order() {
+        let mut e = PoseEstimate::empty(0, 0.0, Status::Ok, "t");
+        (e.x, e.pitch_deg, e.surge) = (Some(1.0), Some(2.0), Some(3.0));
+        e.std.yaw = Some(4.0);
+        assert_eq!(
+            e.values(),
+            [Some(1.0), None, None, Some(2.0), None, Some(3.0)]
+        );
+        assert_eq!(
+            e.std.values()[FIELDS.iter().position(|f| *f == "yaw").unwrap()],
+            Some(4.0)
+        );
     }
 
     #[test]

@@ -79,10 +79,9 @@ fn cpu_seconds() -> f64 {
     }
 }
 
-/// Run `frames` frames of the configured simulator (or replay) backend as
-/// fast as possible, publishing to a local socket that nobody reads (the
-/// kernel drops what overflows; the send cost is real).
-pub fn bench(cfg: &Config, frames: u64) -> Result<BenchReport, DaemonError> {
+/// `cfg` with its simulator or replay backend looping as fast as it goes;
+/// a hardware backend cannot be driven faster than its boards.
+fn free_running(cfg: &Config, mode: &str) -> Result<Config, DaemonError> {
     let mut cfg = cfg.clone();
     match &mut cfg.backend {
         Backend::Sim(s) => {
@@ -96,10 +95,18 @@ pub fn bench(cfg: &Config, frames: u64) -> Result<BenchReport, DaemonError> {
         Backend::Hardware { kind, .. } => {
             return Err(DaemonError::Backend {
                 kind: kind.clone(),
-                msg: "--bench runs the sim or replay backend only".into(),
+                msg: format!("{mode} runs the sim or replay backend only"),
             })
         }
     }
+    Ok(cfg)
+}
+
+/// Run `frames` frames of the configured simulator (or replay) backend as
+/// fast as possible, publishing to a local socket that nobody reads (the
+/// kernel drops what overflows; the send cost is real).
+pub fn bench(cfg: &Config, frames: u64) -> Result<BenchReport, DaemonError> {
+    let cfg = free_running(cfg, "--bench")?;
     let sink =
         UdpSocket::bind("127.0.0.1:0").map_err(|source| crate::publish::PublishError::Socket {
             family: "IPv4",
@@ -275,25 +282,11 @@ fn prune(dir: &std::path::Path, keep: usize) -> u64 {
 /// in the daemon; this thread watches it, snapshots the latency histogram
 /// at 10 % and 90 % of the frames, and keeps the disk use bounded.
 pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
-    let mut cfg = cfg.clone();
-    match &mut cfg.backend {
-        Backend::Sim(s) => {
-            s.pace = Pace::Fast;
-            s.looping = true;
-            // Simulated time runs at 1 kHz, so that the default 3.6 M
-            // frames are an hour of the board's clock (frame t, recording).
-            cfg.rate_hz = 1000.0;
-        }
-        Backend::Replay(r) => {
-            r.pace = Pace::Fast;
-            r.looping = true;
-        }
-        Backend::Hardware { kind, .. } => {
-            return Err(DaemonError::Backend {
-                kind: kind.clone(),
-                msg: "--soak runs the sim or replay backend only".into(),
-            })
-        }
+    let mut cfg = free_running(cfg, "--soak")?;
+    if matches!(cfg.backend, Backend::Sim(_)) {
+        // Simulated time runs at 1 kHz, so that the default 3.6 M frames
+        // are an hour of the board's clock (frame t, recording).
+        cfg.rate_hz = 1000.0;
     }
     let frames = frames.max(10);
     let sock_err = |source| crate::publish::PublishError::Socket {

@@ -185,15 +185,8 @@ impl Tally {
             truth.yaw.deg(),
             surge,
         ];
-        let g = [e.x, e.y, e.z, e.pitch_deg, e.yaw_deg, e.surge];
-        let sd = [
-            e.std.x,
-            e.std.y,
-            e.std.z,
-            e.std.pitch,
-            e.std.yaw,
-            e.std.surge,
-        ];
+        let g = e.values();
+        let sd = e.std.values();
         let mut beyond = false;
         for i in 0..6 {
             if let Some(v) = g[i] {

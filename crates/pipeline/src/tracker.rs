@@ -595,15 +595,8 @@ mod tests {
                     pose.yaw.deg(),
                     surge,
                 ];
-                let got = [e.x, e.y, e.z, e.pitch_deg, e.yaw_deg, e.surge];
-                let sd = [
-                    e.std.x,
-                    e.std.y,
-                    e.std.z,
-                    e.std.pitch,
-                    e.std.yaw,
-                    e.std.surge,
-                ];
+                let got = e.values();
+                let sd = e.std.values();
                 n += 1;
                 for c in 0..6 {
                     let err = got[c].unwrap() - truth[c];

@@ -103,14 +103,7 @@ fn check(e: &PoseEstimate, ctx: &str) -> Result<(), TestCaseError> {
         ("yaw", e.yaw_deg),
         ("surge", e.surge),
     ];
-    let stds = [
-        e.std.x,
-        e.std.y,
-        e.std.z,
-        e.std.pitch,
-        e.std.yaw,
-        e.std.surge,
-    ];
+    let stds = e.std.values();
     for (name, v) in fields {
         prop_assert!(
             v.is_none_or(f64::is_finite),

@@ -65,15 +65,8 @@ fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
                 continue;
             }
             let truth = [p.x, p.y, p.z, p.pitch.deg(), p.yaw.deg(), surge];
-            let got = [e.x, e.y, e.z, e.pitch_deg, e.yaw_deg, e.surge];
-            let sd = [
-                e.std.x,
-                e.std.y,
-                e.std.z,
-                e.std.pitch,
-                e.std.yaw,
-                e.std.surge,
-            ];
+            let got = e.values();
+            let sd = e.std.values();
             n += 1;
             for c in 0..6 {
                 let (Some(g), Some(s)) = (got[c], sd[c]) else {
