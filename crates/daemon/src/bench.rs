@@ -8,8 +8,11 @@
 use crate::config::{Backend, Config, Outputs, Pace};
 use crate::engine::Engine;
 use crate::publish::Publisher;
+use crate::recorder::Recorder;
 use crate::stats::Stats;
 use crate::DaemonError;
+use lightpose_core::Estimator;
+use lightpose_hal::FrameSource;
 use std::net::UdpSocket;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::sync::Arc;
@@ -79,6 +82,34 @@ fn cpu_seconds() -> f64 {
     }
 }
 
+/// The daemon's frame engine unpaced, for `frames` frames: what --bench
+/// and --soak measure (the soak with a recorder).
+fn fast_engine(
+    cfg: &Config,
+    source: Box<dyn FrameSource>,
+    estimator: Box<dyn Estimator>,
+    publisher: Arc<Publisher>,
+    stats: &Arc<Stats>,
+    recorder: Option<Recorder>,
+    frames: u64,
+) -> Engine {
+    Engine {
+        source,
+        estimator,
+        publisher,
+        stats: stats.clone(),
+        recorder,
+        attitude: None,
+        stop: Arc::new(AtomicBool::new(false)),
+        reload: None,
+        period: None,
+        late_tolerance: cfg.late_tolerance,
+        fallback_temp_c: cfg.fallback_temp_c,
+        max_frames: Some(frames),
+        epoch: Instant::now(),
+    }
+}
+
 /// `cfg` with its simulator or replay backend looping as fast as it goes;
 /// a hardware backend cannot be driven faster than its boards.
 fn free_running(cfg: &Config, mode: &str) -> Result<Config, DaemonError> {
@@ -128,21 +159,7 @@ pub fn bench(cfg: &Config, frames: u64) -> Result<BenchReport, DaemonError> {
     let (source, _) = crate::open_source(&cfg)?;
     let source_desc = source.describe();
     let stats = Arc::new(Stats::default());
-    let engine = Engine {
-        source,
-        estimator,
-        publisher,
-        stats: stats.clone(),
-        recorder: None,
-        attitude: None,
-        stop: Arc::new(AtomicBool::new(false)),
-        reload: None,
-        period: None,
-        late_tolerance: cfg.late_tolerance,
-        fallback_temp_c: cfg.fallback_temp_c,
-        max_frames: Some(frames),
-        epoch: Instant::now(),
-    };
+    let engine = fast_engine(&cfg, source, estimator, publisher, &stats, None, frames);
     let cpu0 = cpu_seconds();
     let t0 = Instant::now();
     engine.run();
@@ -317,21 +334,15 @@ pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
         crate::recorder::Recorder::start(&rec_cfg, header).map_err(DaemonError::Recorder)?;
     let rec_stats = recorder.stats.clone();
     let stats = Arc::new(Stats::default());
-    let engine = Engine {
+    let engine = fast_engine(
+        &cfg,
         source,
         estimator,
         publisher,
-        stats: stats.clone(),
-        recorder: Some(recorder),
-        attitude: None,
-        stop: Arc::new(AtomicBool::new(false)),
-        reload: None,
-        period: None,
-        late_tolerance: cfg.late_tolerance,
-        fallback_temp_c: cfg.fallback_temp_c,
-        max_frames: Some(frames),
-        epoch: Instant::now(),
-    };
+        &stats,
+        Some(recorder),
+        frames,
+    );
     let t0 = Instant::now();
     let worker = std::thread::Builder::new()
         .name("lightposed-frames".into())
