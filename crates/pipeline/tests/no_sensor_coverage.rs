@@ -5,7 +5,8 @@
 //!
 //! Why: without the sensor y/yaw and z/pitch lie on a ridge one frame
 //! barely resolves, and the filter used to claim ridge information the
-//! counts do not hold (coverage 44–80 %). This pins the fix.
+//! counts do not hold (coverage 44–80 %). This pins the fix (body motion
+//! model, sigma-point update, the beam term in σx).
 
 use lightpose_core::Status;
 use lightpose_pipeline::{build_estimator, Calibration};
@@ -58,10 +59,9 @@ fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
         for (j, &t) in times.iter().enumerate() {
             let (p, surge) = traj.sample(t);
             let e = est.estimate(&sim.frame(j as u64, t, &p, Some(surge)));
-            if e.status == Status::Ok {
-                panic!("frame {j} without an attitude reading said ok: {e:?}");
-            }
-            if e.status != Status::Unobservable {
+            // Without the sensor a tracked frame now says `ok`: its std is
+            // honest (this test), so nothing is flagged.
+            if e.status != Status::Ok {
                 continue;
             }
             let truth = [p.x, p.y, p.z, p.pitch.deg(), p.yaw.deg(), surge];
@@ -82,6 +82,6 @@ fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
     let cover = inside.map(|k| k as f64 / n as f64);
     eprintln!("coverage without the sensor (x, y, z, pitch, yaw, surge): {cover:.3?}");
     for c in cover {
-        assert!(c >= 0.85, "coverage {cover:?}");
+        assert!(c >= 0.9, "coverage {cover:?}");
     }
 }

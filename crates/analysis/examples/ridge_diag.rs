@@ -1,0 +1,111 @@
+//! Scratch diagnostic: per-step bias, spread and reported σ of an estimator
+//! on a paper case (no attitude sensor), to see where coverage is lost.
+use lightpose_pipeline::{build_estimator, Calibration};
+use lightpose_sim::{Scene, Simulator, Trajectory};
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let (scene, traj, cal) = (&args[1], &args[2], &args[3]);
+    let runs: usize = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(200);
+    let name = args.get(5).cloned().unwrap_or("tracker".into());
+    let mut base = Scene::load(std::path::Path::new(scene)).unwrap();
+    if std::env::var("ATT").is_ok() {
+        base.attitude = Some(lightpose_sim::AttitudeNoise {
+            sigma_pitch: lightpose_core::Angle::from_deg(0.3),
+            sigma_yaw: lightpose_core::Angle::from_deg(1.5),
+        });
+    }
+    let traj = Trajectory::load(std::path::Path::new(traj)).unwrap();
+    let mut cal = Calibration::load(std::path::Path::new(cal)).unwrap();
+    if let Ok(t) = std::env::var("TRK") {
+        let mut st = cal.estimator.clone().unwrap_or_default();
+        st.tracker = toml::from_str(&t).unwrap();
+        cal.estimator = Some(st);
+    }
+    let times: Vec<f64> = traj.frame_times(base.adc.rate_hz).collect();
+    let n = times.len();
+    // [step][axis] sums: err, err², σ, inside
+    let mut acc = vec![[[0.0f64; 5]; 6]; n];
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut status = std::collections::BTreeMap::new();
+    let mut est = build_estimator(&name, &cal).unwrap();
+    for r in 0..runs {
+        let mut s = base.clone();
+        let n1: f64 = StandardNormal.sample(&mut rng);
+        let n2: f64 = StandardNormal.sample(&mut rng);
+        s.temp_c += s.montecarlo.sigma_temp_c * n1;
+        s.light.k_d = (s.light.k_d + s.montecarlo.sigma_k_d * n2).max(0.0);
+        let mut sim = Simulator::new(s, 1000 + r as u64);
+        sim.set_reported_temp(Some(base.temp_c));
+        est.reset();
+        for (j, &t) in times.iter().enumerate() {
+            let (p, su) = traj.sample(t);
+            let f = sim.frame(j as u64, t, &p, Some(su));
+            let e = est.estimate(&f);
+            *status.entry(format!("{:?}", e.status)).or_insert(0usize) += 1;
+            let tr = [p.x, p.y, p.z, p.pitch.deg(), p.yaw.deg(), su];
+            let v = e.values();
+            let sd = e.std.values();
+            for a in 0..6 {
+                if let (Some(v), Some(sd)) = (v[a], sd[a]) {
+                    let err = v - tr[a];
+                    acc[j][a][0] += err;
+                    acc[j][a][1] += err * err;
+                    acc[j][a][2] += sd;
+                    acc[j][a][3] += (err.abs() <= 2.0 * sd) as u8 as f64;
+                    acc[j][a][4] += 1.0;
+                }
+            }
+        }
+    }
+    let axes = ["x", "y", "z", "pitch", "yaw", "surge"];
+    let sel: Vec<usize> = args
+        .get(6)
+        .map(|s| {
+            s.split(',')
+                .filter_map(|a| axes.iter().position(|x| x == &a))
+                .collect()
+        })
+        .unwrap_or(vec![2, 3]);
+    print!("  t  ");
+    for &a in &sel {
+        print!("| {:>5} bias   rms  meanσ  cov ", axes[a]);
+    }
+    println!();
+    let rn = runs as f64;
+    let quiet = std::env::var("QUIET").is_ok();
+    print!("ALL  ");
+    for a in 0..6 {
+        let inn: f64 = acc.iter().map(|r| r[a][3]).sum();
+        let cnt: f64 = acc.iter().map(|r| r[a][4]).sum();
+        let b = acc[n - 1][a][0] / rn;
+        let rms = (acc[n - 1][a][1] / rn).sqrt();
+        print!(
+            "| {} cov {:4.1}% end bias {:6.3} rms {:6.3} ",
+            axes[a],
+            100.0 * inn / cnt,
+            b,
+            rms
+        );
+    }
+    println!(" {status:?}");
+    if quiet {
+        return;
+    }
+    for j in 0..n {
+        print!("{:5.1}", times[j]);
+        for &a in &sel {
+            let [s, s2, sd, inn, _] = acc[j][a];
+            print!(
+                "| {:8.3} {:6.3} {:6.3} {:4.0}% ",
+                s / rn,
+                (s2 / rn).sqrt(),
+                sd / rn,
+                100.0 * inn / rn
+            );
+        }
+        println!();
+    }
+}
