@@ -4,12 +4,14 @@
 //!
 //! Why: one frame barely separates y from yaw and z from pitch, and gives
 //! no velocity at all (MODEL.md). Following the vehicle through time does
-//! both: a constant-velocity motion model ties successive frames together,
-//! so the ridge of one frame is crossed by the next, and surge comes out of
-//! the state with its own uncertainty. The update is iterated (IEKF) because
-//! the light equation is far from linear over one frame's uncertainty at
-//! start-up. Saturated and dark channels are censored: they enter the
-//! update only when the prediction crosses the bound they prove.
+//! both: the motion model (by default surge along the bow plus a small
+//! sideslip, so ż = u·sin θ + …) ties attitude to the change of position,
+//! so the ridge of one frame is crossed by the next, and surge is a state
+//! with its own uncertainty. With an attitude reading the update is the
+//! EKF's (optionally iterated); without one it is a sigma-point update,
+//! because the beam factor is quadratic about the axis over the ridge's
+//! width. Saturated and dark channels are censored: they enter the update
+//! only when the prediction crosses the bound they prove.
 //!
 //! Fixed-size matrices throughout: no allocation per frame.
 
@@ -30,7 +32,8 @@ use crate::model::light::{predict, predict_with_grad, PoseVec};
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
 
-/// State: x, y, z, θ, ψ, ẋ, ẏ, ż, θ̇, ψ̇, K_D.
+/// State: x, y, z, θ, ψ, three velocities (body model: surge u, sideslip
+/// right v and down w; world model: ẋ, ẏ, ż), θ̇, ψ̇, K_D.
 const NS: usize = 11;
 /// Measurements: 25 counts, pitch and yaw readings.
 const NM: usize = NDET + 2;
@@ -69,27 +72,28 @@ pub struct TrackerConfig {
     /// K_D held fixed and a frame without an attitude reading: add
     /// k_d_sigma's effect on the counts to their covariance (see `update`).
     pub k_d_consider_without_attitude: bool,
-    /// A frame without an attitude reading is `unobservable`, not `ok`:
-    /// y/yaw and z/pitch are then not determined by the counts (MODEL.md,
-    /// CRB) and even with the K_D term their ±2σ coverage is 76–87 % on
-    /// the dive's z/pitch and the tank zigzag's y/yaw (lightpose bench,
-    /// 2000 runs).
-    /// An innovation-consistency fading factor (scale P by the 10-frame
-    /// windowed NIS when above its χ² mean) does not close that gap: the
-    /// NIS per channel stays at 0.94–0.96 on all three cases (window
-    /// ≤ 1.17), because a ridge error barely changes the counts, so the
-    /// innovations never show it and coverage did not move (bench, 200
-    /// runs). It is therefore not implemented.
+    /// Say `unobservable`, not `ok`, on a frame without an attitude
+    /// reading. Off by default: with the body motion model, the
+    /// sigma-point update and the beam term in σx, the std of every field
+    /// covers the truth without the sensor (±2σ 92–99.8 % on the paper's
+    /// cases, lightpose bench, 2000 runs). It was on while the EKF's
+    /// coverage there was 76–87 % on the ridges; docs/estimators.md.
     pub flag_unobservable: bool,
     /// Frames without an attitude reading use the sigma-point update (see
-    /// `update_sigma`) instead of the EKF's.
+    /// `update_sigma`) instead of the EKF's; the cost is 13 evaluations of
+    /// the light equation instead of one with its Jacobian.
     pub sigma_points_without_attitude: bool,
     /// Motion model: `body` (surge along the bow plus a small sideslip,
     /// the default) or `world` (constant velocity in B, no tie between
     /// velocity and attitude).
     pub motion: Motion,
     /// Body model: 1σ of the sideslip (right and down, m/s) and its
-    /// correlation time (s).
+    /// correlation time (s). 0.25 m/s: at sea the water moves the vehicle
+    /// over the ground (currents of 0.1–0.3 m/s), and a looser tie keeps
+    /// the filter honest on the ridge; 0.05–0.1 made the ±2σ coverage of
+    /// the ridges 57–85 % without the sensor (the paper's trajectories'
+    /// own sideslip is ≤ 0.05 m/s RMS). With the sensor it hardly matters
+    /// (y, yaw RMS 0.04 m, 0.58° at 0.05 vs 0.06 m, 0.8° at 0.25).
     pub side_sigma: f64,
     pub side_tau_s: f64,
     /// Start-up 1σ of velocity (m/s) and of angular rates (°/s).
