@@ -1,27 +1,40 @@
-//! Scratch diagnostic: per-step bias, spread and reported σ of an estimator
-//! on a paper case (no attitude sensor), to see where coverage is lost.
+//! Diagnostic: per step of a paper case, the bias, RMS error, mean reported
+//! σ and ±2σ coverage of an estimator, to see where and why coverage is
+//! lost (docs/estimators.md, the tracker's section).
+//!
+//!   cargo run --release -p lightpose-analysis --example ridge_diag -- \
+//!       SCENE TRAJECTORY CALIBRATION [RUNS] [ESTIMATOR] [AXES]
+//!
+//! AXES: comma-separated of x,y,z,pitch,yaw,surge (default z,pitch).
+//! Environment: TRK = TOML of `[estimator.tracker]` settings to try,
+//! ATT = set to add the attitude sensor (0.3°, 1.5°), QUIET = summary only.
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{Scene, Simulator, Trajectory};
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
-fn main() {
+fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
+    if args.len() < 4 {
+        return Err(
+            "usage: ridge_diag SCENE TRAJECTORY CALIBRATION [RUNS] [ESTIMATOR] [AXES]".into(),
+        );
+    }
     let (scene, traj, cal) = (&args[1], &args[2], &args[3]);
     let runs: usize = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(200);
     let name = args.get(5).cloned().unwrap_or("tracker".into());
-    let mut base = Scene::load(std::path::Path::new(scene)).unwrap();
+    let mut base = Scene::load(std::path::Path::new(scene))?;
     if std::env::var("ATT").is_ok() {
         base.attitude = Some(lightpose_sim::AttitudeNoise {
             sigma_pitch: lightpose_core::Angle::from_deg(0.3),
             sigma_yaw: lightpose_core::Angle::from_deg(1.5),
         });
     }
-    let traj = Trajectory::load(std::path::Path::new(traj)).unwrap();
-    let mut cal = Calibration::load(std::path::Path::new(cal)).unwrap();
+    let traj = Trajectory::load(std::path::Path::new(traj))?;
+    let mut cal = Calibration::load(std::path::Path::new(cal))?;
     if let Ok(t) = std::env::var("TRK") {
         let mut st = cal.estimator.clone().unwrap_or_default();
-        st.tracker = toml::from_str(&t).unwrap();
+        st.tracker = toml::from_str(&t)?;
         cal.estimator = Some(st);
     }
     let times: Vec<f64> = traj.frame_times(base.adc.rate_hz).collect();
@@ -30,7 +43,7 @@ fn main() {
     let mut acc = vec![[[0.0f64; 5]; 6]; n];
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     let mut status = std::collections::BTreeMap::new();
-    let mut est = build_estimator(&name, &cal).unwrap();
+    let mut est = build_estimator(&name, &cal)?;
     for r in 0..runs {
         let mut s = base.clone();
         let n1: f64 = StandardNormal.sample(&mut rng);
@@ -92,7 +105,7 @@ fn main() {
     }
     println!(" {status:?}");
     if quiet {
-        return;
+        return Ok(());
     }
     for j in 0..n {
         print!("{:5.1}", times[j]);
@@ -108,4 +121,5 @@ fn main() {
         }
         println!();
     }
+    Ok(())
 }

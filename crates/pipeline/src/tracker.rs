@@ -495,13 +495,7 @@ impl Tracker {
         let mut used = [false; NDET];
         let mut n_used = 0usize;
         for k in 0..NDET {
-            let obs = frame.counts[k] as f64;
-            let z = match kinds[k] {
-                Censoring::Data => Some(obs),
-                Censoring::Saturated => (zbar[k] < fs - 0.5).then_some(fs - 0.5),
-                Censoring::Dark => (zbar[k] > obs.max(0.5)).then_some(obs.max(0.5)),
-            };
-            if let Some(z) = z {
+            if let Some(z) = kinds[k].target(frame.counts[k] as f64, zbar[k], fs) {
                 y[k] = z - zbar[k];
                 used[k] = true;
                 n_used += 1;
@@ -592,13 +586,9 @@ impl Tracker {
             let mut n_used = 0usize;
             let mut used = [false; NDET];
             for k in 0..NDET {
-                let obs = frame.counts[k] as f64;
-                let z = match kinds[k] {
-                    Censoring::Data => Some(obs),
-                    Censoring::Saturated => (pred[k] < fs - 0.5).then_some(fs - 0.5),
-                    Censoring::Dark => (pred[k] > obs.max(0.5)).then_some(obs.max(0.5)),
+                let Some(z) = kinds[k].target(frame.counts[k] as f64, pred[k], fs) else {
+                    continue;
                 };
-                let Some(z) = z else { continue };
                 for j in 0..5 {
                     h[(k, j)] = jac[(k, j)];
                 }

@@ -55,6 +55,20 @@ impl Censoring {
         }
         out
     }
+
+    /// The value a filter should pull the prediction `pred` toward for a
+    /// channel that read `obs` (full scale `fs`): the reading for data;
+    /// for a censored channel the bound it proves, only when the
+    /// prediction is on the wrong side of it (else the channel says
+    /// nothing).
+    #[inline]
+    pub fn target(self, obs: f64, pred: f64, fs: f64) -> Option<f64> {
+        match self {
+            Censoring::Data => Some(obs),
+            Censoring::Saturated => (pred < fs - 0.5).then_some(fs - 0.5),
+            Censoring::Dark => (pred > obs.max(0.5)).then_some(obs.max(0.5)),
+        }
+    }
 }
 
 /// A Gaussian prior on some pose coordinates (pitch and yaw from an
