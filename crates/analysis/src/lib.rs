@@ -9,8 +9,10 @@
 //! - [`stats`]: per-step ensemble statistics and coverage;
 //! - [`paper`]: the paper's published figures and which case a run is;
 //! - [`report`]: the per-step CSV and `summary.md`;
-//! - [`plot`]: Figures 6–8 style plots, PNG and SVG, with a bundled font.
+//! - [`plot`]: Figures 6–8 style plots, PNG and SVG, with a bundled font;
+//! - [`bound`]: a scene's Cramér–Rao bound along a trajectory.
 
+pub mod bound;
 pub mod montecarlo;
 pub mod paper;
 pub mod plot;

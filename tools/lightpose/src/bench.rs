@@ -12,12 +12,12 @@
 //! estimator's cost.
 
 use anyhow::Context;
+use lightpose_analysis::bound::crb_scene;
 use lightpose_analysis::montecarlo::{self, Axis, McConfig, McResult, AXES};
 use lightpose_analysis::report::headline;
 use lightpose_analysis::PaperCase;
 use lightpose_core::{Angle, Estimator, Frame};
-use lightpose_pipeline::crb::{crb_along, CrbBound, CrbScene};
-use lightpose_pipeline::model::SensorModel;
+use lightpose_pipeline::crb::{crb_along, CrbBound};
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{AttitudeNoise, Scene, Simulator, Trajectory};
 use std::fmt::Write as _;
@@ -88,20 +88,6 @@ const CASES: [Case; 3] = [
         calibration: "config/calibration/harbour.toml",
     },
 ];
-
-/// The true sensor of a scene, as the bound needs it.
-fn sensor_of(s: &Scene) -> SensorModel {
-    SensorModel {
-        light: s.light,
-        geometry: s.geometry,
-        gain: s.gain,
-        offset_v: s.offset_v,
-        v_ref: s.adc.v_ref,
-        adc_bits: s.adc.bits,
-        sigma_e_v: s.noise.map_or(0.0, |n| n.sigma_e_v),
-        kappa_v: s.noise.map_or(0.0, |n| n.kappa_v),
-    }
-}
 
 /// Median wall time per frame of `est` over `runs` simulated realizations
 /// of the nominal scene, microseconds. Each realization is replayed until
@@ -278,13 +264,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
                 .flatten()
                 .map(|&t| traj.sample(t).0)
                 .collect();
-            let crb_scene = CrbScene {
-                model: sensor_of(&scene),
-                temp_c: scene.temp_c,
-                sigma_k_d: Some(scene.montecarlo.sigma_k_d).filter(|s| *s > 0.0),
-                sigma_temp_c: Some(scene.montecarlo.sigma_temp_c).filter(|s| *s > 0.0),
-                attitude_sigma: scene.attitude.map(|n| (n.sigma_pitch, n.sigma_yaw)),
-            };
+            let crb_scene = crb_scene(&scene);
             let crb = crb_along(&crb_scene, &ends);
             let timing = simulate_runs(&scene, &traj, a.timing_runs.max(1), a.seed);
             let cfg = McConfig {

@@ -3,6 +3,7 @@
 
 mod bench;
 mod calibrate;
+mod crb;
 mod montecarlo;
 mod replay;
 mod simulate;
@@ -35,6 +36,8 @@ enum Cmd {
     Montecarlo(montecarlo::MontecarloArgs),
     /// Trade table: every estimator's speed, accuracy and honesty on the paper's cases.
     Bench(bench::BenchArgs),
+    /// Cramér–Rao bound of a scene along a trajectory, one row per frame.
+    Crb(crb::CrbArgs),
 }
 
 fn main() -> ExitCode {
@@ -46,6 +49,7 @@ fn main() -> ExitCode {
         Cmd::Replay(a) => replay::run(a),
         Cmd::Montecarlo(a) => montecarlo::run(a),
         Cmd::Bench(a) => bench::run(a),
+        Cmd::Crb(a) => crb::run(a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

@@ -207,3 +207,48 @@ fn bench_runs_every_estimator_on_one_case() {
     assert!(!ok);
     assert!(err.contains("unknown case \"spiral\""), "{err}");
 }
+
+/// `lightpose crb` prints the bound at every frame of the trajectory: the
+/// y/yaw ridge without the attitude sensor, pinned with it (MODEL.md).
+#[test]
+fn crb_prints_the_bound_along_the_trajectory() {
+    let scene = root().join("config/scenes/tank.toml");
+    let traj = root().join("config/trajectories/dive.csv");
+    let rows = |extra: &[&str]| -> Vec<Vec<f64>> {
+        let mut args = vec!["crb", "--scene", s(&scene), "--trajectory", s(&traj)];
+        args.extend_from_slice(extra);
+        let (ok, out, err) = lightpose(&args);
+        assert!(ok, "{err}");
+        out.lines()
+            .filter(|l| l.starts_with("| ") && !l.starts_with("| t "))
+            .map(|l| {
+                l.trim_matches('|')
+                    .split('|')
+                    .map(|c| c.trim().replace('∞', "inf").parse::<f64>().expect("number"))
+                    .collect()
+            })
+            .collect()
+    };
+    let free = rows(&[]);
+    let pinned = rows(&["--attitude", "on"]);
+    // 8 s at 5 Hz: 41 frames, t in column 0, bound y in column 7.
+    assert_eq!(free.len(), 41);
+    assert_eq!(pinned.len(), 41);
+    assert_eq!(free[40][0], 8.0);
+    assert!(free.iter().all(|r| r[7] > 1.0), "{free:?}");
+    assert!(pinned.iter().all(|r| r[7] < 0.3), "{pinned:?}");
+    let every = rows(&["--every", "10", "--half-width"]);
+    assert_eq!(every.len(), 5);
+    assert!((every[4][6] / free[40][6] - 1.959964).abs() < 0.01);
+
+    let (ok, _, err) = lightpose(&[
+        "crb",
+        "--scene",
+        "no/such/scene.toml",
+        "--trajectory",
+        s(&traj),
+    ]);
+    assert!(!ok);
+    assert!(err.contains("no/such/scene.toml"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+}

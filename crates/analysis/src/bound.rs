@@ -1,0 +1,101 @@
+//! The Cramér–Rao bound of a simulated scene, as the Monte Carlo draws it:
+//! the scene's true sensor, its K_D and temperature spreads as the priors
+//! an estimator does not know, and its attitude sensor when it has one.
+//!
+//! Why here: `lightpose bench` sets the bound beside every estimator and
+//! `lightpose crb` prints it along a trajectory; both must mean the same
+//! scene, and only this crate knows both the simulator's `Scene` and the
+//! pipeline's `CrbScene`.
+
+use lightpose_core::Pose;
+use lightpose_pipeline::crb::{crb_along, CrbBound, CrbScene};
+use lightpose_pipeline::model::SensorModel;
+use lightpose_sim::{Scene, Trajectory};
+
+/// The true sensor of a scene (what the simulator draws frames from).
+pub fn sensor_of(s: &Scene) -> SensorModel {
+    SensorModel {
+        light: s.light,
+        geometry: s.geometry,
+        gain: s.gain,
+        offset_v: s.offset_v,
+        v_ref: s.adc.v_ref,
+        adc_bits: s.adc.bits,
+        sigma_e_v: s.noise.map_or(0.0, |n| n.sigma_e_v),
+        kappa_v: s.noise.map_or(0.0, |n| n.kappa_v),
+    }
+}
+
+/// The bound's view of `s`: spreads of `[montecarlo]` (a zero spread means
+/// known exactly) and the `[attitude]` sensor when present.
+pub fn crb_scene(s: &Scene) -> CrbScene {
+    CrbScene {
+        model: sensor_of(s),
+        temp_c: s.temp_c,
+        sigma_k_d: Some(s.montecarlo.sigma_k_d).filter(|v| *v > 0.0),
+        sigma_temp_c: Some(s.montecarlo.sigma_temp_c).filter(|v| *v > 0.0),
+        attitude_sigma: s.attitude.map(|n| (n.sigma_pitch, n.sigma_yaw)),
+    }
+}
+
+/// One frame time of a trajectory with its true pose and the bound there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoundStep {
+    pub t: f64,
+    pub pose: Pose,
+    pub bound: CrbBound,
+}
+
+/// The single-frame bound at every frame time of `traj` (the scene's ADC
+/// rate), in time order.
+pub fn along_trajectory(s: &Scene, traj: &Trajectory) -> Vec<BoundStep> {
+    let times: Vec<f64> = traj.frame_times(s.adc.rate_hz).collect();
+    let poses: Vec<Pose> = times.iter().map(|&t| traj.sample(t).0).collect();
+    let bounds = crb_along(&crb_scene(s), &poses);
+    times
+        .into_iter()
+        .zip(poses)
+        .zip(bounds)
+        .map(|((t, pose), bound)| BoundStep { t, pose, bound })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lightpose_core::Angle;
+    use lightpose_sim::AttitudeNoise;
+    use std::path::Path;
+
+    fn load() -> (Scene, Trajectory) {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let s = Scene::load(&root.join("config/scenes/tank.toml")).expect("tank scene");
+        let t = Trajectory::load(&root.join("config/trajectories/dive.csv")).expect("dive");
+        (s, t)
+    }
+
+    /// MODEL.md, Frames: one frame cannot separate y from yaw or z from
+    /// pitch; the attitude sensor pins them, and (information only adds)
+    /// never loosens any axis.
+    #[test]
+    fn the_bound_shows_the_ridge_and_the_sensor_closes_it() {
+        let (mut s, traj) = load();
+        let free = along_trajectory(&s, &traj);
+        assert_eq!(free.len(), 41);
+        assert!(free
+            .iter()
+            .all(|b| b.bound.y > 1.0 && b.bound.yaw_deg > 10.0));
+        s.attitude = Some(AttitudeNoise {
+            sigma_pitch: Angle::from_deg(0.3),
+            sigma_yaw: Angle::from_deg(1.5),
+        });
+        let pinned = along_trajectory(&s, &traj);
+        for (f, p) in free.iter().zip(&pinned) {
+            assert!(p.bound.y < 0.3 && p.bound.z < 0.3, "{p:?}");
+            assert!(p.bound.pitch_deg <= 0.3 + 1e-9 && p.bound.yaw_deg <= 1.5 + 1e-9);
+            assert!(p.bound.x <= f.bound.x * (1.0 + 1e-9), "{f:?} {p:?}");
+        }
+        // Closer is better: the end of the dive (4.5 m) beats its start.
+        assert!(pinned[40].bound.y < pinned[0].bound.y);
+    }
+}
