@@ -58,7 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let f = sim.frame(j as u64, t, &p, Some(su));
             let e = est.estimate(&f);
             *status.entry(format!("{:?}", e.status)).or_insert(0usize) += 1;
-            let tr = [p.x, p.y, p.z, p.pitch.deg(), p.yaw.deg(), su];
+            let tr = p.values_with_surge(su);
             let v = e.values();
             let sd = e.std.values();
             for a in 0..6 {

@@ -90,14 +90,7 @@ impl Axis {
 
 /// The true value of every axis at one step (angles in degrees).
 pub fn truth_row(pose: &Pose, surge: f64) -> [f64; NAXES] {
-    [
-        pose.x,
-        pose.y,
-        pose.z,
-        pose.pitch.deg(),
-        pose.yaw.deg(),
-        surge,
-    ]
+    pose.values_with_surge(surge)
 }
 
 #[derive(Debug, thiserror::Error)]

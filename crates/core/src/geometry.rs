@@ -101,6 +101,20 @@ impl Pose {
     pub fn attitude(&self) -> Attitude {
         Attitude::new(self.pitch, self.yaw)
     }
+    /// This pose and a surge as six numbers in POSE message order (x, y, z
+    /// in m, pitch and yaw in degrees, surge in m/s), the order of
+    /// `PoseEstimate::values`: truth beside an estimate, axis by axis.
+    #[inline]
+    pub fn values_with_surge(&self, surge: f64) -> [f64; 6] {
+        [
+            self.x,
+            self.y,
+            self.z,
+            self.pitch.deg(),
+            self.yaw.deg(),
+            surge,
+        ]
+    }
 }
 
 #[cfg(test)]

@@ -177,14 +177,7 @@ impl Tally {
             return;
         }
         self.ok += 1;
-        let t = [
-            truth.x,
-            truth.y,
-            truth.z,
-            truth.pitch.deg(),
-            truth.yaw.deg(),
-            surge,
-        ];
+        let t = truth.values_with_surge(surge);
         let g = e.values();
         let sd = e.std.values();
         let mut beyond = false;

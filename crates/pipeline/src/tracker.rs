@@ -872,14 +872,7 @@ mod tests {
                     assert!(i <= 6 || e.status == Status::Initialising, "{e:?}");
                     continue;
                 }
-                let truth = [
-                    pose.x,
-                    pose.y,
-                    pose.z,
-                    pose.pitch.deg(),
-                    pose.yaw.deg(),
-                    surge,
-                ];
+                let truth = pose.values_with_surge(surge);
                 let got = e.values();
                 let sd = e.std.values();
                 n += 1;

@@ -64,7 +64,7 @@ fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
             if e.status != Status::Ok {
                 continue;
             }
-            let truth = [p.x, p.y, p.z, p.pitch.deg(), p.yaw.deg(), surge];
+            let truth = p.values_with_surge(surge);
             let got = e.values();
             let sd = e.std.values();
             n += 1;
