@@ -25,10 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let name = args.get(5).cloned().unwrap_or("tracker".into());
     let mut base = Scene::load(std::path::Path::new(scene))?;
     if std::env::var("ATT").is_ok() {
-        base.attitude = Some(lightpose_sim::AttitudeNoise {
-            sigma_pitch: lightpose_core::Angle::from_deg(0.3),
-            sigma_yaw: lightpose_core::Angle::from_deg(1.5),
-        });
+        base.attitude = Some(lightpose_sim::AttitudeNoise::default());
     }
     let traj = Trajectory::load(std::path::Path::new(traj))?;
     let mut cal = Calibration::load(std::path::Path::new(cal))?;

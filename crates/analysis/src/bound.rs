@@ -63,7 +63,6 @@ pub fn along_trajectory(s: &Scene, traj: &Trajectory) -> Vec<BoundStep> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lightpose_core::Angle;
     use lightpose_sim::AttitudeNoise;
     use std::path::Path;
 
@@ -85,10 +84,7 @@ mod tests {
         assert!(free
             .iter()
             .all(|b| b.bound.y > 1.0 && b.bound.yaw_deg > 10.0));
-        s.attitude = Some(AttitudeNoise {
-            sigma_pitch: Angle::from_deg(0.3),
-            sigma_yaw: Angle::from_deg(1.5),
-        });
+        s.attitude = Some(AttitudeNoise::default());
         let pinned = along_trajectory(&s, &traj);
         for (f, p) in free.iter().zip(&pinned) {
             assert!(p.bound.y < 0.3 && p.bound.z < 0.3, "{p:?}");

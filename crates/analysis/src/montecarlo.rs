@@ -88,11 +88,6 @@ impl Axis {
     }
 }
 
-/// The true value of every axis at one step (angles in degrees).
-pub fn truth_row(pose: &Pose, surge: f64) -> [f64; NAXES] {
-    pose.values_with_surge(surge)
-}
-
 #[derive(Debug, thiserror::Error)]
 pub enum McError {
     #[error("runs must be at least 1")]
@@ -241,7 +236,10 @@ where
         .to_string();
 
     let truth_pose: Vec<(Pose, f64)> = times.iter().map(|&t| cfg.trajectory.sample(t)).collect();
-    let truth: Vec<[f64; NAXES]> = truth_pose.iter().map(|(p, s)| truth_row(p, *s)).collect();
+    let truth: Vec<[f64; NAXES]> = truth_pose
+        .iter()
+        .map(|(p, s)| p.values_with_surge(*s))
+        .collect();
     let nsteps = times.len();
     let per_run = nsteps * NAXES;
 
@@ -353,7 +351,7 @@ fn realization(
         let frame = sim.frame(j as u64, t, pose, Some(*surge));
         let e = est.estimate(&frame);
         oks[j] = e.status == lightpose_core::Status::Ok;
-        let tr = truth_row(pose, *surge);
+        let tr = pose.values_with_surge(*surge);
         for a in AXES {
             let k = j * NAXES + a.index();
             let v = a.of(&e).filter(|v| v.is_finite());

@@ -235,6 +235,15 @@ fn beam_consider_sigma_x(x: &Vs, p: &Ms, sigma_b_rad: f64) -> f64 {
     }
 }
 
+/// Add the discrete noise of a white acceleration (density `qq`) over `dt`
+/// to coordinate `i` and its rate `i + 5`.
+fn add_white_accel(q: &mut Ms, i: usize, qq: f64, dt: f64) {
+    q[(i, i)] += qq * dt.powi(3) / 3.0;
+    q[(i, i + 5)] += qq * dt.powi(2) / 2.0;
+    q[(i + 5, i)] += qq * dt.powi(2) / 2.0;
+    q[(i + 5, i + 5)] += qq * dt;
+}
+
 /// EKF tracker (name `"tracker"`).
 #[derive(Debug, Clone)]
 pub struct Tracker {
@@ -344,6 +353,11 @@ impl Tracker {
         s.p = (s.p + s.p.transpose()) * 0.5;
     }
 
+    /// `ang_accel_psd_deg` is a density in (°/s²)²/Hz; the state is in rad.
+    fn ang_accel_psd_rad(&self) -> f64 {
+        self.cfg.ang_accel_psd_deg * (std::f64::consts::PI / 180.0).powi(2)
+    }
+
     /// Constant velocity in B, white acceleration on every axis.
     fn predict_world(&self, s: &mut State, dt: f64) {
         let mut f = Ms::identity();
@@ -351,14 +365,10 @@ impl Tracker {
             f[(i, i + 5)] = dt;
         }
         let mut q = Ms::zeros();
-        // ang_accel_psd_deg is a density in (°/s²)²/Hz: convert to rad.
-        let qa = self.cfg.ang_accel_psd_deg * (std::f64::consts::PI / 180.0).powi(2);
+        let qa = self.ang_accel_psd_rad();
         for i in 0..5 {
             let qq = if i < 3 { self.cfg.accel_psd } else { qa };
-            q[(i, i)] = qq * dt.powi(3) / 3.0;
-            q[(i, i + 5)] = qq * dt.powi(2) / 2.0;
-            q[(i + 5, i)] = qq * dt.powi(2) / 2.0;
-            q[(i + 5, i + 5)] = qq * dt;
+            add_white_accel(&mut q, i, qq, dt);
         }
         s.x = f * s.x;
         s.p = f * s.p * f.transpose() + q;
@@ -415,12 +425,9 @@ impl Tracker {
             }
             q[(vi, vi)] += qq * dt;
         }
-        let qa = c.ang_accel_psd_deg * (std::f64::consts::PI / 180.0).powi(2);
+        let qa = self.ang_accel_psd_rad();
         for i in 3..5 {
-            q[(i, i)] = qa * dt.powi(3) / 3.0;
-            q[(i, i + 5)] = qa * dt.powi(2) / 2.0;
-            q[(i + 5, i)] = qa * dt.powi(2) / 2.0;
-            q[(i + 5, i + 5)] = qa * dt;
+            add_white_accel(&mut q, i, qa, dt);
         }
         s.p = f * s.p * f.transpose() + q;
     }
@@ -487,7 +494,8 @@ impl Tracker {
             predict(m, &q, kd, gt).0
         };
         let h = H2.sqrt();
-        let z0 = mean(&SVector::zeros());
+        // The centre point also gives the irradiance the noise model needs.
+        let (z0, irr) = predict(m, &PoseVec::from_fn(|i, _| s.x[i]), s.x[KD].max(0.0), gt);
         let mut s1 = SMatrix::<f64, NDET, NP>::zeros();
         let mut s2 = SMatrix::<f64, NDET, NP>::zeros();
         let mut zbar = z0 * ((H2 - NP as f64) / H2);
@@ -502,7 +510,6 @@ impl Tracker {
             );
             zbar += (zp + zm) / (2.0 * H2);
         }
-        let (_, irr) = predict(m, &PoseVec::from_fn(|i, _| s.x[i]), s.x[KD].max(0.0), gt);
         let mut y = SVector::<f64, NDET>::zeros();
         let mut used = [false; NDET];
         let mut n_used = 0usize;

@@ -55,6 +55,16 @@ pub struct AttitudeNoise {
     pub sigma_yaw: Angle,
 }
 
+impl Default for AttitudeNoise {
+    /// MODEL.md's attitude sensor (scene-example.toml): 0.3° pitch, 1.5° yaw.
+    fn default() -> Self {
+        AttitudeNoise {
+            sigma_pitch: Angle::from_deg(0.3),
+            sigma_yaw: Angle::from_deg(1.5),
+        }
+    }
+}
+
 /// A validated scene.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
@@ -397,6 +407,7 @@ impl Scene {
                 "≥ 0",
             )?,
         };
+        let default_attitude = AttitudeNoise::default();
         let attitude = match raw.attitude {
             None => None,
             Some(at) => Some(AttitudeNoise {
@@ -404,7 +415,7 @@ impl Scene {
                     "attitude",
                     "sigma_pitch_deg",
                     at.sigma_pitch_deg,
-                    0.3,
+                    default_attitude.sigma_pitch.deg(),
                     non_negative,
                     "≥ 0",
                 )?),
@@ -412,7 +423,7 @@ impl Scene {
                     "attitude",
                     "sigma_yaw_deg",
                     at.sigma_yaw_deg,
-                    1.5,
+                    default_attitude.sigma_yaw.deg(),
                     non_negative,
                     "≥ 0",
                 )?),

@@ -11,23 +11,19 @@
 //! simulator inside the loop, so its wall time says nothing about one
 //! estimator's cost.
 
+use crate::cells::{num, Z95};
 use anyhow::Context;
 use lightpose_analysis::bound::crb_scene;
 use lightpose_analysis::montecarlo::{self, Axis, McConfig, McResult, AXES};
 use lightpose_analysis::report::headline;
 use lightpose_analysis::PaperCase;
-use lightpose_core::{Angle, Estimator, Frame};
+use lightpose_core::{Estimator, Frame};
 use lightpose_pipeline::crb::{crb_along, CrbBound};
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{AttitudeNoise, Scene, Simulator, Trajectory};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-/// The attitude sensor of MODEL.md (1σ pitch 0.3°, yaw 1.5°).
-const AHRS: (f64, f64) = (0.3, 1.5);
-/// z of a 95 % two-sided interval: CRB σ → half-width.
-const Z95: f64 = 1.959964;
 
 #[derive(clap::Args)]
 pub struct BenchArgs {
@@ -144,16 +140,6 @@ fn crb_of(b: &CrbBound, a: Axis) -> Option<f64> {
     }
 }
 
-fn num(v: Option<f64>) -> String {
-    match v {
-        Some(v) if v.is_finite() && v >= 1e3 => format!("{v:.1e}"),
-        Some(v) if v.is_finite() && v >= 10.0 => format!("{v:.1}"),
-        Some(v) if v.is_finite() => format!("{v:.3}"),
-        Some(v) if v.is_infinite() => "∞".into(),
-        _ => "—".into(),
-    }
-}
-
 /// One estimator's row set of a case.
 struct Row {
     name: String,
@@ -252,10 +238,8 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
             load_case(&a.root, case).with_context(|| format!("case {}", case.name))?;
         for &ahrs in modes {
             let mut scene = base.clone();
-            scene.attitude = ahrs.then(|| AttitudeNoise {
-                sigma_pitch: Angle::from_deg(AHRS.0),
-                sigma_yaw: Angle::from_deg(AHRS.1),
-            });
+            // MODEL.md's attitude sensor (1σ pitch 0.3°, yaw 1.5°).
+            scene.attitude = ahrs.then(AttitudeNoise::default);
             // The bound at the ends of the trajectory, with the engine's
             // K_D and temperature spreads and the sensor when present.
             let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();

@@ -2,14 +2,11 @@
 //! row per frame — the limit every estimator is held against (docs/
 //! estimators.md). Thin: the bound is `lightpose_analysis::bound`.
 
+use crate::cells::{num, Z95};
 use lightpose_analysis::bound::along_trajectory;
-use lightpose_core::Angle;
 use lightpose_sim::{AttitudeNoise, Scene, Trajectory};
 use std::fmt::Write as _;
 use std::path::PathBuf;
-
-/// z of a 95 % two-sided interval: σ → half-width.
-const Z95: f64 = 1.959964;
 
 #[derive(clap::Args)]
 pub struct CrbArgs {
@@ -33,29 +30,12 @@ pub struct CrbArgs {
     every: usize,
 }
 
-fn cell(v: f64) -> String {
-    if !v.is_finite() {
-        "∞".into()
-    } else if v >= 1e3 {
-        format!("{v:.1e}")
-    } else if v >= 10.0 {
-        format!("{v:.1}")
-    } else {
-        format!("{v:.3}")
-    }
-}
-
 pub fn run(a: CrbArgs) -> anyhow::Result<()> {
     let mut scene = Scene::load(&a.scene)?;
     let traj = Trajectory::load(&a.trajectory)?;
     match a.attitude.as_str() {
         "off" => scene.attitude = None,
-        "on" if scene.attitude.is_none() => {
-            scene.attitude = Some(AttitudeNoise {
-                sigma_pitch: Angle::from_deg(0.3),
-                sigma_yaw: Angle::from_deg(1.5),
-            })
-        }
+        "on" if scene.attitude.is_none() => scene.attitude = Some(AttitudeNoise::default()),
         _ => {}
     }
     let steps = along_trajectory(&scene, &traj);
@@ -102,11 +82,11 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
             s.pose.z,
             s.pose.pitch.deg(),
             s.pose.yaw.deg(),
-            cell(k * b.x),
-            cell(k * b.y),
-            cell(k * b.z),
-            cell(k * b.pitch_deg),
-            cell(k * b.yaw_deg),
+            num(Some(k * b.x)),
+            num(Some(k * b.y)),
+            num(Some(k * b.z)),
+            num(Some(k * b.pitch_deg)),
+            num(Some(k * b.yaw_deg)),
         );
     }
     print!("{out}");

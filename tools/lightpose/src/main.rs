@@ -3,6 +3,7 @@
 
 mod bench;
 mod calibrate;
+mod cells;
 mod crb;
 mod montecarlo;
 mod replay;

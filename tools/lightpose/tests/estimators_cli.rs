@@ -48,20 +48,28 @@ fn sweep(dir: &Path, scene: &Path) -> (PathBuf, PathBuf) {
     (sw, dk)
 }
 
+/// `lightpose calibrate` on a (sweep, dark) pair into `out`, plus `extra`
+/// arguments; as [`lightpose`] returns.
+fn calibrate(sw: &Path, dk: &Path, out: &Path, extra: &[&str]) -> (bool, String, String) {
+    let mut args = vec![
+        "calibrate",
+        "--sweep",
+        s(sw),
+        "--dark",
+        s(dk),
+        "--out",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    lightpose(&args)
+}
+
 #[test]
 fn calibrate_fits_the_light_model_and_auto_replay_uses_the_tracker() {
     let dir = tempfile::tempdir().unwrap();
     let (sw, dk) = sweep(dir.path(), &root().join("config/scenes/tank.toml"));
     let cal = dir.path().join("cal.toml");
-    let (ok, _, err) = lightpose(&[
-        "calibrate",
-        "--sweep",
-        s(&sw),
-        "--dark",
-        s(&dk),
-        "--out",
-        s(&cal),
-    ]);
+    let (ok, _, err) = calibrate(&sw, &dk, &cal, &[]);
     assert!(ok, "{err}");
     // Each light-model parameter is printed with its standard error.
     for p in [
@@ -132,17 +140,7 @@ fn a_light_model_the_sweep_cannot_determine_is_left_out_with_one_warning() {
     std::fs::write(&scene, no_scatter).unwrap();
     let (sw, dk) = sweep(dir.path(), &scene);
     let cal = dir.path().join("cal.toml");
-    let (ok, _, err) = lightpose(&[
-        "calibrate",
-        "--sweep",
-        s(&sw),
-        "--dark",
-        s(&dk),
-        "--out",
-        s(&cal),
-        "--scattering",
-        "on",
-    ]);
+    let (ok, _, err) = calibrate(&sw, &dk, &cal, &["--scattering", "on"]);
     assert!(ok, "{err}");
     let warnings: Vec<&str> = err.lines().filter(|l| l.contains("warning")).collect();
     assert_eq!(warnings.len(), 1, "{err}");
