@@ -1,8 +1,9 @@
 //! One frame of the array: 25 ADC counts, when they were taken, the water
-//! temperature reported with them, and (from a simulator or tank carriage)
-//! the true pose.
+//! temperature reported with them, what the vehicle's own sensors (attitude,
+//! depth, DVL) read at the same moment, and (from a simulator or tank
+//! carriage) the true pose.
 
-use crate::{Angle, Pose, NDET};
+use crate::{Angle, BodyVec, Pose, NDET};
 
 /// True pose of a frame (simulator or tank carriage), with surge if known.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -16,6 +17,60 @@ pub struct Truth {
 pub struct AttitudeReading {
     pub pitch: Angle,
     pub yaw: Angle,
+    /// 1σ of this reading, when the frame says (FORMATS.md `std`); else the
+    /// estimator's configured sensor noise applies.
+    pub std: Option<AttitudeStd>,
+}
+
+/// 1σ of an attitude reading.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttitudeStd {
+    pub pitch: Angle,
+    pub yaw: Angle,
+}
+
+impl AttitudeReading {
+    /// A reading without its own noise figure.
+    pub fn new(pitch: Angle, yaw: Angle) -> Self {
+        AttitudeReading {
+            pitch,
+            yaw,
+            std: None,
+        }
+    }
+}
+
+/// What the vehicle's depth sensor gives at capture, already referred to the
+/// beacon: the vehicle's z in B, metres (spec v2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthReading {
+    pub z: f64,
+    /// 1σ, metres, when the frame says.
+    pub std: Option<f64>,
+}
+
+impl DepthReading {
+    pub fn new(z: f64) -> Self {
+        DepthReading { z, std: None }
+    }
+}
+
+/// What the DVL gives at capture: the vehicle's velocity over the ground in
+/// the body frame V (forward, right, down), m/s (spec v2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VelocityReading {
+    pub v: BodyVec,
+    /// 1σ of each component, m/s, when the frame says.
+    pub std: Option<BodyVec>,
+}
+
+impl VelocityReading {
+    pub fn new(fwd: f64, right: f64, down: f64) -> Self {
+        VelocityReading {
+            v: BodyVec([fwd, right, down]),
+            std: None,
+        }
+    }
 }
 
 /// One capture of the array. Fixed-size so that the hot path never
@@ -32,9 +87,26 @@ pub struct Frame {
     pub temp_c: Option<f64>,
     pub truth: Option<Truth>,
     pub attitude: Option<AttitudeReading>,
+    pub depth: Option<DepthReading>,
+    pub velocity: Option<VelocityReading>,
 }
 
 impl Frame {
+    /// A frame of counts alone: no temperature, no aiding reading, no truth.
+    pub fn new(seq: u64, t: f64, adc_bits: u8, counts: [u16; NDET]) -> Self {
+        Frame {
+            seq,
+            t,
+            adc_bits,
+            counts,
+            temp_c: None,
+            truth: None,
+            attitude: None,
+            depth: None,
+            velocity: None,
+        }
+    }
+
     /// Largest count of this frame's ADC.
     #[inline]
     pub fn full_scale(&self) -> u16 {

@@ -66,6 +66,18 @@ impl Attitude {
         ])
     }
 
+    /// Rotate a beam vector into the body frame (R_BVᵀ · v).
+    #[inline]
+    pub fn to_body(&self, v: &BeamVec) -> BodyVec {
+        let r = self.r_bv();
+        let [a, b, c] = v.0;
+        BodyVec([
+            r[0][0] * a + r[1][0] * b + r[2][0] * c,
+            r[0][1] * a + r[1][1] * b + r[2][1] * c,
+            r[0][2] * a + r[1][2] * b + r[2][2] * c,
+        ])
+    }
+
     /// The vehicle's forward axis in B: (−cθcψ, cθsψ, sθ).
     #[inline]
     pub fn forward(&self) -> BeamVec {
@@ -145,6 +157,19 @@ mod tests {
         let a = Attitude::new(Angle::from_rad(t), Angle::from_rad(p));
         let f = a.forward().0;
         assert!(close(f, [-t.cos() * p.cos(), t.cos() * p.sin(), t.sin()]));
+    }
+
+    #[test]
+    fn to_body_undoes_to_beam() {
+        let a = Attitude::new(Angle::from_deg(12.0), Angle::from_deg(-33.0));
+        let v = BodyVec([0.4, -0.2, 0.1]);
+        let back = a.to_body(&a.to_beam(&v));
+        for k in 0..3 {
+            assert!((back.0[k] - v.0[k]).abs() < 1e-15);
+        }
+        // Moving along the bow is all forward in V.
+        let f = a.to_body(&a.forward());
+        assert!((f.0[0] - 1.0).abs() < 1e-15 && f.0[1].abs() < 1e-15 && f.0[2].abs() < 1e-15);
     }
 
     #[test]

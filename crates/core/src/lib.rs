@@ -19,7 +19,7 @@ pub mod textpos;
 pub use angle::Angle;
 pub use array::{ArrayGeometry, COLS, NDET, ROWS};
 pub use estimator::Estimator;
-pub use frame::{AttitudeReading, Frame, Truth};
+pub use frame::{AttitudeReading, AttitudeStd, DepthReading, Frame, Truth, VelocityReading};
 pub use geometry::{Attitude, BeamVec, BodyVec, Pose};
 pub use light::{LightParams, Scattering};
 pub use log::{LogError, LogHeader, LogReader, LogWriter};

@@ -4,7 +4,8 @@
 //! and treats a cut-short last line (power loss) as the end of the log.
 
 use crate::frame::full_scale;
-use crate::{Angle, AttitudeReading, Frame, Pose, Truth, COLS, NDET, ROWS};
+use crate::frame::{AttitudeStd, DepthReading, VelocityReading};
+use crate::{Angle, AttitudeReading, BodyVec, Frame, Pose, Truth, COLS, NDET, ROWS};
 use serde::{Deserialize, Serialize};
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Write};
@@ -121,7 +122,14 @@ struct RawLine {
     counts: Option<Vec<serde_json::Value>>,
     temp_c: Option<f64>,
     truth: Option<RawTruth>,
-    attitude: Option<RawAttitude>,
+    // The vehicle's own readings are taken apart by hand: a reading that is
+    // malformed costs that reading (counted), never the frame's light.
+    attitude: Option<serde_json::Value>,
+    depth: Option<serde_json::Value>,
+    velocity: Option<serde_json::Value>,
+    /// A frame-level `std` object (`{"z":..,"fwd":..,..}`) for readings that
+    /// carry none of their own: FORMATS.md allows either place.
+    std: Option<serde_json::Value>,
 }
 
 #[derive(Deserialize, Serialize)]
@@ -135,10 +143,92 @@ struct RawTruth {
     surge: Option<f64>,
 }
 
-#[derive(Deserialize, Serialize)]
-struct RawAttitude {
-    pitch: f64,
-    yaw: f64,
+/// The named numbers of a reading object (`{"z":..}`, `{"fwd":..,..}`),
+/// with its optional `std` object, or why not.
+fn reading_fields<const N: usize>(
+    v: &serde_json::Value,
+    what: &str,
+    keys: [&str; N],
+    frame_std: Option<&serde_json::Value>,
+) -> Result<([f64; N], Option<[f64; N]>), String> {
+    let obj = v
+        .as_object()
+        .ok_or_else(|| format!("{what} is not an object"))?;
+    let mut vals = [0.0; N];
+    for (slot, key) in vals.iter_mut().zip(keys) {
+        *slot = obj
+            .get(key)
+            .and_then(|x| x.as_f64())
+            .ok_or_else(|| format!("{what} has no number {key}"))?;
+    }
+    let std = match obj.get("std").or(frame_std) {
+        None | Some(serde_json::Value::Null) => None,
+        Some(sv) => {
+            let so = sv
+                .as_object()
+                .ok_or_else(|| format!("{what} std is not an object"))?;
+            let mut out = [0.0; N];
+            let mut any = false;
+            for (slot, key) in out.iter_mut().zip(keys) {
+                match so.get(key) {
+                    None | Some(serde_json::Value::Null) => *slot = f64::NAN,
+                    Some(x) => {
+                        *slot = x
+                            .as_f64()
+                            .ok_or_else(|| format!("{what} std.{key} is not a number"))?;
+                        any = true;
+                    }
+                }
+            }
+            // A frame-level std that names none of this reading's keys is
+            // about another reading; a partial one is refused below.
+            if !any {
+                None
+            } else if out.iter().any(|x| x.is_nan()) {
+                return Err(format!("{what} std must give all of {}", keys.join(", ")));
+            } else {
+                Some(out)
+            }
+        }
+    };
+    Ok((vals, std))
+}
+
+fn parse_attitude(
+    v: &serde_json::Value,
+    fs: Option<&serde_json::Value>,
+) -> Result<AttitudeReading, String> {
+    let ([p, y], std) = reading_fields(v, "attitude", ["pitch", "yaw"], fs)?;
+    Ok(AttitudeReading {
+        pitch: Angle::from_deg(p),
+        yaw: Angle::from_deg(y),
+        std: std.map(|[sp, sy]| AttitudeStd {
+            pitch: Angle::from_deg(sp),
+            yaw: Angle::from_deg(sy),
+        }),
+    })
+}
+
+fn parse_depth(
+    v: &serde_json::Value,
+    fs: Option<&serde_json::Value>,
+) -> Result<DepthReading, String> {
+    let ([z], std) = reading_fields(v, "depth", ["z"], fs)?;
+    Ok(DepthReading {
+        z,
+        std: std.map(|[s]| s),
+    })
+}
+
+fn parse_velocity(
+    v: &serde_json::Value,
+    fs: Option<&serde_json::Value>,
+) -> Result<VelocityReading, String> {
+    let (fwd, std) = reading_fields(v, "velocity", ["fwd", "right", "down"], fs)?;
+    Ok(VelocityReading {
+        v: BodyVec(fwd),
+        std: std.map(BodyVec),
+    })
 }
 
 /// Streaming reader. Iterate to get frames; an `Err` names a line that was
@@ -155,6 +245,8 @@ pub struct LogReader<R> {
     last_seq: Option<u64>,
     seq_gaps: u64,
     lost_frames: u64,
+    bad_readings: u64,
+    last_bad_reading: Option<String>,
 }
 
 impl LogReader<BufReader<File>> {
@@ -209,6 +301,8 @@ impl<R: BufRead> LogReader<R> {
             last_seq: None,
             seq_gaps: 0,
             lost_frames: 0,
+            bad_readings: 0,
+            last_bad_reading: None,
         })
     }
 
@@ -229,6 +323,12 @@ impl<R: BufRead> LogReader<R> {
     /// Number of gaps in `seq`, and the frames they lost.
     pub fn seq_gaps(&self) -> (u64, u64) {
         (self.seq_gaps, self.lost_frames)
+    }
+    /// Sensor readings (attitude, depth, velocity) that were malformed and
+    /// left off their frame, which was kept; and the last one's reason with
+    /// its line.
+    pub fn bad_readings(&self) -> (u64, Option<&str>) {
+        (self.bad_readings, self.last_bad_reading.as_deref())
     }
 
     fn line_err(&self, msg: impl Into<String>) -> LogError {
@@ -298,7 +398,28 @@ impl<R: BufRead> LogReader<R> {
         }
     }
 
-    fn frame_from(&self, raw: RawLine) -> Result<Frame, LogError> {
+    /// A reading of the frame, or none when it is absent or malformed (then
+    /// counted and named: the frame keeps its light).
+    fn reading<T>(
+        &mut self,
+        v: Option<&serde_json::Value>,
+        fs: Option<&serde_json::Value>,
+        parse: fn(&serde_json::Value, Option<&serde_json::Value>) -> Result<T, String>,
+    ) -> Option<T> {
+        match v {
+            None | Some(serde_json::Value::Null) => None,
+            Some(v) => match parse(v, fs) {
+                Ok(r) => Some(r),
+                Err(msg) => {
+                    self.bad_readings += 1;
+                    self.last_bad_reading = Some(format!("{}:{}: {msg}", self.name, self.line_no));
+                    None
+                }
+            },
+        }
+    }
+
+    fn frame_from(&mut self, raw: RawLine) -> Result<Frame, LogError> {
         let seq = raw
             .seq
             .as_ref()
@@ -353,14 +474,10 @@ impl<R: BufRead> LogReader<R> {
                 })
             }
         };
-        let attitude = match raw.attitude {
-            None => None,
-            Some(a) if a.pitch.is_finite() && a.yaw.is_finite() => Some(AttitudeReading {
-                pitch: Angle::from_deg(a.pitch),
-                yaw: Angle::from_deg(a.yaw),
-            }),
-            Some(_) => return Err(self.line_err("attitude has a value that is not finite")),
-        };
+        let fs = raw.std.as_ref();
+        let attitude = self.reading(raw.attitude.as_ref(), fs, parse_attitude);
+        let depth = self.reading(raw.depth.as_ref(), fs, parse_depth);
+        let velocity = self.reading(raw.velocity.as_ref(), fs, parse_velocity);
         Ok(Frame {
             seq,
             t,
@@ -369,6 +486,8 @@ impl<R: BufRead> LogReader<R> {
             temp_c: raw.temp_c,
             truth,
             attitude,
+            depth,
+            velocity,
         })
     }
 }
@@ -417,7 +536,87 @@ struct FrameOut<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     truth: Option<RawTruth>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    attitude: Option<RawAttitude>,
+    attitude: Option<AttitudeOut>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    depth: Option<DepthOut>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    velocity: Option<VelocityOut>,
+}
+
+#[derive(Serialize)]
+struct AttitudeOut {
+    pitch: f64,
+    yaw: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    std: Option<AttitudeStdOut>,
+}
+#[derive(Serialize)]
+struct AttitudeStdOut {
+    pitch: f64,
+    yaw: f64,
+}
+#[derive(Serialize)]
+struct DepthOut {
+    z: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    std: Option<DepthStdOut>,
+}
+#[derive(Serialize)]
+struct DepthStdOut {
+    z: f64,
+}
+#[derive(Serialize)]
+struct VelocityOut {
+    fwd: f64,
+    right: f64,
+    down: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    std: Option<VelocityStdOut>,
+}
+#[derive(Serialize)]
+struct VelocityStdOut {
+    fwd: f64,
+    right: f64,
+    down: f64,
+}
+
+/// All finite, or none: a reading with a non-finite value is not written
+/// (FORMATS.md: writers never emit NaN or infinity).
+fn all_finite<const N: usize>(v: [f64; N]) -> Option<[f64; N]> {
+    v.iter().all(|x| x.is_finite()).then_some(v)
+}
+
+fn attitude_out(a: &AttitudeReading) -> Option<AttitudeOut> {
+    let [pitch, yaw] = all_finite([a.pitch.deg(), a.yaw.deg()])?;
+    Some(AttitudeOut {
+        pitch,
+        yaw,
+        std: a
+            .std
+            .and_then(|s| all_finite([s.pitch.deg(), s.yaw.deg()]))
+            .map(|[pitch, yaw]| AttitudeStdOut { pitch, yaw }),
+    })
+}
+
+fn depth_out(d: &DepthReading) -> Option<DepthOut> {
+    let [z] = all_finite([d.z])?;
+    Some(DepthOut {
+        z,
+        std: d.std.and_then(crate::finite).map(|z| DepthStdOut { z }),
+    })
+}
+
+fn velocity_out(v: &VelocityReading) -> Option<VelocityOut> {
+    let [fwd, right, down] = all_finite(v.v.0)?;
+    Some(VelocityOut {
+        fwd,
+        right,
+        down,
+        std: v
+            .std
+            .and_then(|s| all_finite(s.0))
+            .map(|[fwd, right, down]| VelocityStdOut { fwd, right, down }),
+    })
 }
 
 /// Streaming writer: each line is formatted whole in a reused buffer and
@@ -466,10 +665,9 @@ impl<W: Write> LogWriter<W> {
                 yaw: tr.pose.yaw.deg(),
                 surge: tr.surge.and_then(crate::finite),
             }),
-            attitude: f.attitude.map(|a| RawAttitude {
-                pitch: a.pitch.deg(),
-                yaw: a.yaw.deg(),
-            }),
+            attitude: f.attitude.as_ref().and_then(attitude_out),
+            depth: f.depth.as_ref().and_then(depth_out),
+            velocity: f.velocity.as_ref().and_then(velocity_out),
         };
         serde_json::to_writer(&mut self.line, &out)?;
         self.line.push(b'\n');
@@ -516,6 +714,8 @@ mod tests {
                 surge: Some(0.5),
             }),
             attitude: None,
+            depth: None,
+            velocity: None,
         }
     }
 
@@ -609,6 +809,90 @@ mod tests {
             let e = LogReader::new(text.as_bytes(), "h.jsonl").err().expect(text);
             assert!(e.to_string().contains(want), "{e} lacks {want}");
         }
+    }
+
+    #[test]
+    fn sensor_readings_and_their_std_round_trip() {
+        let mut f = frame(0);
+        f.attitude = Some(AttitudeReading {
+            pitch: Angle::from_deg(9.5),
+            yaw: Angle::from_deg(-1.25),
+            std: Some(AttitudeStd {
+                pitch: Angle::from_deg(0.3),
+                yaw: Angle::from_deg(1.5),
+            }),
+        });
+        f.depth = Some(DepthReading {
+            z: 0.123456789,
+            std: Some(0.02),
+        });
+        f.velocity = Some(VelocityReading::new(0.5, -0.01, 0.02));
+        let mut g = frame(1);
+        g.depth = Some(DepthReading::new(-0.5));
+        let bytes = write(&[f, g]);
+        let text = String::from_utf8(bytes.clone()).unwrap();
+        assert!(
+            text.contains(r#""depth":{"z":0.123456789,"std":{"z":0.02}}"#),
+            "{text}"
+        );
+        assert!(
+            text.contains(r#""velocity":{"fwd":0.5,"right":-0.01,"down":0.02}"#),
+            "{text}"
+        );
+        let (got, _) = read_all(&bytes);
+        let got: Vec<Frame> = got.into_iter().map(|r| r.unwrap()).collect();
+        assert_eq!(got[0].depth, f.depth);
+        assert_eq!(got[0].velocity, f.velocity);
+        let (a, b) = (got[0].attitude.unwrap(), f.attitude.unwrap());
+        assert!((a.pitch.deg() - b.pitch.deg()).abs() < 1e-12);
+        assert!((a.std.unwrap().yaw.deg() - 1.5).abs() < 1e-12);
+        assert_eq!(got[1].depth, Some(DepthReading::new(-0.5)));
+        assert_eq!(got[1].velocity, None);
+    }
+
+    #[test]
+    fn a_malformed_reading_is_dropped_and_counted_and_the_frame_kept() {
+        let mut bytes = write(&[]);
+        let c = "[1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16,17,18,19,20,21,22,23,24,25]";
+        for (seq, extra) in [
+            (0, r#""depth":{"z":"deep"}"#),
+            (1, r#""velocity":{"fwd":1.0,"right":0.0}"#),
+            (
+                2,
+                r#""depth":{"z":1.0},"std":{"z":0.05,"fwd":0.1,"right":0.1,"down":0.1}"#,
+            ),
+            (
+                3,
+                r#""velocity":{"fwd":1.0,"right":0.0,"down":0.0,"std":{"fwd":0.1}}"#,
+            ),
+            (4, r#""attitude":{"pitch":1.0,"yaw":2.0},"depth":null"#),
+        ] {
+            let line = format!(
+                "{{\"class\":\"FRAME\",\"seq\":{seq},\"t\":{seq}.0,\"counts\":{c},{extra}}}\n"
+            );
+            bytes.extend_from_slice(line.as_bytes());
+        }
+        let mut r = LogReader::new(&bytes[..], "s.jsonl").unwrap();
+        let got: Vec<Frame> = r.by_ref().map(|x| x.unwrap()).collect();
+        assert_eq!(got.len(), 5, "every frame kept");
+        assert_eq!(got[0].depth, None);
+        assert_eq!(got[1].velocity, None);
+        assert_eq!(
+            got[2].depth,
+            Some(DepthReading {
+                z: 1.0,
+                std: Some(0.05)
+            }),
+            "a frame-level std applies"
+        );
+        assert_eq!(got[3].velocity, None, "a partial std is refused");
+        assert!(got[4].attitude.is_some() && got[4].depth.is_none());
+        let (n, last) = r.bad_readings();
+        assert_eq!(n, 3);
+        assert!(
+            last.unwrap().starts_with("s.jsonl:5: velocity std"),
+            "{last:?}"
+        );
     }
 
     #[test]

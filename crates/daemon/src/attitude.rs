@@ -74,6 +74,7 @@ pub fn parse(datagram: &[u8], beacon_axis_heading_deg: f64) -> Result<AttitudeRe
     Ok(AttitudeReading {
         pitch: Angle::from_deg(m.pitch),
         yaw: Angle::from_deg(wrap180(m.yaw - beacon_axis_heading_deg - 180.0)),
+        std: None,
     })
 }
 
@@ -148,6 +149,7 @@ mod tests {
             AttitudeReading {
                 pitch: Angle::ZERO,
                 yaw: Angle::ZERO,
+                std: None,
             },
         );
         assert!(c

@@ -298,6 +298,8 @@ mod tests {
                 temp_c: None,
                 truth: None,
                 attitude: None,
+                depth: None,
+                velocity: None,
             })
         }
         fn adc_bits(&self) -> u8 {

@@ -154,6 +154,8 @@ mod tests {
                 temp_c: None,
                 truth: None,
                 attitude: None,
+                depth: None,
+                velocity: None,
             })
             .unwrap();
         }

@@ -305,6 +305,8 @@ impl<B: Bank> FrameSource for BoardSource<B> {
             temp_c: self.temp.for_frame(&self.raw),
             truth: None,
             attitude: None,
+            depth: None,
+            velocity: None,
         })
     }
     fn adc_bits(&self) -> u8 {

@@ -198,8 +198,7 @@ impl FrameSource for MockSource {
                     msg: "injected fault".into(),
                 });
             }
-            let (pose, surge) = self.traj.sample(tt);
-            let mut f = self.sim.frame(seq, t, &pose, Some(surge));
+            let mut f = self.sim.frame_moving(seq, t, &self.traj.kinematics(tt));
             for &(k, v) in &self.faults.stuck {
                 f.counts[k] = v;
             }

@@ -267,6 +267,8 @@ mod tests {
             temp_c: Some(20.0),
             truth: None,
             attitude: None,
+            depth: None,
+            velocity: None,
         }
     }
 

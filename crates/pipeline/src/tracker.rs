@@ -1018,7 +1018,10 @@ mod tests {
                 let f = Frame {
                     seq: i as u64, t, adc_bits: 10, counts, temp_c: Some(20.0), truth: None,
                     attitude: att.then_some(lightpose_core::AttitudeReading {
-                        pitch: Angle::ZERO, yaw: Angle::ZERO }),
+                        pitch: Angle::ZERO, yaw: Angle::ZERO,
+                        std: None, }),
+                    depth: None,
+                    velocity: None,
                 };
                 let e = tr.estimate(&f);
                 for v in [e.x, e.y, e.z, e.pitch_deg, e.yaw_deg, e.surge,

@@ -78,6 +78,8 @@ fn frame(seq: u64, bits: u8, counts: [u16; NDET], temp_c: Option<f64>) -> Frame 
         temp_c,
         truth: None,
         attitude: None,
+        depth: None,
+        velocity: None,
     }
 }
 
@@ -211,6 +213,7 @@ proptest! {
                 f.attitude = att.map(|(p, y)| AttitudeReading {
                     pitch: Angle::from_deg(p),
                     yaw: Angle::from_deg(y),
+                    std: None,
                 });
                 f
             })

@@ -14,7 +14,7 @@ pub mod spline;
 pub mod sweep;
 pub mod trajectory;
 
-pub use scene::{Adc, AttitudeNoise, McSpread, Noise, Scene, SceneError};
+pub use scene::{Adc, AttitudeNoise, DepthNoise, DvlNoise, McSpread, Noise, Scene, SceneError};
 pub use simulator::Simulator;
 pub use sweep::{SweepKind, SweepPlan};
-pub use trajectory::{Trajectory, TrajectoryError};
+pub use trajectory::{Kinematics, Trajectory, TrajectoryError};

@@ -1,5 +1,5 @@
 //! The scene file: the beacon, the water, the array, the ADC, the noise, the
-//! Monte Carlo spreads and the attitude sensor, with exactly the keys of
+//! Monte Carlo spreads and the vehicle's sensors (attitude, depth, DVL), with exactly the keys of
 //! `scene-example.toml`. A table that is left out turns its effect off
 //! (scattering, noise, attitude sensor); a key left out of a present table
 //! takes MODEL.md's default. Unknown keys, wrong types and impossible values
@@ -65,6 +65,32 @@ impl Default for AttitudeNoise {
     }
 }
 
+/// The vehicle's depth sensor noise (1σ, metres; spec v2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthNoise {
+    pub sigma_m: f64,
+}
+
+impl Default for DepthNoise {
+    /// MODEL.md's depth sensor: 0.02 m.
+    fn default() -> Self {
+        DepthNoise { sigma_m: 0.02 }
+    }
+}
+
+/// The vehicle's DVL noise (1σ per body component, m/s; spec v2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DvlNoise {
+    pub sigma_mps: f64,
+}
+
+impl Default for DvlNoise {
+    /// MODEL.md's DVL: 0.02 m/s.
+    fn default() -> Self {
+        DvlNoise { sigma_mps: 0.02 }
+    }
+}
+
 /// A validated scene.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
@@ -78,6 +104,8 @@ pub struct Scene {
     pub noise: Option<Noise>,
     pub montecarlo: McSpread,
     pub attitude: Option<AttitudeNoise>,
+    pub depth: Option<DepthNoise>,
+    pub dvl: Option<DvlNoise>,
 }
 
 impl Default for Scene {
@@ -105,6 +133,8 @@ impl Default for Scene {
                 sigma_k_d: 0.015,
             },
             attitude: None,
+            depth: None,
+            dvl: None,
         }
     }
 }
@@ -120,6 +150,8 @@ struct RawScene {
     noise: Option<RawNoise>,
     montecarlo: Option<RawMc>,
     attitude: Option<RawAttitude>,
+    depth: Option<RawDepth>,
+    dvl: Option<RawDvl>,
 }
 
 #[derive(Deserialize, Default)]
@@ -182,6 +214,17 @@ struct RawMc {
 struct RawAttitude {
     sigma_pitch_deg: Option<f64>,
     sigma_yaw_deg: Option<f64>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawDepth {
+    sigma_m: Option<f64>,
+}
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawDvl {
+    sigma_mps: Option<f64>,
 }
 
 struct Checker<'a> {
@@ -429,6 +472,32 @@ impl Scene {
                 )?),
             }),
         };
+        let depth = match raw.depth {
+            None => None,
+            Some(d) => Some(DepthNoise {
+                sigma_m: c.num(
+                    "depth",
+                    "sigma_m",
+                    d.sigma_m,
+                    DepthNoise::default().sigma_m,
+                    non_negative,
+                    "≥ 0",
+                )?,
+            }),
+        };
+        let dvl = match raw.dvl {
+            None => None,
+            Some(d) => Some(DvlNoise {
+                sigma_mps: c.num(
+                    "dvl",
+                    "sigma_mps",
+                    d.sigma_mps,
+                    DvlNoise::default().sigma_mps,
+                    non_negative,
+                    "≥ 0",
+                )?,
+            }),
+        };
 
         Ok(Scene {
             light: LightParams {
@@ -450,6 +519,8 @@ impl Scene {
             noise,
             montecarlo,
             attitude,
+            depth,
+            dvl,
         })
     }
 }
@@ -461,13 +532,15 @@ mod tests {
     const EXAMPLE: &str = include_str!("../../../../shared/spec/scene-example.toml");
 
     #[test]
-    fn example_scene_is_the_default_tank_plus_attitude() {
+    fn example_scene_is_the_default_tank_plus_the_vehicle_sensors() {
         let s = Scene::parse(EXAMPLE, "scene-example.toml").unwrap();
         let want = Scene {
             attitude: Some(AttitudeNoise {
                 sigma_pitch: Angle::from_deg(0.3),
                 sigma_yaw: Angle::from_deg(1.5),
             }),
+            depth: Some(DepthNoise { sigma_m: 0.02 }),
+            dvl: Some(DvlNoise { sigma_mps: 0.02 }),
             ..Scene::default()
         };
         assert_eq!(s, want);
@@ -479,6 +552,7 @@ mod tests {
         assert!(s.light.scattering.is_none());
         assert!(s.noise.is_none());
         assert!(s.attitude.is_none());
+        assert!(s.depth.is_none() && s.dvl.is_none());
         assert_eq!(s.light.k_d, 0.2);
         assert_eq!(s.light.v1, 135.0);
         // a present table with no keys takes the defaults
@@ -507,6 +581,10 @@ mod tests {
         assert!(e.starts_with("bad.toml:2:"), "{e}");
         let e = refused("[lamp]\nv1 = 3\n");
         assert!(e.starts_with("bad.toml:1:") && e.contains("lamp"), "{e}");
+        let e = refused("[depth]\nsigma_m = -0.1\n");
+        assert!(e.starts_with("bad.toml:2: [depth] sigma_m"), "{e}");
+        let e = refused("[dvl]\nsigma = 0.1\n");
+        assert!(e.starts_with("bad.toml:2:") && e.contains("sigma"), "{e}");
         let e = refused("[array]\nrows = 4\n");
         assert!(e.contains("rows") && e.contains("5 × 5"), "{e}");
         let e = refused("[array]\noffset_v = [0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, nan]\n");

@@ -1,12 +1,19 @@
 //! From pose to frame: the light equation, then MODEL.md's "from light to
 //! counts" (per-channel gain, temperature factor, dark offset, noise, ADC),
-//! the reported temperature and the attitude sensor. Deterministic for a
-//! seed: the random draws of a frame come in a fixed order.
+//! the reported temperature and the vehicle's sensors (attitude, depth,
+//! DVL). Deterministic for a seed: the random draws of a frame come in a
+//! fixed order, and a sensor's draws come after those of the sensors before
+//! it, so adding a depth sensor or a DVL to a scene leaves its counts as
+//! they were.
 
+use crate::Kinematics;
 use crate::Scene;
 use lightpose_core::frame::volts_to_counts;
 use lightpose_core::light::temperature_gain;
-use lightpose_core::{Angle, AttitudeReading, Frame, Pose, Truth, NDET};
+use lightpose_core::{
+    Angle, Attitude, AttitudeReading, BeamVec, BodyVec, DepthReading, Frame, Pose, Truth,
+    VelocityReading, NDET,
+};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -64,8 +71,29 @@ impl Simulator {
         }
     }
 
-    /// One frame at `pose`, with its truth.
+    /// One frame at `pose`, with its truth; a vehicle that moves, moves
+    /// along its bow at `surge` (the DVL, if any, reads that).
     pub fn frame(&mut self, seq: u64, t: f64, pose: &Pose, surge: Option<f64>) -> Frame {
+        let fwd = Attitude::new(pose.pitch, pose.yaw).forward().0;
+        let u = surge.unwrap_or(0.0);
+        let velocity = BeamVec([u * fwd[0], u * fwd[1], u * fwd[2]]);
+        self.frame_of(seq, t, pose, surge, &velocity)
+    }
+
+    /// One frame of a vehicle at `k` (pose and velocity over the ground):
+    /// the DVL, if any, reads the whole velocity, sideslip and heave too.
+    pub fn frame_moving(&mut self, seq: u64, t: f64, k: &Kinematics) -> Frame {
+        self.frame_of(seq, t, &k.pose, Some(k.surge()), &k.velocity)
+    }
+
+    fn frame_of(
+        &mut self,
+        seq: u64,
+        t: f64,
+        pose: &Pose,
+        surge: Option<f64>,
+        velocity: &BeamVec,
+    ) -> Frame {
         let mut volts = [0.0; NDET];
         self.volts(pose, &mut volts);
         // Borrow the scene and the generator apart.
@@ -96,9 +124,23 @@ impl Simulator {
         let attitude = s.attitude.map(|a| {
             let dp = a.sigma_pitch.rad() * normal();
             let dy = a.sigma_yaw.rad() * normal();
-            AttitudeReading {
-                pitch: pose.pitch + Angle::from_rad(dp),
-                yaw: pose.yaw + Angle::from_rad(dy),
+            AttitudeReading::new(
+                pose.pitch + Angle::from_rad(dp),
+                pose.yaw + Angle::from_rad(dy),
+            )
+        });
+        let depth = s
+            .depth
+            .map(|d| DepthReading::new(pose.z + d.sigma_m * normal()));
+        let velocity = s.dvl.map(|d| {
+            let v = Attitude::new(pose.pitch, pose.yaw).to_body(velocity).0;
+            let mut noisy = [0.0; 3];
+            for (n, c) in noisy.iter_mut().zip(v) {
+                *n = c + d.sigma_mps * normal();
+            }
+            VelocityReading {
+                v: BodyVec(noisy),
+                std: None,
             }
         });
         Frame {
@@ -109,6 +151,8 @@ impl Simulator {
             temp_c: Some(temp_c),
             truth: Some(Truth { pose: *pose, surge }),
             attitude,
+            depth,
+            velocity,
         }
     }
 }

@@ -3,7 +3,7 @@
 //! the spline's velocity along the vehicle's forward axis.
 
 use crate::spline::Spline;
-use lightpose_core::{Angle, Attitude, Pose};
+use lightpose_core::{Angle, Attitude, BeamVec, Pose};
 use std::path::Path;
 
 #[derive(Debug, thiserror::Error)]
@@ -23,6 +23,22 @@ pub enum TrajectoryError {
 pub struct Knot {
     pub t: f64,
     pub pose: Pose,
+}
+
+/// Where the vehicle is and how it moves at one instant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Kinematics {
+    pub pose: Pose,
+    /// Velocity over the ground in B, m/s.
+    pub velocity: BeamVec,
+}
+
+impl Kinematics {
+    /// Speed along the forward axis (MODEL.md's surge).
+    pub fn surge(&self) -> f64 {
+        let f = Attitude::new(self.pose.pitch, self.pose.yaw).forward();
+        f.dot(&self.velocity)
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -150,14 +166,21 @@ impl Trajectory {
 
     /// Pose and true surge (m/s along the forward axis) at time `t`.
     pub fn sample(&self, t: f64) -> (Pose, f64) {
+        let k = self.kinematics(t);
+        (k.pose, k.surge())
+    }
+
+    /// Pose and velocity in B at time `t` (the splines and their slopes).
+    pub fn kinematics(&self, t: f64) -> Kinematics {
         let (x, vx) = self.cols[0].eval(t);
         let (y, vy) = self.cols[1].eval(t);
         let (z, vz) = self.cols[2].eval(t);
         let (pitch, _) = self.cols[3].eval(t);
         let (yaw, _) = self.cols[4].eval(t);
-        let pose = Pose::new(x, y, z, Angle::from_rad(pitch), Angle::from_rad(yaw));
-        let f = Attitude::new(pose.pitch, pose.yaw).forward().0;
-        (pose, vx * f[0] + vy * f[1] + vz * f[2])
+        Kinematics {
+            pose: Pose::new(x, y, z, Angle::from_rad(pitch), Angle::from_rad(yaw)),
+            velocity: BeamVec([vx, vy, vz]),
+        }
     }
 
     /// The frame times t0 + k / rate, k = 0, 1, … while t ≤ t_end.

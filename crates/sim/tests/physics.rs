@@ -277,3 +277,58 @@ fn attitude_sensor_only_when_the_scene_has_one() {
     assert!(((sp / n as f64).sqrt() / 0.3 - 1.0).abs() < 0.05);
     assert!(((sy / n as f64).sqrt() / 1.5 - 1.0).abs() < 0.05);
 }
+
+/// Spec v2: the depth sensor reads z, the DVL reads the velocity over the
+/// ground in V (sideslip and heave included), each with its own noise, and
+/// neither changes the counts of a frame.
+#[test]
+fn depth_and_dvl_read_the_truth_plus_their_noise() {
+    use lightpose_core::{Attitude, BeamVec};
+    use lightpose_sim::Kinematics;
+    let k = Kinematics {
+        pose: pose(6.0, 0.3, -0.2, 8.0, -20.0),
+        velocity: BeamVec([-0.5, 0.1, 0.05]),
+    };
+    let exact = Scene::parse("[depth]\nsigma_m = 0\n[dvl]\nsigma_mps = 0\n", "s.toml").unwrap();
+    let f = Simulator::new(exact, 3).frame_moving(0, 0.0, &k);
+    assert_eq!(f.depth.unwrap().z, -0.2);
+    let v = f.velocity.unwrap().v.0;
+    let want = Attitude::new(k.pose.pitch, k.pose.yaw).to_body(&k.velocity).0;
+    for c in 0..3 {
+        assert!((v[c] - want[c]).abs() < 1e-15, "{v:?} vs {want:?}");
+    }
+    // Surge is the forward component of what the DVL reads.
+    assert!((v[0] - k.surge()).abs() < 1e-12);
+
+    let noisy = Scene::parse("[noise]\n[depth]\n[dvl]\n", "n.toml").unwrap();
+    let mut sim = Simulator::new(noisy, 7);
+    let n = 4000;
+    let (mut dz, mut dz2, mut dv2) = (0.0, 0.0, [0.0; 3]);
+    for i in 0..n {
+        let f = sim.frame_moving(i, 0.0, &k);
+        let e = f.depth.unwrap().z + 0.2;
+        dz += e;
+        dz2 += e * e;
+        for c in 0..3 {
+            let e = f.velocity.unwrap().v.0[c] - want[c];
+            dv2[c] += e * e;
+        }
+    }
+    let nf = n as f64;
+    assert!((dz / nf).abs() < 0.002, "depth bias {}", dz / nf);
+    let sd = (dz2 / nf).sqrt();
+    assert!((sd - 0.02).abs() < 0.002, "depth σ {sd}");
+    for s in dv2 {
+        let sd = (s / nf).sqrt();
+        assert!((sd - 0.02).abs() < 0.002, "DVL σ {sd}");
+    }
+
+    // The sensors' draws come after the light's: same seed, same counts.
+    let plain = Scene::parse("[noise]\n", "p.toml").unwrap();
+    let with = Scene::parse("[noise]\n[depth]\n[dvl]\n", "w.toml").unwrap();
+    let a = Simulator::new(plain, 11).frame_moving(0, 0.0, &k);
+    let b = Simulator::new(with, 11).frame_moving(0, 0.0, &k);
+    assert_eq!(a.counts, b.counts);
+    assert_eq!(a.temp_c, b.temp_c);
+    assert!(a.depth.is_none() && a.velocity.is_none());
+}

@@ -59,8 +59,7 @@ pub fn simulate(a: SimulateArgs) -> anyhow::Result<()> {
     let mut w = LogWriter::new(create(&a.out)?, &header)?;
     let mut sim = Simulator::new(scene.clone(), a.seed);
     for (seq, t) in traj.frame_times(scene.adc.rate_hz).enumerate() {
-        let (pose, surge) = traj.sample(t);
-        let f = sim.frame(seq as u64, t, &pose, Some(surge));
+        let f = sim.frame_moving(seq as u64, t, &traj.kinematics(t));
         w.write_frame(&f)
             .with_context(|| format!("{}: write failed", a.out.display()))?;
     }

@@ -672,6 +672,8 @@ mod tests {
             temp_c: None,
             truth: None,
             attitude: None,
+            depth: None,
+            velocity: None,
         };
         assert_eq!(est.estimate(&dark).status, Status::NoLight);
         let mut f = dark;
@@ -723,7 +725,10 @@ mod tests {
                 attitude: att.map(|(p, y)| lightpose_core::AttitudeReading {
                     pitch: Angle::from_deg(p),
                     yaw: Angle::from_deg(y),
+                    std: None,
                 }),
+                depth: None,
+                velocity: None,
             };
             for _ in 0..2 {
                 let e = est.estimate(&f);
