@@ -13,7 +13,8 @@
 
 use crate::model::{ModelConfig, PhysicalCalibration};
 use crate::tracker::TrackerConfig;
-use lightpose_core::textpos::{line_of_key, line_of_offset};
+use lightpose_core::textfile::{parse_toml, read_text, TextError};
+use lightpose_core::textpos::line_of_key;
 use lightpose_core::{light::temperature_gain, NDET};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -33,13 +34,10 @@ pub enum CalError {
     // one-line `{:#}` report does not say it twice.
     #[error("{file}: {err}")]
     Io { file: String, err: std::io::Error },
-    /// TOML syntax, a wrong type, a missing or an unknown key.
-    #[error("{file}:{line}: {msg}")]
-    Parse {
-        file: String,
-        line: usize,
-        msg: String,
-    },
+    /// Unreadable, too large, or TOML syntax, a wrong type, a missing or an
+    /// unknown key.
+    #[error(transparent)]
+    Text(#[from] TextError),
     /// A value that parses but cannot be right.
     #[error("{file}:{line}: {key}: {msg}")]
     Invalid {
@@ -332,21 +330,13 @@ pub struct EstimatorSettings {
 impl Calibration {
     /// Read, parse and check a calibration file.
     pub fn load(path: &Path) -> Result<Calibration, CalError> {
-        let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|err| CalError::Io {
-            file: file.clone(),
-            err,
-        })?;
-        Calibration::parse(&text, &file)
+        let text = read_text(path)?;
+        Calibration::parse(&text, &path.display().to_string())
     }
 
     /// Parse and check calibration text; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<Calibration, CalError> {
-        let cal: Calibration = toml::from_str(text).map_err(|e| CalError::Parse {
-            file: file.to_string(),
-            line: e.span().map_or(1, |s| line_of_offset(text, s.start)),
-            msg: e.message().trim().replace('\n', " "),
-        })?;
+        let cal: Calibration = parse_toml(text, file)?;
         cal.check().map_err(|(table, key, msg)| CalError::Invalid {
             file: file.to_string(),
             line: line_of_key(text, table, key),

@@ -5,15 +5,17 @@
 //! takes MODEL.md's default. Unknown keys, wrong types and impossible values
 //! are refused with the file, the line and the key.
 
-use lightpose_core::textpos::{line_of_key, line_of_offset};
+use lightpose_core::textfile::{parse_toml, read_text, TextError};
+use lightpose_core::textpos::line_of_key;
 use lightpose_core::{Angle, ArrayGeometry, LightParams, Scattering, COLS, NDET, ROWS};
 use serde::Deserialize;
 use std::path::Path;
 
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("{file}: {err}")]
-    Io { file: String, err: std::io::Error },
+    /// Unreadable, too large, or not TOML of the scene's shape.
+    #[error(transparent)]
+    Text(#[from] TextError),
     #[error("{file}:{line}: {msg}")]
     Invalid {
         file: String,
@@ -310,21 +312,13 @@ fn non_negative(x: f64) -> bool {
 impl Scene {
     /// Read and validate a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|err| SceneError::Io {
-            file: file.clone(),
-            err,
-        })?;
-        Scene::parse(&text, &file)
+        let text = read_text(path)?;
+        Scene::parse(&text, &path.display().to_string())
     }
 
     /// Parse and validate a scene from TOML text; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
-        let raw: RawScene = toml::from_str(text).map_err(|e| SceneError::Invalid {
-            file: file.to_string(),
-            line: e.span().map_or(1, |s| line_of_offset(text, s.start)),
-            msg: e.message().trim().replace('\n', " "),
-        })?;
+        let raw: RawScene = parse_toml(text, file)?;
         let c = Checker { file, text };
         let d = Scene::default();
 

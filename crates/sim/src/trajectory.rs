@@ -3,13 +3,15 @@
 //! the spline's velocity along the vehicle's forward axis.
 
 use crate::spline::Spline;
+use lightpose_core::textfile::{read_text, TextError};
 use lightpose_core::{Angle, Attitude, BeamVec, Pose};
 use std::path::Path;
 
 #[derive(Debug, thiserror::Error)]
 pub enum TrajectoryError {
-    #[error("{file}: {err}")]
-    Io { file: String, err: std::io::Error },
+    /// Unreadable or too large.
+    #[error(transparent)]
+    Text(#[from] TextError),
     #[error("{file}:{line}: {msg}")]
     Invalid {
         file: String,
@@ -52,12 +54,8 @@ const HEADER: [&str; 6] = ["t", "x", "y", "z", "pitch", "yaw"];
 
 impl Trajectory {
     pub fn load(path: &Path) -> Result<Self, TrajectoryError> {
-        let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|err| TrajectoryError::Io {
-            file: file.clone(),
-            err,
-        })?;
-        Self::parse(&text, &file)
+        let text = read_text(path)?;
+        Self::parse(&text, &path.display().to_string())
     }
 
     /// Parse CSV text with the header `t,x,y,z,pitch,yaw` (angles in degrees).

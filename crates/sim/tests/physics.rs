@@ -293,7 +293,9 @@ fn depth_and_dvl_read_the_truth_plus_their_noise() {
     let f = Simulator::new(exact, 3).frame_moving(0, 0.0, &k);
     assert_eq!(f.depth.unwrap().z, -0.2);
     let v = f.velocity.unwrap().v.0;
-    let want = Attitude::new(k.pose.pitch, k.pose.yaw).to_body(&k.velocity).0;
+    let want = Attitude::new(k.pose.pitch, k.pose.yaw)
+        .to_body(&k.velocity)
+        .0;
     for c in 0..3 {
         assert!((v[c] - want[c]).abs() < 1e-15, "{v:?} vs {want:?}");
     }

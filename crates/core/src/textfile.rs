@@ -1,0 +1,142 @@
+//! Reading the project's text files (scene, trajectory, calibration, daemon
+//! config) and turning a TOML parse error into one line that names the file
+//! and the line: every reader does it the same way, through here.
+//!
+//! Text from outside is bounded twice: a file larger than
+//! [`MAX_TEXT_BYTES`] is refused before it is read whole, and whatever an
+//! error message quotes of it is cut to an [`excerpt`].
+
+use crate::textpos::line_of_offset;
+use std::io::Read;
+use std::path::Path;
+
+/// Largest text file we read whole: far above any scene, calibration, config
+/// or trajectory a user writes (the shipped ones are a few kB), far below
+/// what would hurt a small on-board computer.
+pub const MAX_TEXT_BYTES: u64 = 64 << 20;
+
+/// Most characters of outside text an error message quotes.
+pub const EXCERPT_CHARS: usize = 80;
+
+#[derive(Debug, thiserror::Error)]
+pub enum TextError {
+    #[error("{file}: {source}")]
+    Io {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{file}: {size} bytes is too large for this kind of file (at most {max})")]
+    TooLarge { file: String, size: u64, max: u64 },
+    #[error("{file}: not valid UTF-8 text")]
+    NotUtf8 { file: String },
+    /// A TOML syntax or type error; `line` is 1-based.
+    #[error("{file}:{line}: {msg}")]
+    Syntax {
+        file: String,
+        line: usize,
+        msg: String,
+    },
+}
+
+/// The whole text of `path`, refusing files over [`MAX_TEXT_BYTES`] without
+/// reading them.
+pub fn read_text(path: &Path) -> Result<String, TextError> {
+    let file = path.display().to_string();
+    let io = |source| TextError::Io {
+        file: file.clone(),
+        source,
+    };
+    let f = std::fs::File::open(path).map_err(io)?;
+    let size = f.metadata().map_err(io)?.len();
+    if size > MAX_TEXT_BYTES {
+        return Err(TextError::TooLarge {
+            file,
+            size,
+            max: MAX_TEXT_BYTES,
+        });
+    }
+    // `take` as well: a pipe or a growing file can outrun its metadata.
+    let mut bytes = Vec::with_capacity(size as usize);
+    f.take(MAX_TEXT_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > MAX_TEXT_BYTES {
+        return Err(TextError::TooLarge {
+            file,
+            size: bytes.len() as u64,
+            max: MAX_TEXT_BYTES,
+        });
+    }
+    String::from_utf8(bytes).map_err(|_| TextError::NotUtf8 { file })
+}
+
+/// Deserialize TOML `text`; a refusal names `file`, the line of the error's
+/// span (1 when the parser gives none) and the parser's message on one line.
+pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, file: &str) -> Result<T, TextError> {
+    toml::from_str(text).map_err(|e| TextError::Syntax {
+        file: file.to_string(),
+        line: e.span().map_or(1, |s| line_of_offset(text, s.start)),
+        msg: one_line(e.message()),
+    })
+}
+
+/// A message on one line, quoting at most a bounded amount of it.
+pub fn one_line(msg: &str) -> String {
+    let flat = msg.trim().replace(['\n', '\r'], " ");
+    excerpt(&flat, 4 * EXCERPT_CHARS)
+}
+
+/// `s` cut to at most `max` characters (on a character boundary), with an
+/// ellipsis when something was cut.
+pub fn excerpt(s: &str, max: usize) -> String {
+    match s.char_indices().nth(max) {
+        None => s.to_string(),
+        Some((end, _)) => format!("{}…", &s[..end]),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn excerpts_are_bounded_and_cut_on_characters() {
+        assert_eq!(excerpt("abc", 5), "abc");
+        assert_eq!(excerpt("abcdef", 3), "abc…");
+        assert_eq!(excerpt("ééééé", 2), "éé…");
+        let long = "x".repeat(1 << 20);
+        assert!(one_line(&long).chars().count() <= 4 * EXCERPT_CHARS + 1);
+        assert_eq!(one_line("a\nb\r\nc"), "a b  c");
+    }
+
+    #[test]
+    fn toml_errors_name_file_and_line() {
+        #[derive(serde::Deserialize, Debug)]
+        #[allow(dead_code)]
+        struct T {
+            a: f64,
+        }
+        let e = parse_toml::<T>("\n\na = \"x\"\n", "t.toml").unwrap_err();
+        let s = e.to_string();
+        assert!(s.starts_with("t.toml:3: "), "{s}");
+        assert_eq!(s.lines().count(), 1);
+    }
+
+    #[test]
+    fn files_are_read_and_big_or_missing_ones_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.toml");
+        std::fs::write(&p, "a = 1\n").unwrap();
+        assert_eq!(read_text(&p).unwrap(), "a = 1\n");
+        let missing = read_text(&dir.path().join("nope.toml")).unwrap_err();
+        assert!(missing.to_string().contains("nope.toml"), "{missing}");
+        let big = dir.path().join("big.toml");
+        let f = std::fs::File::create(&big).unwrap();
+        f.set_len(MAX_TEXT_BYTES + 1).unwrap();
+        let e = read_text(&big).unwrap_err().to_string();
+        assert!(e.contains("too large"), "{e}");
+        std::fs::write(&p, [0xff, 0xfe]).unwrap();
+        assert!(read_text(&p).unwrap_err().to_string().contains("UTF-8"));
+    }
+}
