@@ -5,6 +5,7 @@
 use anyhow::Context;
 use clap::Parser;
 use lightposed::config::LogFormat;
+use lightposed::error::report;
 use lightposed::{Config, Publisher};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -90,7 +91,7 @@ fn main() -> ExitCode {
                 ExitCode::SUCCESS
             }
             Err(e) => {
-                eprintln!("lightposed: {e}");
+                eprintln!("lightposed: {}", report(&e));
                 ExitCode::from(2)
             }
         };
@@ -98,7 +99,7 @@ fn main() -> ExitCode {
     let cfg = match load(args.config.as_ref()) {
         Ok(c) => c,
         Err(e) => {
-            eprintln!("lightposed: {e}");
+            eprintln!("lightposed: {}", report(&e));
             return ExitCode::from(2);
         }
     };
@@ -114,7 +115,7 @@ fn main() -> ExitCode {
                 ExitCode::SUCCESS
             }
             Err(e) => {
-                eprintln!("lightposed: {e}");
+                eprintln!("lightposed: {}", report(&e));
                 ExitCode::FAILURE
             }
         };
@@ -126,7 +127,7 @@ fn main() -> ExitCode {
                 ExitCode::SUCCESS
             }
             Err(e) => {
-                eprintln!("lightposed: {e}");
+                eprintln!("lightposed: {}", report(&e));
                 ExitCode::FAILURE
             }
         };
@@ -149,7 +150,7 @@ fn main() -> ExitCode {
                 " + multicast {} ttl {}",
                 m.group, m.ttl
             )),
-        lightposed::publish::listen_hint(&cfg.outputs)
+        lightposed::outputs::udp::listen_hint(&cfg.outputs)
     );
     let rt = match tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -164,8 +165,9 @@ fn main() -> ExitCode {
     match rt.block_on(serve(cfg)) {
         Ok(_) => ExitCode::SUCCESS,
         Err(e) => {
-            tracing::error!("{e:#}");
-            eprintln!("lightposed: {e:#}");
+            let line = report(e.as_ref());
+            tracing::error!("{line}");
+            eprintln!("lightposed: {line}");
             ExitCode::FAILURE
         }
     }
