@@ -27,8 +27,9 @@ pub struct SimSource {
     sim: Simulator,
     traj: Trajectory,
     looping: bool,
-    /// Seconds of simulated time per frame.
+    /// Seconds of simulated time per frame, and its inverse as configured.
     dt: f64,
+    clock_hz: f64,
     /// Frames in one pass of the trajectory; a loop starts again at the
     /// same frame times, so every pass samples exactly the same poses.
     per_pass: u64,
@@ -50,11 +51,12 @@ impl SimSource {
         faults: Faults,
     ) -> Self {
         let nominal = rate_hz.unwrap_or(sim.scene().adc.rate_hz);
-        let dt = if nominal.is_finite() && nominal > 0.0 {
-            1.0 / nominal
+        let clock_hz = if nominal.is_finite() && nominal > 0.0 {
+            nominal
         } else {
-            0.2
+            5.0
         };
+        let dt = 1.0 / clock_hz;
         let describe = format!(
             "simulator ({}-bit, {}, {} s trajectory{}){}",
             sim.scene().adc.bits,
@@ -78,6 +80,7 @@ impl SimSource {
             traj,
             looping,
             dt,
+            clock_hz,
             pacer: Pacer::from_rate(rate_hz),
             faults,
             seq: 0,
@@ -182,7 +185,7 @@ impl FrameSource for SimSource {
         self.pacer.period()
     }
     fn rate_hz(&self) -> Option<f64> {
-        Some(1.0 / self.dt)
+        Some(self.clock_hz)
     }
     fn health(&self) -> SourceHealth {
         SourceHealth {
