@@ -492,16 +492,14 @@ mod tests {
     /// An input with a reading for even frames only.
     struct EvenAttitude;
     impl Input for EvenAttitude {
-        fn attach(&mut self, f: &mut Frame, _now: Instant) -> bool {
-            if f.seq % 2 == 1 {
-                return false;
+        fn attach(&mut self, f: &mut Frame, _now: Instant) {
+            if f.seq.is_multiple_of(2) {
+                f.attitude = Some(AttitudeReading {
+                    pitch: Angle::from_deg(1.0),
+                    yaw: Angle::ZERO,
+                    std: None,
+                });
             }
-            f.attitude = Some(AttitudeReading {
-                pitch: Angle::from_deg(1.0),
-                yaw: Angle::ZERO,
-                std: None,
-            });
-            true
         }
     }
 

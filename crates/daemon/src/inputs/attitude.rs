@@ -51,12 +51,12 @@ pub struct LatestAttitude {
 
 impl Input for LatestAttitude {
     #[inline]
-    fn attach(&mut self, frame: &mut Frame, now: Instant) -> bool {
-        if frame.attitude.is_some() {
-            return false;
+    fn attach(&mut self, frame: &mut Frame, now: Instant) {
+        // Frames with their own reading (a replayed log) keep it; those
+        // that carry one are counted by the engine (STATUS frames_with).
+        if frame.attitude.is_none() {
+            frame.attitude = self.cell.fresh(now, self.max_age);
         }
-        frame.attitude = self.cell.fresh(now, self.max_age);
-        frame.attitude.is_some()
     }
 }
 

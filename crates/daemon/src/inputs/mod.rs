@@ -13,10 +13,11 @@ use lightpose_core::Frame;
 use std::time::Instant;
 
 /// Something that attaches readings to a frame. Called on the frame
-/// thread, once per frame: it must neither block nor allocate.
+/// thread, once per frame: it must neither block nor allocate. What it
+/// attaches (and what it leaves off as stale) it counts itself, in atomics
+/// that STATUS reads.
 pub trait Input: Send {
     /// Attach this input's reading to `frame` if one is fresh at `now`
-    /// (the frame's arrival) and the frame has none of its own; true when
-    /// something was attached.
-    fn attach(&mut self, frame: &mut Frame, now: Instant) -> bool;
+    /// (the frame's arrival) and the frame has none of its own.
+    fn attach(&mut self, frame: &mut Frame, now: Instant);
 }
