@@ -11,6 +11,8 @@ use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Write};
 use std::path::Path;
 
+mod framelog;
+pub use framelog::{ByteError, Cut, FrameLog};
 pub const FORMAT: &str = "lightpose-intensity";
 pub const VERSION: u32 = 1;
 
@@ -26,16 +28,9 @@ pub enum LogError {
     },
     #[error("{name}: empty log (no HEADER line)")]
     Empty { name: String },
-    /// A binary container (MCAP) refused what it holds at a byte offset.
-    /// With `ends`, its structure is broken there and the log ends; without,
-    /// only that record (one frame) was skipped and reading goes on.
-    #[error("{name}: byte {offset}: {msg}")]
-    At {
-        name: String,
-        offset: u64,
-        msg: String,
-        ends: bool,
-    },
+    /// A binary container (MCAP) refused something at a byte offset.
+    #[error(transparent)]
+    At(ByteError),
 }
 
 /// The first line of a log. Fields this reader does not know are kept and
@@ -700,98 +695,6 @@ impl<W: Write> LogWriter<W> {
     }
     pub fn into_inner(self) -> W {
         self.sink
-    }
-}
-
-impl LogError {
-    /// Whether reading goes on past this error: a refused line or record
-    /// costs its frame only.
-    pub fn skippable(&self) -> bool {
-        matches!(
-            self,
-            LogError::Line { .. } | LogError::At { ends: false, .. }
-        )
-    }
-}
-
-/// Where a log that was cut short (power loss, kill -9) ends.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Cut {
-    /// JSON Lines: the number of the last line, which was written in part.
-    Line(usize),
-    /// A binary container (MCAP): the offset after the last complete record
-    /// (chunk), and how many bytes after it were dropped.
-    Bytes { offset: u64, dropped: u64 },
-}
-
-impl std::fmt::Display for Cut {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Cut::Line(l) => write!(f, "line {l}: last line cut short; the log ends there"),
-            Cut::Bytes { offset, dropped } => write!(
-                f,
-                "byte {offset}: recording never finished; it ends there, {dropped} bytes after it (an incomplete record) dropped"
-            ),
-        }
-    }
-}
-
-/// An intensity log read frame by frame, whatever its container: JSON Lines
-/// ([`LogReader`]) or MCAP (`lightpose-logs`), so that replay, calibration
-/// and the daemon's replay backend take `&mut dyn FrameLog` and read both
-/// alike.
-pub trait FrameLog {
-    fn header(&self) -> &LogHeader;
-    /// How errors name the log (its path).
-    fn name(&self) -> &str;
-    /// The next frame, `None` at the end of the log. An error that is
-    /// [`LogError::skippable`] cost one frame and reading may go on; after
-    /// any other, the log ends.
-    fn next_frame(&mut self) -> Option<Result<Frame, LogError>>;
-    /// Where the log was cut short, if it ended so (known at its end).
-    fn cut(&self) -> Option<Cut>;
-    /// Lines or messages of other kinds that were passed over.
-    fn other_records(&self) -> u64;
-    /// Number of gaps in `seq`, and the frames they lost.
-    fn seq_gaps(&self) -> (u64, u64);
-    /// Malformed sensor readings left off their (kept) frames, and the last
-    /// one's reason with its place.
-    fn bad_readings(&self) -> (u64, Option<&str>);
-}
-
-impl<R: BufRead> FrameLog for LogReader<R> {
-    fn header(&self) -> &LogHeader {
-        LogReader::header(self)
-    }
-    fn name(&self) -> &str {
-        LogReader::name(self)
-    }
-    fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
-        LogReader::next_frame(self)
-    }
-    fn cut(&self) -> Option<Cut> {
-        self.truncated_at().map(Cut::Line)
-    }
-    fn other_records(&self) -> u64 {
-        self.other_lines()
-    }
-    fn seq_gaps(&self) -> (u64, u64) {
-        LogReader::seq_gaps(self)
-    }
-    fn bad_readings(&self) -> (u64, Option<&str>) {
-        LogReader::bad_readings(self)
-    }
-}
-
-/// The line source, for a reader that feeds this one lines of its own
-/// making (lightpose-logs serves MCAP messages as lines, so that one parser
-/// reads FRAME objects in every container).
-impl<R> LogReader<R> {
-    pub fn get_ref(&self) -> &R {
-        &self.src
-    }
-    pub fn get_mut(&mut self) -> &mut R {
-        &mut self.src
     }
 }
 

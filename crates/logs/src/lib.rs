@@ -96,12 +96,7 @@ impl LogFile {
             name: name.clone(),
             err,
         })?;
-        let refuse = |msg: &str| LogError::At {
-            name: name.clone(),
-            offset: 0,
-            msg: msg.into(),
-            ends: true,
-        };
+        let refuse = |msg: &str| LogError::at(name.clone(), 0, msg, true);
         match (Format::of_path(path), magic) {
             (Some(Format::Jsonl), true) => Err(refuse(
                 "an MCAP file (its magic) named .jsonl: rename it .mcap",

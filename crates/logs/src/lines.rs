@@ -129,12 +129,12 @@ impl<R: Read> McapLines<R> {
             err,
         })?;
         if magic[..n] != mcap::MAGIC[..n] || n < magic.len() {
-            return Err(LogError::At {
+            return Err(LogError::at(
                 name,
-                offset: 0,
-                msg: "not an MCAP file (no MCAP magic)".into(),
-                ends: true,
-            });
+                0,
+                "not an MCAP file (no MCAP magic)",
+                true,
+            ));
         }
         Ok(McapLines {
             src,
@@ -167,12 +167,7 @@ impl<R: Read> McapLines<R> {
     }
 
     fn err(&self, offset: u64, msg: impl Into<String>) -> LogError {
-        LogError::At {
-            name: self.name.clone(),
-            offset,
-            msg: msg.into(),
-            ends: true,
-        }
+        LogError::at(self.name.clone(), offset, msg, true)
     }
 
     fn io_err(&self, err: io::Error) -> LogError {
@@ -381,12 +376,7 @@ impl<R: Read> McapLines<R> {
         if crc != 0 {
             let computed = crc32fast::hash(&self.body[start..end]);
             if computed != crc {
-                self.pending.push_back(LogError::At {
-                    name: self.name.clone(),
-                    offset,
-                    msg: format!("chunk CRC {computed:08x} is not the recorded {crc:08x}: its {} bytes of records skipped", end - start),
-                    ends: false,
-                });
+                self.pending.push_back(LogError::at(self.name.clone(), offset, format!("chunk CRC {computed:08x} is not the recorded {crc:08x}: its {} bytes of records skipped", end - start), false));
                 return Ok(());
             }
         }

@@ -47,12 +47,12 @@ impl<R: Read> McapReader<R> {
         let mut lines = McapLines::new(src, name.clone(), size)?;
         let offset = lines.find_header()?;
         let inner = LogReader::new(lines, name.clone()).map_err(|e| match e {
-            LogError::Line { msg, .. } => LogError::At {
-                name: name.clone(),
+            LogError::Line { msg, .. } => LogError::at(
+                name.clone(),
                 offset,
-                msg: format!("{} metadata: {msg}", crate::schema::HEADER_METADATA),
-                ends: true,
-            },
+                format!("{} metadata: {msg}", crate::schema::HEADER_METADATA),
+                true,
+            ),
             e => e,
         })?;
         Ok(McapReader {
@@ -91,12 +91,12 @@ impl<R: Read> McapReader<R> {
         let lines = self.inner.get_mut();
         match r {
             Ok(f) => Ok(f),
-            Err(LogError::Line { msg, .. }) => Err(LogError::At {
-                name: self.name.clone(),
-                offset: lines.msg_offset,
+            Err(LogError::Line { msg, .. }) => Err(LogError::at(
+                self.name.clone(),
+                lines.msg_offset,
                 msg,
-                ends: false,
-            }),
+                false,
+            )),
             Err(e @ LogError::Io { .. }) => Err(lines.error.take().unwrap_or(e)),
             Err(e) => Err(e),
         }

@@ -1,0 +1,112 @@
+//! `lightpose convert` end to end: a log through MCAP and back unchanged
+//! with its POSE lines, a recording cut short recovered with what was
+//! dropped named, and bad input refused in one line.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+}
+
+fn lightpose(args: &[&Path]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_lightpose"))
+        .arg("convert")
+        .args(args)
+        .output()
+        .expect("runs lightpose");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn a_log_goes_through_mcap_and_back_unchanged() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = root().join("tests/data/zigzag.jsonl");
+    let poses = root().join("tests/data/zigzag.poses.jsonl");
+    let (mcap, back, back_poses) = (
+        dir.path().join("z.mcap"),
+        dir.path().join("z.jsonl"),
+        dir.path().join("z.poses.jsonl"),
+    );
+    let a = |s: &'static str| Path::new(s);
+    let (ok, err) = lightpose(&[a("--in"), &log, a("--out"), &mcap, a("--poses"), &poses]);
+    assert!(ok, "{err}");
+    assert!(err.starts_with("41 frames, 41 poses: "), "{err}");
+    let (ok, err) = lightpose(&[
+        a("--in"),
+        &mcap,
+        a("--out"),
+        &back,
+        a("--poses"),
+        &back_poses,
+    ]);
+    assert!(ok, "{err}");
+    assert_eq!(std::fs::read(&log).unwrap(), std::fs::read(&back).unwrap());
+    assert_eq!(
+        std::fs::read(&poses).unwrap(),
+        std::fs::read(&back_poses).unwrap()
+    );
+
+    // Cut as a power loss would: every frame of the complete chunks comes
+    // back, and the dropped bytes are named.
+    let (small, cut) = (dir.path().join("small.mcap"), dir.path().join("cut.mcap"));
+    let (ok, err) = lightpose(&[
+        a("--in"),
+        &log,
+        a("--out"),
+        &small,
+        a("--chunk-kib"),
+        a("2"),
+    ]);
+    assert!(ok, "{err}");
+    let bytes = std::fs::read(&small).unwrap();
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let rec = dir.path().join("rec.jsonl");
+    let (ok, err) = lightpose(&[a("--in"), &cut, a("--out"), &rec]);
+    assert!(ok, "{err}");
+    let frames = std::fs::read_to_string(&rec).unwrap().lines().count() - 1;
+    assert!(frames > 5 && frames < 41, "{frames}: {err}");
+    assert!(
+        err.starts_with(&format!("{frames} frames, 0 poses: ")),
+        "{err}"
+    );
+    let line = err.lines().nth(1).unwrap_or_default();
+    assert!(
+        line.starts_with(&format!("lightpose: {}: byte ", cut.display()))
+            && line.contains("recording never finished")
+            && line.contains("bytes after it (an incomplete record) dropped"),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_input_is_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = dir.path().join("fake.mcap");
+    std::fs::copy(root().join("tests/data/dive.jsonl"), &fake).unwrap();
+    let a = |s: &'static str| Path::new(s);
+    let (ok, err) = lightpose(&[a("--in"), &fake, a("--out"), &dir.path().join("o.jsonl")]);
+    assert!(!ok);
+    assert_eq!(
+        err,
+        format!(
+            "lightpose: {}: byte 0: not an MCAP file (no MCAP magic), though named .mcap\n",
+            fake.display()
+        )
+    );
+    let (ok, err) = lightpose(&[
+        a("--in"),
+        &root().join("tests/data/dive.jsonl"),
+        a("--out"),
+        &dir.path().join("o.txt"),
+    ]);
+    assert!(!ok);
+    assert!(
+        err.ends_with("o.txt: the output must be named .jsonl or .mcap\n")
+            && err.lines().count() == 1,
+        "{err}"
+    );
+}
