@@ -128,7 +128,8 @@ fn the_writer_allocates_per_chunk_not_per_frame() {
         write(&mut w, seq);
     }
     let n = 5000u64;
-    let (mut chunks, mut last) = (0u64, sink.0.load(Relaxed));
+    let start = sink.0.load(Relaxed);
+    let (mut chunks, mut last) = (0u64, start);
     let before = allocs();
     for seq in 300..300 + n {
         write(&mut w, seq);
@@ -137,11 +138,13 @@ fn the_writer_allocates_per_chunk_not_per_frame() {
         last = now;
     }
     let allocs = allocs() - before;
+    let bytes = sink.0.load(Relaxed) - start;
     eprintln!(
         "{n} frames and poses, 64 KiB chunks: {chunks} chunks, {allocs} allocations \
-         ({:.1} per chunk, {:.3} per frame)",
+         ({:.1} per chunk, {:.3} per frame); {:.0} bytes per frame and pose",
         allocs as f64 / chunks as f64,
-        allocs as f64 / n as f64
+        allocs as f64 / n as f64,
+        bytes as f64 / n as f64
     );
     assert!(chunks >= 50, "the test must cross chunk boundaries");
     assert!(
