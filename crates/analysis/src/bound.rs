@@ -8,7 +8,7 @@
 //! pipeline's `CrbScene`.
 
 use lightpose_core::Pose;
-use lightpose_pipeline::crb::{crb_along, CrbBound, CrbScene};
+use lightpose_pipeline::model::crb::{crb_along, CrbBound, CrbScene};
 use lightpose_pipeline::model::SensorModel;
 use lightpose_sim::{Scene, Trajectory};
 

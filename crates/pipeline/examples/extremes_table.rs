@@ -22,8 +22,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use lightpose_core::{Angle, Estimator, Pose, PoseEstimate, Status};
-use lightpose_pipeline::model::ModelEstimator;
-use lightpose_pipeline::tracker::Tracker;
+use lightpose_pipeline::model::{ModelEstimator, Tracker};
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{Scene, Simulator};
 

@@ -9,10 +9,9 @@
 //! `[estimator.tracker]` (defaults when absent); an attitude reading is used
 //! exactly when a frame carries one.
 
-use crate::calibration::Calibration;
-use crate::model::{ModelEstimator, PhysicalCalibration};
-use crate::moments::MomentsEstimator;
-use crate::tracker::Tracker;
+use crate::calibration::{Calibration, PhysicalCalibration};
+use crate::model::{ModelEstimator, Tracker};
+use crate::paper::MomentsEstimator;
 use lightpose_core::Estimator;
 
 /// Names `build_estimator` accepts.
@@ -86,8 +85,8 @@ pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimato
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::tests::{sample, sample_physical};
-    use crate::calibration::EstimatorSettings;
+    use crate::calibration::file::tests::{sample, sample_physical};
+    use crate::settings::EstimatorSettings;
 
     #[test]
     fn every_name_builds_the_estimator_it_names() {

@@ -5,7 +5,7 @@
 //! pose instead of 200), so coefficients are compared within tolerances
 //! that reflect that.
 
-use lightpose_pipeline::calibrate::{calibrate, CalibrateOptions};
+use lightpose_pipeline::calibration::{calibrate, CalibrateOptions};
 use lightpose_pipeline::Calibration;
 use lightpose_sim::{Scene, SweepKind, SweepPlan};
 use std::fs::File;

@@ -18,7 +18,7 @@ use lightpose_analysis::montecarlo::{self, Axis, McConfig, McResult, AXES};
 use lightpose_analysis::report::headline;
 use lightpose_analysis::PaperCase;
 use lightpose_core::{Estimator, Frame};
-use lightpose_pipeline::crb::{crb_along, CrbBound};
+use lightpose_pipeline::model::crb::{crb_along, CrbBound};
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{AttitudeNoise, Scene, Simulator, Trajectory};
 use std::fmt::Write as _;

@@ -1,13 +1,14 @@
 //! `lightpose calibrate`: fit the paper's pose equations from truth-labelled
 //! sweep logs and write the calibration file. Thin: the fit is
-//! `lightpose_pipeline::calibrate`; this parses arguments, names bad lines
+//! `lightpose_pipeline::calibration`; this parses arguments, names bad lines
 //! on stderr and prints what was chosen, and the light model's parameters
 //! with their standard errors (or one line saying which one the sweeps could
 //! not determine).
 
 use anyhow::Context;
-use lightpose_pipeline::calibrate::{calibrate_full, CalibrateOptions};
-use lightpose_pipeline::model::{ParamEstimate, ScatterFit};
+use lightpose_pipeline::calibration::{
+    calibrate_full, CalibrateOptions, ParamEstimate, ScatterFit,
+};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]

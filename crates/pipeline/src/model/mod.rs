@@ -6,29 +6,31 @@
 //! - [`SensorModel`]: light equation plus each channel's gain, offset, ADC
 //!   and noise, i.e. what a count is expected to be and how much it scatters.
 //! - [`solver`]: censored, weighted Levenberg–Marquardt on one frame.
-//! - [`estimator`]: the `"model"` single-frame estimator.
-//! - [`calibrate`]: the physical calibration that fits the light equation's
-//!   parameters and each channel's gain and offset from truth-labelled sweeps.
+//! - [`single_frame`]: the `"model"` estimator, each frame fitted on its own.
+//! - [`tracker`]: the `"tracker"` estimator, a filter over pose and rates.
+//! - [`crb`]: the Cramér–Rao bound, the best any estimator could do.
+//!
+//! Their settings are in [`crate::settings`]; the light model they run on
+//! is fitted by `calibration::physical_fit`. A new model-based estimator
+//! goes here, next to these.
 
 // `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 // Channel loops index several parallel per-detector arrays at once.
 #![allow(clippy::needless_range_loop)]
 
-pub mod calibrate;
-pub mod estimator;
+pub mod crb;
 pub mod light;
+pub mod single_frame;
 pub mod solver;
 #[cfg(test)]
 pub(crate) mod testutil;
+pub mod tracker;
 
-pub use calibrate::{
-    fit_physical, CalibError, FitOptions, ParamEstimate, PhysicalCalibration, PhysicalFitter,
-    ScatterFit,
-};
-pub use estimator::{Dof, ModelConfig, ModelError, ModelEstimator};
 pub use light::{predict, predict_with_grad, PoseJacobian, NGRAD};
+pub use single_frame::ModelEstimator;
 pub use solver::{solve, Censoring, LmResult, Prior, SolveOptions};
+pub use tracker::Tracker;
 
 use lightpose_core::frame::full_scale;
 use lightpose_core::{ArrayGeometry, LightParams, NDET};

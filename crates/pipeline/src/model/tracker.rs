@@ -23,14 +23,12 @@
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{Estimator, Frame, PoseEstimate, Status, StdDev, NDET};
 use nalgebra::{SMatrix, SVector};
-use serde::{Deserialize, Serialize};
 
-use crate::model::estimator::{
-    k_d_consider_sigma_x, Dof, ModelConfig, ModelError, ModelEstimator, WATER_TEMP_C,
-};
 use crate::model::light::{predict, predict_with_grad, PoseVec};
+use crate::model::single_frame::{k_d_consider_sigma_x, ModelEstimator, WATER_TEMP_C};
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
+use crate::settings::{Dof, ModelConfig, ModelError, Motion, TrackerConfig};
 
 /// State: x, y, z, θ, ψ, three velocities (body model: surge u, sideslip
 /// right v and down w; world model: ẋ, ẏ, ż), θ̇, ψ̇, K_D.
@@ -42,163 +40,6 @@ const KD: usize = 10;
 type Vs = SVector<f64, NS>;
 type Ms = SMatrix<f64, NS, NS>;
 type Hm = SMatrix<f64, NM, NS>;
-
-/// How the tracker moves the vehicle between frames.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Motion {
-    /// Velocity in the beacon frame, unrelated to attitude.
-    World,
-    /// Surge along the bow plus a small sideslip.
-    Body,
-}
-
-/// Settings of the tracker (a TOML table with every key optional).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct TrackerConfig {
-    /// White-acceleration spectral density of the position, (m/s²)²/Hz.
-    pub accel_psd: f64,
-    /// White angular-acceleration spectral density, (°/s²)²/Hz.
-    pub ang_accel_psd_deg: f64,
-    /// Estimate K_D as a slowly varying random walk (turbid or changing
-    /// water); otherwise it is the calibration's value, fixed.
-    pub estimate_k_d: bool,
-    /// 1σ of K_D about the calibration's value, m⁻¹: the filter's prior
-    /// when K_D is estimated, else added to the reported x std (0: known).
-    pub k_d_sigma: f64,
-    /// Random-walk density of K_D, (m⁻¹)²/s.
-    pub k_d_walk_psd: f64,
-    /// K_D held fixed and a frame without an attitude reading: add
-    /// k_d_sigma's effect on the counts to their covariance (see `update`).
-    pub k_d_consider_without_attitude: bool,
-    /// Say `unobservable`, not `ok`, on a frame without an attitude
-    /// reading. Off by default: with the body motion model, the
-    /// sigma-point update and the beam term in σx, the std of every field
-    /// covers the truth without the sensor (±2σ 92–99.8 % on the paper's
-    /// cases, lightpose bench, 2000 runs). It was on while the EKF's
-    /// coverage there was 76–87 % on the ridges; docs/estimators.md.
-    pub flag_unobservable: bool,
-    /// Frames without an attitude reading use the sigma-point update (see
-    /// `update_sigma`) instead of the EKF's; the cost is 13 evaluations of
-    /// the light equation instead of one with its Jacobian.
-    pub sigma_points_without_attitude: bool,
-    /// Motion model: `body` (surge along the bow plus a small sideslip,
-    /// the default) or `world` (constant velocity in B, no tie between
-    /// velocity and attitude).
-    pub motion: Motion,
-    /// Body model: 1σ of the sideslip (right and down, m/s) and its
-    /// correlation time (s). 0.25 m/s: at sea the water moves the vehicle
-    /// over the ground (currents of 0.1–0.3 m/s), and a looser tie keeps
-    /// the filter honest on the ridge; 0.05–0.1 made the ±2σ coverage of
-    /// the ridges 57–85 % without the sensor (the paper's trajectories'
-    /// own sideslip is ≤ 0.05 m/s RMS). With the sensor it hardly matters
-    /// (y, yaw RMS 0.04 m, 0.58° at 0.05 vs 0.06 m, 0.8° at 0.25).
-    pub side_sigma: f64,
-    pub side_tau_s: f64,
-    /// Start-up 1σ of velocity (m/s) and of angular rates (°/s).
-    pub init_velocity_sigma: f64,
-    pub init_rate_sigma_deg: f64,
-    /// Start-up attitude envelope without a sensor: pitch = yaw = 0 ± this.
-    pub init_attitude_sigma_deg: f64,
-    /// Use `Frame.attitude` when present, with these 1σ.
-    pub use_attitude: bool,
-    pub attitude_sigma_pitch_deg: f64,
-    pub attitude_sigma_yaw_deg: f64,
-    /// Range of x for which an estimate is `ok`.
-    pub x_range: [f64; 2],
-    /// Frames after (re)start reported as `initialising`.
-    pub init_frames: u32,
-    /// Gauss–Newton iterations of the iterated update. 1 (a plain EKF
-    /// update) by default: at 5 Hz the prediction is close enough that
-    /// further iterations changed neither the Monte Carlo half-widths nor
-    /// the coverage (lightpose bench, 400 runs, all three cases, with and
-    /// without the attitude sensor) but cost ~2.4× the time (≈ 120 → 50 µs).
-    pub update_iterations: usize,
-    /// Normalized innovation squared per measurement above which a frame
-    /// is not used; this many such frames in a row restart the filter.
-    pub nis_gate: f64,
-    pub max_rejected: u32,
-    /// A gap in time longer than this restarts the filter (seconds).
-    pub max_gap_s: f64,
-    /// More channels at full scale than this gives `saturated`.
-    pub max_saturated: usize,
-}
-
-impl Default for TrackerConfig {
-    fn default() -> Self {
-        TrackerConfig {
-            accel_psd: 0.005,
-            ang_accel_psd_deg: 20.0,
-            estimate_k_d: false,
-            k_d_sigma: 0.015,
-            k_d_walk_psd: 1e-6,
-            k_d_consider_without_attitude: true,
-            flag_unobservable: false,
-            sigma_points_without_attitude: true,
-            motion: Motion::Body,
-            side_sigma: 0.25,
-            side_tau_s: 2.0,
-            init_velocity_sigma: 0.7,
-            init_rate_sigma_deg: 10.0,
-            init_attitude_sigma_deg: 10.0,
-            use_attitude: true,
-            attitude_sigma_pitch_deg: 0.3,
-            attitude_sigma_yaw_deg: 1.5,
-            x_range: [3.0, 12.0],
-            init_frames: 5,
-            update_iterations: 1,
-            nis_gate: 25.0,
-            max_rejected: 3,
-            max_gap_s: 2.0,
-            max_saturated: 4,
-        }
-    }
-}
-
-impl TrackerConfig {
-    pub fn validate(&self) -> Result<(), ModelError> {
-        let bad = |m: String| Err(ModelError::Config(m));
-        for (name, v) in [
-            ("accel_psd", self.accel_psd),
-            ("ang_accel_psd_deg", self.ang_accel_psd_deg),
-            ("k_d_walk_psd", self.k_d_walk_psd),
-            ("init_velocity_sigma", self.init_velocity_sigma),
-            ("init_rate_sigma_deg", self.init_rate_sigma_deg),
-            ("init_attitude_sigma_deg", self.init_attitude_sigma_deg),
-            ("attitude_sigma_pitch_deg", self.attitude_sigma_pitch_deg),
-            ("attitude_sigma_yaw_deg", self.attitude_sigma_yaw_deg),
-            ("nis_gate", self.nis_gate),
-            ("max_gap_s", self.max_gap_s),
-            ("side_sigma", self.side_sigma),
-            ("side_tau_s", self.side_tau_s),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return bad(format!("tracker {name} = {v} must be positive"));
-            }
-        }
-        // 0 means "K_D known exactly", possible only when it is not
-        // estimated (the filter's prior on it must be positive).
-        if !(self.k_d_sigma.is_finite() && self.k_d_sigma >= 0.0)
-            || (self.estimate_k_d && self.k_d_sigma == 0.0)
-        {
-            return bad(format!(
-                "tracker k_d_sigma = {} must be positive (≥ 0 without estimate_k_d)",
-                self.k_d_sigma
-            ));
-        }
-        let [lo, hi] = self.x_range;
-        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
-            return bad(format!(
-                "tracker x_range = [{lo}, {hi}] must be 0 < lo < hi"
-            ));
-        }
-        if self.update_iterations == 0 {
-            return bad("tracker update_iterations must be at least 1".into());
-        }
-        Ok(())
-    }
-}
 
 #[derive(Debug, Clone, Copy)]
 struct State {

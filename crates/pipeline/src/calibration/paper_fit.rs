@@ -9,18 +9,18 @@
 //! about the array centre) is fitted, and the data pick which one tracks
 //! each quantity: that is how "M23/M33 for pitch or for yaw" is decided.
 //!
-//! The same two passes also feed the physical fitter (`model::calibrate`),
+//! The same two passes also feed the physical fitter (`physical_fit.rs`),
 //! so one command gives both the paper's coefficients and the light model
 //! the model-based estimators need; a sweep that cannot determine the light
 //! model still gives the paper's coefficients.
 
-use crate::calibration::{
+use super::file::{
     Calibration, Coverage, Dark, Feature, Fits, Limits, LinearFit, Meta, RangeBasis, RangeFit,
-    SceneFacts, FORMAT, VERSION,
+    SceneFacts, FORMAT, MAX_SURGE_WINDOW, VERSION,
 };
-use crate::fit::{FitError, Line, LineAcc};
-use crate::model::{CalibError, FitOptions, PhysicalFitter};
-use crate::steps;
+use super::least_squares::{FitError, Line, LineAcc};
+use super::physical_fit::{CalibError, FitOptions, PhysicalFitter};
+use crate::paper::steps;
 use lightpose_core::{frame::full_scale, Frame, LogError, LogReader, NDET};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -313,11 +313,10 @@ pub fn calibrate_full(
     if opts.sweeps.is_empty() {
         return Err(CalibrateError::Refused("no sweep log given".into()));
     }
-    if !(2..=crate::calibration::MAX_SURGE_WINDOW).contains(&opts.surge_window) {
+    if !(2..=MAX_SURGE_WINDOW).contains(&opts.surge_window) {
         return Err(CalibrateError::Refused(format!(
             "surge window {} must be 2..{}",
-            opts.surge_window,
-            crate::calibration::MAX_SURGE_WINDOW
+            opts.surge_window, MAX_SURGE_WINDOW
         )));
     }
     let mut bad = 0u64;

@@ -17,8 +17,8 @@ use lightpose_core::light::temperature_gain;
 use lightpose_core::{Angle, Pose, NDET};
 use nalgebra::{SMatrix, SVector};
 
-use crate::model::light::{from_pose, predict_with_grad};
-use crate::model::SensorModel;
+use super::light::{from_pose, predict_with_grad};
+use super::SensorModel;
 
 /// Parameters: x, y, z, θ, ψ, K_D, common gain.
 const NP: usize = 7;

@@ -22,7 +22,7 @@ use lightpose_core::{Angle, ArrayGeometry, Frame, LightParams, Pose, Scattering,
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 
-use super::SensorModel;
+use crate::model::SensorModel;
 
 /// A fitted value and its standard error.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -827,8 +827,8 @@ pub fn fit_physical<'a>(
 
 #[cfg(test)]
 mod tests {
-    use super::super::testutil::{synth_frame, Rng};
     use super::*;
+    use crate::model::testutil::{synth_frame, Rng};
 
     fn sweep_poses(xs: &[f64], orientation: bool) -> Vec<Pose> {
         let mut v = Vec::new();

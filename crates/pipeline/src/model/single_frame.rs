@@ -15,69 +15,13 @@
 #![allow(clippy::needless_range_loop)]
 
 use lightpose_core::{Estimator, Frame, PoseEstimate, Status, StdDev, NDET};
-use serde::{Deserialize, Serialize};
 
 use super::light::{to_pose, PoseVec};
 use super::solver::{solve, LmResult, Prior, SolveOptions};
 use super::SensorModel;
+use crate::settings::{Dof, ModelConfig, ModelError};
 use lightpose_core::frame::full_scale;
 use lightpose_core::light::temperature_gain;
-
-/// Which pose coordinates one frame is asked for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum Dof {
-    /// x, y, z only; pitch and yaw are taken from the frame's attitude
-    /// reading, or from the configured fixed values when it has none.
-    Position,
-    /// All five; the attitude reading, when present, is a prior with the
-    /// sensor's σ. Without it one frame separates y from yaw and z from
-    /// pitch poorly (MODEL.md), which the reported std will show.
-    #[default]
-    Full,
-}
-
-/// Settings of the model estimator (a TOML table with every key optional).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct ModelConfig {
-    pub dof: Dof,
-    /// Attitude assumed by `dof = "position"` when a frame has no reading.
-    pub fixed_pitch_deg: f64,
-    pub fixed_yaw_deg: f64,
-    /// Use `Frame.attitude` when present.
-    pub use_attitude: bool,
-    /// The attitude sensor's 1σ (MODEL.md defaults).
-    pub attitude_sigma_pitch_deg: f64,
-    pub attitude_sigma_yaw_deg: f64,
-    /// With `dof = "full"` and no attitude reading: a weak prior of
-    /// pitch = yaw = 0 with this σ (degrees), for vehicles known to keep
-    /// roughly facing the beacon. Absent: no prior at all.
-    pub attitude_envelope_deg: Option<f64>,
-    /// Range of x for which an estimate is `ok` (the calibrated range).
-    pub x_range: [f64; 2],
-    /// How far the solver may search, as multiples of that range's ends.
-    pub search_margin: f64,
-    /// Lateral offset limit as a fraction of x, and attitude limit.
-    pub max_lateral_ratio: f64,
-    pub max_angle_deg: f64,
-    pub max_iter: usize,
-    /// More channels at full scale than this gives `saturated`.
-    pub max_saturated: usize,
-    /// The brightest channel must stand this many σ above its offset, or
-    /// the frame is `no_light`.
-    pub min_signal_sigma: f64,
-    /// χ² per degree of freedom above which the fit is `diverged`; below
-    /// it, a χ²/dof above 1 inflates the reported std by its square root.
-    pub max_reduced_chi2: f64,
-    /// Warm start only across gaps shorter than this (seconds).
-    pub max_gap_s: f64,
-    /// 1σ by which the water's K_D may differ from the calibrated value
-    /// (m⁻¹; MODEL.md's Monte Carlo spread 0.015). K_D is not fitted per
-    /// frame, so its doubt is added to the reported x std ("consider"
-    /// covariance); 0 means K_D is known exactly.
-    pub k_d_sigma: f64,
-}
 
 /// 1σ of x caused by a K_D error of `sigma_k_d` at range `x`: near the beam
 /// axis ln E = −K_D·x − 2 ln x + const, so a K_D error δ is read as a range
@@ -89,79 +33,6 @@ pub(crate) fn k_d_consider_sigma_x(x: f64, k_d: f64, sigma_k_d: f64) -> f64 {
         return 0.0;
     }
     x * sigma_k_d / (k_d.max(0.0) + 2.0 / x)
-}
-
-impl Default for ModelConfig {
-    fn default() -> Self {
-        ModelConfig {
-            dof: Dof::Full,
-            fixed_pitch_deg: 0.0,
-            fixed_yaw_deg: 0.0,
-            use_attitude: true,
-            attitude_sigma_pitch_deg: 0.3,
-            attitude_sigma_yaw_deg: 1.5,
-            attitude_envelope_deg: None,
-            x_range: [3.0, 12.0],
-            search_margin: 2.0,
-            max_lateral_ratio: 0.7,
-            max_angle_deg: 60.0,
-            max_iter: 40,
-            max_saturated: 4,
-            min_signal_sigma: 6.0,
-            max_reduced_chi2: 100.0,
-            max_gap_s: 2.0,
-            k_d_sigma: 0.015,
-        }
-    }
-}
-
-#[derive(Debug, thiserror::Error)]
-pub enum ModelError {
-    #[error("sensor model: {0}")]
-    Model(String),
-    #[error("model estimator config: {0}")]
-    Config(String),
-}
-
-impl ModelConfig {
-    pub fn validate(&self) -> Result<(), ModelError> {
-        let bad = |m: String| Err(ModelError::Config(m));
-        let [lo, hi] = self.x_range;
-        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
-            return bad(format!("x_range = [{lo}, {hi}] must be 0 < lo < hi"));
-        }
-        for (name, v) in [
-            ("attitude_sigma_pitch_deg", self.attitude_sigma_pitch_deg),
-            ("attitude_sigma_yaw_deg", self.attitude_sigma_yaw_deg),
-            ("search_margin", self.search_margin),
-            ("max_lateral_ratio", self.max_lateral_ratio),
-            ("max_angle_deg", self.max_angle_deg),
-            ("max_reduced_chi2", self.max_reduced_chi2),
-            ("max_gap_s", self.max_gap_s),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return bad(format!("{name} = {v} must be positive"));
-            }
-        }
-        if !(self.k_d_sigma.is_finite() && self.k_d_sigma >= 0.0) {
-            return bad(format!("k_d_sigma = {} must be ≥ 0", self.k_d_sigma));
-        }
-        if let Some(v) = self.attitude_envelope_deg {
-            if !(v.is_finite() && v > 0.0) {
-                return bad(format!("attitude_envelope_deg = {v} must be positive"));
-            }
-        }
-        if !(self.fixed_pitch_deg.is_finite() && self.fixed_yaw_deg.is_finite()) {
-            return bad("fixed_pitch_deg and fixed_yaw_deg must be finite".into());
-        }
-        if self.search_margin < 1.0 {
-            return bad("search_margin must be at least 1".into());
-        }
-        if self.max_iter == 0 {
-            return bad("max_iter must be at least 1".into());
-        }
-        Ok(())
-    }
 }
 
 /// Reported temperatures (°C) that are taken as water's; outside it a
@@ -245,17 +116,17 @@ impl ModelEstimator {
 
         let att = frame.attitude.filter(|_| c.use_attitude);
         let (free, prior, att_q) = match (c.dof, att) {
-            (super::Dof::Position, Some(a)) => (
+            (Dof::Position, Some(a)) => (
                 [true, true, true, false, false],
                 Prior::none(),
                 Some((a.pitch.rad(), a.yaw.rad())),
             ),
-            (super::Dof::Position, None) => (
+            (Dof::Position, None) => (
                 [true, true, true, false, false],
                 Prior::none(),
                 Some((c.fixed_pitch_deg.to_radians(), c.fixed_yaw_deg.to_radians())),
             ),
-            (super::Dof::Full, Some(a)) => {
+            (Dof::Full, Some(a)) => {
                 let mut p = Prior::none();
                 p.mean[3] = a.pitch.rad();
                 p.mean[4] = a.yaw.rad();
@@ -263,7 +134,7 @@ impl ModelEstimator {
                 p.inv_sigma[4] = 1.0 / c.attitude_sigma_yaw_deg.to_radians();
                 ([true; 5], p, Some((a.pitch.rad(), a.yaw.rad())))
             }
-            (super::Dof::Full, None) => {
+            (Dof::Full, None) => {
                 let mut p = Prior::none();
                 if let Some(s) = c.attitude_envelope_deg {
                     p.inv_sigma[3] = 1.0 / s.to_radians();
@@ -287,7 +158,7 @@ impl ModelEstimator {
 
         let mut result: Option<LmResult> = None;
         if let Some(mut q) = warm.filter(|q| q.iter().all(|v| v.is_finite())) {
-            if let Some((th, ps)) = att_q.filter(|_| c.dof == super::Dof::Position) {
+            if let Some((th, ps)) = att_q.filter(|_| c.dof == Dof::Position) {
                 q[3] = th;
                 q[4] = ps;
             }

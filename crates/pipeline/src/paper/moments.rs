@@ -1,11 +1,11 @@
 //! The paper's estimator (Algorithm 1): per frame, the steps of
-//! [`crate::steps`] with the coefficients of a [`Calibration`]; between
+//! [`steps`] with the coefficients of a [`Calibration`]; between
 //! frames, y and z carried forward along the bow (eqs. 8–13) and surge from
 //! the slope of x over a window. All state is in fixed arrays, so a frame
 //! costs no heap allocation.
 
+use super::steps;
 use crate::calibration::{Calibration, LinearFit, RangeFit, MAX_SURGE_WINDOW};
-use crate::steps;
 use lightpose_core::{Estimator, Frame, PoseEstimate, Status, NDET};
 
 /// What the estimator needs of a calibration, unpacked once.
@@ -248,7 +248,7 @@ impl Estimator for MomentsEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::tests::sample;
+    use crate::calibration::file::tests::sample;
     use lightpose_core::{frame::volts_to_counts, Angle, ArrayGeometry, LightParams, Pose};
 
     /// A noise-free frame of the default light model at `pose`.

@@ -6,13 +6,14 @@
 //! unknown keys and impossible values are refused with file, line and key.
 //!
 //! The optional `[physical]` table holds the light model fitted from the
-//! same sweeps (`model::PhysicalCalibration`), which the model-based
-//! estimators and the Cramér–Rao bound run on; the optional `[estimator]`
-//! table holds their settings (`EstimatorSettings`), so that what a scene
-//! requires (free DOF, K_D estimation) travels with its calibration.
+//! same sweeps ([`PhysicalCalibration`], `physical_fit.rs`), which the
+//! model-based estimators and the Cramér–Rao bound run on; the optional
+//! `[estimator]` table holds their settings ([`EstimatorSettings`],
+//! `src/settings.rs`), so that what a scene requires (free DOF, K_D
+//! estimation) travels with its calibration.
 
-use crate::model::{ModelConfig, PhysicalCalibration};
-use crate::tracker::TrackerConfig;
+use super::physical_fit::PhysicalCalibration;
+use crate::settings::EstimatorSettings;
 use lightpose_core::textfile::{parse_toml, read_text, TextError};
 use lightpose_core::textpos::line_of_key;
 use lightpose_core::{light::temperature_gain, NDET};
@@ -313,18 +314,6 @@ pub struct Calibration {
     /// Settings of the model-based estimators; absent means their defaults.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub estimator: Option<EstimatorSettings>,
-}
-
-/// The `[estimator]` table: what the model-based estimators model for this
-/// scene. Every key is optional. Scattering is not here: it is modelled
-/// exactly when the physical calibration kept it (`omega`, `sigma_h_deg`).
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct EstimatorSettings {
-    /// `[estimator.model]`: the single-frame estimator.
-    pub model: ModelConfig,
-    /// `[estimator.tracker]`: the filter.
-    pub tracker: TrackerConfig,
 }
 
 impl Calibration {
@@ -698,7 +687,7 @@ pub(crate) mod tests {
     /// A physical table as the fitter writes it: V1 135, K_D 0.09, unit
     /// gains, 0.15 V offsets, no scattering.
     pub(crate) fn sample_physical() -> PhysicalCalibration {
-        let pe = |value: f64, std: f64| crate::model::ParamEstimate { value, std };
+        let pe = |value: f64, std: f64| crate::calibration::ParamEstimate { value, std };
         PhysicalCalibration {
             v1: pe(135.0, 0.3),
             sigma_b_deg: pe(12.0, 0.01),
@@ -729,7 +718,7 @@ pub(crate) mod tests {
         let mut c = sample();
         c.physical = Some(sample_physical());
         let mut settings = EstimatorSettings::default();
-        settings.model.dof = crate::model::Dof::Position;
+        settings.model.dof = crate::settings::Dof::Position;
         settings.tracker.estimate_k_d = true;
         c.estimator = Some(settings);
         c.save(&p).unwrap();

@@ -1,0 +1,314 @@
+//! The settings of the estimators: the `[estimator]` table of a calibration
+//! file (`[estimator.model]`, `[estimator.tracker]`), each with its defaults
+//! and its validator.
+//!
+//! Why a file of its own: the calibration file carries these settings and
+//! the estimators are built from them, so both must reach them; kept here,
+//! apart from both, neither has to import the other to get them. A new
+//! setting of an estimator goes into its table here, with its default and
+//! its check in that table's `validate`.
+
+// `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+use serde::{Deserialize, Serialize};
+
+/// The `[estimator]` table: what the model-based estimators model for this
+/// scene. Every key is optional. Scattering is not here: it is modelled
+/// exactly when the physical calibration kept it (`omega`, `sigma_h_deg`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EstimatorSettings {
+    /// `[estimator.model]`: the single-frame estimator.
+    pub model: ModelConfig,
+    /// `[estimator.tracker]`: the filter.
+    pub tracker: TrackerConfig,
+}
+
+/// Which pose coordinates one frame is asked for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Dof {
+    /// x, y, z only; pitch and yaw are taken from the frame's attitude
+    /// reading, or from the configured fixed values when it has none.
+    Position,
+    /// All five; the attitude reading, when present, is a prior with the
+    /// sensor's σ. Without it one frame separates y from yaw and z from
+    /// pitch poorly (MODEL.md), which the reported std will show.
+    #[default]
+    Full,
+}
+
+/// Settings of the model estimator (a TOML table with every key optional).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ModelConfig {
+    pub dof: Dof,
+    /// Attitude assumed by `dof = "position"` when a frame has no reading.
+    pub fixed_pitch_deg: f64,
+    pub fixed_yaw_deg: f64,
+    /// Use `Frame.attitude` when present.
+    pub use_attitude: bool,
+    /// The attitude sensor's 1σ (MODEL.md defaults).
+    pub attitude_sigma_pitch_deg: f64,
+    pub attitude_sigma_yaw_deg: f64,
+    /// With `dof = "full"` and no attitude reading: a weak prior of
+    /// pitch = yaw = 0 with this σ (degrees), for vehicles known to keep
+    /// roughly facing the beacon. Absent: no prior at all.
+    pub attitude_envelope_deg: Option<f64>,
+    /// Range of x for which an estimate is `ok` (the calibrated range).
+    pub x_range: [f64; 2],
+    /// How far the solver may search, as multiples of that range's ends.
+    pub search_margin: f64,
+    /// Lateral offset limit as a fraction of x, and attitude limit.
+    pub max_lateral_ratio: f64,
+    pub max_angle_deg: f64,
+    pub max_iter: usize,
+    /// More channels at full scale than this gives `saturated`.
+    pub max_saturated: usize,
+    /// The brightest channel must stand this many σ above its offset, or
+    /// the frame is `no_light`.
+    pub min_signal_sigma: f64,
+    /// χ² per degree of freedom above which the fit is `diverged`; below
+    /// it, a χ²/dof above 1 inflates the reported std by its square root.
+    pub max_reduced_chi2: f64,
+    /// Warm start only across gaps shorter than this (seconds).
+    pub max_gap_s: f64,
+    /// 1σ by which the water's K_D may differ from the calibrated value
+    /// (m⁻¹; MODEL.md's Monte Carlo spread 0.015). K_D is not fitted per
+    /// frame, so its doubt is added to the reported x std ("consider"
+    /// covariance); 0 means K_D is known exactly.
+    pub k_d_sigma: f64,
+}
+
+impl Default for ModelConfig {
+    fn default() -> Self {
+        ModelConfig {
+            dof: Dof::Full,
+            fixed_pitch_deg: 0.0,
+            fixed_yaw_deg: 0.0,
+            use_attitude: true,
+            attitude_sigma_pitch_deg: 0.3,
+            attitude_sigma_yaw_deg: 1.5,
+            attitude_envelope_deg: None,
+            x_range: [3.0, 12.0],
+            search_margin: 2.0,
+            max_lateral_ratio: 0.7,
+            max_angle_deg: 60.0,
+            max_iter: 40,
+            max_saturated: 4,
+            min_signal_sigma: 6.0,
+            max_reduced_chi2: 100.0,
+            max_gap_s: 2.0,
+            k_d_sigma: 0.015,
+        }
+    }
+}
+
+/// Why a model-based estimator cannot be built: its sensor model or its
+/// settings are unusable. Here because the settings' validators return it.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    #[error("sensor model: {0}")]
+    Model(String),
+    #[error("model estimator config: {0}")]
+    Config(String),
+}
+
+impl ModelConfig {
+    pub fn validate(&self) -> Result<(), ModelError> {
+        let bad = |m: String| Err(ModelError::Config(m));
+        let [lo, hi] = self.x_range;
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
+            return bad(format!("x_range = [{lo}, {hi}] must be 0 < lo < hi"));
+        }
+        for (name, v) in [
+            ("attitude_sigma_pitch_deg", self.attitude_sigma_pitch_deg),
+            ("attitude_sigma_yaw_deg", self.attitude_sigma_yaw_deg),
+            ("search_margin", self.search_margin),
+            ("max_lateral_ratio", self.max_lateral_ratio),
+            ("max_angle_deg", self.max_angle_deg),
+            ("max_reduced_chi2", self.max_reduced_chi2),
+            ("max_gap_s", self.max_gap_s),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("{name} = {v} must be positive"));
+            }
+        }
+        if !(self.k_d_sigma.is_finite() && self.k_d_sigma >= 0.0) {
+            return bad(format!("k_d_sigma = {} must be ≥ 0", self.k_d_sigma));
+        }
+        if let Some(v) = self.attitude_envelope_deg {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("attitude_envelope_deg = {v} must be positive"));
+            }
+        }
+        if !(self.fixed_pitch_deg.is_finite() && self.fixed_yaw_deg.is_finite()) {
+            return bad("fixed_pitch_deg and fixed_yaw_deg must be finite".into());
+        }
+        if self.search_margin < 1.0 {
+            return bad("search_margin must be at least 1".into());
+        }
+        if self.max_iter == 0 {
+            return bad("max_iter must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+/// How the tracker moves the vehicle between frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Motion {
+    /// Velocity in the beacon frame, unrelated to attitude.
+    World,
+    /// Surge along the bow plus a small sideslip.
+    Body,
+}
+
+/// Settings of the tracker (a TOML table with every key optional).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrackerConfig {
+    /// White-acceleration spectral density of the position, (m/s²)²/Hz.
+    pub accel_psd: f64,
+    /// White angular-acceleration spectral density, (°/s²)²/Hz.
+    pub ang_accel_psd_deg: f64,
+    /// Estimate K_D as a slowly varying random walk (turbid or changing
+    /// water); otherwise it is the calibration's value, fixed.
+    pub estimate_k_d: bool,
+    /// 1σ of K_D about the calibration's value, m⁻¹: the filter's prior
+    /// when K_D is estimated, else added to the reported x std (0: known).
+    pub k_d_sigma: f64,
+    /// Random-walk density of K_D, (m⁻¹)²/s.
+    pub k_d_walk_psd: f64,
+    /// K_D held fixed and a frame without an attitude reading: add
+    /// k_d_sigma's effect on the counts to their covariance (see `update`).
+    pub k_d_consider_without_attitude: bool,
+    /// Say `unobservable`, not `ok`, on a frame without an attitude
+    /// reading. Off by default: with the body motion model, the
+    /// sigma-point update and the beam term in σx, the std of every field
+    /// covers the truth without the sensor (±2σ 92–99.8 % on the paper's
+    /// cases, lightpose bench, 2000 runs). It was on while the EKF's
+    /// coverage there was 76–87 % on the ridges; docs/estimators.md.
+    pub flag_unobservable: bool,
+    /// Frames without an attitude reading use the sigma-point update (see
+    /// `update_sigma`) instead of the EKF's; the cost is 13 evaluations of
+    /// the light equation instead of one with its Jacobian.
+    pub sigma_points_without_attitude: bool,
+    /// Motion model: `body` (surge along the bow plus a small sideslip,
+    /// the default) or `world` (constant velocity in B, no tie between
+    /// velocity and attitude).
+    pub motion: Motion,
+    /// Body model: 1σ of the sideslip (right and down, m/s) and its
+    /// correlation time (s). 0.25 m/s: at sea the water moves the vehicle
+    /// over the ground (currents of 0.1–0.3 m/s), and a looser tie keeps
+    /// the filter honest on the ridge; 0.05–0.1 made the ±2σ coverage of
+    /// the ridges 57–85 % without the sensor (the paper's trajectories'
+    /// own sideslip is ≤ 0.05 m/s RMS). With the sensor it hardly matters
+    /// (y, yaw RMS 0.04 m, 0.58° at 0.05 vs 0.06 m, 0.8° at 0.25).
+    pub side_sigma: f64,
+    pub side_tau_s: f64,
+    /// Start-up 1σ of velocity (m/s) and of angular rates (°/s).
+    pub init_velocity_sigma: f64,
+    pub init_rate_sigma_deg: f64,
+    /// Start-up attitude envelope without a sensor: pitch = yaw = 0 ± this.
+    pub init_attitude_sigma_deg: f64,
+    /// Use `Frame.attitude` when present, with these 1σ.
+    pub use_attitude: bool,
+    pub attitude_sigma_pitch_deg: f64,
+    pub attitude_sigma_yaw_deg: f64,
+    /// Range of x for which an estimate is `ok`.
+    pub x_range: [f64; 2],
+    /// Frames after (re)start reported as `initialising`.
+    pub init_frames: u32,
+    /// Gauss–Newton iterations of the iterated update. 1 (a plain EKF
+    /// update) by default: at 5 Hz the prediction is close enough that
+    /// further iterations changed neither the Monte Carlo half-widths nor
+    /// the coverage (lightpose bench, 400 runs, all three cases, with and
+    /// without the attitude sensor) but cost ~2.4× the time (≈ 120 → 50 µs).
+    pub update_iterations: usize,
+    /// Normalized innovation squared per measurement above which a frame
+    /// is not used; this many such frames in a row restart the filter.
+    pub nis_gate: f64,
+    pub max_rejected: u32,
+    /// A gap in time longer than this restarts the filter (seconds).
+    pub max_gap_s: f64,
+    /// More channels at full scale than this gives `saturated`.
+    pub max_saturated: usize,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        TrackerConfig {
+            accel_psd: 0.005,
+            ang_accel_psd_deg: 20.0,
+            estimate_k_d: false,
+            k_d_sigma: 0.015,
+            k_d_walk_psd: 1e-6,
+            k_d_consider_without_attitude: true,
+            flag_unobservable: false,
+            sigma_points_without_attitude: true,
+            motion: Motion::Body,
+            side_sigma: 0.25,
+            side_tau_s: 2.0,
+            init_velocity_sigma: 0.7,
+            init_rate_sigma_deg: 10.0,
+            init_attitude_sigma_deg: 10.0,
+            use_attitude: true,
+            attitude_sigma_pitch_deg: 0.3,
+            attitude_sigma_yaw_deg: 1.5,
+            x_range: [3.0, 12.0],
+            init_frames: 5,
+            update_iterations: 1,
+            nis_gate: 25.0,
+            max_rejected: 3,
+            max_gap_s: 2.0,
+            max_saturated: 4,
+        }
+    }
+}
+
+impl TrackerConfig {
+    pub fn validate(&self) -> Result<(), ModelError> {
+        let bad = |m: String| Err(ModelError::Config(m));
+        for (name, v) in [
+            ("accel_psd", self.accel_psd),
+            ("ang_accel_psd_deg", self.ang_accel_psd_deg),
+            ("k_d_walk_psd", self.k_d_walk_psd),
+            ("init_velocity_sigma", self.init_velocity_sigma),
+            ("init_rate_sigma_deg", self.init_rate_sigma_deg),
+            ("init_attitude_sigma_deg", self.init_attitude_sigma_deg),
+            ("attitude_sigma_pitch_deg", self.attitude_sigma_pitch_deg),
+            ("attitude_sigma_yaw_deg", self.attitude_sigma_yaw_deg),
+            ("nis_gate", self.nis_gate),
+            ("max_gap_s", self.max_gap_s),
+            ("side_sigma", self.side_sigma),
+            ("side_tau_s", self.side_tau_s),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("tracker {name} = {v} must be positive"));
+            }
+        }
+        // 0 means "K_D known exactly", possible only when it is not
+        // estimated (the filter's prior on it must be positive).
+        if !(self.k_d_sigma.is_finite() && self.k_d_sigma >= 0.0)
+            || (self.estimate_k_d && self.k_d_sigma == 0.0)
+        {
+            return bad(format!(
+                "tracker k_d_sigma = {} must be positive (≥ 0 without estimate_k_d)",
+                self.k_d_sigma
+            ));
+        }
+        let [lo, hi] = self.x_range;
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
+            return bad(format!(
+                "tracker x_range = [{lo}, {hi}] must be 0 < lo < hi"
+            ));
+        }
+        if self.update_iterations == 0 {
+            return bad("tracker update_iterations must be at least 1".into());
+        }
+        Ok(())
+    }
+}
