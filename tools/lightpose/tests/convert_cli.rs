@@ -110,3 +110,99 @@ fn bad_input_is_one_line() {
         "{err}"
     );
 }
+
+fn run(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_lightpose"))
+        .args(args)
+        .output()
+        .expect("runs lightpose");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Replay and calibration read MCAP as they read JSONL: the same POSE
+/// lines byte for byte, the same calibration.
+#[test]
+fn replay_and_calibrate_read_mcap_alike() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |n: &str| dir.path().join(n).display().to_string();
+    let cal = root()
+        .join("config/calibration/tank.toml")
+        .display()
+        .to_string();
+    for name in ["dive", "hard", "zigzag"] {
+        let log = root()
+            .join(format!("tests/data/{name}.jsonl"))
+            .display()
+            .to_string();
+        let mcap = d(&format!("{name}.mcap"));
+        let (ok, err) = run(&["convert", "--in", &log, "--out", &mcap, "--chunk-kib", "4"]);
+        assert!(ok, "{err}");
+        let mut outs = Vec::new();
+        for (input, out) in [
+            (&log, d(&format!("{name}.j.poses"))),
+            (&mcap, d(&format!("{name}.m.poses"))),
+        ] {
+            let (ok, err) = run(&[
+                "replay",
+                "--calibration",
+                &cal,
+                "--log",
+                input,
+                "--out",
+                &out,
+            ]);
+            assert!(ok, "{err}");
+            outs.push(std::fs::read(&out).unwrap());
+        }
+        assert!(!outs[0].is_empty());
+        assert_eq!(outs[0], outs[1], "{name}: replay from MCAP differs");
+    }
+    let scene = root().join("config/scenes/tank.toml").display().to_string();
+    let mut cals = Vec::new();
+    for ext in ["jsonl", "mcap"] {
+        let (sweep, dark) = (d("sweep.jsonl"), d("dark.jsonl"));
+        if ext == "jsonl" {
+            for (kind, n, out) in [("all", "8", &sweep), ("dark", "200", &dark)] {
+                let args = [
+                    "sweep",
+                    "--scene",
+                    &scene,
+                    "--kind",
+                    kind,
+                    "--samples",
+                    n,
+                    "--seed",
+                    "5",
+                    "--out",
+                    out,
+                ];
+                let (ok, err) = run(&args);
+                assert!(ok, "{err}");
+            }
+        }
+        let (sw, dk) = (d(&format!("s.{ext}")), d(&format!("k.{ext}")));
+        for (from, to) in [(&sweep, &sw), (&dark, &dk)] {
+            let (ok, err) = run(&["convert", "--in", from, "--out", to]);
+            assert!(ok, "{err}");
+        }
+        let out = d(&format!("cal.{ext}.toml"));
+        let (ok, err) = run(&[
+            "calibrate",
+            "--sweep",
+            &sw,
+            "--dark",
+            &dk,
+            "--out",
+            &out,
+            "--no-physical",
+        ]);
+        assert!(ok, "{err}");
+        // The file names the sources, which differ by their extension.
+        let text = std::fs::read_to_string(&out).unwrap();
+        cals.push(text.replace(&format!(".{ext}"), ".LOG"));
+    }
+    assert_eq!(cals[0], cals[1]);
+}
