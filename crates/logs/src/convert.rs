@@ -189,6 +189,55 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
+/// Where the POSE lines go, by the direction of the conversion.
+fn route_poses(
+    log: &mut LogFile,
+    out: Format,
+    poses: Option<&Path>,
+) -> Result<Poses, ConvertError> {
+    let route = match (log.format(), out, poses) {
+        (Format::Jsonl, Format::Mcap, Some(p)) => Poses::Feed(PoseFeed::open(p)?),
+        (Format::Mcap, Format::Jsonl, Some(p)) => {
+            Poses::ToFile(p.display().to_string(), create_file(p)?)
+        }
+        (Format::Mcap, Format::Mcap, None) => Poses::Carry(Vec::new()),
+        (_, _, None) => Poses::None,
+        (Format::Mcap, Format::Mcap, Some(_)) => {
+            return Err(ConvertError::Usage(
+                "--poses: MCAP to MCAP carries the poses itself".into(),
+            ))
+        }
+        (Format::Jsonl, Format::Jsonl, Some(_)) => {
+            return Err(ConvertError::Usage(
+                "--poses: a JSONL to JSONL conversion has no poses to carry".into(),
+            ))
+        }
+    };
+    if let (LogFile::Mcap(r), false) = (log, matches!(route, Poses::None)) {
+        r.keep_poses(true);
+    }
+    Ok(route)
+}
+
+/// The output file, started with the input's HEADER line as it was read.
+fn create_output(
+    log: &LogFile,
+    output: &Path,
+    format: Format,
+    opts: &McapOptions,
+) -> Result<Out, ConvertError> {
+    let mut sink = create_file(output)?;
+    let header = String::from_utf8_lossy(log.last_line()).into_owned();
+    Ok(match format {
+        Format::Jsonl => {
+            let file = output.display().to_string();
+            write_line(&mut sink, header.as_bytes(), &file)?;
+            Out::Jsonl(file, sink)
+        }
+        Format::Mcap => Out::Mcap(Box::new(McapWriter::with_header_line(sink, &header, opts)?)),
+    })
+}
+
 /// Convert `input` to `output` (containers by extension), with the POSE
 /// lines of `poses` as the module docs say. Each refused frame is handed to
 /// `on_skip` and skipped; a broken input or any write error ends it.
@@ -212,38 +261,8 @@ pub fn convert(
         )));
     }
     let mut log = LogFile::open(input)?;
-    let mut poses = match (log.format(), out_format, poses) {
-        (Format::Jsonl, Format::Mcap, Some(p)) => Poses::Feed(PoseFeed::open(p)?),
-        (Format::Mcap, Format::Jsonl, Some(p)) => {
-            Poses::ToFile(p.display().to_string(), create_file(p)?)
-        }
-        (Format::Mcap, Format::Mcap, None) => Poses::Carry(Vec::new()),
-        (_, _, None) => Poses::None,
-        (Format::Mcap, Format::Mcap, Some(_)) => {
-            return Err(ConvertError::Usage(
-                "--poses: MCAP to MCAP carries the poses itself".into(),
-            ))
-        }
-        (Format::Jsonl, Format::Jsonl, Some(_)) => {
-            return Err(ConvertError::Usage(
-                "--poses: a JSONL to JSONL conversion has no poses to carry".into(),
-            ))
-        }
-    };
-    if let (LogFile::Mcap(r), false) = (&mut log, matches!(poses, Poses::None)) {
-        r.keep_poses(true);
-    }
-    let sink = create_file(output)?;
-    let header = String::from_utf8_lossy(log.last_line()).into_owned();
-    let mut out = match out_format {
-        Format::Jsonl => {
-            let file = output.display().to_string();
-            let mut w = sink;
-            write_line(&mut w, header.as_bytes(), &file)?;
-            Out::Jsonl(file, w)
-        }
-        Format::Mcap => Out::Mcap(Box::new(McapWriter::with_header_line(sink, &header, opts)?)),
-    };
+    let mut poses = route_poses(&mut log, out_format, poses)?;
+    let mut out = create_output(&log, output, out_format, opts)?;
     let mut s = ConvertSummary::default();
     while let Some(r) = log.next_frame() {
         let f = match r {
