@@ -28,7 +28,7 @@ const MAX_SEC: f64 = 18_446_744_072.0;
 
 impl Stamp {
     /// The stamp of `t` seconds, or `None` when t is negative, not finite,
-    /// or beyond [`MAX_SEC`]. The fraction is rounded to the nanosecond on
+    /// or beyond `MAX_SEC`. The fraction is rounded to the nanosecond on
     /// its own, so that Unix times keep their nanoseconds.
     pub fn of(t: f64) -> Option<Stamp> {
         if !(0.0..MAX_SEC).contains(&t) {
