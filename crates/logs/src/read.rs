@@ -1,9 +1,9 @@
 //! The MCAP reader: the same interface as the JSONL reader (a header, then
 //! frames one at a time, [`FrameLog`]), over the line source of `lines.rs`.
-//! Errors name the file and the byte offset of the record: a FRAME message that is refused
-//! costs that frame (as a refused JSONL line does), a chunk that fails its
-//! CRC costs its frames, and anything that breaks the file's structure ends
-//! the log with one line. A file cut short (no footer) ends quietly at its
+//! Errors name the file and the byte offset of the record: a FRAME message
+//! that is refused costs that frame (as a refused JSONL line does), a chunk
+//! that fails its CRC costs its frames, and anything that breaks the file's
+//! structure ends the log with one line. A file cut short (no footer) ends quietly at its
 //! last complete chunk; [`FrameLog::cut`] says where and what was dropped.
 
 use crate::lines::McapLines;
