@@ -3,8 +3,9 @@
 //! Errors name the file and the byte offset of the record: a FRAME message
 //! that is refused costs that frame (as a refused JSONL line does), a chunk
 //! that fails its CRC costs its frames, and anything that breaks the file's
-//! structure ends the log with one line. A file cut short (no footer) ends quietly at its
-//! last complete chunk; [`FrameLog::cut`] says where and what was dropped.
+//! structure ends the log with one line. A file cut short (no footer) ends
+//! quietly at its last complete chunk; [`FrameLog::cut`] says where and
+//! what was dropped.
 
 use crate::lines::McapLines;
 use lightpose_core::{Cut, Frame, FrameLog, LogError, LogHeader, LogReader};
