@@ -59,30 +59,52 @@ pub const POSE: &str = r#"{"title":"lightpose.Pose","description":"One estimate 
 
 pub const STATUS: &str = r#"{"title":"lightpose.Status","description":"The daemon's STATUS report (once a second); its fields grow with the daemon, readers ignore what they do not know","type":"object","properties":{"class":{"const":"STATUS"},"seq":{"type":"integer"},"t":{"type":"number","description":"wall clock, Unix seconds"}},"required":["class"]}"#;
 
-const TIME: &str = r#"{"type":"object","title":"time","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}}"#;
-const VECTOR3: &str = r#"{"title":"foxglove.Vector3","type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}},"required":["x","y","z"]}"#;
-const QUATERNION: &str = r#"{"title":"foxglove.Quaternion","type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"w":{"type":"number"}},"required":["x","y","z","w"]}"#;
+// Pieces the Foxglove schemas share, as literals so that the schemas can
+// be constants (`concat!` takes literals only).
+macro_rules! time {
+    () => {
+        r#"{"type":"object","title":"time","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}}"#
+    };
+}
+macro_rules! vector3 {
+    () => {
+        r#"{"title":"foxglove.Vector3","type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}},"required":["x","y","z"]}"#
+    };
+}
+macro_rules! quaternion {
+    () => {
+        r#"{"title":"foxglove.Quaternion","type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"w":{"type":"number"}},"required":["x","y","z","w"]}"#
+    };
+}
 
 /// `foxglove.RawImage`: the fields lightpose fills.
-pub fn raw_image() -> String {
-    format!(
-        r#"{{"title":"foxglove.RawImage","description":"A raw image","type":"object","properties":{{"timestamp":{TIME},"frame_id":{{"type":"string"}},"width":{{"type":"integer","minimum":0}},"height":{{"type":"integer","minimum":0}},"encoding":{{"type":"string"}},"step":{{"type":"integer","minimum":0}},"data":{{"type":"string","contentEncoding":"base64"}}}}}}"#
-    )
-}
+pub const RAW_IMAGE: &str = concat!(
+    r#"{"title":"foxglove.RawImage","description":"A raw image","type":"object","properties":{"timestamp":"#,
+    time!(),
+    r#","frame_id":{"type":"string"},"width":{"type":"integer","minimum":0},"height":{"type":"integer","minimum":0},"encoding":{"type":"string"},"step":{"type":"integer","minimum":0},"data":{"type":"string","contentEncoding":"base64"}}}"#
+);
 
 /// `foxglove.PoseInFrame`.
-pub fn pose_in_frame() -> String {
-    format!(
-        r#"{{"title":"foxglove.PoseInFrame","description":"A timestamped pose in a named frame","type":"object","properties":{{"timestamp":{TIME},"frame_id":{{"type":"string"}},"pose":{{"title":"foxglove.Pose","type":"object","properties":{{"position":{VECTOR3},"orientation":{QUATERNION}}},"required":["position","orientation"]}}}},"required":["timestamp","frame_id","pose"]}}"#
-    )
-}
+pub const POSE_IN_FRAME: &str = concat!(
+    r#"{"title":"foxglove.PoseInFrame","description":"A timestamped pose in a named frame","type":"object","properties":{"timestamp":"#,
+    time!(),
+    r#","frame_id":{"type":"string"},"pose":{"title":"foxglove.Pose","type":"object","properties":{"position":"#,
+    vector3!(),
+    r#","orientation":"#,
+    quaternion!(),
+    r#"},"required":["position","orientation"]}},"required":["timestamp","frame_id","pose"]}"#
+);
 
 /// `foxglove.FrameTransform`.
-pub fn frame_transform() -> String {
-    format!(
-        r#"{{"title":"foxglove.FrameTransform","description":"The position and orientation of a child frame in its parent","type":"object","properties":{{"timestamp":{TIME},"parent_frame_id":{{"type":"string"}},"child_frame_id":{{"type":"string"}},"translation":{VECTOR3},"rotation":{QUATERNION}}},"required":["timestamp","parent_frame_id","child_frame_id","translation","rotation"]}}"#
-    )
-}
+pub const FRAME_TRANSFORM: &str = concat!(
+    r#"{"title":"foxglove.FrameTransform","description":"The position and orientation of a child frame in its parent","type":"object","properties":{"timestamp":"#,
+    time!(),
+    r#","parent_frame_id":{"type":"string"},"child_frame_id":{"type":"string"},"translation":"#,
+    vector3!(),
+    r#","rotation":"#,
+    quaternion!(),
+    r#"},"required":["timestamp","parent_frame_id","child_frame_id","translation","rotation"]}"#
+);
 
 #[cfg(test)]
 mod tests {
@@ -91,14 +113,14 @@ mod tests {
     #[test]
     fn every_schema_is_json_with_its_title() {
         for (text, title) in [
-            (FRAME.to_string(), name::FRAME),
-            (POSE.to_string(), name::POSE),
-            (STATUS.to_string(), name::STATUS),
-            (raw_image(), name::RAW_IMAGE),
-            (pose_in_frame(), name::POSE_IN_FRAME),
-            (frame_transform(), name::FRAME_TRANSFORM),
+            (FRAME, name::FRAME),
+            (POSE, name::POSE),
+            (STATUS, name::STATUS),
+            (RAW_IMAGE, name::RAW_IMAGE),
+            (POSE_IN_FRAME, name::POSE_IN_FRAME),
+            (FRAME_TRANSFORM, name::FRAME_TRANSFORM),
         ] {
-            let v: serde_json::Value = serde_json::from_str(&text).expect(title);
+            let v: serde_json::Value = serde_json::from_str(text).expect(title);
             assert_eq!(v["title"], title);
             assert_eq!(v["type"], "object");
         }

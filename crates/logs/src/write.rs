@@ -153,11 +153,11 @@ impl<W: Write> McapWriter<W> {
             tf: 0,
         };
         if opts.foxglove {
-            ch.image = add(name::RAW_IMAGE, &schema::raw_image(), topic::IMAGE)?;
-            let pif = schema::pose_in_frame();
-            ch.vehicle_pose = add(name::POSE_IN_FRAME, &pif, topic::VEHICLE_POSE)?;
-            ch.truth_pose = add(name::POSE_IN_FRAME, &pif, topic::TRUTH_POSE)?;
-            ch.tf = add(name::FRAME_TRANSFORM, &schema::frame_transform(), topic::TF)?;
+            let pif = schema::POSE_IN_FRAME;
+            ch.image = add(name::RAW_IMAGE, schema::RAW_IMAGE, topic::IMAGE)?;
+            ch.vehicle_pose = add(name::POSE_IN_FRAME, pif, topic::VEHICLE_POSE)?;
+            ch.truth_pose = add(name::POSE_IN_FRAME, pif, topic::TRUTH_POSE)?;
+            ch.tf = add(name::FRAME_TRANSFORM, schema::FRAME_TRANSFORM, topic::TF)?;
         }
         let mut lines = LogWriter::new(Vec::with_capacity(1024), &header)?;
         lines.get_mut().clear();
