@@ -11,6 +11,8 @@ use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Write};
 use std::path::Path;
 
+mod framelog;
+pub use framelog::{ByteError, Cut, FrameLog};
 pub const FORMAT: &str = "lightpose-intensity";
 pub const VERSION: u32 = 1;
 
@@ -26,6 +28,9 @@ pub enum LogError {
     },
     #[error("{name}: empty log (no HEADER line)")]
     Empty { name: String },
+    /// A binary container (MCAP) refused something at a byte offset.
+    #[error(transparent)]
+    At(ByteError),
 }
 
 /// The first line of a log. Fields this reader does not know are kept and

@@ -3,9 +3,9 @@
 //! of each axis. A library function so that the CLI, the regression tests
 //! and anyone else replay exactly alike.
 
-use lightpose_core::{Estimator, LogError, LogReader, PoseEstimate, Status};
+use lightpose_core::{Cut, Estimator, FrameLog, LogError, PoseEstimate, Status};
 use std::fmt;
-use std::io::{BufRead, Write};
+use std::io::Write;
 
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
@@ -150,8 +150,8 @@ pub struct ReplaySummary {
     pub status: [u64; Status::ALL.len()],
     /// Error against truth, when the log carried any.
     pub report: Option<ErrorReport>,
-    /// Line of a last line cut short, if the log ended so.
-    pub truncated_at: Option<usize>,
+    /// Where the log was cut short, if it ended so.
+    pub cut: Option<Cut>,
     /// Gaps in `seq` and the frames they lost.
     pub seq_gaps: (u64, u64),
 }
@@ -159,9 +159,9 @@ pub struct ReplaySummary {
 /// Replay `log` through `est`, writing one POSE line per frame to `out`.
 /// Each refused log line is handed to `on_bad_line` (to be named to the
 /// operator) and skipped; an I/O error ends the replay with an error.
-pub fn replay<R: BufRead, W: Write>(
+pub fn replay<W: Write>(
     est: &mut dyn Estimator,
-    log: &mut LogReader<R>,
+    log: &mut dyn FrameLog,
     out: &mut W,
     mut on_bad_line: impl FnMut(&LogError),
 ) -> Result<ReplaySummary, ReplayError> {
@@ -172,13 +172,13 @@ pub fn replay<R: BufRead, W: Write>(
         bad_lines: 0,
         status: [0; Status::ALL.len()],
         report: None,
-        truncated_at: None,
+        cut: None,
         seq_gaps: (0, 0),
     };
-    for item in log.by_ref() {
+    while let Some(item) = log.next_frame() {
         let frame = match item {
             Ok(f) => f,
-            Err(e @ LogError::Line { .. }) => {
+            Err(e) if e.skippable() => {
                 s.bad_lines += 1;
                 on_bad_line(&e);
                 continue;
@@ -199,7 +199,7 @@ pub fn replay<R: BufRead, W: Write>(
     }
     out.flush()?;
     s.report = errors.report();
-    s.truncated_at = log.truncated_at();
+    s.cut = log.cut();
     s.seq_gaps = log.seq_gaps();
     Ok(s)
 }

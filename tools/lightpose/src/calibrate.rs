@@ -13,8 +13,8 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct CalibrateArgs {
-    /// A truth-labelled sweep log (repeat for more; a dark sweep is used
-    /// for the offsets).
+    /// A truth-labelled sweep log, .jsonl or .mcap (repeat for more; a
+    /// dark sweep is used for the offsets).
     #[arg(long = "sweep", required = true)]
     sweeps: Vec<PathBuf>,
     /// A log of beacon-off frames: each channel's dark offset.

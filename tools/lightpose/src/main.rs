@@ -4,6 +4,7 @@
 mod bench;
 mod calibrate;
 mod cells;
+mod convert;
 mod crb;
 mod montecarlo;
 mod replay;
@@ -39,6 +40,8 @@ enum Cmd {
     Bench(bench::BenchArgs),
     /// Cramér–Rao bound of a scene along a trajectory, one row per frame.
     Crb(crb::CrbArgs),
+    /// Convert an intensity log between JSON Lines and MCAP.
+    Convert(convert::ConvertArgs),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +54,7 @@ fn main() -> ExitCode {
         Cmd::Montecarlo(a) => montecarlo::run(a),
         Cmd::Bench(a) => bench::run(a),
         Cmd::Crb(a) => crb::run(a),
+        Cmd::Convert(a) => convert::run(a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,7 +3,7 @@
 //! against the log's truth. Thin: the loop is `lightpose_pipeline::replay`.
 
 use anyhow::Context;
-use lightpose_core::{LogReader, Status};
+use lightpose_core::Status;
 use lightpose_pipeline::{build_estimator, replay, Calibration};
 use std::fs::File;
 use std::io::BufWriter;
@@ -14,7 +14,7 @@ pub struct ReplayArgs {
     /// Calibration file written by `lightpose calibrate`.
     #[arg(long)]
     calibration: PathBuf,
-    /// Intensity log to replay.
+    /// Intensity log to replay (.jsonl or .mcap).
     #[arg(long)]
     log: PathBuf,
     /// Where to write the POSE lines (JSON Lines).
@@ -34,11 +34,11 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     let mut est = build_estimator(&a.estimator, &cal)?;
     // Say which one "auto" chose, before any output.
     eprintln!("lightpose: estimator {} ({})", est.name(), a.estimator);
-    let mut log = LogReader::open(&a.log)?;
+    let mut log = lightpose_logs::open(&a.log)?;
     let file = File::create(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let mut out = BufWriter::new(file);
     let mut shown = 0u32;
-    let s = replay(est.as_mut(), &mut log, &mut out, |e| {
+    let s = replay(est.as_mut(), log.as_mut(), &mut out, |e| {
         shown += 1;
         if shown <= 20 {
             eprintln!("lightpose: skipped {e}");
@@ -58,11 +58,8 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         statuses.join(", "),
         s.bad_lines
     );
-    if let Some(line) = s.truncated_at {
-        eprintln!(
-            "lightpose: {}:{line}: last line cut short; the log ends there",
-            a.log.display()
-        );
+    if let Some(cut) = s.cut {
+        eprintln!("lightpose: {}: {cut}", a.log.display());
     }
     if s.seq_gaps.0 > 0 {
         eprintln!(

@@ -21,7 +21,8 @@ use super::file::{
 use super::least_squares::{FitError, Line, LineAcc};
 use super::physical_fit::{CalibError, FitOptions, PhysicalFitter};
 use crate::paper::steps;
-use lightpose_core::{frame::full_scale, Frame, LogError, LogReader, NDET};
+use lightpose_core::{frame::full_scale, Frame, LogError, NDET};
+use lightpose_logs::open as open_log;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -211,12 +212,12 @@ fn stream(
     on_bad_line: &mut dyn FnMut(&LogError),
     bad: &mut u64,
 ) -> Result<lightpose_core::LogHeader, CalibrateError> {
-    let mut r = LogReader::open(path).map_err(CalibrateError::Log)?;
+    let mut r = open_log(path).map_err(CalibrateError::Log)?;
     let header = r.header().clone();
     while let Some(item) = r.next_frame() {
         match item {
             Ok(f) => each(&f, &header),
-            Err(e @ LogError::Line { .. }) => {
+            Err(e) if e.skippable() => {
                 *bad += 1;
                 on_bad_line(&e);
             }
@@ -340,10 +341,7 @@ pub fn calibrate_full(
         dark_source.push(p.display().to_string());
     }
     for p in &opts.sweeps {
-        let h = LogReader::open(p)
-            .map_err(CalibrateError::Log)?
-            .header()
-            .clone();
+        let h = open_log(p).map_err(CalibrateError::Log)?.header().clone();
         if is_dark_sweep(&h) {
             stream(
                 p,
@@ -386,10 +384,7 @@ pub fn calibrate_full(
     let mut first_header = None;
     let mut sweeps = Vec::new();
     for p in &opts.sweeps {
-        let h = LogReader::open(p)
-            .map_err(CalibrateError::Log)?
-            .header()
-            .clone();
+        let h = open_log(p).map_err(CalibrateError::Log)?.header().clone();
         sweeps.push(p.display().to_string());
         if is_dark_sweep(&h) {
             continue;

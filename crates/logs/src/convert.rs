@@ -1,0 +1,360 @@
+//! `lightpose convert`'s work: an intensity log from one container to the
+//! other (or to the same one, which rewrites it: an MCAP cut by a power
+//! loss comes out finished, with every frame of its complete chunks).
+//!
+//! Frames go through `Frame` (f64 exactly, serde_json's float_roundtrip),
+//! so JSONL → MCAP → JSONL gives back a log written by lightpose byte for
+//! byte. Poses: a JSONL intensity log holds frames only, so the POSE lines
+//! of the JSONL side are a file of their own (`lightpose replay`'s output).
+//! Into MCAP that file is read and its lines go, as they are, on
+//! `/lightpose/pose` after the frame they belong to; out of MCAP the
+//! `/lightpose/pose` messages are written to it one per line. MCAP → MCAP
+//! carries the poses itself. STATUS is not carried (it is about the
+//! daemon, not the data); what was passed over is counted.
+
+use crate::write::{McapOptions, McapWriter, WriteError};
+use crate::{Format, LogFile};
+use lightpose_core::{Cut, FrameLog, LogError};
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, BufWriter, Write};
+use std::path::Path;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConvertError {
+    #[error("{0}")]
+    Usage(String),
+    #[error(transparent)]
+    Read(#[from] LogError),
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    #[error("{file}: {err}")]
+    File { file: String, err: io::Error },
+    #[error("{file}:{line}: {msg}")]
+    PoseLine {
+        file: String,
+        line: usize,
+        msg: String,
+    },
+}
+
+/// What a conversion did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ConvertSummary {
+    pub frames: u64,
+    pub poses: u64,
+    /// Frames (lines, messages, chunks) refused and skipped.
+    pub skipped: u64,
+    /// Where the input was cut short, if it was.
+    pub cut: Option<Cut>,
+    /// Records of other kinds passed over (status, Foxglove messages,
+    /// which are made anew from frames and poses).
+    pub other: u64,
+    pub seq_gaps: (u64, u64),
+}
+
+enum Out {
+    /// Lines are written as they were read.
+    Jsonl(String, BufWriter<File>),
+    Mcap(Box<McapWriter<BufWriter<File>>>),
+}
+
+/// POSE lines read in step with the frames (JSONL → MCAP).
+struct PoseFeed {
+    src: BufReader<File>,
+    file: String,
+    line_no: usize,
+    /// A line read ahead: its seq and text.
+    next: Option<(u64, String)>,
+    ended: bool,
+}
+
+#[derive(serde::Deserialize)]
+struct PoseSeq {
+    class: Option<String>,
+    seq: Option<u64>,
+}
+
+impl PoseFeed {
+    fn open(path: &Path) -> Result<Self, ConvertError> {
+        let file = path.display().to_string();
+        let f = File::open(path).map_err(|err| ConvertError::File {
+            file: file.clone(),
+            err,
+        })?;
+        Ok(PoseFeed {
+            src: BufReader::new(f),
+            file,
+            line_no: 0,
+            next: None,
+            ended: false,
+        })
+    }
+
+    fn bad(&self, msg: impl Into<String>) -> ConvertError {
+        ConvertError::PoseLine {
+            file: self.file.clone(),
+            line: self.line_no,
+            msg: msg.into(),
+        }
+    }
+
+    /// Read ahead to the next POSE line.
+    fn fill(&mut self) -> Result<(), ConvertError> {
+        while self.next.is_none() && !self.ended {
+            let mut text = String::new();
+            let n = self
+                .src
+                .read_line(&mut text)
+                .map_err(|err| ConvertError::File {
+                    file: self.file.clone(),
+                    err,
+                })?;
+            if n == 0 {
+                self.ended = true;
+                break;
+            }
+            self.line_no += 1;
+            if text.trim().is_empty() {
+                continue;
+            }
+            let p: PoseSeq = serde_json::from_str(text.trim())
+                .map_err(|e| self.bad(format!("not valid JSON: {e}")))?;
+            match (p.class.as_deref(), p.seq) {
+                (Some("POSE"), Some(seq)) => self.next = Some((seq, text)),
+                (Some("POSE"), None) => return Err(self.bad("POSE has no integer seq")),
+                _ => {} // other classes beside POSE: not poses
+            }
+        }
+        Ok(())
+    }
+
+    /// Write the POSE lines up to frame `seq` (all, with `None`).
+    fn write_through(
+        &mut self,
+        seq: Option<u64>,
+        out: &mut McapWriter<BufWriter<File>>,
+    ) -> Result<u64, ConvertError> {
+        let mut n = 0;
+        loop {
+            self.fill()?;
+            match &self.next {
+                Some((s, text)) if seq.map_or(true, |limit| *s <= limit) => {
+                    out.write_pose_line(text.as_bytes())
+                        .map_err(|e| self.bad(e.to_string()))?;
+                    self.next = None;
+                    n += 1;
+                }
+                _ => return Ok(n),
+            }
+        }
+    }
+}
+
+/// A line as it was read, newline-terminated.
+fn write_line(w: &mut impl Write, line: &[u8], file: &str) -> Result<(), ConvertError> {
+    let r = w.write_all(line);
+    let r = r.and_then(|()| match line.last() {
+        Some(b'\n') => Ok(()),
+        _ => w.write_all(b"\n"),
+    });
+    r.map_err(|err| ConvertError::File {
+        file: file.to_string(),
+        err,
+    })
+}
+
+fn create_file(path: &Path) -> Result<BufWriter<File>, ConvertError> {
+    let f = File::create(path).map_err(|err| ConvertError::File {
+        file: path.display().to_string(),
+        err,
+    })?;
+    Ok(BufWriter::with_capacity(1 << 16, f))
+}
+
+/// Where the POSE lines go or come from, by direction.
+enum Poses {
+    None,
+    /// JSONL → MCAP: read from this file.
+    Feed(PoseFeed),
+    /// MCAP → JSONL: kept by the reader, written to this file.
+    ToFile(String, BufWriter<File>),
+    /// MCAP → MCAP: kept by the reader, rewritten on the pose channel.
+    Carry(Vec<u8>),
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
+/// Where the POSE lines go, by the direction of the conversion.
+fn route_poses(
+    log: &mut LogFile,
+    out: Format,
+    poses: Option<&Path>,
+) -> Result<Poses, ConvertError> {
+    let route = match (log.format(), out, poses) {
+        (Format::Jsonl, Format::Mcap, Some(p)) => Poses::Feed(PoseFeed::open(p)?),
+        (Format::Mcap, Format::Jsonl, Some(p)) => {
+            Poses::ToFile(p.display().to_string(), create_file(p)?)
+        }
+        (Format::Mcap, Format::Mcap, None) => Poses::Carry(Vec::new()),
+        (_, _, None) => Poses::None,
+        (Format::Mcap, Format::Mcap, Some(_)) => {
+            return Err(ConvertError::Usage(
+                "--poses: MCAP to MCAP carries the poses itself".into(),
+            ))
+        }
+        (Format::Jsonl, Format::Jsonl, Some(_)) => {
+            return Err(ConvertError::Usage(
+                "--poses: a JSONL to JSONL conversion has no poses to carry".into(),
+            ))
+        }
+    };
+    if let (LogFile::Mcap(r), false) = (log, matches!(route, Poses::None)) {
+        r.keep_poses(true);
+    }
+    Ok(route)
+}
+
+/// The output file, started with the input's HEADER line as it was read.
+fn create_output(
+    log: &LogFile,
+    output: &Path,
+    format: Format,
+    opts: &McapOptions,
+) -> Result<Out, ConvertError> {
+    let mut sink = create_file(output)?;
+    let header = String::from_utf8_lossy(log.last_line()).into_owned();
+    Ok(match format {
+        Format::Jsonl => {
+            let file = output.display().to_string();
+            write_line(&mut sink, header.as_bytes(), &file)?;
+            Out::Jsonl(file, sink)
+        }
+        Format::Mcap => Out::Mcap(Box::new(McapWriter::with_header_line(sink, &header, opts)?)),
+    })
+}
+
+/// Convert `input` to `output` (containers by extension), with the POSE
+/// lines of `poses` as the module docs say. Each refused frame is handed to
+/// `on_skip` and skipped; a broken input or any write error ends it.
+pub fn convert(
+    input: &Path,
+    output: &Path,
+    poses: Option<&Path>,
+    opts: &McapOptions,
+    mut on_skip: impl FnMut(&LogError),
+) -> Result<ConvertSummary, ConvertError> {
+    let out_format = Format::of_path(output).ok_or_else(|| {
+        ConvertError::Usage(format!(
+            "{}: the output must be named .jsonl or .mcap",
+            output.display()
+        ))
+    })?;
+    if same_file(input, output) {
+        return Err(ConvertError::Usage(format!(
+            "{}: input and output are the same file",
+            input.display()
+        )));
+    }
+    let mut log = LogFile::open(input)?;
+    let mut poses = route_poses(&mut log, out_format, poses)?;
+    let mut out = create_output(&log, output, out_format, opts)?;
+    let mut s = ConvertSummary::default();
+    while let Some(r) = log.next_frame() {
+        let f = match r {
+            Ok(f) => f,
+            Err(e) if e.skippable() => {
+                s.skipped += 1;
+                on_skip(&e);
+                continue;
+            }
+            Err(e) => return Err(e.into()),
+        };
+        // Poses kept while reading up to this frame belong before it.
+        s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::BeforeFrame)?;
+        match &mut out {
+            Out::Jsonl(file, w) => write_line(w, log.last_line(), file)?,
+            Out::Mcap(w) => w.write_frame_line(&f, log.last_line())?,
+        }
+        s.frames += 1;
+        s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::AfterFrame(f.seq))?;
+    }
+    s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::End)?;
+    finish(out, poses)?;
+    s.cut = log.cut();
+    s.other = log.other_records();
+    s.seq_gaps = log.seq_gaps();
+    Ok(s)
+}
+
+/// When POSE lines are moved, relative to a frame.
+#[derive(Clone, Copy)]
+enum Due {
+    BeforeFrame,
+    AfterFrame(u64),
+    End,
+}
+
+/// Move the POSE lines that are due: from the feed, those up to the frame
+/// just written; from the MCAP reader, those it kept while reading up to
+/// the next frame (they belong before it).
+fn pass_poses(
+    log: &mut LogFile,
+    poses: &mut Poses,
+    out: &mut Out,
+    due: Due,
+) -> Result<u64, ConvertError> {
+    match (poses, due) {
+        (Poses::Feed(feed), Due::AfterFrame(seq)) => match out {
+            Out::Mcap(w) => feed.write_through(Some(seq), w),
+            Out::Jsonl(..) => Ok(0),
+        },
+        (Poses::Feed(feed), Due::End) => match out {
+            Out::Mcap(w) => feed.write_through(None, w),
+            Out::Jsonl(..) => Ok(0),
+        },
+        (Poses::ToFile(file, w), Due::BeforeFrame | Due::End) => match log {
+            LogFile::Mcap(r) => {
+                r.take_poses(w)
+                    .map(|n| n as u64)
+                    .map_err(|err| ConvertError::File {
+                        file: file.clone(),
+                        err,
+                    })
+            }
+            LogFile::Jsonl(_) => Ok(0),
+        },
+        (Poses::Carry(buf), Due::BeforeFrame | Due::End) => match (log, out) {
+            (LogFile::Mcap(r), Out::Mcap(w)) => {
+                buf.clear();
+                r.take_poses(buf).map_err(WriteError::Io)?;
+                let mut n = 0;
+                for line in buf.split(|&b| b == b'\n').filter(|l| !l.is_empty()) {
+                    w.write_pose_line(line)?;
+                    n += 1;
+                }
+                Ok(n)
+            }
+            _ => Ok(0),
+        },
+        _ => Ok(0),
+    }
+}
+
+fn finish(out: Out, poses: Poses) -> Result<(), ConvertError> {
+    let file_err = |file: String| move |err| ConvertError::File { file, err };
+    match out {
+        Out::Jsonl(file, mut w) => w.flush().map_err(file_err(file))?,
+        Out::Mcap(w) => {
+            w.finish()?;
+        }
+    }
+    if let Poses::ToFile(file, mut w) = poses {
+        w.flush().map_err(file_err(file))?;
+    }
+    Ok(())
+}

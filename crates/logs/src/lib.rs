@@ -1,0 +1,174 @@
+//! Intensity logs in every container lightpose reads and writes — JSON
+//! Lines (FORMATS.md, core's `LogReader`/`LogWriter`) and MCAP, the
+//! robotics world's recording format that Foxglove opens — behind one
+//! reader interface (core's [`FrameLog`]), one opener ([`open`]) and one
+//! writer interface ([`LogSink`], [`create`]).
+//!
+//! It sits between core and everything that reads or records logs (hal,
+//! pipeline, daemon, tools), so that each of them reads MCAP as it reads
+//! JSONL: the same frames, bit for bit.
+//!
+//! MCAP layout (see [`schema`] for the channels): the HEADER line in a
+//! metadata record; each frame on `/lightpose/frame` as exactly its JSONL
+//! line, each estimate on `/lightpose/pose` as its POSE object, the daemon's
+//! STATUS on `/lightpose/status`, all JSON with jsonschema schemas; and the
+//! same data in Foxglove's well-known types (`foxglove.RawImage`,
+//! `foxglove.PoseInFrame`, `foxglove.FrameTransform`) so that Foxglove's
+//! panels show a recording as it is (docs/foxglove.md). Log time is the
+//! frame's t in nanoseconds; t < 0 is refused.
+//!
+//! Chunks are uncompressed. The `mcap` crate's zstd and lz4 are C libraries
+//! that the ARM cross builds would have to compile; a frame is a few
+//! hundred bytes of JSON, a day at 5 Hz about 0.6 GB uncompressed, and a
+//! recording that needs to be small compresses well afterwards (`mcap
+//! compress`, or gzip). Uncompressed chunks also cost no CPU on a small
+//! board and cannot be lost to a torn compression stream. Writing is
+//! append-only and chunked, so a file cut by a power loss is readable up
+//! to its last complete chunk.
+
+pub mod convert;
+pub mod foxglove;
+mod lines;
+pub mod read;
+pub mod schema;
+pub mod sink;
+mod tap;
+pub mod write;
+
+pub use convert::{convert, ConvertError, ConvertSummary};
+pub use lightpose_core::{Cut, FrameLog, LogError};
+pub use lines::RECORD_LIMIT;
+pub use read::McapReader;
+pub use sink::{create, LogSink};
+pub use tap::LineTap;
+pub use write::{McapOptions, McapWriter, WriteError};
+
+use lightpose_core::{Frame, LogHeader, LogReader};
+use std::fs::File;
+use std::io::{BufReader, Read};
+use std::path::Path;
+
+/// The containers of an intensity log.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Jsonl,
+    Mcap,
+}
+
+impl Format {
+    /// The container a path's extension names (`.jsonl`, `.mcap`).
+    pub fn of_path(path: &Path) -> Option<Format> {
+        match path.extension()?.to_str()?.to_ascii_lowercase().as_str() {
+            "jsonl" => Some(Format::Jsonl),
+            "mcap" => Some(Format::Mcap),
+            _ => None,
+        }
+    }
+}
+
+/// Whether a file starts with the MCAP magic.
+fn has_mcap_magic(path: &Path) -> std::io::Result<bool> {
+    let mut magic = [0u8; 8];
+    let mut f = std::fs::File::open(path)?;
+    let mut n = 0;
+    while n < magic.len() {
+        match f.read(&mut magic[n..])? {
+            0 => break,
+            k => n += k,
+        }
+    }
+    Ok(n == magic.len() && magic[..] == *mcap::MAGIC)
+}
+
+/// An intensity log file opened in its container.
+pub enum LogFile {
+    Jsonl(Box<LogReader<LineTap<BufReader<File>>>>),
+    Mcap(Box<McapReader<BufReader<File>>>),
+}
+
+impl LogFile {
+    /// Open an intensity log, JSONL or MCAP by its extension (a path with
+    /// another extension is told by its content). A `.mcap` without the
+    /// MCAP magic, or a `.jsonl` with it, is refused with one line.
+    pub fn open(path: &Path) -> Result<LogFile, LogError> {
+        let name = path.display().to_string();
+        let magic = has_mcap_magic(path).map_err(|err| LogError::Io {
+            name: name.clone(),
+            err,
+        })?;
+        let refuse = |msg: &str| LogError::at(name.clone(), 0, msg, true);
+        match (Format::of_path(path), magic) {
+            (Some(Format::Jsonl), true) => Err(refuse(
+                "an MCAP file (its magic) named .jsonl: rename it .mcap",
+            )),
+            (Some(Format::Mcap), false) => Err(refuse(
+                "not an MCAP file (no MCAP magic), though named .mcap",
+            )),
+            (_, true) => Ok(LogFile::Mcap(Box::new(McapReader::open(path)?))),
+            (_, false) => {
+                let f = File::open(path).map_err(|err| LogError::Io {
+                    name: name.clone(),
+                    err,
+                })?;
+                let src = LineTap::new(BufReader::with_capacity(1 << 16, f));
+                Ok(LogFile::Jsonl(Box::new(LogReader::new(src, name.clone())?)))
+            }
+        }
+    }
+
+    pub fn format(&self) -> Format {
+        match self {
+            LogFile::Jsonl(_) => Format::Jsonl,
+            LogFile::Mcap(_) => Format::Mcap,
+        }
+    }
+
+    /// The text of the line or message read last (after opening: the
+    /// header; after a frame: that frame), with its newline.
+    pub fn last_line(&self) -> &[u8] {
+        match self {
+            LogFile::Jsonl(r) => r.get_ref().line(),
+            LogFile::Mcap(r) => r.last_line(),
+        }
+    }
+
+    fn get(&self) -> &dyn FrameLog {
+        match self {
+            LogFile::Jsonl(r) => r.as_ref(),
+            LogFile::Mcap(r) => r.as_ref(),
+        }
+    }
+}
+
+impl FrameLog for LogFile {
+    fn header(&self) -> &LogHeader {
+        self.get().header()
+    }
+    fn name(&self) -> &str {
+        self.get().name()
+    }
+    fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
+        match self {
+            LogFile::Jsonl(r) => FrameLog::next_frame(r.as_mut()),
+            LogFile::Mcap(r) => FrameLog::next_frame(r.as_mut()),
+        }
+    }
+    fn cut(&self) -> Option<Cut> {
+        self.get().cut()
+    }
+    fn other_records(&self) -> u64 {
+        self.get().other_records()
+    }
+    fn seq_gaps(&self) -> (u64, u64) {
+        self.get().seq_gaps()
+    }
+    fn bad_readings(&self) -> (u64, Option<&str>) {
+        self.get().bad_readings()
+    }
+}
+
+/// Open an intensity log whatever its container ([`LogFile::open`]), for
+/// code that reads frames alone.
+pub fn open(path: &Path) -> Result<Box<dyn FrameLog + Send>, LogError> {
+    Ok(Box::new(LogFile::open(path)?))
+}

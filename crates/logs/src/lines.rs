@@ -1,0 +1,600 @@
+//! An MCAP file read record by record and served as the lines of a JSONL
+//! log: first the HEADER line held in the `lightpose-header` metadata, then
+//! each message of `/lightpose/frame`. Core's `LogReader` reads these lines,
+//! so a FRAME means the same in both containers, by one parser.
+//!
+//! Streaming: one top-level record (at most one chunk) is in memory at a
+//! time. A chunk is taken whole or not at all: it is read to its end and
+//! its CRC checked before any of its records is used, so a file cut by a
+//! power loss gives every complete chunk and nothing of the one it was
+//! writing. The record layer is parsed here, bounds-checked against the
+//! bytes present: the `mcap` crate's record parser reserves as much memory
+//! as a string's length field says (up to 4 GiB) before it looks at the
+//! bytes, which a corrupt file must not be able to make us do.
+
+use crate::schema::{self, name, topic};
+use lightpose_core::{Cut, LogError};
+use mcap::records::op;
+use std::collections::VecDeque;
+use std::io::{self, BufRead, Read};
+
+/// Largest record (chunk) read: far above what any lightpose writer makes
+/// (64 KiB chunks by default) and what usual MCAP writers make (a few MiB).
+pub const RECORD_LIMIT: u64 = 64 << 20;
+
+const HEAD: usize = 9;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Frame,
+    Pose,
+    Other,
+    /// The header metadata (not a message; found once).
+    Header,
+}
+
+/// A message found: what it is, where its data sits in `body`, and the
+/// file offset of its record.
+struct Msg {
+    kind: Kind,
+    start: usize,
+    end: usize,
+    offset: u64,
+}
+
+/// A bounds-checked little-endian cursor over a record's body.
+struct Fields<'a> {
+    b: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Fields<'a> {
+    fn new(b: &'a [u8]) -> Self {
+        Fields { b, pos: 0 }
+    }
+    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
+        let end = self.pos.checked_add(n).filter(|&e| e <= self.b.len());
+        let end = end.ok_or_else(|| {
+            format!(
+                "record ends inside a field ({n} bytes wanted at {} of {})",
+                self.pos,
+                self.b.len()
+            )
+        })?;
+        let s = &self.b[self.pos..end];
+        self.pos = end;
+        Ok(s)
+    }
+    fn u16(&mut self) -> Result<u16, String> {
+        let s = self.take(2)?;
+        Ok(u16::from_le_bytes([s[0], s[1]]))
+    }
+    fn u32(&mut self) -> Result<u32, String> {
+        let mut a = [0; 4];
+        a.copy_from_slice(self.take(4)?);
+        Ok(u32::from_le_bytes(a))
+    }
+    fn u64(&mut self) -> Result<u64, String> {
+        let mut a = [0; 8];
+        a.copy_from_slice(self.take(8)?);
+        Ok(u64::from_le_bytes(a))
+    }
+    fn str(&mut self) -> Result<&'a str, String> {
+        let n = self.u32()? as usize;
+        std::str::from_utf8(self.take(n)?).map_err(|_| "a string is not UTF-8".to_string())
+    }
+}
+
+pub struct McapLines<R> {
+    src: R,
+    name: String,
+    size: Option<u64>,
+    /// File offset of the next byte of `src`.
+    pos: u64,
+    /// The current top-level record's body, and the file offset of its
+    /// first byte.
+    body: Vec<u8>,
+    body_offset: u64,
+    /// Records of the current chunk not yet read: a range of `body`.
+    chunk: Option<(usize, usize)>,
+    seen_header_record: bool,
+    schemas: Vec<(u16, String, String)>,
+    channels: Vec<(u16, Kind)>,
+    header: Option<(u64, String)>,
+    /// The line being served, and how much of it was consumed.
+    line: Vec<u8>,
+    line_pos: usize,
+    /// Offset of the record of the message last served.
+    pub(crate) msg_offset: u64,
+    done: bool,
+    pub(crate) cut: Option<Cut>,
+    /// A fatal error, held for the reader (LogReader sees an I/O error).
+    pub(crate) error: Option<LogError>,
+    /// Skippable errors (a chunk that failed its CRC) met while looking for
+    /// the next frame, to be handed out before it.
+    pub(crate) pending: VecDeque<LogError>,
+    /// Messages on other channels, and unknown records, passed over.
+    pub(crate) other: u64,
+    /// POSE messages kept for a conversion (one per line), when asked.
+    pub(crate) keep_poses: bool,
+    pub(crate) poses: Vec<u8>,
+}
+
+impl<R: Read> McapLines<R> {
+    /// Check the magic; `size` (when known) tells a cut file from garbage.
+    pub fn new(mut src: R, name: String, size: Option<u64>) -> Result<Self, LogError> {
+        let mut magic = [0u8; 8];
+        let n = read_full(&mut src, &mut magic).map_err(|err| LogError::Io {
+            name: name.clone(),
+            err,
+        })?;
+        if magic[..n] != mcap::MAGIC[..n] || n < magic.len() {
+            return Err(LogError::at(
+                name,
+                0,
+                "not an MCAP file (no MCAP magic)",
+                true,
+            ));
+        }
+        Ok(McapLines {
+            src,
+            name,
+            size,
+            pos: magic.len() as u64,
+            body: Vec::new(),
+            body_offset: 0,
+            chunk: None,
+            seen_header_record: false,
+            schemas: Vec::new(),
+            channels: Vec::new(),
+            header: None,
+            line: Vec::new(),
+            line_pos: 0,
+            msg_offset: 0,
+            done: false,
+            cut: None,
+            error: None,
+            pending: VecDeque::new(),
+            other: 0,
+            keep_poses: false,
+            poses: Vec::new(),
+        })
+    }
+
+    /// The line served last.
+    pub fn line(&self) -> &[u8] {
+        &self.line
+    }
+
+    fn err(&self, offset: u64, msg: impl Into<String>) -> LogError {
+        LogError::at(self.name.clone(), offset, msg, true)
+    }
+
+    fn io_err(&self, err: io::Error) -> LogError {
+        LogError::Io {
+            name: self.name.clone(),
+            err,
+        }
+    }
+
+    /// Read records up to the `lightpose-header` metadata and queue its
+    /// line; returns its offset.
+    pub fn find_header(&mut self) -> Result<u64, LogError> {
+        loop {
+            match self.next_message()? {
+                Some(m) if m.kind == Kind::Header => break,
+                Some(m) if m.kind == Kind::Frame => {
+                    return Err(self.err(
+                        m.offset,
+                        format!(
+                            "a {} message before the {} metadata: not a lightpose recording",
+                            topic::FRAME,
+                            schema::HEADER_METADATA
+                        ),
+                    ))
+                }
+                Some(_) => self.other += 1,
+                None => {
+                    let why = match self.cut {
+                        Some(c) => format!(
+                            "cut short before its {} metadata ({c})",
+                            schema::HEADER_METADATA
+                        ),
+                        None => format!(
+                            "no {} metadata: not a lightpose recording",
+                            schema::HEADER_METADATA
+                        ),
+                    };
+                    return Err(self.err(self.pos, why));
+                }
+            }
+        }
+        let (offset, text) = self
+            .header
+            .as_ref()
+            .map_or((0, ""), |(o, t)| (*o, t.as_str()));
+        self.line.clear();
+        self.line.extend(text.bytes().map(no_newline));
+        self.line.push(b'\n');
+        self.line_pos = 0;
+        Ok(offset)
+    }
+
+    /// The next message of any channel, or `None` at the end of the data
+    /// (then `cut` says whether the file was finished).
+    fn next_message(&mut self) -> Result<Option<Msg>, LogError> {
+        loop {
+            if let Some(m) = self.next_in_chunk()? {
+                return Ok(Some(m));
+            }
+            let Some((opcode, offset)) = self.read_record()? else {
+                return Ok(None);
+            };
+            let (start, end) = (0, self.body.len());
+            if !self.seen_header_record {
+                if opcode != op::HEADER {
+                    return Err(self.err(
+                        offset,
+                        format!("first record has opcode {opcode:#04x}, not an MCAP Header"),
+                    ));
+                }
+                self.seen_header_record = true;
+                continue;
+            }
+            match opcode {
+                op::CHUNK => self.open_chunk(offset)?,
+                op::SCHEMA => self.schema(start, end, offset)?,
+                op::CHANNEL => self.channel(start, end, offset)?,
+                op::MESSAGE => return self.message(start, end, offset).map(Some),
+                op::METADATA => {
+                    if self.metadata(offset)? {
+                        let (start, end) = (0, 0);
+                        let kind = Kind::Header;
+                        return Ok(Some(Msg {
+                            kind,
+                            start,
+                            end,
+                            offset,
+                        }));
+                    }
+                }
+                op::DATA_END | op::FOOTER => return Ok(None),
+                // Indexes, attachments, statistics, private records: the
+                // data section holds all a reader needs.
+                _ => self.other += 1,
+            }
+        }
+    }
+
+    /// The next top-level record into `body`: its opcode and offset, or
+    /// `None` where the data ends without its DataEnd record (a cut).
+    fn read_record(&mut self) -> Result<Option<(u8, u64)>, LogError> {
+        let offset = self.pos;
+        let mut head = [0u8; HEAD];
+        let n = read_full(&mut self.src, &mut head).map_err(|e| self.io_err(e))?;
+        self.pos += n as u64;
+        if n < HEAD {
+            self.cut = Some(Cut::Bytes {
+                offset,
+                dropped: n as u64,
+            });
+            return Ok(None);
+        }
+        let opcode = head[0];
+        let mut lb = [0u8; 8];
+        lb.copy_from_slice(&head[1..]);
+        let len = u64::from_le_bytes(lb);
+        if head.iter().all(|&b| b == 0) {
+            return self.zero_tail(offset).map(|()| None);
+        }
+        let known = (op::HEADER..=op::DATA_END).contains(&opcode);
+        let total = len.checked_add(HEAD as u64);
+        let past_end = match (self.size, total) {
+            (Some(size), Some(t)) => offset.checked_add(t).map_or(true, |e| e > size),
+            (_, None) => true,
+            (None, Some(_)) => false,
+        };
+        if past_end && known {
+            // What a power loss leaves: a record whose end was never written.
+            let dropped = self.size.map_or(HEAD as u64, |s| s.saturating_sub(offset));
+            self.cut = Some(Cut::Bytes { offset, dropped });
+            return Ok(None);
+        }
+        let garbage = if opcode == 0 {
+            Some("opcode 0x00 is no MCAP record: not MCAP data")
+        } else if past_end {
+            Some("runs past the end of the file: not MCAP data")
+        } else if len > RECORD_LIMIT {
+            Some("more than this reader takes (64 MiB)")
+        } else {
+            None
+        };
+        if let Some(why) = garbage {
+            let msg = format!("a record (opcode {opcode:#04x}) of {len} bytes: {why}");
+            return Err(self.err(offset, msg));
+        }
+        self.body.clear();
+        let got = (&mut self.src)
+            .take(len)
+            .read_to_end(&mut self.body)
+            .map_err(|e| self.io_err(e))?;
+        self.pos += got as u64;
+        if (got as u64) < len {
+            self.cut = Some(Cut::Bytes {
+                offset,
+                dropped: (HEAD + got) as u64,
+            });
+            return Ok(None);
+        }
+        self.body_offset = offset + HEAD as u64;
+        Ok(Some((opcode, offset)))
+    }
+
+    /// A record head of zeros (opcode 0 is no record). A file system that
+    /// lost power may leave the end of a file zero-filled: such a tail is a
+    /// cut; zeros followed by anything else are garbage.
+    fn zero_tail(&mut self, offset: u64) -> Result<(), LogError> {
+        let mut block = [0u8; 4096];
+        let mut dropped = HEAD as u64;
+        loop {
+            let n = read_full(&mut self.src, &mut block).map_err(|e| self.io_err(e))?;
+            if block[..n].iter().any(|&b| b != 0) {
+                return Err(self.err(offset, "opcode 0x00 is no MCAP record: not MCAP data"));
+            }
+            dropped += n as u64;
+            if n < block.len() {
+                break;
+            }
+        }
+        self.cut = Some(Cut::Bytes { offset, dropped });
+        Ok(())
+    }
+
+    /// Take the chunk in `body`: uncompressed and intact, or refused.
+    fn open_chunk(&mut self, offset: u64) -> Result<(), LogError> {
+        let mut f = Fields::new(&self.body);
+        let parsed = (|| {
+            let _start_time = f.u64()?;
+            let _end_time = f.u64()?;
+            let _uncompressed_size = f.u64()?;
+            let crc = f.u32()?;
+            let compression = f.str()?;
+            let size = f.u64()?;
+            let start = f.pos;
+            let records = usize::try_from(size).map_err(|_| "chunk size".to_string());
+            let end = records.and_then(|n| f.take(n).map(|_| start + n))?;
+            Ok::<_, String>((crc, compression, start, end))
+        })();
+        let (crc, compression, start, end) =
+            parsed.map_err(|m| self.err(offset, format!("chunk: {m}")))?;
+        if !compression.is_empty() {
+            return Err(self.err(
+                offset,
+                format!("chunk compressed with {compression}: lightpose reads uncompressed chunks (`mcap decompress` rewrites the file so)"),
+            ));
+        }
+        if crc != 0 {
+            let computed = crc32fast::hash(&self.body[start..end]);
+            if computed != crc {
+                self.pending.push_back(LogError::at(self.name.clone(), offset, format!("chunk CRC {computed:08x} is not the recorded {crc:08x}: its {} bytes of records skipped", end - start), false));
+                return Ok(());
+            }
+        }
+        self.chunk = Some((start, end));
+        Ok(())
+    }
+
+    fn next_in_chunk(&mut self) -> Result<Option<Msg>, LogError> {
+        while let Some((pos, end)) = self.chunk {
+            if pos >= end {
+                self.chunk = None;
+                break;
+            }
+            let offset = self.body_offset + pos as u64;
+            let mut f = Fields::new(&self.body[pos..end]);
+            let (opcode, len) = match (f.take(1), f.u64()) {
+                (Ok(o), Ok(l)) => (o[0], l),
+                _ => return Err(self.err(offset, "chunk ends inside a record header")),
+            };
+            let avail = (end - pos - HEAD) as u64;
+            if len > avail {
+                return Err(self.err(
+                    offset,
+                    format!("a record of {len} bytes in a chunk with {avail} left"),
+                ));
+            }
+            let (s, e) = (pos + HEAD, pos + HEAD + len as usize);
+            self.chunk = Some((e, end));
+            match opcode {
+                op::SCHEMA => self.schema(s, e, offset)?,
+                op::CHANNEL => self.channel(s, e, offset)?,
+                op::MESSAGE => return self.message(s, e, offset).map(Some),
+                _ => self.other += 1,
+            }
+        }
+        Ok(None)
+    }
+
+    fn schema(&mut self, start: usize, end: usize, offset: u64) -> Result<(), LogError> {
+        let mut f = Fields::new(&self.body[start..end]);
+        let parsed = (|| Ok::<_, String>((f.u16()?, f.str()?.to_string(), f.str()?.to_string())))();
+        let (id, name, encoding) = parsed.map_err(|m| self.err(offset, format!("schema: {m}")))?;
+        self.schemas.retain(|s| s.0 != id);
+        self.schemas.push((id, name, encoding));
+        Ok(())
+    }
+
+    fn channel(&mut self, start: usize, end: usize, offset: u64) -> Result<(), LogError> {
+        let mut f = Fields::new(&self.body[start..end]);
+        let parsed = (|| Ok::<_, String>((f.u16()?, f.u16()?, f.str()?, f.str()?)))();
+        let (id, schema_id, topic, encoding) =
+            parsed.map_err(|m| self.err(offset, format!("channel: {m}")))?;
+        let kind = match topic {
+            topic::FRAME => Kind::Frame,
+            topic::POSE => Kind::Pose,
+            _ => Kind::Other,
+        };
+        if kind != Kind::Other {
+            let want = if kind == Kind::Frame {
+                name::FRAME
+            } else {
+                name::POSE
+            };
+            let found = self.schemas.iter().find(|s| s.0 == schema_id);
+            let ok = encoding == schema::MESSAGE_ENCODING
+                && found.is_some_and(|s| s.1 == want && s.2 == schema::SCHEMA_ENCODING);
+            if !ok {
+                let (sn, se) = found.map_or(("none", ""), |s| (s.1.as_str(), s.2.as_str()));
+                let msg = format!(
+                    "channel {topic} has schema {sn} ({se}) and {encoding} messages; lightpose reads schema {want} (jsonschema) with json messages"
+                );
+                return Err(self.err(offset, msg));
+            }
+        }
+        self.channels.retain(|c| c.0 != id);
+        self.channels.push((id, kind));
+        Ok(())
+    }
+
+    fn message(&mut self, start: usize, end: usize, offset: u64) -> Result<Msg, LogError> {
+        let mut f = Fields::new(&self.body[start..end]);
+        let id = f
+            .u16()
+            .map_err(|m| self.err(offset, format!("message: {m}")))?;
+        // sequence, log time, publish time: the FRAME object carries its own.
+        f.take(4 + 8 + 8)
+            .map_err(|m| self.err(offset, format!("message: {m}")))?;
+        let data_start = start + f.pos;
+        let kind = match self.channels.iter().find(|c| c.0 == id) {
+            Some(c) => c.1,
+            None => {
+                return Err(self.err(
+                    offset,
+                    format!(
+                        "a message on channel {id}, which no Channel record declared before it"
+                    ),
+                ))
+            }
+        };
+        Ok(Msg {
+            kind,
+            start: data_start,
+            end,
+            offset,
+        })
+    }
+
+    /// Take the header from a metadata record; true when this was it.
+    fn metadata(&mut self, offset: u64) -> Result<bool, LogError> {
+        let mut f = Fields::new(&self.body);
+        let parsed = (|| {
+            let name = f.str()?;
+            if name != schema::HEADER_METADATA {
+                return Ok(None);
+            }
+            let len = f.u32()? as usize;
+            let mut m = Fields::new(f.take(len)?);
+            while m.pos < m.b.len() {
+                let (k, v) = (m.str()?, m.str()?);
+                if k == schema::HEADER_KEY {
+                    return Ok(Some(v.to_string()));
+                }
+            }
+            Err(format!("has no key {}", schema::HEADER_KEY))
+        })();
+        match parsed {
+            Ok(Some(text)) if self.header.is_none() => {
+                self.header = Some((offset, text));
+                Ok(true)
+            }
+            Ok(_) => {
+                self.other += 1;
+                Ok(false)
+            }
+            Err(m) => Err(self.err(offset, format!("metadata {}: {m}", schema::HEADER_METADATA))),
+        }
+    }
+
+    /// Fill `line` with the next frame message; false at the end.
+    fn next_line(&mut self) -> Result<bool, LogError> {
+        while !self.done {
+            match self.next_message()? {
+                Some(m) if m.kind == Kind::Frame => {
+                    self.line.clear();
+                    self.line
+                        .extend(self.body[m.start..m.end].iter().map(|&b| no_newline(b)));
+                    self.line.push(b'\n');
+                    self.msg_offset = m.offset;
+                    return Ok(true);
+                }
+                Some(m) if m.kind == Kind::Header => {}
+                Some(m) => {
+                    self.other += 1;
+                    if m.kind == Kind::Pose && self.keep_poses {
+                        self.poses
+                            .extend(self.body[m.start..m.end].iter().map(|&b| no_newline(b)));
+                        self.poses.push(b'\n');
+                    }
+                }
+                None => self.done = true,
+            }
+        }
+        Ok(false)
+    }
+}
+
+/// JSON allows a raw line break only as whitespace: a space serves the same.
+fn no_newline(b: u8) -> u8 {
+    if b == b'\n' || b == b'\r' {
+        b' '
+    } else {
+        b
+    }
+}
+
+/// Read until `buf` is full or the source ends; the count read.
+fn read_full<R: Read>(src: &mut R, buf: &mut [u8]) -> io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match src.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+impl<R: Read> Read for McapLines<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let avail = self.fill_buf()?;
+        let n = avail.len().min(buf.len());
+        buf[..n].copy_from_slice(&avail[..n]);
+        self.consume(n);
+        Ok(n)
+    }
+}
+
+impl<R: Read> BufRead for McapLines<R> {
+    fn fill_buf(&mut self) -> io::Result<&[u8]> {
+        if self.line_pos >= self.line.len() && self.error.is_none() {
+            self.line.clear();
+            self.line_pos = 0;
+            if let Err(e) = self.next_line() {
+                self.done = true;
+                self.error = Some(e);
+            }
+        }
+        if self.error.is_some() {
+            // The reader takes the held error; LogReader only sees that
+            // reading failed.
+            return Err(io::Error::other("MCAP structure"));
+        }
+        Ok(&self.line[self.line_pos..])
+    }
+
+    fn consume(&mut self, n: usize) {
+        self.line_pos = (self.line_pos + n).min(self.line.len());
+    }
+}

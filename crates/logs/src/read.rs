@@ -1,0 +1,175 @@
+//! The MCAP reader: the same interface as the JSONL reader (a header, then
+//! frames one at a time, [`FrameLog`]), over the line source of `lines.rs`.
+//! Errors name the file and the byte offset of the record: a FRAME message
+//! that is refused costs that frame (as a refused JSONL line does), a chunk
+//! that fails its CRC costs its frames, and anything that breaks the file's
+//! structure ends the log with one line. A file cut short (no footer) ends
+//! quietly at its last complete chunk; [`FrameLog::cut`] says where and
+//! what was dropped.
+
+use crate::lines::McapLines;
+use lightpose_core::{Cut, Frame, FrameLog, LogError, LogHeader, LogReader};
+use std::collections::VecDeque;
+use std::fs::File;
+use std::io::{self, BufReader, Read, Write};
+use std::path::Path;
+
+pub struct McapReader<R: Read> {
+    inner: LogReader<McapLines<R>>,
+    name: String,
+    /// Results held back behind skippable errors met on the way to them.
+    queue: VecDeque<Result<Frame, LogError>>,
+    ended: bool,
+    /// Bad sensor readings: count seen, and the last one named by offset.
+    bad_seen: u64,
+    last_bad: Option<String>,
+}
+
+impl McapReader<BufReader<File>> {
+    /// Open an MCAP file and read up to its header.
+    pub fn open(path: &Path) -> Result<Self, LogError> {
+        let name = path.display().to_string();
+        let io = |err| LogError::Io {
+            name: name.clone(),
+            err,
+        };
+        let f = File::open(path).map_err(io)?;
+        let size = f.metadata().map_err(io)?.len();
+        McapReader::new(BufReader::with_capacity(1 << 16, f), name, Some(size))
+    }
+}
+
+impl<R: Read> McapReader<R> {
+    /// Read the magic and the records up to the header from `src`; `name`
+    /// is how errors refer to it, `size` (when known) tells a file cut by a
+    /// power loss from one with garbage at its end.
+    pub fn new(src: R, name: impl Into<String>, size: Option<u64>) -> Result<Self, LogError> {
+        let name = name.into();
+        let mut lines = McapLines::new(src, name.clone(), size)?;
+        let offset = lines.find_header()?;
+        let inner = LogReader::new(lines, name.clone()).map_err(|e| match e {
+            LogError::Line { msg, .. } => LogError::at(
+                name.clone(),
+                offset,
+                format!("{} metadata: {msg}", crate::schema::HEADER_METADATA),
+                true,
+            ),
+            e => e,
+        })?;
+        Ok(McapReader {
+            inner,
+            name,
+            queue: VecDeque::new(),
+            ended: false,
+            bad_seen: 0,
+            last_bad: None,
+        })
+    }
+
+    /// Keep the POSE messages met while reading (for a conversion), to be
+    /// taken with [`McapReader::take_poses`].
+    pub fn keep_poses(&mut self, on: bool) {
+        self.inner.get_mut().keep_poses = on;
+    }
+
+    /// Write the POSE messages kept so far, one per line, and forget them.
+    pub fn take_poses(&mut self, out: &mut impl Write) -> io::Result<usize> {
+        let lines = self.inner.get_mut();
+        out.write_all(&lines.poses)?;
+        let n = lines.poses.iter().filter(|&&b| b == b'\n').count();
+        lines.poses.clear();
+        Ok(n)
+    }
+
+    /// The text of the message read last (after opening: the HEADER line;
+    /// after a frame: its FRAME object), as a line.
+    pub fn last_line(&self) -> &[u8] {
+        self.inner.get_ref().line()
+    }
+
+    /// A result of the line reader, with places as offsets.
+    fn place(&mut self, r: Result<Frame, LogError>) -> Result<Frame, LogError> {
+        let lines = self.inner.get_mut();
+        match r {
+            Ok(f) => Ok(f),
+            Err(LogError::Line { msg, .. }) => Err(LogError::at(
+                self.name.clone(),
+                lines.msg_offset,
+                msg,
+                false,
+            )),
+            Err(e @ LogError::Io { .. }) => Err(lines.error.take().unwrap_or(e)),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Name a new bad reading by the offset of its message.
+    fn note_bad_reading(&mut self) {
+        let (n, last) = self.inner.bad_readings();
+        if n == self.bad_seen {
+            return;
+        }
+        self.bad_seen = n;
+        // LogReader says "name:line: why"; the line means nothing here.
+        let why = last
+            .and_then(|s| s.strip_prefix(self.name.as_str()))
+            .and_then(|s| s.strip_prefix(':'))
+            .and_then(|s| s.split_once(": "))
+            .map_or("", |(_, why)| why);
+        let offset = self.inner.get_ref().msg_offset;
+        self.last_bad = Some(format!("{}: byte {offset}: {why}", self.name));
+    }
+
+    pub fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
+        if let Some(r) = self.queue.pop_front() {
+            return Some(r);
+        }
+        if self.ended {
+            return None;
+        }
+        let r = self.inner.next_frame().map(|r| self.place(r));
+        self.note_bad_reading();
+        let pending = &mut self.inner.get_mut().pending;
+        if pending.is_empty() {
+            self.ended = r.is_none();
+            return r;
+        }
+        self.queue.extend(pending.drain(..).map(Err));
+        match r {
+            Some(r) => self.queue.push_back(r),
+            None => self.ended = true,
+        }
+        self.queue.pop_front()
+    }
+}
+
+impl<R: Read> Iterator for McapReader<R> {
+    type Item = Result<Frame, LogError>;
+    fn next(&mut self) -> Option<Self::Item> {
+        McapReader::next_frame(self)
+    }
+}
+
+impl<R: Read> FrameLog for McapReader<R> {
+    fn header(&self) -> &LogHeader {
+        self.inner.header()
+    }
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
+        McapReader::next_frame(self)
+    }
+    fn cut(&self) -> Option<Cut> {
+        self.inner.get_ref().cut
+    }
+    fn other_records(&self) -> u64 {
+        self.inner.other_lines() + self.inner.get_ref().other
+    }
+    fn seq_gaps(&self) -> (u64, u64) {
+        self.inner.seq_gaps()
+    }
+    fn bad_readings(&self) -> (u64, Option<&str>) {
+        (self.bad_seen, self.last_bad.as_deref())
+    }
+}

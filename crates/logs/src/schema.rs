@@ -1,0 +1,128 @@
+//! The channels of a lightpose MCAP recording and their schemas: the
+//! project's own objects (FORMATS.md) as JSON, and Foxglove's well-known
+//! types so that its panels show a recording without any set-up. Every
+//! channel has `json` message encoding and a `jsonschema` schema.
+//!
+//! The Foxglove schemas describe the fields of Foxglove's published types
+//! (`foxglove.RawImage`, `foxglove.PoseInFrame`, `foxglove.FrameTransform`)
+//! that lightpose fills; Foxglove picks a panel by the schema's name.
+
+/// Message encoding of every channel.
+pub const MESSAGE_ENCODING: &str = "json";
+/// Schema encoding of every schema.
+pub const SCHEMA_ENCODING: &str = "jsonschema";
+
+/// Metadata record that holds the log's HEADER line (key [`HEADER_KEY`]),
+/// exactly as the JSONL log's first line.
+pub const HEADER_METADATA: &str = "lightpose-header";
+pub const HEADER_KEY: &str = "json";
+
+/// Topics. The first three carry the JSON objects of FORMATS.md; the rest
+/// carry the same data in Foxglove's types.
+pub mod topic {
+    /// The FRAME object, exactly as the JSONL line.
+    pub const FRAME: &str = "/lightpose/frame";
+    /// The POSE object of each estimate.
+    pub const POSE: &str = "/lightpose/pose";
+    /// The daemon's STATUS object.
+    pub const STATUS: &str = "/lightpose/status";
+    /// The 5 × 5 counts as a `foxglove.RawImage` (mono16).
+    pub const IMAGE: &str = "/lightpose/image";
+    /// The estimated pose as a `foxglove.PoseInFrame` in frame `beacon`.
+    pub const VEHICLE_POSE: &str = "/lightpose/vehicle_pose";
+    /// The frame's truth (simulator, tank carriage) as a `foxglove.PoseInFrame`.
+    pub const TRUTH_POSE: &str = "/lightpose/truth_pose";
+    /// `beacon` → `vehicle` as a `foxglove.FrameTransform`.
+    pub const TF: &str = "/lightpose/tf";
+}
+
+/// Schema names.
+pub mod name {
+    pub const FRAME: &str = "lightpose.Frame";
+    pub const POSE: &str = "lightpose.Pose";
+    pub const STATUS: &str = "lightpose.Status";
+    pub const RAW_IMAGE: &str = "foxglove.RawImage";
+    pub const POSE_IN_FRAME: &str = "foxglove.PoseInFrame";
+    pub const FRAME_TRANSFORM: &str = "foxglove.FrameTransform";
+}
+
+/// Foxglove reference frames: B of MODEL.md, V (FRD) of MODEL.md, and the
+/// array seen as a camera (x right, y down, z forward: the 5 × 5 image as
+/// seen from behind the array looking forward).
+pub const BEACON_FRAME: &str = "beacon";
+pub const VEHICLE_FRAME: &str = "vehicle";
+pub const DOME_FRAME: &str = "dome";
+
+pub const FRAME: &str = r#"{"title":"lightpose.Frame","description":"One capture of the 5 x 5 photodiode array (FORMATS.md, intensity log FRAME line)","type":"object","properties":{"class":{"const":"FRAME"},"seq":{"type":"integer","minimum":0,"description":"frame counter; a gap means frames were lost"},"t":{"type":"number","description":"seconds in the log's own epoch"},"counts":{"type":"array","items":{"type":"integer","minimum":0,"maximum":65535},"minItems":25,"maxItems":25,"description":"ADC counts, row-major, index 5*r + c"},"temp_c":{"type":["number","null"],"description":"water temperature, degrees C"},"truth":{"type":"object","description":"reference pose (simulator, tank carriage)","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"pitch":{"type":"number"},"yaw":{"type":"number"},"surge":{"type":"number"}},"required":["x","y","z","pitch","yaw"]},"attitude":{"type":"object","description":"attitude sensor, degrees, beam frame","properties":{"pitch":{"type":"number"},"yaw":{"type":"number"},"std":{"type":"object","properties":{"pitch":{"type":"number"},"yaw":{"type":"number"}}}},"required":["pitch","yaw"]},"depth":{"type":"object","description":"depth sensor: the vehicle's z in B, m","properties":{"z":{"type":"number"},"std":{"type":"object","properties":{"z":{"type":"number"}}}},"required":["z"]},"velocity":{"type":"object","description":"DVL velocity over ground in V (FRD), m/s","properties":{"fwd":{"type":"number"},"right":{"type":"number"},"down":{"type":"number"},"std":{"type":"object","properties":{"fwd":{"type":"number"},"right":{"type":"number"},"down":{"type":"number"}}}},"required":["fwd","right","down"]}},"required":["class","seq","t","counts"]}"#;
+
+pub const POSE: &str = r#"{"title":"lightpose.Pose","description":"One estimate (FORMATS.md POSE message); fields not known are null","type":"object","properties":{"class":{"const":"POSE"},"seq":{"type":"integer","minimum":0},"t":{"type":["number","null"],"description":"t of the frame the estimate comes from"},"time":{"type":"number","description":"wall-clock capture time, Unix seconds"},"status":{"type":"string","description":"ok when every field is trustworthy, else why not"},"x":{"type":["number","null"]},"y":{"type":["number","null"]},"z":{"type":["number","null"]},"pitch":{"type":["number","null"],"description":"degrees"},"yaw":{"type":["number","null"],"description":"degrees"},"surge":{"type":["number","null"],"description":"m/s"},"std":{"type":"object","description":"1-sigma of each field where known","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"pitch":{"type":"number"},"yaw":{"type":"number"},"surge":{"type":"number"}}},"estimator":{"type":"string"}},"required":["class","seq","status"]}"#;
+
+pub const STATUS: &str = r#"{"title":"lightpose.Status","description":"The daemon's STATUS report (once a second); its fields grow with the daemon, readers ignore what they do not know","type":"object","properties":{"class":{"const":"STATUS"},"seq":{"type":"integer"},"t":{"type":"number","description":"wall clock, Unix seconds"}},"required":["class"]}"#;
+
+// Pieces the Foxglove schemas share, as literals so that the schemas can
+// be constants (`concat!` takes literals only).
+macro_rules! time {
+    () => {
+        r#"{"type":"object","title":"time","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}}"#
+    };
+}
+macro_rules! vector3 {
+    () => {
+        r#"{"title":"foxglove.Vector3","type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}},"required":["x","y","z"]}"#
+    };
+}
+macro_rules! quaternion {
+    () => {
+        r#"{"title":"foxglove.Quaternion","type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"w":{"type":"number"}},"required":["x","y","z","w"]}"#
+    };
+}
+
+/// `foxglove.RawImage`: the fields lightpose fills.
+pub const RAW_IMAGE: &str = concat!(
+    r#"{"title":"foxglove.RawImage","description":"A raw image","type":"object","properties":{"timestamp":"#,
+    time!(),
+    r#","frame_id":{"type":"string"},"width":{"type":"integer","minimum":0},"height":{"type":"integer","minimum":0},"encoding":{"type":"string"},"step":{"type":"integer","minimum":0},"data":{"type":"string","contentEncoding":"base64"}}}"#
+);
+
+/// `foxglove.PoseInFrame`.
+pub const POSE_IN_FRAME: &str = concat!(
+    r#"{"title":"foxglove.PoseInFrame","description":"A timestamped pose in a named frame","type":"object","properties":{"timestamp":"#,
+    time!(),
+    r#","frame_id":{"type":"string"},"pose":{"title":"foxglove.Pose","type":"object","properties":{"position":"#,
+    vector3!(),
+    r#","orientation":"#,
+    quaternion!(),
+    r#"},"required":["position","orientation"]}},"required":["timestamp","frame_id","pose"]}"#
+);
+
+/// `foxglove.FrameTransform`.
+pub const FRAME_TRANSFORM: &str = concat!(
+    r#"{"title":"foxglove.FrameTransform","description":"The position and orientation of a child frame in its parent","type":"object","properties":{"timestamp":"#,
+    time!(),
+    r#","parent_frame_id":{"type":"string"},"child_frame_id":{"type":"string"},"translation":"#,
+    vector3!(),
+    r#","rotation":"#,
+    quaternion!(),
+    r#"},"required":["timestamp","parent_frame_id","child_frame_id","translation","rotation"]}"#
+);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_schema_is_json_with_its_title() {
+        for (text, title) in [
+            (FRAME, name::FRAME),
+            (POSE, name::POSE),
+            (STATUS, name::STATUS),
+            (RAW_IMAGE, name::RAW_IMAGE),
+            (POSE_IN_FRAME, name::POSE_IN_FRAME),
+            (FRAME_TRANSFORM, name::FRAME_TRANSFORM),
+        ] {
+            let v: serde_json::Value = serde_json::from_str(text).expect(title);
+            assert_eq!(v["title"], title);
+            assert_eq!(v["type"], "object");
+        }
+    }
+}

@@ -1,0 +1,52 @@
+//! A line source that keeps the line it served last, so that a conversion
+//! can carry a log's lines as they are: parsing a FRAME and writing it
+//! again does not always give the same text (core keeps angles in radians,
+//! and degrees → radians → degrees may move the last digit).
+
+use std::io::{self, BufRead, Read};
+
+pub struct LineTap<R> {
+    src: R,
+    line: Vec<u8>,
+    pos: usize,
+}
+
+impl<R: BufRead> LineTap<R> {
+    pub fn new(src: R) -> Self {
+        LineTap {
+            src,
+            line: Vec::new(),
+            pos: 0,
+        }
+    }
+
+    /// The line served last, with its newline if it had one.
+    pub fn line(&self) -> &[u8] {
+        &self.line
+    }
+}
+
+impl<R: BufRead> Read for LineTap<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let avail = self.fill_buf()?;
+        let n = avail.len().min(buf.len());
+        buf[..n].copy_from_slice(&avail[..n]);
+        self.consume(n);
+        Ok(n)
+    }
+}
+
+impl<R: BufRead> BufRead for LineTap<R> {
+    fn fill_buf(&mut self) -> io::Result<&[u8]> {
+        if self.pos >= self.line.len() {
+            self.line.clear();
+            self.pos = 0;
+            self.src.read_until(b'\n', &mut self.line)?;
+        }
+        Ok(&self.line[self.pos..])
+    }
+
+    fn consume(&mut self, n: usize) {
+        self.pos = (self.pos + n).min(self.line.len());
+    }
+}

@@ -1,0 +1,107 @@
+//! Helpers shared by the test binaries of lightpose-logs.
+#![allow(dead_code)]
+
+use lightpose_core::frame::{AttitudeStd, DepthReading, VelocityReading};
+use lightpose_core::{
+    Angle, AttitudeReading, BodyVec, Frame, LogHeader, Pose, PoseEstimate, Status, Truth, NDET,
+};
+use lightpose_logs::{McapOptions, McapWriter};
+use std::path::PathBuf;
+
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+pub fn data(name: &str) -> PathBuf {
+    root().join("tests/data").join(name)
+}
+
+/// A frame with every kind of reading (some with their own std), awkward
+/// numbers that must come back bit for bit.
+pub fn frame(seq: u64) -> Frame {
+    let mut counts = [0u16; NDET];
+    for (k, c) in counts.iter_mut().enumerate() {
+        *c = ((seq as usize * 37 + k * 41) % 1024) as u16;
+    }
+    let mut f = Frame::new(seq, seq as f64 * 0.2 + 1e-13, 10, counts);
+    f.temp_c = Some(19.937845150646073 + seq as f64 * 1e-13);
+    f.truth = Some(Truth {
+        pose: Pose::new(
+            7.8 - seq as f64 * 0.01,
+            0.1 / 3.0,
+            0.12,
+            Angle::from_deg(9.6),
+            Angle::from_deg(-2.0),
+        ),
+        surge: Some(0.5),
+    });
+    if seq % 2 == 0 {
+        f.attitude = Some(AttitudeReading {
+            pitch: Angle::from_deg(9.5),
+            yaw: Angle::from_deg(-1.25),
+            std: Some(AttitudeStd {
+                pitch: Angle::from_deg(0.3),
+                yaw: Angle::from_deg(1.5),
+            }),
+        });
+    }
+    if seq % 3 == 0 {
+        f.depth = Some(DepthReading {
+            z: 0.123456789 + seq as f64 * 1e-9,
+            std: Some(0.02),
+        });
+        f.velocity = Some(VelocityReading {
+            v: BodyVec([0.5, -0.01, 0.02]),
+            std: None,
+        });
+    }
+    f
+}
+
+/// A pose for a frame; every fifth knows nothing (no_light, nulls).
+pub fn pose(f: &Frame) -> PoseEstimate {
+    if f.seq % 5 == 4 {
+        return PoseEstimate::empty(f.seq, f.t, Status::NoLight, "tracker");
+    }
+    let mut p = PoseEstimate::empty(f.seq, f.t, Status::Ok, "tracker");
+    (p.x, p.y, p.z) = (Some(7.8 - f.seq as f64 * 0.01), Some(0.03), Some(0.1));
+    (p.pitch_deg, p.yaw_deg, p.surge) = (Some(9.5), Some(-2.1), Some(0.5));
+    (p.std.x, p.std.yaw) = (Some(0.2), Some(0.6));
+    p
+}
+
+pub fn header() -> LogHeader {
+    let mut h = LogHeader::new(10, 5.0);
+    h.extra.insert("scene".into(), "tank".into());
+    h
+}
+
+/// A recording as the daemon would make it: frames, poses, a status now
+/// and then, chunks of `chunk_bytes`.
+pub fn record(n: u64, chunk_bytes: u64) -> Vec<u8> {
+    let opts = McapOptions {
+        chunk_bytes,
+        foxglove: true,
+    };
+    let mut w = McapWriter::new(Vec::new(), &header(), &opts).unwrap();
+    for seq in 0..n {
+        let f = frame(seq);
+        w.write_frame(&f).unwrap();
+        w.write_pose(&pose(&f), Some(1.7e9 + f.t)).unwrap();
+        if seq % 10 == 9 {
+            let status = format!("{{\"class\":\"STATUS\",\"seq\":{},\"t\":1.7e9}}", seq / 10);
+            w.write_status(f.t, status.as_bytes()).unwrap();
+        }
+    }
+    w.finish().unwrap()
+}
+
+/// One line, naming the file and a byte offset.
+pub fn assert_one_line_at(e: &impl std::fmt::Display, name: &str) {
+    let s = e.to_string();
+    assert!(!s.contains('\n'), "not one line: {s}");
+    assert!(
+        s.starts_with(&format!("{name}: byte ")),
+        "no file and offset: {s}"
+    );
+}

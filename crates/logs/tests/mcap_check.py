@@ -1,0 +1,194 @@
+"""Independent check of a lightpose MCAP with the reference Python `mcap`
+library (pinned in tests/python/requirements.txt), run by tests/python.rs.
+
+    python mcap_check.py full REC.mcap LOG.jsonl [POSES.jsonl]
+    python mcap_check.py cut PREFIX.mcap
+
+`full`: the MCAP's summary, metadata and every message against the JSONL
+log (and POSE lines) it must hold, JSON parsed by Python's own json module
+and every float compared bit for bit; the Foxglove channels decoded and
+checked against the frames and poses (the attitude quaternion against
+MODEL.md's forward axis). Prints one line of counts.
+
+`cut`: a file cut short, read by the library's non-seeking reader, which
+yields what it can before the cut; prints the number of FRAME messages.
+
+Any mismatch: one line on stderr, exit 1.
+"""
+
+import base64
+import json
+import math
+import struct
+import sys
+
+from mcap.reader import NonSeekingReader, make_reader
+
+EXPECTED = {
+    "/lightpose/frame": "lightpose.Frame",
+    "/lightpose/pose": "lightpose.Pose",
+    "/lightpose/status": "lightpose.Status",
+    "/lightpose/image": "foxglove.RawImage",
+    "/lightpose/vehicle_pose": "foxglove.PoseInFrame",
+    "/lightpose/truth_pose": "foxglove.PoseInFrame",
+    "/lightpose/tf": "foxglove.FrameTransform",
+}
+
+
+def fail(msg):
+    print(f"mcap_check: {msg}", file=sys.stderr)
+    sys.exit(1)
+
+
+def same(a, b, where):
+    """Equal JSON values, floats bit for bit."""
+    if isinstance(a, float) or isinstance(b, float):
+        if not (isinstance(a, float) and isinstance(b, float)):
+            fail(f"{where}: {a!r} vs {b!r}")
+        if struct.pack("<d", a) != struct.pack("<d", b):
+            fail(f"{where}: {a!r} vs {b!r} differ in bits")
+    elif isinstance(a, dict) and isinstance(b, dict):
+        if set(a) != set(b):
+            fail(f"{where}: keys {sorted(a)} vs {sorted(b)}")
+        for k in a:
+            same(a[k], b[k], f"{where}.{k}")
+    elif isinstance(a, list) and isinstance(b, list):
+        if len(a) != len(b):
+            fail(f"{where}: {len(a)} vs {len(b)} items")
+        for i, (x, y) in enumerate(zip(a, b)):
+            same(x, y, f"{where}[{i}]")
+    elif type(a) is not type(b) or a != b:
+        fail(f"{where}: {a!r} vs {b!r}")
+
+
+def stamp_ns(ts):
+    return ts["sec"] * 1_000_000_000 + ts["nsec"]
+
+
+def rotate(q, v):
+    x, y, z, w = q["x"], q["y"], q["z"], q["w"]
+    u = (x, y, z)
+
+    def cross(a, b):
+        return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+    t = cross(u, v)
+    tt = cross(u, t)
+    return tuple(v[i] + 2 * w * t[i] + 2 * tt[i] for i in range(3))
+
+
+def check_pose(pose, x, y, z, pitch, yaw, where):
+    p, q = pose["position"], pose["orientation"]
+    same([p["x"], p["y"], p["z"]], [float(x), float(y), float(z)], f"{where} position")
+    if abs(math.sqrt(sum(q[k] ** 2 for k in "xyzw")) - 1) > 1e-12:
+        fail(f"{where}: quaternion is not a unit")
+    th, ps = math.radians(pitch), math.radians(yaw)
+    # MODEL.md: the forward axis in B is (−cθ·cψ, cθ·sψ, sθ).
+    want = (-math.cos(th) * math.cos(ps), math.cos(th) * math.sin(ps), math.sin(th))
+    got = rotate(q, (1.0, 0.0, 0.0))
+    if max(abs(a - b) for a, b in zip(got, want)) > 1e-12:
+        fail(f"{where}: the bow points {got}, MODEL.md says {want}")
+
+
+def read_lines(path):
+    with open(path, encoding="utf-8") as f:
+        return [json.loads(line) for line in f if line.strip()]
+
+
+def check_summary(reader, header_line):
+    summary = reader.get_summary()
+    if summary is None:
+        fail("no summary (the file was not finished)")
+    found = {}
+    for ch in summary.channels.values():
+        schema = summary.schemas[ch.schema_id]
+        if ch.message_encoding != "json" or schema.encoding != "jsonschema":
+            fail(f"{ch.topic}: {ch.message_encoding} messages, {schema.encoding} schema")
+        if json.loads(schema.data)["title"] != schema.name:
+            fail(f"{ch.topic}: schema title is not {schema.name}")
+        found[ch.topic] = schema.name
+    if found != EXPECTED:
+        fail(f"channels {found}")
+    metas = [m for m in reader.iter_metadata() if m.name == "lightpose-header"]
+    if len(metas) != 1 or metas[0].metadata.get("json") != header_line:
+        fail("lightpose-header metadata is not the HEADER line")
+    return summary
+
+
+def full(path, log, poses_path):
+    with open(log, encoding="utf-8") as f:
+        lines = [line.rstrip("\n") for line in f if line.strip()]
+    frames = [json.loads(line) for line in lines[1:]]
+    poses = read_lines(poses_path) if poses_path else None
+    n = {topic: 0 for topic in EXPECTED}
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        check_summary(reader, lines[0])
+        for _schema, ch, msg in reader.iter_messages(log_time_order=False):
+            i = n[ch.topic]
+            n[ch.topic] += 1
+            data = json.loads(msg.data)
+            where = f"{ch.topic} #{i}"
+            if msg.publish_time != msg.log_time:
+                fail(f"{where}: publish time {msg.publish_time} != log time {msg.log_time}")
+            if ch.topic == "/lightpose/frame":
+                same(data, frames[i], where)
+                t_ns = frames[i]["t"] * 1e9
+                if abs(msg.log_time - t_ns) > max(1.0, t_ns * 1e-15):
+                    fail(f"{where}: log time {msg.log_time} for t = {frames[i]['t']}")
+            elif ch.topic == "/lightpose/image":
+                f_ = frames[i]
+                if (data["width"], data["height"], data["step"], data["encoding"]) != (5, 5, 10, "mono16"):
+                    fail(f"{where}: {data['width']}x{data['height']} {data['encoding']}")
+                counts = list(struct.unpack("<25H", base64.b64decode(data["data"])))
+                if counts != f_["counts"]:
+                    fail(f"{where}: pixels {counts} vs counts {f_['counts']}")
+                if stamp_ns(data["timestamp"]) != msg.log_time:
+                    fail(f"{where}: timestamp")
+            elif ch.topic == "/lightpose/truth_pose":
+                tr = [f_ for f_ in frames if "truth" in f_][i]["truth"]
+                check_pose(data["pose"], tr["x"], tr["y"], tr["z"], tr["pitch"], tr["yaw"], where)
+            elif ch.topic == "/lightpose/pose":
+                if poses is not None:
+                    same(data, poses[i], where)
+            elif ch.topic in ("/lightpose/vehicle_pose", "/lightpose/tf"):
+                if poses is not None:
+                    known = [p for p in poses if all(p.get(k) is not None for k in ("x", "y", "z", "pitch", "yaw"))]
+                    p = known[i]
+                    if ch.topic == "/lightpose/tf":
+                        if (data["parent_frame_id"], data["child_frame_id"]) != ("beacon", "vehicle"):
+                            fail(f"{where}: {data['parent_frame_id']} -> {data['child_frame_id']}")
+                        pose = {"position": data["translation"], "orientation": data["rotation"]}
+                    else:
+                        if data["frame_id"] != "beacon":
+                            fail(f"{where}: frame {data['frame_id']}")
+                        pose = data["pose"]
+                    check_pose(pose, p["x"], p["y"], p["z"], p["pitch"], p["yaw"], where)
+            elif ch.topic == "/lightpose/status":
+                if data.get("class") != "STATUS":
+                    fail(f"{where}: class {data.get('class')}")
+    if n["/lightpose/frame"] != len(frames) or n["/lightpose/image"] != len(frames):
+        fail(f"{n['/lightpose/frame']} frames and {n['/lightpose/image']} images for {len(frames)} lines")
+    if poses is not None and n["/lightpose/pose"] != len(poses):
+        fail(f"{n['/lightpose/pose']} poses for {len(poses)} lines")
+    print(" ".join(f"{t.split('/')[-1]}={c}" for t, c in n.items()))
+
+
+def cut(path):
+    frames = 0
+    with open(path, "rb") as f:
+        try:
+            for _schema, ch, _msg in NonSeekingReader(f).iter_messages(log_time_order=False):
+                frames += ch.topic == "/lightpose/frame"
+        except Exception:  # the cut: what came before it counts
+            pass
+    print(f"frames={frames}")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) >= 4 and sys.argv[1] == "full":
+        full(sys.argv[2], sys.argv[3], sys.argv[4] if len(sys.argv) > 4 else None)
+    elif len(sys.argv) == 3 and sys.argv[1] == "cut":
+        cut(sys.argv[2])
+    else:
+        fail("usage: mcap_check.py full REC.mcap LOG.jsonl [POSES.jsonl] | cut PREFIX.mcap")

@@ -1,0 +1,208 @@
+//! `lightpose convert` end to end: a log through MCAP and back unchanged
+//! with its POSE lines, a recording cut short recovered with what was
+//! dropped named, and bad input refused in one line.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+}
+
+fn lightpose(args: &[&Path]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_lightpose"))
+        .arg("convert")
+        .args(args)
+        .output()
+        .expect("runs lightpose");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn a_log_goes_through_mcap_and_back_unchanged() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = root().join("tests/data/zigzag.jsonl");
+    let poses = root().join("tests/data/zigzag.poses.jsonl");
+    let (mcap, back, back_poses) = (
+        dir.path().join("z.mcap"),
+        dir.path().join("z.jsonl"),
+        dir.path().join("z.poses.jsonl"),
+    );
+    let a = |s: &'static str| Path::new(s);
+    let (ok, err) = lightpose(&[a("--in"), &log, a("--out"), &mcap, a("--poses"), &poses]);
+    assert!(ok, "{err}");
+    assert!(err.starts_with("41 frames, 41 poses: "), "{err}");
+    let (ok, err) = lightpose(&[
+        a("--in"),
+        &mcap,
+        a("--out"),
+        &back,
+        a("--poses"),
+        &back_poses,
+    ]);
+    assert!(ok, "{err}");
+    assert_eq!(std::fs::read(&log).unwrap(), std::fs::read(&back).unwrap());
+    assert_eq!(
+        std::fs::read(&poses).unwrap(),
+        std::fs::read(&back_poses).unwrap()
+    );
+
+    // Cut as a power loss would: every frame of the complete chunks comes
+    // back, and the dropped bytes are named.
+    let (small, cut) = (dir.path().join("small.mcap"), dir.path().join("cut.mcap"));
+    let (ok, err) = lightpose(&[
+        a("--in"),
+        &log,
+        a("--out"),
+        &small,
+        a("--chunk-kib"),
+        a("2"),
+    ]);
+    assert!(ok, "{err}");
+    let bytes = std::fs::read(&small).unwrap();
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let rec = dir.path().join("rec.jsonl");
+    let (ok, err) = lightpose(&[a("--in"), &cut, a("--out"), &rec]);
+    assert!(ok, "{err}");
+    let frames = std::fs::read_to_string(&rec).unwrap().lines().count() - 1;
+    assert!(frames > 5 && frames < 41, "{frames}: {err}");
+    assert!(
+        err.starts_with(&format!("{frames} frames, 0 poses: ")),
+        "{err}"
+    );
+    let line = err.lines().nth(1).unwrap_or_default();
+    assert!(
+        line.starts_with(&format!("lightpose: {}: byte ", cut.display()))
+            && line.contains("recording never finished")
+            && line.contains("bytes after it (an incomplete record) dropped"),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_input_is_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = dir.path().join("fake.mcap");
+    std::fs::copy(root().join("tests/data/dive.jsonl"), &fake).unwrap();
+    let a = |s: &'static str| Path::new(s);
+    let (ok, err) = lightpose(&[a("--in"), &fake, a("--out"), &dir.path().join("o.jsonl")]);
+    assert!(!ok);
+    assert_eq!(
+        err,
+        format!(
+            "lightpose: {}: byte 0: not an MCAP file (no MCAP magic), though named .mcap\n",
+            fake.display()
+        )
+    );
+    let (ok, err) = lightpose(&[
+        a("--in"),
+        &root().join("tests/data/dive.jsonl"),
+        a("--out"),
+        &dir.path().join("o.txt"),
+    ]);
+    assert!(!ok);
+    assert!(
+        err.ends_with("o.txt: the output must be named .jsonl or .mcap\n")
+            && err.lines().count() == 1,
+        "{err}"
+    );
+}
+
+fn run(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_lightpose"))
+        .args(args)
+        .output()
+        .expect("runs lightpose");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Replay and calibration read MCAP as they read JSONL: the same POSE
+/// lines byte for byte, the same calibration.
+#[test]
+fn replay_and_calibrate_read_mcap_alike() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |n: &str| dir.path().join(n).display().to_string();
+    let cal = root()
+        .join("config/calibration/tank.toml")
+        .display()
+        .to_string();
+    for name in ["dive", "hard", "zigzag"] {
+        let log = root()
+            .join(format!("tests/data/{name}.jsonl"))
+            .display()
+            .to_string();
+        let mcap = d(&format!("{name}.mcap"));
+        let (ok, err) = run(&["convert", "--in", &log, "--out", &mcap, "--chunk-kib", "4"]);
+        assert!(ok, "{err}");
+        let mut outs = Vec::new();
+        for (input, out) in [
+            (&log, d(&format!("{name}.j.poses"))),
+            (&mcap, d(&format!("{name}.m.poses"))),
+        ] {
+            let (ok, err) = run(&[
+                "replay",
+                "--calibration",
+                &cal,
+                "--log",
+                input,
+                "--out",
+                &out,
+            ]);
+            assert!(ok, "{err}");
+            outs.push(std::fs::read(&out).unwrap());
+        }
+        assert!(!outs[0].is_empty());
+        assert_eq!(outs[0], outs[1], "{name}: replay from MCAP differs");
+    }
+    let scene = root().join("config/scenes/tank.toml").display().to_string();
+    let mut cals = Vec::new();
+    for ext in ["jsonl", "mcap"] {
+        let (sweep, dark) = (d("sweep.jsonl"), d("dark.jsonl"));
+        if ext == "jsonl" {
+            for (kind, n, out) in [("all", "8", &sweep), ("dark", "200", &dark)] {
+                let args = [
+                    "sweep",
+                    "--scene",
+                    &scene,
+                    "--kind",
+                    kind,
+                    "--samples",
+                    n,
+                    "--seed",
+                    "5",
+                    "--out",
+                    out,
+                ];
+                let (ok, err) = run(&args);
+                assert!(ok, "{err}");
+            }
+        }
+        let (sw, dk) = (d(&format!("s.{ext}")), d(&format!("k.{ext}")));
+        for (from, to) in [(&sweep, &sw), (&dark, &dk)] {
+            let (ok, err) = run(&["convert", "--in", from, "--out", to]);
+            assert!(ok, "{err}");
+        }
+        let out = d(&format!("cal.{ext}.toml"));
+        let (ok, err) = run(&[
+            "calibrate",
+            "--sweep",
+            &sw,
+            "--dark",
+            &dk,
+            "--out",
+            &out,
+            "--no-physical",
+        ]);
+        assert!(ok, "{err}");
+        // The file names the sources, which differ by their extension.
+        let text = std::fs::read_to_string(&out).unwrap();
+        cals.push(text.replace(&format!(".{ext}"), ".LOG"));
+    }
+    assert_eq!(cals[0], cals[1]);
+}
