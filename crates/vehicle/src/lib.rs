@@ -29,6 +29,7 @@ pub mod latest;
 pub mod mav;
 pub mod ned;
 pub mod readings;
+pub mod standin;
 
 pub use config::{ConfigError, DvlTable, MavlinkTable, SiteTable};
 pub use dvl::client::DvlSettings;

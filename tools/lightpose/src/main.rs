@@ -5,6 +5,7 @@ mod bench;
 mod calibrate;
 mod cells;
 mod crb;
+mod fake_autopilot;
 mod montecarlo;
 mod replay;
 mod simulate;
@@ -39,6 +40,9 @@ enum Cmd {
     Bench(bench::BenchArgs),
     /// Cramér–Rao bound of a scene along a trajectory, one row per frame.
     Crb(crb::CrbArgs),
+    /// Stand in for the vehicle's autopilot: send its sensors over MAVLink
+    /// from a trajectory and check the daemon's poses against the truth.
+    FakeAutopilot(fake_autopilot::FakeAutopilotArgs),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +55,7 @@ fn main() -> ExitCode {
         Cmd::Montecarlo(a) => montecarlo::run(a),
         Cmd::Bench(a) => bench::run(a),
         Cmd::Crb(a) => crb::run(a),
+        Cmd::FakeAutopilot(a) => fake_autopilot::run(a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,
