@@ -89,6 +89,8 @@ struct Session {
     stats: ErrorStats,
     sent_sets: u64,
     speeds: u64,
+    /// Estimates whose capture time lies off the trajectory (no truth).
+    no_truth: u64,
     components: Vec<u8>,
     latest: Option<[f64; 5]>,
     verbose: bool,
@@ -138,6 +140,7 @@ pub fn run(a: FakeAutopilotArgs) -> anyhow::Result<()> {
         stats: ErrorStats::default(),
         sent_sets: 0,
         speeds: 0,
+        no_truth: 0,
         components: Vec::new(),
         latest: None,
         verbose: a.verbose,
@@ -248,6 +251,11 @@ impl Session {
                         let off = t - self.start.elapsed().as_secs_f64();
                         self.offset = Some(self.offset.map_or(off, |o| o.max(off)));
                     }
+                    let (t0, t1) = (self.traj.t0(), self.traj.t_end());
+                    if !self.repeat && !(t0 - 0.5..=t1 + 0.5).contains(&t) {
+                        self.no_truth += 1;
+                        continue;
+                    }
                     let truth = self
                         .site
                         .pose_ned(&self.traj.kinematics(self.traj_time(t)).pose);
@@ -322,9 +330,10 @@ impl Session {
 
     fn summary(&self) -> String {
         format!(
-            "fake-autopilot: sent {} sets of sensor messages; received {} VISION_POSITION_ESTIMATE, {} VISION_SPEED_ESTIMATE, heartbeats from components {:?}; {}",
+            "fake-autopilot: sent {} sets of sensor messages; received {} VISION_POSITION_ESTIMATE ({} off the trajectory's times), {} VISION_SPEED_ESTIMATE, heartbeats from components {:?}; {}",
             self.sent_sets,
-            self.stats.len(),
+            self.stats.len() as u64 + self.no_truth,
+            self.no_truth,
             self.speeds,
             self.components,
             self.p95_line()

@@ -85,11 +85,12 @@ fn the_stand_in_autopilot_sends_the_truth_and_judges_what_comes_back() {
     }
     assert!(seen.iter().all(|s| *s), "{seen:?}");
 
-    // What it gets back: 20 estimates at the truth, 2 of them 1 m north.
+    // What it gets back: 20 estimates at the truth, 2 of them 1 m north,
+    // and one at a time the 8 s dive never reaches (not judged).
     let traj = Trajectory::load(&traj).unwrap();
     let mut enc = Encoder::new(1, 197);
-    for k in 0..20u64 {
-        let t = 0.5 + 0.1 * k as f64;
+    for k in 0..21u64 {
+        let t = if k == 20 { 50.0 } else { 0.5 + 0.1 * k as f64 };
         let pose = traj.kinematics(t).pose;
         let o = Outgoing {
             seq: k,
@@ -111,7 +112,7 @@ fn the_stand_in_autopilot_sends_the_truth_and_judges_what_comes_back() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     let summary = stdout.lines().last().unwrap_or_default();
     assert!(
-        summary.contains("received 20 VISION_POSITION_ESTIMATE"),
+        summary.contains("received 21 VISION_POSITION_ESTIMATE (1 off"),
         "{stdout}"
     );
     assert!(
