@@ -6,6 +6,7 @@ mod calibrate;
 mod cells;
 mod convert;
 mod crb;
+mod fake_autopilot;
 mod montecarlo;
 mod replay;
 mod simulate;
@@ -42,6 +43,9 @@ enum Cmd {
     Crb(crb::CrbArgs),
     /// Convert an intensity log between JSON Lines and MCAP.
     Convert(convert::ConvertArgs),
+    /// Stand in for the vehicle's autopilot: send its sensors over MAVLink
+    /// from a trajectory and check the daemon's poses against the truth.
+    FakeAutopilot(fake_autopilot::FakeAutopilotArgs),
 }
 
 fn main() -> ExitCode {
@@ -55,6 +59,7 @@ fn main() -> ExitCode {
         Cmd::Bench(a) => bench::run(a),
         Cmd::Crb(a) => crb::run(a),
         Cmd::Convert(a) => convert::run(a),
+        Cmd::FakeAutopilot(a) => fake_autopilot::run(a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,381 @@
+//! The configuration tables `[site]`, `[mavlink]` and `[dvl]` as written
+//! in the daemon's TOML (serde, unknown keys refused), and one validator
+//! per table that turns each into typed settings. An error names the table
+//! and the key; the caller adds the file.
+
+use crate::dvl::client::DvlSettings;
+use crate::mav::inbound::{DepthSource, InputConfig};
+use crate::mav::link::Endpoint;
+use crate::mav::outbound::{MissingStd, OutputConfig};
+use crate::mav::task::MavlinkSettings;
+use crate::ned::{NedVec, Site};
+use crate::readings::MaxAge;
+use lightpose_core::Angle;
+use serde::Deserialize;
+use std::time::Duration;
+
+/// A key with a value that cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("[{table}] {key}: {msg}")]
+pub struct ConfigError {
+    pub table: &'static str,
+    pub key: &'static str,
+    pub msg: String,
+}
+
+fn err(table: &'static str, key: &'static str, msg: impl Into<String>) -> ConfigError {
+    ConfigError {
+        table,
+        key,
+        msg: msg.into(),
+    }
+}
+
+/// A finite number within `lo..=hi` (the default when absent).
+fn within(
+    table: &'static str,
+    key: &'static str,
+    v: Option<f64>,
+    default: f64,
+    lo: f64,
+    hi: f64,
+) -> Result<f64, ConfigError> {
+    let v = v.unwrap_or(default);
+    if v.is_finite() && (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(err(table, key, format!("{v} is not within {lo}..{hi}")))
+    }
+}
+
+/// `[site]`: where the beacon is and where it points.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SiteTable {
+    /// Compass heading of the beacon's optical axis, degrees.
+    pub beacon_heading_deg: f64,
+    /// Depth of the beacon below the surface, m.
+    pub beacon_depth_m: f64,
+    /// The beacon's position [N, E, D] in the autopilot's local frame, m.
+    #[serde(default)]
+    pub beacon_ned_m: Option<[f64; 3]>,
+}
+
+impl SiteTable {
+    pub fn validate(&self) -> Result<Site, ConfigError> {
+        let h = within(
+            "site",
+            "beacon_heading_deg",
+            Some(self.beacon_heading_deg),
+            0.0,
+            -360.0,
+            360.0,
+        )?;
+        let d = within(
+            "site",
+            "beacon_depth_m",
+            Some(self.beacon_depth_m),
+            0.0,
+            0.0,
+            11_000.0,
+        )?;
+        let ned = self.beacon_ned_m.unwrap_or_default();
+        if !ned.iter().all(|v| v.is_finite() && v.abs() < 1e6) {
+            return Err(err(
+                "site",
+                "beacon_ned_m",
+                format!("{ned:?} is not three finite metres"),
+            ));
+        }
+        let mut site = Site::new(Angle::from_deg(h), d);
+        site.beacon_ned = NedVec(ned);
+        Ok(site)
+    }
+}
+
+/// `[mavlink]`: the link to the autopilot.
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MavlinkTable {
+    /// `udpout:HOST:PORT`, `udpin:ADDR:PORT` or `serial:PATH:BAUD`.
+    pub connection: String,
+    pub system_id: Option<u8>,
+    pub component_id: Option<u8>,
+    /// Take input only from this system (default: from any).
+    pub autopilot_system_id: Option<u8>,
+    pub attitude: Option<bool>,
+    /// `vfr_hud`, `global_position_int` or `none`.
+    pub depth: Option<String>,
+    pub temperature: Option<bool>,
+    pub attitude_max_age_s: Option<f64>,
+    pub depth_max_age_s: Option<f64>,
+    pub temperature_max_age_s: Option<f64>,
+    pub depth_range_m: Option<[f64; 2]>,
+    pub position_rate_hz: Option<f64>,
+    pub speed: Option<bool>,
+    pub heartbeat_hz: Option<f64>,
+    pub roll_std_deg: Option<f64>,
+    pub side_speed_std_mps: Option<f64>,
+    /// `skip` or `assume`.
+    pub missing_std: Option<String>,
+    pub assume_position_std_m: Option<f64>,
+    pub assume_angle_std_deg: Option<f64>,
+    pub assume_surge_std_mps: Option<f64>,
+}
+
+const M: &str = "mavlink";
+
+impl MavlinkTable {
+    fn input(&self) -> Result<InputConfig, ConfigError> {
+        let depth = match self.depth.as_deref().unwrap_or("vfr_hud") {
+            "vfr_hud" => DepthSource::VfrHud,
+            "global_position_int" => DepthSource::GlobalPositionInt,
+            "none" => DepthSource::Off,
+            o => {
+                return Err(err(
+                    M,
+                    "depth",
+                    format!("\"{o}\": want vfr_hud, global_position_int or none"),
+                ))
+            }
+        };
+        let range = self.depth_range_m.unwrap_or([-10.0, 1000.0]);
+        if !(range[0].is_finite() && range[1].is_finite() && range[0] < range[1]) {
+            return Err(err(
+                M,
+                "depth_range_m",
+                format!("{range:?} is not [shallowest, deepest]"),
+            ));
+        }
+        Ok(InputConfig {
+            attitude: self.attitude.unwrap_or(true),
+            depth,
+            temperature: self.temperature.unwrap_or(true),
+            autopilot_system: self.autopilot_system_id,
+            depth_range_m: range,
+            ..InputConfig::default()
+        })
+    }
+
+    fn output(&self) -> Result<OutputConfig, ConfigError> {
+        let rate = match self.position_rate_hz {
+            None => None,
+            Some(r) => Some(within(M, "position_rate_hz", Some(r), 0.0, 0.01, 1000.0)?),
+        };
+        let missing_std = match self.missing_std.as_deref().unwrap_or("skip") {
+            "skip" => MissingStd::Skip,
+            "assume" => MissingStd::Assume {
+                position_m: within(
+                    M,
+                    "assume_position_std_m",
+                    self.assume_position_std_m,
+                    1.0,
+                    1e-3,
+                    100.0,
+                )?,
+                angle: Angle::from_deg(within(
+                    M,
+                    "assume_angle_std_deg",
+                    self.assume_angle_std_deg,
+                    10.0,
+                    1e-3,
+                    90.0,
+                )?),
+                surge_mps: within(
+                    M,
+                    "assume_surge_std_mps",
+                    self.assume_surge_std_mps,
+                    0.5,
+                    1e-3,
+                    10.0,
+                )?,
+            },
+            o => {
+                return Err(err(
+                    M,
+                    "missing_std",
+                    format!("\"{o}\": want skip or assume"),
+                ))
+            }
+        };
+        Ok(OutputConfig {
+            position_rate_hz: rate,
+            speed: self.speed.unwrap_or(true),
+            roll_std: Angle::from_deg(within(
+                M,
+                "roll_std_deg",
+                self.roll_std_deg,
+                5.0,
+                0.0,
+                90.0,
+            )?),
+            side_speed_std_mps: within(
+                M,
+                "side_speed_std_mps",
+                self.side_speed_std_mps,
+                0.1,
+                0.0,
+                10.0,
+            )?,
+            missing_std,
+        })
+    }
+
+    /// The link's settings, and how old its readings may be (velocity's
+    /// age is `[dvl]`'s and is left at its default here).
+    pub fn validate(&self, site: Site) -> Result<(MavlinkSettings, MaxAge), ConfigError> {
+        let endpoint: Endpoint = self
+            .connection
+            .parse()
+            .map_err(|e| err(M, "connection", e))?;
+        let mut s = MavlinkSettings::new(endpoint, site);
+        s.system_id = self.system_id.unwrap_or(1);
+        s.component_id = self.component_id.unwrap_or(197);
+        if s.system_id == 0 || s.component_id == 0 {
+            return Err(err(M, "system_id", "0 is the broadcast id, not a sender's"));
+        }
+        s.input = self.input()?;
+        s.output = self.output()?;
+        let hz = within(M, "heartbeat_hz", self.heartbeat_hz, 1.0, 0.1, 10.0)?;
+        s.heartbeat_period = Duration::from_secs_f64(1.0 / hz);
+        let age = |key, v, d| within(M, key, v, d, 0.0, 3600.0).map(Duration::from_secs_f64);
+        let max_age = MaxAge {
+            attitude: age("attitude_max_age_s", self.attitude_max_age_s, 0.25)?,
+            depth: age("depth_max_age_s", self.depth_max_age_s, 0.5)?,
+            temperature: age("temperature_max_age_s", self.temperature_max_age_s, 10.0)?,
+            ..MaxAge::default()
+        };
+        Ok((s, max_age))
+    }
+}
+
+/// `[dvl]`: a Water Linked DVL on TCP.
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DvlTable {
+    /// HOST:PORT; the DVL serves on port 16171.
+    pub address: String,
+    pub max_age_s: Option<f64>,
+    pub max_speed_mps: Option<f64>,
+    pub reconnect_max_s: Option<f64>,
+    pub silence_timeout_s: Option<f64>,
+}
+
+const D: &str = "dvl";
+
+impl DvlTable {
+    /// The client's settings and the velocity reading's maximum age.
+    pub fn validate(&self) -> Result<(DvlSettings, Duration), ConfigError> {
+        let a = self.address.trim();
+        let port_ok = a
+            .rsplit_once(':')
+            .is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok_and(|p| p > 0));
+        if !port_ok {
+            return Err(err(
+                D,
+                "address",
+                format!("\"{a}\" is not HOST:PORT (the DVL serves on 16171)"),
+            ));
+        }
+        let mut s = DvlSettings::new(a);
+        s.max_speed_mps = within(D, "max_speed_mps", self.max_speed_mps, 5.0, 0.01, 50.0)?;
+        s.reconnect_max = Duration::from_secs_f64(within(
+            D,
+            "reconnect_max_s",
+            self.reconnect_max_s,
+            5.0,
+            0.1,
+            600.0,
+        )?);
+        s.reconnect_first = s.reconnect_first.min(s.reconnect_max);
+        s.silence = Duration::from_secs_f64(within(
+            D,
+            "silence_timeout_s",
+            self.silence_timeout_s,
+            3.0,
+            0.1,
+            600.0,
+        )?);
+        let age = within(D, "max_age_s", self.max_age_s, 1.0, 0.0, 3600.0)?;
+        Ok((s, Duration::from_secs_f64(age)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Deserialize)]
+    struct File {
+        site: SiteTable,
+        mavlink: MavlinkTable,
+        dvl: DvlTable,
+    }
+
+    #[test]
+    fn the_documented_tables_validate() {
+        let f: File = toml::from_str(
+            r#"
+            [site]
+            beacon_heading_deg = 30.0
+            beacon_depth_m = 3.0
+            [mavlink]
+            connection = "udpout:127.0.0.1:14550"
+            depth = "global_position_int"
+            position_rate_hz = 5.0
+            [dvl]
+            address = "192.168.2.95:16171"
+            "#,
+        )
+        .unwrap();
+        let site = f.site.validate().unwrap();
+        let (m, age) = f.mavlink.validate(site).unwrap();
+        assert_eq!((m.system_id, m.component_id), (1, 197));
+        assert_eq!(m.input.depth, DepthSource::GlobalPositionInt);
+        assert_eq!(m.output.position_rate_hz, Some(5.0));
+        assert_eq!(age.attitude, Duration::from_millis(250));
+        let (d, vage) = f.dvl.validate().unwrap();
+        assert_eq!(d.address, "192.168.2.95:16171");
+        assert_eq!(vage, Duration::from_secs(1));
+    }
+
+    #[test]
+    fn bad_values_name_table_and_key() {
+        let site = SiteTable {
+            beacon_heading_deg: 30.0,
+            beacon_depth_m: -1.0,
+            beacon_ned_m: None,
+        };
+        assert_eq!(
+            site.validate().unwrap_err().to_string(),
+            "[site] beacon_depth_m: -1 is not within 0..11000"
+        );
+        let ok_site = Site::new(Angle::ZERO, 3.0);
+        let t = |f: fn(&mut MavlinkTable)| {
+            let mut m = MavlinkTable {
+                connection: "udpin:0.0.0.0:14550".into(),
+                ..Default::default()
+            };
+            f(&mut m);
+            m.validate(ok_site).unwrap_err().to_string()
+        };
+        assert!(t(|m| m.connection = "tcp:x:1".into())
+            .starts_with("[mavlink] connection: unknown transport"));
+        assert!(t(|m| m.depth = Some("baro".into())).starts_with("[mavlink] depth:"));
+        assert!(t(|m| m.roll_std_deg = Some(f64::NAN)).starts_with("[mavlink] roll_std_deg:"));
+        assert!(t(|m| m.missing_std = Some("guess".into())).starts_with("[mavlink] missing_std:"));
+        let dvl = DvlTable {
+            address: "192.168.2.95".into(),
+            ..Default::default()
+        };
+        assert!(dvl
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .starts_with("[dvl] address:"));
+        assert!(toml::from_str::<SiteTable>(
+            "beacon_heading_deg = 1\nbeacon_depth_m = 2\nbeacon_dept = 3"
+        )
+        .is_err());
+    }
+}

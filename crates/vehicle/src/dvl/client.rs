@@ -1,0 +1,178 @@
+//! The DVL's TCP client: connect, read reports line by line into the
+//! hub's velocity reading, and when the DVL closes the connection, errs or
+//! falls silent, connect again after a capped back-off. Never returns
+//! before `shutdown`; every loss is counted.
+
+use super::{parse_line, DvlLine, DvlRefusal};
+use crate::backoff::Backoff;
+use crate::Hub;
+use std::future::Future;
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::io::AsyncReadExt;
+use tokio::net::TcpStream;
+
+/// A line longer than this is no report (the vendor's are < 2 KiB).
+const MAX_LINE: usize = 64 * 1024;
+
+/// Where the DVL is and how to treat it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DvlSettings {
+    /// HOST:PORT of the DVL's TCP JSON server (port 16171).
+    pub address: String,
+    /// Components faster than this (m/s) are refused.
+    pub max_speed_mps: f64,
+    pub reconnect_first: Duration,
+    pub reconnect_max: Duration,
+    /// No byte for this long and the connection is given up (the DVL
+    /// reports at 2–15 Hz while it is in the water and pinging).
+    pub silence: Duration,
+    pub connect_timeout: Duration,
+}
+
+impl DvlSettings {
+    pub fn new(address: impl Into<String>) -> Self {
+        DvlSettings {
+            address: address.into(),
+            max_speed_mps: 5.0,
+            reconnect_first: Duration::from_millis(500),
+            reconnect_max: Duration::from_secs(5),
+            silence: Duration::from_secs(3),
+            connect_timeout: Duration::from_secs(3),
+        }
+    }
+}
+
+/// How a connection ended.
+enum Ended {
+    Shutdown,
+    Closed,
+    Error(std::io::Error),
+    Silent,
+}
+
+/// Run the DVL client until `shutdown` resolves.
+pub async fn run(s: DvlSettings, hub: Arc<Hub>, shutdown: impl Future<Output = ()>) {
+    let mut shutdown = std::pin::pin!(shutdown);
+    let mut backoff = Backoff::new(s.reconnect_first, s.reconnect_max);
+    let c = &hub.dvl;
+    loop {
+        let conn = tokio::select! {
+            _ = &mut shutdown => return,
+            r = tokio::time::timeout(s.connect_timeout, TcpStream::connect(s.address.as_str())) => r,
+        };
+        match conn {
+            Ok(Ok(stream)) => {
+                c.connects.fetch_add(1, Relaxed);
+                tracing::info!("dvl: connected to {}", s.address);
+                let ended = session(&s, &hub, stream, shutdown.as_mut(), &mut backoff).await;
+                let why = match ended {
+                    Ended::Shutdown => return,
+                    Ended::Closed => "closed by the DVL".to_string(),
+                    Ended::Error(e) => e.to_string(),
+                    Ended::Silent => {
+                        c.silences.fetch_add(1, Relaxed);
+                        format!("silent for {:?}", s.silence)
+                    }
+                };
+                c.drops.fetch_add(1, Relaxed);
+                tracing::warn!("dvl: connection to {} lost: {why}", s.address);
+                c.set_error(format!("{}: {why}", s.address));
+            }
+            Ok(Err(e)) => connect_failed(&s, &hub, &e.to_string()),
+            Err(_) => connect_failed(&s, &hub, "connect timed out"),
+        }
+        tokio::select! {
+            _ = &mut shutdown => return,
+            _ = tokio::time::sleep(backoff.next_delay()) => {}
+        }
+    }
+}
+
+fn connect_failed(s: &DvlSettings, hub: &Hub, why: &str) {
+    let k = hub.dvl.connect_failures.fetch_add(1, Relaxed) + 1;
+    if k == 1 || k.is_multiple_of(20) {
+        tracing::warn!(attempts = k, "dvl: cannot connect to {}: {why}", s.address);
+    }
+    hub.dvl.set_error(format!("{}: {why}", s.address));
+}
+
+async fn session(
+    s: &DvlSettings,
+    hub: &Hub,
+    mut stream: TcpStream,
+    mut shutdown: std::pin::Pin<&mut impl Future<Output = ()>>,
+    backoff: &mut Backoff,
+) -> Ended {
+    let mut chunk = [0u8; 4096];
+    let mut line: Vec<u8> = Vec::with_capacity(4096);
+    let mut overlong = false;
+    loop {
+        let n = tokio::select! {
+            _ = &mut shutdown => return Ended::Shutdown,
+            r = tokio::time::timeout(s.silence, stream.read(&mut chunk)) => match r {
+                Err(_) => return Ended::Silent,
+                Ok(Err(e)) => return Ended::Error(e),
+                Ok(Ok(0)) => return Ended::Closed,
+                Ok(Ok(n)) => n,
+            },
+        };
+        for &b in &chunk[..n] {
+            if b != b'\n' {
+                if line.len() < MAX_LINE {
+                    line.push(b);
+                } else {
+                    overlong = true;
+                }
+                continue;
+            }
+            if overlong {
+                refuse(hub, DvlRefusal::Garbage, "a line longer than 64 KiB");
+            } else if take_line(s, hub, &line) {
+                backoff.reset();
+            }
+            line.clear();
+            overlong = false;
+        }
+    }
+}
+
+/// Use one line; true if it was a good report.
+fn take_line(s: &DvlSettings, hub: &Hub, line: &[u8]) -> bool {
+    let text = line.trim_ascii();
+    if text.is_empty() {
+        return false;
+    }
+    match parse_line(text, s.max_speed_mps) {
+        Ok(DvlLine::Velocity(v)) => {
+            let now = Instant::now();
+            let taken = v.latency.and_then(|l| now.checked_sub(l)).unwrap_or(now);
+            hub.readings.store_velocity(taken, &v.reading);
+            hub.dvl.reports.fetch_add(1, Relaxed);
+            if v.high_temperature && hub.dvl.high_temperature.fetch_add(1, Relaxed) == 0 {
+                tracing::warn!(
+                    "dvl: reports high temperature (status bit 0): it will shut down soon"
+                );
+            }
+            true
+        }
+        Ok(DvlLine::Other) => {
+            hub.dvl.other.fetch_add(1, Relaxed);
+            false
+        }
+        Err(r) => {
+            let excerpt: String = String::from_utf8_lossy(&text[..text.len().min(60)]).into_owned();
+            refuse(hub, r, &excerpt);
+            false
+        }
+    }
+}
+
+fn refuse(hub: &Hub, r: DvlRefusal, what: &str) {
+    let k = hub.dvl.refused[r.index()].fetch_add(1, Relaxed) + 1;
+    if k == 1 || k.is_multiple_of(100) {
+        tracing::warn!(count = k, "dvl: refused ({}): {what}", r.as_str());
+    }
+    hub.dvl.set_error(format!("{}: {what}", r.as_str()));
+}

@@ -1,0 +1,188 @@
+//! What the MAVLink link did, for STATUS: messages used per kind, refused
+//! per reason, sent per kind, skipped per reason, and the last error.
+//! Counters are atomics; the last error and the autopilot's last heartbeat
+//! are kept under a lock that only the I/O task and STATUS take.
+
+use super::inbound::{Refusal, Refused};
+use super::outbound::Skip;
+use serde::Serialize;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// Kinds of used input, in `Input::kind` order.
+pub const USED: [&str; 4] = ["attitude", "depth", "temperature", "autopilot_heartbeat"];
+/// Kinds of output.
+pub const SENT: [&str; 3] = [
+    "vision_position_estimate",
+    "vision_speed_estimate",
+    "heartbeat",
+];
+
+#[derive(Default)]
+pub struct MavCounters {
+    pub(crate) frames: AtomicU64,
+    pub(crate) used: [AtomicU64; USED.len()],
+    pub(crate) unused: AtomicU64,
+    pub(crate) refused: [AtomicU64; Refusal::ALL.len()],
+    pub(crate) garbage_bytes: AtomicU64,
+    pub(crate) sent: [AtomicU64; SENT.len()],
+    pub(crate) skipped: [AtomicU64; Skip::ALL.len()],
+    pub(crate) speed_skipped: [AtomicU64; Skip::ALL.len()],
+    pub(crate) no_peer: AtomicU64,
+    pub(crate) send_errors: AtomicU64,
+    pub(crate) recv_errors: AtomicU64,
+    pub(crate) link_opens: AtomicU64,
+    pub(crate) link_failures: AtomicU64,
+    pub(crate) autopilot_seen: Mutex<Option<Instant>>,
+    pub(crate) last_error: Mutex<Option<LastError>>,
+}
+
+/// STATUS figures of the MAVLink link.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MavlinkStatus {
+    /// CRC-valid frames received.
+    pub frames: u64,
+    /// Messages used, per kind.
+    pub used: Vec<(&'static str, u64)>,
+    /// Valid messages with nothing for us.
+    pub unused: u64,
+    /// Messages or frame candidates refused, per reason.
+    pub refused: Vec<(&'static str, u64)>,
+    /// Bytes that were no part of any frame.
+    pub garbage_bytes: u64,
+    pub sent: Vec<(&'static str, u64)>,
+    /// `ok` poses not sent, per reason.
+    pub skipped: Vec<(&'static str, u64)>,
+    /// Speeds not sent although the surge was known, per reason.
+    pub speed_skipped: Vec<(&'static str, u64)>,
+    /// Frames not sent because a `udpin` link had heard nobody yet.
+    pub no_peer: u64,
+    pub send_errors: u64,
+    pub recv_errors: u64,
+    pub link_opens: u64,
+    pub link_failures: u64,
+    /// Seconds since the autopilot's last HEARTBEAT.
+    pub autopilot_heartbeat_age_s: Option<f64>,
+    pub last_error: Option<String>,
+}
+
+fn table<const N: usize>(names: [&'static str; N], c: &[AtomicU64; N]) -> Vec<(&'static str, u64)> {
+    names
+        .iter()
+        .zip(c)
+        .map(|(n, v)| (*n, v.load(Relaxed)))
+        .collect()
+}
+
+/// The name of a message id, for error lines.
+pub fn message_name(id: u32) -> String {
+    use mavlink::dialects::ardupilotmega::MavMessage;
+    use mavlink::Message;
+    match MavMessage::default_message_from_id(id) {
+        Some(m) => m.message_name().to_string(),
+        None => format!("message {id}"),
+    }
+}
+
+/// The latest thing that went wrong, kept as data and worded only when
+/// STATUS asks (a flood of bad messages formats nothing).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum LastError {
+    Refused(Refused),
+    Dropped(Refusal, Option<u32>),
+    Io(String),
+}
+
+impl LastError {
+    fn line(&self) -> String {
+        match self {
+            LastError::Refused(r) => format!(
+                "{} from system {}: {} ({})",
+                message_name(r.msg_id),
+                r.system,
+                r.reason.as_str(),
+                r.value
+            ),
+            LastError::Dropped(reason, id) => format!(
+                "{}: {}",
+                id.map(message_name).unwrap_or_else(|| "frame".into()),
+                reason.as_str()
+            ),
+            LastError::Io(s) => s.clone(),
+        }
+    }
+}
+
+impl MavCounters {
+    /// Count a refused message; the first of each reason and every 1000th
+    /// is logged, and the latest is kept for STATUS.
+    pub(crate) fn refuse(&self, r: &Refused) {
+        let k = self.refused[r.reason.index()].fetch_add(1, Relaxed) + 1;
+        let e = LastError::Refused(*r);
+        if k == 1 || k.is_multiple_of(1000) {
+            tracing::warn!(count = k, "mavlink: refused {}", e.line());
+        }
+        self.set_error(e);
+    }
+
+    /// Count a dropped frame candidate (bad CRC, unknown id, bad flags).
+    pub(crate) fn drop_frame(&self, reason: Refusal, msg_id: Option<u32>) {
+        let k = self.refused[reason.index()].fetch_add(1, Relaxed) + 1;
+        let e = LastError::Dropped(reason, msg_id);
+        if k == 1 || k.is_multiple_of(1000) {
+            tracing::warn!(count = k, "mavlink: dropped {}", e.line());
+        }
+        self.set_error(e);
+    }
+
+    pub(crate) fn set_error(&self, e: LastError) {
+        if let Ok(mut g) = self.last_error.lock() {
+            *g = Some(e);
+        }
+    }
+
+    pub fn refused(&self, reason: Refusal) -> u64 {
+        self.refused[reason.index()].load(Relaxed)
+    }
+
+    /// Messages used of kind `k` (see [`USED`]).
+    pub fn used(&self, k: usize) -> u64 {
+        self.used.get(k).map_or(0, |c| c.load(Relaxed))
+    }
+
+    /// Messages sent of kind `k` (see [`SENT`]).
+    pub fn sent(&self, k: usize) -> u64 {
+        self.sent.get(k).map_or(0, |c| c.load(Relaxed))
+    }
+
+    pub fn status(&self, now: Instant) -> MavlinkStatus {
+        let nz = |v: Vec<(&'static str, u64)>| v.into_iter().filter(|(_, n)| *n > 0).collect();
+        MavlinkStatus {
+            frames: self.frames.load(Relaxed),
+            used: table(USED, &self.used),
+            unused: self.unused.load(Relaxed),
+            refused: nz(table(Refusal::ALL.map(Refusal::as_str), &self.refused)),
+            garbage_bytes: self.garbage_bytes.load(Relaxed),
+            sent: table(SENT, &self.sent),
+            skipped: nz(table(Skip::ALL.map(Skip::as_str), &self.skipped)),
+            speed_skipped: nz(table(Skip::ALL.map(Skip::as_str), &self.speed_skipped)),
+            no_peer: self.no_peer.load(Relaxed),
+            send_errors: self.send_errors.load(Relaxed),
+            recv_errors: self.recv_errors.load(Relaxed),
+            link_opens: self.link_opens.load(Relaxed),
+            link_failures: self.link_failures.load(Relaxed),
+            autopilot_heartbeat_age_s: self
+                .autopilot_seen
+                .lock()
+                .ok()
+                .and_then(|g| *g)
+                .map(|t| now.saturating_duration_since(t).as_secs_f64()),
+            last_error: self
+                .last_error
+                .lock()
+                .ok()
+                .and_then(|g| g.as_ref().map(LastError::line)),
+        }
+    }
+}

@@ -1,0 +1,341 @@
+//! What the autopilot's messages say about the vehicle, in the frames of
+//! MODEL.md, and why a message is refused.
+//!
+//! - `ATTITUDE` → pitch, and yaw in B = heading − h − 180° (roll ignored:
+//!   the pose has none).
+//! - `VFR_HUD.alt` or `GLOBAL_POSITION_INT.relative_alt` (below the
+//!   surface negative) → z in B = d_b − depth. The depth sensor's lever arm
+//!   is not applied here: the estimator applies it in its measurement
+//!   model with its own attitude estimate.
+//! - `SCALED_PRESSURE2.temperature` (c°C, the external pressure sensor's)
+//!   → water temperature.
+
+use crate::ned::Site;
+use lightpose_core::{Angle, AttitudeReading, DepthReading};
+use mavlink::dialects::ardupilotmega::{
+    MavAutopilot, MavType, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
+    SCALED_PRESSURE2_DATA, VFR_HUD_DATA,
+};
+use mavlink::MessageData;
+use std::f64::consts::PI;
+
+use super::scan::RawFrame;
+
+/// Where the vehicle's depth comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DepthSource {
+    /// `VFR_HUD.alt` (m); ArduSub puts its depth sensor's altitude there.
+    VfrHud,
+    /// `GLOBAL_POSITION_INT.relative_alt` (mm above home); needs a home.
+    GlobalPositionInt,
+    /// No depth from the autopilot.
+    Off,
+}
+
+/// Which inputs to take and what to believe.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputConfig {
+    pub attitude: bool,
+    pub depth: DepthSource,
+    pub temperature: bool,
+    /// Only messages from this system id count (others are refused).
+    pub autopilot_system: Option<u8>,
+    /// Depths (m, positive down) outside this range are refused.
+    pub depth_range_m: [f64; 2],
+    /// Water temperatures (°C) outside this range are refused.
+    pub temperature_range_c: [f64; 2],
+}
+
+impl Default for InputConfig {
+    fn default() -> Self {
+        InputConfig {
+            attitude: true,
+            depth: DepthSource::VfrHud,
+            temperature: true,
+            autopilot_system: None,
+            depth_range_m: [-10.0, 1000.0],
+            temperature_range_c: [-5.0, 50.0],
+        }
+    }
+}
+
+/// Why a message (or a frame candidate) was not used. Each is a STATUS
+/// counter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Refusal {
+    BadCrc,
+    UnknownMessage,
+    BadFlags,
+    OtherSystem,
+    Malformed,
+    NotFinite,
+    AngleOutOfRange,
+    DepthOutOfRange,
+    TemperatureOutOfRange,
+}
+
+impl Refusal {
+    pub const ALL: [Refusal; 9] = [
+        Refusal::BadCrc,
+        Refusal::UnknownMessage,
+        Refusal::BadFlags,
+        Refusal::OtherSystem,
+        Refusal::Malformed,
+        Refusal::NotFinite,
+        Refusal::AngleOutOfRange,
+        Refusal::DepthOutOfRange,
+        Refusal::TemperatureOutOfRange,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Refusal::BadCrc => "bad_crc",
+            Refusal::UnknownMessage => "unknown_message",
+            Refusal::BadFlags => "bad_flags",
+            Refusal::OtherSystem => "other_system",
+            Refusal::Malformed => "malformed",
+            Refusal::NotFinite => "not_finite",
+            Refusal::AngleOutOfRange => "angle_out_of_range",
+            Refusal::DepthOutOfRange => "depth_out_of_range",
+            Refusal::TemperatureOutOfRange => "temperature_out_of_range",
+        }
+    }
+
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// A refused message: why, which message, and the offending value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Refused {
+    pub reason: Refusal,
+    pub msg_id: u32,
+    pub system: u8,
+    /// The value that broke the rule (NaN when the message had none).
+    pub value: f64,
+}
+
+/// A message that was used.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Input {
+    Attitude(AttitudeReading),
+    Depth(DepthReading),
+    Temperature(f64),
+    /// A HEARTBEAT from an autopilot (not from a GCS or a companion).
+    AutopilotHeartbeat,
+    /// A valid message this reader has no use for (or whose input is off).
+    Unused,
+}
+
+impl Input {
+    /// The counter a used message goes to.
+    pub fn kind(&self) -> Option<usize> {
+        match self {
+            Input::Attitude(_) => Some(0),
+            Input::Depth(_) => Some(1),
+            Input::Temperature(_) => Some(2),
+            Input::AutopilotHeartbeat => Some(3),
+            Input::Unused => None,
+        }
+    }
+}
+
+fn refuse(reason: Refusal, f: &RawFrame, value: f64) -> Refused {
+    Refused {
+        reason,
+        msg_id: f.msg_id,
+        system: f.system,
+        value,
+    }
+}
+
+fn decode<D: MessageData>(f: &RawFrame) -> Result<D, Refused> {
+    D::deser(f.version, f.payload).map_err(|_| refuse(Refusal::Malformed, f, f64::NAN))
+}
+
+/// Interpret one CRC-valid frame.
+pub fn interpret(f: &RawFrame, cfg: &InputConfig, site: &Site) -> Result<Input, Refused> {
+    if cfg.autopilot_system.is_some_and(|s| s != f.system) {
+        return Err(refuse(Refusal::OtherSystem, f, f.system as f64));
+    }
+    match f.msg_id {
+        ATTITUDE_DATA::ID if cfg.attitude => attitude(f, &decode(f)?, site),
+        VFR_HUD_DATA::ID if cfg.depth == DepthSource::VfrHud => {
+            let m: VFR_HUD_DATA = decode(f)?;
+            depth(f, -(m.alt as f64), cfg, site)
+        }
+        GLOBAL_POSITION_INT_DATA::ID if cfg.depth == DepthSource::GlobalPositionInt => {
+            let m: GLOBAL_POSITION_INT_DATA = decode(f)?;
+            depth(f, -(m.relative_alt as f64) / 1000.0, cfg, site)
+        }
+        SCALED_PRESSURE2_DATA::ID if cfg.temperature => {
+            let m: SCALED_PRESSURE2_DATA = decode(f)?;
+            let c = m.temperature as f64 / 100.0;
+            let [lo, hi] = cfg.temperature_range_c;
+            if !(lo..=hi).contains(&c) {
+                return Err(refuse(Refusal::TemperatureOutOfRange, f, c));
+            }
+            Ok(Input::Temperature(c))
+        }
+        HEARTBEAT_DATA::ID => {
+            let m: HEARTBEAT_DATA = decode(f)?;
+            let autopilot = m.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID
+                && m.mavtype != MavType::MAV_TYPE_GCS;
+            Ok(if autopilot {
+                Input::AutopilotHeartbeat
+            } else {
+                Input::Unused
+            })
+        }
+        _ => Ok(Input::Unused),
+    }
+}
+
+fn attitude(f: &RawFrame, m: &ATTITUDE_DATA, site: &Site) -> Result<Input, Refused> {
+    let (roll, pitch, yaw) = (m.roll as f64, m.pitch as f64, m.yaw as f64);
+    for v in [roll, pitch, yaw] {
+        if !v.is_finite() {
+            return Err(refuse(Refusal::NotFinite, f, v));
+        }
+    }
+    // ATTITUDE is in radians: roll and yaw within ±π, pitch within ±π/2
+    // (yaw also accepted in 0..2π; a small margin for float rounding).
+    let eps = 1e-3;
+    if pitch.abs() > PI / 2.0 + eps {
+        return Err(refuse(Refusal::AngleOutOfRange, f, pitch));
+    }
+    if roll.abs() > PI + eps || yaw.abs() > 2.0 * PI + eps {
+        return Err(refuse(Refusal::AngleOutOfRange, f, yaw));
+    }
+    Ok(Input::Attitude(AttitudeReading::new(
+        Angle::from_rad(pitch),
+        site.yaw_b(Angle::from_rad(yaw)),
+    )))
+}
+
+fn depth(f: &RawFrame, depth_m: f64, cfg: &InputConfig, site: &Site) -> Result<Input, Refused> {
+    if !depth_m.is_finite() {
+        return Err(refuse(Refusal::NotFinite, f, depth_m));
+    }
+    let [lo, hi] = cfg.depth_range_m;
+    if !(lo..=hi).contains(&depth_m) {
+        return Err(refuse(Refusal::DepthOutOfRange, f, depth_m));
+    }
+    Ok(Input::Depth(DepthReading::new(site.z_from_depth(depth_m))))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mavlink::MavlinkVersion;
+
+    fn raw<D: MessageData>(m: &D, buf: &mut [u8; 255]) -> usize {
+        m.ser(MavlinkVersion::V2, buf)
+    }
+
+    fn frame(id: u32, system: u8, payload: &[u8]) -> RawFrame<'_> {
+        RawFrame {
+            version: MavlinkVersion::V2,
+            seq: 0,
+            system,
+            component: 1,
+            msg_id: id,
+            payload,
+        }
+    }
+
+    #[test]
+    fn attitude_is_referred_to_the_beam() {
+        let site = Site::new(Angle::from_deg(30.0), 3.0);
+        let mut buf = [0u8; 255];
+        let m = ATTITUDE_DATA {
+            pitch: 0.1,
+            yaw: 200f32.to_radians() - 2.0 * std::f32::consts::PI, // −160°
+            ..Default::default()
+        };
+        let n = raw(&m, &mut buf);
+        let got = interpret(&frame(30, 1, &buf[..n]), &InputConfig::default(), &site);
+        let Ok(Input::Attitude(a)) = got else {
+            panic!("{got:?}")
+        };
+        // −160° − 30° − 180° = −370° ≡ −10°
+        assert!((a.yaw.deg() + 10.0).abs() < 1e-4, "{}", a.yaw.deg());
+        assert!((a.pitch.rad() - 0.1).abs() < 1e-7);
+    }
+
+    #[test]
+    fn bad_values_are_refused_with_their_reason() {
+        let site = Site::new(Angle::ZERO, 3.0);
+        let cfg = InputConfig::default();
+        let mut buf = [0u8; 255];
+        let n = raw(
+            &ATTITUDE_DATA {
+                pitch: f32::NAN,
+                ..Default::default()
+            },
+            &mut buf,
+        );
+        let r = interpret(&frame(30, 1, &buf[..n]), &cfg, &site).unwrap_err();
+        assert_eq!(r.reason, Refusal::NotFinite);
+        let n = raw(
+            &ATTITUDE_DATA {
+                pitch: 2.0,
+                ..Default::default()
+            },
+            &mut buf,
+        );
+        let r = interpret(&frame(30, 1, &buf[..n]), &cfg, &site).unwrap_err();
+        assert_eq!(r.reason, Refusal::AngleOutOfRange);
+        let n = raw(
+            &VFR_HUD_DATA {
+                alt: -5000.0,
+                ..Default::default()
+            },
+            &mut buf,
+        );
+        let r = interpret(&frame(74, 1, &buf[..n]), &cfg, &site).unwrap_err();
+        assert_eq!((r.reason, r.value), (Refusal::DepthOutOfRange, 5000.0));
+        let n = raw(
+            &SCALED_PRESSURE2_DATA {
+                temperature: 9000,
+                ..Default::default()
+            },
+            &mut buf,
+        );
+        let r = interpret(&frame(137, 1, &buf[..n]), &cfg, &site).unwrap_err();
+        assert_eq!(r.reason, Refusal::TemperatureOutOfRange);
+        let only_1 = InputConfig {
+            autopilot_system: Some(1),
+            ..cfg
+        };
+        let r = interpret(&frame(137, 2, &buf[..n]), &only_1, &site).unwrap_err();
+        assert_eq!(r.reason, Refusal::OtherSystem);
+    }
+
+    #[test]
+    fn depth_comes_from_the_configured_message_only() {
+        let site = Site::new(Angle::ZERO, 3.0);
+        let mut buf = [0u8; 255];
+        let n = raw(
+            &GLOBAL_POSITION_INT_DATA {
+                relative_alt: -2500,
+                ..Default::default()
+            },
+            &mut buf,
+        );
+        let f = frame(33, 1, &buf[..n]);
+        assert_eq!(
+            interpret(&f, &InputConfig::default(), &site),
+            Ok(Input::Unused)
+        );
+        let cfg = InputConfig {
+            depth: DepthSource::GlobalPositionInt,
+            ..InputConfig::default()
+        };
+        assert_eq!(
+            interpret(&f, &cfg, &site),
+            Ok(Input::Depth(DepthReading::new(0.5)))
+        );
+    }
+}

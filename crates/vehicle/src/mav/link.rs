@@ -1,0 +1,298 @@
+//! The MAVLink transports, named as MAVLink tools name them:
+//! `udpout:HOST:PORT` (send to the autopilot's or router's port, hear its
+//! replies), `udpin:ADDR:PORT` (listen; reply to whoever spoke last) and
+//! `serial:/dev/ttyX:BAUD`.
+//!
+//! Serial is our own: the port is opened and set up by `serialport`
+//! (without libudev, which the vehicle's Linux may lack) and then read and
+//! written non-blocking through tokio's `AsyncFd`, so one task serves every
+//! transport. The `mavlink` crate's own serial transport is blocking and
+//! its readers drop bad frames without counting them (see `scan`).
+
+use super::scan::Framing;
+use serialport::TTYPort;
+use std::fmt;
+use std::io;
+use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr};
+use std::os::fd::AsRawFd;
+use std::str::FromStr;
+use tokio::io::unix::AsyncFd;
+use tokio::net::UdpSocket;
+
+/// Where the autopilot is.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Endpoint {
+    UdpOut { host: String, port: u16 },
+    UdpIn(SocketAddr),
+    Serial { path: String, baud: u32 },
+}
+
+impl FromStr for Endpoint {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (kind, rest) = s.split_once(':').ok_or_else(|| {
+            format!(
+                "\"{s}\" is not KIND:…; want udpout:HOST:PORT, udpin:ADDR:PORT or serial:PATH:BAUD"
+            )
+        })?;
+        let (head, tail) = rest
+            .rsplit_once(':')
+            .ok_or_else(|| format!("\"{s}\" lacks its :PORT or :BAUD"))?;
+        match kind {
+            "udpout" | "udpin" => {
+                let port: u16 = tail
+                    .parse()
+                    .map_err(|_| format!("\"{tail}\" in \"{s}\" is not a port number"))?;
+                let host = head.trim_start_matches('[').trim_end_matches(']');
+                if host.is_empty() {
+                    return Err(format!("\"{s}\" has no host"));
+                }
+                if kind == "udpout" {
+                    return Ok(Endpoint::UdpOut {
+                        host: host.to_string(),
+                        port,
+                    });
+                }
+                let ip = host.parse().map_err(|_| {
+                    format!("\"{host}\" in \"{s}\" is not an IP address to listen on")
+                })?;
+                Ok(Endpoint::UdpIn(SocketAddr::new(ip, port)))
+            }
+            "serial" => {
+                let baud: u32 = tail
+                    .parse()
+                    .ok()
+                    .filter(|b| *b > 0)
+                    .ok_or_else(|| format!("\"{tail}\" in \"{s}\" is not a baud rate"))?;
+                if head.is_empty() {
+                    return Err(format!("\"{s}\" has no device path"));
+                }
+                Ok(Endpoint::Serial {
+                    path: head.to_string(),
+                    baud,
+                })
+            }
+            other => Err(format!(
+                "unknown transport \"{other}\" in \"{s}\"; want udpout, udpin or serial"
+            )),
+        }
+    }
+}
+
+impl fmt::Display for Endpoint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Endpoint::UdpOut { host, port } if host.contains(':') => {
+                write!(f, "udpout:[{host}]:{port}")
+            }
+            Endpoint::UdpOut { host, port } => write!(f, "udpout:{host}:{port}"),
+            Endpoint::UdpIn(a) => write!(f, "udpin:{a}"),
+            Endpoint::Serial { path, baud } => write!(f, "serial:{path}:{baud}"),
+        }
+    }
+}
+
+/// Why a link could not be opened.
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    #[error("{endpoint}: cannot resolve the host")]
+    Resolve {
+        endpoint: String,
+        #[source]
+        source: io::Error,
+    },
+    #[error("{endpoint}: cannot open the UDP socket")]
+    Socket {
+        endpoint: String,
+        #[source]
+        source: io::Error,
+    },
+    #[error("{endpoint}: cannot open the serial port")]
+    Serial {
+        endpoint: String,
+        #[source]
+        source: io::Error,
+    },
+}
+
+enum Inner {
+    UdpOut(UdpSocket),
+    UdpIn {
+        sock: UdpSocket,
+        peer: Option<SocketAddr>,
+    },
+    Serial(AsyncFd<TTYPort>),
+}
+
+/// An open MAVLink link.
+pub struct Link {
+    inner: Inner,
+}
+
+/// What became of an outgoing frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sent {
+    Yes,
+    /// `udpin` before anyone spoke: nowhere to send yet.
+    NoPeer,
+}
+
+fn sock_err(ep: &Endpoint) -> impl FnOnce(io::Error) -> LinkError + '_ {
+    move |source| LinkError::Socket {
+        endpoint: ep.to_string(),
+        source,
+    }
+}
+
+impl Link {
+    pub async fn open(ep: &Endpoint) -> Result<Link, LinkError> {
+        let inner = match ep {
+            Endpoint::UdpOut { host, port } => {
+                let resolve = |source| LinkError::Resolve {
+                    endpoint: ep.to_string(),
+                    source,
+                };
+                let to = tokio::net::lookup_host((host.as_str(), *port))
+                    .await
+                    .map_err(resolve)?
+                    .next()
+                    .ok_or_else(|| {
+                        resolve(io::Error::new(io::ErrorKind::NotFound, "no address"))
+                    })?;
+                let any = if to.is_ipv4() {
+                    SocketAddr::from((Ipv4Addr::UNSPECIFIED, 0))
+                } else {
+                    SocketAddr::from((Ipv6Addr::UNSPECIFIED, 0))
+                };
+                let sock = UdpSocket::bind(any).await.map_err(sock_err(ep))?;
+                sock.connect(to).await.map_err(sock_err(ep))?;
+                Inner::UdpOut(sock)
+            }
+            Endpoint::UdpIn(addr) => Inner::UdpIn {
+                sock: UdpSocket::bind(addr).await.map_err(sock_err(ep))?,
+                peer: None,
+            },
+            Endpoint::Serial { path, baud } => Inner::Serial(open_serial(path, *baud).map_err(
+                |source| LinkError::Serial {
+                    endpoint: ep.to_string(),
+                    source,
+                },
+            )?),
+        };
+        Ok(Link { inner })
+    }
+
+    /// How frames arrive on this link.
+    pub fn framing(&self) -> Framing {
+        match self.inner {
+            Inner::Serial(_) => Framing::Stream,
+            _ => Framing::Datagram,
+        }
+    }
+
+    /// The local UDP address (for tests and logs).
+    pub fn local_addr(&self) -> Option<SocketAddr> {
+        match &self.inner {
+            Inner::UdpOut(s) | Inner::UdpIn { sock: s, .. } => s.local_addr().ok(),
+            Inner::Serial(_) => None,
+        }
+    }
+
+    /// Receive a datagram or a burst of serial bytes. Cancel-safe.
+    pub async fn recv(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        match &mut self.inner {
+            Inner::UdpOut(s) => s.recv(buf).await,
+            Inner::UdpIn { sock, peer } => {
+                let (n, from) = sock.recv_from(buf).await?;
+                *peer = Some(from);
+                Ok(n)
+            }
+            Inner::Serial(fd) => loop {
+                let mut guard = fd.readable().await?;
+                match guard.try_io(|p| {
+                    nix::unistd::read(p.get_ref().as_raw_fd(), buf).map_err(io::Error::from)
+                }) {
+                    // A tty whose other end is gone reads 0 bytes forever.
+                    Ok(Ok(0)) => {
+                        return Err(io::Error::new(
+                            io::ErrorKind::UnexpectedEof,
+                            "serial port closed",
+                        ))
+                    }
+                    Ok(r) => return r,
+                    Err(_would_block) => continue,
+                }
+            },
+        }
+    }
+
+    /// Send one frame.
+    pub async fn send(&mut self, bytes: &[u8]) -> io::Result<Sent> {
+        match &mut self.inner {
+            Inner::UdpOut(s) => s.send(bytes).await.map(|_| Sent::Yes),
+            Inner::UdpIn { sock, peer } => match peer {
+                Some(p) => sock.send_to(bytes, *p).await.map(|_| Sent::Yes),
+                None => Ok(Sent::NoPeer),
+            },
+            Inner::Serial(fd) => {
+                let mut rest = bytes;
+                while !rest.is_empty() {
+                    let mut guard = fd.writable().await?;
+                    match guard.try_io(|p| nix::unistd::write(p, rest).map_err(io::Error::from)) {
+                        Ok(Ok(n)) => rest = &rest[n..],
+                        Ok(Err(e)) => return Err(e),
+                        Err(_would_block) => continue,
+                    }
+                }
+                Ok(Sent::Yes)
+            }
+        }
+    }
+}
+
+/// Open a serial port raw at `baud`, non-blocking, registered with tokio.
+fn open_serial(path: &str, baud: u32) -> io::Result<AsyncFd<TTYPort>> {
+    let port = serialport::new(path, baud)
+        .open_native()
+        .map_err(io::Error::from)?;
+    let fd = port.as_raw_fd();
+    let flags = nix::fcntl::fcntl(fd, nix::fcntl::FcntlArg::F_GETFL).map_err(io::Error::from)?;
+    let flags = nix::fcntl::OFlag::from_bits_truncate(flags) | nix::fcntl::OFlag::O_NONBLOCK;
+    nix::fcntl::fcntl(fd, nix::fcntl::FcntlArg::F_SETFL(flags)).map_err(io::Error::from)?;
+    // SAFETY: the TTYPort owns its file descriptor, returns that same one
+    // from every as_raw_fd() and closes it only when dropped, which is
+    // after the AsyncFd that owns it has deregistered it (tokio's
+    // documented use of `register`).
+    unsafe { AsyncFd::register(port) }.map_err(io::Error::from)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn endpoints_parse_and_print_back() {
+        for s in [
+            "udpout:127.0.0.1:14550",
+            "udpout:blueos.local:14550",
+            "udpin:0.0.0.0:14660",
+            "serial:/dev/ttyACM0:115200",
+            "udpin:[::1]:14550",
+        ] {
+            let e: Endpoint = s.parse().unwrap();
+            assert_eq!(e.to_string(), s);
+        }
+        for (s, why) in [
+            ("tcp:1.2.3.4:5", "unknown transport"),
+            ("udpin:host:5", "not an IP address"),
+            ("udpout:1.2.3.4:x", "not a port"),
+            ("serial:/dev/ttyS0:0", "not a baud"),
+            ("udpout:14550", "lacks"),
+            ("14550", "is not KIND"),
+        ] {
+            let e = s.parse::<Endpoint>().unwrap_err();
+            assert!(e.contains(why), "{s}: {e}");
+        }
+    }
+}

@@ -1,0 +1,475 @@
+//! What goes to the autopilot: VISION_POSITION_ESTIMATE for every `ok`
+//! pose, VISION_SPEED_ESTIMATE when the surge is known, HEARTBEAT every
+//! second; and the hand-off of poses from the frame thread (the outbox).
+//!
+//! Only a pose whose status is `ok` and whose five fields are all finite
+//! gets into the outbox: the autopilot must never fuse a pose the daemon
+//! does not trust. `reset_counter` is the low byte of the estimator's
+//! track epoch, which the caller passes with each pose (see
+//! [`RestartCounter`]): the autopilot's EKF resets its position to ours
+//! when it changes instead of treating the jump as an outlier.
+
+use crate::covariance::{position_covariance, speed_covariance, PoseStd, SpeedStd};
+use crate::latest::{opt, word, Latest};
+use crate::ned::{NedVec, Site};
+use lightpose_core::{Angle, Pose, PoseEstimate, Status};
+use mavlink::dialects::ardupilotmega::{
+    MavAutopilot, MavMessage, MavModeFlag, MavState, MavType, HEARTBEAT_DATA,
+    VISION_POSITION_ESTIMATE_DATA, VISION_SPEED_ESTIMATE_DATA,
+};
+use mavlink::{MAVLinkV2MessageRaw, MavHeader};
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use tokio::sync::Notify;
+
+/// What to do with an `ok` pose whose std is not known for every field.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MissingStd {
+    /// Send nothing (counted): the EKF cannot weigh a pose without its
+    /// uncertainty.
+    Skip,
+    /// Send it with these 1σ in place of the missing ones.
+    Assume {
+        position_m: f64,
+        angle: Angle,
+        surge_mps: f64,
+    },
+}
+
+/// How the poses are turned into messages.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputConfig {
+    /// At most this many VISION_POSITION_ESTIMATE per second of capture
+    /// time (`None`: one per `ok` pose).
+    pub position_rate_hz: Option<f64>,
+    /// Send VISION_SPEED_ESTIMATE when the surge is known.
+    pub speed: bool,
+    /// 1σ of the roll the message claims to be 0.
+    pub roll_std: Angle,
+    /// 1σ of the sway and heave the speed leaves out, m/s.
+    pub side_speed_std_mps: f64,
+    pub missing_std: MissingStd,
+}
+
+impl Default for OutputConfig {
+    fn default() -> Self {
+        OutputConfig {
+            position_rate_hz: None,
+            speed: true,
+            roll_std: Angle::from_deg(5.0),
+            side_speed_std_mps: 0.1,
+            missing_std: MissingStd::Skip,
+        }
+    }
+}
+
+/// What [`PoseOutbox::offer`] did with a pose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Offer {
+    /// Handed to the sender.
+    Queued,
+    /// Not `ok`: nothing goes out.
+    NotOk(Status),
+    /// `ok` but a field is missing or not finite: nothing goes out.
+    Incomplete,
+}
+
+/// A pose waiting for the sender: 15 words (see `to_words`).
+const WORDS: usize = 15;
+
+/// An `ok` pose as the sender takes it from the outbox.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Outgoing {
+    pub seq: u64,
+    /// Capture time, s.
+    pub t: f64,
+    pub pose: Pose,
+    pub surge: Option<f64>,
+    /// x, y, z (m), pitch, yaw (degrees), surge (m/s), as in `StdDev`.
+    pub std: [Option<f64>; 6],
+    pub epoch: u32,
+}
+
+impl Outgoing {
+    fn to_words(self) -> [u64; WORDS] {
+        let p = &self.pose;
+        let mut w = [0u64; WORDS];
+        w[0] = self.seq;
+        w[1] = self.t.to_bits();
+        w[2..7].copy_from_slice(&[
+            p.x.to_bits(),
+            p.y.to_bits(),
+            p.z.to_bits(),
+            p.pitch.rad().to_bits(),
+            p.yaw.rad().to_bits(),
+        ]);
+        w[7] = word(self.surge);
+        for (k, s) in self.std.iter().enumerate() {
+            w[8 + k] = word(*s);
+        }
+        w[14] = self.epoch as u64;
+        w
+    }
+
+    fn from_words(w: &[u64; WORDS]) -> Self {
+        let f = |k: usize| f64::from_bits(w[k]);
+        Outgoing {
+            seq: w[0],
+            t: f(1),
+            pose: Pose::new(
+                f(2),
+                f(3),
+                f(4),
+                Angle::from_rad(f(5)),
+                Angle::from_rad(f(6)),
+            ),
+            surge: opt(w[7]),
+            std: std::array::from_fn(|k| opt(w[8 + k])),
+            epoch: w[14] as u32,
+        }
+    }
+}
+
+/// The frame thread's hand-off to the sender: the latest `ok` pose, and a
+/// wake-up. Offering neither allocates nor blocks; a pose the sender has
+/// not taken yet is replaced by the next (counted as overwritten).
+#[derive(Default)]
+pub struct PoseOutbox {
+    slot: Latest<WORDS>,
+    notify: Notify,
+    queued: AtomicU64,
+    incomplete: AtomicU64,
+    not_ok: [AtomicU64; Status::ALL.len()],
+}
+
+/// STATUS figures of the outbox.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct OutboxStatus {
+    pub queued: u64,
+    pub incomplete: u64,
+    /// Poses not sent because their status was not `ok`, per status word.
+    pub not_ok: Vec<(&'static str, u64)>,
+}
+
+impl PoseOutbox {
+    /// Offer the estimate of a frame; `epoch` counts the estimator's
+    /// restarts so far (its low byte becomes `reset_counter`).
+    pub fn offer(&self, est: &PoseEstimate, epoch: u32) -> Offer {
+        if est.status != Status::Ok {
+            self.not_ok[est.status.index()].fetch_add(1, Relaxed);
+            return Offer::NotOk(est.status);
+        }
+        let fields = [est.x, est.y, est.z, est.pitch_deg, est.yaw_deg];
+        let [Some(x), Some(y), Some(z), Some(p), Some(yaw)] = fields else {
+            self.incomplete.fetch_add(1, Relaxed);
+            return Offer::Incomplete;
+        };
+        if ![x, y, z, p, yaw, est.t].iter().all(|v| v.is_finite()) {
+            self.incomplete.fetch_add(1, Relaxed);
+            return Offer::Incomplete;
+        }
+        let out = Outgoing {
+            seq: est.seq,
+            t: est.t,
+            pose: Pose::new(x, y, z, Angle::from_deg(p), Angle::from_deg(yaw)),
+            surge: est.surge.filter(|s| s.is_finite()),
+            std: est.std.values(),
+            epoch,
+        };
+        self.slot.store(out.to_words());
+        self.queued.fetch_add(1, Relaxed);
+        self.notify.notify_one();
+        Offer::Queued
+    }
+
+    /// The latest pose if its version differs from `*seen` (then updated).
+    pub fn take_new(&self, seen: &mut u64) -> Option<Outgoing> {
+        let (v, w) = self.slot.load()?;
+        if v == *seen {
+            return None;
+        }
+        *seen = v;
+        Some(Outgoing::from_words(&w))
+    }
+
+    /// Resolves when a pose has been offered since the last wake-up.
+    pub async fn offered(&self) {
+        self.notify.notified().await
+    }
+
+    pub fn status(&self) -> OutboxStatus {
+        OutboxStatus {
+            queued: self.queued.load(Relaxed),
+            incomplete: self.incomplete.load(Relaxed),
+            not_ok: Status::ALL
+                .iter()
+                .map(|s| (s.as_str(), self.not_ok[s.index()].load(Relaxed)))
+                .filter(|(_, n)| *n > 0)
+                .collect(),
+        }
+    }
+}
+
+/// Derives the track epoch from the stream of estimates, for estimators
+/// that do not count their own restarts: a pose that is `initialising` or
+/// `diverged` after an `ok` one means the estimator started over, and the
+/// next `ok` pose opens a new epoch.
+#[derive(Debug, Clone, Default)]
+pub struct RestartCounter {
+    epoch: u32,
+    seen_ok: bool,
+    restarting: bool,
+}
+
+impl RestartCounter {
+    /// Feed every estimate in order; returns the epoch to offer it with.
+    pub fn observe(&mut self, est: &PoseEstimate) -> u32 {
+        match est.status {
+            Status::Initialising | Status::Diverged if self.seen_ok => self.restarting = true,
+            Status::Ok => {
+                if self.restarting {
+                    self.epoch = self.epoch.wrapping_add(1);
+                    self.restarting = false;
+                }
+                self.seen_ok = true;
+            }
+            _ => {}
+        }
+        self.epoch
+    }
+
+    /// The estimator was reset by its owner (a new run, a jump in time).
+    pub fn reset(&mut self) {
+        if self.seen_ok {
+            self.restarting = true;
+        }
+    }
+}
+
+/// Why an `ok` pose taken from the outbox was not sent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Skip {
+    /// A std is missing and the policy is to skip.
+    NoStd,
+    /// A std is negative or not finite.
+    BadStd,
+    /// Capture time negative (usec is unsigned).
+    BadTime,
+    /// A value does not fit a MAVLink float.
+    NotFinite,
+    /// Within the position rate limit.
+    Decimated,
+}
+
+impl Skip {
+    pub const ALL: [Skip; 5] = [
+        Skip::NoStd,
+        Skip::BadStd,
+        Skip::BadTime,
+        Skip::NotFinite,
+        Skip::Decimated,
+    ];
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Skip::NoStd => "no_std",
+            Skip::BadStd => "bad_std",
+            Skip::BadTime => "bad_time",
+            Skip::NotFinite => "not_finite",
+            Skip::Decimated => "decimated",
+        }
+    }
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// The content of VISION_POSITION_ESTIMATE, in NED.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VisionPosition {
+    pub usec: u64,
+    pub position: NedVec,
+    pub pitch: Angle,
+    pub heading: Angle,
+    pub covariance: [f64; 21],
+    pub reset_counter: u8,
+}
+
+/// The content of VISION_SPEED_ESTIMATE, in NED.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VisionSpeed {
+    pub usec: u64,
+    pub velocity: NedVec,
+    pub covariance: [f64; 9],
+    pub reset_counter: u8,
+}
+
+fn usec(t: f64) -> Result<u64, Skip> {
+    let us = (t * 1e6).round();
+    if us.is_finite() && (0.0..1.8e19).contains(&us) {
+        Ok(us as u64)
+    } else {
+        Err(Skip::BadTime)
+    }
+}
+
+/// A std that is known, else the policy's stand-in.
+fn std_or(v: Option<f64>, assume: Option<f64>) -> Result<f64, Skip> {
+    match v.or(assume) {
+        None => Err(Skip::NoStd),
+        Some(s) if s.is_finite() && s >= 0.0 => Ok(s),
+        Some(_) => Err(Skip::BadStd),
+    }
+}
+
+/// The pose's five std's, filled in per the policy.
+fn pose_std(o: &Outgoing, policy: MissingStd) -> Result<PoseStd, Skip> {
+    let (pos, ang) = match policy {
+        MissingStd::Skip => (None, None),
+        MissingStd::Assume {
+            position_m, angle, ..
+        } => (Some(position_m), Some(angle.deg())),
+    };
+    Ok(PoseStd {
+        x: std_or(o.std[0], pos)?,
+        y: std_or(o.std[1], pos)?,
+        z: std_or(o.std[2], pos)?,
+        pitch: Angle::from_deg(std_or(o.std[3], ang)?),
+        yaw: Angle::from_deg(std_or(o.std[4], ang)?),
+    })
+}
+
+/// VISION_POSITION_ESTIMATE for an outgoing pose.
+pub fn vision_position(
+    o: &Outgoing,
+    site: &Site,
+    cfg: &OutputConfig,
+) -> Result<VisionPosition, Skip> {
+    let std = pose_std(o, cfg.missing_std)?;
+    let ned = site.pose_ned(&o.pose);
+    Ok(VisionPosition {
+        usec: usec(o.t)?,
+        position: ned.position,
+        pitch: ned.pitch,
+        heading: ned.heading,
+        covariance: position_covariance(site, &std, cfg.roll_std),
+        reset_counter: o.epoch as u8,
+    })
+}
+
+/// VISION_SPEED_ESTIMATE for an outgoing pose, if it has a surge and the
+/// std's it needs.
+pub fn vision_speed(o: &Outgoing, site: &Site, cfg: &OutputConfig) -> Result<VisionSpeed, Skip> {
+    let surge = o.surge.ok_or(Skip::NoStd)?;
+    let assume = match cfg.missing_std {
+        MissingStd::Skip => None,
+        MissingStd::Assume { surge_mps, .. } => Some(surge_mps),
+    };
+    let ps = pose_std(o, cfg.missing_std)?;
+    let std = SpeedStd {
+        surge: std_or(o.std[5], assume)?,
+        pitch: ps.pitch,
+        yaw: ps.yaw,
+        side: cfg.side_speed_std_mps,
+    };
+    let att = o.pose.attitude();
+    let bow = site.bow_ned(&att).0;
+    Ok(VisionSpeed {
+        usec: usec(o.t)?,
+        velocity: NedVec([surge * bow[0], surge * bow[1], surge * bow[2]]),
+        covariance: speed_covariance(site, &att, surge, &std),
+        reset_counter: o.epoch as u8,
+    })
+}
+
+/// f64 → f32 for the wire, refusing what f32 cannot hold.
+fn f32s<const N: usize>(v: &[f64; N]) -> Result<[f32; N], Skip> {
+    let out: [f32; N] = std::array::from_fn(|k| v[k] as f32);
+    if out.iter().all(|x| x.is_finite()) {
+        Ok(out)
+    } else {
+        Err(Skip::NotFinite)
+    }
+}
+
+impl VisionPosition {
+    pub fn message(&self) -> Result<MavMessage, Skip> {
+        let [x, y, z] = f32s(&self.position.0)?;
+        Ok(MavMessage::VISION_POSITION_ESTIMATE(
+            VISION_POSITION_ESTIMATE_DATA {
+                usec: self.usec,
+                x,
+                y,
+                z,
+                roll: 0.0,
+                pitch: self.pitch.rad() as f32,
+                yaw: self.heading.rad() as f32,
+                covariance: f32s(&self.covariance)?,
+                reset_counter: self.reset_counter,
+            },
+        ))
+    }
+}
+
+impl VisionSpeed {
+    pub fn message(&self) -> Result<MavMessage, Skip> {
+        let [x, y, z] = f32s(&self.velocity.0)?;
+        Ok(MavMessage::VISION_SPEED_ESTIMATE(
+            VISION_SPEED_ESTIMATE_DATA {
+                usec: self.usec,
+                x,
+                y,
+                z,
+                covariance: f32s(&self.covariance)?,
+                reset_counter: self.reset_counter,
+            },
+        ))
+    }
+}
+
+/// HEARTBEAT of an onboard component (not an autopilot); `active` while
+/// poses are going out, standby otherwise.
+pub fn heartbeat(active: bool) -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status: if active {
+            MavState::MAV_STATE_ACTIVE
+        } else {
+            MavState::MAV_STATE_STANDBY
+        },
+        mavlink_version: 3,
+    })
+}
+
+/// MAVLink 2 framing with this component's ids and its own sequence
+/// numbers, into one reused buffer.
+pub struct Encoder {
+    system_id: u8,
+    component_id: u8,
+    seq: u8,
+    raw: MAVLinkV2MessageRaw,
+}
+
+impl Encoder {
+    pub fn new(system_id: u8, component_id: u8) -> Self {
+        Encoder {
+            system_id,
+            component_id,
+            seq: 0,
+            raw: MAVLinkV2MessageRaw::new(),
+        }
+    }
+
+    /// The frame of `msg`, valid until the next call.
+    pub fn encode(&mut self, msg: &MavMessage) -> &[u8] {
+        let h = MavHeader {
+            system_id: self.system_id as u32,
+            component_id: self.component_id,
+            sequence: self.seq,
+        };
+        self.seq = self.seq.wrapping_add(1);
+        self.raw.serialize_message(h, msg);
+        self.raw.raw_bytes()
+    }
+}

@@ -1,0 +1,315 @@
+//! Finding MAVLink frames in received bytes, and saying what was dropped.
+//!
+//! The `mavlink` crate's readers skip a frame with a wrong CRC or an unknown
+//! message id without a word; STATUS must count both, so framing is done
+//! here and the crate gives the CRC, the CRC_EXTRA table and the payload
+//! decoders. MAVLink 1 (0xFE) and 2 (0xFD) frames are read; a signed
+//! MAVLink 2 frame is read without checking its signature.
+
+use mavlink::dialects::ardupilotmega::MavMessage;
+use mavlink::{calculate_crc, MavlinkVersion, Message};
+
+const STX_V1: u8 = 0xFE;
+const STX_V2: u8 = 0xFD;
+const IFLAG_SIGNED: u8 = 0x01;
+const SIGNATURE_LEN: usize = 13;
+/// Room for many frames: a datagram or a burst of serial bytes.
+const CAPACITY: usize = 16 * 1024;
+
+/// One CRC-valid frame of a known message.
+#[derive(Debug, Clone, Copy)]
+pub struct RawFrame<'a> {
+    pub version: MavlinkVersion,
+    pub seq: u8,
+    pub system: u8,
+    pub component: u8,
+    pub msg_id: u32,
+    pub payload: &'a [u8],
+}
+
+/// What the scanner found next.
+#[derive(Debug)]
+pub enum Scanned<'a> {
+    Frame(RawFrame<'a>),
+    /// A known message whose checksum does not match.
+    BadCrc {
+        msg_id: u32,
+    },
+    /// A message id the dialect does not have (its CRC cannot be checked).
+    Unknown {
+        msg_id: u32,
+    },
+    /// A MAVLink 2 frame with incompatibility flags this reader lacks.
+    BadFlags,
+}
+
+/// Whether frame boundaries can be trusted beyond the checksum.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Framing {
+    /// Each datagram holds whole frames: a candidate that fails its CRC is
+    /// skipped whole, and a partial frame at the end is dropped.
+    Datagram,
+    /// A byte stream (serial): a candidate that fails its CRC is skipped by
+    /// one byte, since a real frame may start inside it.
+    Stream,
+}
+
+/// Incremental frame finder over a fixed buffer (allocated once).
+pub struct Scanner {
+    buf: Box<[u8]>,
+    start: usize,
+    end: usize,
+    framing: Framing,
+    garbage: u64,
+}
+
+/// A message the dialect knows. CRC_EXTRA is 0 for unknown ids, and also
+/// for a few real ones, which the default-message table then tells apart.
+#[inline]
+fn extra_crc(msg_id: u32) -> Option<u8> {
+    let e = MavMessage::extra_crc(msg_id);
+    (e != 0 || MavMessage::default_message_from_id(msg_id).is_some()).then_some(e)
+}
+
+impl Scanner {
+    pub fn new(framing: Framing) -> Self {
+        Scanner {
+            buf: vec![0; CAPACITY].into_boxed_slice(),
+            start: 0,
+            end: 0,
+            framing,
+            garbage: 0,
+        }
+    }
+
+    /// Bytes skipped so far that were not part of any frame.
+    pub fn garbage_bytes(&self) -> u64 {
+        self.garbage
+    }
+
+    /// The garbage count since the last call.
+    pub fn take_garbage(&mut self) -> u64 {
+        std::mem::take(&mut self.garbage)
+    }
+
+    pub fn framing(&self) -> Framing {
+        self.framing
+    }
+
+    /// Where to receive into. Never empty: consumed bytes are dropped first.
+    pub fn spare(&mut self) -> &mut [u8] {
+        if self.start > 0 {
+            self.buf.copy_within(self.start..self.end, 0);
+            self.end -= self.start;
+            self.start = 0;
+        }
+        if self.end == self.buf.len() {
+            // Cannot happen with whole frames (at most 280 bytes); a
+            // buffer full of undecidable bytes is dropped as garbage.
+            self.garbage += self.end as u64;
+            self.end = 0;
+        }
+        &mut self.buf[self.end..]
+    }
+
+    /// `n` bytes were received into [`Scanner::spare`].
+    pub fn commit(&mut self, n: usize) {
+        self.end = (self.end + n).min(self.buf.len());
+    }
+
+    /// Copy `bytes` in (for callers that already hold them).
+    pub fn push(&mut self, bytes: &[u8]) {
+        for chunk in bytes.chunks(CAPACITY / 2) {
+            let spare = self.spare();
+            let n = chunk.len().min(spare.len());
+            spare[..n].copy_from_slice(&chunk[..n]);
+            self.commit(n);
+        }
+    }
+
+    /// The end of a datagram: what is left is an incomplete frame, dropped
+    /// and counted as garbage. Returns the number of bytes dropped.
+    pub fn end_of_datagram(&mut self) -> usize {
+        let n = self.end - self.start;
+        self.garbage += n as u64;
+        self.start = 0;
+        self.end = 0;
+        n
+    }
+
+    fn skip_to_marker(&mut self) -> bool {
+        let avail = &self.buf[self.start..self.end];
+        match avail.iter().position(|&b| b == STX_V2 || b == STX_V1) {
+            Some(k) => {
+                self.garbage += k as u64;
+                self.start += k;
+                true
+            }
+            None => {
+                self.garbage += avail.len() as u64;
+                self.start = 0;
+                self.end = 0;
+                false
+            }
+        }
+    }
+
+    /// The next frame or dropped candidate, or `None` when more bytes are
+    /// needed.
+    pub fn next_frame(&mut self) -> Option<Scanned<'_>> {
+        if !self.skip_to_marker() {
+            return None;
+        }
+        let c = &self.buf[self.start..self.end];
+        if c.len() < 3 {
+            return None;
+        }
+        let v2 = c[0] == STX_V2;
+        let (header, signature) = if v2 {
+            if c[2] & !IFLAG_SIGNED != 0 {
+                self.start += 1;
+                return Some(Scanned::BadFlags);
+            }
+            (
+                10,
+                if c[2] & IFLAG_SIGNED != 0 {
+                    SIGNATURE_LEN
+                } else {
+                    0
+                },
+            )
+        } else {
+            (6, 0)
+        };
+        let len = c[1] as usize;
+        let total = header + len + 2 + signature;
+        if c.len() < total {
+            return None;
+        }
+        let msg_id = if v2 {
+            u32::from_le_bytes([c[7], c[8], c[9], 0])
+        } else {
+            c[5] as u32
+        };
+        let Some(extra) = extra_crc(msg_id) else {
+            self.start += total;
+            return Some(Scanned::Unknown { msg_id });
+        };
+        let crc = calculate_crc(&c[1..header + len], extra);
+        if crc != u16::from_le_bytes([c[header + len], c[header + len + 1]]) {
+            self.start += match self.framing {
+                Framing::Datagram => total,
+                Framing::Stream => 1,
+            };
+            return Some(Scanned::BadCrc { msg_id });
+        }
+        let at = self.start;
+        self.start += total;
+        let c = &self.buf[at..at + total];
+        let (seq, system, component) = if v2 {
+            (c[4], c[5], c[6])
+        } else {
+            (c[2], c[3], c[4])
+        };
+        Some(Scanned::Frame(RawFrame {
+            version: if v2 {
+                MavlinkVersion::V2
+            } else {
+                MavlinkVersion::V1
+            },
+            seq,
+            system,
+            component,
+            msg_id,
+            payload: &c[header..header + len],
+        }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mavlink::dialects::ardupilotmega::{ATTITUDE_DATA, SYS_STATUS_DATA};
+    use mavlink::{MAVLinkV2MessageRaw, MavHeader};
+
+    fn frame(msg: &MavMessage, seq: u8) -> Vec<u8> {
+        let mut raw = MAVLinkV2MessageRaw::new();
+        let h = MavHeader {
+            system_id: 1,
+            component_id: 1,
+            sequence: seq,
+        };
+        raw.serialize_message(h, msg);
+        raw.raw_bytes().to_vec()
+    }
+
+    fn attitude(pitch: f32) -> MavMessage {
+        MavMessage::ATTITUDE(ATTITUDE_DATA {
+            pitch,
+            ..Default::default()
+        })
+    }
+
+    fn ids(s: &mut Scanner) -> Vec<String> {
+        let mut out = Vec::new();
+        while let Some(e) = s.next_frame() {
+            out.push(match e {
+                Scanned::Frame(f) => format!("{}@{}", f.msg_id, f.seq),
+                Scanned::BadCrc { msg_id } => format!("crc{msg_id}"),
+                Scanned::Unknown { msg_id } => format!("unknown{msg_id}"),
+                Scanned::BadFlags => "flags".into(),
+            });
+        }
+        out
+    }
+
+    #[test]
+    fn frames_split_anywhere_in_a_stream_are_found() {
+        let mut bytes = vec![0x55, 0x00, 0x13];
+        bytes.extend(frame(&attitude(0.1), 7));
+        bytes.extend(frame(
+            &MavMessage::SYS_STATUS(SYS_STATUS_DATA::default()),
+            8,
+        ));
+        for cut in 1..bytes.len() {
+            let mut s = Scanner::new(Framing::Stream);
+            let mut got = Vec::new();
+            for part in [&bytes[..cut], &bytes[cut..]] {
+                s.push(part);
+                got.extend(ids(&mut s));
+            }
+            assert_eq!(got, ["30@7", "1@8"], "cut at {cut}");
+            assert_eq!(s.garbage_bytes(), 3);
+        }
+    }
+
+    #[test]
+    fn wrong_crc_and_unknown_ids_are_reported_not_hidden() {
+        let mut bad = frame(&attitude(0.2), 1);
+        let n = bad.len();
+        bad[n - 1] ^= 0xFF;
+        let mut unknown = frame(&attitude(0.2), 2);
+        unknown[7..10].copy_from_slice(&[0x21, 0x43, 0x0F]); // id 0x0F4321
+        let mut s = Scanner::new(Framing::Datagram);
+        for d in [&bad, &unknown, &frame(&attitude(0.3), 3)] {
+            s.push(d);
+            let got = ids(&mut s);
+            s.end_of_datagram();
+            match d[4] {
+                1 => assert_eq!(got, ["crc30"]),
+                2 => assert_eq!(got, [format!("unknown{}", 0x0F4321)]),
+                _ => assert_eq!(got, ["30@3"]),
+            }
+        }
+        assert_eq!(s.garbage_bytes(), 0);
+    }
+
+    #[test]
+    fn a_truncated_datagram_is_garbage() {
+        let f = frame(&attitude(0.2), 1);
+        let mut s = Scanner::new(Framing::Datagram);
+        s.push(&f[..f.len() - 3]);
+        assert!(s.next_frame().is_none());
+        assert_eq!(s.end_of_datagram(), f.len() - 3);
+    }
+}

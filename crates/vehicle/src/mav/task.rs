@@ -1,0 +1,279 @@
+//! The MAVLink component as one tokio task: it reads the autopilot's
+//! messages into the hub's readings, sends the outbox's poses and a
+//! heartbeat, and reopens the link (with a capped back-off) when it fails.
+//! It returns only when `shutdown` resolves.
+
+use super::counters::LastError;
+use super::inbound::{interpret, Input, InputConfig, Refusal};
+use super::link::{Endpoint, Link, Sent};
+use super::outbound::{heartbeat, vision_position, vision_speed, Encoder, OutputConfig, Skip};
+use super::scan::{Framing, Scanned, Scanner};
+use crate::backoff::Backoff;
+use crate::ned::Site;
+use crate::Hub;
+use mavlink::dialects::ardupilotmega::MavMessage;
+use std::future::Future;
+use std::io;
+use std::pin::Pin;
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Everything the MAVLink task needs to know.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MavlinkSettings {
+    pub endpoint: Endpoint,
+    /// This component's system id: the vehicle's (the autopilot's).
+    pub system_id: u8,
+    /// This component's id (197, MAV_COMP_ID_VISUAL_INERTIAL_ODOMETRY, by
+    /// default).
+    pub component_id: u8,
+    pub site: Site,
+    pub input: InputConfig,
+    pub output: OutputConfig,
+    pub heartbeat_period: Duration,
+    /// Longest wait between attempts to (re)open the link.
+    pub reopen_max: Duration,
+}
+
+impl MavlinkSettings {
+    /// Defaults around an endpoint and a site.
+    pub fn new(endpoint: Endpoint, site: Site) -> Self {
+        MavlinkSettings {
+            endpoint,
+            system_id: 1,
+            component_id: 197,
+            site,
+            input: InputConfig::default(),
+            output: OutputConfig::default(),
+            heartbeat_period: Duration::from_secs(1),
+            reopen_max: Duration::from_secs(5),
+        }
+    }
+}
+
+/// How a session on one open link ended.
+enum Ended {
+    Shutdown,
+    Lost(io::Error),
+}
+
+/// Run the MAVLink component until `shutdown` resolves.
+pub async fn run(s: MavlinkSettings, hub: Arc<Hub>, shutdown: impl Future<Output = ()>) {
+    let mut shutdown = std::pin::pin!(shutdown);
+    let mut backoff = Backoff::new(Duration::from_millis(200), s.reopen_max);
+    let mut tx = Sender::new(&s);
+    let c = &hub.mavlink;
+    loop {
+        let opened = tokio::select! {
+            _ = &mut shutdown => return,
+            r = Link::open(&s.endpoint) => r,
+        };
+        match opened {
+            Ok(link) => {
+                c.link_opens.fetch_add(1, Relaxed);
+                tracing::info!("mavlink: link open on {}", s.endpoint);
+                match serve(&s, &hub, link, &mut tx, shutdown.as_mut(), &mut backoff).await {
+                    Ended::Shutdown => return,
+                    Ended::Lost(e) => {
+                        c.link_failures.fetch_add(1, Relaxed);
+                        tracing::warn!("mavlink: link {} lost: {e}", s.endpoint);
+                        c.set_error(LastError::Io(format!("{}: {e}", s.endpoint)));
+                    }
+                }
+            }
+            Err(e) => {
+                let k = c.link_failures.fetch_add(1, Relaxed) + 1;
+                let line = crate::error_chain(&e);
+                if k == 1 || k.is_multiple_of(20) {
+                    tracing::warn!(attempts = k, "mavlink: {line}");
+                }
+                c.set_error(LastError::Io(line));
+            }
+        }
+        tokio::select! {
+            _ = &mut shutdown => return,
+            _ = tokio::time::sleep(backoff.next_delay()) => {}
+        }
+    }
+}
+
+async fn serve(
+    s: &MavlinkSettings,
+    hub: &Hub,
+    mut link: Link,
+    tx: &mut Sender,
+    mut shutdown: Pin<&mut impl Future<Output = ()>>,
+    backoff: &mut Backoff,
+) -> Ended {
+    let mut scanner = Scanner::new(link.framing());
+    let mut beat = tokio::time::interval(s.heartbeat_period);
+    beat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    loop {
+        tokio::select! {
+            _ = &mut shutdown => return Ended::Shutdown,
+            r = link.recv(scanner.spare()) => match r {
+                Ok(n) => {
+                    scanner.commit(n);
+                    absorb(&mut scanner, s, hub);
+                    backoff.reset();
+                }
+                Err(e) if link.framing() == Framing::Stream => return Ended::Lost(e),
+                // UDP: an ICMP "port unreachable" from a peer not yet up.
+                Err(e) => {
+                    hub.mavlink.recv_errors.fetch_add(1, Relaxed);
+                    hub.mavlink.set_error(LastError::Io(format!("{}: {e}", s.endpoint)));
+                }
+            },
+            _ = hub.outbox.offered() => {
+                if let Err(e) = tx.poses(&mut link, s, hub).await {
+                    return Ended::Lost(e);
+                }
+            }
+            _ = beat.tick() => {
+                let active = tx.last_sent.is_some_and(|t| t.elapsed() < 2 * s.heartbeat_period.max(Duration::from_secs(1)));
+                if let Err(e) = tx.send(&mut link, hub, &heartbeat(active), 2).await {
+                    return Ended::Lost(e);
+                }
+            }
+        }
+    }
+}
+
+/// Turn everything the scanner holds into readings or counts.
+fn absorb(sc: &mut Scanner, s: &MavlinkSettings, hub: &Hub) {
+    let c = &hub.mavlink;
+    let now = Instant::now();
+    while let Some(ev) = sc.next_frame() {
+        let f = match ev {
+            Scanned::Frame(f) => f,
+            Scanned::BadCrc { msg_id } => {
+                c.drop_frame(Refusal::BadCrc, Some(msg_id));
+                continue;
+            }
+            Scanned::Unknown { msg_id } => {
+                c.drop_frame(Refusal::UnknownMessage, Some(msg_id));
+                continue;
+            }
+            Scanned::BadFlags => {
+                c.drop_frame(Refusal::BadFlags, None);
+                continue;
+            }
+        };
+        c.frames.fetch_add(1, Relaxed);
+        let input = match interpret(&f, &s.input, &s.site) {
+            Ok(i) => i,
+            Err(r) => {
+                c.refuse(&r);
+                continue;
+            }
+        };
+        match input {
+            Input::Attitude(a) => hub.readings.store_attitude(now, &a),
+            Input::Depth(d) => hub.readings.store_depth(now, &d),
+            Input::Temperature(t) => hub.readings.store_temperature(now, t),
+            Input::AutopilotHeartbeat => {
+                if let Ok(mut g) = c.autopilot_seen.lock() {
+                    *g = Some(now);
+                }
+            }
+            Input::Unused => {
+                c.unused.fetch_add(1, Relaxed);
+            }
+        }
+        if let Some(k) = input.kind() {
+            c.used[k].fetch_add(1, Relaxed);
+        }
+    }
+    if sc.framing() == Framing::Datagram {
+        sc.end_of_datagram();
+    }
+    c.garbage_bytes.fetch_add(sc.take_garbage(), Relaxed);
+}
+
+/// The sending side: the encoder with its sequence numbers, the rate
+/// limit's memory and the outbox version last taken.
+struct Sender {
+    enc: Encoder,
+    seen: u64,
+    last_pos_t: Option<f64>,
+    last_sent: Option<Instant>,
+}
+
+impl Sender {
+    fn new(s: &MavlinkSettings) -> Self {
+        Sender {
+            enc: Encoder::new(s.system_id, s.component_id),
+            seen: 0,
+            last_pos_t: None,
+            last_sent: None,
+        }
+    }
+
+    /// Within the position rate limit of the last pose sent? (Capture
+    /// time, so that a replay at any pace decimates alike; a step back in
+    /// time starts over.)
+    fn decimated(&self, t: f64, rate_hz: Option<f64>) -> bool {
+        match (rate_hz, self.last_pos_t) {
+            (Some(r), Some(last)) if t >= last => t - last < (1.0 - 1e-6) / r,
+            _ => false,
+        }
+    }
+
+    async fn poses(&mut self, link: &mut Link, s: &MavlinkSettings, hub: &Hub) -> io::Result<()> {
+        let c = &hub.mavlink;
+        let Some(o) = hub.outbox.take_new(&mut self.seen) else {
+            return Ok(());
+        };
+        if self.decimated(o.t, s.output.position_rate_hz) {
+            c.skipped[Skip::Decimated.index()].fetch_add(1, Relaxed);
+            return Ok(());
+        }
+        let msg = match vision_position(&o, &s.site, &s.output).and_then(|v| v.message()) {
+            Ok(m) => m,
+            Err(k) => {
+                c.skipped[k.index()].fetch_add(1, Relaxed);
+                return Ok(());
+            }
+        };
+        self.send(link, hub, &msg, 0).await?;
+        self.last_pos_t = Some(o.t);
+        self.last_sent = Some(Instant::now());
+        if s.output.speed && o.surge.is_some() {
+            match vision_speed(&o, &s.site, &s.output).and_then(|v| v.message()) {
+                Ok(m) => self.send(link, hub, &m, 1).await?,
+                Err(k) => {
+                    c.speed_skipped[k.index()].fetch_add(1, Relaxed);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Send one message; an error is returned only when the link is lost
+    /// (serial), a UDP send error is counted.
+    async fn send(
+        &mut self,
+        link: &mut Link,
+        hub: &Hub,
+        msg: &MavMessage,
+        kind: usize,
+    ) -> io::Result<()> {
+        let c = &hub.mavlink;
+        let framing = link.framing();
+        match link.send(self.enc.encode(msg)).await {
+            Ok(Sent::Yes) => {
+                c.sent[kind].fetch_add(1, Relaxed);
+            }
+            Ok(Sent::NoPeer) => {
+                c.no_peer.fetch_add(1, Relaxed);
+            }
+            Err(e) if framing == Framing::Stream => return Err(e),
+            Err(e) => {
+                c.send_errors.fetch_add(1, Relaxed);
+                c.set_error(LastError::Io(format!("send: {e}")));
+            }
+        }
+        Ok(())
+    }
+}

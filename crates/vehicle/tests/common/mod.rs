@@ -1,0 +1,114 @@
+//! What the integration tests share: the project's Python (tools/pyenv.sh),
+//! the vehicle's tasks running on a runtime of their own (so that a test
+//! body can play the frame thread), and an `ok` estimate.
+#![allow(dead_code)]
+
+use lightpose_core::{PoseEstimate, Status, StdDev};
+use lightpose_vehicle::{DvlSettings, Hub, MavlinkSettings};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// The venv python with pymavlink, or a panic with pyenv.sh's own line.
+pub fn python() -> PathBuf {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let out = std::process::Command::new("bash")
+        .arg(root.join("tools/pyenv.sh"))
+        .output()
+        .expect("bash runs");
+    if !out.status.success() {
+        panic!("{}", String::from_utf8_lossy(&out.stderr).trim());
+    }
+    PathBuf::from(String::from_utf8_lossy(&out.stdout).trim().to_string())
+}
+
+/// A task running on its own runtime thread until dropped.
+pub struct Running {
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        if let Some(s) = self.stop.take() {
+            let _ = s.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            t.join().expect("task thread ends without panic");
+        }
+    }
+}
+
+fn spawn<F, Fut>(f: F) -> Running
+where
+    F: FnOnce(tokio::sync::oneshot::Receiver<()>) -> Fut + Send + 'static,
+    Fut: std::future::Future<Output = ()>,
+{
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    let thread = std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        rt.block_on(f(rx));
+    });
+    Running {
+        stop: Some(tx),
+        thread: Some(thread),
+    }
+}
+
+pub fn spawn_mavlink(s: MavlinkSettings, hub: Arc<Hub>) -> Running {
+    spawn(move |stop| async move {
+        lightpose_vehicle::mav::task::run(s, hub, async {
+            let _ = stop.await;
+        })
+        .await
+    })
+}
+
+pub fn spawn_dvl(s: DvlSettings, hub: Arc<Hub>) -> Running {
+    spawn(move |stop| async move {
+        lightpose_vehicle::dvl::client::run(s, hub, async {
+            let _ = stop.await;
+        })
+        .await
+    })
+}
+
+/// Poll `cond` every 5 ms until it holds or `timeout` passes.
+pub fn wait_until(timeout: Duration, mut cond: impl FnMut() -> bool) -> bool {
+    let end = Instant::now() + timeout;
+    while Instant::now() < end {
+        if cond() {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    cond()
+}
+
+/// An `ok` estimate of the test pose: x 5, y 1, z 0.5 m, pitch 10°, yaw
+/// −20°, surge 0.4 m/s, with std 0.2, 0.05, 0.03 m, 1°, 2°, 0.05 m/s.
+pub fn estimate(seq: u64, t: f64) -> PoseEstimate {
+    PoseEstimate {
+        seq,
+        t,
+        status: Status::Ok,
+        x: Some(5.0),
+        y: Some(1.0),
+        z: Some(0.5),
+        pitch_deg: Some(10.0),
+        yaw_deg: Some(-20.0),
+        surge: Some(0.4),
+        std: StdDev {
+            x: Some(0.2),
+            y: Some(0.05),
+            z: Some(0.03),
+            pitch: Some(1.0),
+            yaw: Some(2.0),
+            surge: Some(0.05),
+        },
+        estimator: "test",
+    }
+}

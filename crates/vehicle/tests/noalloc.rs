@@ -1,0 +1,94 @@
+//! The frame thread's side of the vehicle link, `Readings::attach` and
+//! `PoseOutbox::offer`, must neither allocate nor lock: a counting global
+//! allocator, counting only on the frame thread, sees no allocation over
+//! thousands of frames while the MAVLink task takes the poses and sends
+//! them on another thread.
+
+mod common;
+
+use common::{estimate, spawn_mavlink, wait_until};
+use lightpose_core::{Angle, AttitudeReading, DepthReading, Frame, VelocityReading, NDET};
+use lightpose_vehicle::{Hub, MavlinkSettings, MaxAge, Offer, Site};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::net::UdpSocket;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::time::{Duration, Instant};
+
+struct Counting;
+static ALLOCS: AtomicU64 = AtomicU64::new(0);
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+}
+
+fn counting() -> bool {
+    COUNTING.try_with(|c| c.get()).unwrap_or(false)
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        if counting() {
+            ALLOCS.fetch_add(1, Relaxed);
+        }
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        if counting() {
+            ALLOCS.fetch_add(1, Relaxed);
+        }
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static A: Counting = Counting;
+
+#[test]
+fn attach_and_offer_do_not_allocate() {
+    let sink = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let port = sink.local_addr().unwrap().port();
+    let hub = Hub::new();
+    let s = MavlinkSettings::new(
+        format!("udpout:127.0.0.1:{port}").parse().unwrap(),
+        Site::new(Angle::from_deg(30.0), 3.0),
+    );
+    let _running = spawn_mavlink(s, hub.clone());
+    let now = Instant::now();
+    hub.readings.store_attitude(
+        now,
+        &AttitudeReading::new(Angle::from_deg(2.0), Angle::from_deg(-3.0)),
+    );
+    hub.readings.store_depth(now, &DepthReading::new(0.4));
+    hub.readings.store_temperature(now, 14.0);
+    hub.readings
+        .store_velocity(now, &VelocityReading::new(0.3, 0.0, 0.0));
+    let ages = MaxAge {
+        attitude: Duration::from_secs(3600),
+        depth: Duration::from_secs(3600),
+        temperature: Duration::from_secs(3600),
+        velocity: Duration::from_secs(3600),
+    };
+    let frame = |k: u64| {
+        let mut f = Frame::new(k, k as f64 * 0.01, 10, [0; NDET]);
+        let a = hub.readings.attach(&mut f, Instant::now(), &ages);
+        assert!(a.attitude && a.depth && a.temperature && a.velocity);
+        assert_eq!(hub.outbox.offer(&estimate(k, f.t), 0), Offer::Queued);
+    };
+    for k in 0..200 {
+        frame(k);
+    }
+    COUNTING.with(|c| c.set(true));
+    for k in 200..10_200 {
+        frame(k);
+        if k % 100 == 0 {
+            std::thread::yield_now();
+        }
+    }
+    COUNTING.with(|c| c.set(false));
+    assert_eq!(ALLOCS.load(Relaxed), 0, "allocations on the frame thread");
+    // The poses did go out meanwhile.
+    assert!(wait_until(Duration::from_secs(5), || hub.mavlink.sent(0) > 10));
+}

@@ -1,0 +1,349 @@
+//! `lightpose fake-autopilot`: stands in for the vehicle's autopilot on a
+//! desk. From a scene and a trajectory it sends what ArduSub would
+//! (ATTITUDE, VFR_HUD or GLOBAL_POSITION_INT, SCALED_PRESSURE2 at the frame
+//! rate, HEARTBEAT every second) to the daemon's MAVLink endpoint, and
+//! prints what comes back (VISION_POSITION_ESTIMATE / SPEED_ESTIMATE)
+//! against the truth at each estimate's capture time, with running p95
+//! errors. The messages and the comparison are `lightpose_vehicle::standin`;
+//! this file is the loop.
+
+use anyhow::{anyhow, Context};
+use lightpose_core::Angle;
+use lightpose_sim::{Scene, Trajectory};
+use lightpose_vehicle::mav::inbound::DepthSource;
+use lightpose_vehicle::mav::outbound::Encoder;
+use lightpose_vehicle::mav::scan::{Framing, Scanned, Scanner};
+use lightpose_vehicle::standin::{
+    autopilot_heartbeat, autopilot_messages, decode, ErrorStats, Received, SensorState, ERROR_AXES,
+};
+use lightpose_vehicle::{Endpoint, Link, NedPose, Site, SiteTable};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+#[derive(clap::Args)]
+pub struct FakeAutopilotArgs {
+    /// Scene file (its frame rate, water temperature and sensor noise).
+    #[arg(long)]
+    scene: PathBuf,
+    /// Trajectory knots (CSV: t,x,y,z,pitch,yaw), the truth.
+    #[arg(long)]
+    trajectory: PathBuf,
+    /// Where to talk: udpin:ADDR:PORT (the default is where the daemon's
+    /// default `udpout:127.0.0.1:14550` sends), udpout:HOST:PORT or
+    /// serial:PATH:BAUD.
+    #[arg(long, default_value = "udpin:127.0.0.1:14550")]
+    connect: String,
+    /// Compass heading of the beacon's axis, as the daemon's [site].
+    #[arg(long, default_value_t = 30.0)]
+    beacon_heading_deg: f64,
+    /// Depth of the beacon, as the daemon's [site].
+    #[arg(long, default_value_t = 3.0)]
+    beacon_depth_m: f64,
+    /// Sets of messages per second (default: the scene's frame rate).
+    #[arg(long)]
+    rate: Option<f64>,
+    #[arg(long, default_value = "vfr_hud", value_parser = ["vfr_hud", "global_position_int"])]
+    depth_source: String,
+    /// 1σ noise of pitch and heading (degrees) and depth (m); default: the
+    /// scene's attitude and depth sensors, else none.
+    #[arg(long)]
+    pitch_noise_deg: Option<f64>,
+    #[arg(long)]
+    yaw_noise_deg: Option<f64>,
+    #[arg(long)]
+    depth_noise_m: Option<f64>,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Stop after this many seconds (default: until Ctrl-C).
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Run the trajectory over and over (else the vehicle stays at its end).
+    #[arg(long = "loop")]
+    repeat: bool,
+    /// Whose clock places us on the trajectory: the daemon's (its estimates'
+    /// capture times, once they come) or our own.
+    #[arg(long, default_value = "daemon", value_parser = ["daemon", "own"])]
+    clock: String,
+    /// Print every estimate received.
+    #[arg(long)]
+    verbose: bool,
+}
+
+/// Everything the loop keeps.
+struct Session {
+    site: Site,
+    traj: Trajectory,
+    repeat: bool,
+    temp_c: f64,
+    depth: DepthSource,
+    noise: [f64; 3],
+    rng: ChaCha8Rng,
+    follow_daemon: bool,
+    /// Daemon time − our elapsed time, from the least-delayed estimate.
+    offset: Option<f64>,
+    start: Instant,
+    enc: Encoder,
+    stats: ErrorStats,
+    sent_sets: u64,
+    speeds: u64,
+    /// Estimates whose capture time lies off the trajectory (no truth).
+    no_truth: u64,
+    components: Vec<u8>,
+    latest: Option<[f64; 5]>,
+    verbose: bool,
+}
+
+pub fn run(a: FakeAutopilotArgs) -> anyhow::Result<()> {
+    let scene = Scene::load(&a.scene)?;
+    let traj = Trajectory::load(&a.trajectory)?;
+    let site = SiteTable {
+        beacon_heading_deg: a.beacon_heading_deg,
+        beacon_depth_m: a.beacon_depth_m,
+        beacon_ned_m: None,
+    }
+    .validate()?;
+    let endpoint: Endpoint = a.connect.parse().map_err(|e| anyhow!("--connect: {e}"))?;
+    let rate = a.rate.unwrap_or(scene.adc.rate_hz);
+    if !(rate.is_finite() && rate > 0.0 && rate <= 1000.0) {
+        return Err(anyhow!("--rate: {rate} is not within 0..1000 Hz"));
+    }
+    let att = scene
+        .attitude
+        .unwrap_or(lightpose_sim::scene::AttitudeNoise {
+            sigma_pitch: Angle::ZERO,
+            sigma_yaw: Angle::ZERO,
+        });
+    let noise = [
+        a.pitch_noise_deg.unwrap_or(att.sigma_pitch.deg()),
+        a.yaw_noise_deg.unwrap_or(att.sigma_yaw.deg()),
+        a.depth_noise_m
+            .unwrap_or(scene.depth.map_or(0.0, |d| d.sigma_m)),
+    ];
+    let mut s = Session {
+        site,
+        traj,
+        repeat: a.repeat,
+        temp_c: scene.temp_c,
+        depth: match a.depth_source.as_str() {
+            "global_position_int" => DepthSource::GlobalPositionInt,
+            _ => DepthSource::VfrHud,
+        },
+        noise,
+        rng: ChaCha8Rng::seed_from_u64(a.seed),
+        follow_daemon: a.clock == "daemon",
+        offset: None,
+        start: Instant::now(),
+        enc: Encoder::new(1, 1),
+        stats: ErrorStats::default(),
+        sent_sets: 0,
+        speeds: 0,
+        no_truth: 0,
+        components: Vec::new(),
+        latest: None,
+        verbose: a.verbose,
+    };
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("tokio runtime")?;
+    rt.block_on(s.serve(endpoint, rate, a.duration))?;
+    println!("{}", s.summary());
+    Ok(())
+}
+
+impl Session {
+    async fn serve(
+        &mut self,
+        endpoint: Endpoint,
+        rate: f64,
+        duration: Option<f64>,
+    ) -> anyhow::Result<()> {
+        let mut link = Link::open(&endpoint).await?;
+        eprintln!(
+            "fake-autopilot: on {endpoint}{}, trajectory {:.1}..{:.1} s, {rate} Hz, noise pitch {}° heading {}° depth {} m",
+            link.local_addr().map(|a| format!(" ({a})")).unwrap_or_default(),
+            self.traj.t0(),
+            self.traj.t_end(),
+            self.noise[0],
+            self.noise[1],
+            self.noise[2]
+        );
+        let mut scanner = Scanner::new(link.framing());
+        let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / rate));
+        let mut beat = tokio::time::interval(Duration::from_secs(1));
+        let mut report = tokio::time::interval(Duration::from_secs(1));
+        let end = duration.map_or(
+            Duration::from_secs(u32::MAX as u64),
+            Duration::from_secs_f64,
+        );
+        let stop = tokio::time::sleep(end);
+        tokio::pin!(stop);
+        loop {
+            tokio::select! {
+                _ = &mut stop => return Ok(()),
+                _ = tokio::signal::ctrl_c() => return Ok(()),
+                _ = tick.tick() => self.send_sensors(&mut link).await,
+                _ = beat.tick() => {
+                    let _ = link.send(self.enc.encode(&autopilot_heartbeat())).await;
+                }
+                _ = report.tick() => {
+                    if let Some(line) = self.progress() {
+                        println!("{line}");
+                    }
+                }
+                r = link.recv(scanner.spare()) => match r {
+                    Ok(n) => {
+                        scanner.commit(n);
+                        self.take(&mut scanner);
+                    }
+                    Err(e) if link.framing() == Framing::Stream => return Err(e).context("serial link"),
+                    Err(_) => {} // nobody listening yet
+                },
+            }
+        }
+    }
+
+    /// Trajectory time for a time on the daemon's (or our) clock.
+    fn traj_time(&self, t: f64) -> f64 {
+        let (t0, t1) = (self.traj.t0(), self.traj.t_end());
+        if self.repeat && t1 > t0 {
+            t0 + (t - t0).rem_euclid(t1 - t0)
+        } else {
+            t.clamp(t0, t1)
+        }
+    }
+
+    /// Where the vehicle is now, on the clock in use.
+    fn now(&self) -> f64 {
+        let el = self.start.elapsed().as_secs_f64();
+        el + self.offset.unwrap_or(self.traj.t0())
+    }
+
+    fn gauss(&mut self, sigma: f64) -> f64 {
+        let z: f64 = StandardNormal.sample(&mut self.rng);
+        sigma * z
+    }
+
+    async fn send_sensors(&mut self, link: &mut Link) {
+        let pose = self.traj.kinematics(self.traj_time(self.now())).pose;
+        let mut s = SensorState::of(&self.site, &pose, Some(self.temp_c));
+        s.pitch = s.pitch + Angle::from_deg(self.gauss(self.noise[0]));
+        s.heading = s.heading + Angle::from_deg(self.gauss(self.noise[1]));
+        s.depth_m += self.gauss(self.noise[2]);
+        let ms = (self.start.elapsed().as_millis() & 0xFFFF_FFFF) as u32;
+        for m in autopilot_messages(&s, self.depth, ms) {
+            // udpin before the daemon spoke: nowhere to send yet.
+            let _ = link.send(self.enc.encode(&m)).await;
+        }
+        self.sent_sets += 1;
+    }
+
+    fn take(&mut self, sc: &mut Scanner) {
+        while let Some(ev) = sc.next_frame() {
+            let Scanned::Frame(f) = ev else { continue };
+            match decode(&f) {
+                Some(Received::Position(p)) => {
+                    let t = p.usec as f64 * 1e-6;
+                    if self.follow_daemon {
+                        let off = t - self.start.elapsed().as_secs_f64();
+                        self.offset = Some(self.offset.map_or(off, |o| o.max(off)));
+                    }
+                    let (t0, t1) = (self.traj.t0(), self.traj.t_end());
+                    if !self.repeat && !(t0 - 0.5..=t1 + 0.5).contains(&t) {
+                        self.no_truth += 1;
+                        continue;
+                    }
+                    let truth = self
+                        .site
+                        .pose_ned(&self.traj.kinematics(self.traj_time(t)).pose);
+                    let est = NedPose {
+                        position: p.position,
+                        pitch: p.pitch,
+                        heading: p.heading,
+                    };
+                    let e = self.stats.push(&est, &truth);
+                    self.latest = Some(e);
+                    if self.verbose {
+                        println!("VISION_POSITION_ESTIMATE t {t:.3} s  NED {:+.3} {:+.3} {:+.3} m  pitch {:+.2}° heading {:+.2}°  reset {}  error {}", p.position.0[0], p.position.0[1], p.position.0[2], p.pitch.deg(), p.heading.deg(), p.reset_counter, errors(&e));
+                    }
+                }
+                Some(Received::Speed(v)) => {
+                    self.speeds += 1;
+                    if self.verbose {
+                        let [n, e, d] = v.velocity.0;
+                        println!(
+                            "VISION_SPEED_ESTIMATE t {:.3} s  NED {n:+.3} {e:+.3} {d:+.3} m/s",
+                            v.usec as f64 * 1e-6
+                        );
+                    }
+                }
+                Some(Received::Heartbeat { component, .. })
+                    if !self.components.contains(&component) =>
+                {
+                    eprintln!(
+                        "fake-autopilot: HEARTBEAT from component {component} of system {}",
+                        f.system
+                    );
+                    self.components.push(component);
+                }
+                _ => {}
+            }
+        }
+        if sc.framing() == Framing::Datagram {
+            sc.end_of_datagram();
+        }
+    }
+
+    fn p95_line(&self) -> String {
+        if self.stats.is_empty() {
+            return "no estimate received to compare with the truth".into();
+        }
+        let p = self.stats.p95();
+        format!(
+            "p95 over {}: {} {:.3} m, {} {:.3} m, {} {:.3} m, {} {:.2}°, {} {:.2}°",
+            self.stats.len(),
+            ERROR_AXES[0],
+            p[0],
+            ERROR_AXES[1],
+            p[1],
+            ERROR_AXES[2],
+            p[2],
+            ERROR_AXES[3],
+            p[3],
+            ERROR_AXES[4],
+            p[4]
+        )
+    }
+
+    fn progress(&self) -> Option<String> {
+        let e = self.latest?;
+        Some(format!(
+            "t {:.1} s  latest {}  {}",
+            self.now(),
+            errors(&e),
+            self.p95_line()
+        ))
+    }
+
+    fn summary(&self) -> String {
+        format!(
+            "fake-autopilot: sent {} sets of sensor messages; received {} VISION_POSITION_ESTIMATE ({} off the trajectory's times), {} VISION_SPEED_ESTIMATE, heartbeats from components {:?}; {}",
+            self.sent_sets,
+            self.stats.len() as u64 + self.no_truth,
+            self.no_truth,
+            self.speeds,
+            self.components,
+            self.p95_line()
+        )
+    }
+}
+
+fn errors(e: &[f64; 5]) -> String {
+    format!(
+        "N {:+.3} E {:+.3} D {:+.3} m, pitch {:+.2}°, heading {:+.2}°",
+        e[0], e[1], e[2], e[3], e[4]
+    )
+}

@@ -1,0 +1,124 @@
+//! `lightpose fake-autopilot` end to end on loopback, with the test in the
+//! daemon's place: what the stand-in sends must read (through the vehicle
+//! crate's reader) as the trajectory's attitude, depth and temperature, and
+//! the errors it prints for the estimates it gets back must be those of the
+//! estimates: zero for the truth, 1 m north for ones moved 1 m north.
+
+use lightpose_core::Angle;
+use lightpose_sim::Trajectory;
+use lightpose_vehicle::mav::inbound::{interpret, Input, InputConfig};
+use lightpose_vehicle::mav::outbound::{vision_position, Encoder, Outgoing, OutputConfig};
+use lightpose_vehicle::mav::scan::{Framing, Scanned, Scanner};
+use lightpose_vehicle::Site;
+use std::net::UdpSocket;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn root() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+}
+
+#[test]
+fn the_stand_in_autopilot_sends_the_truth_and_judges_what_comes_back() {
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    let port = sock.local_addr().unwrap().port();
+    let (scene, traj) = (
+        root().join("config/scenes/tank.toml"),
+        root().join("config/trajectories/dive.csv"),
+    );
+    let child = Command::new(env!("CARGO_BIN_EXE_lightpose"))
+        .args(["fake-autopilot", "--scene"])
+        .arg(&scene)
+        .arg("--trajectory")
+        .arg(&traj)
+        .args(["--connect", &format!("udpout:127.0.0.1:{port}")])
+        .args(["--duration", "2.5", "--clock", "own", "--rate", "20"])
+        .args([
+            "--pitch-noise-deg",
+            "0",
+            "--yaw-noise-deg",
+            "0",
+            "--depth-noise-m",
+            "0",
+        ])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("lightpose runs");
+
+    // What it sends: the dive (yaw 0, pitch 10° → 8.7°, z 0 → 0.22 m) in
+    // water at the scene's 20 °C, read as the daemon would.
+    let site = Site::new(Angle::from_deg(30.0), 3.0);
+    let mut sc = Scanner::new(Framing::Datagram);
+    let mut buf = [0u8; 2048];
+    let (mut seen, mut tool) = ([false; 3], None);
+    let start = Instant::now();
+    while !seen.iter().all(|s| *s) && start.elapsed() < Duration::from_secs(10) {
+        let (n, from) = sock.recv_from(&mut buf).expect("the stand-in sends");
+        tool = Some(from);
+        sc.push(&buf[..n]);
+        while let Some(Scanned::Frame(f)) = sc.next_frame() {
+            match interpret(&f, &InputConfig::default(), &site).unwrap() {
+                Input::Attitude(a) => {
+                    assert!(a.yaw.deg().abs() < 1e-4, "yaw in B {}", a.yaw.deg());
+                    assert!(
+                        (8.6..=10.01).contains(&a.pitch.deg()),
+                        "pitch {}",
+                        a.pitch.deg()
+                    );
+                    seen[0] = true;
+                }
+                Input::Depth(d) => {
+                    assert!((-0.01..=0.25).contains(&d.z), "z {}", d.z);
+                    seen[1] = true;
+                }
+                Input::Temperature(t) => {
+                    assert_eq!(t, 20.0);
+                    seen[2] = true;
+                }
+                _ => {}
+            }
+        }
+        sc.end_of_datagram();
+    }
+    assert!(seen.iter().all(|s| *s), "{seen:?}");
+
+    // What it gets back: 20 estimates at the truth, 2 of them 1 m north,
+    // and one at a time the 8 s dive never reaches (not judged).
+    let traj = Trajectory::load(&traj).unwrap();
+    let mut enc = Encoder::new(1, 197);
+    for k in 0..21u64 {
+        let t = if k == 20 { 50.0 } else { 0.5 + 0.1 * k as f64 };
+        let pose = traj.kinematics(t).pose;
+        let o = Outgoing {
+            seq: k,
+            t,
+            pose,
+            surge: None,
+            std: [Some(0.1); 6],
+            epoch: 0,
+        };
+        let mut v = vision_position(&o, &site, &OutputConfig::default()).unwrap();
+        if k % 10 == 3 {
+            v.position.0[0] += 1.0;
+        }
+        sock.send_to(enc.encode(&v.message().unwrap()), tool.unwrap())
+            .unwrap();
+    }
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let summary = stdout.lines().last().unwrap_or_default();
+    assert!(
+        summary.contains("received 21 VISION_POSITION_ESTIMATE (1 off"),
+        "{stdout}"
+    );
+    assert!(
+        summary.contains(
+            "p95 over 20: north 1.000 m, east 0.000 m, down 0.000 m, pitch 0.00°, heading 0.00°"
+        ),
+        "{summary}"
+    );
+}
