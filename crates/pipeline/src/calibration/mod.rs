@@ -21,6 +21,7 @@ pub mod file;
 pub mod least_squares;
 pub mod paper_fit;
 pub mod physical_fit;
+mod sweep_logs;
 
 pub use file::{
     CalError, Calibration, Coverage, Dark, Feature, Fits, Limits, LinearFit, Meta, Moment, Origin,
