@@ -7,8 +7,9 @@
 //! error message quotes of it is cut to an [`excerpt`].
 
 use crate::textpos::line_of_offset;
+use std::borrow::Cow;
 use std::io::Read;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Largest text file we read whole: far above any scene, calibration, config
 /// or trajectory a user writes (the shipped ones are a few kB), far below
@@ -96,6 +97,39 @@ pub fn excerpt(s: &str, max: usize) -> String {
     }
 }
 
+/// Where a text a program reads comes from: a file, read when it is needed
+/// (so that a changed file is seen on reload), or text the program already
+/// holds (compiled into a binary) under the name messages give it. Readers
+/// of scenes, trajectories and calibrations take this, so that they need not
+/// know how a program resolves names such as the daemon's `embedded:NAME`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TextSource {
+    File(PathBuf),
+    Held {
+        /// How messages name it, e.g. `embedded:tank-scene`.
+        name: String,
+        text: Cow<'static, str>,
+    },
+}
+
+impl TextSource {
+    /// How messages name it: the path, or the held text's name.
+    pub fn describe(&self) -> String {
+        match self {
+            TextSource::File(p) => p.display().to_string(),
+            TextSource::Held { name, .. } => name.clone(),
+        }
+    }
+
+    /// The text: a file is read now, through [`read_text`].
+    pub fn read(&self) -> Result<Cow<'_, str>, TextError> {
+        match self {
+            TextSource::File(p) => read_text(p).map(Cow::Owned),
+            TextSource::Held { text, .. } => Ok(Cow::Borrowed(text)),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -138,5 +172,22 @@ mod tests {
         assert!(e.contains("too large"), "{e}");
         std::fs::write(&p, [0xff, 0xfe]).unwrap();
         assert!(read_text(&p).unwrap_err().to_string().contains("UTF-8"));
+    }
+
+    #[test]
+    fn text_sources_read_files_now_and_held_text_as_is() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.toml");
+        let file = TextSource::File(p.clone());
+        assert!(file.read().unwrap_err().to_string().contains("s.toml"));
+        std::fs::write(&p, "a = 2\n").unwrap();
+        assert_eq!(file.read().unwrap(), "a = 2\n");
+        assert_eq!(file.describe(), p.display().to_string());
+        let held = TextSource::Held {
+            name: "embedded:x".into(),
+            text: Cow::Borrowed("b = 1\n"),
+        };
+        assert_eq!(held.read().unwrap(), "b = 1\n");
+        assert_eq!(held.describe(), "embedded:x");
     }
 }

@@ -5,16 +5,16 @@
 //! RSS < 20 MiB); and `lightposed --soak`, the same path for an hour of
 //! frames with recording on, to show that latency and memory do not drift.
 
-use crate::config::{Backend, Config, Outputs, Pace};
+use crate::config::{Config, Outputs};
 use crate::engine::Engine;
-use crate::publish::Publisher;
-use crate::recorder::Recorder;
+use crate::outputs::recorder::Recorder;
+use crate::outputs::udp::{PoseDatagrams, PublishError, Publisher};
 use crate::stats::Stats;
+use crate::wiring::{build_estimator, open_source};
 use crate::DaemonError;
-use lightpose_core::Estimator;
-use lightpose_hal::FrameSource;
+use lightpose_hal::Stop;
 use std::net::UdpSocket;
-use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::atomic::Ordering::Relaxed;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -82,90 +82,85 @@ fn cpu_seconds() -> f64 {
     }
 }
 
-/// The daemon's frame engine unpaced, for `frames` frames: what --bench
-/// and --soak measure (the soak with a recorder).
-fn fast_engine(
+/// What --bench and --soak drive: the daemon's frame engine on the
+/// configured source, free-running and looping, with its estimator and the
+/// POSE output to a loopback sink that nobody reads (the kernel drops what
+/// overflows; the send cost is real). No deadlines: nothing is paced.
+struct Rig {
+    engine: Engine,
+    /// Held for the run: the datagrams' destination.
+    sink: UdpSocket,
+    estimator: String,
+    source: String,
+    adc_bits: u8,
+    /// The source's frame clock (a recording's header).
+    rate_hz: f64,
+}
+
+/// The rig for `frames` frames; `sim_clock_hz`: the simulator's frame
+/// clock when not the config's.
+fn rig(
     cfg: &Config,
-    source: Box<dyn FrameSource>,
-    estimator: Box<dyn Estimator>,
-    publisher: Arc<Publisher>,
+    mode: &'static str,
+    sim_clock_hz: Option<f64>,
     stats: &Arc<Stats>,
-    recorder: Option<Recorder>,
     frames: u64,
-) -> Engine {
-    Engine {
-        source,
-        estimator,
-        publisher,
-        stats: stats.clone(),
-        recorder,
-        attitude: None,
-        stop: Arc::new(AtomicBool::new(false)),
-        reload: None,
-        period: None,
-        late_tolerance: cfg.late_tolerance,
-        fallback_temp_c: cfg.fallback_temp_c,
-        max_frames: Some(frames),
-        epoch: Instant::now(),
-    }
-}
-
-/// `cfg` with its simulator or replay backend looping as fast as it goes;
-/// a hardware backend cannot be driven faster than its boards.
-fn free_running(cfg: &Config, mode: &str) -> Result<Config, DaemonError> {
+) -> Result<Rig, DaemonError> {
     let mut cfg = cfg.clone();
-    match &mut cfg.backend {
-        Backend::Sim(s) => {
-            s.pace = Pace::Fast;
-            s.looping = true;
-        }
-        Backend::Replay(r) => {
-            r.pace = Pace::Fast;
-            r.looping = true;
-        }
-        Backend::Hardware { kind, .. } => {
-            return Err(DaemonError::Backend {
-                kind: kind.clone(),
-                msg: format!("{mode} runs the sim or replay backend only"),
-            })
-        }
-    }
-    Ok(cfg)
-}
-
-/// Run `frames` frames of the configured simulator (or replay) backend as
-/// fast as possible, publishing to a local socket that nobody reads (the
-/// kernel drops what overflows; the send cost is real).
-pub fn bench(cfg: &Config, frames: u64) -> Result<BenchReport, DaemonError> {
-    let cfg = free_running(cfg, "--bench")?;
-    let sink =
-        UdpSocket::bind("127.0.0.1:0").map_err(|source| crate::publish::PublishError::Socket {
-            family: "IPv4",
-            source,
+    cfg.backend = cfg
+        .backend
+        .free_running(sim_clock_hz)
+        .ok_or(DaemonError::NotFreeRunning {
+            kind: cfg.backend.kind(),
+            mode,
         })?;
-    let addr = sink
-        .local_addr()
-        .map_err(|source| crate::publish::PublishError::Socket {
-            family: "IPv4",
-            source,
-        })?;
+    let sock_err = |source| PublishError::Socket {
+        family: "IPv4",
+        source,
+    };
+    let sink = UdpSocket::bind("127.0.0.1:0").map_err(sock_err)?;
+    let addr = sink.local_addr().map_err(sock_err)?;
     let publisher = Arc::new(Publisher::open(&Outputs {
         destinations: vec![addr],
         multicast: None,
         status_interval: Duration::from_secs(1),
     })?);
-    let estimator = crate::build_estimator(&cfg)?;
-    let est_name = estimator.name().to_string();
-    let (source, _) = crate::open_source(&cfg)?;
-    let source_desc = source.describe();
+    let estimator = build_estimator(&cfg)?;
+    let source = open_source(&cfg, &Stop::new())?;
+    let (est_name, source_desc, adc_bits) = (
+        estimator.name().to_string(),
+        source.describe(),
+        source.adc_bits(),
+    );
+    let rate_hz = source.rate_hz().unwrap_or(cfg.rate_hz);
+    let engine = Engine::new(source, estimator)
+        .stats(stats.clone())
+        .period(None)
+        .late_tolerance(cfg.late_tolerance)
+        .fallback_temp_c(cfg.fallback_temp_c)
+        .max_frames(frames)
+        .output(Box::new(PoseDatagrams::new(publisher)));
+    Ok(Rig {
+        engine,
+        sink,
+        estimator: est_name,
+        source: source_desc,
+        adc_bits,
+        rate_hz,
+    })
+}
+
+/// Run `frames` frames of the configured simulator (or replay) backend as
+/// fast as possible through the daemon's frame path, on this thread.
+pub fn bench(cfg: &Config, frames: u64) -> Result<BenchReport, DaemonError> {
     let stats = Arc::new(Stats::default());
-    let engine = fast_engine(&cfg, source, estimator, publisher, &stats, None, frames);
+    let rig = rig(cfg, "--bench", None, &stats, frames)?;
     let cpu0 = cpu_seconds();
     let t0 = Instant::now();
-    engine.run();
+    rig.engine.run();
     let wall = t0.elapsed().as_secs_f64();
     let cpu = cpu_seconds() - cpu0;
-    drop(sink);
+    drop(rig.sink);
     let n = stats.frames.load(Relaxed);
     Ok(BenchReport {
         frames: n,
@@ -176,13 +171,16 @@ pub fn bench(cfg: &Config, frames: u64) -> Result<BenchReport, DaemonError> {
         max_s: stats.latency.max().unwrap_or(f64::NAN),
         cpu_share: cpu / wall.max(1e-9),
         peak_rss_kib: peak_rss_kib(),
-        estimator: est_name,
-        source: source_desc,
+        estimator: rig.estimator,
+        source: rig.source,
     })
 }
 
 /// Frames of a simulated hour at 1 kHz: the soak's default.
 pub const SOAK_FRAMES: u64 = 3_600_000;
+
+/// The simulator's frame clock in the soak.
+const SOAK_CLOCK_HZ: f64 = 1000.0;
 
 /// Size at which the soak's recording rotates; the soak deletes all but the
 /// two newest files, so its disk use stays under about three of these.
@@ -299,24 +297,11 @@ fn prune(dir: &std::path::Path, keep: usize) -> u64 {
 /// in the daemon; this thread watches it, snapshots the latency histogram
 /// at 10 % and 90 % of the frames, and keeps the disk use bounded.
 pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
-    let mut cfg = free_running(cfg, "--soak")?;
-    if matches!(cfg.backend, Backend::Sim(_)) {
-        // Simulated time runs at 1 kHz, so that the default 3.6 M frames
-        // are an hour of the board's clock (frame t, recording).
-        cfg.rate_hz = 1000.0;
-    }
     let frames = frames.max(10);
-    let sock_err = |source| crate::publish::PublishError::Socket {
-        family: "IPv4",
-        source,
-    };
-    let sink = UdpSocket::bind("127.0.0.1:0").map_err(sock_err)?;
-    let addr = sink.local_addr().map_err(sock_err)?;
-    let publisher = Arc::new(Publisher::open(&Outputs {
-        destinations: vec![addr],
-        multicast: None,
-        status_interval: Duration::from_secs(1),
-    })?);
+    // Simulated time runs at 1 kHz, so that the default 3.6 M frames are an
+    // hour of the board's clock (frame t, recording).
+    let stats = Arc::new(Stats::default());
+    let rig = rig(cfg, "--soak", Some(SOAK_CLOCK_HZ), &stats, frames)?;
     let dir = std::env::temp_dir().join(format!("lightposed-soak-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(DaemonError::Recorder)?;
     let rec_cfg = crate::config::Recording {
@@ -325,24 +310,10 @@ pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
         rotate_after: None,
         queue: 4096,
     };
-    let estimator = crate::build_estimator(&cfg)?;
-    let est_name = estimator.name().to_string();
-    let (source, _) = crate::open_source(&cfg)?;
-    let source_desc = source.describe();
-    let header = lightpose_core::LogHeader::new(source.adc_bits(), cfg.rate_hz);
-    let recorder =
-        crate::recorder::Recorder::start(&rec_cfg, header).map_err(DaemonError::Recorder)?;
+    let header = lightpose_core::LogHeader::new(rig.adc_bits, rig.rate_hz);
+    let recorder = Recorder::start(&rec_cfg, header).map_err(DaemonError::Recorder)?;
     let rec_stats = recorder.stats.clone();
-    let stats = Arc::new(Stats::default());
-    let engine = fast_engine(
-        &cfg,
-        source,
-        estimator,
-        publisher,
-        &stats,
-        Some(recorder),
-        frames,
-    );
+    let engine = rig.engine.output(Box::new(recorder));
     let t0 = Instant::now();
     let worker = std::thread::Builder::new()
         .name("lightposed-frames".into())
@@ -401,13 +372,13 @@ pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
         rec_failed: rec_stats.failed.load(Relaxed),
         rec_files: rec_stats.files.load(Relaxed),
         disk_peak_bytes: disk_peak,
-        source: source_desc,
-        estimator: est_name,
+        source: rig.source,
+        estimator: rig.estimator,
     };
     if let Err(e) = std::fs::remove_dir_all(&dir) {
         tracing::warn!("soak: cannot remove {}: {e}", dir.display());
     }
-    drop(sink);
+    drop(rig.sink);
     Ok(report)
 }
 

@@ -5,6 +5,7 @@
 use anyhow::Context;
 use clap::Parser;
 use lightposed::config::LogFormat;
+use lightposed::error::report;
 use lightposed::{Config, Publisher};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -81,6 +82,40 @@ async fn serve(cfg: Config) -> anyhow::Result<lightposed::Summary> {
     Ok(lightposed::run_with_reload(cfg, publisher, shutdown, reload_rx).await?)
 }
 
+/// The one line a failure leaves on stderr, and its exit code.
+fn fail(e: &(dyn std::error::Error + 'static), code: u8) -> ExitCode {
+    eprintln!("lightposed: {}", report(e));
+    ExitCode::from(code)
+}
+
+/// Print a report and exit 0, or the one line and exit 1.
+fn print_report<R: std::fmt::Display>(r: Result<R, lightposed::DaemonError>) -> ExitCode {
+    match r {
+        Ok(r) => {
+            println!("{r}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail(&e, 1),
+    }
+}
+
+/// The first log line: where poses go and how to listen.
+fn log_start(cfg: &Config) {
+    let o = &cfg.outputs;
+    let dests: Vec<String> = o.destinations.iter().map(|d| d.to_string()).collect();
+    let multicast = o.multicast.as_ref().map_or(String::new(), |m| {
+        format!(" + multicast {} ttl {}", m.group, m.ttl)
+    });
+    tracing::info!(
+        "lightposed {} ({}): publishing to {}{}; {}",
+        env!("CARGO_PKG_VERSION"),
+        cfg.origin,
+        dests.join(", "),
+        multicast,
+        lightposed::outputs::udp::listen_hint(o)
+    );
+}
+
 fn main() -> ExitCode {
     let args = Args::parse();
     if let Some(p) = &args.check_config {
@@ -89,18 +124,12 @@ fn main() -> ExitCode {
                 println!("{}: ok", p.display());
                 ExitCode::SUCCESS
             }
-            Err(e) => {
-                eprintln!("lightposed: {e}");
-                ExitCode::from(2)
-            }
+            Err(e) => fail(&e, 2),
         };
     }
     let cfg = match load(args.config.as_ref()) {
         Ok(c) => c,
-        Err(e) => {
-            eprintln!("lightposed: {e}");
-            return ExitCode::from(2);
-        }
+        Err(e) => return fail(&e, 2),
     };
     if args.frames.is_some() && !(args.bench || args.soak) {
         eprintln!("lightposed: --frames goes with --bench or --soak");
@@ -108,49 +137,16 @@ fn main() -> ExitCode {
     }
     if args.soak {
         let frames = args.frames.unwrap_or(lightposed::bench::SOAK_FRAMES);
-        return match lightposed::bench::soak(&cfg, frames) {
-            Ok(r) => {
-                println!("{r}");
-                ExitCode::SUCCESS
-            }
-            Err(e) => {
-                eprintln!("lightposed: {e}");
-                ExitCode::FAILURE
-            }
-        };
+        return print_report(lightposed::bench::soak(&cfg, frames));
     }
     if args.bench {
-        return match lightposed::bench::bench(&cfg, args.frames.unwrap_or(100_000)) {
-            Ok(r) => {
-                println!("{r}");
-                ExitCode::SUCCESS
-            }
-            Err(e) => {
-                eprintln!("lightposed: {e}");
-                ExitCode::FAILURE
-            }
-        };
+        return print_report(lightposed::bench::bench(
+            &cfg,
+            args.frames.unwrap_or(100_000),
+        ));
     }
     init_logging(&cfg);
-    tracing::info!(
-        "lightposed {} ({}): publishing to {}{}; {}",
-        env!("CARGO_PKG_VERSION"),
-        cfg.origin,
-        cfg.outputs
-            .destinations
-            .iter()
-            .map(|d| d.to_string())
-            .collect::<Vec<_>>()
-            .join(", "),
-        cfg.outputs
-            .multicast
-            .as_ref()
-            .map_or(String::new(), |m| format!(
-                " + multicast {} ttl {}",
-                m.group, m.ttl
-            )),
-        lightposed::publish::listen_hint(&cfg.outputs)
-    );
+    log_start(&cfg);
     let rt = match tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -164,9 +160,8 @@ fn main() -> ExitCode {
     match rt.block_on(serve(cfg)) {
         Ok(_) => ExitCode::SUCCESS,
         Err(e) => {
-            tracing::error!("{e:#}");
-            eprintln!("lightposed: {e:#}");
-            ExitCode::FAILURE
+            tracing::error!("{}", report(e.as_ref()));
+            fail(e.as_ref(), 1)
         }
     }
 }

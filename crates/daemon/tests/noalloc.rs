@@ -2,9 +2,12 @@
 //! allocate per frame: a counting global allocator shows that the
 //! allocations of a run do not grow with the number of frames.
 
-use lightposed::config::{Backend, Config, Pace};
+use lightpose_core::{Angle, AttitudeReading};
+use lightpose_hal::{Pace, Stop, ValidBackend};
+use lightposed::config::Config;
 use lightposed::engine::Engine;
-use lightposed::stats::Stats;
+use lightposed::inputs::attitude::{AttitudeCell, LatestAttitude};
+use lightposed::outputs::udp::PoseDatagrams;
 use lightposed::Publisher;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::net::UdpSocket;
@@ -56,23 +59,32 @@ fn allocations(frames: u64, sink: &UdpSocket, estimator: &str, scene: &str) -> u
         sink.local_addr().expect("addr")
     );
     let cfg = Config::parse(&text, "noalloc.toml", None).expect("valid");
-    assert!(matches!(&cfg.backend, Backend::Sim(s) if s.pace == Pace::Fast));
-    let (source, _) = lightposed::open_source(&cfg).expect("source");
-    let engine = Engine {
+    assert!(matches!(&cfg.backend, ValidBackend::Sim(s) if s.pace == Pace::Fast));
+    let source = lightposed::open_source(&cfg, &Stop::new()).expect("source");
+    let publisher = Arc::new(Publisher::open(&cfg.outputs).expect("publisher"));
+    // A period although the source is fast: the deadline path runs too.
+    // An attitude input holding a fresh reading: the attach path runs too
+    // (frames of a scene with its own sensor keep theirs).
+    let cell = Arc::new(AttitudeCell::default());
+    cell.store(
+        Instant::now() + Duration::from_secs(3600),
+        AttitudeReading {
+            pitch: Angle::from_deg(2.0),
+            yaw: Angle::ZERO,
+            std: None,
+        },
+    );
+    let engine = Engine::new(
         source,
-        estimator: lightposed::build_estimator(&cfg).expect("estimator"),
-        publisher: Arc::new(Publisher::open(&cfg.outputs).expect("publisher")),
-        stats: Arc::new(Stats::default()),
-        recorder: None,
-        attitude: None,
-        stop: Arc::new(AtomicBool::new(false)),
-        reload: None,
-        period: Some(Duration::from_millis(20)),
-        late_tolerance: 0.5,
-        fallback_temp_c: None,
-        max_frames: Some(frames),
-        epoch: Instant::now(),
-    };
+        lightposed::build_estimator(&cfg).expect("estimator"),
+    )
+    .period(Some(Duration::from_millis(20)))
+    .max_frames(frames)
+    .input(Box::new(LatestAttitude {
+        cell,
+        max_age: Duration::from_secs(1),
+    }))
+    .output(Box::new(PoseDatagrams::new(publisher)));
     ALLOCS.store(0, Relaxed);
     COUNTING.store(true, Relaxed);
     engine.run();

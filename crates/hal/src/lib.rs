@@ -1,23 +1,31 @@
 //! Hardware abstraction: every way the daemon can get a frame of the array
-//! (ADC boards over SPI, I²C and serial, the simulator-driven mock, a
-//! recorded log) behind one trait, so that the daemon cannot tell them apart.
+//! (ADC boards over SPI, I²C and serial, the simulator, a recorded log)
+//! behind one trait, so that the daemon cannot tell them apart.
 //!
-//! The daemon calls [`open_source`] with the `[source]` table of its config
-//! ([`BackendConfig`]) and then [`FrameSource::next_frame`] in a loop;
-//! [`FrameSource::health`] gives the counters worth reporting.
+//! A program validates the `[backend]` table of its config
+//! ([`BackendConfig::validate`], once, at load) into a [`ValidBackend`],
+//! opens it with [`open`] — the one call for every kind — and then calls
+//! [`FrameSource::next_frame`] in a loop; [`FrameSource::health`] gives the
+//! counters worth reporting, and a [`Stop`] ends every wait of the source.
 //!
+//! - [`config`]: what the config file says, validated, one file per family
+//!   of kinds;
 //! - [`drivers`]: MCP3008/MCP3208 (SPI), ADS1115 and ADS7828 (I²C), generic
 //!   over embedded-hal 1.0;
 //! - [`serial`]: the `$LPADC` line protocol of microcontroller boards;
 //! - [`chanmap`]: which board channel feeds which detector;
 //! - [`bank`]: boards read together into one frame, paced ([`pace`]);
+//! - [`linux`]: the real spidev / i2c-dev buses those boards sit on;
 //! - [`temp`]: fixed, DS18B20 and thermistor temperature with fallback;
-//! - [`mock`]: the simulator as a source, with injectable faults;
-//! - [`config`]: what the config file says, validated.
+//! - [`sim`]: the simulator as a source, with injectable faults;
+//! - [`replay`]: a recorded log as a source, its format behind a seam.
 //!
 //! Feature `linux` adds the real spidev / i2c-dev buses; without it the
-//! SPI and I²C kinds are refused by [`open_source`] with a clear error, so a
-//! simulator build needs no device files. Serial boards work everywhere.
+//! SPI and I²C kinds are refused by [`open`] with a clear error, so a
+//! simulator build needs no device files. Serial boards and replay work
+//! everywhere; feature `sim` (default) adds the simulator.
+
+use std::time::Duration;
 
 use lightpose_core::Frame;
 
@@ -27,15 +35,17 @@ pub mod config;
 pub mod drivers;
 #[cfg(feature = "linux")]
 pub mod linux;
-#[cfg(feature = "sim")]
-pub mod mock;
 pub mod pace;
+pub mod replay;
 pub mod serial;
+#[cfg(feature = "sim")]
+pub mod sim;
 pub mod temp;
 
 pub use bank::{Bank, BoardSource};
 pub use chanmap::{ChannelMap, MapEntry, MapError};
-pub use config::{BackendConfig, TempConfig, ValidBackend};
+pub use config::{BackendConfig, Env, Pace, PlainEnv, TempConfig, ValidBackend};
+pub use pace::Stop;
 pub use temp::TempHealth;
 
 /// Why a source could not give a frame. The daemon counts and logs these and
@@ -85,6 +95,16 @@ pub trait FrameSource: Send {
     fn adc_bits(&self) -> u8;
     /// One line saying what this source is (for logs and STATUS).
     fn describe(&self) -> String;
+    /// The period it keeps between frames, for deadline accounting; `None`
+    /// when it hands frames out as fast as they are asked for.
+    fn period(&self) -> Option<Duration> {
+        None
+    }
+    /// Frames per second of the clock its frames' `t` runs on (what a
+    /// recording's header says), paced or not; `None` when it has none.
+    fn rate_hz(&self) -> Option<f64> {
+        self.period().map(|p| 1.0 / p.as_secs_f64())
+    }
     /// Counters for the health report (temperature fallbacks, skipped
     /// lines, reopens, injected faults).
     fn health(&self) -> SourceHealth {
@@ -109,45 +129,50 @@ pub enum HalError {
         kind: &'static str,
         feature: &'static str,
     },
+    /// The simulator's scene could not be read or is wrong.
+    #[cfg(feature = "sim")]
+    #[error(transparent)]
+    Scene(#[from] lightpose_sim::SceneError),
+    /// The simulator's trajectory could not be read or is wrong.
+    #[cfg(feature = "sim")]
+    #[error(transparent)]
+    Trajectory(#[from] lightpose_sim::TrajectoryError),
+    /// A replayed log could not be opened or has no header.
+    #[error(transparent)]
+    Log(#[from] lightpose_core::LogError),
 }
 
-/// Validate `cfg` and open the source it describes.
-pub fn open_source(cfg: &BackendConfig) -> Result<Box<dyn FrameSource>, HalError> {
-    open_validated(cfg.validate()?, cfg.kind())
-}
-
-/// Open an already validated backend (`kind` only names it in errors).
-#[cfg_attr(all(feature = "linux", feature = "sim"), allow(unused_variables))]
-pub fn open_validated(
-    v: ValidBackend,
-    kind: &'static str,
-) -> Result<Box<dyn FrameSource>, HalError> {
-    match v {
+/// Open the source `cfg` describes: the one way every kind is opened. Its
+/// waits (pacing, a replay's recorded time) end early when `stop` is
+/// raised.
+pub fn open(cfg: &ValidBackend, stop: &Stop) -> Result<Box<dyn FrameSource>, HalError> {
+    match cfg {
         ValidBackend::Serial {
             boards,
             timeout,
             common,
         } => {
-            let bank = serial::SerialBank::new(boards, common.bits, timeout);
+            let bank = serial::SerialBank::new(boards.clone(), common.bits, *timeout);
             Ok(Box::new(BoardSource::new(
                 bank,
                 common.map,
-                common.temp.start(),
-                pace::Pacer::from_rate(common.rate_hz),
+                common.temp.clone().start(),
+                common.pacer(stop),
             )))
         }
+        ValidBackend::Replay(plan) => Ok(Box::new(replay::ReplaySource::open(plan, stop)?)),
         #[cfg(feature = "sim")]
-        ValidBackend::Sim(c) => Ok(Box::new(mock::MockSource::open(&c)?)),
+        ValidBackend::Sim(plan) => Ok(Box::new(sim::SimSource::open(plan, stop)?)),
         #[cfg(not(feature = "sim"))]
         ValidBackend::Sim(_) => Err(HalError::NotBuilt {
-            kind,
+            kind: cfg.kind(),
             feature: "sim",
         }),
         #[cfg(feature = "linux")]
-        hw => linux::open(hw),
+        hw => linux::open(hw, stop),
         #[cfg(not(feature = "linux"))]
         _ => Err(HalError::NotBuilt {
-            kind,
+            kind: cfg.kind(),
             feature: "linux",
         }),
     }

@@ -10,7 +10,7 @@ use crate::config::{Common, I2cChipPlan, ValidBackend};
 use crate::drivers::ads1115::Ads1115;
 use crate::drivers::ads7828::Ads7828;
 use crate::drivers::mcp3x08::Mcp3x08;
-use crate::pace::Pacer;
+use crate::pace::Stop;
 use crate::{FrameSource, HalError};
 
 fn open_buses(buses: &[String]) -> Result<Vec<(String, I2cdev)>, HalError> {
@@ -29,14 +29,15 @@ fn open_buses(buses: &[String]) -> Result<Vec<(String, I2cdev)>, HalError> {
 
 fn i2c_source<C: crate::bank::I2cAdc + 'static>(
     buses: &[String],
-    chips: Vec<I2cChipPlan>,
+    chips: &[I2cChipPlan],
     make: impl Fn(u8) -> C,
-    common: Common,
+    common: &Common,
+    stop: &Stop,
 ) -> Result<Box<dyn FrameSource>, HalError> {
     let slots = chips
-        .into_iter()
+        .iter()
         .map(|p| I2cSlot {
-            name: p.name,
+            name: p.name.clone(),
             bus: p.bus,
             chip: make(p.address),
         })
@@ -48,13 +49,13 @@ fn i2c_source<C: crate::bank::I2cAdc + 'static>(
     Ok(Box::new(BoardSource::new(
         bank,
         common.map,
-        common.temp.start(),
-        Pacer::from_rate(common.rate_hz),
+        common.temp.clone().start(),
+        common.pacer(stop),
     )))
 }
 
 /// Open the SPI or I²C backend `v` describes.
-pub fn open(v: ValidBackend) -> Result<Box<dyn FrameSource>, HalError> {
+pub fn open(v: &ValidBackend, stop: &Stop) -> Result<Box<dyn FrameSource>, HalError> {
     match v {
         ValidBackend::Spi {
             kind,
@@ -77,13 +78,13 @@ pub fn open(v: ValidBackend) -> Result<Box<dyn FrameSource>, HalError> {
                     place,
                     msg: e.to_string(),
                 })?;
-                devs.push((c.name, Mcp3x08::new(d, kind)));
+                devs.push((c.name.clone(), Mcp3x08::new(d, *kind)));
             }
             Ok(Box::new(BoardSource::new(
                 SpiBank::new(devs),
                 common.map,
-                common.temp.start(),
-                Pacer::from_rate(common.rate_hz),
+                common.temp.clone().start(),
+                common.pacer(stop),
             )))
         }
         ValidBackend::Ads1115 {
@@ -92,16 +93,24 @@ pub fn open(v: ValidBackend) -> Result<Box<dyn FrameSource>, HalError> {
             buses,
             chips,
             common,
-        } => i2c_source(&buses, chips, |a| Ads1115::new(a, fsr, data_rate), common),
+        } => i2c_source(
+            buses,
+            chips,
+            |a| Ads1115::new(a, *fsr, *data_rate),
+            common,
+            stop,
+        ),
         ValidBackend::Ads7828 {
             power,
             buses,
             chips,
             common,
-        } => i2c_source(&buses, chips, |a| Ads7828::new(a, power), common),
-        ValidBackend::Serial { .. } | ValidBackend::Sim(_) => Err(HalError::Open {
-            place: "source".into(),
-            msg: "not a Linux bus backend".into(),
-        }),
+        } => i2c_source(buses, chips, |a| Ads7828::new(a, *power), common, stop),
+        ValidBackend::Serial { .. } | ValidBackend::Sim(_) | ValidBackend::Replay(_) => {
+            Err(HalError::Open {
+                place: "source".into(),
+                msg: "not a Linux bus backend".into(),
+            })
+        }
     }
 }

@@ -1,39 +1,120 @@
-//! Frame pacing: a source gives frames at its configured rate, on a fixed
-//! schedule so that the rate does not drift with the time a read takes.
+//! Frame pacing, and the stop request that ends every wait early.
+//!
+//! A source gives frames at its configured rate, on a fixed schedule so that
+//! the rate does not drift with the time a read takes. Every sleep of a
+//! source goes through [`Stop`], so that a stop (SIGTERM in the daemon) is
+//! never held up by a frame that is not due yet: the waiting thread is woken
+//! at once, not at the end of its sleep.
 
-use std::thread;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
+
+/// A request to stop, shared by whoever asks (clones share one flag) and
+/// the thread that waits.
+#[derive(Debug, Clone, Default)]
+pub struct Stop(Arc<StopInner>);
+
+#[derive(Debug, Default)]
+struct StopInner {
+    raised: AtomicBool,
+    lock: Mutex<()>,
+    wake: Condvar,
+}
+
+impl Stop {
+    pub fn new() -> Self {
+        Stop::default()
+    }
+
+    /// Ask to stop, and wake every wait on this stop.
+    pub fn raise(&self) {
+        self.0.raised.store(true, Ordering::SeqCst);
+        // Under the lock, so that a waiter between its check and its wait
+        // cannot miss the wake-up.
+        let _g = self.0.lock.lock().unwrap_or_else(|p| p.into_inner());
+        self.0.wake.notify_all();
+    }
+
+    #[inline]
+    pub fn is_raised(&self) -> bool {
+        self.0.raised.load(Ordering::Relaxed)
+    }
+
+    /// Sleep until `deadline` unless a stop comes first; true when the
+    /// deadline was reached, false when stopped.
+    pub fn sleep_until(&self, deadline: Instant) -> bool {
+        let mut g = self.0.lock.lock().unwrap_or_else(|p| p.into_inner());
+        loop {
+            if self.0.raised.load(Ordering::SeqCst) {
+                return false;
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return true;
+            }
+            g = match self.0.wake.wait_timeout(g, deadline - now) {
+                Ok((g, _)) => g,
+                Err(p) => p.into_inner().0,
+            };
+        }
+    }
+
+    /// Sleep `d` unless a stop comes first; true when slept whole.
+    pub fn sleep(&self, d: Duration) -> bool {
+        match Instant::now().checked_add(d) {
+            Some(deadline) => self.sleep_until(deadline),
+            None => {
+                // A wait beyond the clock's range: until stopped.
+                while self.sleep_until(Instant::now() + Duration::from_secs(3600)) {}
+                false
+            }
+        }
+    }
+}
 
 /// Sleeps until the next frame is due. `None` period: as fast as possible.
 #[derive(Debug, Clone)]
 pub struct Pacer {
     period: Option<Duration>,
     next: Option<Instant>,
+    stop: Stop,
 }
 
 impl Pacer {
     pub fn new(period: Option<Duration>) -> Self {
-        Pacer { period, next: None }
+        Pacer {
+            period,
+            next: None,
+            stop: Stop::new(),
+        }
     }
 
     pub fn from_rate(rate_hz: Option<f64>) -> Self {
-        Self::new(rate_hz.map(|r| Duration::from_secs_f64(1.0 / r)))
+        Self::new(rate_hz.and_then(|r| Duration::try_from_secs_f64(1.0 / r).ok()))
+    }
+
+    /// End waits early when `stop` is raised.
+    pub fn stoppable(mut self, stop: Stop) -> Self {
+        self.stop = stop;
+        self
     }
 
     pub fn period(&self) -> Option<Duration> {
         self.period
     }
 
-    /// Block until the next frame is due. The first call returns at once. A
-    /// source that fell more than a period behind (a slow read, a stall)
-    /// restarts the schedule from now instead of bursting to catch up.
+    /// Block until the next frame is due (or a stop). The first call
+    /// returns at once. A source that fell more than a period behind (a slow
+    /// read, a stall) restarts the schedule from now instead of bursting to
+    /// catch up.
     pub fn wait(&mut self) {
         let Some(p) = self.period else { return };
         let now = Instant::now();
         let due = match self.next {
             None => now,
             Some(n) if n > now => {
-                thread::sleep(n - now);
+                self.stop.sleep_until(n);
                 n
             }
             Some(n) if now - n > p => now,
@@ -46,6 +127,7 @@ impl Pacer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::thread;
 
     #[test]
     fn paces_at_the_rate_and_does_not_burst_after_a_stall() {
@@ -73,5 +155,25 @@ mod tests {
             fast.wait();
         }
         assert!(t2.elapsed() < Duration::from_millis(50));
+    }
+
+    #[test]
+    fn a_stop_ends_a_long_wait_at_once() {
+        let stop = Stop::new();
+        let mut p = Pacer::from_rate(Some(0.1)).stoppable(stop.clone()); // 10 s
+        p.wait();
+        let s = stop.clone();
+        let raiser = thread::spawn(move || {
+            thread::sleep(Duration::from_millis(50));
+            s.raise();
+        });
+        let t0 = Instant::now();
+        p.wait();
+        let el = t0.elapsed();
+        raiser.join().unwrap();
+        assert!(el < Duration::from_secs(2), "{el:?}");
+        assert!(stop.is_raised());
+        assert!(!stop.sleep(Duration::from_secs(10)), "stopped: no sleep");
+        assert!(Stop::new().sleep(Duration::from_millis(1)), "slept whole");
     }
 }

@@ -1,8 +1,8 @@
 //! The config as the daemon's file gives it: TOML into [`BackendConfig`],
-//! validation errors that name the key, and `open_source`.
+//! validation errors that name the key, and `open`.
 
 use lightpose_hal::config::{TempPlan, ValidBackend};
-use lightpose_hal::{open_source, BackendConfig, HalError};
+use lightpose_hal::{BackendConfig, FrameSource, HalError, PlainEnv, Stop};
 
 fn parse(text: &str) -> Result<BackendConfig, String> {
     toml::from_str::<BackendConfig>(text).map_err(|e| e.to_string())
@@ -35,7 +35,12 @@ chips = [
 "#;
 
 fn validate(text: &str) -> Result<ValidBackend, String> {
-    parse(text)?.validate().map_err(|e| e.to_string())
+    parse(text)?.validate(&PlainEnv).map_err(|e| e.to_string())
+}
+
+/// Validate and open, as a program does.
+fn open_source(cfg: &BackendConfig) -> Result<Box<dyn FrameSource>, HalError> {
+    lightpose_hal::open(&cfg.validate(&PlainEnv)?, &Stop::new())
 }
 
 #[test]
@@ -200,11 +205,11 @@ fn serial_and_sim_configs() {
     let e = src.next_frame().unwrap_err().to_string();
     assert!(e.contains("board b0 (/dev/ttyACM0)"), "{e}");
 
-    let e = validate("kind = \"sim\"\ntrajectory = \"t.csv\"\n[faults]\nbus_error_prob = 1.5\n")
+    let e = validate("kind = \"mock\"\ntrajectory = \"t.csv\"\n[faults]\nbus_error_prob = 1.5\n")
         .unwrap_err();
     assert!(e.contains("faults.bus_error_prob"), "{e}");
     let e = validate(
-        "kind = \"sim\"\ntrajectory = \"t.csv\"\n[[faults.stuck]]\nr = 5\nc = 0\nvalue = 1\n",
+        "kind = \"mock\"\ntrajectory = \"t.csv\"\n[[faults.stuck]]\nr = 5\nc = 0\nvalue = 1\n",
     )
     .unwrap_err();
     assert!(e.contains("faults.stuck[0]"), "{e}");
@@ -220,7 +225,7 @@ fn open_source_sim_from_files_and_missing_file() {
     )
     .unwrap();
     let text = format!(
-        "kind = \"sim\"\nrate_hz = 0\nlooping = false\ntrajectory = \"{}\"\n[faults]\ndrop_every = 3\n",
+        "kind = \"mock\"\nrate_hz = 0\nlooping = false\ntrajectory = \"{}\"\n[faults]\ndrop_every = 3\n",
         traj.display()
     );
     let mut src = open_source(&parse(&text).unwrap()).unwrap();
@@ -243,9 +248,9 @@ fn open_source_sim_from_files_and_missing_file() {
         Err(lightpose_hal::SourceError::Ended)
     ));
 
-    let missing = parse("kind = \"sim\"\ntrajectory = \"/nonexistent/t.csv\"\n").unwrap();
+    let missing = parse("kind = \"mock\"\ntrajectory = \"/nonexistent/t.csv\"\n").unwrap();
     let e = open_source(&missing).err().unwrap();
-    assert!(matches!(e, HalError::Open { .. }));
+    assert!(matches!(e, HalError::Trajectory(_)), "{e:?}");
     assert!(e.to_string().contains("/nonexistent/t.csv"), "{e}");
 }
 
@@ -274,4 +279,75 @@ fn hardware_kinds_name_the_missing_device() {
         e.to_string().contains("board u0 (/nonexistent/spidev9.9)"),
         "{e}"
     );
+}
+
+/// A program's env: held texts by name, its own default trajectory.
+struct Held;
+impl lightpose_hal::Env for Held {
+    fn default_rate_hz(&self) -> f64 {
+        20.0
+    }
+    fn path(&self, written: &str) -> std::path::PathBuf {
+        std::path::Path::new("/base").join(written)
+    }
+    fn text(
+        &self,
+        key: &str,
+        written: Option<&str>,
+    ) -> Result<lightpose_core::textfile::TextSource, String> {
+        let text = match (key, written) {
+            ("trajectory", None | Some("line")) => {
+                "t,x,y,z,pitch,yaw\n0,8,0,0.1,0,0\n1,7,0,0.1,0,0\n"
+            }
+            ("scene", None) => "[adc]\nbits = 12\nrate_hz = 5.0\n",
+            (_, w) => return Err(format!("{w:?} is not held")),
+        };
+        Ok(lightpose_core::textfile::TextSource::Held {
+            name: format!("held:{key}"),
+            text: text.into(),
+        })
+    }
+}
+
+#[test]
+fn sim_kind_reads_the_texts_its_env_resolves() {
+    let cfg = parse("kind = \"sim\"\nloop = false\n").unwrap();
+    let v = cfg.validate(&Held).unwrap();
+    assert_eq!(v.kind(), "sim");
+    let mut src = lightpose_hal::open(&v, &Stop::new()).unwrap();
+    assert_eq!(src.adc_bits(), 12, "the held scene");
+    assert_eq!(src.rate_hz(), Some(20.0), "the env's rate");
+    assert_eq!(src.period(), Some(std::time::Duration::from_millis(50)));
+    let fast = v.free_running(Some(100.0)).unwrap();
+    let mut fast_src = lightpose_hal::open(&fast, &Stop::new()).unwrap();
+    assert_eq!((fast_src.period(), fast_src.rate_hz()), (None, Some(100.0)));
+    assert!(fast_src.next_frame().is_ok() && src.next_frame().is_ok());
+    let e = parse("kind = \"sim\"\nscene = \"other\"\n")
+        .unwrap()
+        .validate(&Held)
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "source config: scene: Some(\"other\") is not held"
+    );
+    let e = parse("kind = \"sim\"\npace = \"slow\"\n")
+        .unwrap()
+        .validate(&Held)
+        .unwrap_err();
+    assert!(
+        e.to_string().contains("pace: \"slow\" is not a pace"),
+        "{e}"
+    );
+    // A replay's log path is the env's to resolve; boards cannot run free.
+    let r = parse("kind = \"replay\"\nlog = \"r.jsonl\"\n")
+        .unwrap()
+        .validate(&Held)
+        .unwrap();
+    assert!(
+        matches!(&r, ValidBackend::Replay(p) if p.log == std::path::Path::new("/base/r.jsonl"))
+    );
+    let e = lightpose_hal::open(&r, &Stop::new()).err().unwrap();
+    assert!(matches!(e, HalError::Log(_)), "{e:?}");
+    let board = parse(&format!("{MCP_HEAD}{}", mcp_map())).unwrap();
+    assert!(board.validate(&Held).unwrap().free_running(None).is_none());
 }

@@ -5,7 +5,9 @@
 //! input), owns its bus (four chips on a bus would need a bus-sharing
 //! wrapper) and polls through `nb`; a frame here picks channels from a
 //! runtime map over many chips on one bus. The protocol is three register
-//! accesses, so this driver does them directly and borrows the bus.
+//! accesses, so this driver does them directly and borrows the bus; the
+//! tests script those accesses byte for byte (embedded-hal-mock), which a
+//! wrapped crate would hide. (`ads1x1x` is therefore not a dependency.)
 //!
 //! Counts: the chip gives a signed 16-bit code, −32768..32767 over ±FSR.
 //! Photodiode channels are single-ended (AINx against GND), where the code

@@ -5,8 +5,10 @@
 //! rotate by size or age. A disk that refuses is reported (STATUS, log) and
 //! retried; frames that could not be recorded are counted, never hidden.
 
+use super::Output;
 use crate::config::Recording;
-use lightpose_core::{Frame, LogHeader, LogWriter};
+use crate::engine::Acquired;
+use lightpose_core::{Frame, LogHeader, LogWriter, PoseEstimate};
 use std::fs::File;
 use std::io::{self, Write};
 use std::path::PathBuf;
@@ -155,6 +157,18 @@ impl Recorder {
                 tracing::error!("recorder thread panicked");
             }
         }
+    }
+}
+
+/// Records the frame as acquired (with its inputs' readings; the daemon's
+/// fallback temperature is not the board's, and a replay applies it again).
+impl Output for Recorder {
+    #[inline]
+    fn emit(&mut self, frame: &Acquired, _est: &PoseEstimate) {
+        self.record(&frame.frame);
+    }
+    fn finish(&mut self) {
+        Recorder::finish(self);
     }
 }
 

@@ -1,23 +1,28 @@
-//! The replay backend: a recorded intensity log as a FrameSource, at its
+//! The replay source: a recorded intensity log as a [`FrameSource`], at its
 //! recorded pace or as fast as possible, so that a recording goes through
 //! exactly the path of live frames (estimator, POSE, STATUS, recording).
-//! It lives here because lightpose-hal has no log-backed source.
+//! The file format is behind [`log::FrameLog`].
 
-use crate::config::{Pace, ReplayBackend};
-use lightpose_core::{Frame, LogReader};
-use lightpose_hal::{FrameSource, SourceError};
-use std::fs::File;
-use std::io::BufReader;
+pub mod log;
+
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
+
+use lightpose_core::{Frame, LogError};
+
+use crate::config::{Pace, ReplayPlan};
+use crate::pace::Stop;
+use crate::{FrameSource, SourceError};
+use log::{open_log, FrameLog};
 
 pub struct ReplaySource {
     path: PathBuf,
     pace: Pace,
     looping: bool,
-    reader: LogReader<BufReader<File>>,
+    log: Box<dyn FrameLog>,
     adc_bits: u8,
     rate_hz: f64,
+    stop: Stop,
     /// (instant, t) of the first frame: realtime pace keeps to it.
     anchor: Option<(Instant, f64)>,
     /// Added to seq and t of every frame of the current pass so that a
@@ -30,19 +35,19 @@ pub struct ReplaySource {
 }
 
 impl ReplaySource {
-    pub fn open(cfg: &ReplayBackend) -> Result<ReplaySource, SourceError> {
-        let reader = LogReader::open(&cfg.log).map_err(|e| SourceError::Unavailable {
-            place: "replay".into(),
-            msg: e.to_string(),
-        })?;
-        let h = reader.header();
+    /// Open the log `plan` names; waits for a frame's time end early on
+    /// `stop`.
+    pub fn open(plan: &ReplayPlan, stop: &Stop) -> Result<ReplaySource, LogError> {
+        let log = open_log(&plan.log)?;
+        let h = log.header();
         Ok(ReplaySource {
             adc_bits: h.adc_bits,
             rate_hz: h.rate_hz,
-            path: cfg.log.clone(),
-            pace: cfg.pace,
-            looping: cfg.looping,
-            reader,
+            path: plan.log.clone(),
+            pace: plan.pace,
+            looping: plan.looping,
+            log,
+            stop: stop.clone(),
             anchor: None,
             seq_offset: 0,
             t_offset: 0.0,
@@ -52,13 +57,8 @@ impl ReplaySource {
         })
     }
 
-    /// The log's own frame rate (its header).
-    pub fn rate_hz(&self) -> f64 {
-        self.rate_hz
-    }
-
     fn restart(&mut self) -> Result<(), SourceError> {
-        self.reader = LogReader::open(&self.path).map_err(|e| SourceError::Unavailable {
+        self.log = open_log(&self.path).map_err(|e| SourceError::Unavailable {
             place: "replay".into(),
             msg: e.to_string(),
         })?;
@@ -72,29 +72,30 @@ impl ReplaySource {
         self.passes += 1;
         Ok(())
     }
+
+    /// Shift `f` into the current pass and, at recorded pace, wait for its
+    /// time (or a stop).
+    fn release(&mut self, mut f: Frame) -> Frame {
+        if self.first_of_pass.is_none() {
+            self.first_of_pass = Some((f.seq, f.t));
+        }
+        f.seq += self.seq_offset;
+        f.t += self.t_offset;
+        self.last_out = Some((f.seq, f.t));
+        if self.pace == Pace::Realtime {
+            let (i0, t0) = *self.anchor.get_or_insert((Instant::now(), f.t));
+            let due = i0 + Duration::from_secs_f64((f.t - t0).clamp(0.0, 1e9));
+            self.stop.sleep_until(due);
+        }
+        f
+    }
 }
 
 impl FrameSource for ReplaySource {
     fn next_frame(&mut self) -> Result<Frame, SourceError> {
         loop {
-            match self.reader.next_frame() {
-                Some(Ok(mut f)) => {
-                    if self.first_of_pass.is_none() {
-                        self.first_of_pass = Some((f.seq, f.t));
-                    }
-                    f.seq += self.seq_offset;
-                    f.t += self.t_offset;
-                    self.last_out = Some((f.seq, f.t));
-                    if self.pace == Pace::Realtime {
-                        let (i0, t0) = *self.anchor.get_or_insert((Instant::now(), f.t));
-                        let due = i0 + Duration::from_secs_f64((f.t - t0).clamp(0.0, 1e9));
-                        let now = Instant::now();
-                        if due > now {
-                            std::thread::sleep(due - now);
-                        }
-                    }
-                    return Ok(f);
-                }
+            match self.log.next_frame() {
+                Some(Ok(f)) => return Ok(self.release(f)),
                 Some(Err(e)) => {
                     return Err(SourceError::BadData {
                         place: "replay".into(),
@@ -102,7 +103,7 @@ impl FrameSource for ReplaySource {
                     })
                 }
                 None => {
-                    if let Some(line) = self.reader.truncated_at() {
+                    if let Some(line) = self.log.truncated_at() {
                         tracing::warn!(
                             "{}:{line}: last line cut short, ignored",
                             self.path.display()
@@ -135,12 +136,28 @@ impl FrameSource for ReplaySource {
             self.passes
         )
     }
+
+    /// The log's own rate at recorded pace; none when fast.
+    fn period(&self) -> Option<Duration> {
+        match self.pace {
+            Pace::Realtime => Duration::try_from_secs_f64(1.0 / self.rate_hz).ok(),
+            Pace::Fast => None,
+        }
+    }
+
+    fn rate_hz(&self) -> Option<f64> {
+        (self.rate_hz.is_finite() && self.rate_hz > 0.0).then_some(self.rate_hz)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use lightpose_core::{LogHeader, LogWriter, NDET};
+
+    fn open(log: PathBuf, pace: Pace, looping: bool) -> Result<ReplaySource, LogError> {
+        ReplaySource::open(&ReplayPlan { log, pace, looping }, &Stop::new())
+    }
 
     fn write_log(dir: &std::path::Path, n: u64, rate: f64) -> PathBuf {
         let p = dir.join("r.jsonl");
@@ -167,22 +184,12 @@ mod tests {
     fn fast_replay_ends_and_loop_keeps_seq_increasing() {
         let d = tempfile::tempdir().unwrap();
         let log = write_log(d.path(), 3, 10.0);
-        let mut s = ReplaySource::open(&ReplayBackend {
-            log: log.clone(),
-            pace: Pace::Fast,
-            looping: false,
-        })
-        .unwrap();
+        let mut s = open(log.clone(), Pace::Fast, false).unwrap();
         let seqs: Vec<u64> = (0..3).map(|_| s.next_frame().unwrap().seq).collect();
         assert_eq!(seqs, vec![10, 11, 12]);
         assert!(matches!(s.next_frame(), Err(SourceError::Ended)));
 
-        let mut s = ReplaySource::open(&ReplayBackend {
-            log,
-            pace: Pace::Fast,
-            looping: true,
-        })
-        .unwrap();
+        let mut s = open(log, Pace::Fast, true).unwrap();
         let fr: Vec<Frame> = (0..7).map(|_| s.next_frame().unwrap()).collect();
         let seqs: Vec<u64> = fr.iter().map(|f| f.seq).collect();
         assert_eq!(seqs, (10..17).collect::<Vec<_>>());
@@ -201,12 +208,7 @@ mod tests {
     fn recorded_pace_takes_the_logs_time() {
         let d = tempfile::tempdir().unwrap();
         let log = write_log(d.path(), 6, 50.0); // 5 intervals of 20 ms
-        let mut s = ReplaySource::open(&ReplayBackend {
-            log,
-            pace: Pace::Realtime,
-            looping: false,
-        })
-        .unwrap();
+        let mut s = open(log, Pace::Realtime, false).unwrap();
         let t0 = Instant::now();
         while s.next_frame().is_ok() {}
         let el = t0.elapsed();
@@ -223,23 +225,56 @@ mod tests {
         let mut text = std::fs::read_to_string(&log).unwrap();
         text.push_str("garbage\n");
         std::fs::write(&log, text).unwrap();
-        let mut s = ReplaySource::open(&ReplayBackend {
-            log: log.clone(),
-            pace: Pace::Fast,
-            looping: false,
-        })
-        .unwrap();
+        let mut s = open(log.clone(), Pace::Fast, false).unwrap();
         assert!(s.next_frame().is_ok());
         let e = s.next_frame().unwrap_err().to_string();
         assert!(e.contains("r.jsonl:3"), "{e}");
-        let e = ReplaySource::open(&ReplayBackend {
-            log: d.path().join("none"),
-            pace: Pace::Fast,
-            looping: false,
-        })
-        .err()
-        .unwrap()
-        .to_string();
+        let e = open(d.path().join("none"), Pace::Fast, false)
+            .err()
+            .unwrap()
+            .to_string();
         assert!(e.contains("none"), "{e}");
+    }
+
+    #[test]
+    fn a_stop_ends_the_wait_for_a_far_frame() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("gap.jsonl");
+        let mut w = LogWriter::create(&p, &LogHeader::new(10, 10.0)).unwrap();
+        for (seq, t) in [(0, 0.0), (1, 60.0)] {
+            let mut f = Frame {
+                seq,
+                t,
+                adc_bits: 10,
+                counts: [1; NDET],
+                temp_c: None,
+                truth: None,
+                attitude: None,
+                depth: None,
+                velocity: None,
+            };
+            f.counts[0] = seq as u16;
+            w.write_frame(&f).unwrap();
+        }
+        w.flush().unwrap();
+        let stop = Stop::new();
+        let plan = ReplayPlan {
+            log: p,
+            pace: Pace::Realtime,
+            looping: false,
+        };
+        let mut s = ReplaySource::open(&plan, &stop).unwrap();
+        assert_eq!(s.next_frame().unwrap().seq, 0);
+        let raiser = {
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                std::thread::sleep(Duration::from_millis(50));
+                stop.raise();
+            })
+        };
+        let t0 = Instant::now();
+        assert_eq!(s.next_frame().unwrap().seq, 1);
+        raiser.join().unwrap();
+        assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", t0.elapsed());
     }
 }

@@ -4,8 +4,9 @@
 //! heading so that each frame carries pitch and yaw in B (MODEL.md), which is
 //! what lets an estimator tell y from yaw and z from pitch.
 
+use super::Input;
 use crate::config::AttitudeInput;
-use lightpose_core::{Angle, AttitudeReading};
+use lightpose_core::{Angle, AttitudeReading, Frame};
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -38,6 +39,24 @@ impl AttitudeCell {
     pub fn age(&self, now: Instant) -> Option<Duration> {
         let g = self.latest.lock().ok()?;
         g.map(|(at, _)| now.saturating_duration_since(at))
+    }
+}
+
+/// The engine's end of the cell: the latest reading, attached to a frame
+/// that has none when it is younger than `max_age`.
+pub struct LatestAttitude {
+    pub cell: std::sync::Arc<AttitudeCell>,
+    pub max_age: Duration,
+}
+
+impl Input for LatestAttitude {
+    #[inline]
+    fn attach(&mut self, frame: &mut Frame, now: Instant) {
+        // Frames with their own reading (a replayed log) keep it; those
+        // that carry one are counted by the engine (STATUS frames_with).
+        if frame.attitude.is_none() {
+            frame.attitude = self.cell.fresh(now, self.max_age);
+        }
     }
 }
 

@@ -1,7 +1,8 @@
-//! The mock backend: frames from the simulator, flown along a trajectory,
-//! through the same [`FrameSource`] trait as the boards, so that the daemon
-//! runs unchanged without hardware; plus injected faults (bus errors,
-//! dropped frames, stuck channels) for robustness tests of the daemon.
+//! The simulator as a source (kinds `sim` and `mock`): frames from the
+//! simulator, flown along a trajectory, through the same [`FrameSource`]
+//! trait as the boards, so that the daemon runs unchanged without hardware;
+//! plus injected faults (bus errors, dropped frames, stuck channels) for
+//! robustness tests of the daemon.
 //!
 //! Time: frame k has `t` = k / rate (k counting dropped and failed frames,
 //! since a board's clock runs on through them too), the time a paced board
@@ -9,54 +10,26 @@
 //! when looping). Free-running (`rate_hz = 0`) uses the scene's ADC rate
 //! for `t`, so that the trajectory is flown at its speed in simulated time.
 
-use std::path::Path;
+use std::time::Duration;
 
 use lightpose_core::frame::full_scale;
-use lightpose_core::{Frame, COLS, NDET};
-use lightpose_sim::{Scene, Simulator, Trajectory};
+use lightpose_core::{Frame, NDET};
+use lightpose_sim::{Scene, SceneError, Simulator, Trajectory, TrajectoryError};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::config::{FaultConfig, SimConfig};
-use crate::pace::Pacer;
+use crate::config::{Faults, Pace, SimPlan};
+use crate::pace::{Pacer, Stop};
 use crate::{FrameSource, HalError, SourceError, SourceHealth};
 
-/// Faults to inject, validated.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Faults {
-    pub bus_error_every: Option<u64>,
-    pub bus_error_prob: f64,
-    pub drop_every: Option<u64>,
-    pub drop_prob: f64,
-    /// (detector index, value)
-    pub stuck: Vec<(usize, u16)>,
-    pub seed: u64,
-}
-
-impl From<&FaultConfig> for Faults {
-    fn from(f: &FaultConfig) -> Self {
-        Faults {
-            bus_error_every: f.bus_error_every,
-            bus_error_prob: f.bus_error_prob,
-            drop_every: f.drop_every,
-            drop_prob: f.drop_prob,
-            stuck: f
-                .stuck
-                .iter()
-                .map(|s| (s.r * COLS + s.c, s.value))
-                .collect(),
-            seed: f.seed,
-        }
-    }
-}
-
 /// The simulator as a frame source.
-pub struct MockSource {
+pub struct SimSource {
     sim: Simulator,
     traj: Trajectory,
     looping: bool,
-    /// Seconds of simulated time per frame.
+    /// Seconds of simulated time per frame, and its inverse as configured.
     dt: f64,
+    clock_hz: f64,
     /// Frames in one pass of the trajectory; a loop starts again at the
     /// same frame times, so every pass samples exactly the same poses.
     per_pass: u64,
@@ -68,7 +41,7 @@ pub struct MockSource {
     describe: String,
 }
 
-impl MockSource {
+impl SimSource {
     /// `rate_hz = None`: as fast as possible.
     pub fn new(
         sim: Simulator,
@@ -78,11 +51,12 @@ impl MockSource {
         faults: Faults,
     ) -> Self {
         let nominal = rate_hz.unwrap_or(sim.scene().adc.rate_hz);
-        let dt = if nominal.is_finite() && nominal > 0.0 {
-            1.0 / nominal
+        let clock_hz = if nominal.is_finite() && nominal > 0.0 {
+            nominal
         } else {
-            0.2
+            5.0
         };
+        let dt = 1.0 / clock_hz;
         let describe = format!(
             "simulator ({}-bit, {}, {} s trajectory{}){}",
             sim.scene().adc.bits,
@@ -99,13 +73,14 @@ impl MockSource {
             },
         );
         let per_pass = traj.frame_times(1.0 / dt).count().max(1) as u64;
-        MockSource {
+        SimSource {
             per_pass,
             rng: ChaCha8Rng::seed_from_u64(faults.seed),
             sim,
             traj,
             looping,
             dt,
+            clock_hz,
             pacer: Pacer::from_rate(rate_hz),
             faults,
             seq: 0,
@@ -114,41 +89,43 @@ impl MockSource {
         }
     }
 
-    /// Open from the config: load the scene (or the default tank) and the
-    /// trajectory.
-    pub fn open(c: &SimConfig) -> Result<Self, HalError> {
-        let scene = match &c.scene {
-            Some(p) => Scene::load(p).map_err(|e| HalError::Open {
-                place: p.display().to_string(),
-                msg: e.to_string(),
-            })?,
+    /// Open what `plan` describes: read and parse its scene (or take the
+    /// default tank) and trajectory; waits end early on `stop`.
+    pub fn open(plan: &SimPlan, stop: &Stop) -> Result<Self, HalError> {
+        let scene = match &plan.scene {
+            Some(src) => {
+                let text = src.read().map_err(SceneError::from)?;
+                Scene::parse(&text, &src.describe())?
+            }
             None => Scene::default(),
         };
-        let traj = load_trajectory(&c.trajectory)?;
+        let text = plan.trajectory.read().map_err(TrajectoryError::from)?;
+        let traj = Trajectory::parse(&text, &plan.trajectory.describe())?;
         let bits = scene.adc.bits;
-        if let Some(s) = c.faults.stuck.iter().find(|s| s.value > full_scale(bits)) {
+        if let Some(&(_, v)) = plan.faults.stuck.iter().find(|s| s.1 > full_scale(bits)) {
             return Err(HalError::Config {
                 key: "faults.stuck".into(),
-                msg: format!(
-                    "value {} exceeds the scene's {bits}-bit full scale",
-                    s.value
-                ),
+                msg: format!("value {v} exceeds the scene's {bits}-bit full scale"),
             });
         }
-        let rate = (c.rate_hz > 0.0).then_some(c.rate_hz);
-        Ok(Self::new(
-            Simulator::new(scene, c.seed),
+        let mut src = Self::new(
+            Simulator::new(scene, plan.seed),
             traj,
-            rate,
-            c.looping,
-            Faults::from(&c.faults),
-        ))
+            plan.rate_hz,
+            plan.looping,
+            plan.faults.clone(),
+        );
+        src.pacer = src.pacer.clone().stoppable(stop.clone());
+        Ok(match plan.pace {
+            Pace::Realtime => src,
+            Pace::Fast => src.free_running(),
+        })
     }
 
     /// Keep the frame times of the configured rate but hand frames out as
     /// fast as they are asked for (benchmarks, soak tests).
     pub fn free_running(mut self) -> Self {
-        self.pacer = Pacer::from_rate(None);
+        self.pacer = Pacer::new(None);
         self.describe.push_str(", as fast as possible");
         self
     }
@@ -161,14 +138,7 @@ impl MockSource {
     }
 }
 
-fn load_trajectory(p: &Path) -> Result<Trajectory, HalError> {
-    Trajectory::load(p).map_err(|e| HalError::Open {
-        place: p.display().to_string(),
-        msg: e.to_string(),
-    })
-}
-
-impl FrameSource for MockSource {
+impl FrameSource for SimSource {
     fn next_frame(&mut self) -> Result<Frame, SourceError> {
         loop {
             let seq = self.seq;
@@ -211,6 +181,12 @@ impl FrameSource for MockSource {
     fn describe(&self) -> String {
         self.describe.clone()
     }
+    fn period(&self) -> Option<Duration> {
+        self.pacer.period()
+    }
+    fn rate_hz(&self) -> Option<f64> {
+        Some(self.clock_hz)
+    }
     fn health(&self) -> SourceHealth {
         SourceHealth {
             injected_faults: self.injected,
@@ -233,8 +209,8 @@ mod tests {
         Trajectory::from_knots(vec![k(0.0, 8.0), k(1.0, 7.0), k(2.0, 6.0)])
     }
 
-    fn src(looping: bool, faults: Faults) -> MockSource {
-        MockSource::new(
+    fn src(looping: bool, faults: Faults) -> SimSource {
+        SimSource::new(
             Simulator::new(Scene::default(), 7),
             traj(),
             None,

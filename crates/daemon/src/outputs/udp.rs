@@ -1,24 +1,29 @@
 //! UDP publishing: one datagram per message to every unicast destination and
 //! to the multicast group. Sockets are non-blocking std sockets, shared by
-//! the acquisition thread (POSE) and the async side (STATUS, VERSION), so a
-//! datagram leaves in one `sendto` with no hand-off between threads. A
-//! destination that fails is counted and logged on its own; the others go on.
+//! the acquisition thread (POSE, through [`PoseDatagrams`]) and the async
+//! side (STATUS, VERSION), so a datagram leaves in one `sendto` with no
+//! hand-off between threads. A destination that fails is counted and logged
+//! on its own; the others go on.
 
+use super::Output;
 use crate::config::Outputs;
+use crate::engine::Acquired;
 use crate::stats::DestStats;
+use lightpose_core::PoseEstimate;
 use socket2::SockRef;
 use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr, UdpSocket};
 use std::sync::atomic::Ordering::Relaxed;
+use std::sync::Arc;
 
 #[derive(Debug, thiserror::Error)]
 pub enum PublishError {
-    #[error("outputs: cannot open a UDP socket for {family}: {source}")]
+    #[error("outputs: cannot open a UDP socket for {family}")]
     Socket {
         family: &'static str,
         #[source]
         source: std::io::Error,
     },
-    #[error("outputs.multicast: cannot set {what}: {source}")]
+    #[error("outputs.multicast: cannot set {what}")]
     Multicast {
         what: &'static str,
         #[source]
@@ -135,6 +140,30 @@ impl Publisher {
             }
         }
         ok
+    }
+}
+
+/// The POSE of every frame, one datagram to every destination.
+pub struct PoseDatagrams {
+    publisher: Arc<Publisher>,
+    /// The POSE text, one buffer reused for every frame.
+    buf: Vec<u8>,
+}
+
+impl PoseDatagrams {
+    pub fn new(publisher: Arc<Publisher>) -> Self {
+        PoseDatagrams {
+            publisher,
+            buf: Vec::with_capacity(1024),
+        }
+    }
+}
+
+impl Output for PoseDatagrams {
+    #[inline]
+    fn emit(&mut self, frame: &Acquired, est: &PoseEstimate) {
+        est.write_json(Some(frame.wall_unix), &mut self.buf);
+        self.publisher.send(&self.buf);
     }
 }
 

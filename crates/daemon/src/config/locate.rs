@@ -1,0 +1,144 @@
+//! Naming the place of a refusal: toml gives byte spans, a person wants
+//! `file:line: key: msg`. Every table's validator builds its errors here.
+
+use super::ConfigError;
+use lightpose_core::textpos::line_of_offset;
+use std::net::SocketAddr;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+/// The file being validated: its name for messages, its text for line
+/// numbers, its directory for relative paths.
+pub(super) struct Ctx<'a> {
+    pub file: &'a str,
+    pub src: &'a str,
+    pub base_dir: Option<&'a Path>,
+}
+
+impl Ctx<'_> {
+    /// An error at the line of `span`.
+    pub fn err(&self, span: Range<usize>, key: &str, msg: impl Into<String>) -> ConfigError {
+        self.at(line_of_offset(self.src, span.start), key, msg)
+    }
+
+    /// The line of a byte offset.
+    pub fn line(&self, offset: usize) -> usize {
+        line_of_offset(self.src, offset)
+    }
+
+    /// An error at `line`.
+    pub fn at(&self, line: usize, key: &str, msg: impl Into<String>) -> ConfigError {
+        ConfigError::At {
+            file: self.file.to_string(),
+            line,
+            key: key.to_string(),
+            msg: msg.into(),
+        }
+    }
+
+    /// An error about the whole file (a missing key has no line).
+    pub fn whole(&self, msg: impl Into<String>) -> ConfigError {
+        ConfigError::Whole {
+            file: self.file.to_string(),
+            msg: msg.into(),
+        }
+    }
+
+    /// A path written in the file: relative ones are taken from the
+    /// config's directory so that a config and its files travel together.
+    pub fn path(&self, text: &str) -> PathBuf {
+        let p = PathBuf::from(text);
+        match self.base_dir {
+            Some(d) if p.is_relative() => d.join(p),
+            _ => p,
+        }
+    }
+
+    /// The line of `key = ...` inside the table that starts at `table_start`
+    /// (the table's own line when the key is not written there).
+    pub fn line_of_key(&self, table_start: usize, key: &str) -> usize {
+        line_of_key_in_table(self.src, table_start, key)
+    }
+
+    /// toml's refusal of the file as a whole (syntax, a wrong type, an
+    /// unknown key), at the line of its span.
+    pub fn toml_error(&self, e: &toml::de::Error) -> ConfigError {
+        let msg = e.message().trim().replace('\n', " ");
+        match e.span() {
+            Some(s) => self.at(
+                line_of_offset(self.src, s.start),
+                &key_on_line(self.src, s.start),
+                msg,
+            ),
+            None => self.whole(msg),
+        }
+    }
+}
+
+/// The key written on the line of `offset`, for errors whose span points at
+/// a value; "?" when the line holds no `key =`.
+pub(super) fn key_on_line(src: &str, offset: usize) -> String {
+    let start = src[..offset.min(src.len())]
+        .rfind('\n')
+        .map_or(0, |i| i + 1);
+    let line = src[start..].lines().next().unwrap_or("");
+    match line.split_once('=') {
+        Some((k, _)) if !k.trim().is_empty() && !k.trim_start().starts_with('[') => {
+            k.trim().trim_matches('"').to_string()
+        }
+        _ => {
+            let t = line.trim();
+            if t.starts_with('[') {
+                t.trim_matches(|c| c == '[' || c == ']').to_string()
+            } else {
+                "?".into()
+            }
+        }
+    }
+}
+
+/// Line of `key = ...` inside the table that starts at `table_start`, or
+/// the table's own line when the key is not written there.
+pub(super) fn line_of_key_in_table(src: &str, table_start: usize, key: &str) -> usize {
+    let from = table_start.min(src.len());
+    let base = line_of_offset(src, from);
+    for (i, line) in src[from..].lines().enumerate() {
+        let t = line.trim_start();
+        if i > 0 && t.starts_with('[') {
+            break;
+        }
+        if let Some((k, _)) = t.split_once('=') {
+            if k.trim().trim_matches('"') == key {
+                return base + i;
+            }
+        }
+    }
+    base
+}
+
+pub(super) fn positive(ctx: &Ctx, v: &Spanned<f64>, key: &str) -> Result<f64, ConfigError> {
+    let x = *v.get_ref();
+    if x.is_finite() && x > 0.0 {
+        Ok(x)
+    } else {
+        Err(ctx.err(v.span(), key, format!("{x} must be a positive number")))
+    }
+}
+
+pub(super) fn socket_addr(
+    ctx: &Ctx,
+    v: &Spanned<String>,
+    key: &str,
+) -> Result<SocketAddr, ConfigError> {
+    v.get_ref().parse::<SocketAddr>().map_err(|_| {
+        ctx.err(
+            v.span(),
+            key,
+            format!(
+                "\"{}\" is not an address:port (e.g. \"127.0.0.1:17150\")",
+                v.get_ref()
+            ),
+        )
+    })
+}

@@ -1,0 +1,296 @@
+//! The daemon's configuration: TOML parsed with spans, then validated into a
+//! typed [`Config`] so that every later stage can trust it. A file that is
+//! refused is refused at start, in one line naming the file, the line and the
+//! key (toml's byte span turned into a line number), never half-way through a
+//! dive.
+//!
+//! One validator per table, each in its own file: [`top`] (the top-level
+//! keys), [`backend`] (handed to lightpose-hal), [`temperature`],
+//! [`outputs`], [`recording`], [`attitude`], [`logging`]; [`locate`] turns
+//! spans into lines and [`embedded`] resolves `embedded:NAME`.
+
+pub mod attitude;
+pub mod backend;
+pub mod embedded;
+mod locate;
+pub mod logging;
+pub mod outputs;
+pub mod recording;
+pub mod temperature;
+pub mod top;
+
+pub use attitude::AttitudeInput;
+pub use logging::{LogFormat, Logging};
+pub use outputs::{Multicast, Outputs};
+pub use recording::Recording;
+
+use lightpose_core::textfile::{read_text, TextError, TextSource};
+use lightpose_hal::ValidBackend;
+use locate::Ctx;
+use serde::Deserialize;
+use std::path::Path;
+use toml::Spanned;
+
+/// The validated configuration: everything the daemon needs, typed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Config {
+    /// Where it came from (a path, or "embedded default").
+    pub origin: String,
+    pub rate_hz: f64,
+    /// A frame is late when it is done more than this fraction of a period
+    /// after it was due.
+    pub late_tolerance: f64,
+    pub estimator: String,
+    pub calibration: TextSource,
+    /// Where frames come from, validated by lightpose-hal; opened with
+    /// `lightpose_hal::open`, the daemon never looks inside.
+    pub backend: ValidBackend,
+    /// Used when a frame carries no temperature.
+    pub fallback_temp_c: Option<f64>,
+    pub outputs: Outputs,
+    pub recording: Option<Recording>,
+    pub attitude: Option<AttitudeInput>,
+    pub logging: Logging,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// Unreadable, too large or not UTF-8 (the message names the file).
+    #[error(transparent)]
+    Text(#[from] TextError),
+    #[error("{file}:{line}: {key}: {msg}")]
+    At {
+        file: String,
+        line: usize,
+        key: String,
+        msg: String,
+    },
+    #[error("{file}: {msg}")]
+    Whole { file: String, msg: String },
+}
+
+/// The file as written, each table left to its validator (the top-level
+/// keys to [`top`]).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Raw {
+    rate_hz: Option<Spanned<f64>>,
+    late_tolerance: Option<Spanned<f64>>,
+    estimator: Option<Spanned<String>>,
+    calibration: Option<Spanned<String>>,
+    backend: Option<Spanned<toml::Table>>,
+    temperature: Option<temperature::RawTemperature>,
+    outputs: Option<outputs::RawOutputs>,
+    recording: Option<recording::RawRecording>,
+    attitude: Option<attitude::RawAttitude>,
+    logging: Option<logging::RawLogging>,
+}
+
+impl Config {
+    /// Read and validate a config file.
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let src = read_text(path)?;
+        Config::parse(&src, &path.display().to_string(), path.parent())
+    }
+
+    /// The embedded default: the simulated tank, looping, publishing to
+    /// 127.0.0.1:17150.
+    pub fn embedded_default() -> Result<Config, ConfigError> {
+        Config::parse(
+            embedded::DEFAULT_CONFIG,
+            "embedded default (config/lightposed.toml)",
+            None,
+        )
+    }
+
+    /// Parse and validate config text; `file` names it in errors and
+    /// `base_dir` anchors relative paths.
+    pub fn parse(src: &str, file: &str, base_dir: Option<&Path>) -> Result<Config, ConfigError> {
+        let ctx = Ctx {
+            file,
+            src,
+            base_dir,
+        };
+        let raw: Raw = toml::from_str(src).map_err(|e| ctx.toml_error(&e))?;
+        let top = top::validate(&ctx, &raw)?;
+        let backend = backend::validate(&ctx, raw.backend.as_ref(), top.rate_hz)?;
+        let fallback_temp_c = temperature::validate(&ctx, raw.temperature.as_ref())?;
+        let outputs = outputs::validate(&ctx, raw.outputs.as_ref())?;
+        let recording = recording::validate(&ctx, raw.recording.as_ref())?;
+        let attitude = attitude::validate(&ctx, raw.attitude.as_ref())?;
+        let logging = logging::validate(&ctx, raw.logging.as_ref())?;
+        if outputs.destinations.is_empty() && outputs.multicast.is_none() {
+            tracing::warn!("{file}: no outputs.destinations and no multicast: poses go nowhere");
+        }
+        Ok(Config {
+            origin: file.to_string(),
+            rate_hz: top.rate_hz,
+            late_tolerance: top.late_tolerance,
+            estimator: top.estimator,
+            calibration: top.calibration,
+            backend,
+            fallback_temp_c,
+            outputs,
+            recording,
+            attitude,
+            logging,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::locate::{key_on_line, line_of_key_in_table};
+    use super::*;
+    use lightpose_core::textpos::line_of_offset;
+    use lightpose_hal::config::ReplayPlan;
+    use lightpose_hal::Pace;
+    use std::net::SocketAddr;
+    use std::time::Duration;
+
+    const MIN: &str = r#"
+rate_hz = 50.0
+calibration = "cal.toml"
+
+[backend]
+kind = "replay"
+log = "x.jsonl"
+pace = "fast"
+
+[outputs]
+destinations = ["127.0.0.1:9999"]
+"#;
+
+    fn parse(s: &str) -> Result<Config, ConfigError> {
+        Config::parse(s, "t.toml", Some(Path::new("/etc/lp")))
+    }
+
+    #[test]
+    fn minimal_file_validates_with_defaults() {
+        let c = parse(MIN).expect("valid");
+        assert_eq!(c.rate_hz, 50.0);
+        assert_eq!(c.estimator, "auto");
+        assert_eq!(c.calibration, TextSource::File("/etc/lp/cal.toml".into()));
+        assert_eq!(
+            c.backend,
+            ValidBackend::Replay(ReplayPlan {
+                log: "/etc/lp/x.jsonl".into(),
+                pace: Pace::Fast,
+                looping: false
+            })
+        );
+        assert_eq!(
+            c.outputs.destinations,
+            vec!["127.0.0.1:9999".parse::<SocketAddr>().unwrap()]
+        );
+        assert_eq!(c.outputs.status_interval, Duration::from_secs(1));
+        assert!(c.recording.is_none() && c.attitude.is_none());
+    }
+
+    fn err(s: &str) -> String {
+        parse(s).expect_err("must be refused").to_string()
+    }
+
+    #[test]
+    fn bad_values_name_line_and_key() {
+        let e = err(&MIN.replace("rate_hz = 50.0", "rate_hz = -1.0"));
+        assert_eq!(e, "t.toml:2: rate_hz: -1 must be a positive number");
+        let e = err(&MIN.replace("127.0.0.1:9999", "nowhere"));
+        assert!(
+            e.starts_with("t.toml:11: outputs.destinations: \"nowhere\""),
+            "{e}"
+        );
+        let e = err(&format!(
+            "{MIN}\n[outputs.multicast]\ngroup = \"10.0.0.1:5\"\n"
+        ));
+        assert!(
+            e.starts_with("t.toml:14: outputs.multicast.group: 10.0.0.1 is not a multicast"),
+            "{e}"
+        );
+        let e = err(&MIN.replace("pace = \"fast\"", "pace = \"slow\""));
+        assert!(e.starts_with("t.toml:8: backend.pace:"), "{e}");
+    }
+
+    #[test]
+    fn syntax_and_unknown_keys_name_line() {
+        let e = err(&MIN.replace("rate_hz = 50.0", "rate_hz = 50.0\nrte = 3"));
+        assert!(e.starts_with("t.toml:3: rte: unknown field `rte`"), "{e}");
+        let e = err(&MIN.replace("rate_hz = 50.0", "rate_hz = \"fast\""));
+        assert!(e.starts_with("t.toml:2: rate_hz:"), "{e}");
+        let e = err(&MIN.replace("log = \"x.jsonl\"", "log = \"x.jsonl\"\nspeed = 2"));
+        assert!(
+            e.starts_with("t.toml:8: backend.speed: unknown field `speed`"),
+            "{e}"
+        );
+        let e = err("rate_hz = [\n");
+        assert!(
+            e.starts_with("t.toml:2:") || e.starts_with("t.toml:1:"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "one line: {e}");
+    }
+
+    #[test]
+    fn missing_calibration_and_backend_are_named() {
+        assert!(err("[backend]\nkind=\"sim\"\n").contains("calibration: missing"));
+        assert!(err("calibration = \"c\"\n").contains("[backend]: missing"));
+    }
+
+    #[test]
+    fn sim_backend_takes_the_top_rate_and_the_embedded_defaults() {
+        let c = parse(&MIN.replace(
+            "kind = \"replay\"\nlog = \"x.jsonl\"\npace = \"fast\"",
+            "kind = \"sim\"\ntrajectory = \"embedded:dive\"",
+        ))
+        .expect("valid");
+        let ValidBackend::Sim(s) = &c.backend else {
+            panic!("{:?}", c.backend)
+        };
+        assert_eq!(c.backend.kind(), "sim");
+        assert_eq!(s.rate_hz, Some(50.0));
+        assert_eq!((s.pace, s.looping, s.seed), (Pace::Realtime, true, 1));
+        assert_eq!(
+            s.scene.as_ref().map(|t| t.describe()).as_deref(),
+            Some("embedded:tank-scene")
+        );
+        assert_eq!(s.trajectory.describe(), "embedded:dive");
+        let e = err(&MIN.replace(
+            "kind = \"replay\"\nlog = \"x.jsonl\"\npace = \"fast\"",
+            "kind = \"sim\"\ntrajectory = \"\"",
+        ));
+        assert_eq!(e, "t.toml:7: backend.trajectory: empty path");
+    }
+
+    #[test]
+    fn hal_refusals_name_the_line_of_their_key() {
+        let board = |body: &str| {
+            err(&MIN.replace(
+                "kind = \"replay\"\nlog = \"x.jsonl\"\npace = \"fast\"",
+                body,
+            ))
+        };
+        let e = board("kind = \"mock\"\ntrajectory = \"t.csv\"\nfaults = { drop_prob = 2.0 }");
+        assert_eq!(
+            e,
+            "t.toml:8: backend.faults.drop_prob: 2 is not a probability in 0..=1"
+        );
+        let e = board("kind = \"mcp3008\"\nchips = []\nmap = []");
+        assert_eq!(e, "t.toml:7: backend.chips: none configured");
+        let e = board("kind = \"warp\"");
+        assert!(
+            e.starts_with("t.toml:6: backend.kind: unknown backend \"warp\" (sim, replay"),
+            "{e}"
+        );
+        let e = board("log = \"x.jsonl\"");
+        assert!(e.starts_with("t.toml:5: backend.kind: missing"), "{e}");
+    }
+
+    #[test]
+    fn line_helpers() {
+        let s = "a = 1\n[t]\nb = 2\n";
+        assert_eq!(line_of_offset(s, 0), 1);
+        assert_eq!(line_of_offset(s, 6), 2);
+        assert_eq!(line_of_key_in_table(s, 6, "b"), 3);
+        assert_eq!(key_on_line(s, 14), "b");
+    }
+}

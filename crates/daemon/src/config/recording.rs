@@ -1,0 +1,76 @@
+//! `[recording]`: raw frames written as intensity logs, rotated by size or
+//! age, behind a bounded queue.
+
+use super::locate::{positive, Ctx};
+use super::ConfigError;
+use serde::Deserialize;
+use std::path::PathBuf;
+use std::time::Duration;
+use toml::Spanned;
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recording {
+    pub dir: PathBuf,
+    /// Start a new file when the current one reaches this size.
+    pub rotate_bytes: Option<u64>,
+    /// Start a new file when the current one is this old.
+    pub rotate_after: Option<Duration>,
+    /// Frames that may wait for the disk before they are counted as lost.
+    pub queue: usize,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawRecording {
+    enabled: Option<bool>,
+    dir: Option<Spanned<String>>,
+    rotate_mb: Option<Spanned<f64>>,
+    rotate_minutes: Option<Spanned<f64>>,
+    queue: Option<Spanned<i64>>,
+}
+
+/// `None` when the table is absent or not enabled.
+pub(super) fn validate(
+    ctx: &Ctx,
+    raw: Option<&RawRecording>,
+) -> Result<Option<Recording>, ConfigError> {
+    let Some(r) = raw.filter(|r| r.enabled.unwrap_or(true)) else {
+        return Ok(None);
+    };
+    let dir = match &r.dir {
+        Some(d) if !d.get_ref().trim().is_empty() => ctx.path(d.get_ref()),
+        Some(d) => return Err(ctx.err(d.span(), "recording.dir", "empty path")),
+        None => std::env::var_os("STATE_DIRECTORY")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from("/var/lib/lightposed")),
+    };
+    let rotate_bytes = match &r.rotate_mb {
+        Some(v) => {
+            Some((positive(ctx, v, "recording.rotate_mb")? * 1024.0 * 1024.0).max(1.0) as u64)
+        }
+        None => None,
+    };
+    let rotate_after = match &r.rotate_minutes {
+        Some(v) => Some(Duration::from_secs_f64(
+            positive(ctx, v, "recording.rotate_minutes")?.min(1e6) * 60.0,
+        )),
+        None => None,
+    };
+    let queue = match &r.queue {
+        Some(q) if (1..=1_000_000).contains(q.get_ref()) => *q.get_ref() as usize,
+        Some(q) => {
+            return Err(ctx.err(
+                q.span(),
+                "recording.queue",
+                format!("{} is not in 1..1000000", q.get_ref()),
+            ))
+        }
+        None => 4096,
+    };
+    Ok(Some(Recording {
+        dir,
+        rotate_bytes,
+        rotate_after,
+        queue,
+    }))
+}

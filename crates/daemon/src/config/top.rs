@@ -1,0 +1,46 @@
+//! The top-level keys: the frame rate, the lateness tolerance, the
+//! estimator's name and the calibration.
+
+use super::locate::{positive, Ctx};
+use super::{embedded, ConfigError, Raw};
+use lightpose_core::textfile::TextSource;
+
+pub(super) struct Top {
+    pub rate_hz: f64,
+    pub late_tolerance: f64,
+    pub estimator: String,
+    pub calibration: TextSource,
+}
+
+pub(super) fn validate(ctx: &Ctx, raw: &Raw) -> Result<Top, ConfigError> {
+    let rate_hz = match &raw.rate_hz {
+        Some(v) => positive(ctx, v, "rate_hz")?,
+        None => 5.0,
+    };
+    let late_tolerance = match &raw.late_tolerance {
+        Some(v) => positive(ctx, v, "late_tolerance")?,
+        None => 0.5,
+    };
+    let estimator = match &raw.estimator {
+        Some(v) if v.get_ref().trim().is_empty() => {
+            return Err(ctx.err(v.span(), "estimator", "empty estimator name"))
+        }
+        Some(v) => v.get_ref().clone(),
+        None => "auto".into(),
+    };
+    let calibration = match &raw.calibration {
+        Some(v) => embedded::resolve(ctx, v.get_ref())
+            .map_err(|msg| ctx.err(v.span(), "calibration", msg))?,
+        None => {
+            return Err(ctx.whole(
+                "calibration: missing (a calibration file, or \"embedded:tank-calibration\")",
+            ))
+        }
+    };
+    Ok(Top {
+        rate_hz,
+        late_tolerance,
+        estimator,
+        calibration,
+    })
+}

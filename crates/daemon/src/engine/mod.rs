@@ -1,0 +1,588 @@
+//! The per-frame path, in one dedicated std thread: acquire → account for
+//! seq and losses → attach inputs → estimate → hand to every output (POSE
+//! datagram, recording, ...) → deadline accounting. Each step is a method
+//! below; inputs ([`crate::inputs::Input`]) and outputs
+//! ([`crate::outputs::Output`]) plug in without touching the loop.
+//!
+//! Why one thread and std sockets rather than a channel into tokio:
+//! `FrameSource::next_frame` blocks, so it needs its own thread anyway, and
+//! doing the rest of the frame right there removes a hand-off (a channel
+//! wake-up and a context switch, tens of µs on a small ARM board) from the
+//! frame-to-datagram latency budget (p99 < 1 ms). The async side keeps the
+//! slow, periodic work: STATUS, the watchdog, signals, the attitude input.
+//!
+//! Nothing here allocates per frame once warm: the frame is a Copy value,
+//! inputs and outputs are called through a fixed list, the POSE text goes
+//! into one reused buffer, the recorder queue's slots are allocated once,
+//! counters are atomics. Every wait (the source's pacing, the pause after a
+//! dead bus) ends at once when the [`Stop`] is raised.
+
+mod ratelog;
+
+use crate::inputs::Input;
+use crate::outputs::Output;
+use crate::stats::{BackendState, Stats, TempSource};
+use lightpose_core::{Estimator, Frame, PoseEstimate};
+use lightpose_hal::{FrameSource, SourceError, Stop};
+use ratelog::RateLog;
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::mpsc::Receiver;
+use std::sync::Arc;
+use std::time::{Duration, Instant, SystemTime};
+
+/// Why the loop ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum EndReason {
+    /// Asked to stop (SIGTERM, shutdown future).
+    Stopped,
+    /// The source has no more frames.
+    SourceEnded,
+    /// The frame budget of a benchmark was spent.
+    FrameLimit,
+}
+
+/// One frame on its way through the engine.
+#[derive(Debug, Clone, Copy)]
+pub struct Acquired {
+    pub frame: Frame,
+    /// When the source gave it: latency and deadlines count from here.
+    pub arrival: Instant,
+    /// The wall clock then (Unix seconds): the POSE's `time`.
+    pub wall_unix: f64,
+}
+
+/// The frame loop and what it needs. Built with [`Engine::new`] and the
+/// setters below (each has a default), then [`Engine::run`] on its thread.
+pub struct Engine {
+    source: Box<dyn FrameSource>,
+    estimator: Box<dyn Estimator>,
+    inputs: Vec<Box<dyn Input>>,
+    outputs: Vec<Box<dyn Output>>,
+    stats: Arc<Stats>,
+    stop: Stop,
+    /// New estimators from a calibration reload (SIGHUP).
+    reload: Option<Receiver<Box<dyn Estimator>>>,
+    /// Expected period, for deadline accounting; `None` when the source
+    /// goes as fast as it can.
+    period: Option<Duration>,
+    late_tolerance: f64,
+    fallback_temp_c: Option<f64>,
+    max_frames: Option<u64>,
+    /// Base for the heartbeat the watchdog looks at.
+    epoch: Instant,
+}
+
+/// What the loop keeps from one frame to the next.
+struct Books {
+    /// (arrival, seq) that due times are counted from.
+    anchor: Option<(Instant, u64)>,
+    last_seq: Option<u64>,
+    /// Failures since the last good frame: a board's seq runs on through
+    /// them, and they are already counted as failed, not as lost.
+    failed_since_ok: u64,
+    late_log: RateLog,
+    fail_log: RateLog,
+    lost_log: RateLog,
+    health_at: Instant,
+}
+
+/// What one attempt to acquire gave. The frame by value, on the stack:
+/// boxing it would allocate per frame.
+#[allow(clippy::large_enum_variant)]
+enum Got {
+    Frame(Acquired),
+    /// A failed read, counted: try again.
+    Retry,
+    End(EndReason),
+}
+
+impl Engine {
+    /// An engine on `source` with `estimator`, no inputs or outputs yet;
+    /// deadlines at the source's own period, late after half a period.
+    pub fn new(source: Box<dyn FrameSource>, estimator: Box<dyn Estimator>) -> Engine {
+        let period = source.period();
+        Engine {
+            source,
+            estimator,
+            inputs: Vec::new(),
+            outputs: Vec::new(),
+            stats: Arc::new(Stats::default()),
+            stop: Stop::new(),
+            reload: None,
+            period,
+            late_tolerance: 0.5,
+            fallback_temp_c: None,
+            max_frames: None,
+            epoch: Instant::now(),
+        }
+    }
+
+    /// Counters to report from (shared with STATUS).
+    pub fn stats(mut self, stats: Arc<Stats>) -> Self {
+        self.stats = stats;
+        self
+    }
+    /// The stop that ends the loop (raised by the supervisor); give the
+    /// source the same one so that its waits end too.
+    pub fn stop(mut self, stop: Stop) -> Self {
+        self.stop = stop;
+        self
+    }
+    pub fn input(mut self, input: Box<dyn Input>) -> Self {
+        self.inputs.push(input);
+        self
+    }
+    /// Outputs are handed each frame in the order they are added.
+    pub fn output(mut self, output: Box<dyn Output>) -> Self {
+        self.outputs.push(output);
+        self
+    }
+    pub fn reload(mut self, rx: Receiver<Box<dyn Estimator>>) -> Self {
+        self.reload = Some(rx);
+        self
+    }
+    /// Deadlines at another period than the source's (`None`: none).
+    pub fn period(mut self, period: Option<Duration>) -> Self {
+        self.period = period;
+        self
+    }
+    pub fn late_tolerance(mut self, fraction: f64) -> Self {
+        self.late_tolerance = fraction;
+        self
+    }
+    pub fn fallback_temp_c(mut self, t: Option<f64>) -> Self {
+        self.fallback_temp_c = t;
+        self
+    }
+    /// Stop after this many frames (benchmarks).
+    pub fn max_frames(mut self, n: u64) -> Self {
+        self.max_frames = Some(n);
+        self
+    }
+    /// Base of the heartbeat (the daemon's start).
+    pub fn epoch(mut self, epoch: Instant) -> Self {
+        self.epoch = epoch;
+        self
+    }
+
+    /// Run until stopped, the source ends, or `max_frames` frames.
+    pub fn run(mut self) -> EndReason {
+        let mut books = Books {
+            anchor: None,
+            last_seq: None,
+            failed_since_ok: 0,
+            late_log: RateLog::new(),
+            fail_log: RateLog::new(),
+            lost_log: RateLog::new(),
+            health_at: Instant::now(),
+        };
+        self.stats.set_state(BackendState::Running);
+        let reason = loop {
+            if let Some(end) = self.between_frames(&mut books) {
+                break end;
+            }
+            let mut acq = match self.acquire(&mut books) {
+                Got::Frame(a) => a,
+                Got::Retry => continue,
+                Got::End(end) => break end,
+            };
+            self.account_seq(&acq, &mut books);
+            self.attach_inputs(&mut acq);
+            let est = self.estimate(&acq.frame);
+            for o in &mut self.outputs {
+                o.emit(&acq, &est);
+            }
+            self.account_done(&acq, &est, Instant::now(), &mut books);
+        };
+        for o in &mut self.outputs {
+            o.finish();
+        }
+        if reason != EndReason::SourceEnded {
+            self.stats.set_state(BackendState::Stopped);
+        }
+        reason
+    }
+
+    fn beat(&self) {
+        self.stats
+            .heartbeat_ns
+            .store(self.epoch.elapsed().as_nanos() as u64, Relaxed);
+    }
+
+    /// Stop, frame budget, calibration reload, heartbeat and (once a
+    /// second) the source's health.
+    fn between_frames(&mut self, books: &mut Books) -> Option<EndReason> {
+        if self.stop.is_raised() {
+            return Some(EndReason::Stopped);
+        }
+        if self
+            .max_frames
+            .is_some_and(|m| self.stats.frames.load(Relaxed) >= m)
+        {
+            return Some(EndReason::FrameLimit);
+        }
+        if let Some(e) = self.reload.as_ref().and_then(|rx| rx.try_recv().ok()) {
+            tracing::info!("calibration reloaded: estimator {} replaced", e.name());
+            self.estimator = e;
+            self.stats.calibration_reloads.fetch_add(1, Relaxed);
+        }
+        self.beat();
+        if books.health_at.elapsed() >= Duration::from_secs(1) {
+            // Once a second, not per frame: the copy allocates.
+            books.health_at = Instant::now();
+            if let Ok(mut h) = self.stats.source_health.lock() {
+                *h = Some(self.source.health());
+            }
+        }
+        None
+    }
+
+    /// The next frame from the source; a failure is counted and logged,
+    /// and after a dead bus (which fails at once) the loop pauses rather
+    /// than spin a core on it.
+    fn acquire(&mut self, books: &mut Books) -> Got {
+        let got = self.source.next_frame();
+        let arrival = Instant::now();
+        let wall_unix = SystemTime::now()
+            .duration_since(SystemTime::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        self.beat();
+        let stats = &self.stats;
+        match got {
+            Ok(frame) => {
+                if stats.state() != BackendState::Running {
+                    stats.set_state(BackendState::Running);
+                }
+                Got::Frame(Acquired {
+                    frame,
+                    arrival,
+                    wall_unix,
+                })
+            }
+            Err(SourceError::Ended) => {
+                stats.set_state(BackendState::Ended);
+                tracing::info!("source ended after {} frames", stats.frames.load(Relaxed));
+                Got::End(EndReason::SourceEnded)
+            }
+            Err(e) => {
+                let n = stats.failed.fetch_add(1, Relaxed) + 1;
+                books.failed_since_ok += 1;
+                stats.set_state(BackendState::Failing);
+                if let Some(k) = books.fail_log.tick(arrival) {
+                    tracing::warn!(failed_total = n, since_last_line = k, "frame failed: {e}");
+                }
+                if let Ok(mut g) = stats.last_error.lock() {
+                    *g = Some(e.to_string());
+                }
+                if matches!(e, SourceError::Unavailable { .. }) {
+                    let pause = self
+                        .period
+                        .unwrap_or(Duration::from_millis(10))
+                        .min(Duration::from_millis(100));
+                    self.stop.sleep(pause);
+                }
+                Got::Retry
+            }
+        }
+    }
+
+    /// Frames the source skipped (a gap in seq, failures not counted
+    /// again).
+    fn account_seq(&self, acq: &Acquired, books: &mut Books) {
+        let seq = acq.frame.seq;
+        if let Some(prev) = books.last_seq {
+            let gap = seq
+                .saturating_sub(prev + 1)
+                .saturating_sub(books.failed_since_ok);
+            if gap > 0 {
+                let n = self.stats.lost.fetch_add(gap, Relaxed) + gap;
+                if let Some(k) = books.lost_log.tick(acq.arrival) {
+                    tracing::warn!(
+                        lost_total = n,
+                        gaps_since_last_line = k,
+                        "seq jumped {prev} → {seq}: frames lost at the source"
+                    );
+                }
+            }
+        }
+        books.last_seq = Some(seq);
+        books.failed_since_ok = 0;
+        self.stats.last_seq.store(seq, Relaxed);
+    }
+
+    /// Every input's fresh reading onto the frame.
+    fn attach_inputs(&mut self, acq: &mut Acquired) {
+        for i in &mut self.inputs {
+            i.attach(&mut acq.frame, acq.arrival);
+        }
+        if acq.frame.attitude.is_some() {
+            self.stats.frames_with_attitude.fetch_add(1, Relaxed);
+        }
+    }
+
+    /// The estimate, with the fallback temperature when the frame has none.
+    fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
+        let mut f = *frame;
+        match (frame.temp_c, self.fallback_temp_c) {
+            (Some(t), _) => self.stats.set_temp(Some(t), TempSource::Frame),
+            (None, Some(fb)) => {
+                f.temp_c = Some(fb);
+                self.stats.set_temp(Some(fb), TempSource::Fallback);
+            }
+            (None, None) => self.stats.set_temp(None, TempSource::Missing),
+        }
+        self.estimator.estimate(&f)
+    }
+
+    /// Latency, counts, and the deadline: with a period, frame `seq` is
+    /// due at `anchor + (seq − anchor_seq) × period`, so that the frame
+    /// after a dropped or failed one is judged by its own slot.
+    fn account_done(&self, acq: &Acquired, est: &PoseEstimate, done: Instant, books: &mut Books) {
+        let stats = &self.stats;
+        stats.latency.record(done - acq.arrival);
+        let si = est.status.index();
+        stats.by_status[si].fetch_add(1, Relaxed);
+        stats.last_status.store(si as u8, Relaxed);
+        stats.frames.fetch_add(1, Relaxed);
+
+        let Some(p) = self.period else { return };
+        let seq = acq.frame.seq;
+        let (a_at, a_seq) = *books.anchor.get_or_insert((acq.arrival, seq));
+        let slots = seq.saturating_sub(a_seq).min(u32::MAX as u64) as u32;
+        let due = a_at + p * slots;
+        if done > due + p.mul_f64(self.late_tolerance) {
+            let n = stats.late.fetch_add(1, Relaxed) + 1;
+            if let Some(k) = books.late_log.tick(done) {
+                tracing::warn!(
+                    late_total = n,
+                    since_last_line = k,
+                    "frame {seq} late by {:.1} ms (period {:.1} ms)",
+                    (done - due).as_secs_f64() * 1e3,
+                    p.as_secs_f64() * 1e3
+                );
+            }
+            // Re-anchor on this frame: one stall counts once, not every
+            // frame after it.
+            books.anchor = Some((acq.arrival, seq));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lightpose_core::{Angle, AttitudeReading, Status, NDET};
+    use std::sync::Mutex;
+
+    /// Frames every `period`, except that one frame comes `stall` late.
+    struct Stalling {
+        k: u64,
+        start: Option<Instant>,
+        period: Duration,
+        stall_at: u64,
+        stall: Duration,
+        fail_at: u64,
+    }
+
+    impl FrameSource for Stalling {
+        fn next_frame(&mut self) -> Result<Frame, SourceError> {
+            let k = self.k;
+            self.k += 1;
+            let start = *self.start.get_or_insert_with(Instant::now);
+            let mut due = start + self.period * k as u32;
+            if k >= self.stall_at {
+                due += self.stall;
+            }
+            if let Some(w) = due.checked_duration_since(Instant::now()) {
+                std::thread::sleep(w);
+            }
+            if k == self.fail_at {
+                return Err(SourceError::Timeout {
+                    place: "test".into(),
+                });
+            }
+            Ok(frame(k, k as f64 * self.period.as_secs_f64()))
+        }
+        fn adc_bits(&self) -> u8 {
+            10
+        }
+        fn describe(&self) -> String {
+            "stalling test source".into()
+        }
+        fn period(&self) -> Option<Duration> {
+            Some(self.period)
+        }
+    }
+
+    fn frame(seq: u64, t: f64) -> Frame {
+        Frame {
+            seq,
+            t,
+            adc_bits: 10,
+            counts: [100; NDET],
+            temp_c: None,
+            truth: None,
+            attitude: None,
+            depth: None,
+            velocity: None,
+        }
+    }
+
+    struct Nothing;
+    impl Estimator for Nothing {
+        fn name(&self) -> &'static str {
+            "nothing"
+        }
+        fn estimate(&mut self, f: &Frame) -> PoseEstimate {
+            PoseEstimate::empty(f.seq, f.t, Status::NoLight, "nothing")
+        }
+        fn reset(&mut self) {}
+    }
+
+    #[test]
+    fn a_stall_counts_once_as_late_and_a_failure_as_failed() {
+        let period = Duration::from_millis(20);
+        let stats = Arc::new(Stats::default());
+        let source = Stalling {
+            k: 0,
+            start: None,
+            period,
+            stall_at: 10,
+            stall: Duration::from_millis(200),
+            fail_at: 20,
+        };
+        // Deadlines at the source's own period.
+        let e = Engine::new(Box::new(source), Box::new(Nothing))
+            .stats(stats.clone())
+            // Generous: a loaded CI machine oversleeps by milliseconds.
+            .late_tolerance(2.0)
+            .fallback_temp_c(Some(12.0))
+            .max_frames(30);
+        assert_eq!(e.run(), EndReason::FrameLimit);
+        assert_eq!(stats.frames.load(Relaxed), 30);
+        assert_eq!(stats.late.load(Relaxed), 1, "the stalled frame, once");
+        assert_eq!(stats.failed.load(Relaxed), 1);
+        assert_eq!(
+            stats.lost.load(Relaxed),
+            0,
+            "the failed frame is not counted again"
+        );
+        assert_eq!(stats.temp(), (Some(12.0), TempSource::Fallback));
+        assert_eq!(stats.by_status[1].load(Relaxed), 30);
+    }
+
+    /// Numbered frames as fast as asked, `n` of them.
+    struct Counter(u64, u64);
+    impl FrameSource for Counter {
+        fn next_frame(&mut self) -> Result<Frame, SourceError> {
+            if self.0 == self.1 {
+                return Err(SourceError::Ended);
+            }
+            self.0 += 1;
+            Ok(frame(self.0 - 1, (self.0 - 1) as f64 * 0.1))
+        }
+        fn adc_bits(&self) -> u8 {
+            10
+        }
+        fn describe(&self) -> String {
+            "counter".into()
+        }
+    }
+
+    /// An input with a reading for even frames only.
+    struct EvenAttitude;
+    impl Input for EvenAttitude {
+        fn attach(&mut self, f: &mut Frame, _now: Instant) {
+            if f.seq.is_multiple_of(2) {
+                f.attitude = Some(AttitudeReading {
+                    pitch: Angle::from_deg(1.0),
+                    yaw: Angle::ZERO,
+                    std: None,
+                });
+            }
+        }
+    }
+
+    /// (seq, has attitude, temperature, estimate's seq) of each frame.
+    type Kept = Arc<Mutex<Vec<(u64, bool, Option<f64>, u64)>>>;
+
+    /// An output that keeps what it was given.
+    struct Keep(Kept, Arc<AtomicBool>);
+    impl Output for Keep {
+        fn emit(&mut self, a: &Acquired, est: &PoseEstimate) {
+            let f = &a.frame;
+            if let Ok(mut v) = self.0.lock() {
+                v.push((f.seq, f.attitude.is_some(), f.temp_c, est.seq));
+            }
+        }
+        fn finish(&mut self) {
+            self.1.store(true, Relaxed);
+        }
+    }
+    use std::sync::atomic::AtomicBool;
+
+    #[test]
+    fn inputs_attach_and_every_output_gets_each_frame_as_acquired() {
+        let stats = Arc::new(Stats::default());
+        let (a, b) = (
+            Arc::new(Mutex::new(Vec::new())),
+            Arc::new(Mutex::new(Vec::new())),
+        );
+        let (fa, fb) = (
+            Arc::new(AtomicBool::new(false)),
+            Arc::new(AtomicBool::new(false)),
+        );
+        let end = Engine::new(Box::new(Counter(0, 6)), Box::new(Nothing))
+            .stats(stats.clone())
+            .input(Box::new(EvenAttitude))
+            .output(Box::new(Keep(a.clone(), fa.clone())))
+            .output(Box::new(Keep(b.clone(), fb.clone())))
+            .fallback_temp_c(Some(15.0))
+            .run();
+        assert_eq!(end, EndReason::SourceEnded);
+        let got = a.lock().unwrap().clone();
+        assert_eq!(got, *b.lock().unwrap(), "both outputs, same frames");
+        let want: Vec<_> = (0..6).map(|s| (s, s % 2 == 0, None, s)).collect();
+        // The fallback temperature is the estimator's, not the frame's.
+        assert_eq!(got, want);
+        assert!(fa.load(Relaxed) && fb.load(Relaxed), "outputs finished");
+        assert_eq!(stats.frames_with_attitude.load(Relaxed), 3);
+        assert_eq!(stats.frames.load(Relaxed), 6);
+        assert_eq!(stats.state(), BackendState::Ended);
+    }
+
+    #[test]
+    fn a_raised_stop_ends_the_loop_and_a_dead_bus_pause() {
+        struct Dead;
+        impl FrameSource for Dead {
+            fn next_frame(&mut self) -> Result<Frame, SourceError> {
+                Err(SourceError::Unavailable {
+                    place: "test".into(),
+                    msg: "unplugged".into(),
+                })
+            }
+            fn adc_bits(&self) -> u8 {
+                10
+            }
+            fn describe(&self) -> String {
+                "dead".into()
+            }
+        }
+        let stop = Stop::new();
+        let stats = Arc::new(Stats::default());
+        // A long period: each failure pauses 100 ms unless stopped.
+        let e = Engine::new(Box::new(Dead), Box::new(Nothing))
+            .stats(stats.clone())
+            .stop(stop.clone())
+            .period(Some(Duration::from_secs(3600)));
+        let t = std::thread::spawn(move || e.run());
+        while stats.failed.load(Relaxed) < 2 {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let t0 = Instant::now();
+        stop.raise();
+        assert_eq!(t.join().unwrap(), EndReason::Stopped);
+        assert!(t0.elapsed() < Duration::from_secs(2), "{:?}", t0.elapsed());
+        assert_eq!(stats.state(), BackendState::Stopped);
+    }
+}

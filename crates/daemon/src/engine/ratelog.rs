@@ -1,0 +1,36 @@
+//! Logging of events that can come every frame (late, failed, lost frames):
+//! visible, not flooding.
+
+use std::time::{Duration, Instant};
+
+/// Logs the first event of a kind, then at most one line a second with the
+/// count since.
+pub(super) struct RateLog {
+    last: Option<Instant>,
+    suppressed: u64,
+}
+
+impl RateLog {
+    pub fn new() -> Self {
+        RateLog {
+            last: None,
+            suppressed: 0,
+        }
+    }
+
+    /// `Some(n)` when a line should be written now, n = events folded in.
+    pub fn tick(&mut self, now: Instant) -> Option<u64> {
+        match self.last {
+            Some(t) if now.duration_since(t) < Duration::from_secs(1) => {
+                self.suppressed += 1;
+                None
+            }
+            _ => {
+                self.last = Some(now);
+                let n = self.suppressed + 1;
+                self.suppressed = 0;
+                Some(n)
+            }
+        }
+    }
+}

@@ -1,0 +1,84 @@
+//! Why the daemon could not start or run, as typed errors that keep the
+//! libraries' own errors as their sources; turned into one line of text
+//! only where it is shown (`main.rs`, a log line) by [`report`].
+
+use crate::config::ConfigError;
+use crate::outputs::udp::PublishError;
+use std::error::Error;
+
+#[derive(Debug, thiserror::Error)]
+pub enum DaemonError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// The calibration could not be read (the cause names the file).
+    #[error("calibration")]
+    CalibrationRead(#[source] lightpose_core::textfile::TextError),
+    /// The calibration is wrong (the message names the file and line).
+    #[error(transparent)]
+    Calibration(#[from] lightpose_pipeline::CalError),
+    #[error("estimator")]
+    Estimator(#[source] lightpose_pipeline::BuildError),
+    #[error("backend {kind}")]
+    Backend {
+        kind: &'static str,
+        #[source]
+        source: lightpose_hal::HalError,
+    },
+    /// --bench and --soak need a source that can go as fast as asked.
+    #[error("backend {kind}: {mode} runs the sim or replay backend only")]
+    NotFreeRunning {
+        kind: &'static str,
+        mode: &'static str,
+    },
+    #[error(transparent)]
+    Publish(#[from] PublishError),
+    #[error("attitude.listen {addr}")]
+    AttitudeBind {
+        addr: std::net::SocketAddr,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("recording: cannot start the recorder thread")]
+    Recorder(#[source] std::io::Error),
+    #[error("cannot start the acquisition thread")]
+    Thread(#[source] std::io::Error),
+}
+
+/// `e` and its causes on one line, `: `-separated. A cause whose text its
+/// parent already shows (some libraries put their source's text in their
+/// own message) is left out, so nothing is said twice.
+pub fn report(e: &(dyn Error + 'static)) -> String {
+    let mut line = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !text.is_empty() && !line.contains(&text) {
+            line.push_str(": ");
+            line.push_str(&text);
+        }
+        cause = c.source();
+    }
+    line
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn causes_are_chained_once() {
+        let io = || std::io::Error::new(std::io::ErrorKind::AddrInUse, "address in use");
+        let e = DaemonError::AttitudeBind {
+            addr: "127.0.0.1:9".parse().unwrap(),
+            source: io(),
+        };
+        assert_eq!(report(&e), "attitude.listen 127.0.0.1:9: address in use");
+        // A library error that already says its source's text.
+        let t = lightpose_core::textfile::TextError::Io {
+            file: "c.toml".into(),
+            source: io(),
+        };
+        let e = DaemonError::Config(ConfigError::Text(t));
+        assert_eq!(report(&e), "c.toml: address in use");
+    }
+}

@@ -1,0 +1,23 @@
+//! Inputs: readings from other sensors that ride with each frame. An input
+//! is fed from outside the frame path (a socket task, a serial reader) and,
+//! once per frame, attaches what it holds to the frame if it is fresh — so
+//! that the estimator, the POSE and the recording all see the same frame.
+//!
+//! Today: the vehicle's attitude over UDP JSON ([`attitude`]). A new input
+//! (another sensor, another protocol) is a file here implementing
+//! [`Input`], started in `wiring.rs`, with its counters in STATUS.
+
+pub mod attitude;
+
+use lightpose_core::Frame;
+use std::time::Instant;
+
+/// Something that attaches readings to a frame. Called on the frame
+/// thread, once per frame: it must neither block nor allocate. What it
+/// attaches (and what it leaves off as stale) it counts itself, in atomics
+/// that STATUS reads.
+pub trait Input: Send {
+    /// Attach this input's reading to `frame` if one is fresh at `now`
+    /// (the frame's arrival) and the frame has none of its own.
+    fn attach(&mut self, frame: &mut Frame, now: Instant);
+}

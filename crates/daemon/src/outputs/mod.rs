@@ -1,0 +1,25 @@
+//! Outputs: where each frame and its estimate go once estimated. The frame
+//! thread hands every output the frame as acquired (with its inputs'
+//! readings, without the daemon's fallback temperature) and the estimate,
+//! in order, and measures latency to the last of them.
+//!
+//! Today: POSE datagrams over UDP ([`udp`]) and the recording of frames
+//! ([`recorder`]). A new output (another protocol, another recording
+//! format, a live viewer) is a file here implementing [`Output`], added to
+//! the engine in `wiring.rs`.
+
+pub mod recorder;
+pub mod udp;
+
+use crate::engine::Acquired;
+use lightpose_core::PoseEstimate;
+
+/// Something that receives each (frame, estimate). Called on the frame
+/// thread: it must not block (hand slow work to a thread of its own behind
+/// a bounded queue, as the recorder does) nor allocate per frame.
+pub trait Output: Send {
+    fn emit(&mut self, frame: &Acquired, est: &PoseEstimate);
+    /// The engine stops: flush what is queued. Called once, on the frame
+    /// thread, before the engine returns.
+    fn finish(&mut self) {}
+}

@@ -1,0 +1,190 @@
+//! The STATUS and VERSION messages (docs/daemon.md lists their fields): the
+//! daemon's counters, read without stopping the frame thread, as JSON.
+
+use crate::config::Config;
+use crate::inputs::attitude::AttitudeCell;
+use crate::outputs::recorder::RecStats;
+use crate::outputs::udp::Publisher;
+use crate::stats::{Stats, TempSource};
+use lightpose_core::Status;
+use lightpose_hal::SourceHealth;
+use serde_json::{json, Value};
+use std::sync::atomic::Ordering::Relaxed;
+use std::time::Instant;
+
+/// Version of the message set (POSE, STATUS, VERSION) on the wire.
+pub const PROTO: u32 = 1;
+
+fn unix_now() -> f64 {
+    crate::outputs::recorder::unix_now()
+}
+
+fn opt(v: Option<f64>) -> Value {
+    v.and_then(lightpose_core::finite)
+        .map_or(Value::Null, Into::into)
+}
+
+/// The VERSION banner sent once at start.
+pub fn version_message(cfg: &Config, source: &str, estimator: &str) -> Vec<u8> {
+    let v = json!({
+        "class": "VERSION",
+        "seq": 0,
+        "t": unix_now(),
+        "name": "lightposed",
+        "release": env!("CARGO_PKG_VERSION"),
+        "proto": PROTO,
+        "backend": cfg.backend.kind(),
+        "source": source,
+        "estimator": estimator,
+        "calibration": cfg.calibration.describe(),
+        "rate_hz": cfg.rate_hz,
+    });
+    serde_json::to_vec(&v).unwrap_or_default()
+}
+
+/// What a STATUS is made from.
+pub struct StatusCtx<'a> {
+    pub cfg: &'a Config,
+    pub stats: &'a Stats,
+    pub rec: Option<&'a RecStats>,
+    pub att: Option<&'a AttitudeCell>,
+    pub publisher: &'a Publisher,
+    pub source: &'a str,
+    pub estimator: &'a str,
+    pub started: Instant,
+}
+
+/// STATUS number `seq`, with `fps` measured since the last one.
+pub fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> Value {
+    let s = c.stats;
+    let health = s.source_health.lock().ok().and_then(|h| h.clone());
+    json!({
+        "class": "STATUS",
+        "seq": seq,
+        "t": unix_now(),
+        "uptime": c.started.elapsed().as_secs_f64(),
+        "backend": backend(c, health.as_ref()),
+        "frames": s.frames.load(Relaxed),
+        "late": s.late.load(Relaxed),
+        "failed": s.failed.load(Relaxed),
+        "lost": s.lost.load(Relaxed),
+        "last_seq": s.last_seq.load(Relaxed),
+        "fps": fps,
+        "latency": {
+            "p50": opt(s.latency.quantile(0.5)),
+            "p99": opt(s.latency.quantile(0.99)),
+            "max": opt(s.latency.max()),
+        },
+        "estimator": estimator(c),
+        "temperature": temperature(c, health.as_ref()),
+        "recording": recording(c.rec),
+        "attitude": attitude(c),
+        "outputs": outputs(c.publisher),
+    })
+}
+
+fn backend(c: &StatusCtx, health: Option<&SourceHealth>) -> Value {
+    let s = c.stats;
+    json!({
+        "kind": c.cfg.backend.kind(),
+        "source": c.source,
+        "state": s.state().as_str(),
+        "last_error": s.last_error.lock().ok().and_then(|g| g.clone()),
+        "health": health.map(|h| json!({
+            "bad_lines": h.bad_lines,
+            "wrong_board_lines": h.wrong_board_lines,
+            "last_bad_line": h.last_bad_line,
+            "reopens": h.reopens,
+            "injected_faults": h.injected_faults,
+        })),
+    })
+}
+
+fn estimator(c: &StatusCtx) -> Value {
+    let s = c.stats;
+    let last_status = Status::ALL
+        .get(s.last_status.load(Relaxed) as usize)
+        .map_or("none", |st| st.as_str());
+    let counts: serde_json::Map<String, Value> = Status::ALL
+        .iter()
+        .zip(&s.by_status)
+        .map(|(st, n)| (st.as_str().to_string(), n.load(Relaxed).into()))
+        .collect();
+    json!({
+        "name": c.estimator,
+        "status": last_status,
+        "counts": counts,
+        "calibration": c.cfg.calibration.describe(),
+        "reloads": s.calibration_reloads.load(Relaxed),
+    })
+}
+
+fn temperature(c: &StatusCtx, health: Option<&SourceHealth>) -> Value {
+    let (temp, tsrc) = c.stats.temp();
+    let sensor = health.and_then(|h| h.temp.as_ref());
+    // hal stamps its own fallback on the frame when its sensor fails, so
+    // `source` alone would say "frame" during a sensor outage: `fallback`
+    // and `error` say plainly whether the value in use is a stand-in and why.
+    let sensor_fallback = sensor.is_some_and(|t| t.fallback_active);
+    let mut v = json!({
+        "c": opt(temp),
+        "source": tsrc.as_str(),
+        "fallback_c": opt(c.cfg.fallback_temp_c),
+        "fallback": sensor_fallback || tsrc == TempSource::Fallback,
+        "error": if sensor_fallback { sensor.and_then(|t| t.last_error.clone()) } else { None },
+    });
+    if let Some(t) = sensor {
+        v["sensor"] = json!({
+            "kind": t.source,
+            "fallback_active": t.fallback_active,
+            "fallbacks": t.fallbacks,
+            "last_error": t.last_error,
+        });
+    }
+    v
+}
+
+fn recording(rec: Option<&RecStats>) -> Value {
+    match rec {
+        None => json!({"state": "off"}),
+        Some(r) => json!({
+            "state": r.state().as_str(),
+            "file": r.current.lock().ok().and_then(|g| g.clone()),
+            "frames": r.frames.load(Relaxed),
+            "failed": r.failed.load(Relaxed),
+            "dropped": r.dropped.load(Relaxed),
+            "files": r.files.load(Relaxed),
+            "bytes": r.bytes.load(Relaxed),
+            "error": r.error.lock().ok().and_then(|g| g.clone()),
+        }),
+    }
+}
+
+fn attitude(c: &StatusCtx) -> Value {
+    match c.att {
+        None => json!({"enabled": false}),
+        Some(a) => json!({
+            "enabled": true,
+            "received": a.received.load(Relaxed),
+            "rejected": a.rejected.load(Relaxed),
+            "age": a.age(Instant::now()).map(|d| d.as_secs_f64()),
+            "frames_with": c.stats.frames_with_attitude.load(Relaxed),
+        }),
+    }
+}
+
+fn outputs(publisher: &Publisher) -> Value {
+    publisher
+        .destinations()
+        .iter()
+        .map(|d| {
+            json!({
+                "addr": d.addr.to_string(),
+                "multicast": d.multicast,
+                "sent": d.stats.sent.load(Relaxed),
+                "errors": d.stats.errors.load(Relaxed),
+                "last_error": d.stats.last_error.lock().ok().and_then(|g| g.clone()),
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,168 @@
+//! Wiring: from a validated [`Config`] to a running daemon — the estimator
+//! (from the calibration), the frame source (hal's one call), the inputs,
+//! the outputs and the frame thread. Everything the supervisor then
+//! watches is in [`Running`].
+
+use crate::config::Config;
+use crate::engine::{EndReason, Engine};
+use crate::error::DaemonError;
+use crate::inputs::attitude::{self, AttitudeCell, LatestAttitude};
+use crate::notify::{notify, NotifyState};
+use crate::outputs::recorder::{RecStats, Recorder};
+use crate::outputs::udp::{PoseDatagrams, Publisher};
+use crate::stats::Stats;
+use crate::status::version_message;
+use lightpose_core::{Estimator, LogHeader};
+use lightpose_hal::{FrameSource, Stop};
+use lightpose_pipeline::Calibration;
+use std::sync::Arc;
+use std::time::Instant;
+use tokio::sync::oneshot;
+use tokio::task::JoinHandle;
+
+/// Load the calibration and build the configured estimator (at start and
+/// on SIGHUP).
+pub fn build_estimator(cfg: &Config) -> Result<Box<dyn Estimator>, DaemonError> {
+    let text = cfg
+        .calibration
+        .read()
+        .map_err(DaemonError::CalibrationRead)?;
+    let cal = Calibration::parse(&text, &cfg.calibration.describe())?;
+    lightpose_pipeline::build_estimator(&cfg.estimator, &cal).map_err(DaemonError::Estimator)
+}
+
+/// Open the configured frame source, whatever it is, through hal; its
+/// waits end when `stop` is raised.
+pub fn open_source(cfg: &Config, stop: &Stop) -> Result<Box<dyn FrameSource>, DaemonError> {
+    lightpose_hal::open(&cfg.backend, stop).map_err(|source| DaemonError::Backend {
+        kind: cfg.backend.kind(),
+        source,
+    })
+}
+
+/// A daemon whose frame thread runs, and what the supervisor needs of it.
+pub struct Running {
+    pub started: Instant,
+    pub publisher: Arc<Publisher>,
+    pub stats: Arc<Stats>,
+    pub rec_stats: Option<Arc<RecStats>>,
+    pub attitude: Option<Arc<AttitudeCell>>,
+    /// The attitude input's socket task, aborted at stop.
+    pub listener: Option<JoinHandle<()>>,
+    pub source: String,
+    pub estimator: &'static str,
+    /// Raised to stop the frame thread (and end its source's waits).
+    pub stop: Stop,
+    /// New estimators for the frame thread (calibration reloads).
+    pub reload: std::sync::mpsc::Sender<Box<dyn Estimator>>,
+    /// The frame thread; taken when it is joined.
+    pub frames: Option<std::thread::JoinHandle<EndReason>>,
+    /// Says when the frame thread has ended by itself.
+    pub done: oneshot::Receiver<EndReason>,
+}
+
+/// Build everything `cfg` asks for, send VERSION, start the frame thread
+/// and tell systemd the daemon is ready.
+pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, DaemonError> {
+    let started = Instant::now();
+    let estimator = build_estimator(cfg)?;
+    let est_name = estimator.name();
+    let stop = Stop::new();
+    let source = open_source(cfg, &stop)?;
+    let source_desc = source.describe();
+    let publisher = Arc::new(publisher);
+    let stats = Arc::new(Stats::default());
+    let (attitude, listener) = match start_attitude(cfg).await? {
+        Some((cell, task)) => (Some(cell), Some(task)),
+        None => (None, None),
+    };
+    let recorder = start_recorder(cfg, source.as_ref(), &source_desc)?;
+    let rec_stats = recorder.as_ref().map(|r| r.stats.clone());
+
+    let (reload_tx, reload_rx) = std::sync::mpsc::channel::<Box<dyn Estimator>>();
+    let mut engine = Engine::new(source, estimator)
+        .stats(stats.clone())
+        .stop(stop.clone())
+        .reload(reload_rx)
+        .late_tolerance(cfg.late_tolerance)
+        .fallback_temp_c(cfg.fallback_temp_c)
+        .epoch(started)
+        // The POSE first, so that it leaves as soon as it can.
+        .output(Box::new(PoseDatagrams::new(publisher.clone())));
+    if let Some(r) = recorder {
+        engine = engine.output(Box::new(r));
+    }
+    if let (Some(cell), Some(a)) = (&attitude, &cfg.attitude) {
+        engine = engine.input(Box::new(LatestAttitude {
+            cell: cell.clone(),
+            max_age: a.max_age,
+        }));
+    }
+
+    publisher.send(&version_message(cfg, &source_desc, est_name));
+    let (done_tx, done) = oneshot::channel::<EndReason>();
+    let frames = std::thread::Builder::new()
+        .name("lightposed-frames".into())
+        .spawn(move || {
+            let r = engine.run();
+            let _ = done_tx.send(r.clone());
+            r
+        })
+        .map_err(DaemonError::Thread)?;
+    notify(&[NotifyState::Ready]);
+    tracing::info!("running: {source_desc}; estimator {est_name}");
+    Ok(Running {
+        started,
+        publisher,
+        stats,
+        rec_stats,
+        attitude,
+        listener,
+        source: source_desc,
+        estimator: est_name,
+        stop,
+        reload: reload_tx,
+        frames: Some(frames),
+        done,
+    })
+}
+
+/// The attitude input's socket and task, if configured.
+async fn start_attitude(
+    cfg: &Config,
+) -> Result<Option<(Arc<AttitudeCell>, JoinHandle<()>)>, DaemonError> {
+    let Some(a) = &cfg.attitude else {
+        return Ok(None);
+    };
+    let sock = tokio::net::UdpSocket::bind(a.listen)
+        .await
+        .map_err(|source| DaemonError::AttitudeBind {
+            addr: a.listen,
+            source,
+        })?;
+    let cell = Arc::new(AttitudeCell::default());
+    tracing::info!("attitude input on {}", a.listen);
+    let task = tokio::spawn(attitude::listen(sock, a.clone(), cell.clone()));
+    Ok(Some((cell, task)))
+}
+
+/// The recorder, if configured; its files' header names this daemon and
+/// the source, at the rate of the source's clock.
+fn start_recorder(
+    cfg: &Config,
+    source: &dyn FrameSource,
+    source_desc: &str,
+) -> Result<Option<Recorder>, DaemonError> {
+    let Some(r) = &cfg.recording else {
+        return Ok(None);
+    };
+    let mut h = LogHeader::new(source.adc_bits(), source.rate_hz().unwrap_or(cfg.rate_hz));
+    h.extra.insert(
+        "recorder".into(),
+        format!("lightposed {}", env!("CARGO_PKG_VERSION")).into(),
+    );
+    h.extra.insert("source".into(), source_desc.into());
+    Recorder::start(r, h)
+        .map(Some)
+        .map_err(DaemonError::Recorder)
+}

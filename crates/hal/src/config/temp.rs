@@ -1,0 +1,217 @@
+//! Where a board backend's frames get their water temperature: none, a
+//! fixed value, a DS18B20 on 1-Wire, or a thermistor on one of the boards'
+//! own channels — each with a fallback, checked against the boards and the
+//! channel map.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use serde::Deserialize;
+
+use super::{err, finite, positive};
+use crate::chanmap::{BoardSpec, ChannelMap};
+use crate::temp::{Ds18b20, TempKind, TempReader, Thermistor, ThermistorPosition};
+use crate::HalError;
+
+fn w1_root() -> PathBuf {
+    PathBuf::from("/sys/bus/w1/devices")
+}
+fn w1_interval() -> f64 {
+    2.0
+}
+fn w1_max_age() -> f64 {
+    10.0
+}
+// A common 10 kΩ (B ≈ 3950) NTC.
+fn sh_a() -> f64 {
+    1.009249522e-3
+}
+fn sh_b() -> f64 {
+    2.378405444e-4
+}
+fn sh_c() -> f64 {
+    2.019202697e-7
+}
+fn min_c() -> f64 {
+    -5.0
+}
+fn max_c() -> f64 {
+    45.0
+}
+fn low() -> ThermistorPosition {
+    ThermistorPosition::Low
+}
+
+/// Where each frame's temperature comes from.
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum TempConfig {
+    /// Frames carry no temperature.
+    #[default]
+    None,
+    Fixed {
+        value_c: f64,
+    },
+    Ds18b20 {
+        fallback_c: f64,
+        #[serde(default = "w1_root")]
+        root: PathBuf,
+        #[serde(default)]
+        device: Option<String>,
+        #[serde(default = "w1_interval")]
+        interval_s: f64,
+        #[serde(default = "w1_max_age")]
+        max_age_s: f64,
+    },
+    Thermistor {
+        fallback_c: f64,
+        board: String,
+        channel: u8,
+        r_fixed_ohm: f64,
+        #[serde(default = "low")]
+        position: ThermistorPosition,
+        /// Divider supply; defaults to the ADC reference (ratiometric).
+        #[serde(default)]
+        v_supply: Option<f64>,
+        #[serde(default = "sh_a")]
+        a: f64,
+        #[serde(default = "sh_b")]
+        b: f64,
+        #[serde(default = "sh_c")]
+        c: f64,
+        #[serde(default = "min_c")]
+        min_c: f64,
+        #[serde(default = "max_c")]
+        max_c: f64,
+    },
+}
+
+/// A validated temperature source, not yet started.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TempPlan {
+    None,
+    Fixed(f64),
+    Ds18b20 {
+        sensor_root: PathBuf,
+        device: Option<String>,
+        interval: Duration,
+        max_age: Duration,
+        fallback_c: f64,
+    },
+    Thermistor {
+        params: Thermistor,
+        fallback_c: f64,
+    },
+}
+
+impl TempPlan {
+    /// Start it (the DS18B20 gets its reading thread).
+    pub fn start(self) -> TempReader {
+        match self {
+            TempPlan::None => TempReader::new(TempKind::None, 0.0),
+            TempPlan::Fixed(v) => TempReader::new(TempKind::Fixed(v), v),
+            TempPlan::Ds18b20 {
+                sensor_root,
+                device,
+                interval,
+                max_age,
+                fallback_c,
+            } => TempReader::new(
+                TempKind::Ds18b20(crate::temp::Ds18b20Watcher::spawn(
+                    Ds18b20 {
+                        root: sensor_root,
+                        device,
+                    },
+                    interval,
+                    max_age,
+                )),
+                fallback_c,
+            ),
+            TempPlan::Thermistor { params, fallback_c } => {
+                TempReader::new(TempKind::Thermistor(params), fallback_c)
+            }
+        }
+    }
+}
+
+/// A positive number of seconds that a `Duration` can hold.
+fn seconds(key: &str, v: f64) -> Result<Duration, HalError> {
+    Duration::try_from_secs_f64(positive(key, v)?)
+        .map_err(|_| err(key, format!("{v} s is too long")))
+}
+
+pub(super) fn temp_plan(
+    t: &TempConfig,
+    boards: &[BoardSpec],
+    map: &ChannelMap,
+    bits: u8,
+    v_ref: f64,
+) -> Result<TempPlan, HalError> {
+    Ok(match t {
+        TempConfig::None => TempPlan::None,
+        TempConfig::Fixed { value_c } => TempPlan::Fixed(finite("temperature.value_c", *value_c)?),
+        TempConfig::Ds18b20 {
+            fallback_c,
+            root,
+            device,
+            interval_s,
+            max_age_s,
+        } => TempPlan::Ds18b20 {
+            sensor_root: root.clone(),
+            device: device.clone(),
+            interval: seconds("temperature.interval_s", *interval_s)?,
+            max_age: seconds("temperature.max_age_s", *max_age_s)?,
+            fallback_c: finite("temperature.fallback_c", *fallback_c)?,
+        },
+        TempConfig::Thermistor {
+            fallback_c,
+            board,
+            channel,
+            r_fixed_ohm,
+            position,
+            v_supply,
+            a,
+            b,
+            c,
+            min_c,
+            max_c,
+        } => {
+            let bi = boards
+                .iter()
+                .position(|x| &x.name == board)
+                .ok_or_else(|| err("temperature.board", format!("unknown board \"{board}\"")))?;
+            if *channel >= boards[bi].channels {
+                return Err(err(
+                    "temperature.channel",
+                    format!("board \"{board}\" has no channel {channel}"),
+                ));
+            }
+            if map.uses(bi, *channel) {
+                return Err(err(
+                    "temperature.channel",
+                    format!("board \"{board}\" channel {channel} already feeds a detector"),
+                ));
+            }
+            if min_c.partial_cmp(max_c) != Some(std::cmp::Ordering::Less) {
+                return Err(err("temperature.min_c", "must be below max_c"));
+            }
+            TempPlan::Thermistor {
+                params: Thermistor {
+                    board: bi,
+                    channel: *channel,
+                    a: finite("temperature.a", *a)?,
+                    b: finite("temperature.b", *b)?,
+                    c: finite("temperature.c", *c)?,
+                    r_fixed_ohm: positive("temperature.r_fixed_ohm", *r_fixed_ohm)?,
+                    position: *position,
+                    v_supply: positive("temperature.v_supply", v_supply.unwrap_or(v_ref))?,
+                    v_ref,
+                    bits,
+                    min_c: *min_c,
+                    max_c: *max_c,
+                },
+                fallback_c: finite("temperature.fallback_c", *fallback_c)?,
+            }
+        }
+    })
+}
