@@ -11,7 +11,6 @@
 //! mean gain is fixed to 1 by eliminating the last gain. A sweep that
 //! cannot determine a parameter is refused with the parameter's name.
 
-
 use lightpose_core::frame::full_scale;
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{Angle, ArrayGeometry, Frame, LightParams, Pose, Scattering, NDET};
