@@ -97,6 +97,18 @@ fn fig(f: Option<Figure>) -> String {
 /// `summary.md` as text.
 pub fn summary_text(r: &McResult, info: &RunInfo) -> String {
     let mut o = String::new();
+    write_run_facts(&mut o, r, info);
+    let far = write_headline_table(&mut o, r, info);
+    if info.case.is_some() {
+        write_far_from_paper(&mut o, &far);
+    }
+    write_coverage(&mut o, r);
+    o
+}
+
+/// The title and what the run was: estimator, realizations, files, the
+/// spreads drawn per run, and how often the status was ok.
+fn write_run_facts(o: &mut String, r: &McResult, info: &RunInfo) {
     let title = info.case.map_or("Monte Carlo uncertainty", |c| c.title());
     let _ = writeln!(o, "# {title}\n");
     let (t0, t1) = (
@@ -137,7 +149,12 @@ pub fn summary_text(r: &McResult, info: &RunInfo) -> String {
         100.0 * ok_mean,
         100.0 * ok_min
     );
+}
 
+/// The headline table, per axis ours beside the paper's (where the run is
+/// one of its cases); returns each figure more than a factor of two from
+/// the paper's, as a line.
+fn write_headline_table(o: &mut String, r: &McResult, info: &RunInfo) -> Vec<String> {
     let figs = info.case.map(|c| c.figures());
     let _ = writeln!(
         o,
@@ -193,47 +210,52 @@ pub fn summary_text(r: &McResult, info: &RunInfo) -> String {
             }
         }
     }
-    if info.case.is_some() {
-        let _ = writeln!(
-            o,
-            "\nDifferences from the paper larger than a factor of two:\n"
-        );
-        if far.is_empty() {
-            let _ = writeln!(o, "- none");
-        }
-        for f in &far {
-            let _ = writeln!(o, "- {f}");
-        }
-    }
+    far
+}
 
+/// The figures more than a factor of two from the paper's, or "none".
+fn write_far_from_paper(o: &mut String, far: &[String]) {
+    let _ = writeln!(
+        o,
+        "\nDifferences from the paper larger than a factor of two:\n"
+    );
+    if far.is_empty() {
+        let _ = writeln!(o, "- none");
+    }
+    for f in far {
+        let _ = writeln!(o, "- {f}");
+    }
+}
+
+/// How often the truth lies within ±2σ of the estimate, per axis.
+fn write_coverage(o: &mut String, r: &McResult) {
     let _ = writeln!(o, "\n## Coverage of the estimator's own σ\n");
     if r.coverage.iter().all(Option::is_none) {
         let _ = writeln!(o, "The estimator reports no σ.");
-    } else {
-        let _ = writeln!(
-            o,
-            "Fraction of estimates (all runs, all steps) whose truth lies within ±2σ of the estimate; about 95 % is honest.\n"
-        );
-        let _ = writeln!(o, "| axis | estimates with σ | within ±2σ |");
-        let _ = writeln!(o, "|---|---|---|");
-        for a in AXES {
-            match &r.coverage[a.index()] {
-                Some(c) => {
-                    let _ = writeln!(
-                        o,
-                        "| {} | {} | {:.1} % |",
-                        a.name(),
-                        c.n,
-                        100.0 * c.fraction()
-                    );
-                }
-                None => {
-                    let _ = writeln!(o, "| {} | 0 | — |", a.name());
-                }
+        return;
+    }
+    let _ = writeln!(
+        o,
+        "Fraction of estimates (all runs, all steps) whose truth lies within ±2σ of the estimate; about 95 % is honest.\n"
+    );
+    let _ = writeln!(o, "| axis | estimates with σ | within ±2σ |");
+    let _ = writeln!(o, "|---|---|---|");
+    for a in AXES {
+        match &r.coverage[a.index()] {
+            Some(c) => {
+                let _ = writeln!(
+                    o,
+                    "| {} | {} | {:.1} % |",
+                    a.name(),
+                    c.n,
+                    100.0 * c.fraction()
+                );
+            }
+            None => {
+                let _ = writeln!(o, "| {} | 0 | — |", a.name());
             }
         }
     }
-    o
 }
 
 fn write_file(path: &Path, text: &str) -> Result<(), McError> {

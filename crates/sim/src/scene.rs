@@ -308,59 +308,80 @@ fn positive(x: f64) -> bool {
 fn non_negative(x: f64) -> bool {
     x >= 0.0
 }
+fn below_right_angle(x: f64) -> bool {
+    x > 0.0 && x < 90.0
+}
 
-impl Scene {
-    /// Read and validate a scene file.
-    pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = read_text(path)?;
-        Scene::parse(&text, &path.display().to_string())
-    }
-
-    /// Parse and validate a scene from TOML text; `file` names it in errors.
-    pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
-        let raw: RawScene = parse_toml(text, file)?;
-        let c = Checker { file, text };
-        let d = Scene::default();
-
-        let b = raw.beacon.unwrap_or_default();
-        let v1 = c.num("beacon", "v1", b.v1, d.light.v1, non_negative, "≥ 0")?;
+impl RawBeacon {
+    /// `[beacon]`: V1 (volts) and σ_b (degrees).
+    fn validate(self, c: &Checker) -> Result<(f64, f64), SceneError> {
+        let v1 = c.num(
+            "beacon",
+            "v1",
+            self.v1,
+            LightParams::default().v1,
+            non_negative,
+            "≥ 0",
+        )?;
         let sigma_b = c.num(
             "beacon",
             "sigma_b_deg",
-            b.sigma_b_deg,
+            self.sigma_b_deg,
             12.0,
-            |x| x > 0.0 && x < 90.0,
+            below_right_angle,
             "in (0, 90)",
         )?;
+        Ok((v1, sigma_b))
+    }
+}
 
-        let w = raw.water.unwrap_or_default();
-        let k_d = c.num("water", "k_d", w.k_d, 0.09, non_negative, "≥ 0")?;
+impl RawWater {
+    /// `[water]`: K_D (1/m) and the true temperature (°C).
+    fn validate(self, c: &Checker) -> Result<(f64, f64), SceneError> {
+        let k_d = c.num("water", "k_d", self.k_d, 0.09, non_negative, "≥ 0")?;
         let temp_c = c.num(
             "water",
             "temp_c",
-            w.temp_c,
+            self.temp_c,
             20.0,
             |t| (-5.0..=60.0).contains(&t),
             "in −5..60 °C",
         )?;
+        Ok((k_d, temp_c))
+    }
+}
 
-        let scattering = match raw.scattering {
-            None => None,
-            Some(s) => Some(Scattering {
-                omega: c.num("scattering", "omega", s.omega, 0.5, non_negative, "≥ 0")?,
-                sigma_h: Angle::from_deg(c.num(
-                    "scattering",
-                    "sigma_h_deg",
-                    s.sigma_h_deg,
-                    20.0,
-                    |x| x > 0.0 && x < 90.0,
-                    "in (0, 90)",
-                )?),
-            }),
-        };
+impl RawScattering {
+    /// `[scattering]`: ω and σ_h.
+    fn validate(self, c: &Checker) -> Result<Scattering, SceneError> {
+        Ok(Scattering {
+            omega: c.num("scattering", "omega", self.omega, 0.5, non_negative, "≥ 0")?,
+            sigma_h: Angle::from_deg(c.num(
+                "scattering",
+                "sigma_h_deg",
+                self.sigma_h_deg,
+                20.0,
+                below_right_angle,
+                "in (0, 90)",
+            )?),
+        })
+    }
+}
 
-        let a = raw.array.unwrap_or_default();
-        for (key, v, want) in [("rows", a.rows, ROWS), ("cols", a.cols, COLS)] {
+/// What `[array]` gives: the dome, the detectors' acceptance σ_R (degrees)
+/// and each channel's gain and dark offset.
+struct ArrayTable {
+    geometry: ArrayGeometry,
+    sigma_r_deg: f64,
+    gain: [f64; NDET],
+    offset_v: [f64; NDET],
+}
+
+impl RawArray {
+    /// `[array]`: a 5 × 5 dome, its spacing and radius, σ_R, and the
+    /// per-channel gains and offsets (one value for all, or one per channel).
+    fn validate(self, c: &Checker) -> Result<ArrayTable, SceneError> {
+        for (key, v, want) in [("rows", self.rows, ROWS), ("cols", self.cols, COLS)] {
             if let Some(n) = v {
                 if n != want as i64 {
                     return Err(c.err(
@@ -374,142 +395,171 @@ impl Scene {
         let spacing = c.num(
             "array",
             "spacing_deg",
-            a.spacing_deg,
+            self.spacing_deg,
             15.0,
             |x| x > 0.0 && x <= 22.5,
             "in (0, 22.5] so the dome stays a hemisphere",
         )?;
-        let radius = c.num("array", "radius_m", a.radius_m, 0.229, positive, "> 0")?;
-        let sigma_r = c.num(
+        let radius = c.num("array", "radius_m", self.radius_m, 0.229, positive, "> 0")?;
+        let sigma_r_deg = c.num(
             "array",
             "sigma_r_deg",
-            a.sigma_r_deg,
+            self.sigma_r_deg,
             18.0,
-            |x| x > 0.0 && x < 90.0,
+            below_right_angle,
             "in (0, 90)",
         )?;
-        let gain = c.per_channel("gain", a.gain, 1.0, positive, "> 0")?;
-        let offset_v =
-            c.per_channel("offset_v", a.offset_v, 0.15, |x| x.abs() < 1e3, "a voltage")?;
+        let gain = c.per_channel("gain", self.gain, 1.0, positive, "> 0")?;
+        let offset_v = c.per_channel(
+            "offset_v",
+            self.offset_v,
+            0.15,
+            |x| x.abs() < 1e3,
+            "a voltage",
+        )?;
+        Ok(ArrayTable {
+            geometry: ArrayGeometry::new(Angle::from_deg(spacing), radius),
+            sigma_r_deg,
+            gain,
+            offset_v,
+        })
+    }
+}
 
-        let ad = raw.adc.unwrap_or_default();
-        let bits = match ad.bits {
+impl RawAdc {
+    /// `[adc]`: resolution, reference and frame rate.
+    fn validate(self, c: &Checker) -> Result<Adc, SceneError> {
+        let bits = match self.bits {
             None => 10,
             Some(n @ 1..=16) => n as u8,
             Some(n) => {
                 return Err(c.err("adc", "bits", format!("{n} is impossible: must be 1..16")))
             }
         };
-        let v_ref = c.num("adc", "v_ref", ad.v_ref, 5.0, positive, "> 0")?;
+        let v_ref = c.num("adc", "v_ref", self.v_ref, 5.0, positive, "> 0")?;
         let rate_hz = c.num(
             "adc",
             "rate_hz",
-            ad.rate_hz,
+            self.rate_hz,
             5.0,
             |x| x > 0.0 && x <= 1e6,
             "in (0, 1e6]",
         )?;
+        Ok(Adc {
+            bits,
+            v_ref,
+            rate_hz,
+        })
+    }
+}
 
-        let noise = match raw.noise {
-            None => None,
-            Some(n) => Some(Noise {
-                sigma_e_v: c.num("noise", "sigma_e_v", n.sigma_e_v, 0.05, non_negative, "≥ 0")?,
-                kappa_v: c.num("noise", "kappa_v", n.kappa_v, 0.0, non_negative, "≥ 0")?,
-                sigma_temp_c: c.num(
-                    "noise",
-                    "sigma_temp_c",
-                    n.sigma_temp_c,
-                    0.1,
-                    non_negative,
-                    "≥ 0",
-                )?,
-            }),
-        };
-        let m = raw.montecarlo.unwrap_or_default();
-        let montecarlo = McSpread {
-            sigma_temp_c: c.num(
-                "montecarlo",
-                "sigma_temp_c",
-                m.sigma_temp_c,
-                3.0,
+impl RawNoise {
+    /// `[noise]`: electronic and shot noise, and the reported temperature's.
+    fn validate(self, c: &Checker) -> Result<Noise, SceneError> {
+        let n = |key, v, default| c.num("noise", key, v, default, non_negative, "≥ 0");
+        Ok(Noise {
+            sigma_e_v: n("sigma_e_v", self.sigma_e_v, 0.05)?,
+            kappa_v: n("kappa_v", self.kappa_v, 0.0)?,
+            sigma_temp_c: n("sigma_temp_c", self.sigma_temp_c, 0.1)?,
+        })
+    }
+}
+
+impl RawMc {
+    /// `[montecarlo]`: the spreads drawn per realization.
+    fn validate(self, c: &Checker) -> Result<McSpread, SceneError> {
+        let n = |key, v, default| c.num("montecarlo", key, v, default, non_negative, "≥ 0");
+        Ok(McSpread {
+            sigma_temp_c: n("sigma_temp_c", self.sigma_temp_c, 3.0)?,
+            sigma_k_d: n("sigma_k_d", self.sigma_k_d, 0.015)?,
+        })
+    }
+}
+
+impl RawAttitude {
+    /// `[attitude]`: the attitude sensor's noise (defaults: MODEL.md's).
+    fn validate(self, c: &Checker) -> Result<AttitudeNoise, SceneError> {
+        let d = AttitudeNoise::default();
+        let n = |key, v, default| c.num("attitude", key, v, default, non_negative, "≥ 0");
+        Ok(AttitudeNoise {
+            sigma_pitch: Angle::from_deg(n(
+                "sigma_pitch_deg",
+                self.sigma_pitch_deg,
+                d.sigma_pitch.deg(),
+            )?),
+            sigma_yaw: Angle::from_deg(n("sigma_yaw_deg", self.sigma_yaw_deg, d.sigma_yaw.deg())?),
+        })
+    }
+}
+
+impl RawDepth {
+    /// `[depth]`: the depth sensor's noise.
+    fn validate(self, c: &Checker) -> Result<DepthNoise, SceneError> {
+        Ok(DepthNoise {
+            sigma_m: c.num(
+                "depth",
+                "sigma_m",
+                self.sigma_m,
+                DepthNoise::default().sigma_m,
                 non_negative,
                 "≥ 0",
             )?,
-            sigma_k_d: c.num(
-                "montecarlo",
-                "sigma_k_d",
-                m.sigma_k_d,
-                0.015,
+        })
+    }
+}
+
+impl RawDvl {
+    /// `[dvl]`: the DVL's noise.
+    fn validate(self, c: &Checker) -> Result<DvlNoise, SceneError> {
+        Ok(DvlNoise {
+            sigma_mps: c.num(
+                "dvl",
+                "sigma_mps",
+                self.sigma_mps,
+                DvlNoise::default().sigma_mps,
                 non_negative,
                 "≥ 0",
             )?,
-        };
-        let default_attitude = AttitudeNoise::default();
-        let attitude = match raw.attitude {
-            None => None,
-            Some(at) => Some(AttitudeNoise {
-                sigma_pitch: Angle::from_deg(c.num(
-                    "attitude",
-                    "sigma_pitch_deg",
-                    at.sigma_pitch_deg,
-                    default_attitude.sigma_pitch.deg(),
-                    non_negative,
-                    "≥ 0",
-                )?),
-                sigma_yaw: Angle::from_deg(c.num(
-                    "attitude",
-                    "sigma_yaw_deg",
-                    at.sigma_yaw_deg,
-                    default_attitude.sigma_yaw.deg(),
-                    non_negative,
-                    "≥ 0",
-                )?),
-            }),
-        };
-        let depth = match raw.depth {
-            None => None,
-            Some(d) => Some(DepthNoise {
-                sigma_m: c.num(
-                    "depth",
-                    "sigma_m",
-                    d.sigma_m,
-                    DepthNoise::default().sigma_m,
-                    non_negative,
-                    "≥ 0",
-                )?,
-            }),
-        };
-        let dvl = match raw.dvl {
-            None => None,
-            Some(d) => Some(DvlNoise {
-                sigma_mps: c.num(
-                    "dvl",
-                    "sigma_mps",
-                    d.sigma_mps,
-                    DvlNoise::default().sigma_mps,
-                    non_negative,
-                    "≥ 0",
-                )?,
-            }),
-        };
+        })
+    }
+}
 
+impl Scene {
+    /// Read and validate a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = read_text(path)?;
+        Scene::parse(&text, &path.display().to_string())
+    }
+
+    /// Parse and validate a scene from TOML text; `file` names it in errors.
+    /// Each table is checked by its own validator, in the file's order; a
+    /// table left out takes its defaults, or turns its effect off.
+    pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
+        let raw: RawScene = parse_toml(text, file)?;
+        let c = Checker { file, text };
+        let (v1, sigma_b) = raw.beacon.unwrap_or_default().validate(&c)?;
+        let (k_d, temp_c) = raw.water.unwrap_or_default().validate(&c)?;
+        let scattering = raw.scattering.map(|s| s.validate(&c)).transpose()?;
+        let array = raw.array.unwrap_or_default().validate(&c)?;
+        let adc = raw.adc.unwrap_or_default().validate(&c)?;
+        let noise = raw.noise.map(|n| n.validate(&c)).transpose()?;
+        let montecarlo = raw.montecarlo.unwrap_or_default().validate(&c)?;
+        let attitude = raw.attitude.map(|a| a.validate(&c)).transpose()?;
+        let depth = raw.depth.map(|d| d.validate(&c)).transpose()?;
+        let dvl = raw.dvl.map(|d| d.validate(&c)).transpose()?;
         Ok(Scene {
             light: LightParams {
                 v1,
                 sigma_b: Angle::from_deg(sigma_b),
-                sigma_r: Angle::from_deg(sigma_r),
+                sigma_r: Angle::from_deg(array.sigma_r_deg),
                 k_d,
                 scattering,
             },
-            geometry: ArrayGeometry::new(Angle::from_deg(spacing), radius),
+            geometry: array.geometry,
             temp_c,
-            gain,
-            offset_v,
-            adc: Adc {
-                bits,
-                v_ref,
-                rate_hz,
-            },
+            gain: array.gain,
+            offset_v: array.offset_v,
+            adc,
             noise,
             montecarlo,
             attitude,

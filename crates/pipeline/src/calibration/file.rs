@@ -293,6 +293,192 @@ pub struct Limits {
     pub max_gap_s: f64,
 }
 
+/// A value that parses but cannot be right: (table, key, why).
+pub type Refusal = (&'static str, &'static str, String);
+
+fn finite(t: &'static str, k: &'static str, v: f64) -> Result<(), Refusal> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err((t, k, format!("{v} is not a finite number")))
+    }
+}
+
+fn positive(t: &'static str, k: &'static str, v: f64) -> Result<(), Refusal> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err((t, k, format!("{v} must be a positive number")))
+    }
+}
+
+impl Meta {
+    /// `[meta]`: this format, this version.
+    fn check(&self) -> Result<(), Refusal> {
+        if self.format != FORMAT {
+            return Err((
+                "meta",
+                "format",
+                format!("\"{}\" is not \"{FORMAT}\"", self.format),
+            ));
+        }
+        if self.version != VERSION {
+            return Err((
+                "meta",
+                "version",
+                format!("{} is not supported (only {VERSION})", self.version),
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl SceneFacts {
+    /// `[scene]`: an ADC, a rate, and eq. 14's reference temperature of
+    /// this build.
+    fn check(&self) -> Result<(), Refusal> {
+        if !(1..=16).contains(&self.adc_bits) {
+            return Err((
+                "scene",
+                "adc_bits",
+                format!("{} must be 1..16", self.adc_bits),
+            ));
+        }
+        positive("scene", "v_ref", self.v_ref)?;
+        positive("scene", "rate_hz", self.rate_hz)?;
+        finite("scene", "t_ref_c", self.t_ref_c)?;
+        if (self.t_ref_c - lightpose_core::light::T_REF_C).abs() > 1e-9 {
+            return Err((
+                "scene",
+                "t_ref_c",
+                format!(
+                    "{} differs from the {} °C that eq. 14 is referred to in this build",
+                    self.t_ref_c,
+                    lightpose_core::light::T_REF_C
+                ),
+            ));
+        }
+        if !(self.default_temp_c.is_finite() && temperature_gain(self.default_temp_c) > 0.0) {
+            return Err((
+                "scene",
+                "default_temp_c",
+                format!("{} °C is not a water temperature", self.default_temp_c),
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl Dark {
+    /// `[dark]`: one finite offset per channel, noise ≥ 0 where given.
+    fn check(&self) -> Result<(), Refusal> {
+        if self.offset_v.len() != NDET {
+            return Err((
+                "dark",
+                "offset_v",
+                format!("has {} values, expected {NDET}", self.offset_v.len()),
+            ));
+        }
+        if let Some(v) = self.offset_v.iter().find(|v| !v.is_finite()) {
+            return Err(("dark", "offset_v", format!("{v} is not a finite number")));
+        }
+        if let Some(sig) = &self.sigma_v {
+            if sig.len() != NDET || sig.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+                return Err((
+                    "dark",
+                    "sigma_v",
+                    format!("must be {NDET} non-negative numbers"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Fits {
+    /// `[fits.*]`: a falling range law, finite lines, and for each quantity
+    /// the kind of moment the paper's equation takes (a ratio for the
+    /// angles, a first moment for y and z).
+    fn check(&self) -> Result<(), Refusal> {
+        let x = &self.x;
+        positive("fits.x", "a1", x.a1)?;
+        positive("fits.x", "b1", x.b1)?;
+        finite("fits.x", "r2", x.r2)?;
+        finite("fits.x", "sigma_ln", x.sigma_ln)?;
+        finite("fits.x", "sigma_m", x.sigma_m)?;
+        let lines = [
+            ("fits.pitch", &self.pitch, false),
+            ("fits.yaw", &self.yaw, false),
+            ("fits.y", &self.y, true),
+            ("fits.z", &self.z, true),
+        ];
+        for (t, f, _) in lines {
+            finite(t, "a", f.a)?;
+            finite(t, "b", f.b)?;
+            finite(t, "r2", f.r2)?;
+            finite(t, "sigma", f.sigma)?;
+        }
+        for (t, f, first) in lines {
+            if matches!(f.feature.moment, Moment::M10 | Moment::M01) != first {
+                let want = if first {
+                    "must be a first moment (m10 or m01)"
+                } else {
+                    "must be a moment ratio (m12/m22 or m21/m22)"
+                };
+                return Err((t, "feature", want.into()));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Coverage {
+    /// `[coverage]`: each a finite [min, max].
+    fn check(&self) -> Result<(), Refusal> {
+        for (k, r) in [
+            ("x_m", self.x_m),
+            ("y_m", self.y_m),
+            ("z_m", self.z_m),
+            ("pitch_deg", self.pitch_deg),
+            ("yaw_deg", self.yaw_deg),
+        ] {
+            if !(r[0].is_finite() && r[1].is_finite() && r[0] <= r[1]) {
+                return Err((
+                    "coverage",
+                    k,
+                    format!("[{}, {}] is not a range", r[0], r[1]),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Limits {
+    /// `[limits]`: a positive threshold and gap, a window the estimator
+    /// holds, margins ≥ 0.
+    fn check(&self) -> Result<(), Refusal> {
+        positive("limits", "no_light_v", self.no_light_v)?;
+        if !(2..=MAX_SURGE_WINDOW).contains(&self.surge_window) {
+            return Err((
+                "limits",
+                "surge_window",
+                format!("{} must be 2..{MAX_SURGE_WINDOW}", self.surge_window),
+            ));
+        }
+        for (k, v) in [
+            ("margin_x_m", self.margin_x_m),
+            ("margin_yz_m", self.margin_yz_m),
+            ("margin_angle_deg", self.margin_angle_deg),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(("limits", k, format!("{v} must be ≥ 0")));
+            }
+        }
+        positive("limits", "max_gap_s", self.max_gap_s)
+    }
+}
+
 /// A typed calibration (see the module doc).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -367,171 +553,15 @@ impl Calibration {
         std::fs::write(path, text).map_err(|err| CalError::Io { file, err })
     }
 
-    /// Every value that parses but cannot be right, as (table, key, why).
-    pub fn check(&self) -> Result<(), (&'static str, &'static str, String)> {
-        fn finite(
-            t: &'static str,
-            k: &'static str,
-            v: f64,
-        ) -> Result<(), (&'static str, &'static str, String)> {
-            if v.is_finite() {
-                Ok(())
-            } else {
-                Err((t, k, format!("{v} is not a finite number")))
-            }
-        }
-        fn positive(
-            t: &'static str,
-            k: &'static str,
-            v: f64,
-        ) -> Result<(), (&'static str, &'static str, String)> {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err((t, k, format!("{v} must be a positive number")))
-            }
-        }
-        let m = &self.meta;
-        if m.format != FORMAT {
-            return Err((
-                "meta",
-                "format",
-                format!("\"{}\" is not \"{FORMAT}\"", m.format),
-            ));
-        }
-        if m.version != VERSION {
-            return Err((
-                "meta",
-                "version",
-                format!("{} is not supported (only {VERSION})", m.version),
-            ));
-        }
-        let s = &self.scene;
-        if !(1..=16).contains(&s.adc_bits) {
-            return Err(("scene", "adc_bits", format!("{} must be 1..16", s.adc_bits)));
-        }
-        positive("scene", "v_ref", s.v_ref)?;
-        positive("scene", "rate_hz", s.rate_hz)?;
-        finite("scene", "t_ref_c", s.t_ref_c)?;
-        if (s.t_ref_c - lightpose_core::light::T_REF_C).abs() > 1e-9 {
-            return Err((
-                "scene",
-                "t_ref_c",
-                format!(
-                    "{} differs from the {} °C that eq. 14 is referred to in this build",
-                    s.t_ref_c,
-                    lightpose_core::light::T_REF_C
-                ),
-            ));
-        }
-        if !(s.default_temp_c.is_finite() && temperature_gain(s.default_temp_c) > 0.0) {
-            return Err((
-                "scene",
-                "default_temp_c",
-                format!("{} °C is not a water temperature", s.default_temp_c),
-            ));
-        }
-        let d = &self.dark;
-        if d.offset_v.len() != NDET {
-            return Err((
-                "dark",
-                "offset_v",
-                format!("has {} values, expected {NDET}", d.offset_v.len()),
-            ));
-        }
-        if let Some(v) = d.offset_v.iter().find(|v| !v.is_finite()) {
-            return Err(("dark", "offset_v", format!("{v} is not a finite number")));
-        }
-        if let Some(sig) = &d.sigma_v {
-            if sig.len() != NDET || sig.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
-                return Err((
-                    "dark",
-                    "sigma_v",
-                    format!("must be {NDET} non-negative numbers"),
-                ));
-            }
-        }
-        let x = &self.fits.x;
-        positive("fits.x", "a1", x.a1)?;
-        positive("fits.x", "b1", x.b1)?;
-        finite("fits.x", "r2", x.r2)?;
-        finite("fits.x", "sigma_ln", x.sigma_ln)?;
-        finite("fits.x", "sigma_m", x.sigma_m)?;
-        for (t, f) in [
-            ("fits.pitch", &self.fits.pitch),
-            ("fits.yaw", &self.fits.yaw),
-            ("fits.y", &self.fits.y),
-            ("fits.z", &self.fits.z),
-        ] {
-            finite(t, "a", f.a)?;
-            finite(t, "b", f.b)?;
-            finite(t, "r2", f.r2)?;
-            finite(t, "sigma", f.sigma)?;
-        }
-        let first = |f: &LinearFit| matches!(f.feature.moment, Moment::M10 | Moment::M01);
-        if first(&self.fits.pitch) {
-            return Err((
-                "fits.pitch",
-                "feature",
-                "must be a moment ratio (m12/m22 or m21/m22)".into(),
-            ));
-        }
-        if first(&self.fits.yaw) {
-            return Err((
-                "fits.yaw",
-                "feature",
-                "must be a moment ratio (m12/m22 or m21/m22)".into(),
-            ));
-        }
-        if !first(&self.fits.y) {
-            return Err((
-                "fits.y",
-                "feature",
-                "must be a first moment (m10 or m01)".into(),
-            ));
-        }
-        if !first(&self.fits.z) {
-            return Err((
-                "fits.z",
-                "feature",
-                "must be a first moment (m10 or m01)".into(),
-            ));
-        }
-        let c = &self.coverage;
-        for (k, r) in [
-            ("x_m", c.x_m),
-            ("y_m", c.y_m),
-            ("z_m", c.z_m),
-            ("pitch_deg", c.pitch_deg),
-            ("yaw_deg", c.yaw_deg),
-        ] {
-            if !(r[0].is_finite() && r[1].is_finite() && r[0] <= r[1]) {
-                return Err((
-                    "coverage",
-                    k,
-                    format!("[{}, {}] is not a range", r[0], r[1]),
-                ));
-            }
-        }
-        let l = &self.limits;
-        positive("limits", "no_light_v", l.no_light_v)?;
-        if !(2..=MAX_SURGE_WINDOW).contains(&l.surge_window) {
-            return Err((
-                "limits",
-                "surge_window",
-                format!("{} must be 2..{MAX_SURGE_WINDOW}", l.surge_window),
-            ));
-        }
-        for (k, v) in [
-            ("margin_x_m", l.margin_x_m),
-            ("margin_yz_m", l.margin_yz_m),
-            ("margin_angle_deg", l.margin_angle_deg),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(("limits", k, format!("{v} must be ≥ 0")));
-            }
-        }
-        positive("limits", "max_gap_s", l.max_gap_s)?;
+    /// Every value that parses but cannot be right, as (table, key, why):
+    /// each table by its own check, in the file's order.
+    pub fn check(&self) -> Result<(), Refusal> {
+        self.meta.check()?;
+        self.scene.check()?;
+        self.dark.check()?;
+        self.fits.check()?;
+        self.coverage.check()?;
+        self.limits.check()?;
         if let Some(p) = &self.physical {
             p.validate().map_err(|m| ("physical", "", m))?;
         }

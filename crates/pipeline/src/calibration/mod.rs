@@ -21,10 +21,11 @@ pub mod file;
 pub mod least_squares;
 pub mod paper_fit;
 pub mod physical_fit;
+mod sweep_logs;
 
 pub use file::{
     CalError, Calibration, Coverage, Dark, Feature, Fits, Limits, LinearFit, Meta, Moment, Origin,
-    RangeBasis, RangeFit, SceneFacts, FORMAT, MAX_SURGE_WINDOW, VERSION,
+    RangeBasis, RangeFit, Refusal, SceneFacts, FORMAT, MAX_SURGE_WINDOW, VERSION,
 };
 pub use paper_fit::{calibrate, calibrate_full, CalibrateError, CalibrateOptions, Calibrated};
 pub use physical_fit::{

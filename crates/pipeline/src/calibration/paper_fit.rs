@@ -20,9 +20,9 @@ use super::file::{
 };
 use super::least_squares::{FitError, Line, LineAcc};
 use super::physical_fit::{CalibError, FitOptions, PhysicalFitter};
+use super::sweep_logs::{header_of, header_v_ref, is_dark_sweep, stream, BadLines};
 use crate::paper::steps;
-use lightpose_core::{frame::full_scale, Frame, LogError, NDET};
-use lightpose_logs::open as open_log;
+use lightpose_core::{frame::full_scale, Frame, LogError, LogHeader, NDET};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 pub enum CalibrateError {
     /// A log could not be opened or read on, or its header is refused.
     #[error(transparent)]
-    Log(LogError),
+    Log(#[from] LogError),
     /// The data cannot give a calibration; says why.
     #[error("cannot calibrate: {0}")]
     Refused(String),
@@ -205,38 +205,44 @@ impl Accs {
     }
 }
 
-/// Open a log and feed every frame to `each`; bad lines to `on_bad_line`.
-fn stream(
-    path: &Path,
-    mut each: impl FnMut(&Frame, &lightpose_core::LogHeader),
-    on_bad_line: &mut dyn FnMut(&LogError),
-    bad: &mut u64,
-) -> Result<lightpose_core::LogHeader, CalibrateError> {
-    let mut r = open_log(path).map_err(CalibrateError::Log)?;
-    let header = r.header().clone();
-    while let Some(item) = r.next_frame() {
-        match item {
-            Ok(f) => each(&f, &header),
-            Err(e) if e.skippable() => {
-                *bad += 1;
-                on_bad_line(&e);
-            }
-            Err(e) => return Err(CalibrateError::Log(e)),
+impl Accs {
+    /// What was skipped and why, for a refusal.
+    fn skipped_text(&self) -> String {
+        self.skipped
+            .iter()
+            .map(|(k, v)| format!("{v} {k}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// Refuse sweeps without translation or without orientation frames.
+    fn check_usable(&self) -> Result<(), CalibrateError> {
+        if self.translation == 0 {
+            return Err(CalibrateError::Refused(format!(
+                "no usable translation frames (pitch = yaw = 0 with light and no saturation); skipped: {}",
+                self.skipped_text()
+            )));
+        }
+        if self.orientation == 0 {
+            return Err(CalibrateError::Refused(format!(
+                "no usable orientation frames (y = z = 0 with pitch or yaw swept); skipped: {}",
+                self.skipped_text()
+            )));
+        }
+        Ok(())
+    }
+
+    /// The poses covered, [min, max] per quantity ([0, 0] where none).
+    fn coverage(&self) -> Coverage {
+        let cov = |i: usize| self.cov[i].unwrap_or([0.0, 0.0]);
+        Coverage {
+            x_m: cov(0),
+            y_m: cov(1),
+            z_m: cov(2),
+            pitch_deg: cov(3),
+            yaw_deg: cov(4),
         }
     }
-    Ok(header)
-}
-
-fn header_v_ref(h: &lightpose_core::LogHeader, default: f64) -> f64 {
-    h.extra
-        .get("v_ref")
-        .and_then(|v| v.as_f64())
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .unwrap_or(default)
-}
-
-fn is_dark_sweep(h: &lightpose_core::LogHeader) -> bool {
-    h.extra.get("sweep").and_then(|v| v.as_str()) == Some("dark")
 }
 
 /// The best of `cands` for one quantity, by R².
@@ -291,26 +297,62 @@ pub fn calibrate(
     calibrate_full(opts, on_bad_line).map(|c| c.cal)
 }
 
-/// Feed one frame to the physical fitter; its first error stops it (and is
-/// kept as the reason), since a refused frame would bias the fit.
-fn feed(
-    fitter: &mut Option<PhysicalFitter>,
-    err: &mut Option<CalibError>,
-    r: impl FnOnce(&mut PhysicalFitter) -> Result<(), CalibError>,
-) {
-    if let Some(f) = fitter.as_mut() {
-        if let Err(e) = r(f) {
-            *err = Some(e);
-            *fitter = None;
+/// The physical fitter, fed the same frames as the paper's fit; its first
+/// error stops it (and is kept as the reason), since a refused frame would
+/// bias the fit.
+struct PhysicalFeed {
+    fitter: Option<PhysicalFitter>,
+    err: Option<CalibError>,
+}
+
+impl PhysicalFeed {
+    fn new(opts: &CalibrateOptions) -> Self {
+        PhysicalFeed {
+            fitter: opts.physical.as_ref().map(|_| PhysicalFitter::new()),
+            err: None,
         }
+    }
+
+    /// Feed one frame.
+    fn feed(&mut self, r: impl FnOnce(&mut PhysicalFitter) -> Result<(), CalibError>) {
+        if let Some(f) = self.fitter.as_mut() {
+            if let Err(e) = r(f) {
+                self.err = Some(e);
+                self.fitter = None;
+            }
+        }
+    }
+
+    /// `cal` with the `[physical]` table when the fit gives a usable model,
+    /// else without it and with the reason.
+    fn finish(self, cal: Calibration, opts: &CalibrateOptions, v_ref: f64) -> Calibrated {
+        let mut out = Calibrated {
+            cal,
+            physical_skipped: self.err,
+        };
+        if let (Some(fitter), Some(o)) = (self.fitter, &opts.physical) {
+            let o = FitOptions { v_ref, ..o.clone() };
+            match fitter.fit(&o) {
+                Ok(p) => {
+                    let mut with = out.cal.clone();
+                    with.physical = Some(p);
+                    // A fit that gives an unusable model is the same as none.
+                    match with.check() {
+                        Ok(()) => out.cal = with,
+                        Err((_, _, m)) => {
+                            out.physical_skipped = Some(CalibError::NoConvergence(m));
+                        }
+                    }
+                }
+                Err(e) => out.physical_skipped = Some(e),
+            }
+        }
+        out
     }
 }
 
-/// [`calibrate`], also saying why `[physical]` was left out.
-pub fn calibrate_full(
-    opts: &CalibrateOptions,
-    mut on_bad_line: impl FnMut(&LogError),
-) -> Result<Calibrated, CalibrateError> {
+/// Refuse options no calibration can come from.
+fn check_options(opts: &CalibrateOptions) -> Result<(), CalibrateError> {
     if opts.sweeps.is_empty() {
         return Err(CalibrateError::Refused("no sweep log given".into()));
     }
@@ -320,42 +362,54 @@ pub fn calibrate_full(
             opts.surge_window, MAX_SURGE_WINDOW
         )));
     }
-    let mut bad = 0u64;
-    let mut phys = opts.physical.as_ref().map(|_| PhysicalFitter::new());
-    let mut phys_err: Option<CalibError> = None;
+    Ok(())
+}
 
-    // Pass 1: dark frames, from the dark log or from dark sweeps.
+/// Pass 1: the dark frames, from the dark log or from dark sweeps, with the
+/// names of the logs they came from.
+fn dark_pass(
+    opts: &CalibrateOptions,
+    phys: &mut PhysicalFeed,
+    bad: &mut BadLines,
+) -> Result<(DarkAcc, Vec<String>), CalibrateError> {
     let mut dark = DarkAcc::default();
-    let mut dark_source = Vec::new();
-    let mut v_ref = opts.v_ref;
-    if let Some(p) = &opts.dark {
+    let mut sources = Vec::new();
+    let mut add = |p: &Path, bad: &mut BadLines| -> Result<(), CalibrateError> {
         stream(
             p,
             |f, h| {
                 dark.push(f, header_v_ref(h, opts.v_ref));
-                feed(&mut phys, &mut phys_err, |p| p.add_dark(f));
+                phys.feed(|p| p.add_dark(f));
             },
-            &mut on_bad_line,
-            &mut bad,
+            bad,
         )?;
-        dark_source.push(p.display().to_string());
+        sources.push(p.display().to_string());
+        Ok(())
+    };
+    if let Some(p) = &opts.dark {
+        add(p, bad)?;
     }
     for p in &opts.sweeps {
-        let h = open_log(p).map_err(CalibrateError::Log)?.header().clone();
-        if is_dark_sweep(&h) {
-            stream(
-                p,
-                |f, h| {
-                    dark.push(f, header_v_ref(h, opts.v_ref));
-                    feed(&mut phys, &mut phys_err, |p| p.add_dark(f));
-                },
-                &mut on_bad_line,
-                &mut bad,
-            )?;
-            dark_source.push(p.display().to_string());
+        if is_dark_sweep(&header_of(p)?) {
+            add(p, bad)?;
         }
     }
-    let (offsets, sigma, no_light_v, dark_source) = if dark.n >= 2 {
+    Ok((dark, sources))
+}
+
+/// Each channel's dark offset and noise, the no-light threshold, and where
+/// they came from.
+struct DarkLevels {
+    offsets: [f64; NDET],
+    sigma: Option<Vec<f64>>,
+    no_light_v: f64,
+    source: String,
+}
+
+/// The dark levels from the dark frames, or MODEL.md's nominal ones when
+/// there are none.
+fn dark_levels(dark: &DarkAcc, sources: &[String]) -> Result<DarkLevels, CalibrateError> {
+    if dark.n >= 2 {
         let sig: Vec<f64> = dark
             .m2
             .iter()
@@ -365,26 +419,48 @@ pub fn calibrate_full(
         // At least two LSB, so that a noise-free scene is not "lit" by one
         // count of rounding.
         let thr = (NO_LIGHT_SIGMAS * worst).max(2.0 * dark.lsb);
-        (dark.mean, Some(sig), thr, dark_source.join(", "))
+        Ok(DarkLevels {
+            offsets: dark.mean,
+            sigma: Some(sig),
+            no_light_v: thr,
+            source: sources.join(", "),
+        })
     } else if dark.n == 1 {
-        return Err(CalibrateError::Refused(
+        Err(CalibrateError::Refused(
             "only one dark frame: the offsets need several to average the noise".into(),
-        ));
+        ))
     } else {
-        (
-            [NOMINAL_OFFSET_V; NDET],
-            None,
-            NO_LIGHT_SIGMAS * NOMINAL_SIGMA_V,
-            "nominal".to_string(),
-        )
-    };
+        Ok(DarkLevels {
+            offsets: [NOMINAL_OFFSET_V; NDET],
+            sigma: None,
+            no_light_v: NO_LIGHT_SIGMAS * NOMINAL_SIGMA_V,
+            source: "nominal".to_string(),
+        })
+    }
+}
 
-    // Pass 2: the lit, truth-labelled frames.
+/// What pass 2 gathered: the accumulators, the first lit sweep's header,
+/// the name of every sweep, and the ADC reference of the last lit one.
+struct LitPass {
+    accs: Accs,
+    header: LogHeader,
+    sweeps: Vec<String>,
+    v_ref: f64,
+}
+
+/// Pass 2: the lit, truth-labelled frames.
+fn lit_pass(
+    opts: &CalibrateOptions,
+    levels: &DarkLevels,
+    phys: &mut PhysicalFeed,
+    bad: &mut BadLines,
+) -> Result<LitPass, CalibrateError> {
     let mut accs = Accs::default();
     let mut first_header = None;
     let mut sweeps = Vec::new();
+    let mut v_ref = opts.v_ref;
     for p in &opts.sweeps {
-        let h = open_log(p).map_err(CalibrateError::Log)?.header().clone();
+        let h = header_of(p)?;
         sweeps.push(p.display().to_string());
         if is_dark_sweep(&h) {
             continue;
@@ -393,11 +469,16 @@ pub fn calibrate_full(
         let header = stream(
             p,
             |f, _| {
-                accs.push(f, v_ref, &offsets, opts.default_temp_c, no_light_v);
-                feed(&mut phys, &mut phys_err, |p| p.add_frame(f));
+                accs.push(
+                    f,
+                    v_ref,
+                    &levels.offsets,
+                    opts.default_temp_c,
+                    levels.no_light_v,
+                );
+                phys.feed(|p| p.add_frame(f));
             },
-            &mut on_bad_line,
-            &mut bad,
+            bad,
         )?;
         first_header.get_or_insert(header);
     }
@@ -406,32 +487,21 @@ pub fn calibrate_full(
             "every sweep given is a dark sweep: no lit frames".into(),
         ));
     };
-    let skipped = || {
-        accs.skipped
-            .iter()
-            .map(|(k, v)| format!("{v} {k}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    if accs.translation == 0 {
-        return Err(CalibrateError::Refused(format!(
-            "no usable translation frames (pitch = yaw = 0 with light and no saturation); skipped: {}",
-            skipped()
-        )));
-    }
-    if accs.orientation == 0 {
-        return Err(CalibrateError::Refused(format!(
-            "no usable orientation frames (y = z = 0 with pitch or yaw swept); skipped: {}",
-            skipped()
-        )));
-    }
+    Ok(LitPass {
+        accs,
+        header,
+        sweeps,
+        v_ref,
+    })
+}
 
-    // x: ln PD = ln a1 − b1·x, from the on-axis frames where the sweep has
-    // them at two distances or more. The paper's tank results (≤ 0.02 m on
-    // the axis at the start, 0.5 m at a 0.6/0.8 m offset) fit a range law
-    // taken on the axis; a fit over the whole y/z grid instead reads every
-    // on-axis distance about 0.9 m short at 4.5 m, because off-axis frames
-    // dim the peak by up to half (docs/pipeline.md).
+/// x: ln PD = ln a1 − b1·x, from the on-axis frames where the sweep has
+/// them at two distances or more. The paper's tank results (≤ 0.02 m on
+/// the axis at the start, 0.5 m at a 0.6/0.8 m offset) fit a range law
+/// taken on the axis; a fit over the whole y/z grid instead reads every
+/// on-axis distance about 0.9 m short at 4.5 m, because off-axis frames
+/// dim the peak by up to half (docs/pipeline.md).
+fn range_fit(accs: &Accs) -> Result<RangeFit, CalibrateError> {
     let (basis, x_acc) = match accs.x_axis.solve() {
         Ok(_) => (RangeBasis::Axis, &accs.x_axis),
         Err(_) => (RangeBasis::Grid, &accs.x),
@@ -461,7 +531,7 @@ pub fn calibrate_full(
         RangeBasis::Axis => accs.x.rms_about(x_line.slope, x_line.intercept),
         RangeBasis::Grid => x_line.sigma,
     };
-    let x_fit = RangeFit {
+    Ok(RangeFit {
         a1: x_line.intercept.exp(),
         b1,
         r2: x_line.r2,
@@ -469,18 +539,23 @@ pub fn calibrate_full(
         sigma_m: sigma_ln / b1,
         n: x_line.n,
         basis,
-    };
+    })
+}
 
+/// Refuse a quantity the sweep never varied.
+fn check_varies(acc: &BTreeMap<Feature, LineAcc>, what: &str) -> Result<(), CalibrateError> {
+    match acc.values().next().map(|a| a.solve()) {
+        Some(Err(FitError::TargetConstant)) => Err(CalibrateError::Refused(format!(
+            "{what} never varies in the sweep: the fit needs it swept"
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// The pitch, yaw, y and z lines, each on the feature the data say tracks
+/// it best, and every candidate's R² (the calibration's `selection`).
+fn feature_fits(x: RangeFit, accs: &Accs) -> Result<(Fits, Selection), CalibrateError> {
     let (pitch_c, yaw_c) = (fitted(&accs.pitch), fitted(&accs.yaw));
-    let check_varies =
-        |acc: &BTreeMap<Feature, LineAcc>, what: &str| -> Result<(), CalibrateError> {
-            match acc.values().next().map(|a| a.solve()) {
-                Some(Err(FitError::TargetConstant)) => Err(CalibrateError::Refused(format!(
-                    "{what} never varies in the sweep: the fit needs it swept"
-                ))),
-                _ => Ok(()),
-            }
-        };
     check_varies(&accs.pitch, "pitch (orientation frames)")?;
     check_varies(&accs.yaw, "yaw (orientation frames)")?;
     check_varies(&accs.y, "y (translation frames)")?;
@@ -493,7 +568,7 @@ pub fn calibrate_full(
         CalibrateError::Refused("no first moment could be fitted to y and z".into())
     })?;
 
-    let mut selection: BTreeMap<String, BTreeMap<String, f64>> = BTreeMap::new();
+    let mut selection = Selection::new();
     for (q, c) in [
         ("pitch", &pitch_c),
         ("yaw", &yaw_c),
@@ -505,17 +580,65 @@ pub fn calibrate_full(
             c.iter().map(|(f, l)| (f.to_string(), l.r2)).collect(),
         );
     }
+    let fits = Fits {
+        x,
+        pitch: linear(fp, lp),
+        yaw: linear(fy, ly),
+        y: linear(fyy, lyy),
+        z: linear(fz, lz),
+    };
+    Ok((fits, selection))
+}
 
-    let cov = |i: usize| accs.cov[i].unwrap_or([0.0, 0.0]);
+/// R² of every candidate feature per quantity.
+type Selection = BTreeMap<String, BTreeMap<String, f64>>;
+
+/// The thresholds the status word and the surge smoothing use.
+fn limits(opts: &CalibrateOptions, no_light_v: f64, rate_hz: f64) -> Limits {
+    Limits {
+        no_light_v,
+        surge_window: opts.surge_window,
+        // The paper's requirements (x ±0.5 m, y, z ±0.2 m, angles ±5°):
+        // an estimate that far outside the covered range is beyond
+        // what the sweep can vouch for.
+        margin_x_m: 0.5,
+        margin_yz_m: 0.2,
+        margin_angle_deg: 5.0,
+        // Ten frames at the paper's 5 Hz.
+        max_gap_s: 10.0 / rate_hz,
+    }
+}
+
+/// [`calibrate`], also saying why `[physical]` was left out.
+pub fn calibrate_full(
+    opts: &CalibrateOptions,
+    mut on_bad_line: impl FnMut(&LogError),
+) -> Result<Calibrated, CalibrateError> {
+    check_options(opts)?;
+    let mut bad = BadLines {
+        count: 0,
+        report: &mut on_bad_line,
+    };
+    let mut phys = PhysicalFeed::new(opts);
+    let (dark, dark_sources) = dark_pass(opts, &mut phys, &mut bad)?;
+    let levels = dark_levels(&dark, &dark_sources)?;
+    let LitPass {
+        accs,
+        header,
+        sweeps,
+        v_ref,
+    } = lit_pass(opts, &levels, &mut phys, &mut bad)?;
+    accs.check_usable()?;
+    let (fits, selection) = feature_fits(range_fit(&accs)?, &accs)?;
     let cal = Calibration {
         meta: Meta {
             format: FORMAT.into(),
             version: VERSION,
             created_by: opts.created_by.clone(),
             sweeps,
-            dark_source,
+            dark_source: levels.source,
             frames: accs.used,
-            bad_lines: bad,
+            bad_lines: bad.count,
         },
         scene: SceneFacts {
             adc_bits: header.adc_bits,
@@ -525,62 +648,18 @@ pub fn calibrate_full(
             rate_hz: header.rate_hz,
         },
         dark: Dark {
-            offset_v: offsets.to_vec(),
-            sigma_v: sigma,
+            offset_v: levels.offsets.to_vec(),
+            sigma_v: levels.sigma,
             frames: dark.n,
         },
-        fits: Fits {
-            x: x_fit,
-            pitch: linear(fp, lp),
-            yaw: linear(fy, ly),
-            y: linear(fyy, lyy),
-            z: linear(fz, lz),
-        },
-        coverage: Coverage {
-            x_m: cov(0),
-            y_m: cov(1),
-            z_m: cov(2),
-            pitch_deg: cov(3),
-            yaw_deg: cov(4),
-        },
-        limits: Limits {
-            no_light_v,
-            surge_window: opts.surge_window,
-            // The paper's requirements (x ±0.5 m, y, z ±0.2 m, angles ±5°):
-            // an estimate that far outside the covered range is beyond
-            // what the sweep can vouch for.
-            margin_x_m: 0.5,
-            margin_yz_m: 0.2,
-            margin_angle_deg: 5.0,
-            // Ten frames at the paper's 5 Hz.
-            max_gap_s: 10.0 / header.rate_hz,
-        },
+        fits,
+        coverage: accs.coverage(),
+        limits: limits(opts, levels.no_light_v, header.rate_hz),
         selection,
         physical: None,
         estimator: None,
     };
     cal.check()
         .map_err(|(t, k, m)| CalibrateError::Refused(format!("the fit gave {t}.{k}: {m}")))?;
-    let mut out = Calibrated {
-        cal,
-        physical_skipped: phys_err,
-    };
-    if let (Some(fitter), Some(o)) = (phys, &opts.physical) {
-        let o = FitOptions { v_ref, ..o.clone() };
-        match fitter.fit(&o) {
-            Ok(p) => {
-                let mut with = out.cal.clone();
-                with.physical = Some(p);
-                // A fit that gives an unusable model is the same as none.
-                match with.check() {
-                    Ok(()) => out.cal = with,
-                    Err((_, _, m)) => {
-                        out.physical_skipped = Some(CalibError::NoConvergence(m));
-                    }
-                }
-            }
-            Err(e) => out.physical_skipped = Some(e),
-        }
-    }
-    Ok(out)
+    Ok(phys.finish(cal, opts, v_ref))
 }

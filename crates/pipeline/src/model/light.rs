@@ -56,9 +56,12 @@ fn mat_vec(r: &[[f64; 3]; 3], v: &[f64; 3]) -> [f64; 3] {
     [dot(&r[0], v), dot(&r[1], v), dot(&r[2], v)]
 }
 
+/// R_BV and its derivatives with respect to θ and ψ, in that order.
+type Rotations = [[[f64; 3]; 3]; 3];
+
 /// R_BV and its derivatives with respect to θ and ψ (MODEL.md's R0·Rz·Ry).
 #[inline]
-fn rotations(theta: f64, psi: f64) -> [[[f64; 3]; 3]; 3] {
+fn rotations(theta: f64, psi: f64) -> Rotations {
     let (st, ct) = theta.sin_cos();
     let (sp, cp) = psi.sin_cos();
     let r = [
@@ -102,6 +105,201 @@ pub fn predict_with_grad(
     eval::<true>(m, q, k_d, gt)
 }
 
+/// The light equation's constants for one evaluation: the same for every
+/// detector (K_D may differ from the model's, see [`predict`]).
+#[derive(Clone, Copy)]
+struct Beam {
+    v1: f64,
+    /// σ_b and σ_R in radians.
+    sb: f64,
+    sr: f64,
+    /// ω, and σ_R² + σ_h² (σ_R² without scattering).
+    omega: f64,
+    st2: f64,
+    /// σ_R² / (σ_R² + σ_h²).
+    ratio: f64,
+    k_d: f64,
+}
+
+impl Beam {
+    #[inline]
+    fn new(m: &SensorModel, k_d: f64) -> Self {
+        let l = &m.light;
+        let sb = l.sigma_b.rad();
+        let sr = l.sigma_r.rad();
+        let (omega, st2) = match l.scattering {
+            Some(s) => (s.omega, sr * sr + s.sigma_h.rad() * s.sigma_h.rad()),
+            None => (0.0, sr * sr),
+        };
+        let ratio = sr * sr / st2;
+        Beam {
+            v1: l.v1,
+            sb,
+            sr,
+            omega,
+            st2,
+            ratio,
+            k_d,
+        }
+    }
+}
+
+/// Where one detector sits as the beacon sees it: its body normal `n`, that
+/// normal in the beam frame `mk`, its position `pk`, and the three
+/// quantities the equation is written in (distance d, beam angle α,
+/// incidence angle β, with ρ, cos β and sin β that the derivatives reuse).
+#[derive(Clone, Copy)]
+struct Sight {
+    n: [f64; 3],
+    mk: [f64; 3],
+    pk: [f64; 3],
+    d: f64,
+    rho: f64,
+    alpha: f64,
+    c: f64,
+    s: f64,
+    beta: f64,
+}
+
+/// Detector `n` on the dome of radius `rh` at position `p` turned by `r`;
+/// `None` at the beacon itself, where the equation has no meaning.
+#[inline]
+fn sight(r: &[[f64; 3]; 3], p: &[f64; 3], rh: f64, n: [f64; 3]) -> Option<Sight> {
+    let mk = mat_vec(r, &n);
+    let pk = [p[0] + rh * mk[0], p[1] + rh * mk[1], p[2] + rh * mk[2]];
+    let d = dot(&pk, &pk).sqrt();
+    if !(d > 1e-9) || !d.is_finite() {
+        return None;
+    }
+    let rho = (pk[1] * pk[1] + pk[2] * pk[2]).sqrt();
+    let alpha = rho.atan2(pk[0]);
+    let mp = dot(&mk, &pk);
+    let c = -mp / d;
+    let cross = [
+        mk[1] * pk[2] - mk[2] * pk[1],
+        mk[2] * pk[0] - mk[0] * pk[2],
+        mk[0] * pk[1] - mk[1] * pk[0],
+    ];
+    let s = dot(&cross, &cross).sqrt() / d;
+    let beta = s.atan2(c);
+    Some(Sight {
+        n,
+        mk,
+        pk,
+        d,
+        rho,
+        alpha,
+        c,
+        s,
+        beta,
+    })
+}
+
+/// The irradiance E = A·bracket of one detector, with the factors its
+/// derivatives reuse: A = V1·beam·e^(−K_D d)/d², the direct (g_r) and
+/// scattered (g_t) acceptance, and the scattered fraction f = 1 − e^(−ωK_D d).
+#[derive(Clone, Copy)]
+struct Irradiance {
+    a: f64,
+    g_r: f64,
+    g_t: f64,
+    escat: f64,
+    f: f64,
+    bracket: f64,
+    e: f64,
+}
+
+#[inline]
+fn irradiance(b: &Beam, s: &Sight) -> Irradiance {
+    let beam = (-s.alpha * s.alpha / (2.0 * b.sb * b.sb)).exp();
+    let att = (-b.k_d * s.d).exp();
+    let path = att / (s.d * s.d);
+    let a = b.v1 * beam * path;
+    let (g_r, g_t) = if s.beta < std::f64::consts::FRAC_PI_2 {
+        let b2 = s.beta * s.beta;
+        (
+            (-b2 / (2.0 * b.sr * b.sr)).exp(),
+            (-b2 / (2.0 * b.st2)).exp(),
+        )
+    } else {
+        (0.0, 0.0)
+    };
+    let escat = (-b.omega * b.k_d * s.d).exp();
+    let f = 1.0 - escat;
+    let bracket = (1.0 - f) * g_r + f * b.ratio * g_t;
+    Irradiance {
+        a,
+        g_r,
+        g_t,
+        escat,
+        f,
+        bracket,
+        e: a * bracket,
+    }
+}
+
+/// ∂E/∂(x, y, z, θ, ψ, K_D) of one detector, in volts: the partials of E
+/// in d, α² and β², chained through how each pose coordinate moves p_k and
+/// turns m_k.
+#[inline]
+fn gradient(b: &Beam, s: &Sight, e: &Irradiance, rot: &Rotations, rh: f64) -> [f64; NGRAD] {
+    let (a, d, pk) = (e.a, s.d, s.pk);
+    let (bracket, f, g_r, g_t) = (e.bracket, e.f, e.g_r, e.g_t);
+    let (k_d, omega, ratio) = (b.k_d, b.omega, b.ratio);
+    // ∂/∂d, ∂/∂(α²), ∂/∂(β²) of E, then chain through ∂d, ∂α², ∂β².
+    let db_dd = omega * k_d * e.escat * (ratio * g_t - g_r);
+    let de_dd = a * (-(k_d + 2.0 / d) * bracket + db_dd);
+    let de_da2 = -a * bracket / (2.0 * b.sb * b.sb);
+    let de_db2 = -a * ((1.0 - f) * g_r / (2.0 * b.sr * b.sr) + f * ratio * g_t / (2.0 * b.st2));
+    let de_dk = a * (-d * bracket + omega * d * e.escat * (ratio * g_t - g_r));
+
+    // α/ρ → 1/p_x on the axis; behind the beacon on the axis the beam
+    // factor is exp(−π²/2σ_b²) ≈ 0 and its gradient is taken as zero.
+    let rho = s.rho;
+    let a_over_rho = if rho > 1e-12 * d {
+        s.alpha / rho
+    } else if pk[0] > 0.0 {
+        1.0 / pk[0]
+    } else {
+        0.0
+    };
+    let d2 = d * d;
+    // ∂(α²)/∂p_k = 2(α/ρ)·(−ρ², p_x p_y, p_x p_z)/d²
+    let da2_dpk = [
+        -2.0 * a_over_rho * rho * rho / d2,
+        2.0 * a_over_rho * pk[0] * pk[1] / d2,
+        2.0 * a_over_rho * pk[0] * pk[2] / d2,
+    ];
+    // β/sin β → 1 as β → 0.
+    let b_over_s = if s.s > 1e-12 { s.beta / s.s } else { 1.0 };
+
+    // Derivatives of p_k and of the beam-frame normal m_k per pose
+    // coordinate: position moves p_k only; attitude turns both.
+    let mt = mat_vec(&rot[1], &s.n);
+    let mpsi = mat_vec(&rot[2], &s.n);
+    let dpk: [[f64; 3]; 5] = [
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [rh * mt[0], rh * mt[1], rh * mt[2]],
+        [rh * mpsi[0], rh * mpsi[1], rh * mpsi[2]],
+    ];
+    let dm: [[f64; 3]; 5] = [[0.0; 3], [0.0; 3], [0.0; 3], mt, mpsi];
+    let mut out = [0.0; NGRAD];
+    for j in 0..5 {
+        let dd = dot(&pk, &dpk[j]) / d;
+        let da2 = dot(&da2_dpk, &dpk[j]);
+        // c = −m·p/d ⇒ dc = −(dm·p + m·dp)/d − c·dd/d
+        let dc = -(dot(&dm[j], &pk) + dot(&s.mk, &dpk[j])) / d - s.c * dd / d;
+        let db2 = -2.0 * b_over_s * dc;
+        out[j] = de_dd * dd + de_da2 * da2 + de_db2 * db2;
+    }
+    out[5] = de_dk;
+    out
+}
+
+/// The light equation for every detector at pose `q`: counts, irradiance
+/// and, when `GRAD`, ∂count/∂(x, y, z, θ, ψ, K_D).
 #[inline]
 fn eval<const GRAD: bool>(
     m: &SensorModel,
@@ -112,112 +310,30 @@ fn eval<const GRAD: bool>(
     let mut counts = SVector::<f64, NDET>::zeros();
     let mut irr = [0.0; NDET];
     let mut jac = PoseJacobian::zeros();
-    let l = &m.light;
-    let sb = l.sigma_b.rad();
-    let sr = l.sigma_r.rad();
-    let (omega, st2) = match l.scattering {
-        Some(s) => (s.omega, sr * sr + s.sigma_h.rad() * s.sigma_h.rad()),
-        None => (0.0, sr * sr),
-    };
-    let ratio = sr * sr / st2;
+    let beam = Beam::new(m, k_d);
     let cpv = m.counts_per_volt();
-    let [r, r_t, r_p] = rotations(q[3], q[4]);
+    let rot = rotations(q[3], q[4]);
     let p = [q[0], q[1], q[2]];
     let rh = m.geometry.radius_m;
-    let half_pi = std::f64::consts::FRAC_PI_2;
     for k in 0..NDET {
         let scale = m.gain[k] * gt * cpv;
         let off = m.offset_v[k] * cpv;
-        let n = m.geometry.normal(k).0;
-        let mk = mat_vec(&r, &n);
-        let pk = [p[0] + rh * mk[0], p[1] + rh * mk[1], p[2] + rh * mk[2]];
-        let d = dot(&pk, &pk).sqrt();
-        if !(d > 1e-9) || !d.is_finite() {
+        let Some(s) = sight(&rot[0], &p, rh, m.geometry.normal(k).0) else {
             // At the beacon itself the equation has no meaning; the solver
             // keeps poses away from here, so any value that is finite will do.
             counts[k] = off;
             continue;
-        }
-        let rho = (pk[1] * pk[1] + pk[2] * pk[2]).sqrt();
-        let alpha = rho.atan2(pk[0]);
-        let mp = dot(&mk, &pk);
-        let c = -mp / d;
-        let cross = [
-            mk[1] * pk[2] - mk[2] * pk[1],
-            mk[2] * pk[0] - mk[0] * pk[2],
-            mk[0] * pk[1] - mk[1] * pk[0],
-        ];
-        let s = dot(&cross, &cross).sqrt() / d;
-        let beta = s.atan2(c);
-
-        let beam = (-alpha * alpha / (2.0 * sb * sb)).exp();
-        let att = (-k_d * d).exp();
-        let path = att / (d * d);
-        let a = l.v1 * beam * path;
-        let (g_r, g_t) = if beta < half_pi {
-            let b2 = beta * beta;
-            ((-b2 / (2.0 * sr * sr)).exp(), (-b2 / (2.0 * st2)).exp())
-        } else {
-            (0.0, 0.0)
         };
-        let escat = (-omega * k_d * d).exp();
-        let f = 1.0 - escat;
-        let bracket = (1.0 - f) * g_r + f * ratio * g_t;
-        let e = a * bracket;
-        irr[k] = e;
-        counts[k] = scale * e + off;
-        if !GRAD || a == 0.0 {
+        let e = irradiance(&beam, &s);
+        irr[k] = e.e;
+        counts[k] = scale * e.e + off;
+        if !GRAD || e.a == 0.0 {
             continue;
         }
-
-        // ∂/∂d, ∂/∂(α²), ∂/∂(β²) of E, then chain through ∂d, ∂α², ∂β².
-        let db_dd = omega * k_d * escat * (ratio * g_t - g_r);
-        let de_dd = a * (-(k_d + 2.0 / d) * bracket + db_dd);
-        let de_da2 = -a * bracket / (2.0 * sb * sb);
-        let de_db2 = -a * ((1.0 - f) * g_r / (2.0 * sr * sr) + f * ratio * g_t / (2.0 * st2));
-        let de_dk = a * (-d * bracket + omega * d * escat * (ratio * g_t - g_r));
-
-        // α/ρ → 1/p_x on the axis; behind the beacon on the axis the beam
-        // factor is exp(−π²/2σ_b²) ≈ 0 and its gradient is taken as zero.
-        let a_over_rho = if rho > 1e-12 * d {
-            alpha / rho
-        } else if pk[0] > 0.0 {
-            1.0 / pk[0]
-        } else {
-            0.0
-        };
-        let d2 = d * d;
-        // ∂(α²)/∂p_k = 2(α/ρ)·(−ρ², p_x p_y, p_x p_z)/d²
-        let da2_dpk = [
-            -2.0 * a_over_rho * rho * rho / d2,
-            2.0 * a_over_rho * pk[0] * pk[1] / d2,
-            2.0 * a_over_rho * pk[0] * pk[2] / d2,
-        ];
-        // β/sin β → 1 as β → 0.
-        let b_over_s = if s > 1e-12 { beta / s } else { 1.0 };
-
-        // Derivatives of p_k and of the beam-frame normal m_k per pose
-        // coordinate: position moves p_k only; attitude turns both.
-        let mt = mat_vec(&r_t, &n);
-        let mpsi = mat_vec(&r_p, &n);
-        let dpk: [[f64; 3]; 5] = [
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
-            [rh * mt[0], rh * mt[1], rh * mt[2]],
-            [rh * mpsi[0], rh * mpsi[1], rh * mpsi[2]],
-        ];
-        let dm: [[f64; 3]; 5] = [[0.0; 3], [0.0; 3], [0.0; 3], mt, mpsi];
-        for j in 0..5 {
-            let dd = dot(&pk, &dpk[j]) / d;
-            let da2 = dot(&da2_dpk, &dpk[j]);
-            // c = −m·p/d ⇒ dc = −(dm·p + m·dp)/d − c·dd/d
-            let dc = -(dot(&dm[j], &pk) + dot(&mk, &dpk[j])) / d - c * dd / d;
-            let db2 = -2.0 * b_over_s * dc;
-            let de = de_dd * dd + de_da2 * da2 + de_db2 * db2;
-            jac[(k, j)] = scale * de;
+        let de = gradient(&beam, &s, &e, &rot, rh);
+        for j in 0..NGRAD {
+            jac[(k, j)] = scale * de[j];
         }
-        jac[(k, 5)] = scale * de_dk;
     }
     (counts, irr, jac)
 }

@@ -60,6 +60,33 @@ pub(crate) struct FrameFit {
     pub free: [bool; 5],
 }
 
+impl FrameFit {
+    /// A frame without a fit, and why.
+    fn failed(status: Status) -> Self {
+        FrameFit {
+            status,
+            fit: None,
+            free: [false; 5],
+        }
+    }
+}
+
+/// How one frame's fit is constrained: which coordinates are free, the
+/// prior on pitch and yaw, and the attitude (reading or configured) that
+/// holds or starts them.
+#[derive(Debug, Clone, Copy)]
+struct Constraints {
+    free: [bool; 5],
+    prior: Prior,
+    att_q: Option<(f64, f64)>,
+}
+
+/// χ² per degree of freedom of a fit over the `free` coordinates.
+fn reduced_chi2(r: &LmResult, free: &[bool; 5]) -> f64 {
+    let dof = free.iter().filter(|f| **f).count();
+    r.chi2 / (r.n_data.saturating_sub(dof).max(1)) as f64
+}
+
 impl ModelEstimator {
     pub const NAME: &'static str = "model";
 
@@ -95,25 +122,42 @@ impl ModelEstimator {
 
     /// Solve one frame; `warm` is a starting pose to try first.
     pub(crate) fn fit_frame(&self, frame: &Frame, warm: Option<PoseVec>) -> FrameFit {
-        let m = &self.model;
-        let c = &self.cfg;
-        let none = |status| FrameFit {
-            status,
-            fit: None,
-            free: [false; 5],
+        let gt = match self.screen(frame) {
+            Ok(gt) => gt,
+            Err(status) => return FrameFit::failed(status),
         };
-        if frame.adc_bits != m.adc_bits {
-            return none(Status::BadFrame);
+        let k = self.constraints(frame);
+        let opts = self.solve_options(k.free, gt);
+        match self.best_fit(frame, warm, gt, &k, &opts) {
+            Some(r) => self.judge(frame, r, k.free),
+            None => FrameFit::failed(Status::Diverged),
+        }
+    }
+
+    /// A frame the model can be fitted to gives its temperature gain g_T;
+    /// one of another ADC, with an impossible temperature or without light
+    /// gives the status that says so.
+    fn screen(&self, frame: &Frame) -> Result<f64, Status> {
+        if frame.adc_bits != self.model.adc_bits {
+            return Err(Status::BadFrame);
         }
         let gt = match frame.temp_c {
             Some(t) if t.is_finite() && WATER_TEMP_C.contains(&t) => temperature_gain(t),
-            Some(_) => return none(Status::BadFrame),
+            Some(_) => return Err(Status::BadFrame),
             None => 1.0,
         };
         if !self.has_light(frame) {
-            return none(Status::NoLight);
+            return Err(Status::NoLight);
         }
+        Ok(gt)
+    }
 
+    /// What the settings and the frame's attitude reading (if used) make of
+    /// pitch and yaw: held at the reading or the configured attitude
+    /// (`Dof::Position`), or free with the reading (or the envelope) as a
+    /// prior (`Dof::Full`).
+    fn constraints(&self, frame: &Frame) -> Constraints {
+        let c = &self.cfg;
         let att = frame.attitude.filter(|_| c.use_attitude);
         let (free, prior, att_q) = match (c.dof, att) {
             (Dof::Position, Some(a)) => (
@@ -143,7 +187,14 @@ impl ModelEstimator {
                 ([true; 5], p, None)
             }
         };
-        let opts = SolveOptions {
+        Constraints { free, prior, att_q }
+    }
+
+    /// The solver's bounds and knobs from the settings, for a frame of
+    /// temperature gain `gt`.
+    fn solve_options(&self, free: [bool; 5], gt: f64) -> SolveOptions {
+        let (m, c) = (&self.model, &self.cfg);
+        SolveOptions {
             free,
             max_iter: c.max_iter,
             x_min: (c.x_range[0] / c.search_margin).max(m.geometry.radius_m * 2.0),
@@ -152,37 +203,42 @@ impl ModelEstimator {
             max_angle: c.max_angle_deg.to_radians(),
             k_d: m.light.k_d,
             gt,
-        };
-        let dof = free.iter().filter(|f| **f).count();
-        let reduced = |r: &LmResult| r.chi2 / (r.n_data.saturating_sub(dof).max(1)) as f64;
+        }
+    }
 
+    /// The warm start's fit if it is good; otherwise also a cold start from
+    /// the image (position first, then the rest), keeping the better.
+    fn best_fit(
+        &self,
+        frame: &Frame,
+        warm: Option<PoseVec>,
+        gt: f64,
+        k: &Constraints,
+        opts: &SolveOptions,
+    ) -> Option<LmResult> {
+        let m = &self.model;
         let mut result: Option<LmResult> = None;
         if let Some(mut q) = warm.filter(|q| q.iter().all(|v| v.is_finite())) {
-            if let Some((th, ps)) = att_q.filter(|_| c.dof == Dof::Position) {
+            if let Some((th, ps)) = k.att_q.filter(|_| self.cfg.dof == Dof::Position) {
                 q[3] = th;
                 q[4] = ps;
             }
-            let r = solve(m, &frame.counts, &q, &prior, &opts);
-            if r.converged && reduced(&r) <= 4.0 {
-                result = Some(r);
-            } else {
-                result = Some(r);
-                // A warm start that fits badly may sit in the wrong basin:
-                // fall through to a cold start and keep the better one.
-            }
+            // A warm start that fits badly may sit in the wrong basin: it
+            // is kept only if the cold start below does no better.
+            result = Some(solve(m, &frame.counts, &q, &k.prior, opts));
         }
         let warm_good = result
             .as_ref()
-            .is_some_and(|r| r.converged && reduced(r) <= 4.0);
+            .is_some_and(|r| r.converged && reduced_chi2(r, &k.free) <= 4.0);
         if !warm_good {
-            if let Some(q0) = coarse_start(m, frame, gt, att_q, &opts) {
+            if let Some(q0) = coarse_start(m, frame, gt, k.att_q, opts) {
                 // Position first with the attitude held, then the rest: the
                 // y/yaw and z/pitch ridges are easier to walk from there.
-                let mut pos_only = opts;
+                let mut pos_only = *opts;
                 pos_only.free = [true, true, true, false, false];
-                let r1 = solve(m, &frame.counts, &q0, &prior, &pos_only);
-                let r2 = if free[3] || free[4] {
-                    solve(m, &frame.counts, &r1.q, &prior, &opts)
+                let r1 = solve(m, &frame.counts, &q0, &k.prior, &pos_only);
+                let r2 = if k.free[3] || k.free[4] {
+                    solve(m, &frame.counts, &r1.q, &k.prior, opts)
                 } else {
                     r1
                 };
@@ -192,41 +248,38 @@ impl ModelEstimator {
                 };
             }
         }
-        let Some(mut r) = result else {
-            return none(Status::Diverged);
-        };
+        result
+    }
+
+    /// The status of a finished fit (diverged, saturated, out of range or
+    /// ok), its covariance widened when the model fits worse than the noise
+    /// says.
+    fn judge(&self, frame: &Frame, mut r: LmResult, free: [bool; 5]) -> FrameFit {
+        let c = &self.cfg;
         // Issue 8: with most channels clipped the censored fit has no
         // minimum to converge to (every pose close enough satisfies every
         // bound), so a failed fit of such a frame is `saturated`, which
         // says why, not `diverged`; and without a pose (nothing to start
         // the tracker from).
-        let fs = full_scale(m.adc_bits);
+        let fs = full_scale(self.model.adc_bits);
         let clipped = frame.counts.iter().filter(|&&k| k >= fs).count();
-        let failed = if clipped > c.max_saturated {
-            Status::Saturated
-        } else {
-            Status::Diverged
+        let refuse = |r: LmResult| {
+            if clipped > c.max_saturated {
+                FrameFit::failed(Status::Saturated)
+            } else {
+                FrameFit {
+                    status: Status::Diverged,
+                    fit: Some(r),
+                    free,
+                }
+            }
         };
         if !r.converged || !r.q.iter().all(|v| v.is_finite()) {
-            if failed == Status::Saturated {
-                return none(failed);
-            }
-            return FrameFit {
-                status: Status::Diverged,
-                fit: Some(r),
-                free,
-            };
+            return refuse(r);
         }
-        let red = reduced(&r);
+        let red = reduced_chi2(&r, &free);
         if !(red <= c.max_reduced_chi2) {
-            if failed == Status::Saturated {
-                return none(failed);
-            }
-            return FrameFit {
-                status: Status::Diverged,
-                fit: Some(r),
-                free,
-            };
+            return refuse(r);
         }
         // A model that fits worse than its noise says: widen, don't lie.
         if red > 1.0 {

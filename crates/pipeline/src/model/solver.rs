@@ -20,7 +20,7 @@
 use lightpose_core::NDET;
 use nalgebra::{SMatrix, SVector};
 
-use super::light::{predict, predict_with_grad, PoseVec};
+use super::light::{predict, predict_with_grad, PoseJacobian, PoseVec};
 use super::SensorModel;
 
 type M5 = SMatrix<f64, 5, 5>;
@@ -162,6 +162,145 @@ fn admissible(q: &PoseVec, o: &SolveOptions) -> bool {
         && q[4].abs() <= o.max_angle
 }
 
+/// The counts' weights 1/σ_k from the noise model at irradiance `irr`.
+#[inline]
+fn noise_weights(m: &SensorModel, irr: &[f64; NDET], gt: f64, w: &mut [f64; NDET]) {
+    for k in 0..NDET {
+        w[k] = 1.0 / m.count_variance(irr[k] * m.gain[k] * gt).sqrt();
+    }
+}
+
+/// JᵀWJ and JᵀWr over the active rows; a censored row whose bound is not
+/// crossed has a zero residual and contributes no curvature either.
+#[inline]
+fn normal_equations(
+    jac: &PoseJacobian,
+    kinds: &[Censoring; NDET],
+    w: &[f64; NDET],
+    r: &[f64; NDET],
+) -> (M5, SVector<f64, 5>) {
+    let mut h = M5::zeros();
+    let mut g = SVector::<f64, 5>::zeros();
+    for k in 0..NDET {
+        let active = kinds[k] == Censoring::Data || r[k] != 0.0;
+        if !active {
+            continue;
+        }
+        let row = jac.fixed_view::<1, 5>(k, 0).transpose() * w[k];
+        h += row * row.transpose();
+        g += row * r[k];
+    }
+    (h, g)
+}
+
+/// Turn the rows and columns of the coordinates that are not `free` into
+/// those of the identity, so that they neither move nor couple.
+#[inline]
+fn pin_fixed(a: &mut M5, free: &[bool; 5]) {
+    for i in 0..5 {
+        if !free[i] {
+            for j in 0..5 {
+                a[(i, j)] = 0.0;
+                a[(j, i)] = 0.0;
+            }
+            a[(i, i)] = 1.0;
+        }
+    }
+}
+
+/// One frame's fit: what stays the same while the pose moves.
+struct Problem<'a> {
+    m: &'a SensorModel,
+    counts: &'a [u16; NDET],
+    kinds: [Censoring; NDET],
+    fs: f64,
+    prior: &'a Prior,
+    o: &'a SolveOptions,
+}
+
+/// The fit linearized at one pose: χ² of the counts, and the normal
+/// equations (information h and gradient g) with the prior in.
+struct Linearized {
+    chi2: f64,
+    h: M5,
+    g: SVector<f64, 5>,
+}
+
+impl Problem<'_> {
+    /// Reweight from the noise model at `q` (into `w`), take the residuals
+    /// there (into `r`) and the normal equations.
+    #[inline]
+    fn linearize(&self, q: &PoseVec, w: &mut [f64; NDET], r: &mut [f64; NDET]) -> Linearized {
+        let o = self.o;
+        let (pred, irr, jac) = predict_with_grad(self.m, q, o.k_d, o.gt);
+        noise_weights(self.m, &irr, o.gt, w);
+        let chi2 = residuals(self.counts, &self.kinds, &pred, w, self.fs, r);
+        let (mut h, mut g) = normal_equations(&jac, &self.kinds, w, r);
+        let prior = self.prior;
+        for i in 0..5 {
+            let s2 = prior.inv_sigma[i] * prior.inv_sigma[i];
+            h[(i, i)] += s2;
+            g[i] += s2 * (q[i] - prior.mean[i]);
+        }
+        Linearized { chi2, h, g }
+    }
+
+    /// Cost (χ² plus prior) at `q` with the weights `w` held.
+    #[inline]
+    fn cost_at(&self, q: &PoseVec, w: &[f64; NDET], r: &mut [f64; NDET]) -> f64 {
+        let (pred, _) = predict(self.m, q, self.o.k_d, self.o.gt);
+        residuals(self.counts, &self.kinds, &pred, w, self.fs, r) + prior_cost(q, self.prior)
+    }
+
+    /// Levenberg–Marquardt from `q` (cost `cost`): raise the damping until
+    /// an admissible step lowers the cost (at most 12 tries), take it and
+    /// relax the damping. Returns whether a step was taken and whether the
+    /// last step tried was negligible (converged).
+    #[inline]
+    fn damped_step(
+        &self,
+        lin: &Linearized,
+        cost: f64,
+        q: &mut PoseVec,
+        lambda: &mut f64,
+        w: &[f64; NDET],
+        rt: &mut [f64; NDET],
+    ) -> (bool, bool) {
+        let h = &lin.h;
+        let mut step_small = false;
+        for _ in 0..12 {
+            let mut a = *h;
+            for i in 0..5 {
+                a[(i, i)] += *lambda * h[(i, i)] + 1e-12;
+            }
+            let Some(ch) = a.cholesky() else {
+                *lambda *= 10.0;
+                continue;
+            };
+            let delta = -ch.solve(&lin.g);
+            let qn = *q + delta;
+            // A step that is tiny against the current uncertainty ends it.
+            step_small = (0..5).all(|i| (delta[i] * delta[i] * h[(i, i)]) < 1e-8);
+            if !admissible(&qn, self.o) {
+                *lambda *= 4.0;
+                continue;
+            }
+            let cn = self.cost_at(&qn, w, rt);
+            if cn.is_finite() && cn <= cost {
+                let rel = (cost - cn) / cost.max(1e-300);
+                *q = qn;
+                *lambda = (*lambda / 3.0).max(1e-9);
+                if rel < 1e-12 {
+                    step_small = true;
+                }
+                return (true, step_small);
+            }
+            *lambda *= 4.0;
+        }
+        (false, step_small)
+    }
+}
+
 /// Minimize the censored, weighted squared residuals plus the prior,
 /// starting from `q0`. Weights come from the noise model at the current
 /// iterate (iteratively reweighted), so κ > 0 is handled too.
@@ -173,9 +312,16 @@ pub fn solve(
     o: &SolveOptions,
 ) -> LmResult {
     let kinds = Censoring::classify(m, counts);
-    let fs = m.full_scale();
     let n_saturated = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
     let n_data = kinds.iter().filter(|k| **k == Censoring::Data).count();
+    let p = Problem {
+        m,
+        counts,
+        kinds,
+        fs: m.full_scale(),
+        prior,
+        o,
+    };
     let mut q = *q0;
     let mut lambda = 1e-3;
     let mut w = [0.0; NDET];
@@ -188,73 +334,17 @@ pub fn solve(
     let mut cost = f64::INFINITY;
     for it in 0..o.max_iter {
         iterations = it + 1;
-        let (pred, irr, jac) = predict_with_grad(m, &q, o.k_d, o.gt);
-        for k in 0..NDET {
-            w[k] = 1.0 / m.count_variance(irr[k] * m.gain[k] * o.gt).sqrt();
-        }
-        chi2 = residuals(counts, &kinds, &pred, &w, fs, &mut r);
+        let mut lin = p.linearize(&q, &mut w, &mut r);
+        chi2 = lin.chi2;
         cost = chi2 + prior_cost(&q, prior);
-        // Normal equations; a censored row whose bound is not crossed has a
-        // zero residual and contributes no curvature either.
-        h = M5::zeros();
-        let mut g = SVector::<f64, 5>::zeros();
-        for k in 0..NDET {
-            let active = kinds[k] == Censoring::Data || r[k] != 0.0;
-            if !active {
-                continue;
-            }
-            let row = jac.fixed_view::<1, 5>(k, 0).transpose() * w[k];
-            h += row * row.transpose();
-            g += row * r[k];
-        }
-        for i in 0..5 {
-            let s2 = prior.inv_sigma[i] * prior.inv_sigma[i];
-            h[(i, i)] += s2;
-            g[i] += s2 * (q[i] - prior.mean[i]);
-        }
+        pin_fixed(&mut lin.h, &o.free);
         for i in 0..5 {
             if !o.free[i] {
-                for j in 0..5 {
-                    h[(i, j)] = 0.0;
-                    h[(j, i)] = 0.0;
-                }
-                h[(i, i)] = 1.0;
-                g[i] = 0.0;
+                lin.g[i] = 0.0;
             }
         }
-        let mut accepted = false;
-        let mut step_small = false;
-        for _ in 0..12 {
-            let mut a = h;
-            for i in 0..5 {
-                a[(i, i)] += lambda * h[(i, i)] + 1e-12;
-            }
-            let Some(ch) = a.cholesky() else {
-                lambda *= 10.0;
-                continue;
-            };
-            let delta = -ch.solve(&g);
-            let qn = q + delta;
-            // A step that is tiny against the current uncertainty ends it.
-            step_small = (0..5).all(|i| (delta[i] * delta[i] * h[(i, i)]) < 1e-8);
-            if !admissible(&qn, o) {
-                lambda *= 4.0;
-                continue;
-            }
-            let (pn, _) = predict(m, &qn, o.k_d, o.gt);
-            let cn = residuals(counts, &kinds, &pn, &w, fs, &mut rt) + prior_cost(&qn, prior);
-            if cn.is_finite() && cn <= cost {
-                let rel = (cost - cn) / cost.max(1e-300);
-                q = qn;
-                lambda = (lambda / 3.0).max(1e-9);
-                accepted = true;
-                if rel < 1e-12 {
-                    step_small = true;
-                }
-                break;
-            }
-            lambda *= 4.0;
-        }
+        h = lin.h;
+        let (accepted, step_small) = p.damped_step(&lin, cost, &mut q, &mut lambda, &w, &mut rt);
         if step_small || !accepted {
             // Either converged, or no admissible downhill step exists here:
             // a local minimum at the current damping.
@@ -263,24 +353,11 @@ pub fn solve(
         }
     }
     // Covariance at the final point (recompute curvature there).
-    let (pred, irr, jac) = predict_with_grad(m, &q, o.k_d, o.gt);
-    for k in 0..NDET {
-        w[k] = 1.0 / m.count_variance(irr[k] * m.gain[k] * o.gt).sqrt();
-    }
-    let chi2_end = residuals(counts, &kinds, &pred, &w, fs, &mut r);
-    if chi2_end.is_finite() {
-        chi2 = chi2_end;
+    let end = p.linearize(&q, &mut w, &mut r);
+    if end.chi2.is_finite() {
+        chi2 = end.chi2;
         cost = chi2 + prior_cost(&q, prior);
-        h = M5::zeros();
-        for k in 0..NDET {
-            if kinds[k] == Censoring::Data || r[k] != 0.0 {
-                let row = jac.fixed_view::<1, 5>(k, 0).transpose() * w[k];
-                h += row * row.transpose();
-            }
-        }
-        for i in 0..5 {
-            h[(i, i)] += prior.inv_sigma[i] * prior.inv_sigma[i];
-        }
+        h = end.h;
     }
     let cov = covariance(&h, &o.free);
     LmResult {
@@ -299,15 +376,7 @@ pub fn solve(
 /// infinite variance where the information is singular.
 fn covariance(h: &M5, free: &[bool; 5]) -> M5 {
     let mut a = *h;
-    for i in 0..5 {
-        if !free[i] {
-            for j in 0..5 {
-                a[(i, j)] = 0.0;
-                a[(j, i)] = 0.0;
-            }
-            a[(i, i)] = 1.0;
-        }
-    }
+    pin_fixed(&mut a, free);
     let mut cov = match a.try_inverse() {
         Some(c) if c.iter().all(|v| v.is_finite()) => c,
         _ => {

@@ -1,0 +1,55 @@
+//! Reading the sweep logs the fits are taken from: a log streamed frame by
+//! frame (a sweep never sits in memory), its refused lines counted and
+//! handed on rather than stopping the fit, and the header facts the fits
+//! need (the ADC reference, whether it is a dark sweep). JSON Lines or
+//! MCAP alike (`lightpose_logs::open`).
+
+use lightpose_core::{Frame, LogError, LogHeader};
+use lightpose_logs::open as open_log;
+use std::path::Path;
+
+/// Log lines refused while streaming: counted, and each handed on.
+pub(super) struct BadLines<'a> {
+    pub count: u64,
+    pub report: &'a mut dyn FnMut(&LogError),
+}
+
+/// Open a log and feed every frame to `each`; bad lines to `bad`.
+pub(super) fn stream(
+    path: &Path,
+    mut each: impl FnMut(&Frame, &LogHeader),
+    bad: &mut BadLines,
+) -> Result<LogHeader, LogError> {
+    let mut r = open_log(path)?;
+    let header = r.header().clone();
+    while let Some(item) = r.next_frame() {
+        match item {
+            Ok(f) => each(&f, &header),
+            Err(e) if e.skippable() => {
+                bad.count += 1;
+                (bad.report)(&e);
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(header)
+}
+
+/// A log's header alone (to tell dark sweeps from lit ones).
+pub(super) fn header_of(path: &Path) -> Result<LogHeader, LogError> {
+    Ok(open_log(path)?.header().clone())
+}
+
+/// The ADC reference a log's header states, else `default`.
+pub(super) fn header_v_ref(h: &LogHeader, default: f64) -> f64 {
+    h.extra
+        .get("v_ref")
+        .and_then(|v| v.as_f64())
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .unwrap_or(default)
+}
+
+/// Whether a log is a dark sweep (beacon off), by its header.
+pub(super) fn is_dark_sweep(h: &LogHeader) -> bool {
+    h.extra.get("sweep").and_then(|v| v.as_str()) == Some("dark")
+}
