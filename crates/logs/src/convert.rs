@@ -138,7 +138,7 @@ impl PoseFeed {
         loop {
             self.fill()?;
             match &self.next {
-                Some((s, text)) if seq.map_or(true, |limit| *s <= limit) => {
+                Some((s, text)) if seq.is_none_or(|limit| *s <= limit) => {
                     out.write_pose_line(text.as_bytes())
                         .map_err(|e| self.bad(e.to_string()))?;
                     self.next = None;

@@ -290,7 +290,7 @@ impl<R: Read> McapLines<R> {
         let known = (op::HEADER..=op::DATA_END).contains(&opcode);
         let total = len.checked_add(HEAD as u64);
         let past_end = match (self.size, total) {
-            (Some(size), Some(t)) => offset.checked_add(t).map_or(true, |e| e > size),
+            (Some(size), Some(t)) => offset.checked_add(t).is_none_or(|e| e > size),
             (_, None) => true,
             (None, Some(_)) => false,
         };
