@@ -35,7 +35,7 @@ pub fn frame(seq: u64) -> Frame {
         ),
         surge: Some(0.5),
     });
-    if seq % 2 == 0 {
+    if seq.is_multiple_of(2) {
         f.attitude = Some(AttitudeReading {
             pitch: Angle::from_deg(9.5),
             yaw: Angle::from_deg(-1.25),
@@ -45,7 +45,7 @@ pub fn frame(seq: u64) -> Frame {
             }),
         });
     }
-    if seq % 3 == 0 {
+    if seq.is_multiple_of(3) {
         f.depth = Some(DepthReading {
             z: 0.123456789 + seq as f64 * 1e-9,
             std: Some(0.02),
