@@ -196,6 +196,21 @@ impl TextSource {
             TextSource::Held { text, .. } => Ok(Cow::Borrowed(text)),
         }
     }
+
+    /// The text as a stream, for readers that take it line by line
+    /// ([`read_line_bounded`]) rather than whole.
+    pub fn reader(&self) -> Result<Box<dyn BufRead + '_>, TextError> {
+        match self {
+            TextSource::File(p) => {
+                let f = std::fs::File::open(p).map_err(|source| TextError::Io {
+                    file: p.display().to_string(),
+                    source,
+                })?;
+                Ok(Box::new(io::BufReader::new(f)))
+            }
+            TextSource::Held { text, .. } => Ok(Box::new(text.as_bytes())),
+        }
+    }
 }
 
 #[cfg(test)]
