@@ -176,7 +176,8 @@ destinations = ["127.0.0.1:9999"]
             ValidBackend::Replay(ReplayPlan {
                 log: "/etc/lp/x.jsonl".into(),
                 pace: Pace::Fast,
-                looping: false
+                looping: false,
+                max_gap_s: 10.0
             })
         );
         assert_eq!(

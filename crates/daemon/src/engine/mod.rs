@@ -259,6 +259,8 @@ impl Engine {
                     wall_unix,
                 })
             }
+            // A wait the supervisor's stop ended: not a failure.
+            Err(SourceError::Stopped) => Got::End(EndReason::Stopped),
             Err(SourceError::Ended) => {
                 stats.set_state(BackendState::Ended);
                 tracing::info!("source ended after {} frames", stats.frames.load(Relaxed));
