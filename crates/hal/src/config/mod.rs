@@ -76,7 +76,10 @@ impl Pace {
             Some(w) if w == realtime_word || w == "realtime" => Ok(Pace::Realtime),
             Some(w) => Err(err(
                 "pace",
-                format!("\"{w}\" is not a pace (\"{realtime_word}\" or \"fast\")"),
+                format!(
+                    "\"{}\" is not a pace (\"{realtime_word}\" or \"fast\")",
+                    lightpose_core::textfile::excerpt(w, 40)
+                ),
             )),
         }
     }
