@@ -157,8 +157,13 @@ pub(super) fn sim(c: &SimConfig, env: &dyn Env) -> Result<SimPlan, HalError> {
 pub(super) fn mock(c: &MockConfig, env: &dyn Env) -> Result<SimPlan, HalError> {
     Ok(SimPlan {
         kind: "mock",
-        scene: c.scene.clone().map(TextSource::File),
-        trajectory: TextSource::File(c.trajectory.clone()),
+        // Relative paths are the env's to resolve (the daemon: from its
+        // config file's directory), as for every other path of a table.
+        scene: c
+            .scene
+            .as_ref()
+            .map(|p| TextSource::File(env.path(&p.to_string_lossy()))),
+        trajectory: TextSource::File(env.path(&c.trajectory.to_string_lossy())),
         rate_hz: rate(c.rate_hz, env)?,
         pace: Pace::Realtime,
         looping: c.looping,
