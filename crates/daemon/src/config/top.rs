@@ -28,6 +28,15 @@ pub(super) fn validate(ctx: &Ctx, raw: &Raw) -> Result<Top, ConfigError> {
         Some(v) if v.get_ref().trim().is_empty() => {
             return Err(ctx.err(v.span(), "estimator", "empty estimator name"))
         }
+        // A name, not a text: the estimator's own check names the known
+        // ones (at --check-config and at a start).
+        Some(v) if v.get_ref().len() > 64 => {
+            return Err(ctx.err(
+                v.span(),
+                "estimator",
+                "longer than 64 characters: not a name",
+            ))
+        }
         Some(v) => v.get_ref().clone(),
         None => "auto".into(),
     };
