@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Coverage-guided fuzzing (libFuzzer via cargo fuzz) of every parser that
 # reads outside input: intensity logs (JSONL and MCAP), scene files,
-# calibration files, the serial line protocol and the daemon's
-# configuration.
+# calibration files, trajectory CSVs, the serial line protocol, the
+# daemon's configuration and its ATTITUDE datagrams.
 #
 #   tools/fuzz.sh            # 60 s per target
 #   tools/fuzz.sh 3600       # the longer run: an hour per target
@@ -22,7 +22,7 @@ command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
 export RUSTC_BOOTSTRAP=1
 san=(--sanitizer "${FUZZ_SANITIZER:-address}")
 cargo fuzz build -O "${san[@]}"
-for t in log_reader mcap_reader scene calibration serial_line daemon_config; do
+for t in log_reader mcap_reader scene calibration trajectory serial_line daemon_config attitude; do
   mkdir -p "corpus/$t"
   echo "== $t ($secs s)"
   cargo fuzz run -O "${san[@]}" "$t" "corpus/$t" "seeds/$t" -- -max_total_time="$secs" -rss_limit_mb=2048 2>&1 | grep -E "^(Done|==[0-9]+==|SUMMARY)|panicked" || true

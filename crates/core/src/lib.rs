@@ -23,7 +23,7 @@ pub use estimator::Estimator;
 pub use frame::{AttitudeReading, AttitudeStd, DepthReading, Frame, Truth, VelocityReading};
 pub use geometry::{Attitude, BeamVec, BodyVec, Pose};
 pub use light::{LightParams, Scattering};
-pub use log::{ByteError, Cut, FrameLog, LogError, LogHeader, LogReader, LogWriter};
+pub use log::{ByteError, Cut, FrameLog, FrameOrder, LogError, LogHeader, LogReader, LogWriter};
 pub use pose::{PoseEstimate, Status, StdDev};
 
 /// Replace a non-finite number by `None`: no message or log ever carries

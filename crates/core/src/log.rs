@@ -2,10 +2,13 @@
 //! line. Read and written as a stream, so a log of a million frames never
 //! sits in memory whole. The reader names the line of anything it refuses,
 //! and treats a cut-short last line (power loss) as the end of the log.
+//! Lines are read bounded ([`crate::textfile::MAX_LINE_BYTES`]), errors quote
+//! at most an excerpt, and the order of frames follows [`FrameOrder`].
 
 use crate::frame::full_scale;
-use crate::frame::{AttitudeStd, DepthReading, VelocityReading};
-use crate::{Angle, AttitudeReading, BodyVec, Frame, Pose, Truth, COLS, NDET, ROWS};
+use crate::frame::{DepthReading, VelocityReading};
+use crate::textfile::{excerpt, one_line, read_line_bounded, LineRead, MAX_LINE_BYTES};
+use crate::{Angle, AttitudeReading, Frame, Pose, Truth, COLS, NDET, ROWS};
 use serde::{Deserialize, Serialize};
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Write};
@@ -13,6 +16,11 @@ use std::path::Path;
 
 mod framelog;
 pub use framelog::{ByteError, Cut, FrameLog};
+mod order;
+mod readings;
+pub use order::{plausible_t, FrameOrder, DEFAULT_MAX_GAP_S, MAX_ABS_T_S};
+use readings::{parse_attitude, parse_depth, parse_velocity};
+
 pub const FORMAT: &str = "lightpose-intensity";
 pub const VERSION: u32 = 1;
 
@@ -78,7 +86,7 @@ impl LogHeader {
         if class.as_ref().and_then(|c| c.as_str()) != Some("HEADER") {
             return Err(format!(
                 "first line must be class HEADER, found {}",
-                class.map_or("no class".to_string(), |c| c.to_string())
+                class.map_or("no class".to_string(), |c| excerpt(&c.to_string(), 40))
             ));
         }
         let format = m.remove("format");
@@ -148,94 +156,6 @@ struct RawTruth {
     surge: Option<f64>,
 }
 
-/// The named numbers of a reading object (`{"z":..}`, `{"fwd":..,..}`),
-/// with its optional `std` object, or why not.
-fn reading_fields<const N: usize>(
-    v: &serde_json::Value,
-    what: &str,
-    keys: [&str; N],
-    frame_std: Option<&serde_json::Value>,
-) -> Result<([f64; N], Option<[f64; N]>), String> {
-    let obj = v
-        .as_object()
-        .ok_or_else(|| format!("{what} is not an object"))?;
-    let mut vals = [0.0; N];
-    for (slot, key) in vals.iter_mut().zip(keys) {
-        *slot = obj
-            .get(key)
-            .and_then(|x| x.as_f64())
-            .ok_or_else(|| format!("{what} has no number {key}"))?;
-    }
-    let std = match obj.get("std").or(frame_std) {
-        None | Some(serde_json::Value::Null) => None,
-        Some(sv) => {
-            let so = sv
-                .as_object()
-                .ok_or_else(|| format!("{what} std is not an object"))?;
-            let mut out = [0.0; N];
-            let mut any = false;
-            for (slot, key) in out.iter_mut().zip(keys) {
-                match so.get(key) {
-                    None | Some(serde_json::Value::Null) => *slot = f64::NAN,
-                    Some(x) => {
-                        *slot = x
-                            .as_f64()
-                            .ok_or_else(|| format!("{what} std.{key} is not a number"))?;
-                        any = true;
-                    }
-                }
-            }
-            // A frame-level std that names none of this reading's keys is
-            // about another reading; a partial one is refused below.
-            if !any {
-                None
-            } else if out.iter().any(|x| x.is_nan()) {
-                return Err(format!("{what} std must give all of {}", keys.join(", ")));
-            } else {
-                Some(out)
-            }
-        }
-    };
-    Ok((vals, std))
-}
-
-fn parse_attitude(
-    v: &serde_json::Value,
-    fs: Option<&serde_json::Value>,
-) -> Result<AttitudeReading, String> {
-    let ([p, y], std) = reading_fields(v, "attitude", ["pitch", "yaw"], fs)?;
-    Ok(AttitudeReading {
-        pitch: Angle::from_deg(p),
-        yaw: Angle::from_deg(y),
-        std: std.map(|[sp, sy]| AttitudeStd {
-            pitch: Angle::from_deg(sp),
-            yaw: Angle::from_deg(sy),
-        }),
-    })
-}
-
-fn parse_depth(
-    v: &serde_json::Value,
-    fs: Option<&serde_json::Value>,
-) -> Result<DepthReading, String> {
-    let ([z], std) = reading_fields(v, "depth", ["z"], fs)?;
-    Ok(DepthReading {
-        z,
-        std: std.map(|[s]| s),
-    })
-}
-
-fn parse_velocity(
-    v: &serde_json::Value,
-    fs: Option<&serde_json::Value>,
-) -> Result<VelocityReading, String> {
-    let (fwd, std) = reading_fields(v, "velocity", ["fwd", "right", "down"], fs)?;
-    Ok(VelocityReading {
-        v: BodyVec(fwd),
-        std: std.map(BodyVec),
-    })
-}
-
 /// Streaming reader. Iterate to get frames; an `Err` names a line that was
 /// refused, and iteration may go on past it.
 pub struct LogReader<R> {
@@ -243,13 +163,12 @@ pub struct LogReader<R> {
     name: String,
     header: LogHeader,
     line_no: usize,
-    buf: String,
+    buf: Vec<u8>,
     truncated_at: Option<usize>,
     done: bool,
     other_lines: u64,
-    last_seq: Option<u64>,
-    seq_gaps: u64,
-    lost_frames: u64,
+    first_other: Option<String>,
+    order: FrameOrder,
     bad_readings: u64,
     last_bad_reading: Option<String>,
 }
@@ -270,25 +189,23 @@ impl<R: BufRead> LogReader<R> {
     /// Read the header from `src`; `name` is how errors refer to it.
     pub fn new(mut src: R, name: impl Into<String>) -> Result<Self, LogError> {
         let name = name.into();
-        let mut buf = String::new();
+        let mut buf = Vec::new();
         let mut line_no = 0;
-        loop {
-            buf.clear();
-            let n = read_line(&mut src, &mut buf, &name, line_no + 1)?;
-            if n == 0 {
-                return Err(LogError::Empty { name });
-            }
+        let text = loop {
+            let text = match read_line(&mut src, &mut buf, &name, line_no + 1)? {
+                None => return Err(LogError::Empty { name }),
+                Some(text) => text,
+            };
             line_no += 1;
-            if !buf.trim().is_empty() {
-                break;
+            if !text.trim().is_empty() {
+                break crate::textfile::strip_bom(text.trim());
             }
-        }
-        let v: serde_json::Value =
-            serde_json::from_str(buf.trim()).map_err(|e| LogError::Line {
-                name: name.clone(),
-                line: line_no,
-                msg: format!("header is not valid JSON: {e}"),
-            })?;
+        };
+        let v: serde_json::Value = serde_json::from_str(text).map_err(|e| LogError::Line {
+            name: name.clone(),
+            line: line_no,
+            msg: format!("header is not valid JSON: {}", one_line(&e.to_string())),
+        })?;
         let header = LogHeader::parse(v).map_err(|msg| LogError::Line {
             name: name.clone(),
             line: line_no,
@@ -303,9 +220,8 @@ impl<R: BufRead> LogReader<R> {
             truncated_at: None,
             done: false,
             other_lines: 0,
-            last_seq: None,
-            seq_gaps: 0,
-            lost_frames: 0,
+            first_other: None,
+            order: FrameOrder::default(),
             bad_readings: 0,
             last_bad_reading: None,
         })
@@ -325,9 +241,23 @@ impl<R: BufRead> LogReader<R> {
     pub fn other_lines(&self) -> u64 {
         self.other_lines
     }
+    /// The first of them, named: `file:line: class "POSE"`.
+    pub fn first_other(&self) -> Option<&str> {
+        self.first_other.as_deref()
+    }
     /// Number of gaps in `seq`, and the frames they lost.
     pub fn seq_gaps(&self) -> (u64, u64) {
-        (self.seq_gaps, self.lost_frames)
+        self.order.seq_gaps()
+    }
+    /// The order of frames so far: skips, gaps, jumps of `t`.
+    pub fn order(&self) -> &FrameOrder {
+        &self.order
+    }
+    /// Flag forward steps of `t` above `max_gap_s` as jumps (default
+    /// [`DEFAULT_MAX_GAP_S`]).
+    pub fn with_max_gap_s(mut self, max_gap_s: f64) -> Self {
+        self.order = FrameOrder::new(max_gap_s);
+        self
     }
     /// Sensor readings (attitude, depth, velocity) that were malformed and
     /// left off their frame, which was kept; and the last one's reason with
@@ -350,21 +280,25 @@ impl<R: BufRead> LogReader<R> {
             if self.done {
                 return None;
             }
-            self.buf.clear();
-            let n = match read_line(&mut self.src, &mut self.buf, &self.name, self.line_no + 1) {
-                Ok(n) => n,
+            let line = self.line_no + 1;
+            let text = match read_line(&mut self.src, &mut self.buf, &self.name, line) {
+                Ok(Some(text)) => text,
+                Ok(None) => {
+                    self.done = true;
+                    return None;
+                }
+                Err(e @ LogError::Line { .. }) => {
+                    self.line_no = line;
+                    return Some(Err(e));
+                }
                 Err(e) => {
                     self.done = true;
                     return Some(Err(e));
                 }
             };
-            if n == 0 {
-                self.done = true;
-                return None;
-            }
-            self.line_no += 1;
-            let complete = self.buf.ends_with('\n');
-            let text = self.buf.trim();
+            self.line_no = line;
+            let complete = text.ends_with('\n');
+            let text = text.trim();
             if text.is_empty() {
                 continue;
             }
@@ -378,27 +312,29 @@ impl<R: BufRead> LogReader<R> {
                         self.done = true;
                         return None;
                     }
-                    return Some(Err(self.line_err(format!("not valid JSON: {e}"))));
+                    let msg = format!("not valid JSON: {}", one_line(&e.to_string()));
+                    return Some(Err(self.line_err(msg)));
                 }
             };
             match raw.class.as_deref() {
                 Some("FRAME") => {}
-                Some(_) => {
+                Some(other) => {
                     self.other_lines += 1;
+                    if self.first_other.is_none() {
+                        let other = excerpt(other, 40);
+                        self.first_other =
+                            Some(format!("{}:{}: class \"{other}\"", self.name, self.line_no));
+                    }
                     continue;
                 }
                 None => return Some(Err(self.line_err("line has no class field"))),
             }
-            let r = self.frame_from(raw);
-            if let Ok(f) = &r {
-                if let Some(last) = self.last_seq {
-                    if f.seq > last + 1 {
-                        self.seq_gaps += 1;
-                        self.lost_frames += f.seq - last - 1;
-                    }
-                }
-                self.last_seq = Some(f.seq);
-            }
+            let r = self
+                .frame_from(raw)
+                .and_then(|f| match self.order.admit(f.seq, f.t) {
+                    Ok(()) => Ok(f),
+                    Err(why) => Err(self.line_err(why)),
+                });
             return Some(r);
         }
     }
@@ -449,9 +385,10 @@ impl<R: BufRead> LogReader<R> {
             match v.as_u64() {
                 Some(n) if n <= fs => *c = n as u16,
                 _ => {
+                    let v = excerpt(&v.to_string(), 40);
                     return Err(
                         self.line_err(format!("counts[{k}] = {v} is not an integer in 0..{fs}"))
-                    )
+                    );
                 }
             }
         }
@@ -504,26 +441,32 @@ impl<R: BufRead> Iterator for LogReader<R> {
     }
 }
 
-fn read_line<R: BufRead>(
+/// The next line as text (`None` at the end), read bounded: a line too long
+/// or not UTF-8 is an error naming it, and reading may go on after it.
+fn read_line<'b, R: BufRead>(
     src: &mut R,
-    buf: &mut String,
+    buf: &'b mut Vec<u8>,
     name: &str,
     line: usize,
-) -> Result<usize, LogError> {
-    src.read_line(buf).map_err(|e| {
-        if e.kind() == io::ErrorKind::InvalidData {
-            LogError::Line {
-                name: name.to_string(),
-                line,
-                msg: "not valid UTF-8".into(),
-            }
-        } else {
-            LogError::Io {
-                name: name.to_string(),
-                err: e,
-            }
-        }
-    })
+) -> Result<Option<&'b str>, LogError> {
+    let refused = |msg: String| LogError::Line {
+        name: name.to_string(),
+        line,
+        msg,
+    };
+    match read_line_bounded(src, buf, MAX_LINE_BYTES) {
+        Err(err) => Err(LogError::Io {
+            name: name.to_string(),
+            err,
+        }),
+        Ok(LineRead::Eof) => Ok(None),
+        Ok(LineRead::TooLong) => Err(refused(format!(
+            "line longer than {MAX_LINE_BYTES} bytes: refused unread (a FRAME line is under 1 kB)"
+        ))),
+        Ok(LineRead::Line) => std::str::from_utf8(buf)
+            .map(Some)
+            .map_err(|_| refused("not valid UTF-8".into())),
+    }
 }
 
 fn at_eof<R: BufRead>(src: &mut R) -> bool {
@@ -701,6 +644,7 @@ impl<W: Write> LogWriter<W> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::frame::AttitudeStd;
 
     fn frame(seq: u64) -> Frame {
         let mut counts = [0u16; NDET];
@@ -908,5 +852,124 @@ mod tests {
         let bytes = w.into_inner();
         let r = LogReader::new(&bytes[..], "h").unwrap();
         assert_eq!(r.header(), &h);
+    }
+}
+
+#[cfg(test)]
+mod hardening_tests {
+    //! Issue 16: bounded lines, bounded quotes, and the order of frames.
+    use super::*;
+
+    const HEADER: &str = "{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":5}\n";
+    const COUNTS: &str = "[1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16,17,18,19,20,21,22,23,24,25]";
+
+    fn frame_line(seq: impl std::fmt::Display, t: impl std::fmt::Display) -> String {
+        format!("{{\"class\":\"FRAME\",\"seq\":{seq},\"t\":{t},\"counts\":{COUNTS}}}\n")
+    }
+
+    /// (seq of each frame read, each error's text) of a log.
+    fn read(text: &str) -> (Vec<u64>, Vec<String>, LogReader<&[u8]>) {
+        let mut r = LogReader::new(text.as_bytes(), "o.jsonl").unwrap();
+        let (mut seqs, mut errs) = (Vec::new(), Vec::new());
+        while let Some(item) = r.next_frame() {
+            match item {
+                Ok(f) => seqs.push(f.seq),
+                Err(e) => errs.push(e.to_string()),
+            }
+        }
+        (seqs, errs, r)
+    }
+
+    #[test]
+    fn a_line_past_the_bound_is_refused_by_its_number_and_reading_goes_on() {
+        let mut text = HEADER.to_string();
+        text.push_str(&frame_line(0, 0.0));
+        text.push_str(&"x".repeat(crate::textfile::MAX_LINE_BYTES * 3));
+        text.push('\n');
+        text.push_str(&frame_line(1, 0.2));
+        let (seqs, errs, _) = read(&text);
+        assert_eq!(seqs, vec![0, 1]);
+        assert_eq!(errs.len(), 1, "{errs:?}");
+        assert!(
+            errs[0].starts_with("o.jsonl:3: line longer than"),
+            "{}",
+            errs[0]
+        );
+        assert!(errs[0].len() < 200, "{}", errs[0]);
+    }
+
+    #[test]
+    fn errors_quote_at_most_an_excerpt_of_the_line() {
+        let long = "y".repeat(100_000);
+        let mut text = HEADER.to_string();
+        text.push_str(&frame_line(0, format!("\"{long}\"")));
+        text.push_str(&format!(
+            "{{\"class\":\"FRAME\",\"seq\":1,\"t\":1,\"counts\":[\"{long}\"]}}\n"
+        ));
+        let (_, errs, _) = read(&text);
+        assert_eq!(errs.len(), 2, "{errs:?}");
+        for e in &errs {
+            assert!(e.chars().count() < 400, "{} chars: {}…", e.len(), &e[..200]);
+        }
+        let h = format!("{{\"class\":\"{long}\"}}\n");
+        let e = LogReader::new(h.as_bytes(), "h.jsonl")
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.chars().count() < 400, "{} chars", e.len());
+    }
+
+    #[test]
+    fn a_byte_order_mark_before_the_header_is_accepted() {
+        let text = format!("\u{feff}{HEADER}{}", frame_line(0, 0.0));
+        let (seqs, errs, _) = read(&text);
+        assert_eq!((seqs, errs), (vec![0], vec![]));
+    }
+
+    #[test]
+    fn frames_out_of_order_are_skipped_counted_and_named() {
+        let mut text = HEADER.to_string();
+        for (seq, t) in [
+            (0, "0"),
+            (1, "0.2"),
+            (1, "0.4"),
+            (0, "0.6"),
+            (2, "0.1"),
+            (3, "0.8"),
+        ] {
+            text.push_str(&frame_line(seq, t));
+        }
+        text.push_str("{\"class\":\"POSE\",\"seq\":3,\"t\":0.8}\n");
+        text.push_str(&frame_line(4, "1e300"));
+        text.push_str(&frame_line(5, "1.0"));
+        text.push_str(&frame_line(6, "100.0"));
+        let (seqs, errs, r) = read(&text);
+        assert_eq!(seqs, vec![0, 1, 3, 5, 6]);
+        assert_eq!(errs.len(), 4, "{errs:?}");
+        assert!(
+            errs[0].starts_with("o.jsonl:4: seq 1 repeats"),
+            "{}",
+            errs[0]
+        );
+        assert!(
+            errs[1].starts_with("o.jsonl:5: seq 0 after seq 1"),
+            "{}",
+            errs[1]
+        );
+        assert!(
+            errs[2].starts_with("o.jsonl:6: t = 0.1 after t = 0.2"),
+            "{}",
+            errs[2]
+        );
+        assert!(errs[3].starts_with("o.jsonl:9: t = 1e300"), "{}", errs[3]);
+        assert_eq!(r.order().skipped(), 4);
+        // A backward seq is a skip, not frames lost: 1 → 3 lost seq 2 only,
+        // and 3 → 5 lost 4, which was refused.
+        assert_eq!(r.seq_gaps(), (2, 2));
+        // 1.0 → 100.0 is past the gap bound: kept and flagged.
+        assert_eq!(r.order().jumps(), 1);
+        assert_eq!(r.order().last_jump(), Some(99.0));
+        assert_eq!(r.other_lines(), 1);
+        assert_eq!(r.first_other(), Some("o.jsonl:8: class \"POSE\""));
     }
 }

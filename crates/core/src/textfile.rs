@@ -2,13 +2,16 @@
 //! config) and turning a TOML parse error into one line that names the file
 //! and the line: every reader does it the same way, through here.
 //!
-//! Text from outside is bounded twice: a file larger than
-//! [`MAX_TEXT_BYTES`] is refused before it is read whole, and whatever an
-//! error message quotes of it is cut to an [`excerpt`].
+//! Text from outside is bounded three times: a file larger than
+//! [`MAX_TEXT_BYTES`] is refused before it is read whole, a line longer than
+//! [`MAX_LINE_BYTES`] is refused by a line reader ([`read_line_bounded`])
+//! without being kept, and whatever an error message quotes of it is cut to
+//! an [`excerpt`]. A byte-order mark that an editor put at the start is
+//! dropped.
 
 use crate::textpos::line_of_offset;
 use std::borrow::Cow;
-use std::io::Read;
+use std::io::{self, BufRead, Read};
 use std::path::{Path, PathBuf};
 
 /// Largest text file we read whole: far above any scene, calibration, config
@@ -18,6 +21,26 @@ pub const MAX_TEXT_BYTES: u64 = 64 << 20;
 
 /// Most characters of outside text an error message quotes.
 pub const EXCERPT_CHARS: usize = 80;
+
+/// Longest line a line reader (intensity logs, trajectory CSVs) accepts: a
+/// FRAME line with every optional reading is under 1 kB and a CSV knot under
+/// 200 bytes, so only garbage is this long.
+pub const MAX_LINE_BYTES: usize = 64 << 10;
+
+/// The UTF-8 byte-order mark some editors put at the start of a file.
+pub const BOM: char = '\u{feff}';
+
+/// What [`read_line_bounded`] found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LineRead {
+    /// The end of the input: nothing was read.
+    Eof,
+    /// A line is in the buffer, with its newline unless it was the last.
+    Line,
+    /// The line was longer than the bound: it was read to its end (or the
+    /// input's) and thrown away, never held whole.
+    TooLong,
+}
 
 #[derive(Debug, thiserror::Error)]
 pub enum TextError {
@@ -69,7 +92,52 @@ pub fn read_text(path: &Path) -> Result<String, TextError> {
             max: MAX_TEXT_BYTES,
         });
     }
-    String::from_utf8(bytes).map_err(|_| TextError::NotUtf8 { file })
+    let mut text = String::from_utf8(bytes).map_err(|_| TextError::NotUtf8 { file })?;
+    if text.starts_with(BOM) {
+        text.drain(..BOM.len_utf8());
+    }
+    Ok(text)
+}
+
+/// Read one line of `src` into `buf` (cleared first), keeping at most `max`
+/// bytes: a longer line is consumed to its newline without being stored, so
+/// that a 200 MB line costs no more memory than a short one.
+pub fn read_line_bounded<R: BufRead>(
+    src: &mut R,
+    buf: &mut Vec<u8>,
+    max: usize,
+) -> io::Result<LineRead> {
+    buf.clear();
+    let n = src.by_ref().take(max as u64 + 1).read_until(b'\n', buf)?;
+    if n == 0 {
+        return Ok(LineRead::Eof);
+    }
+    if buf.len() <= max || buf.ends_with(b"\n") {
+        return Ok(LineRead::Line);
+    }
+    buf.clear();
+    loop {
+        let chunk = src.fill_buf()?;
+        if chunk.is_empty() {
+            break;
+        }
+        match chunk.iter().position(|&b| b == b'\n') {
+            Some(i) => {
+                src.consume(i + 1);
+                break;
+            }
+            None => {
+                let len = chunk.len();
+                src.consume(len);
+            }
+        }
+    }
+    Ok(LineRead::TooLong)
+}
+
+/// `s` without a leading byte-order mark.
+pub fn strip_bom(s: &str) -> &str {
+    s.strip_prefix(BOM).unwrap_or(s)
 }
 
 /// Deserialize TOML `text`; a refusal names `file`, the line of the error's
@@ -128,6 +196,21 @@ impl TextSource {
             TextSource::Held { text, .. } => Ok(Cow::Borrowed(text)),
         }
     }
+
+    /// The text as a stream, for readers that take it line by line
+    /// ([`read_line_bounded`]) rather than whole.
+    pub fn reader(&self) -> Result<Box<dyn BufRead + '_>, TextError> {
+        match self {
+            TextSource::File(p) => {
+                let f = std::fs::File::open(p).map_err(|source| TextError::Io {
+                    file: p.display().to_string(),
+                    source,
+                })?;
+                Ok(Box::new(io::BufReader::new(f)))
+            }
+            TextSource::Held { text, .. } => Ok(Box::new(text.as_bytes())),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -142,6 +225,46 @@ mod tests {
         let long = "x".repeat(1 << 20);
         assert!(one_line(&long).chars().count() <= 4 * EXCERPT_CHARS + 1);
         assert_eq!(one_line("a\nb\r\nc"), "a b  c");
+    }
+
+    #[test]
+    fn long_lines_are_thrown_away_whole_and_reading_goes_on() {
+        let text = format!("short\n{}\nnext\nlast", "z".repeat(1000));
+        let mut src = text.as_bytes();
+        let mut buf = Vec::new();
+        let mut got = Vec::new();
+        loop {
+            match read_line_bounded(&mut src, &mut buf, 100).unwrap() {
+                LineRead::Eof => break,
+                LineRead::TooLong => {
+                    assert!(buf.capacity() <= 1024, "held {}", buf.capacity());
+                    got.push("<long>".to_string());
+                }
+                LineRead::Line => got.push(String::from_utf8(buf.clone()).unwrap()),
+            }
+        }
+        assert_eq!(got, ["short\n", "<long>", "next\n", "last"]);
+        // Exactly at the bound, with or without its newline, is a line.
+        let mut src = &b"abcd\nabcd"[..];
+        assert_eq!(
+            read_line_bounded(&mut src, &mut buf, 4).unwrap(),
+            LineRead::Line
+        );
+        assert_eq!(
+            read_line_bounded(&mut src, &mut buf, 4).unwrap(),
+            LineRead::Line
+        );
+        assert_eq!(buf, b"abcd");
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_dropped() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bom.csv");
+        std::fs::write(&p, "\u{feff}t,x\n").unwrap();
+        assert_eq!(read_text(&p).unwrap(), "t,x\n");
+        assert_eq!(strip_bom("\u{feff}a"), "a");
+        assert_eq!(strip_bom("a"), "a");
     }
 
     #[test]

@@ -115,7 +115,7 @@ fn rig(
             mode,
         })?;
     let sock_err = |source| PublishError::Socket {
-        family: "IPv4",
+        addr: std::net::SocketAddr::from((std::net::Ipv4Addr::LOCALHOST, 0)),
         source,
     };
     let sink = UdpSocket::bind("127.0.0.1:0").map_err(sock_err)?;

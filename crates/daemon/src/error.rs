@@ -44,6 +44,37 @@ pub enum DaemonError {
     Thread(#[source] std::io::Error),
 }
 
+impl DaemonError {
+    /// Whether the configuration is what is wrong (a value, a file it
+    /// names, an estimator this build lacks): the program exits 2 and
+    /// systemd does not restart it (`RestartPreventExitStatus=2`), since a
+    /// restart cannot help. A port that is taken or a device that is not
+    /// there yet may be fine after a restart: exit 1.
+    pub fn refuses_config(&self) -> bool {
+        match self {
+            DaemonError::Config(_)
+            | DaemonError::CalibrationRead(_)
+            | DaemonError::Calibration(_)
+            | DaemonError::Estimator(_)
+            | DaemonError::NotFreeRunning { .. } => true,
+            DaemonError::Backend { source, .. } => source.refuses_config(),
+            DaemonError::Publish(_)
+            | DaemonError::AttitudeBind { .. }
+            | DaemonError::Recorder(_)
+            | DaemonError::Thread(_) => false,
+        }
+    }
+
+    /// The exit code of a failure: 2 for a refused configuration, else 1.
+    pub fn exit_code(&self) -> u8 {
+        if self.refuses_config() {
+            2
+        } else {
+            1
+        }
+    }
+}
+
 /// `e` and its causes on one line, `: `-separated. A cause whose text its
 /// parent already shows (some libraries put their source's text in their
 /// own message) is left out, so nothing is said twice.
@@ -58,7 +89,8 @@ pub fn report(e: &(dyn Error + 'static)) -> String {
         }
         cause = c.source();
     }
-    line
+    // Libraries quote excerpts; this bounds whatever slipped through.
+    lightpose_core::textfile::excerpt(&line.replace(['\n', '\r'], " "), 1000)
 }
 
 #[cfg(test)]

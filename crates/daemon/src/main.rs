@@ -1,14 +1,19 @@
 //! The `lightposed` binary, kept thin: parse arguments, load and validate
 //! the config, set up logging and signals, call `lightposed::run`, and map
-//! the outcome to an exit code (0 clean, 1 runtime failure, 2 bad config).
+//! the outcome to an exit code (0 clean, 1 runtime failure, 2 refused
+//! config — at `--check-config` and at a start alike, so that systemd's
+//! `RestartPreventExitStatus=2` does not restart what cannot start). A
+//! failure is said once: on stderr before logging is set up, as one log
+//! line after.
 
 use anyhow::Context;
 use clap::Parser;
 use lightposed::config::LogFormat;
 use lightposed::error::report;
-use lightposed::{Config, Publisher};
+use lightposed::{Config, DaemonError, Publisher};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Duration;
 
 #[derive(Parser)]
 #[command(
@@ -21,7 +26,9 @@ struct Args {
     /// publishing to 127.0.0.1:17150.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
-    /// Validate a config file and exit (0 valid, 2 refused).
+    /// Validate a config file and everything it names that a start would
+    /// read (calibration, estimator, scene, trajectory, log header; no
+    /// device is opened) and exit (0 valid, 2 refused).
     #[arg(long, value_name = "FILE", conflicts_with_all = ["config", "bench", "soak"])]
     check_config: Option<PathBuf>,
     /// Run the simulator backend as fast as it goes and print throughput,
@@ -62,7 +69,7 @@ fn init_logging(cfg: &Config) {
 
 async fn serve(cfg: Config) -> anyhow::Result<lightposed::Summary> {
     use tokio::signal::unix::{signal, SignalKind};
-    let publisher = Publisher::open(&cfg.outputs)?;
+    let publisher = Publisher::open(&cfg.outputs).map_err(DaemonError::from)?;
     let mut term = signal(SignalKind::terminate()).context("SIGTERM handler")?;
     let mut int = signal(SignalKind::interrupt()).context("SIGINT handler")?;
     let mut hup = signal(SignalKind::hangup()).context("SIGHUP handler")?;
@@ -88,14 +95,28 @@ fn fail(e: &(dyn std::error::Error + 'static), code: u8) -> ExitCode {
     ExitCode::from(code)
 }
 
-/// Print a report and exit 0, or the one line and exit 1.
-fn print_report<R: std::fmt::Display>(r: Result<R, lightposed::DaemonError>) -> ExitCode {
+/// Print a report and exit 0, or the one line and its exit code.
+fn print_report<R: std::fmt::Display>(r: Result<R, DaemonError>) -> ExitCode {
     match r {
         Ok(r) => {
             println!("{r}");
             ExitCode::SUCCESS
         }
-        Err(e) => fail(&e, 1),
+        Err(e) => fail(&e, e.exit_code()),
+    }
+}
+
+/// `--check-config`: the file, then everything a start would read.
+fn check_config(p: &std::path::Path) -> ExitCode {
+    let checked = Config::load(p)
+        .map_err(DaemonError::from)
+        .and_then(|c| lightposed::wiring::check(&c));
+    match checked {
+        Ok(()) => {
+            println!("{}: ok", p.display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail(&e, e.exit_code()),
     }
 }
 
@@ -119,13 +140,7 @@ fn log_start(cfg: &Config) {
 fn main() -> ExitCode {
     let args = Args::parse();
     if let Some(p) = &args.check_config {
-        return match Config::load(p) {
-            Ok(_) => {
-                println!("{}: ok", p.display());
-                ExitCode::SUCCESS
-            }
-            Err(e) => fail(&e, 2),
-        };
+        return check_config(p);
     }
     let cfg = match load(args.config.as_ref()) {
         Ok(c) => c,
@@ -157,11 +172,18 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    match rt.block_on(serve(cfg)) {
+    let served = rt.block_on(serve(cfg));
+    // A thread that did not stop (a hung device) must not hold the exit.
+    rt.shutdown_timeout(Duration::from_millis(500));
+    match served {
         Ok(_) => ExitCode::SUCCESS,
         Err(e) => {
+            // Logging is set up: the one line goes there, not twice.
             tracing::error!("{}", report(e.as_ref()));
-            fail(e.as_ref(), 1)
+            let code = e
+                .downcast_ref::<DaemonError>()
+                .map_or(1, DaemonError::exit_code);
+            ExitCode::from(code)
         }
     }
 }

@@ -2,7 +2,7 @@
 //! daemon's counters, read without stopping the frame thread, as JSON.
 
 use crate::config::Config;
-use crate::inputs::attitude::AttitudeCell;
+use crate::inputs::attitude::{AttitudeCell, Reason};
 use crate::outputs::recorder::RecStats;
 use crate::outputs::udp::Publisher;
 use crate::stats::{Stats, TempSource};
@@ -96,6 +96,9 @@ fn backend(c: &StatusCtx, health: Option<&SourceHealth>) -> Value {
             "last_bad_line": h.last_bad_line,
             "reopens": h.reopens,
             "injected_faults": h.injected_faults,
+            "skipped_frames": h.skipped_frames,
+            "time_jumps": h.time_jumps,
+            "other_lines": h.other_lines,
         })),
     })
 }
@@ -167,6 +170,10 @@ fn attitude(c: &StatusCtx) -> Value {
             "enabled": true,
             "received": a.received.load(Relaxed),
             "rejected": a.rejected.load(Relaxed),
+            "rejected_by": Reason::ALL
+                .iter()
+                .map(|r| (r.as_str().to_string(), a.rejected_by[*r as usize].load(Relaxed).into()))
+                .collect::<serde_json::Map<String, Value>>(),
             "age": a.age(Instant::now()).map(|d| d.as_secs_f64()),
             "frames_with": c.stats.frames_with_attitude.load(Relaxed),
         }),

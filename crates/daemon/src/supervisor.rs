@@ -142,6 +142,12 @@ pub async fn supervise(
     summary(&ctx, reason)
 }
 
+/// How long a stop waits for the frame thread: its waits end on the stop
+/// and the recorder's flush is bounded (2 s), so only a device read that
+/// hangs in the kernel can take longer; the daemon then exits without it,
+/// well within systemd's TimeoutStopSec (10 s).
+const JOIN_BOUND: Duration = Duration::from_secs(4);
+
 /// Stop the frame thread (it finishes its frame and flushes the
 /// recording); why it ended.
 async fn stop(
@@ -151,7 +157,18 @@ async fn stop(
 ) -> EndReason {
     stop.raise();
     let joined = match frames {
-        Some(f) => tokio::task::spawn_blocking(move || f.join()).await.ok(),
+        Some(f) => {
+            let join = tokio::task::spawn_blocking(move || f.join());
+            match tokio::time::timeout(JOIN_BOUND, join).await {
+                Ok(j) => j.ok(),
+                Err(_) => {
+                    tracing::error!(
+                        "the frame thread did not stop within {JOIN_BOUND:?} (a device read hangs?): exiting without it"
+                    );
+                    None
+                }
+            }
+        }
         None => None,
     };
     match (ended, joined) {

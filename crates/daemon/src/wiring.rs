@@ -31,6 +31,19 @@ pub fn build_estimator(cfg: &Config) -> Result<Box<dyn Estimator>, DaemonError> 
     lightpose_pipeline::build_estimator(&cfg.estimator, &cal).map_err(DaemonError::Estimator)
 }
 
+/// Check everything a start would read, without starting: the calibration
+/// (read, parsed, checked), the estimator built from it by name, and what
+/// the backend reads (scene, trajectory, a log's header; hal opens no
+/// device). `--check-config` runs this; a start fails on the same things
+/// with the same errors.
+pub fn check(cfg: &Config) -> Result<(), DaemonError> {
+    build_estimator(cfg)?;
+    lightpose_hal::check(&cfg.backend).map_err(|source| DaemonError::Backend {
+        kind: cfg.backend.kind(),
+        source,
+    })
+}
+
 /// Open the configured frame source, whatever it is, through hal; its
 /// waits end when `stop` is raised.
 pub fn open_source(cfg: &Config, stop: &Stop) -> Result<Box<dyn FrameSource>, DaemonError> {

@@ -63,6 +63,9 @@ pub enum SourceError {
     BadData { place: String, msg: String },
     #[error("source ended")]
     Ended,
+    /// A wait ended because the source's [`Stop`] was raised.
+    #[error("stopped")]
+    Stopped,
 }
 
 /// Counters a source keeps for the daemon's health report. All are totals
@@ -81,6 +84,12 @@ pub struct SourceHealth {
     pub reopens: u64,
     /// Faults the mock injected (bus errors, drops).
     pub injected_faults: u64,
+    /// Replay: frames skipped as out of order (see core's `FrameOrder`).
+    pub skipped_frames: u64,
+    /// Replay: forward steps of `t` past the gap bound, not slept through.
+    pub time_jumps: u64,
+    /// Replay: log lines of other classes passed over.
+    pub other_lines: u64,
 }
 
 /// "Give me the next frame": 25 channels in MODEL.md's order, the ADC
@@ -142,6 +151,43 @@ pub enum HalError {
     Log(#[from] lightpose_core::LogError),
 }
 
+impl HalError {
+    /// Whether the configuration is what is wrong (a value, a file it
+    /// names): restarting the program cannot help. A device that cannot be
+    /// opened may appear later, so that is not a refusal.
+    pub fn refuses_config(&self) -> bool {
+        !matches!(self, HalError::Open { .. })
+    }
+}
+
+/// Check, before a start, everything [`open`] would read: the simulator's
+/// scene and trajectory are read and parsed, a replayed log's header is
+/// read; a board's device is not opened (it may appear later: that is not
+/// a wrong configuration), but a kind this build lacks is refused.
+pub fn check(cfg: &ValidBackend) -> Result<(), HalError> {
+    match cfg {
+        ValidBackend::Replay(plan) => {
+            replay::log::open_log(&plan.log, plan.max_gap_s)?;
+            Ok(())
+        }
+        #[cfg(feature = "sim")]
+        ValidBackend::Sim(plan) => sim::SimSource::open(plan, &Stop::new()).map(drop),
+        #[cfg(not(feature = "sim"))]
+        ValidBackend::Sim(_) => Err(HalError::NotBuilt {
+            kind: cfg.kind(),
+            feature: "sim",
+        }),
+        ValidBackend::Serial { .. } => Ok(()),
+        #[cfg(feature = "linux")]
+        _ => Ok(()),
+        #[cfg(not(feature = "linux"))]
+        _ => Err(HalError::NotBuilt {
+            kind: cfg.kind(),
+            feature: "linux",
+        }),
+    }
+}
+
 /// Open the source `cfg` describes: the one way every kind is opened. Its
 /// waits (pacing, a replay's recorded time) end early when `stop` is
 /// raised.
@@ -152,7 +198,8 @@ pub fn open(cfg: &ValidBackend, stop: &Stop) -> Result<Box<dyn FrameSource>, Hal
             timeout,
             common,
         } => {
-            let bank = serial::SerialBank::new(boards.clone(), common.bits, *timeout);
+            let bank = serial::SerialBank::new(boards.clone(), common.bits, *timeout)
+                .stoppable(stop.clone());
             Ok(Box::new(BoardSource::new(
                 bank,
                 common.map,

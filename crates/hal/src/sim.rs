@@ -14,7 +14,7 @@ use std::time::Duration;
 
 use lightpose_core::frame::full_scale;
 use lightpose_core::{Frame, NDET};
-use lightpose_sim::{Scene, SceneError, Simulator, Trajectory, TrajectoryError};
+use lightpose_sim::{Scene, SceneError, Simulator, Trajectory};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -72,7 +72,7 @@ impl SimSource {
                 " with injected faults"
             },
         );
-        let per_pass = traj.frame_times(1.0 / dt).count().max(1) as u64;
+        let per_pass = traj.frame_count(1.0 / dt).max(1);
         SimSource {
             per_pass,
             rng: ChaCha8Rng::seed_from_u64(faults.seed),
@@ -99,8 +99,7 @@ impl SimSource {
             }
             None => Scene::default(),
         };
-        let text = plan.trajectory.read().map_err(TrajectoryError::from)?;
-        let traj = Trajectory::parse(&text, &plan.trajectory.describe())?;
+        let traj = Trajectory::from_source(&plan.trajectory)?;
         let bits = scene.adc.bits;
         if let Some(&(_, v)) = plan.faults.stuck.iter().find(|s| s.1 > full_scale(bits)) {
             return Err(HalError::Config {
@@ -306,5 +305,30 @@ mod tests {
         assert_eq!(a, run(f));
         let rate = a.iter().filter(|&&e| e).count() as f64 / 500.0;
         assert!((rate - 0.2).abs() < 0.06, "{rate}");
+    }
+
+    /// Issue 16: a trajectory of absurd length (two knots 1e9 s apart,
+    /// 5e9 frames a pass) opens at once: frames are made as they are
+    /// asked for, never counted or held.
+    #[test]
+    fn a_trajectory_of_absurd_length_opens_at_once() {
+        let k = |t: f64, x: f64| Knot {
+            t,
+            pose: lightpose_core::Pose::new(x, 0.0, 0.1, Angle::ZERO, Angle::ZERO),
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let far = Trajectory::from_knots(vec![k(0.0, 8.0), k(1e9, 7.0)]);
+            let mut s = SimSource::new(
+                Simulator::new(Scene::default(), 7),
+                far,
+                Some(5.0),
+                true,
+                Faults::default(),
+            );
+            let _ = tx.send((s.per_pass, s.next_frame().is_ok()));
+        });
+        let got = rx.recv_timeout(std::time::Duration::from_secs(5));
+        assert_eq!(got.ok(), Some((5_000_000_001, true)));
     }
 }

@@ -351,3 +351,138 @@ fn sim_kind_reads_the_texts_its_env_resolves() {
     let board = parse(&format!("{MCP_HEAD}{}", mcp_map())).unwrap();
     assert!(board.validate(&Held).unwrap().free_running(None).is_none());
 }
+
+// ---- issue 16: every number has a range, files are checked before a start --
+
+/// A serial backend on one 16-channel board with `extra` keys.
+fn serial_with(extra: &str, temperature: &str) -> String {
+    let map: String = (0..25)
+        .map(|k| {
+            format!(
+                "[[map]]\nr = {}\nc = {}\nboard = \"b{}\"\nchannel = {}\n",
+                k / 5,
+                k % 5,
+                k / 16,
+                k % 16
+            )
+        })
+        .collect();
+    format!(
+        "kind = \"serial\"\n{extra}\nboards = [{{ name = \"b0\", id = 0, path = \"/dev/ttyACM0\", channels = 16 }}, {{ name = \"b1\", id = 1, path = \"/dev/ttyACM1\", channels = 16 }}]\n{map}{temperature}"
+    )
+}
+
+#[test]
+fn numbers_out_of_their_range_are_refused_by_key() {
+    let thermistor = |k: &str| {
+        let r = if k.starts_with("r_fixed_ohm") {
+            ""
+        } else {
+            "r_fixed_ohm = 10000.0\n"
+        };
+        format!("[temperature]\nkind = \"thermistor\"\nfallback_c = 20.0\nboard = \"b1\"\nchannel = 15\n{r}{k}\n")
+    };
+    let ds = |k: &str| format!("[temperature]\nkind = \"ds18b20\"\nfallback_c = 20.0\n{k}\n");
+    for (text, key) in [
+        (serial_with("timeout_ms = 600000", ""), "timeout_ms"),
+        (serial_with("v_ref = 1e9", ""), "v_ref"),
+        (serial_with("rate_hz = 1e9", ""), "rate_hz"),
+        (
+            serial_with("", "").replace(
+                "path = \"/dev/ttyACM0\"",
+                "path = \"/dev/ttyACM0\", baud = 100000000",
+            ),
+            "boards.b0.baud",
+        ),
+        (
+            serial_with("", &thermistor("r_fixed_ohm = 1e300")),
+            "temperature.r_fixed_ohm",
+        ),
+        (
+            serial_with("", &thermistor("v_supply = 1e6")),
+            "temperature.v_supply",
+        ),
+        (
+            serial_with("", &thermistor("max_c = 1e6")),
+            "temperature.max_c",
+        ),
+        (
+            serial_with("", &ds("interval_s = 1e9")),
+            "temperature.interval_s",
+        ),
+        (
+            serial_with("", &ds("max_age_s = 1e9")),
+            "temperature.max_age_s",
+        ),
+        (
+            serial_with(
+                "",
+                &ds("").replace("fallback_c = 20.0", "fallback_c = 400.0"),
+            ),
+            "temperature.fallback_c",
+        ),
+        (
+            serial_with("", "[temperature]\nkind = \"fixed\"\nvalue_c = -300.0\n"),
+            "temperature.value_c",
+        ),
+        (
+            "kind = \"replay\"\nlog = \"x.jsonl\"\nmax_gap_s = 0.0\n".to_string(),
+            "max_gap_s",
+        ),
+        (
+            "kind = \"replay\"\nlog = \"x.jsonl\"\nmax_gap_s = 1e9\n".to_string(),
+            "max_gap_s",
+        ),
+        ("kind = \"replay\"\nlog = \"\"\n".to_string(), "log"),
+    ] {
+        let e = validate(&text).expect_err(&text);
+        assert!(
+            e.starts_with(&format!("source config: {key}: ")),
+            "{key}: {e}"
+        );
+        assert!(
+            e.contains(" is not in ") || e.contains("empty"),
+            "{key}: {e}"
+        );
+    }
+    // In range: accepted, with the gap bound.
+    let v = validate("kind = \"replay\"\nlog = \"x.jsonl\"\nmax_gap_s = 2.5\n").unwrap();
+    let ValidBackend::Replay(plan) = v else {
+        panic!("{v:?}")
+    };
+    assert_eq!(plan.max_gap_s, 2.5);
+}
+
+#[test]
+fn check_reads_every_file_a_start_would_and_opens_no_device() {
+    let dir = tempfile::tempdir().unwrap();
+    let check = |text: &str| {
+        let v = parse(text).unwrap().validate(&PlainEnv).unwrap();
+        lightpose_hal::check(&v)
+    };
+    // A missing trajectory, a corrupt one, a log with a bad header.
+    let e = check("kind = \"mock\"\ntrajectory = \"/nonexistent/t.csv\"\n").unwrap_err();
+    assert!(
+        e.refuses_config() && e.to_string().contains("/nonexistent/t.csv"),
+        "{e}"
+    );
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "t,x\n").unwrap();
+    let e = check(&format!(
+        "kind = \"mock\"\ntrajectory = \"{}\"\n",
+        bad.display()
+    ))
+    .unwrap_err();
+    assert!(e.to_string().contains("bad.csv:1: header"), "{e}");
+    let log = dir.path().join("bad.jsonl");
+    std::fs::write(&log, "{\"class\":\"FRAME\"}\n").unwrap();
+    let e = check(&format!("kind = \"replay\"\nlog = \"{}\"\n", log.display())).unwrap_err();
+    assert!(e.refuses_config(), "{e}");
+    assert!(
+        e.to_string()
+            .contains("bad.jsonl:1: first line must be class HEADER"),
+        "{e}"
+    );
+    // Boards are not opened: a port that is not there yet is not a refusal.
+    assert!(check(&serial_with("", "")).is_ok());
+}

@@ -185,3 +185,39 @@ fn wrong_resolution_and_short_lines_are_bad_data() {
     assert!(e.to_string().contains("4 values"), "{e}");
     drop(b1);
 }
+
+/// Issue 16: a stop ends a serial wait at once, whatever `timeout_ms` is.
+#[test]
+fn a_stop_ends_a_long_serial_wait() {
+    use lightpose_hal::{BackendConfig, PlainEnv, Stop};
+    let dir = tempfile::tempdir().unwrap();
+    let links = [dir.path().join("silent0"), dir.path().join("silent1")];
+    let _boards = [fake_board(&links[0]), fake_board(&links[1])];
+    let map: String = (0..25)
+        .map(|k| {
+            let (r, c, b, ch) = (k / 5, k % 5, k / 16, k % 16);
+            format!("[[map]]\nr = {r}\nc = {c}\nboard = \"b{b}\"\nchannel = {ch}\n")
+        })
+        .collect();
+    let text = format!(
+        "kind = \"serial\"\ntimeout_ms = 60000\nboards = [{{ name = \"b0\", id = 0, path = \"{}\", channels = 16 }}, {{ name = \"b1\", id = 1, path = \"{}\", channels = 16 }}]\n{map}",
+        links[0].display(),
+        links[1].display()
+    );
+    let cfg: BackendConfig = toml::from_str(&text).expect("toml");
+    let stop = Stop::new();
+    let mut src =
+        lightpose_hal::open(&cfg.validate(&PlainEnv).expect("valid"), &stop).expect("open");
+    let (tx, rx) = std::sync::mpsc::channel();
+    thread::spawn(move || {
+        let _ = tx.send(src.next_frame().map(|f| f.seq));
+    });
+    thread::sleep(Duration::from_millis(100));
+    let t0 = std::time::Instant::now();
+    stop.raise();
+    let got = rx
+        .recv_timeout(Duration::from_secs(5))
+        .expect("the read ended on the stop");
+    assert!(matches!(got, Err(SourceError::Stopped)), "{got:?}");
+    assert!(t0.elapsed() < Duration::from_secs(2), "{:?}", t0.elapsed());
+}

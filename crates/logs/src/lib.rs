@@ -159,6 +159,12 @@ impl FrameLog for LogFile {
     fn other_records(&self) -> u64 {
         self.get().other_records()
     }
+    fn first_other(&self) -> Option<&str> {
+        self.get().first_other()
+    }
+    fn order(&self) -> &lightpose_core::FrameOrder {
+        self.get().order()
+    }
     fn seq_gaps(&self) -> (u64, u64) {
         self.get().seq_gaps()
     }

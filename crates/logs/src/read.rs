@@ -8,7 +8,7 @@
 //! what was dropped.
 
 use crate::lines::McapLines;
-use lightpose_core::{Cut, Frame, FrameLog, LogError, LogHeader, LogReader};
+use lightpose_core::{Cut, Frame, FrameLog, FrameOrder, LogError, LogHeader, LogReader};
 use std::collections::VecDeque;
 use std::fs::File;
 use std::io::{self, BufReader, Read, Write};
@@ -165,6 +165,12 @@ impl<R: Read> FrameLog for McapReader<R> {
     }
     fn other_records(&self) -> u64 {
         self.inner.other_lines() + self.inner.get_ref().other
+    }
+    fn first_other(&self) -> Option<&str> {
+        self.inner.first_other()
+    }
+    fn order(&self) -> &FrameOrder {
+        self.inner.order()
     }
     fn seq_gaps(&self) -> (u64, u64) {
         self.inner.seq_gaps()

@@ -1,7 +1,11 @@
 //! Offline replay: run an estimator over a recorded intensity log, write one
 //! POSE line per frame, and (when the log carries truth) measure the error
 //! of each axis. A library function so that the CLI, the regression tests
-//! and anyone else replay exactly alike.
+//! and anyone else replay exactly alike. The error statistics are running
+//! ones ([`running`]): a long log with truth costs no more memory than a
+//! short one.
+
+mod running;
 
 use lightpose_core::{Cut, Estimator, FrameLog, LogError, PoseEstimate, Status};
 use std::fmt;
@@ -90,10 +94,10 @@ impl fmt::Display for ErrorReport {
     }
 }
 
-/// Signed errors of each axis, collected while replaying.
+/// Error statistics of each axis, kept running while replaying.
 #[derive(Debug, Default)]
 struct Errors {
-    e: [Vec<f64>; 6],
+    e: [running::RunningAxis; 6],
 }
 
 /// Wrap an angle difference in degrees to (−180, 180].
@@ -131,8 +135,8 @@ impl Errors {
         }
     }
 
-    fn report(&self) -> Option<ErrorReport> {
-        let axes = [0, 1, 2, 3, 4, 5].map(|i| AxisError::of(&self.e[i]));
+    fn report(&mut self) -> Option<ErrorReport> {
+        let axes = [0, 1, 2, 3, 4, 5].map(|i| self.e[i].report());
         axes.iter()
             .any(Option::is_some)
             .then_some(ErrorReport { axes })

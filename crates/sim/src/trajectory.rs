@@ -3,8 +3,13 @@
 //! the spline's velocity along the vehicle's forward axis.
 
 use crate::spline::Spline;
-use lightpose_core::textfile::{read_text, TextError};
+use lightpose_core::log::plausible_t;
+use lightpose_core::textfile::{
+    excerpt, read_line_bounded, strip_bom, LineRead, TextError, TextSource, EXCERPT_CHARS,
+    MAX_LINE_BYTES,
+};
 use lightpose_core::{Angle, Attitude, BeamVec, Pose};
+use std::io::BufRead;
 use std::path::Path;
 
 #[derive(Debug, thiserror::Error)]
@@ -52,82 +57,158 @@ pub struct Trajectory {
 
 const HEADER: [&str; 6] = ["t", "x", "y", "z", "pitch", "yaw"];
 
+/// Most knots a trajectory may have: a knot every 0.1 s for almost three
+/// hours; far more than any written by hand or by a planner.
+pub const MAX_KNOTS: usize = 100_000;
+
+/// Frames `lightpose simulate` writes at most unless told otherwise
+/// (`--max-frames`): about 4 GB of log, 23 days at 5 Hz, 2.8 h at 1 kHz.
+pub const DEFAULT_MAX_FRAMES: u64 = 10_000_000;
+
+/// The lines of a CSV that are not blank or comments, read bounded.
+struct CsvLines<'a, R> {
+    src: R,
+    buf: Vec<u8>,
+    line: usize,
+    file: &'a str,
+}
+
+impl<R: BufRead> CsvLines<'_, R> {
+    fn err(&self, line: usize, msg: impl Into<String>) -> TrajectoryError {
+        TrajectoryError::Invalid {
+            file: self.file.to_string(),
+            line,
+            msg: msg.into(),
+        }
+    }
+
+    /// The next line with content, trimmed, and its number.
+    fn next(&mut self) -> Result<Option<(usize, &str)>, TrajectoryError> {
+        let (start, end) = loop {
+            self.line += 1;
+            match read_line_bounded(&mut self.src, &mut self.buf, MAX_LINE_BYTES) {
+                Err(source) => {
+                    let file = self.file.to_string();
+                    return Err(TextError::Io { file, source }.into());
+                }
+                Ok(LineRead::Eof) => return Ok(None),
+                Ok(LineRead::TooLong) => {
+                    let msg = format!("line longer than {MAX_LINE_BYTES} bytes: refused unread");
+                    return Err(self.err(self.line, msg));
+                }
+                Ok(LineRead::Line) => {}
+            }
+            let text = std::str::from_utf8(&self.buf)
+                .map_err(|_| self.err(self.line, "not valid UTF-8"))?;
+            let text = if self.line == 1 {
+                strip_bom(text)
+            } else {
+                text
+            };
+            let trimmed = text.trim();
+            if !trimmed.is_empty() && !trimmed.starts_with('#') {
+                let start = trimmed.as_ptr() as usize - self.buf.as_ptr() as usize;
+                break (start, start + trimmed.len());
+            }
+        };
+        let text = std::str::from_utf8(&self.buf[start..end])
+            .map_err(|_| self.err(self.line, "not valid UTF-8"))?;
+        Ok(Some((self.line, text)))
+    }
+}
+
+/// One knot's line, checked: six finite numbers, t a time, angles in range.
+fn knot(l: &str, err: impl Fn(String) -> TrajectoryError) -> Result<Knot, TrajectoryError> {
+    let fields: Vec<&str> = l.split(',').map(str::trim).collect();
+    if fields.len() != 6 {
+        return Err(err(format!("expected 6 values, found {}", fields.len())));
+    }
+    let mut v = [0.0; 6];
+    for (i, (f, slot)) in fields.iter().zip(v.iter_mut()).enumerate() {
+        *slot = f
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| {
+                let f = excerpt(f, 40);
+                err(format!("{} = `{f}` is not a finite number", HEADER[i]))
+            })?;
+    }
+    if !plausible_t(v[0]) {
+        return Err(err(format!("t = {:e} is not a time in seconds", v[0])));
+    }
+    if v[4].abs() >= 90.0 || v[5].abs() >= 180.0 {
+        return Err(err("pitch must be within ±90° and yaw within ±180°".into()));
+    }
+    Ok(Knot {
+        t: v[0],
+        pose: Pose::new(
+            v[1],
+            v[2],
+            v[3],
+            Angle::from_deg(v[4]),
+            Angle::from_deg(v[5]),
+        ),
+    })
+}
+
 impl Trajectory {
     pub fn load(path: &Path) -> Result<Self, TrajectoryError> {
-        let text = read_text(path)?;
-        Self::parse(&text, &path.display().to_string())
+        Self::from_source(&TextSource::File(path.to_path_buf()))
+    }
+
+    /// Read the trajectory a program names (a file, or text it holds).
+    pub fn from_source(src: &TextSource) -> Result<Self, TrajectoryError> {
+        Self::read(src.reader()?, &src.describe())
     }
 
     /// Parse CSV text with the header `t,x,y,z,pitch,yaw` (angles in degrees).
     pub fn parse(text: &str, file: &str) -> Result<Self, TrajectoryError> {
-        let err = |line: usize, msg: String| TrajectoryError::Invalid {
-            file: file.to_string(),
-            line,
-            msg,
+        Self::read(text.as_bytes(), file)
+    }
+
+    /// Read CSV line by line: each line bounded ([`MAX_LINE_BYTES`]), at
+    /// most [`MAX_KNOTS`] knots, a byte-order mark before the header
+    /// accepted, quotes of the text cut to an excerpt.
+    pub fn read(src: impl BufRead, file: &str) -> Result<Self, TrajectoryError> {
+        let mut csv = CsvLines {
+            src,
+            buf: Vec::new(),
+            line: 0,
+            file,
         };
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| (i + 1, l.trim()))
-            .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-        let (hl, header) = lines
-            .next()
-            .ok_or_else(|| err(1, "empty trajectory: no header".into()))?;
+        let Some((hl, header)) = csv.next()? else {
+            return Err(csv.err(1, "empty trajectory: no header"));
+        };
         let names: Vec<&str> = header.split(',').map(str::trim).collect();
         if names != HEADER {
-            return Err(err(
-                hl,
-                format!("header must be `{}`, found `{header}`", HEADER.join(",")),
-            ));
+            let found = excerpt(header, EXCERPT_CHARS);
+            let msg = format!("header must be `{}`, found `{found}`", HEADER.join(","));
+            return Err(csv.err(hl, msg));
         }
-        let mut knots = Vec::new();
+        let mut knots: Vec<Knot> = Vec::new();
         let mut last_line = hl;
-        for (ln, l) in lines {
-            let fields: Vec<&str> = l.split(',').map(str::trim).collect();
-            if fields.len() != 6 {
-                return Err(err(
-                    ln,
-                    format!("expected 6 values, found {}", fields.len()),
-                ));
-            }
-            let mut v = [0.0; 6];
-            for (i, (f, slot)) in fields.iter().zip(v.iter_mut()).enumerate() {
-                *slot = f
-                    .parse::<f64>()
-                    .ok()
-                    .filter(|x| x.is_finite())
-                    .ok_or_else(|| {
-                        err(ln, format!("{} = `{f}` is not a finite number", HEADER[i]))
-                    })?;
-            }
-            if let Some(prev) = knots.last().map(|k: &Knot| k.t) {
-                if v[0] <= prev {
-                    return Err(err(
-                        ln,
-                        format!("t = {} does not increase (previous {prev})", v[0]),
-                    ));
+        while let Some((ln, l)) = csv.next()? {
+            let err = |msg| TrajectoryError::Invalid {
+                file: file.to_string(),
+                line: ln,
+                msg,
+            };
+            let k = knot(l, err)?;
+            if let Some(prev) = knots.last().map(|k| k.t) {
+                if k.t <= prev {
+                    let msg = format!("t = {} does not increase (previous {prev})", k.t);
+                    return Err(csv.err(ln, msg));
                 }
             }
-            if v[4].abs() >= 90.0 || v[5].abs() >= 180.0 {
-                return Err(err(
-                    ln,
-                    "pitch must be within ±90° and yaw within ±180°".into(),
-                ));
+            if knots.len() == MAX_KNOTS {
+                return Err(csv.err(ln, format!("more than {MAX_KNOTS} knots")));
             }
-            knots.push(Knot {
-                t: v[0],
-                pose: Pose::new(
-                    v[1],
-                    v[2],
-                    v[3],
-                    Angle::from_deg(v[4]),
-                    Angle::from_deg(v[5]),
-                ),
-            });
+            knots.push(k);
             last_line = ln;
         }
         if knots.len() < 2 {
-            return Err(err(
+            return Err(csv.err(
                 last_line,
                 format!("a trajectory needs at least 2 knots, found {}", knots.len()),
             ));
@@ -181,6 +262,13 @@ impl Trajectory {
         }
     }
 
+    /// How many frames [`Self::frame_times`] gives at `rate_hz`, known
+    /// without counting (saturating for absurd spans).
+    pub fn frame_count(&self, rate_hz: f64) -> u64 {
+        let n = ((self.t_end() - self.t0()) * rate_hz + 1e-9).floor();
+        (n as u64).saturating_add(1)
+    }
+
     /// The frame times t0 + k / rate, k = 0, 1, … while t ≤ t_end.
     pub fn frame_times(&self, rate_hz: f64) -> impl Iterator<Item = f64> + '_ {
         let (t0, t_end) = (self.t0(), self.t_end());
@@ -227,5 +315,71 @@ mod tests {
             let e = Trajectory::parse(text, "dive.csv").unwrap_err().to_string();
             assert!(e.contains(want), "{e} lacks {want}");
         }
+    }
+}
+
+#[cfg(test)]
+mod hardening_tests {
+    //! Issue 16: bounded quotes and lines, the byte-order mark, and a frame
+    //! count known without counting.
+    use super::*;
+    use lightpose_core::textfile::MAX_LINE_BYTES;
+
+    #[test]
+    fn a_long_header_or_value_is_quoted_as_an_excerpt() {
+        let long = "q".repeat(50_000);
+        let e = Trajectory::parse(&format!("{long}\n0,1,0,0,0,0\n"), "d.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("d.csv:1: header"), "{}", &e[..100]);
+        assert!(e.chars().count() < 300, "{} chars", e.len());
+        let text = format!("t,x,y,z,pitch,yaw\n0,1,0,0,0,0\n1,{long},0,0,0,0\n");
+        let e = Trajectory::parse(&text, "d.csv").unwrap_err().to_string();
+        assert!(e.starts_with("d.csv:3: x = `qqq"), "{}", &e[..100]);
+        assert!(e.chars().count() < 300, "{} chars", e.len());
+    }
+
+    #[test]
+    fn a_byte_order_mark_before_the_header_is_accepted() {
+        let text = "\u{feff}t,x,y,z,pitch,yaw\n0,1,0,0,0,0\n1,2,0,0,0,0\n";
+        let tr = Trajectory::parse(text, "bom.csv").expect("BOM accepted");
+        assert_eq!(tr.knots().len(), 2);
+    }
+
+    #[test]
+    fn a_line_past_the_bound_is_refused_by_its_number_unread() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("long.csv");
+        let mut text = "t,x,y,z,pitch,yaw\n0,1,0,0,0,0\n".to_string();
+        text.push_str(&"9".repeat(MAX_LINE_BYTES * 4));
+        text.push_str(",0,0,0,0,0\n");
+        std::fs::write(&p, text).unwrap();
+        let e = Trajectory::load(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("long.csv:3: line longer than"),
+            "{}",
+            &e[..e.len().min(200)]
+        );
+        assert!(e.chars().count() < 300);
+    }
+
+    #[test]
+    fn the_frame_count_is_known_at_once_even_for_absurd_spans() {
+        let tr = Trajectory::parse("t,x,y,z,pitch,yaw\n0,8,0,0,0,0\n1e9,4,0,0,0,0\n", "far.csv")
+            .unwrap();
+        assert_eq!(tr.frame_count(5.0), 5_000_000_001);
+        assert_eq!(tr.frame_count(1e300), u64::MAX);
+        let dive = Trajectory::parse(
+            "t,x,y,z,pitch,yaw\n0,8.5,0,0,10,0\n8,4.53,0,0.45,0,0\n",
+            "dive.csv",
+        )
+        .unwrap();
+        assert_eq!(dive.frame_count(5.0), dive.frame_times(5.0).count() as u64);
+        let huge = Trajectory::parse(
+            "t,x,y,z,pitch,yaw\n-1e300,8,0,0,0,0\n1e300,4,0,0,0,0\n",
+            "h.csv",
+        );
+        // t beyond ±1e10 s is not a time.
+        assert!(huge.unwrap_err().to_string().contains("h.csv:2: t"));
     }
 }

@@ -61,6 +61,27 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     if let Some(cut) = s.cut {
         eprintln!("lightpose: {}: {cut}", a.log.display());
     }
+    if let Some(first) = log.first_other() {
+        let n = log.other_records();
+        let what = if n == 1 {
+            "line of another class"
+        } else {
+            "lines of other classes"
+        };
+        eprintln!(
+            "lightpose: {}: {n} {what} passed over (first: {first})",
+            a.log.display()
+        );
+    }
+    let order = log.order();
+    if order.jumps() > 0 {
+        eprintln!(
+            "lightpose: {}: t jumped forward by more than {} s {} time(s) (kept)",
+            a.log.display(),
+            order.max_gap_s(),
+            order.jumps()
+        );
+    }
     if s.seq_gaps.0 > 0 {
         eprintln!(
             "lightpose: {}: {} gaps in seq, {} frames lost",

@@ -21,6 +21,11 @@ pub struct SimulateArgs {
     out: PathBuf,
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Refuse a trajectory that would give more frames than this (its
+    /// duration × the scene's rate): a typo in a knot's time must not fill
+    /// the disk.
+    #[arg(long, default_value_t = lightpose_sim::trajectory::DEFAULT_MAX_FRAMES)]
+    max_frames: u64,
 }
 
 #[derive(clap::Args)]
@@ -47,6 +52,16 @@ fn create(path: &PathBuf) -> anyhow::Result<BufWriter<File>> {
 pub fn simulate(a: SimulateArgs) -> anyhow::Result<()> {
     let scene = Scene::load(&a.scene)?;
     let traj = Trajectory::load(&a.trajectory)?;
+    let rate = scene.adc.rate_hz;
+    let frames = traj.frame_count(rate);
+    if frames > a.max_frames {
+        anyhow::bail!(
+            "{}: {} s at {rate} Hz is {frames} frames, more than --max-frames {} (raise it to write them)",
+            a.trajectory.display(),
+            traj.t_end() - traj.t0(),
+            a.max_frames
+        );
+    }
     let mut header = LogHeader::new(scene.adc.bits, scene.adc.rate_hz);
     header
         .extra

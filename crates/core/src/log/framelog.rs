@@ -3,7 +3,7 @@
 //! calibration and the daemon's replay backend take `&mut dyn FrameLog`.
 //! A child of `log` so that its line readers' sources can be reached.
 
-use super::{LogError, LogHeader, LogReader};
+use super::{FrameOrder, LogError, LogHeader, LogReader};
 use crate::Frame;
 use std::io::BufRead;
 
@@ -80,6 +80,11 @@ pub trait FrameLog {
     fn cut(&self) -> Option<Cut>;
     /// Lines or messages of other kinds that were passed over.
     fn other_records(&self) -> u64;
+    /// The first line of another class, named with its place, if any.
+    fn first_other(&self) -> Option<&str>;
+    /// The ordering rule's account: frames skipped out of order, forward
+    /// jumps of `t` kept.
+    fn order(&self) -> &FrameOrder;
     /// Number of gaps in `seq`, and the frames they lost.
     fn seq_gaps(&self) -> (u64, u64);
     /// Malformed sensor readings left off their (kept) frames, and the last
@@ -102,6 +107,12 @@ impl<R: BufRead> FrameLog for LogReader<R> {
     }
     fn other_records(&self) -> u64 {
         self.other_lines()
+    }
+    fn first_other(&self) -> Option<&str> {
+        LogReader::first_other(self)
+    }
+    fn order(&self) -> &FrameOrder {
+        LogReader::order(self)
     }
     fn seq_gaps(&self) -> (u64, u64) {
         LogReader::seq_gaps(self)

@@ -1,6 +1,9 @@
 //! `[attitude]`: the optional input of the vehicle's AHRS readings.
+//!
+//! Ranges: `listen` not on port 0; `beacon_axis_heading_deg` -360..=360;
+//! `max_age_s` (0, 60] s.
 
-use super::locate::{positive, socket_addr, Ctx};
+use super::locate::{positive_to, socket_addr, within, AddrUse, Ctx};
 use super::ConfigError;
 use serde::Deserialize;
 use std::net::{Ipv4Addr, SocketAddr};
@@ -34,18 +37,17 @@ pub(super) fn validate(
         return Ok(None);
     };
     let listen = match &a.listen {
-        Some(l) => socket_addr(ctx, l, "attitude.listen")?,
+        Some(l) => socket_addr(ctx, l, "attitude.listen", AddrUse::Listen)?,
         None => SocketAddr::from((Ipv4Addr::LOCALHOST, 17151)),
     };
     let beacon_axis_heading_deg = match &a.beacon_axis_heading_deg {
-        Some(h) if h.get_ref().is_finite() => *h.get_ref(),
-        Some(h) => {
-            return Err(ctx.err(
-                h.span(),
-                "attitude.beacon_axis_heading_deg",
-                "must be a finite number of degrees",
-            ))
-        }
+        Some(h) => within(
+            ctx,
+            h,
+            "attitude.beacon_axis_heading_deg",
+            (-360.0, 360.0),
+            " degrees",
+        )?,
         None => {
             return Err(ctx.whole(
                 "attitude.beacon_axis_heading_deg: missing (needed to refer yaw to the beam)",
@@ -53,7 +55,7 @@ pub(super) fn validate(
         }
     };
     let max_age = match &a.max_age_s {
-        Some(v) => Duration::from_secs_f64(positive(ctx, v, "attitude.max_age_s")?.min(3600.0)),
+        Some(v) => Duration::from_secs_f64(positive_to(ctx, v, "attitude.max_age_s", 60.0, " s")?),
         None => Duration::from_millis(500),
     };
     Ok(Some(AttitudeInput {

@@ -80,19 +80,50 @@ fn deserialize(ctx: &Ctx, table: &toml::Table, start: usize) -> Result<BackendCo
     serde::Deserialize::deserialize(toml::Value::Table(table.clone())).map_err(
         |e: toml::de::Error| {
             let msg = e.message().trim().to_string();
-            // serde names the field in backquotes: find that key's line.
-            let key = msg
-                .split('`')
-                .nth(1)
-                .filter(|k| table.contains_key(*k))
-                .unwrap_or("");
-            if key.is_empty() {
-                ctx.at(ctx.line(start), "backend", msg)
-            } else {
-                ctx.at(ctx.line_of_key(start, key), &format!("backend.{key}"), msg)
+            match key_of(table, &msg) {
+                None => ctx.at(ctx.line(start), "backend", msg),
+                Some(key) => {
+                    let first = key.split('.').next().unwrap_or("");
+                    ctx.at(
+                        ctx.line_of_key(start, first),
+                        &format!("backend.{key}"),
+                        msg,
+                    )
+                }
             }
         },
     )
+}
+
+/// The key serde's message is about: a field it names in backquotes
+/// ("unknown field `speed`"), or else the key whose value it quotes
+/// ("invalid value: integer `-1`", "invalid type: string \"one\""),
+/// looked for in inline tables too (`faults.seed`).
+fn key_of(table: &toml::Table, msg: &str) -> Option<String> {
+    let ticked = msg.split('`').nth(1);
+    if let Some(k) = ticked.filter(|k| table.contains_key(*k)) {
+        return Some(k.to_string());
+    }
+    let quoted = msg
+        .split_once("string \"")
+        .and_then(|(_, rest)| rest.rsplit_once('"'))
+        .map(|(s, _)| s);
+    let value = ticked.or(quoted)?;
+    find_value(table, value)
+}
+
+fn find_value(table: &toml::Table, written: &str) -> Option<String> {
+    table.iter().find_map(|(k, v)| {
+        let same = match v {
+            toml::Value::Integer(i) => i.to_string() == written,
+            toml::Value::Float(f) => f.to_string() == written || format!("{f:?}") == written,
+            toml::Value::String(s) => s == written,
+            toml::Value::Boolean(b) => b.to_string() == written,
+            toml::Value::Table(t) => return find_value(t, written).map(|sub| format!("{k}.{sub}")),
+            _ => false,
+        };
+        same.then(|| k.clone())
+    })
 }
 
 /// hal names keys like "map[3].channel": the first segment is what is

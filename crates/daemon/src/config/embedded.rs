@@ -37,7 +37,8 @@ pub(super) fn resolve(ctx: &Ctx, written: &str) -> Result<TextSource, String> {
                 text: Cow::Borrowed(text),
             }),
             None => Err(format!(
-                "\"{written}\" is not embedded in this build (known: {NAMES}; a name is missing when its file was absent at build time)"
+                "\"{}\" is not embedded in this build (known: {NAMES}; a name is missing when its file was absent at build time)",
+                lightpose_core::textfile::excerpt(written, 60)
             )),
         };
     }

@@ -1,7 +1,11 @@
 //! Naming the place of a refusal: toml gives byte spans, a person wants
-//! `file:line: key: msg`. Every table's validator builds its errors here.
+//! `file:line: key: msg`. Every table's validator builds its errors here,
+//! and every message is cut to one bounded line (a value quoted from a
+//! 60 MB file is an excerpt), and the range checks every number goes
+//! through.
 
 use super::ConfigError;
+use lightpose_core::textfile::{excerpt, one_line};
 use lightpose_core::textpos::line_of_offset;
 use std::net::SocketAddr;
 use std::ops::Range;
@@ -32,8 +36,8 @@ impl Ctx<'_> {
         ConfigError::At {
             file: self.file.to_string(),
             line,
-            key: key.to_string(),
-            msg: msg.into(),
+            key: excerpt(key, 80),
+            msg: one_line(&msg.into()),
         }
     }
 
@@ -41,7 +45,7 @@ impl Ctx<'_> {
     pub fn whole(&self, msg: impl Into<String>) -> ConfigError {
         ConfigError::Whole {
             file: self.file.to_string(),
-            msg: msg.into(),
+            msg: one_line(&msg.into()),
         }
     }
 
@@ -117,28 +121,67 @@ pub(super) fn line_of_key_in_table(src: &str, table_start: usize, key: &str) -> 
     base
 }
 
-pub(super) fn positive(ctx: &Ctx, v: &Spanned<f64>, key: &str) -> Result<f64, ConfigError> {
+/// A number in `(0, hi]` (`unit` says of what), else refused at its line.
+pub(super) fn positive_to(
+    ctx: &Ctx,
+    v: &Spanned<f64>,
+    key: &str,
+    hi: f64,
+    unit: &str,
+) -> Result<f64, ConfigError> {
     let x = *v.get_ref();
-    if x.is_finite() && x > 0.0 {
+    if x.is_finite() && x > 0.0 && x <= hi {
         Ok(x)
     } else {
-        Err(ctx.err(v.span(), key, format!("{x} must be a positive number")))
+        Err(ctx.err(v.span(), key, format!("{x} is not in (0, {hi}]{unit}")))
     }
 }
 
+/// A number in `lo..=hi`, else refused at its line.
+pub(super) fn within(
+    ctx: &Ctx,
+    v: &Spanned<f64>,
+    key: &str,
+    (lo, hi): (f64, f64),
+    unit: &str,
+) -> Result<f64, ConfigError> {
+    let x = *v.get_ref();
+    if x.is_finite() && (lo..=hi).contains(&x) {
+        Ok(x)
+    } else {
+        Err(ctx.err(v.span(), key, format!("{x} is not in {lo}..={hi}{unit}")))
+    }
+}
+
+/// What an address is for: a listener may take every interface
+/// (0.0.0.0), a destination must name a host.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(super) enum AddrUse {
+    Listen,
+    SendTo,
+}
+
+/// An `address:port`; port 0 is refused (no one listens on it, and a
+/// listener there gets a port nobody knows), and as a destination so is
+/// the unspecified address.
 pub(super) fn socket_addr(
     ctx: &Ctx,
     v: &Spanned<String>,
     key: &str,
+    used: AddrUse,
 ) -> Result<SocketAddr, ConfigError> {
-    v.get_ref().parse::<SocketAddr>().map_err(|_| {
-        ctx.err(
-            v.span(),
-            key,
-            format!(
-                "\"{}\" is not an address:port (e.g. \"127.0.0.1:17150\")",
-                v.get_ref()
-            ),
-        )
-    })
+    let written = excerpt(v.get_ref(), 60);
+    let a = v.get_ref().parse::<SocketAddr>().map_err(|_| {
+        let msg = format!("\"{written}\" is not an address:port (e.g. \"127.0.0.1:17150\")");
+        ctx.err(v.span(), key, msg)
+    })?;
+    if a.port() == 0 {
+        let msg = format!("{a}: port 0 is no port to send to or listen on (1..=65535)");
+        return Err(ctx.err(v.span(), key, msg));
+    }
+    if used == AddrUse::SendTo && a.ip().is_unspecified() {
+        let msg = format!("{a}: the unspecified address is no destination; name the host");
+        return Err(ctx.err(v.span(), key, msg));
+    }
+    Ok(a)
 }

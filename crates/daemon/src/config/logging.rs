@@ -2,6 +2,7 @@
 
 use super::locate::Ctx;
 use super::ConfigError;
+use lightpose_core::textfile::excerpt;
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -34,7 +35,7 @@ pub(super) fn validate(ctx: &Ctx, raw: Option<&RawLogging>) -> Result<Logging, C
                 return Err(ctx.err(
                     f.span(),
                     "logging.format",
-                    format!("\"{other}\" is not \"plain\" or \"json\""),
+                    format!("\"{}\" is not \"plain\" or \"json\"", excerpt(other, 40)),
                 ))
             }
         },
@@ -50,7 +51,7 @@ pub(super) fn validate(ctx: &Ctx, raw: Option<&RawLogging>) -> Result<Logging, C
                 "logging.level",
                 format!(
                     "\"{}\" is not error, warn, info, debug or trace",
-                    v.get_ref()
+                    excerpt(v.get_ref(), 40)
                 ),
             ))
         }

@@ -176,7 +176,8 @@ destinations = ["127.0.0.1:9999"]
             ValidBackend::Replay(ReplayPlan {
                 log: "/etc/lp/x.jsonl".into(),
                 pace: Pace::Fast,
-                looping: false
+                looping: false,
+                max_gap_s: 10.0
             })
         );
         assert_eq!(
@@ -194,7 +195,7 @@ destinations = ["127.0.0.1:9999"]
     #[test]
     fn bad_values_name_line_and_key() {
         let e = err(&MIN.replace("rate_hz = 50.0", "rate_hz = -1.0"));
-        assert_eq!(e, "t.toml:2: rate_hz: -1 must be a positive number");
+        assert_eq!(e, "t.toml:2: rate_hz: -1 is not in (0, 10000] Hz");
         let e = err(&MIN.replace("127.0.0.1:9999", "nowhere"));
         assert!(
             e.starts_with("t.toml:11: outputs.destinations: \"nowhere\""),
@@ -283,6 +284,108 @@ destinations = ["127.0.0.1:9999"]
         );
         let e = board("log = \"x.jsonl\"");
         assert!(e.starts_with("t.toml:5: backend.kind: missing"), "{e}");
+    }
+
+    /// Issue 16: every number has a range, refused at its key's line.
+    #[test]
+    fn numbers_out_of_range_are_refused_at_their_line() {
+        let rec = "\n[recording]\ndir = \"/tmp/r\"\n";
+        let att = "\n[attitude]\nenabled = true\nbeacon_axis_heading_deg = 0.0\n";
+        for (text, want) in [
+            (
+                MIN.replace("rate_hz = 50.0", "rate_hz = 1e9"),
+                "t.toml:2: rate_hz: ",
+            ),
+            (
+                MIN.replace("rate_hz = 50.0", "rate_hz = 50.0\nlate_tolerance = 1e6"),
+                "t.toml:3: late_tolerance: ",
+            ),
+            (
+                format!("{MIN}status_interval_s = 1e-9\n"),
+                "t.toml:12: outputs.status_interval_s: ",
+            ),
+            (
+                format!("{MIN}status_interval_s = 1e9\n"),
+                "t.toml:12: outputs.status_interval_s: ",
+            ),
+            (
+                format!("{MIN}{rec}rotate_mb = 1e12\n"),
+                "t.toml:15: recording.rotate_mb: ",
+            ),
+            (
+                format!("{MIN}{rec}rotate_minutes = 1e12\n"),
+                "t.toml:15: recording.rotate_minutes: ",
+            ),
+            (
+                format!("{MIN}{att}max_age_s = 1e9\n"),
+                "t.toml:16: attitude.max_age_s: ",
+            ),
+            (
+                format!("{MIN}{att}").replace("heading_deg = 0.0", "heading_deg = 1e9"),
+                "t.toml:15: attitude.beacon_axis_heading_deg: ",
+            ),
+            (
+                format!("{MIN}{att}").replace(
+                    "heading_deg = 0.0",
+                    "heading_deg = 0.0\nlisten = \"127.0.0.1:0\"",
+                ),
+                "t.toml:16: attitude.listen: ",
+            ),
+        ] {
+            let e = err(&text);
+            assert!(e.starts_with(want), "{want}: {e}");
+            assert!(e.contains(" is not in ") || e.contains("port 0"), "{e}");
+        }
+    }
+
+    /// Issue 16: port 0 and the unspecified address are no destination.
+    #[test]
+    fn port_0_and_unspecified_addresses_are_no_destination() {
+        for (to, want) in [
+            ("127.0.0.1:0", "port 0"),
+            ("0.0.0.0:17150", "unspecified"),
+            ("[::]:17150", "unspecified"),
+        ] {
+            let e = err(&MIN.replace("127.0.0.1:9999", to));
+            assert!(e.starts_with("t.toml:11: outputs.destinations: "), "{e}");
+            assert!(e.contains(want), "{want}: {e}");
+        }
+        let e = err(&format!(
+            "{MIN}\n[outputs.multicast]\ngroup = \"239.1.2.3:0\"\n"
+        ));
+        assert!(e.starts_with("t.toml:14: outputs.multicast.group: "), "{e}");
+    }
+
+    /// Issue 16: a wrong value inside [backend] is named at its own line
+    /// and key, even when serde's message does not name the key.
+    #[test]
+    fn a_wrong_backend_value_is_named_at_its_line() {
+        let sim = MIN.replace(
+            "kind = \"replay\"\nlog = \"x.jsonl\"\npace = \"fast\"",
+            "kind = \"sim\"\ntrajectory = \"embedded:dive\"\nloop = true\nseed = -1",
+        );
+        let e = err(&sim);
+        assert!(e.starts_with("t.toml:9: backend.seed: "), "{e}");
+        let e = err(&sim.replace("seed = -1", "seed = 1.5"));
+        assert!(e.starts_with("t.toml:9: backend.seed: "), "{e}");
+        let e = err(&sim.replace("seed = -1", "seed = \"one\""));
+        assert!(e.starts_with("t.toml:9: backend.seed: "), "{e}");
+    }
+
+    /// Issue 16: whatever is quoted of the file is an excerpt.
+    #[test]
+    fn refusals_quote_an_excerpt_of_the_file() {
+        let long = "z".repeat(20_000);
+        for text in [
+            format!("{MIN}\n[logging]\nlevel = \"{long}\"\n"),
+            MIN.replace("127.0.0.1:9999", &long),
+            MIN.replace("pace = \"fast\"", &format!("pace = \"{long}\"")),
+            MIN.replace("rate_hz = 50.0", &format!("rate_hz = \"{long}\"")),
+            MIN.replace("log = \"x.jsonl\"", &format!("log = 7\n{long} = 1")),
+        ] {
+            let e = err(&text);
+            assert!(e.chars().count() < 500, "{} chars: {}", e.len(), &e[..120]);
+        }
     }
 
     #[test]

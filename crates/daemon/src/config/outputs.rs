@@ -1,12 +1,18 @@
 //! `[outputs]`: where POSE, STATUS and VERSION datagrams go — unicast
 //! destinations and an optional multicast group — and how often STATUS.
+//!
+//! Ranges: at most 64 destinations, none on port 0 or to the unspecified
+//! address; `status_interval_s` 0.1..=3600 s; multicast `ttl` 0..=255.
 
-use super::locate::{positive, socket_addr, Ctx};
+use super::locate::{socket_addr, within, AddrUse, Ctx};
 use super::ConfigError;
 use serde::Deserialize;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::time::Duration;
 use toml::Spanned;
+
+/// Most unicast destinations a config may give.
+pub const MAX_DESTINATIONS: usize = 64;
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Multicast {
@@ -50,12 +56,25 @@ pub(super) fn validate(ctx: &Ctx, raw: Option<&RawOutputs>) -> Result<Outputs, C
         .into_iter()
         .flatten()
     {
-        destinations.push(socket_addr(ctx, d, "outputs.destinations")?);
+        if destinations.len() == MAX_DESTINATIONS {
+            let msg = format!("more than {MAX_DESTINATIONS} destinations");
+            return Err(ctx.err(d.span(), "outputs.destinations", msg));
+        }
+        destinations.push(socket_addr(
+            ctx,
+            d,
+            "outputs.destinations",
+            AddrUse::SendTo,
+        )?);
     }
     let status_interval = match raw.and_then(|o| o.status_interval_s.as_ref()) {
-        Some(v) => {
-            Duration::from_secs_f64(positive(ctx, v, "outputs.status_interval_s")?.min(3600.0))
-        }
+        Some(v) => Duration::from_secs_f64(within(
+            ctx,
+            v,
+            "outputs.status_interval_s",
+            (0.1, 3600.0),
+            " s",
+        )?),
         None => Duration::from_secs(1),
     };
     let multicast = match raw.and_then(|o| o.multicast.as_ref()) {
@@ -70,7 +89,7 @@ pub(super) fn validate(ctx: &Ctx, raw: Option<&RawOutputs>) -> Result<Outputs, C
 }
 
 fn multicast(ctx: &Ctx, m: &RawMulticast) -> Result<Multicast, ConfigError> {
-    let group = socket_addr(ctx, &m.group, "outputs.multicast.group")?;
+    let group = socket_addr(ctx, &m.group, "outputs.multicast.group", AddrUse::SendTo)?;
     if !group.ip().is_multicast() {
         return Err(ctx.err(
             m.group.span(),
@@ -101,7 +120,7 @@ fn multicast(ctx: &Ctx, m: &RawMulticast) -> Result<Multicast, ConfigError> {
                     "outputs.multicast.interface",
                     format!(
                         "\"{}\" is not the IPv4 address of a local interface",
-                        i.get_ref()
+                        lightpose_core::textfile::excerpt(i.get_ref(), 60)
                     ),
                 ))
             }

@@ -1,7 +1,10 @@
 //! `[recording]`: raw frames written as intensity logs, rotated by size or
 //! age, behind a bounded queue.
-
-use super::locate::{positive, Ctx};
+//!
+//! Ranges: `rotate_mb` 0.01..=1048576 MiB (10 kB to 1 TiB);
+//! `rotate_minutes` 0.1..=525600 (six seconds to a year); `queue`
+//! 1..=1000000 frames.
+use super::locate::{within, Ctx};
 use super::ConfigError;
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -46,13 +49,14 @@ pub(super) fn validate(
     };
     let rotate_bytes = match &r.rotate_mb {
         Some(v) => {
-            Some((positive(ctx, v, "recording.rotate_mb")? * 1024.0 * 1024.0).max(1.0) as u64)
+            let mb = within(ctx, v, "recording.rotate_mb", (0.01, 1_048_576.0), " MiB")?;
+            Some((mb * 1024.0 * 1024.0) as u64)
         }
         None => None,
     };
     let rotate_after = match &r.rotate_minutes {
         Some(v) => Some(Duration::from_secs_f64(
-            positive(ctx, v, "recording.rotate_minutes")?.min(1e6) * 60.0,
+            within(ctx, v, "recording.rotate_minutes", (0.1, 525_600.0), " min")? * 60.0,
         )),
         None => None,
     };

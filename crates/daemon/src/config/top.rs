@@ -1,7 +1,10 @@
 //! The top-level keys: the frame rate, the lateness tolerance, the
 //! estimator's name and the calibration.
+//!
+//! Ranges: `rate_hz` (0, 10000] Hz (hal's bound for every source);
+//! `late_tolerance` (0, 10] periods.
 
-use super::locate::{positive, Ctx};
+use super::locate::{positive_to, Ctx};
 use super::{embedded, ConfigError, Raw};
 use lightpose_core::textfile::TextSource;
 
@@ -14,16 +17,25 @@ pub(super) struct Top {
 
 pub(super) fn validate(ctx: &Ctx, raw: &Raw) -> Result<Top, ConfigError> {
     let rate_hz = match &raw.rate_hz {
-        Some(v) => positive(ctx, v, "rate_hz")?,
+        Some(v) => positive_to(ctx, v, "rate_hz", 10_000.0, " Hz")?,
         None => 5.0,
     };
     let late_tolerance = match &raw.late_tolerance {
-        Some(v) => positive(ctx, v, "late_tolerance")?,
+        Some(v) => positive_to(ctx, v, "late_tolerance", 10.0, " periods")?,
         None => 0.5,
     };
     let estimator = match &raw.estimator {
         Some(v) if v.get_ref().trim().is_empty() => {
             return Err(ctx.err(v.span(), "estimator", "empty estimator name"))
+        }
+        // A name, not a text: the estimator's own check names the known
+        // ones (at --check-config and at a start).
+        Some(v) if v.get_ref().len() > 64 => {
+            return Err(ctx.err(
+                v.span(),
+                "estimator",
+                "longer than 64 characters: not a name",
+            ))
         }
         Some(v) => v.get_ref().clone(),
         None => "auto".into(),

@@ -197,6 +197,8 @@ impl Engine {
         for o in &mut self.outputs {
             o.finish();
         }
+        // The last STATUS shows the source's counters as they ended.
+        self.copy_health();
         if reason != EndReason::SourceEnded {
             self.stats.set_state(BackendState::Stopped);
         }
@@ -230,11 +232,15 @@ impl Engine {
         if books.health_at.elapsed() >= Duration::from_secs(1) {
             // Once a second, not per frame: the copy allocates.
             books.health_at = Instant::now();
-            if let Ok(mut h) = self.stats.source_health.lock() {
-                *h = Some(self.source.health());
-            }
+            self.copy_health();
         }
         None
+    }
+
+    fn copy_health(&self) {
+        if let Ok(mut h) = self.stats.source_health.lock() {
+            *h = Some(self.source.health());
+        }
     }
 
     /// The next frame from the source; a failure is counted and logged,
@@ -259,6 +265,8 @@ impl Engine {
                     wall_unix,
                 })
             }
+            // A wait the supervisor's stop ended: not a failure.
+            Err(SourceError::Stopped) => Got::End(EndReason::Stopped),
             Err(SourceError::Ended) => {
                 stats.set_state(BackendState::Ended);
                 tracing::info!("source ended after {} frames", stats.frames.load(Relaxed));

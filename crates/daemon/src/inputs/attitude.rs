@@ -3,13 +3,60 @@
 //! compass heading, referred here to the beam frame with the beacon's axis
 //! heading so that each frame carries pitch and yaw in B (MODEL.md), which is
 //! what lets an estimator tell y from yaw and z from pitch.
+//!
+//! A datagram is refused, counted by reason (STATUS `attitude.rejected_by`)
+//! and logged (the first, then every 100th) when it is not a JSON object of
+//! numbers (`malformed`), not of class ATTITUDE (`class`), has no `t` that
+//! is a time in seconds (|t| ≤ 1e10, the rule of core's `FrameOrder`:
+//! `time`), or a pitch outside ±90° or a heading outside ±360° (`angle`).
 
 use super::Input;
 use crate::config::AttitudeInput;
+use lightpose_core::log::plausible_t;
+use lightpose_core::textfile::excerpt;
 use lightpose_core::{Angle, AttitudeReading, Frame};
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
+
+/// Why a datagram was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reason {
+    Malformed = 0,
+    Class = 1,
+    Time = 2,
+    Angle = 3,
+}
+
+impl Reason {
+    pub const ALL: [Reason; 4] = [
+        Reason::Malformed,
+        Reason::Class,
+        Reason::Time,
+        Reason::Angle,
+    ];
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Reason::Malformed => "malformed",
+            Reason::Class => "class",
+            Reason::Time => "time",
+            Reason::Angle => "angle",
+        }
+    }
+}
+
+/// A refused datagram: why, and a one-line message.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rejected {
+    pub reason: Reason,
+    pub msg: String,
+}
+
+impl std::fmt::Display for Rejected {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.msg)
+    }
+}
 
 /// The latest reading, written by the listener and read once per frame.
 #[derive(Default)]
@@ -17,9 +64,17 @@ pub struct AttitudeCell {
     latest: Mutex<Option<(Instant, AttitudeReading)>>,
     pub received: AtomicU64,
     pub rejected: AtomicU64,
+    /// Refusals by [`Reason`], in the order of [`Reason::ALL`].
+    pub rejected_by: [AtomicU64; 4],
 }
 
 impl AttitudeCell {
+    /// Count a refusal; the total after it.
+    pub fn reject(&self, reason: Reason) -> u64 {
+        self.rejected_by[reason as usize].fetch_add(1, Relaxed);
+        self.rejected.fetch_add(1, Relaxed) + 1
+    }
+
     pub fn store(&self, at: Instant, r: AttitudeReading) {
         if let Ok(mut g) = self.latest.lock() {
             *g = Some((at, r));
@@ -75,20 +130,49 @@ pub fn wrap180(deg: f64) -> f64 {
 /// A vehicle that faces the beacon (yaw 0 in B) heads opposite to the
 /// beacon's axis, and a turn to starboard raises both the compass heading
 /// and yaw in B: ψ_B = heading − (axis heading + 180°).
-pub fn parse(datagram: &[u8], beacon_axis_heading_deg: f64) -> Result<AttitudeReading, String> {
+pub fn parse(datagram: &[u8], beacon_axis_heading_deg: f64) -> Result<AttitudeReading, Rejected> {
     #[derive(serde::Deserialize)]
     struct Msg {
         class: String,
+        #[serde(default)]
+        t: Option<serde_json::Value>,
         pitch: f64,
         yaw: f64,
     }
-    let m: Msg =
-        serde_json::from_slice(datagram).map_err(|e| format!("not an ATTITUDE message: {e}"))?;
+    let no = |reason, msg: String| Rejected { reason, msg };
+    let m: Msg = serde_json::from_slice(datagram).map_err(|e| {
+        let e = excerpt(&e.to_string(), 120);
+        no(Reason::Malformed, format!("not an ATTITUDE message: {e}"))
+    })?;
     if m.class != "ATTITUDE" {
-        return Err(format!("class \"{}\" is not ATTITUDE", m.class));
+        let class = excerpt(&m.class, 40);
+        return Err(no(
+            Reason::Class,
+            format!("class \"{class}\" is not ATTITUDE"),
+        ));
     }
-    if !m.pitch.is_finite() || !m.yaw.is_finite() || m.pitch.abs() > 90.0 {
-        return Err(format!("pitch {} / yaw {} out of range", m.pitch, m.yaw));
+    match m.t.as_ref().map(|t| t.as_f64()) {
+        Some(Some(t)) if plausible_t(t) => {}
+        Some(Some(t)) => {
+            return Err(no(
+                Reason::Time,
+                format!("t = {t:e} is not a time (|t| ≤ 1e10 s)"),
+            ))
+        }
+        Some(None) => return Err(no(Reason::Time, "t is not a number of seconds".into())),
+        None => return Err(no(Reason::Time, "t is missing".into())),
+    }
+    if !m.pitch.is_finite() || m.pitch.abs() > 90.0 {
+        return Err(no(
+            Reason::Angle,
+            format!("pitch {:e}° is not in -90..=90", m.pitch),
+        ));
+    }
+    if !m.yaw.is_finite() || m.yaw.abs() > 360.0 {
+        return Err(no(
+            Reason::Angle,
+            format!("yaw {:e}° is not a heading in -360..=360", m.yaw),
+        ));
     }
     Ok(AttitudeReading {
         pitch: Angle::from_deg(m.pitch),
@@ -116,9 +200,9 @@ pub async fn listen(
         match parse(&buf[..n], cfg.beacon_axis_heading_deg) {
             Ok(r) => cell.store(Instant::now(), r),
             Err(e) => {
-                let k = cell.rejected.fetch_add(1, Relaxed) + 1;
+                let k = cell.reject(e.reason);
                 if k == 1 || k.is_multiple_of(100) {
-                    tracing::warn!(from = %from, rejected = k, "attitude: {e}");
+                    tracing::warn!(from = %from, rejected = k, reason = e.reason.as_str(), "attitude: {e}");
                 }
             }
         }
@@ -151,11 +235,70 @@ mod tests {
     fn bad_datagrams_are_refused_with_reason() {
         assert!(parse(b"garbage", 0.0)
             .unwrap_err()
+            .msg
             .contains("not an ATTITUDE"));
-        assert!(parse(br#"{"class":"POSE","pitch":0,"yaw":0}"#, 0.0)
-            .unwrap_err()
-            .contains("POSE"));
+        let e = parse(br#"{"class":"POSE","pitch":0,"yaw":0}"#, 0.0).unwrap_err();
+        assert!(e.msg.contains("POSE") && e.reason == Reason::Class, "{e}");
         assert!(parse(br#"{"class":"ATTITUDE","pitch":100,"yaw":0}"#, 0.0).is_err());
+    }
+
+    /// Issue 16: t must be a time, angles finite and in range.
+    #[test]
+    fn malformed_times_and_angles_are_refused() {
+        use Reason::{Angle as A, Time as T};
+        for (d, names, reason) in [
+            (r#"{"class":"ATTITUDE","t":1e12,"pitch":0,"yaw":0}"#, "t", T),
+            (
+                r#"{"class":"ATTITUDE","t":-1e12,"pitch":0,"yaw":0}"#,
+                "t",
+                T,
+            ),
+            (
+                r#"{"class":"ATTITUDE","t":"yesterday","pitch":0,"yaw":0}"#,
+                "t",
+                T,
+            ),
+            (r#"{"class":"ATTITUDE","pitch":0,"yaw":0}"#, "t", T),
+            (
+                r#"{"class":"ATTITUDE","t":1.0,"pitch":0,"yaw":1e308}"#,
+                "yaw",
+                A,
+            ),
+            (
+                r#"{"class":"ATTITUDE","t":1.0,"pitch":0,"yaw":-400}"#,
+                "yaw",
+                A,
+            ),
+            (
+                r#"{"class":"ATTITUDE","t":1.0,"pitch":-90.5,"yaw":0}"#,
+                "pitch",
+                A,
+            ),
+        ] {
+            let e = parse(d.as_bytes(), 0.0).map(|r| r.yaw.deg()).unwrap_err();
+            assert!(e.msg.contains(names) && e.reason == reason, "{d}: {e:?}");
+        }
+        let long = format!(
+            r#"{{"class":"{}","t":1,"pitch":0,"yaw":0}}"#,
+            "x".repeat(5000)
+        );
+        assert!(parse(long.as_bytes(), 0.0).unwrap_err().msg.len() < 300);
+        let e = parse(format!("\"{}\"", "y".repeat(5000)).as_bytes(), 0.0).unwrap_err();
+        assert!(
+            e.msg.len() < 300 && e.reason == Reason::Malformed,
+            "{}",
+            e.msg.len()
+        );
+        let c = AttitudeCell::default();
+        assert_eq!((c.reject(T), c.reject(A), c.reject(T)), (1, 2, 3));
+        assert_eq!(c.rejected_by[Reason::Time as usize].load(Relaxed), 2);
+        // In range: heading 0..360 (and -360..0), t an epoch's seconds.
+        assert!(parse(
+            br#"{"class":"ATTITUDE","t":1.7e9,"pitch":-90,"yaw":359.9}"#,
+            0.0
+        )
+        .is_ok());
+        assert!(parse(br#"{"class":"ATTITUDE","t":0,"pitch":90,"yaw":-360}"#, 0.0).is_ok());
     }
 
     #[test]

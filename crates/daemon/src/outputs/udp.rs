@@ -1,9 +1,20 @@
 //! UDP publishing: one datagram per message to every unicast destination and
 //! to the multicast group. Sockets are non-blocking std sockets, shared by
 //! the acquisition thread (POSE, through [`PoseDatagrams`]) and the async
-//! side (STATUS, VERSION), so a datagram leaves in one `sendto` with no
+//! side (STATUS, VERSION), so a datagram leaves in one `send` with no
 //! hand-off between threads. A destination that fails is counted and logged
 //! on its own; the others go on.
+//!
+//! Each unicast destination has a socket of its own, connected to it: on
+//! Linux an unconnected UDP socket never hears of the ICMP "port
+//! unreachable" that a host answers when nobody listens, while a connected
+//! one reports it as ECONNREFUSED on its next send. So `errors` counts
+//! every send the kernel refused — no route, a full buffer, a port where
+//! nobody listens (about every other datagram is refused while nobody
+//! does) — but not a datagram lost silently on the way (a host that does
+//! not answer at all): UDP has no acknowledgement. A destination that
+//! cannot be connected yet (no route at boot) is counted and connected
+//! again on each send until it can.
 
 use super::Output;
 use crate::config::Outputs;
@@ -12,14 +23,14 @@ use crate::stats::DestStats;
 use lightpose_core::PoseEstimate;
 use socket2::SockRef;
 use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr, UdpSocket};
-use std::sync::atomic::Ordering::Relaxed;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::sync::Arc;
 
 #[derive(Debug, thiserror::Error)]
 pub enum PublishError {
-    #[error("outputs: cannot open a UDP socket for {family}")]
+    #[error("outputs: cannot open a UDP socket for {addr}")]
     Socket {
-        family: &'static str,
+        addr: SocketAddr,
         #[source]
         source: std::io::Error,
     },
@@ -35,77 +46,81 @@ pub struct Destination {
     pub addr: SocketAddr,
     pub multicast: bool,
     pub stats: DestStats,
+    sock: UdpSocket,
+    /// A unicast socket connected to `addr` (see the module).
+    connected: AtomicBool,
+}
+
+impl Destination {
+    fn open(addr: SocketAddr, multicast: bool) -> Result<Destination, PublishError> {
+        let unspec = if addr.is_ipv4() {
+            SocketAddr::from((Ipv4Addr::UNSPECIFIED, 0))
+        } else {
+            SocketAddr::from((Ipv6Addr::UNSPECIFIED, 0))
+        };
+        let fail = |source| PublishError::Socket { addr, source };
+        let sock = UdpSocket::bind(unspec).map_err(fail)?;
+        // Never block the frame path on a full socket buffer: such a
+        // send is counted as an error of that destination instead.
+        sock.set_nonblocking(true).map_err(fail)?;
+        // Not yet reachable (no route at boot) is not fatal: counted at
+        // each send, which connects again.
+        let connected = !multicast && sock.connect(addr).is_ok();
+        Ok(Destination {
+            addr,
+            multicast,
+            stats: DestStats::default(),
+            sock,
+            connected: AtomicBool::new(connected),
+        })
+    }
+
+    fn send(&self, msg: &[u8]) -> std::io::Result<usize> {
+        if self.multicast {
+            return self.sock.send_to(msg, self.addr);
+        }
+        if !self.connected.load(Relaxed) {
+            self.sock.connect(self.addr)?;
+            self.connected.store(true, Relaxed);
+        }
+        self.sock.send(msg)
+    }
 }
 
 pub struct Publisher {
-    v4: Option<UdpSocket>,
-    v6: Option<UdpSocket>,
     dests: Vec<Destination>,
 }
 
 impl Publisher {
-    /// Open the sockets the configured destinations need.
+    /// Open a socket for each configured destination.
     pub fn open(cfg: &Outputs) -> Result<Publisher, PublishError> {
-        let mut dests: Vec<Destination> = cfg
+        let mut dests = cfg
             .destinations
             .iter()
-            .map(|&addr| Destination {
-                addr,
-                multicast: false,
-                stats: DestStats::default(),
-            })
-            .collect();
+            .map(|&addr| Destination::open(addr, false))
+            .collect::<Result<Vec<_>, _>>()?;
         if let Some(m) = &cfg.multicast {
-            dests.push(Destination {
-                addr: m.group,
-                multicast: true,
-                stats: DestStats::default(),
-            });
-        }
-        let need_v4 = dests.iter().any(|d| d.addr.is_ipv4());
-        let need_v6 = dests.iter().any(|d| d.addr.is_ipv6());
-        let open = |unspec: SocketAddr, family: &'static str| {
-            let s = UdpSocket::bind(unspec)
-                .map_err(|source| PublishError::Socket { family, source })?;
-            // Never block the frame path on a full socket buffer: such a
-            // send is counted as an error of that destination instead.
-            s.set_nonblocking(true)
-                .map_err(|source| PublishError::Socket { family, source })?;
-            Ok::<_, PublishError>(s)
-        };
-        let v4 = if need_v4 {
-            Some(open(SocketAddr::from((Ipv4Addr::UNSPECIFIED, 0)), "IPv4")?)
-        } else {
-            None
-        };
-        let v6 = if need_v6 {
-            Some(open(SocketAddr::from((Ipv6Addr::UNSPECIFIED, 0)), "IPv6")?)
-        } else {
-            None
-        };
-        if let Some(m) = &cfg.multicast {
+            let d = Destination::open(m.group, true)?;
+            let s = &d.sock;
             let mc = |what, r: std::io::Result<()>| {
                 r.map_err(|source| PublishError::Multicast { what, source })
             };
-            match (m.group, &v4, &v6) {
-                (SocketAddr::V4(_), Some(s), _) => {
-                    mc("ttl", s.set_multicast_ttl_v4(m.ttl))?;
-                    mc("loopback", s.set_multicast_loop_v4(m.loopback))?;
-                    if !m.interface.is_unspecified() {
-                        mc(
-                            "interface",
-                            SockRef::from(s).set_multicast_if_v4(&m.interface),
-                        )?;
-                    }
+            if m.group.is_ipv4() {
+                mc("ttl", s.set_multicast_ttl_v4(m.ttl))?;
+                mc("loopback", s.set_multicast_loop_v4(m.loopback))?;
+                if !m.interface.is_unspecified() {
+                    mc(
+                        "interface",
+                        SockRef::from(s).set_multicast_if_v4(&m.interface),
+                    )?;
                 }
-                (SocketAddr::V6(_), _, Some(s)) => {
-                    mc("ttl", SockRef::from(s).set_multicast_hops_v6(m.ttl))?;
-                    mc("loopback", s.set_multicast_loop_v6(m.loopback))?;
-                }
-                _ => {}
+            } else {
+                mc("ttl", SockRef::from(s).set_multicast_hops_v6(m.ttl))?;
+                mc("loopback", s.set_multicast_loop_v6(m.loopback))?;
             }
+            dests.push(d);
         }
-        Ok(Publisher { v4, v6, dests })
+        Ok(Publisher { dests })
     }
 
     pub fn destinations(&self) -> &[Destination] {
@@ -117,9 +132,7 @@ impl Publisher {
     pub fn send(&self, msg: &[u8]) -> usize {
         let mut ok = 0;
         for d in &self.dests {
-            let sock = if d.addr.is_ipv4() { &self.v4 } else { &self.v6 };
-            let Some(sock) = sock else { continue };
-            match sock.send_to(msg, d.addr) {
+            match d.send(msg) {
                 Ok(_) => {
                     d.stats.sent.fetch_add(1, Relaxed);
                     ok += 1;
@@ -201,8 +214,9 @@ mod tests {
         let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
         rx.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
         let good = rx.local_addr().unwrap();
-        // Port 0 cannot be sent to: every send to it fails.
-        let bad: SocketAddr = "127.0.0.1:0".parse().unwrap();
+        // Broadcast without SO_BROADCAST: the kernel refuses every send
+        // (EACCES) at once.
+        let bad: SocketAddr = "255.255.255.255:9".parse().unwrap();
         let p = Publisher::open(&Outputs {
             destinations: vec![bad, good],
             multicast: None,
@@ -220,5 +234,40 @@ mod tests {
         assert_eq!(d[0].stats.sent.load(Relaxed), 0);
         assert!(d[0].stats.last_error.lock().unwrap().is_some());
         assert_eq!(d[1].stats.sent.load(Relaxed), 3);
+    }
+
+    /// Issue 16: a unicast destination where nobody listens is counted as
+    /// failing: the kernel's ICMP "port unreachable" is reported on the
+    /// next send of a connected socket.
+    #[test]
+    fn a_destination_where_nobody_listens_is_counted() {
+        let closed = {
+            let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+            s.local_addr().unwrap()
+        }; // dropped: nobody listens there now
+        let rx = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let p = Publisher::open(&Outputs {
+            destinations: vec![closed, rx.local_addr().unwrap()],
+            multicast: None,
+            status_interval: Duration::from_secs(1),
+        })
+        .unwrap();
+        for _ in 0..20 {
+            p.send(b"{\"class\":\"X\"}");
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let d = p.destinations();
+        let errors = d[0].stats.errors.load(Relaxed);
+        assert!(errors >= 5, "{errors} errors of 20 sends");
+        let last = d[0]
+            .stats
+            .last_error
+            .lock()
+            .unwrap()
+            .clone()
+            .unwrap_or_default();
+        assert!(last.contains("refused"), "{last}");
+        assert_eq!(d[1].stats.sent.load(Relaxed), 20);
+        assert_eq!(d[1].stats.errors.load(Relaxed), 0);
     }
 }

@@ -7,7 +7,7 @@ use std::time::Duration;
 use serde::Deserialize;
 
 use super::temp::{temp_plan, TempConfig, TempPlan};
-use super::{err, positive, rate, unique_names, Env, ValidBackend};
+use super::{err, positive_to, rate, unique_names, Env, ValidBackend};
 use crate::chanmap::{BoardSpec, ChannelMap, MapEntry, MAX_CH};
 use crate::drivers::ads1115::{self, DataRate, Fsr};
 use crate::drivers::ads7828::{self, PowerMode};
@@ -15,6 +15,11 @@ use crate::drivers::mcp3x08::McpKind;
 use crate::pace::{Pacer, Stop};
 use crate::serial::SerialBoard;
 use crate::HalError;
+
+/// Highest reference or supply voltage a table may give: far above any ADC's.
+pub const MAX_V: f64 = 50.0;
+/// Longest wait for a serial board's line; a stop ends it sooner anyway.
+pub const MAX_TIMEOUT_MS: u64 = 60_000;
 
 fn v5() -> f64 {
     5.0
@@ -237,7 +242,7 @@ pub(super) fn spi(c: &SpiConfig, kind: McpKind, env: &dyn Env) -> Result<ValidBa
         map: &c.map,
         temp: &c.temperature,
         bits: kind.bits(),
-        v_ref: positive("v_ref", c.v_ref)?,
+        v_ref: positive_to("v_ref", c.v_ref, MAX_V, " V")?,
     };
     Ok(ValidBackend::Spi {
         kind,
@@ -295,7 +300,10 @@ pub(super) fn ads7828(c: &Ads7828Config, env: &dyn Env) -> Result<ValidBackend, 
                 format!("{v} V given with internal_ref = true (the internal reference is 2.5 V)"),
             ))
         }
-        (false, Some(v)) => (PowerMode::ExternalRef, positive("v_ref", v)?),
+        (false, Some(v)) => (
+            PowerMode::ExternalRef,
+            positive_to("v_ref", v, MAX_V, " V")?,
+        ),
         (false, None) => return Err(err("v_ref", "required when internal_ref = false")),
     };
     let (buses, chips) = i2c_layout(&c.chips, ads7828::ADDR_MIN, ads7828::ADDR_MAX)?;
@@ -320,8 +328,11 @@ pub(super) fn serial(c: &SerialConfig, env: &dyn Env) -> Result<ValidBackend, Ha
     if !(1..=16).contains(&c.adc_bits) {
         return Err(err("adc_bits", format!("{} is not in 1..=16", c.adc_bits)));
     }
-    if c.timeout_ms == 0 {
-        return Err(err("timeout_ms", "must be positive"));
+    if !(1..=MAX_TIMEOUT_MS).contains(&c.timeout_ms) {
+        return Err(err(
+            "timeout_ms",
+            format!("{} is not in 1..={MAX_TIMEOUT_MS} ms", c.timeout_ms),
+        ));
     }
     unique_names("boards", c.boards.iter().map(|b| b.name.as_str()))?;
     let mut boards: Vec<SerialBoard> = Vec::new();
@@ -347,7 +358,7 @@ pub(super) fn serial(c: &SerialConfig, env: &dyn Env) -> Result<ValidBackend, Ha
         map: &c.map,
         temp: &c.temperature,
         bits: c.adc_bits,
-        v_ref: positive("v_ref", c.v_ref)?,
+        v_ref: positive_to("v_ref", c.v_ref, MAX_V, " V")?,
     };
     Ok(ValidBackend::Serial {
         boards,
@@ -376,8 +387,11 @@ fn serial_board(b: &SerialBoardConfig, before: &[SerialBoard]) -> Result<(), Hal
             format!("{} is not in 1..={MAX_CH}", b.channels),
         ));
     }
-    if b.baud == 0 {
-        return Err(err(format!("boards.{}.baud", b.name), "must be positive"));
+    if !(50..=4_000_000).contains(&b.baud) {
+        return Err(err(
+            format!("boards.{}.baud", b.name),
+            format!("{} is not in 50..=4000000", b.baud),
+        ));
     }
     Ok(())
 }

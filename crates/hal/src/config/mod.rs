@@ -76,7 +76,10 @@ impl Pace {
             Some(w) if w == realtime_word || w == "realtime" => Ok(Pace::Realtime),
             Some(w) => Err(err(
                 "pace",
-                format!("\"{w}\" is not a pace (\"{realtime_word}\" or \"fast\")"),
+                format!(
+                    "\"{}\" is not a pace (\"{realtime_word}\" or \"fast\")",
+                    lightpose_core::textfile::excerpt(w, 40)
+                ),
             )),
         }
     }
@@ -245,11 +248,22 @@ pub(crate) fn rate(r: Option<f64>, env: &dyn Env) -> Result<Option<f64>, HalErro
     Ok((r > 0.0).then_some(r))
 }
 
-pub(crate) fn positive(key: &str, v: f64) -> Result<f64, HalError> {
-    if v.is_finite() && v > 0.0 {
+/// `v` if it is in `lo..=hi` (a finite number), else an error naming `key`
+/// and the range.
+pub(crate) fn within(key: &str, v: f64, lo: f64, hi: f64, unit: &str) -> Result<f64, HalError> {
+    if v.is_finite() && (lo..=hi).contains(&v) {
         Ok(v)
     } else {
-        Err(err(key, format!("{v} must be a positive number")))
+        Err(err(key, format!("{v} is not in {lo}..={hi}{unit}")))
+    }
+}
+
+/// `v` if it is above 0 and at most `hi`.
+pub(crate) fn positive_to(key: &str, v: f64, hi: f64, unit: &str) -> Result<f64, HalError> {
+    if v.is_finite() && v > 0.0 && v <= hi {
+        Ok(v)
+    } else {
+        Err(err(key, format!("{v} is not in (0, {hi}]{unit}")))
     }
 }
 

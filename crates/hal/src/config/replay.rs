@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use serde::Deserialize;
 
-use super::{Env, Pace};
+use super::{err, positive_to, Env, Pace};
 use crate::HalError;
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -21,6 +21,10 @@ pub struct ReplayConfig {
     /// increasing).
     #[serde(rename = "loop", default)]
     pub looping: bool,
+    /// A forward step of t larger than this (seconds) is a jump: counted,
+    /// logged once and not slept through at recorded pace.
+    #[serde(default)]
+    pub max_gap_s: Option<f64>,
 }
 
 /// A validated replay backend.
@@ -29,12 +33,24 @@ pub struct ReplayPlan {
     pub log: PathBuf,
     pub pace: Pace,
     pub looping: bool,
+    pub max_gap_s: f64,
 }
 
+/// Largest `max_gap_s`: an hour.
+pub const MAX_GAP_BOUND_S: f64 = 3600.0;
+
 pub(super) fn replay(c: &ReplayConfig, env: &dyn Env) -> Result<ReplayPlan, HalError> {
+    if c.log.trim().is_empty() {
+        return Err(err("log", "empty path"));
+    }
+    let max_gap_s = match c.max_gap_s {
+        Some(g) => positive_to("max_gap_s", g, MAX_GAP_BOUND_S, " s")?,
+        None => lightpose_core::log::DEFAULT_MAX_GAP_S,
+    };
     Ok(ReplayPlan {
         log: env.path(&c.log),
         pace: Pace::parse(c.pace.as_deref(), "recorded")?,
         looping: c.looping,
+        max_gap_s,
     })
 }

@@ -19,7 +19,7 @@ use lightpose_core::textfile::TextSource;
 use lightpose_core::{COLS, ROWS};
 use serde::Deserialize;
 
-use super::{err, positive, rate, true_, Env, Pace};
+use super::{err, positive_to, rate, true_, Env, Pace};
 use crate::HalError;
 
 fn one() -> u64 {
@@ -140,7 +140,12 @@ pub(super) fn sim(c: &SimConfig, env: &dyn Env) -> Result<SimPlan, HalError> {
         trajectory: text("trajectory", c.trajectory.as_ref())?,
         // The program's rate as it is (the daemon's top-level `rate_hz`, which
         // it checked): this table has no rate of its own to bound.
-        rate_hz: Some(positive("rate_hz", env.default_rate_hz())?),
+        rate_hz: Some(positive_to(
+            "rate_hz",
+            env.default_rate_hz(),
+            10_000.0,
+            " Hz",
+        )?),
         pace: Pace::parse(c.pace.as_deref(), "realtime")?,
         looping: c.looping,
         seed: c.seed,
@@ -152,8 +157,13 @@ pub(super) fn sim(c: &SimConfig, env: &dyn Env) -> Result<SimPlan, HalError> {
 pub(super) fn mock(c: &MockConfig, env: &dyn Env) -> Result<SimPlan, HalError> {
     Ok(SimPlan {
         kind: "mock",
-        scene: c.scene.clone().map(TextSource::File),
-        trajectory: TextSource::File(c.trajectory.clone()),
+        // Relative paths are the env's to resolve (the daemon: from its
+        // config file's directory), as for every other path of a table.
+        scene: c
+            .scene
+            .as_ref()
+            .map(|p| TextSource::File(env.path(&p.to_string_lossy()))),
+        trajectory: TextSource::File(env.path(&c.trajectory.to_string_lossy())),
         rate_hz: rate(c.rate_hz, env)?,
         pace: Pace::Realtime,
         looping: c.looping,

@@ -8,7 +8,8 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
-use super::{err, finite, positive};
+use super::boards::MAX_V;
+use super::{err, finite, positive_to, within};
 use crate::chanmap::{BoardSpec, ChannelMap};
 use crate::temp::{Ds18b20, TempKind, TempReader, Thermistor, ThermistorPosition};
 use crate::HalError;
@@ -135,9 +136,14 @@ impl TempPlan {
 }
 
 /// A positive number of seconds that a `Duration` can hold.
-fn seconds(key: &str, v: f64) -> Result<Duration, HalError> {
-    Duration::try_from_secs_f64(positive(key, v)?)
+fn seconds(key: &str, v: f64, max: f64) -> Result<Duration, HalError> {
+    Duration::try_from_secs_f64(positive_to(key, v, max, " s")?)
         .map_err(|_| err(key, format!("{v} s is too long")))
+}
+
+/// A water temperature: the daemon's own fallback range.
+fn water(key: &str, v: f64) -> Result<f64, HalError> {
+    within(key, v, -5.0, 45.0, " °C")
 }
 
 pub(super) fn temp_plan(
@@ -149,7 +155,7 @@ pub(super) fn temp_plan(
 ) -> Result<TempPlan, HalError> {
     Ok(match t {
         TempConfig::None => TempPlan::None,
-        TempConfig::Fixed { value_c } => TempPlan::Fixed(finite("temperature.value_c", *value_c)?),
+        TempConfig::Fixed { value_c } => TempPlan::Fixed(water("temperature.value_c", *value_c)?),
         TempConfig::Ds18b20 {
             fallback_c,
             root,
@@ -159,9 +165,9 @@ pub(super) fn temp_plan(
         } => TempPlan::Ds18b20 {
             sensor_root: root.clone(),
             device: device.clone(),
-            interval: seconds("temperature.interval_s", *interval_s)?,
-            max_age: seconds("temperature.max_age_s", *max_age_s)?,
-            fallback_c: finite("temperature.fallback_c", *fallback_c)?,
+            interval: seconds("temperature.interval_s", *interval_s, 3600.0)?,
+            max_age: seconds("temperature.max_age_s", *max_age_s, 86_400.0)?,
+            fallback_c: water("temperature.fallback_c", *fallback_c)?,
         },
         TempConfig::Thermistor {
             fallback_c,
@@ -192,6 +198,8 @@ pub(super) fn temp_plan(
                     format!("board \"{board}\" channel {channel} already feeds a detector"),
                 ));
             }
+            within("temperature.min_c", *min_c, -55.0, 150.0, " °C")?;
+            within("temperature.max_c", *max_c, -55.0, 150.0, " °C")?;
             if min_c.partial_cmp(max_c) != Some(std::cmp::Ordering::Less) {
                 return Err(err("temperature.min_c", "must be below max_c"));
             }
@@ -202,15 +210,20 @@ pub(super) fn temp_plan(
                     a: finite("temperature.a", *a)?,
                     b: finite("temperature.b", *b)?,
                     c: finite("temperature.c", *c)?,
-                    r_fixed_ohm: positive("temperature.r_fixed_ohm", *r_fixed_ohm)?,
+                    r_fixed_ohm: positive_to("temperature.r_fixed_ohm", *r_fixed_ohm, 1e9, " Ω")?,
                     position: *position,
-                    v_supply: positive("temperature.v_supply", v_supply.unwrap_or(v_ref))?,
+                    v_supply: positive_to(
+                        "temperature.v_supply",
+                        v_supply.unwrap_or(v_ref),
+                        MAX_V,
+                        " V",
+                    )?,
                     v_ref,
                     bits,
                     min_c: *min_c,
                     max_c: *max_c,
                 },
-                fallback_c: finite("temperature.fallback_c", *fallback_c)?,
+                fallback_c: water("temperature.fallback_c", *fallback_c)?,
             }
         }
     })

@@ -2,6 +2,13 @@
 //! recorded pace or as fast as possible, so that a recording goes through
 //! exactly the path of live frames (estimator, POSE, STATUS, recording).
 //! The file format is behind [`log::FrameLog`].
+//!
+//! Frames come in the order core's `FrameOrder` admits (a frame out of
+//! order is an error naming its line). At recorded pace, a forward step of
+//! `t` larger than the plan's `max_gap_s` is not slept through: it is
+//! counted, logged once, and the frame after it is due one period after
+//! the one before (pacing re-anchors there). Every wait ends on the
+//! [`Stop`].
 
 pub mod log;
 
@@ -12,19 +19,30 @@ use lightpose_core::{Frame, LogError};
 
 use crate::config::{Pace, ReplayPlan};
 use crate::pace::Stop;
-use crate::{FrameSource, SourceError};
+use crate::{FrameSource, SourceError, SourceHealth};
 use log::{open_log, FrameLog};
+
+/// Counters of the passes before the current one.
+#[derive(Debug, Default, Clone, Copy)]
+struct Done {
+    skipped: u64,
+    other: u64,
+}
 
 pub struct ReplaySource {
     path: PathBuf,
     pace: Pace,
     looping: bool,
+    max_gap_s: f64,
     log: Box<dyn FrameLog>,
     adc_bits: u8,
     rate_hz: f64,
     stop: Stop,
-    /// (instant, t) of the first frame: realtime pace keeps to it.
+    /// (instant, t) that realtime pace keeps to: the first frame, or the
+    /// frame after the last jump.
     anchor: Option<(Instant, f64)>,
+    /// When the last frame was due.
+    last_due: Option<Instant>,
     /// Added to seq and t of every frame of the current pass so that a
     /// looping replay keeps both increasing.
     seq_offset: u64,
@@ -32,13 +50,18 @@ pub struct ReplaySource {
     first_of_pass: Option<(u64, f64)>,
     last_out: Option<(u64, f64)>,
     passes: u64,
+    done: Done,
+    jumps: u64,
+    other_logged: bool,
+    /// A failed reopen for the next pass: retried at most once a second.
+    reopen_failed: Option<Instant>,
 }
 
 impl ReplaySource {
     /// Open the log `plan` names; waits for a frame's time end early on
     /// `stop`.
     pub fn open(plan: &ReplayPlan, stop: &Stop) -> Result<ReplaySource, LogError> {
-        let log = open_log(&plan.log)?;
+        let log = open_log(&plan.log, plan.max_gap_s)?;
         let h = log.header();
         Ok(ReplaySource {
             adc_bits: h.adc_bits,
@@ -46,27 +69,52 @@ impl ReplaySource {
             path: plan.log.clone(),
             pace: plan.pace,
             looping: plan.looping,
+            max_gap_s: plan.max_gap_s,
             log,
             stop: stop.clone(),
             anchor: None,
+            last_due: None,
             seq_offset: 0,
             t_offset: 0.0,
             first_of_pass: None,
             last_out: None,
             passes: 1,
+            done: Done::default(),
+            jumps: 0,
+            other_logged: false,
+            reopen_failed: None,
         })
     }
 
+    fn period_s(&self) -> f64 {
+        1.0 / self.rate_hz
+    }
+
+    /// The log again from its start, for the next pass. A log that cannot
+    /// be read any more is bad data (named at its place), tried again at
+    /// most once a second.
     fn restart(&mut self) -> Result<(), SourceError> {
-        self.log = open_log(&self.path).map_err(|e| SourceError::Unavailable {
-            place: "replay".into(),
-            msg: e.to_string(),
+        if let Some(at) = self.reopen_failed {
+            if !self.stop.sleep_until(at + Duration::from_secs(1)) {
+                return Err(SourceError::Stopped);
+            }
+        }
+        let log = open_log(&self.path, self.max_gap_s).map_err(|e| {
+            self.reopen_failed = Some(Instant::now());
+            SourceError::BadData {
+                place: "replay".into(),
+                msg: format!("cannot start pass {}: {e}", self.passes + 1),
+            }
         })?;
-        let period = 1.0 / self.rate_hz;
+        self.reopen_failed = None;
+        let o = self.log.order();
+        self.done.skipped += o.skipped();
+        self.done.other += self.log.other_records().0;
+        self.log = log;
         if let (Some((s0, t0)), Some((sl, tl))) = (self.first_of_pass, self.last_out) {
             // Next pass starts one frame after this one ended, in seq and t.
-            self.seq_offset = sl + 1 - s0;
-            self.t_offset = tl + period - t0;
+            self.seq_offset = (sl + 1).saturating_sub(s0);
+            self.t_offset = tl + self.period_s() - t0;
         }
         self.first_of_pass = None;
         self.passes += 1;
@@ -74,7 +122,7 @@ impl ReplaySource {
     }
 
     /// Shift `f` into the current pass and, at recorded pace, wait for its
-    /// time (or a stop).
+    /// time (or a stop); a jump of `t` is counted and not waited for.
     fn release(&mut self, mut f: Frame) -> Frame {
         if self.first_of_pass.is_none() {
             self.first_of_pass = Some((f.seq, f.t));
@@ -82,19 +130,51 @@ impl ReplaySource {
         f.seq += self.seq_offset;
         f.t += self.t_offset;
         self.last_out = Some((f.seq, f.t));
+        if let Some(dt) = self.log.order().last_jump() {
+            self.jumps += 1;
+            if self.jumps == 1 {
+                tracing::warn!(
+                    "replay: {}: t jumps forward by {dt} s before seq {} (more than max_gap_s = {} s): not waited for, counted in STATUS",
+                    self.path.display(),
+                    f.seq,
+                    self.max_gap_s
+                );
+            }
+            if let Some(last) = self.last_due {
+                self.anchor = Some((last + Duration::from_secs_f64(self.period_s()), f.t));
+            }
+        }
         if self.pace == Pace::Realtime {
             let (i0, t0) = *self.anchor.get_or_insert((Instant::now(), f.t));
+            // t increases (core's FrameOrder) and jumps re-anchor: the
+            // clamp only keeps the sum inside the clock's range.
             let due = i0 + Duration::from_secs_f64((f.t - t0).clamp(0.0, 1e9));
+            self.last_due = Some(due);
             self.stop.sleep_until(due);
         }
         f
+    }
+
+    /// Say once where the first line of another class was.
+    fn note_other(&mut self) {
+        if self.other_logged {
+            return;
+        }
+        if let (_, Some(first)) = self.log.other_records() {
+            tracing::warn!(
+                "replay: {first}: not a FRAME, passed over (all such lines are counted in STATUS)"
+            );
+            self.other_logged = true;
+        }
     }
 }
 
 impl FrameSource for ReplaySource {
     fn next_frame(&mut self) -> Result<Frame, SourceError> {
         loop {
-            match self.log.next_frame() {
+            let next = self.log.next_frame();
+            self.note_other();
+            match next {
                 Some(Ok(f)) => return Ok(self.release(f)),
                 Some(Err(e)) => {
                     return Err(SourceError::BadData {
@@ -140,13 +220,22 @@ impl FrameSource for ReplaySource {
     /// The log's own rate at recorded pace; none when fast.
     fn period(&self) -> Option<Duration> {
         match self.pace {
-            Pace::Realtime => Duration::try_from_secs_f64(1.0 / self.rate_hz).ok(),
+            Pace::Realtime => Duration::try_from_secs_f64(self.period_s()).ok(),
             Pace::Fast => None,
         }
     }
 
     fn rate_hz(&self) -> Option<f64> {
         (self.rate_hz.is_finite() && self.rate_hz > 0.0).then_some(self.rate_hz)
+    }
+
+    fn health(&self) -> SourceHealth {
+        SourceHealth {
+            skipped_frames: self.done.skipped + self.log.order().skipped(),
+            time_jumps: self.jumps,
+            other_lines: self.done.other + self.log.other_records().0,
+            ..SourceHealth::default()
+        }
     }
 }
 
@@ -156,7 +245,13 @@ mod tests {
     use lightpose_core::{LogHeader, LogWriter, NDET};
 
     fn open(log: PathBuf, pace: Pace, looping: bool) -> Result<ReplaySource, LogError> {
-        ReplaySource::open(&ReplayPlan { log, pace, looping }, &Stop::new())
+        let plan = ReplayPlan {
+            log,
+            pace,
+            looping,
+            max_gap_s: lightpose_core::log::DEFAULT_MAX_GAP_S,
+        };
+        ReplaySource::open(&plan, &Stop::new())
     }
 
     fn write_log(dir: &std::path::Path, n: u64, rate: f64) -> PathBuf {
@@ -262,6 +357,7 @@ mod tests {
             log: p,
             pace: Pace::Realtime,
             looping: false,
+            max_gap_s: 3600.0,
         };
         let mut s = ReplaySource::open(&plan, &stop).unwrap();
         assert_eq!(s.next_frame().unwrap().seq, 0);
@@ -276,5 +372,98 @@ mod tests {
         assert_eq!(s.next_frame().unwrap().seq, 1);
         raiser.join().unwrap();
         assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", t0.elapsed());
+    }
+
+    fn write_frames(p: &std::path::Path, rate: f64, frames: &[(u64, f64)]) {
+        let mut w = LogWriter::create(p, &LogHeader::new(10, rate)).unwrap();
+        for &(seq, t) in frames {
+            w.write_frame(&Frame {
+                seq,
+                t,
+                adc_bits: 10,
+                counts: [seq as u16; NDET],
+                temp_c: None,
+                truth: None,
+                attitude: None,
+                depth: None,
+                velocity: None,
+            })
+            .unwrap();
+        }
+        w.flush().unwrap();
+    }
+
+    /// Issue 16: a forward jump of t past the gap bound is counted and not
+    /// slept through: the frame after it comes one period after the one
+    /// before.
+    #[test]
+    fn a_jump_past_the_gap_bound_is_cut_to_one_period_and_counted() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("jump.jsonl");
+        write_frames(&p, 50.0, &[(0, 0.0), (1, 0.02), (2, 60.02), (3, 60.04)]);
+        let plan = ReplayPlan {
+            log: p,
+            pace: Pace::Realtime,
+            looping: false,
+            max_gap_s: 1.0,
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut s = ReplaySource::open(&plan, &Stop::new()).unwrap();
+            let t0 = Instant::now();
+            let mut seqs = Vec::new();
+            while let Ok(f) = s.next_frame() {
+                seqs.push(f.seq);
+            }
+            let _ = tx.send((seqs, t0.elapsed(), s.health().time_jumps));
+        });
+        let (seqs, took, jumps) = rx
+            .recv_timeout(Duration::from_secs(5))
+            .expect("the jump is not slept through");
+        assert_eq!(seqs, vec![0, 1, 2, 3]);
+        assert_eq!(jumps, 1);
+        assert!(took < Duration::from_secs(2), "{took:?}");
+    }
+
+    /// Issue 16: frames out of order are skipped (each an error naming its
+    /// line), so a looping replay keeps seq and t increasing and a step back
+    /// is never a jump forward by 2^64.
+    #[test]
+    fn frames_out_of_order_are_named_and_a_loop_stays_increasing() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("back.jsonl");
+        write_frames(&p, 10.0, &[(5, 0.0), (6, 0.1), (7, 0.2), (3, 0.3)]);
+        let mut s = open(p, Pace::Fast, true).unwrap();
+        let mut seqs = Vec::new();
+        let mut errs = Vec::new();
+        while seqs.len() < 6 {
+            match s.next_frame() {
+                Ok(f) => seqs.push(f.seq),
+                Err(e) => errs.push(e.to_string()),
+            }
+        }
+        assert_eq!(seqs, vec![5, 6, 7, 8, 9, 10]);
+        assert!(
+            errs[0].contains("back.jsonl:5: seq 3 after seq 7"),
+            "{errs:?}"
+        );
+        assert!(s.health().skipped_frames >= 1);
+    }
+
+    /// Issue 16: a log whose header went bad between passes is said to be
+    /// bad data at its line, not "device unavailable".
+    #[test]
+    fn a_bad_header_at_the_next_pass_is_named_as_such() {
+        let d = tempfile::tempdir().unwrap();
+        let log = write_log(d.path(), 2, 10.0);
+        let mut s = open(log.clone(), Pace::Fast, true).unwrap();
+        assert!(s.next_frame().is_ok() && s.next_frame().is_ok());
+        std::fs::write(&log, "{\"class\":\"FRAME\"}\n").unwrap();
+        let e = s.next_frame().unwrap_err().to_string();
+        assert!(!e.contains("unavailable"), "{e}");
+        assert!(
+            e.contains("r.jsonl:1: first line must be class HEADER"),
+            "{e}"
+        );
     }
 }

@@ -17,6 +17,7 @@ use serialport::SerialPort;
 
 use crate::bank::Bank;
 use crate::chanmap::{BoardSpec, RawBoard};
+use crate::pace::Stop;
 use crate::{SourceError, SourceHealth};
 use protocol::{parse_line, LineAssembler, LineError, Sample};
 
@@ -63,6 +64,7 @@ pub struct SerialBank {
     timeout: Duration,
     counters: SerialCounters,
     buf: [u8; 512],
+    stop: Stop,
 }
 
 impl SerialBank {
@@ -85,7 +87,15 @@ impl SerialBank {
             timeout,
             counters: SerialCounters::default(),
             buf: [0; 512],
+            stop: Stop::new(),
         }
+    }
+
+    /// End a wait for a line (at most 100 ms later) when `stop` is raised,
+    /// with [`SourceError::Stopped`], whatever the timeout.
+    pub fn stoppable(mut self, stop: Stop) -> Self {
+        self.stop = stop;
+        self
     }
 
     pub fn counters(&self) -> SerialCounters {
@@ -212,6 +222,9 @@ impl Bank for SerialBank {
             // Drain what is already there, so that the newest line is used,
             // then wait for a line if none is fresh.
             loop {
+                if self.stop.is_raised() {
+                    return Err(SourceError::Stopped);
+                }
                 let now = Instant::now();
                 let wait = if p.fresh {
                     Duration::ZERO
