@@ -1,25 +1,26 @@
 //! The replay source: a recorded intensity log as a [`FrameSource`], at its
 //! recorded pace or as fast as possible, so that a recording goes through
 //! exactly the path of live frames (estimator, POSE, STATUS, recording).
-//! The file format is behind [`log::FrameLog`].
-
-pub mod log;
+//! The container (JSON Lines or MCAP) is lightpose-logs' business: the
+//! log is opened with `lightpose_logs::open` and read through core's
+//! [`FrameLog`], so that a replay from MCAP gives the same frames, bit for
+//! bit, as from JSONL.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use lightpose_core::{Frame, LogError};
+use lightpose_core::{Frame, FrameLog, LogError};
+use lightpose_logs::open as open_log;
 
 use crate::config::{Pace, ReplayPlan};
 use crate::pace::Stop;
 use crate::{FrameSource, SourceError};
-use log::{open_log, FrameLog};
 
 pub struct ReplaySource {
     path: PathBuf,
     pace: Pace,
     looping: bool,
-    log: Box<dyn FrameLog>,
+    log: Box<dyn FrameLog + Send>,
     adc_bits: u8,
     rate_hz: f64,
     stop: Stop,
@@ -103,11 +104,8 @@ impl FrameSource for ReplaySource {
                     })
                 }
                 None => {
-                    if let Some(line) = self.log.truncated_at() {
-                        tracing::warn!(
-                            "{}:{line}: last line cut short, ignored",
-                            self.path.display()
-                        );
+                    if let Some(cut) = self.log.cut() {
+                        tracing::warn!("{}: {cut}", self.path.display());
                     }
                     // A loop over a log with no frame at all would spin.
                     if self.looping && self.first_of_pass.is_some() {
@@ -234,6 +232,45 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(e.contains("none"), "{e}");
+    }
+
+    /// The same log as JSONL and as MCAP: the same frames, bit for bit.
+    #[test]
+    fn mcap_replays_as_jsonl() {
+        let d = tempfile::tempdir().unwrap();
+        let jsonl = write_log(d.path(), 7, 10.0);
+        let mcap = d.path().join("r.mcap");
+        let opts = lightpose_logs::McapOptions {
+            chunk_bytes: 512,
+            ..Default::default()
+        };
+        lightpose_logs::convert(&jsonl, &mcap, None, &opts, |e| panic!("{e}")).unwrap();
+        let all = |p: PathBuf| {
+            let mut s = open(p, Pace::Fast, false).unwrap();
+            let mut v = Vec::new();
+            while let Ok(f) = s.next_frame() {
+                v.push(f);
+            }
+            (v, s.adc_bits(), s.rate_hz())
+        };
+        let (a, b) = (all(jsonl), all(mcap));
+        assert_eq!(a.0.len(), 7);
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn bad_mcap_is_named_with_its_offset() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("g.mcap");
+        let mut bytes = b"\x89MCAP0\r\n".to_vec();
+        bytes.extend_from_slice(b"garbage garbage garbage");
+        std::fs::write(&p, bytes).unwrap();
+        let e = open(p, Pace::Fast, false).err().unwrap().to_string();
+        assert!(
+            e.starts_with(&format!("{}: byte 8: ", d.path().join("g.mcap").display())),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
     }
 
     #[test]
