@@ -27,6 +27,7 @@
 //! to its last complete chunk.
 
 pub mod convert;
+pub mod encode;
 pub mod foxglove;
 mod lines;
 pub mod read;
@@ -36,6 +37,7 @@ mod tap;
 pub mod write;
 
 pub use convert::{convert, ConvertError, ConvertSummary};
+pub use encode::{Channel, Encoder, Message};
 pub use lightpose_core::{Cut, FrameLog, LogError};
 pub use lines::RECORD_LIMIT;
 pub use read::McapReader;
