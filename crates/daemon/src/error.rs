@@ -44,6 +44,22 @@ pub enum DaemonError {
     Thread(#[source] std::io::Error),
 }
 
+impl DaemonError {
+    /// The binary's exit code for this failure: 2 when the configuration,
+    /// or a file it names (a replayed log that cannot be read as one), is
+    /// what is wrong, so that restarting cannot help; else 1.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            DaemonError::Config(_) => 2,
+            DaemonError::Backend {
+                source: lightpose_hal::HalError::Log(_),
+                ..
+            } => 2,
+            _ => 1,
+        }
+    }
+}
+
 /// `e` and its causes on one line, `: `-separated. A cause whose text its
 /// parent already shows (some libraries put their source's text in their
 /// own message) is left out, so nothing is said twice.

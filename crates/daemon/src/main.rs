@@ -1,6 +1,7 @@
 //! The `lightposed` binary, kept thin: parse arguments, load and validate
 //! the config, set up logging and signals, call `lightposed::run`, and map
-//! the outcome to an exit code (0 clean, 1 runtime failure, 2 bad config).
+//! the outcome to an exit code (0 clean, 1 runtime failure, 2 bad config or
+//! a file it names that cannot be used, such as a replayed log).
 
 use anyhow::Context;
 use clap::Parser;
@@ -161,7 +162,10 @@ fn main() -> ExitCode {
         Ok(_) => ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!("{}", report(e.as_ref()));
-            fail(e.as_ref(), 1)
+            let code = e
+                .downcast_ref::<lightposed::DaemonError>()
+                .map_or(1, lightposed::DaemonError::exit_code);
+            fail(e.as_ref(), code)
         }
     }
 }

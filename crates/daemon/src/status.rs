@@ -149,6 +149,8 @@ fn recording(rec: Option<&RecStats>) -> Value {
         None => json!({"state": "off"}),
         Some(r) => json!({
             "state": r.state().as_str(),
+            "format": crate::outputs::recfile::extension(r.format),
+            "synced": r.synced.load(Relaxed),
             "file": r.current.lock().ok().and_then(|g| g.clone()),
             "frames": r.frames.load(Relaxed),
             "failed": r.failed.load(Relaxed),

@@ -10,6 +10,7 @@ use crate::inputs::attitude::{self, AttitudeCell, LatestAttitude};
 use crate::notify::{notify, NotifyState};
 use crate::outputs::recorder::{RecStats, Recorder};
 use crate::outputs::udp::{PoseDatagrams, Publisher};
+use crate::outputs::StatusTap;
 use crate::stats::Stats;
 use crate::status::version_message;
 use lightpose_core::{Estimator, LogHeader};
@@ -49,6 +50,8 @@ pub struct Running {
     pub attitude: Option<Arc<AttitudeCell>>,
     /// The attitude input's socket task, aborted at stop.
     pub listener: Option<JoinHandle<()>>,
+    /// Outputs that also take each STATUS (MCAP recording, live view).
+    pub status_taps: Vec<Box<dyn StatusTap>>,
     pub source: String,
     pub estimator: &'static str,
     /// Raised to stop the frame thread (and end its source's waits).
@@ -78,6 +81,8 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     };
     let recorder = start_recorder(cfg, source.as_ref(), &source_desc)?;
     let rec_stats = recorder.as_ref().map(|r| r.stats.clone());
+    let mut status_taps: Vec<Box<dyn StatusTap>> = Vec::new();
+    status_taps.extend(recorder.as_ref().map(Recorder::status_tap));
 
     let (reload_tx, reload_rx) = std::sync::mpsc::channel::<Box<dyn Estimator>>();
     let mut engine = Engine::new(source, estimator)
@@ -118,6 +123,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         rec_stats,
         attitude,
         listener,
+        status_taps,
         source: source_desc,
         estimator: est_name,
         stop,

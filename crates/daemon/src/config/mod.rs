@@ -22,7 +22,7 @@ pub mod top;
 pub use attitude::AttitudeInput;
 pub use logging::{LogFormat, Logging};
 pub use outputs::{Multicast, Outputs};
-pub use recording::Recording;
+pub use recording::{RecFormat, Recording};
 
 use lightpose_core::textfile::{read_text, TextError, TextSource};
 use lightpose_hal::ValidBackend;

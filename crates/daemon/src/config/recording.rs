@@ -1,5 +1,6 @@
 //! `[recording]`: raw frames written as intensity logs, rotated by size or
-//! age, behind a bounded queue.
+//! age, behind a bounded queue; JSON Lines (the default) or MCAP (frames,
+//! estimates and STATUS), pushed to the disk every `flush_s`.
 
 use super::locate::{positive, Ctx};
 use super::ConfigError;
@@ -17,7 +18,26 @@ pub struct Recording {
     pub rotate_after: Option<Duration>,
     /// Frames that may wait for the disk before they are counted as lost.
     pub queue: usize,
+    pub format: RecFormat,
+    /// How often what was written is pushed to the disk (MCAP: the open
+    /// chunk closed; both: the file synced): a power loss loses at most
+    /// this much.
+    pub flush: Duration,
 }
+
+/// The container of a recording.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RecFormat {
+    /// JSON Lines (FORMATS.md): frames only, each line written whole.
+    #[default]
+    Jsonl,
+    /// MCAP: frames, estimates and STATUS, with Foxglove's channels.
+    Mcap,
+}
+
+/// `flush_s` when not given.
+pub const DEFAULT_FLUSH: Duration = Duration::from_secs(2);
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -27,6 +47,8 @@ pub(super) struct RawRecording {
     rotate_mb: Option<Spanned<f64>>,
     rotate_minutes: Option<Spanned<f64>>,
     queue: Option<Spanned<i64>>,
+    format: Option<Spanned<RecFormat>>,
+    flush_s: Option<Spanned<f64>>,
 }
 
 /// `None` when the table is absent or not enabled.
@@ -67,10 +89,19 @@ pub(super) fn validate(
         }
         None => 4096,
     };
+    let flush = match &r.flush_s {
+        Some(v) if *v.get_ref() > 3600.0 => {
+            return Err(ctx.err(v.span(), "recording.flush_s", "at most 3600 s"))
+        }
+        Some(v) => Duration::from_secs_f64(positive(ctx, v, "recording.flush_s")?),
+        None => DEFAULT_FLUSH,
+    };
     Ok(Some(Recording {
         dir,
         rotate_bytes,
         rotate_after,
         queue,
+        format: r.format.as_ref().map_or(RecFormat::Jsonl, |f| *f.get_ref()),
+        flush,
     }))
 }

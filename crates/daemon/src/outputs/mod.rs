@@ -8,6 +8,7 @@
 //! format, a live viewer) is a file here implementing [`Output`], added to
 //! the engine in `wiring.rs`.
 
+pub mod recfile;
 pub mod recorder;
 pub mod udp;
 
@@ -22,4 +23,11 @@ pub trait Output: Send {
     /// The engine stops: flush what is queued. Called once, on the frame
     /// thread, before the engine returns.
     fn finish(&mut self) {}
+}
+
+/// Something that also takes each STATUS the daemon publishes (the MCAP
+/// recording, the live view). Called on the async side, once a second:
+/// it may allocate, but must not block.
+pub trait StatusTap: Send + Sync {
+    fn status(&self, json: &[u8]);
 }

@@ -21,6 +21,8 @@ pub struct ReplaySource {
     pace: Pace,
     looping: bool,
     log: Box<dyn FrameLog + Send>,
+    /// What the log gave first, read at open (see [`ReplaySource::open`]).
+    first: Option<Option<Result<Frame, LogError>>>,
     adc_bits: u8,
     rate_hz: f64,
     stop: Stop,
@@ -37,9 +39,16 @@ pub struct ReplaySource {
 
 impl ReplaySource {
     /// Open the log `plan` names; waits for a frame's time end early on
-    /// `stop`.
+    /// `stop`. The first frame is read here: a log that breaks before it
+    /// (an MCAP whose frame channel has another schema, a structure broken
+    /// after the header) is refused now, with the error naming the file
+    /// and the place, rather than ending the replay at its first frame.
     pub fn open(plan: &ReplayPlan, stop: &Stop) -> Result<ReplaySource, LogError> {
-        let log = open_log(&plan.log)?;
+        let mut log = open_log(&plan.log)?;
+        let first = match log.next_frame() {
+            Some(Err(e)) if !e.skippable() => return Err(e),
+            first => first,
+        };
         let h = log.header();
         Ok(ReplaySource {
             adc_bits: h.adc_bits,
@@ -48,6 +57,7 @@ impl ReplaySource {
             pace: plan.pace,
             looping: plan.looping,
             log,
+            first: Some(first),
             stop: stop.clone(),
             anchor: None,
             seq_offset: 0,
@@ -95,7 +105,11 @@ impl ReplaySource {
 impl FrameSource for ReplaySource {
     fn next_frame(&mut self) -> Result<Frame, SourceError> {
         loop {
-            match self.log.next_frame() {
+            let next = match self.first.take() {
+                Some(first) => first,
+                None => self.log.next_frame(),
+            };
+            match next {
                 Some(Ok(f)) => return Ok(self.release(f)),
                 Some(Err(e)) => {
                     return Err(SourceError::BadData {
