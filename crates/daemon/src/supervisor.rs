@@ -118,6 +118,7 @@ pub async fn supervise(
         stats: &d.stats,
         rec: d.rec_stats.as_deref(),
         att: d.attitude.as_deref(),
+        live: d.live.as_deref(),
         publisher: &d.publisher,
         source: &d.source,
         estimator: d.estimator,
@@ -143,7 +144,13 @@ pub async fn supervise(
     if let Some(h) = d.listener.take() {
         h.abort();
     }
+    if let Some(h) = d.live_server.take() {
+        h.abort();
+    }
     let reason = stop(&d.stop, d.frames.take(), end).await;
+    if let Some(hub) = &d.live {
+        hub.close();
+    }
     // A last STATUS so that subscribers see the final counts and state.
     ticker.send_status(&ctx, 0.0);
     summary(&ctx, reason)

@@ -3,11 +3,13 @@
 //! readings, without the daemon's fallback temperature) and the estimate,
 //! in order, and measures latency to the last of them.
 //!
-//! Today: POSE datagrams over UDP ([`udp`]) and the recording of frames
-//! ([`recorder`]). A new output (another protocol, another recording
+//! Today: POSE datagrams over UDP ([`udp`]), the recording of frames (and,
+//! in MCAP, estimates and STATUS: [`recorder`], [`recfile`]) and the live
+//! view for Foxglove ([`live`]). A new output (another protocol, another recording
 //! format, a live viewer) is a file here implementing [`Output`], added to
 //! the engine in `wiring.rs`.
 
+pub mod live;
 pub mod recfile;
 pub mod recorder;
 pub mod udp;
