@@ -248,3 +248,60 @@ impl crate::outputs::StatusTap for Arc<Hub> {
         self.publish_status(json);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn msg(channel: Channel, data: &[u8]) -> Message<'_> {
+        Message {
+            channel,
+            sequence: 3,
+            log_time: 0x0102_0304_0506_0708,
+            data,
+        }
+    }
+
+    #[test]
+    fn framing_subscriptions_and_drops() {
+        let hub = Hub::new("127.0.0.1:1".parse().unwrap());
+        let (tx, mut rx) = tokio::sync::mpsc::channel(2);
+        let c = hub.join("127.0.0.1:2".parse().unwrap(), tx, 1).unwrap();
+        let (tx2, _rx2) = tokio::sync::mpsc::channel(2);
+        assert!(hub.join("127.0.0.1:3".parse().unwrap(), tx2, 1).is_none());
+        assert_eq!(hub.refused.load(Relaxed), 1);
+        assert!(!hub.wanted());
+        hub.publish(&msg(Channel::Frame, b"{}"));
+        assert!(
+            rx.try_recv().is_err(),
+            "nothing for a channel not subscribed"
+        );
+        assert!(c.subscribe(&hub, 0xAABB_CCDD, Channel::Frame.index()));
+        assert!(!c.subscribe(&hub, 9, 7), "no eighth channel");
+        assert!(hub.wanted());
+        hub.publish(&msg(Channel::Frame, b"{}"));
+        let got = rx.try_recv().unwrap();
+        let mut want = vec![MESSAGE_DATA, 0xDD, 0xCC, 0xBB, 0xAA];
+        want.extend_from_slice(&[8, 7, 6, 5, 4, 3, 2, 1]);
+        want.extend_from_slice(b"{}");
+        assert_eq!(got, want);
+        // A client that does not take its messages: the third is dropped.
+        for _ in 0..3 {
+            hub.publish(&msg(Channel::Frame, b"{}"));
+        }
+        assert_eq!(c.dropped.load(Relaxed), 1);
+        c.unsubscribe(&hub, 0xAABB_CCDD);
+        assert!(!hub.wanted());
+        c.sent.store(5, Relaxed);
+        hub.leave(c.id);
+        let r = hub.report();
+        assert_eq!(
+            (r["clients"].as_u64(), r["connections"].as_u64()),
+            (Some(0), Some(1))
+        );
+        assert_eq!(
+            (r["sent"].as_u64(), r["dropped"].as_u64()),
+            (Some(5), Some(1))
+        );
+    }
+}

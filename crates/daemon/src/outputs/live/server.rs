@@ -28,6 +28,7 @@ use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::handshake::server::{ErrorResponse, Request, Response};
 use tokio_tungstenite::tungstenite::http::{HeaderValue, StatusCode};
+use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::tungstenite::Message as Ws;
 use tokio_tungstenite::WebSocketStream;
 
@@ -41,6 +42,9 @@ pub const STALL: Duration = Duration::from_secs(10);
 const HANDSHAKE: Duration = Duration::from_secs(5);
 /// Queued messages written before one flush.
 const BATCH: usize = 64;
+/// Largest message a client may send (a subscribe to every channel is
+/// about 300 bytes).
+const REQUEST_LIMIT: usize = 64 << 10;
 
 /// Queue sizes and limits of the server.
 #[derive(Debug, Clone, Copy)]
@@ -95,12 +99,12 @@ async fn handshake(stream: TcpStream) -> Result<WebSocketStream<TcpStream>, Stri
             .insert("sec-websocket-protocol", HeaderValue::from_static(p));
         Ok(resp)
     };
-    match tokio::time::timeout(
-        HANDSHAKE,
-        tokio_tungstenite::accept_hdr_async(stream, callback),
-    )
-    .await
-    {
+    // A client's requests are a few hundred bytes: refuse a flood.
+    let limits = WebSocketConfig::default()
+        .max_message_size(Some(REQUEST_LIMIT))
+        .max_frame_size(Some(REQUEST_LIMIT));
+    let accept = tokio_tungstenite::accept_hdr_async_with_config(stream, callback, Some(limits));
+    match tokio::time::timeout(HANDSHAKE, accept).await {
         Ok(Ok(ws)) => Ok(ws),
         Ok(Err(e)) => Err(e.to_string()),
         Err(_) => Err("handshake timed out".into()),
@@ -278,5 +282,49 @@ async fn session_loop(
                 None => return "the daemon stops".into(),
             },
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn greeting_advertises_every_channel_with_its_schema() {
+        let [info, adv] = greeting("s1");
+        let info: serde_json::Value = serde_json::from_str(&info).unwrap();
+        assert_eq!(info["op"], "serverInfo");
+        assert_eq!(info["sessionId"], "s1");
+        let adv: serde_json::Value = serde_json::from_str(&adv).unwrap();
+        let ch = adv["channels"].as_array().unwrap();
+        assert_eq!(ch.len(), 7);
+        for (i, c) in ch.iter().enumerate() {
+            assert_eq!(c["id"], i + 1);
+            assert_eq!(c["topic"], Channel::ALL[i].topic());
+            let schema: serde_json::Value =
+                serde_json::from_str(c["schema"].as_str().unwrap()).unwrap();
+            assert_eq!(schema["title"], c["schemaName"]);
+        }
+    }
+
+    #[test]
+    fn requests_subscribe_unsubscribe_and_the_rest_is_warned() {
+        let hub = Hub::new("127.0.0.1:1".parse().unwrap());
+        let (tx, _rx) = mpsc::channel(4);
+        let c = hub.join("127.0.0.1:2".parse().unwrap(), tx, 4).unwrap();
+        let sub = r#"{"op":"subscribe","subscriptions":[{"id":5,"channelId":1},{"id":6,"channelId":9},{"id":7,"channelId":0}]}"#;
+        let reply = request(&hub, &c, sub).expect("a warning for channels 9 and 0");
+        assert!(
+            reply.to_text().unwrap().contains("no channel [9, 0]"),
+            "{reply}"
+        );
+        assert!(hub.wanted());
+        assert!(request(&hub, &c, r#"{"op":"unsubscribe","subscriptionIds":[5]}"#).is_none());
+        assert!(!hub.wanted());
+        let reply = request(&hub, &c, r#"{"op":"advertise","channels":[]}"#).unwrap();
+        assert!(
+            reply.to_text().unwrap().contains("not understood"),
+            "{reply}"
+        );
     }
 }
