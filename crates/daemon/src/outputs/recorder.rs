@@ -14,7 +14,7 @@ use crate::engine::Acquired;
 use lightpose_core::{Frame, LogHeader, PoseEstimate};
 use std::io;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, AtomicU8, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering::Relaxed};
 use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -22,6 +22,11 @@ use std::time::{Duration, Instant, SystemTime};
 
 /// How long to wait before trying a refusing disk again.
 const RETRY: Duration = Duration::from_secs(2);
+
+/// How long a stop waits for the disk to take the frames still queued: a
+/// disk that hangs (a dead network share, a full pipe) must not hold the
+/// daemon past systemd's TimeoutStopSec.
+pub const FLUSH_BOUND: Duration = Duration::from_secs(2);
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]
@@ -71,7 +76,12 @@ pub struct RecStats {
     pub synced: AtomicU64,
     pub format: RecFormat,
     pub current: Mutex<Option<String>>,
+    /// Why the state is `error`; cleared when recording resumes.
     pub error: Mutex<Option<String>>,
+    /// Frames in the queue, not yet taken by the recorder thread.
+    queued: AtomicU64,
+    /// Set when a stop gave up waiting: the thread writes no more.
+    abandoned: AtomicBool,
 }
 
 impl RecStats {
@@ -116,14 +126,19 @@ impl Recorder {
     /// Start the recorder thread. `header` is written at the top of every
     /// file (its adc_bits is taken from the first frame).
     pub fn start(cfg: &Recording, header: LogHeader) -> io::Result<Recorder> {
-        let (tx, rx) = sync_channel::<Item>(cfg.queue);
-        let (status_tx, status_rx) = sync_channel::<Vec<u8>>(STATUS_QUEUE);
         let stats = Arc::new(RecStats {
             format: cfg.format,
             ..RecStats::default()
         });
         stats.set_state(RecState::Idle);
-        let worker = Worker::new(cfg, header, stats.clone());
+        Recorder::spawn(Worker::new(cfg, header, stats), cfg.queue)
+    }
+
+    /// `worker` on its thread behind a queue of `queue` frames.
+    fn spawn(worker: Worker, queue: usize) -> io::Result<Recorder> {
+        let (tx, rx) = sync_channel::<Item>(queue);
+        let (status_tx, status_rx) = sync_channel::<Vec<u8>>(STATUS_QUEUE);
+        let stats = worker.stats.clone();
         let join = std::thread::Builder::new()
             .name("lightposed-rec".into())
             .spawn(move || worker.run(rx, status_rx))?;
@@ -145,7 +160,9 @@ impl Recorder {
             wall_unix,
         };
         match tx.try_send(item) {
-            Ok(()) => {}
+            Ok(()) => {
+                self.stats.queued.fetch_add(1, Relaxed);
+            }
             Err(TrySendError::Full(_)) => {
                 let n = self.stats.dropped.fetch_add(1, Relaxed) + 1;
                 if n == 1 || n.is_multiple_of(1000) {
@@ -167,14 +184,39 @@ impl Recorder {
         Box::new(self.status_tx.clone())
     }
 
-    /// Close the queue and wait until every queued frame is on disk.
+    /// Close the queue and wait until every queued frame is on disk, at
+    /// most [`FLUSH_BOUND`].
     pub fn finish(&mut self) {
+        self.finish_within(FLUSH_BOUND);
+    }
+
+    /// As [`Recorder::finish`], waiting at most `bound`: frames the disk has
+    /// not taken by then are counted as not recorded (`failed`), said in
+    /// STATUS and the log, and the recorder thread is left behind.
+    pub fn finish_within(&mut self, bound: Duration) {
         self.tx = None;
-        if let Some(j) = self.join.take() {
+        let Some(j) = self.join.take() else { return };
+        let deadline = Instant::now() + bound;
+        while !j.is_finished() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        if j.is_finished() {
             if j.join().is_err() {
                 tracing::error!("recorder thread panicked");
             }
+            return;
         }
+        self.stats.abandoned.store(true, Relaxed);
+        let left = self.stats.queued.swap(0, Relaxed) + 1;
+        self.stats.failed.fetch_add(left, Relaxed);
+        let why = format!(
+            "the disk took nothing for {bound:?} at stop: {left} frames not recorded (the last one mid-write)"
+        );
+        tracing::error!("recording: {why}");
+        if let Ok(mut e) = self.stats.error.lock() {
+            *e = Some(why);
+        }
+        self.stats.set_state(RecState::Error);
     }
 }
 
@@ -240,7 +282,13 @@ impl Worker {
                 .flush_at
                 .map_or(IDLE, |t| t.saturating_duration_since(now).min(IDLE));
             match rx.recv_timeout(wait) {
-                Ok(item) => self.write(&item),
+                Ok(item) => {
+                    self.stats.queued.fetch_sub(1, Relaxed);
+                    if self.stats.abandoned.load(Relaxed) {
+                        break;
+                    }
+                    self.write(&item);
+                }
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => break,
             }
@@ -368,6 +416,9 @@ impl Worker {
         }
         if let Ok(mut c) = self.stats.current.lock() {
             *c = Some(shown);
+        }
+        if let Ok(mut e) = self.stats.error.lock() {
+            *e = None;
         }
         self.stats.set_state(RecState::Recording);
         Ok(())
@@ -554,5 +605,86 @@ mod tests {
                 RecFormat::Mcap => assert_eq!((failed, stats.frames.load(Relaxed)), (1, 2)),
             }
         }
+    }
+
+    /// Issue 16: once recording resumes, STATUS no longer shows the error.
+    #[test]
+    fn the_error_is_cleared_when_recording_resumes() {
+        let dir = tempfile::tempdir().unwrap();
+        let blocker = dir.path().join("rec");
+        std::fs::write(&blocker, b"x").unwrap();
+        let stats = Arc::new(RecStats::default());
+        let mut w = Worker::new(
+            &cfg(blocker.clone(), None, 16),
+            LogHeader::new(10, 5.0),
+            stats.clone(),
+        );
+        let item = |seq| Item {
+            frame: frame(seq),
+            est: est(seq),
+            wall_unix: 1.7e9,
+        };
+        w.write(&item(0));
+        assert_eq!(stats.state(), RecState::Error);
+        assert!(stats.error.lock().unwrap().is_some());
+        std::fs::remove_file(&blocker).unwrap();
+        w.retry_at = None; // as after the retry delay
+        w.write(&item(1));
+        assert_eq!(stats.state(), RecState::Recording);
+        assert_eq!(*stats.error.lock().unwrap(), None, "old error still shown");
+    }
+
+    /// Issue 16: a disk that takes nothing more (here a FIFO nobody reads,
+    /// put under the open log) does not hold the stop: finish gives up
+    /// after its bound and counts what was left as not recorded.
+    #[test]
+    fn finish_does_not_wait_for_a_stuck_disk() {
+        use std::os::fd::AsRawFd;
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("stuck");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success(), "mkfifo");
+        // Read and write: opening does not wait for a reader, writes block
+        // once the pipe's 64 KiB are full.
+        let stuck = File::options().read(true).write(true).open(&fifo).unwrap();
+        let stats = Arc::new(RecStats::default());
+        let rec = dir.path().join("rec");
+        let mut w = Worker::new(
+            &cfg(rec, None, 4096),
+            LogHeader::new(10, 5.0),
+            stats.clone(),
+        );
+        w.write(&Item {
+            frame: frame(0),
+            est: est(0),
+            wall_unix: 1.7e9,
+        });
+        let fd = w.file.as_ref().unwrap().sink_fd();
+        nix::unistd::dup2(stuck.as_raw_fd(), fd).unwrap();
+        let mut r = Recorder::spawn(w, 4096).unwrap();
+        for s in 1..2000 {
+            r.record(&frame(s), &est(s), 1.7e9);
+        }
+        let t0 = Instant::now();
+        r.finish_within(Duration::from_millis(300));
+        let took = t0.elapsed();
+        assert!(took < Duration::from_secs(2), "{took:?}");
+        assert_eq!(stats.state(), RecState::Error);
+        let err = stats.error.lock().unwrap().clone().unwrap_or_default();
+        assert!(err.contains("not recorded"), "{err}");
+        let recorded = stats.frames.load(Relaxed);
+        let failed = stats.failed.load(Relaxed);
+        assert!(
+            failed > 0 && recorded + failed >= 1999,
+            "{recorded} + {failed}"
+        );
+        // Let the writer go: drain the FIFO.
+        let mut rd = File::open(&fifo).unwrap();
+        std::thread::spawn(move || {
+            let _ = std::io::copy(&mut rd, &mut std::io::sink());
+        });
     }
 }
