@@ -256,8 +256,13 @@ impl<R: BufRead> LogReader<R> {
     /// Flag forward steps of `t` above `max_gap_s` as jumps (default
     /// [`DEFAULT_MAX_GAP_S`]).
     pub fn with_max_gap_s(mut self, max_gap_s: f64) -> Self {
-        self.order = FrameOrder::new(max_gap_s);
+        self.set_max_gap_s(max_gap_s);
         self
+    }
+    /// [`LogReader::with_max_gap_s`] on a reader already in hand (before
+    /// its first frame).
+    pub fn set_max_gap_s(&mut self, max_gap_s: f64) {
+        self.order = FrameOrder::new(max_gap_s);
     }
     /// Sensor readings (attitude, depth, velocity) that were malformed and
     /// left off their frame, which was kept; and the last one's reason with

@@ -309,6 +309,15 @@ pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
         rotate_bytes: Some(SOAK_ROTATE_BYTES),
         rotate_after: None,
         queue: 4096,
+        // The configured format, so that the soak measures MCAP too.
+        format: cfg
+            .recording
+            .as_ref()
+            .map_or_else(Default::default, |r| r.format),
+        flush: cfg
+            .recording
+            .as_ref()
+            .map_or(crate::config::recording::DEFAULT_FLUSH, |r| r.flush),
     };
     let header = lightpose_core::LogHeader::new(rig.adc_bits, rig.rate_hz);
     let recorder = Recorder::start(&rec_cfg, header).map_err(DaemonError::Recorder)?;

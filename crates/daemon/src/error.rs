@@ -38,6 +38,12 @@ pub enum DaemonError {
         #[source]
         source: std::io::Error,
     },
+    #[error("foxglove.listen {addr}")]
+    FoxgloveListen {
+        addr: std::net::SocketAddr,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("recording: cannot start the recorder thread")]
     Recorder(#[source] std::io::Error),
     #[error("cannot start the acquisition thread")]
@@ -60,6 +66,7 @@ impl DaemonError {
             DaemonError::Backend { source, .. } => source.refuses_config(),
             DaemonError::Publish(_)
             | DaemonError::AttitudeBind { .. }
+            | DaemonError::FoxgloveListen { .. }
             | DaemonError::Recorder(_)
             | DaemonError::Thread(_) => false,
         }

@@ -160,6 +160,12 @@ fn main() -> ExitCode {
             args.frames.unwrap_or(100_000),
         ));
     }
+    // What a start would read is checked before logging is set up, so a
+    // refused config (a replayed log that is no log, a calibration that is
+    // wrong) is one line on stderr and exit 2, as at --check-config.
+    if let Err(e) = lightposed::wiring::check(&cfg) {
+        return fail(&e, e.exit_code());
+    }
     init_logging(&cfg);
     log_start(&cfg);
     let rt = match tokio::runtime::Builder::new_current_thread()

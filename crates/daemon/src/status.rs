@@ -3,6 +3,7 @@
 
 use crate::config::Config;
 use crate::inputs::attitude::{AttitudeCell, Reason};
+use crate::outputs::live::hub::Hub;
 use crate::outputs::recorder::RecStats;
 use crate::outputs::udp::Publisher;
 use crate::stats::{Stats, TempSource};
@@ -48,6 +49,8 @@ pub struct StatusCtx<'a> {
     pub stats: &'a Stats,
     pub rec: Option<&'a RecStats>,
     pub att: Option<&'a AttitudeCell>,
+    /// The live view, if on.
+    pub live: Option<&'a Hub>,
     pub publisher: &'a Publisher,
     pub source: &'a str,
     pub estimator: &'a str,
@@ -80,6 +83,7 @@ pub fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> Value {
         "recording": recording(c.rec),
         "attitude": attitude(c),
         "outputs": outputs(c.publisher),
+        "foxglove": c.live.map_or_else(|| json!({"enabled": false}), Hub::report),
     })
 }
 
@@ -152,6 +156,8 @@ fn recording(rec: Option<&RecStats>) -> Value {
         None => json!({"state": "off"}),
         Some(r) => json!({
             "state": r.state().as_str(),
+            "format": crate::outputs::recfile::extension(r.format),
+            "synced": r.synced.load(Relaxed),
             "file": r.current.lock().ok().and_then(|g| g.clone()),
             "frames": r.frames.load(Relaxed),
             "failed": r.failed.load(Relaxed),

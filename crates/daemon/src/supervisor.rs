@@ -8,6 +8,7 @@ use crate::config::Config;
 use crate::engine::EndReason;
 use crate::error::report;
 use crate::notify::{notify, watchdog, NotifyState};
+use crate::outputs::StatusTap;
 use crate::status::{status_message, StatusCtx};
 use crate::wiring::{build_estimator, Running};
 use crate::Summary;
@@ -26,6 +27,8 @@ struct Ticker {
     seq: u64,
     prev_frames: u64,
     prev_at: Instant,
+    /// Outputs that also take each STATUS.
+    taps: Vec<Box<dyn StatusTap>>,
 }
 
 impl Ticker {
@@ -67,6 +70,9 @@ impl Ticker {
         self.seq += 1;
         if let Ok(bytes) = serde_json::to_vec(&msg) {
             ctx.publisher.send(&bytes);
+            for t in &self.taps {
+                t.status(&bytes);
+            }
         }
     }
 }
@@ -105,12 +111,14 @@ pub async fn supervise(
         seq: 0,
         prev_frames: 0,
         prev_at: Instant::now(),
+        taps: std::mem::take(&mut d.status_taps),
     };
     let ctx = StatusCtx {
         cfg,
         stats: &d.stats,
         rec: d.rec_stats.as_deref(),
         att: d.attitude.as_deref(),
+        live: d.live.as_deref(),
         publisher: &d.publisher,
         source: &d.source,
         estimator: d.estimator,
@@ -136,7 +144,13 @@ pub async fn supervise(
     if let Some(h) = d.listener.take() {
         h.abort();
     }
+    if let Some(h) = d.live_server.take() {
+        h.abort();
+    }
     let reason = stop(&d.stop, d.frames.take(), end).await;
+    if let Some(hub) = &d.live {
+        hub.close();
+    }
     // A last STATUS so that subscribers see the final counts and state.
     ticker.send_status(&ctx, 0.0);
     summary(&ctx, reason)

@@ -8,8 +8,10 @@ use crate::engine::{EndReason, Engine};
 use crate::error::DaemonError;
 use crate::inputs::attitude::{self, AttitudeCell, LatestAttitude};
 use crate::notify::{notify, NotifyState};
+use crate::outputs::live::{self, hub::Hub};
 use crate::outputs::recorder::{RecStats, Recorder};
 use crate::outputs::udp::{PoseDatagrams, Publisher};
+use crate::outputs::StatusTap;
 use crate::stats::Stats;
 use crate::status::version_message;
 use lightpose_core::{Estimator, LogHeader};
@@ -62,6 +64,12 @@ pub struct Running {
     pub attitude: Option<Arc<AttitudeCell>>,
     /// The attitude input's socket task, aborted at stop.
     pub listener: Option<JoinHandle<()>>,
+    /// Outputs that also take each STATUS (MCAP recording, live view).
+    pub status_taps: Vec<Box<dyn StatusTap>>,
+    /// The live view's clients (STATUS, closed at stop) and its accept
+    /// task (aborted at stop).
+    pub live: Option<Arc<Hub>>,
+    pub live_server: Option<JoinHandle<()>>,
     pub source: String,
     pub estimator: &'static str,
     /// Raised to stop the frame thread (and end its source's waits).
@@ -89,8 +97,24 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         Some((cell, task)) => (Some(cell), Some(task)),
         None => (None, None),
     };
-    let recorder = start_recorder(cfg, source.as_ref(), &source_desc)?;
+    let header = log_header(cfg, source.as_ref(), &source_desc);
+    let recorder = match &cfg.recording {
+        Some(r) => Some(Recorder::start(r, header.clone()).map_err(DaemonError::Recorder)?),
+        None => None,
+    };
     let rec_stats = recorder.as_ref().map(|r| r.stats.clone());
+    let mut status_taps: Vec<Box<dyn StatusTap>> = Vec::new();
+    status_taps.extend(recorder.as_ref().map(Recorder::status_tap));
+    let live =
+        match &cfg.foxglove {
+            Some(f) => Some(live::start(f, &header).await.map_err(|source| {
+                DaemonError::FoxgloveListen {
+                    addr: f.listen,
+                    source,
+                }
+            })?),
+            None => None,
+        };
 
     let (reload_tx, reload_rx) = std::sync::mpsc::channel::<Box<dyn Estimator>>();
     let mut engine = Engine::new(source, estimator)
@@ -105,6 +129,14 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     if let Some(r) = recorder {
         engine = engine.output(Box::new(r));
     }
+    let (live, live_server) = match live {
+        Some(l) => {
+            status_taps.push(Box::new(l.hub.clone()));
+            engine = engine.output(Box::new(l.output));
+            (Some(l.hub), Some(l.server))
+        }
+        None => (None, None),
+    };
     if let (Some(cell), Some(a)) = (&attitude, &cfg.attitude) {
         engine = engine.input(Box::new(LatestAttitude {
             cell: cell.clone(),
@@ -131,6 +163,9 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         rec_stats,
         attitude,
         listener,
+        status_taps,
+        live,
+        live_server,
         source: source_desc,
         estimator: est_name,
         stop,
@@ -159,23 +194,14 @@ async fn start_attitude(
     Ok(Some((cell, task)))
 }
 
-/// The recorder, if configured; its files' header names this daemon and
-/// the source, at the rate of the source's clock.
-fn start_recorder(
-    cfg: &Config,
-    source: &dyn FrameSource,
-    source_desc: &str,
-) -> Result<Option<Recorder>, DaemonError> {
-    let Some(r) = &cfg.recording else {
-        return Ok(None);
-    };
+/// The header of the daemon's recordings (and of the live view's frames):
+/// it names this daemon and the source, at the rate of the source's clock.
+fn log_header(cfg: &Config, source: &dyn FrameSource, source_desc: &str) -> LogHeader {
     let mut h = LogHeader::new(source.adc_bits(), source.rate_hz().unwrap_or(cfg.rate_hz));
     h.extra.insert(
         "recorder".into(),
         format!("lightposed {}", env!("CARGO_PKG_VERSION")).into(),
     );
     h.extra.insert("source".into(), source_desc.into());
-    Recorder::start(r, h)
-        .map(Some)
-        .map_err(DaemonError::Recorder)
+    h
 }

@@ -18,7 +18,8 @@
 //! - [`linux`]: the real spidev / i2c-dev buses those boards sit on;
 //! - [`temp`]: fixed, DS18B20 and thermistor temperature with fallback;
 //! - [`sim`]: the simulator as a source, with injectable faults;
-//! - [`replay`]: a recorded log as a source, its format behind a seam.
+//! - [`replay`]: a recorded log (JSON Lines or MCAP, read through
+//!   lightpose-logs) as a source.
 //!
 //! Feature `linux` adds the real spidev / i2c-dev buses; without it the
 //! SPI and I²C kinds are refused by [`open`] with a clear error, so a
@@ -167,7 +168,7 @@ impl HalError {
 pub fn check(cfg: &ValidBackend) -> Result<(), HalError> {
     match cfg {
         ValidBackend::Replay(plan) => {
-            replay::log::open_log(&plan.log, plan.max_gap_s)?;
+            replay::ReplaySource::open(plan, &Stop::new())?;
             Ok(())
         }
         #[cfg(feature = "sim")]

@@ -27,6 +27,7 @@
 //! to its last complete chunk.
 
 pub mod convert;
+pub mod encode;
 pub mod foxglove;
 mod lines;
 pub mod read;
@@ -36,6 +37,7 @@ mod tap;
 pub mod write;
 
 pub use convert::{convert, ConvertError, ConvertSummary};
+pub use encode::{Channel, Encoder, Message};
 pub use lightpose_core::{Cut, FrameLog, LogError};
 pub use lines::RECORD_LIMIT;
 pub use read::McapReader;
@@ -130,6 +132,16 @@ impl LogFile {
             LogFile::Jsonl(r) => r.get_ref().line(),
             LogFile::Mcap(r) => r.last_line(),
         }
+    }
+
+    /// Flag forward steps of `t` above `max_gap_s` as jumps (before the
+    /// first frame; default core's `DEFAULT_MAX_GAP_S`).
+    pub fn with_max_gap_s(mut self, max_gap_s: f64) -> Self {
+        match &mut self {
+            LogFile::Jsonl(r) => r.set_max_gap_s(max_gap_s),
+            LogFile::Mcap(r) => r.set_max_gap_s(max_gap_s),
+        }
+        self
     }
 
     fn get(&self) -> &dyn FrameLog {

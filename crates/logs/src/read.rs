@@ -83,6 +83,11 @@ impl<R: Read> McapReader<R> {
 
     /// The text of the message read last (after opening: the HEADER line;
     /// after a frame: its FRAME object), as a line.
+    /// Flag forward steps of `t` above `max_gap_s` as jumps.
+    pub fn set_max_gap_s(&mut self, max_gap_s: f64) {
+        self.inner.set_max_gap_s(max_gap_s);
+    }
+
     pub fn last_line(&self) -> &[u8] {
         self.inner.get_ref().line()
     }

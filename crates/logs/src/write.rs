@@ -10,9 +10,9 @@
 //! every prefix of it is what a power loss at that moment leaves, and the
 //! reader recovers every chunk that was complete.
 
-use crate::foxglove::{self, Stamp};
-use crate::schema::{self, name, topic};
-use lightpose_core::{Angle, Frame, LogHeader, LogReader, LogWriter, Pose, PoseEstimate};
+use crate::encode::{trim_newline, Channel, Encoder, Message};
+use crate::schema;
+use lightpose_core::{Frame, LogHeader, LogReader, LogWriter, PoseEstimate};
 use mcap::records::{MessageHeader, Metadata};
 use mcap::write::NoSeek;
 use std::collections::BTreeMap;
@@ -65,30 +65,12 @@ impl Default for McapOptions {
     }
 }
 
-struct Channels {
-    frame: u16,
-    pose: u16,
-    status: u16,
-    image: u16,
-    vehicle_pose: u16,
-    truth_pose: u16,
-    tf: u16,
-}
-
-/// Per-channel MCAP sequence numbers for channels without a seq of their own.
-#[derive(Default)]
-struct Sequences {
-    status: u32,
-}
-
 pub struct McapWriter<W: Write> {
     mcap: mcap::Writer<NoSeek<W>>,
-    ch: Channels,
-    foxglove: bool,
-    /// Formats FRAME lines exactly as the JSONL log does; emptied after each.
-    lines: LogWriter<Vec<u8>>,
-    buf: Vec<u8>,
-    seqs: Sequences,
+    /// The MCAP channel id of each [`Channel`] (by its index); `None` for
+    /// the Foxglove channels when they are left out.
+    ids: [Option<u16>; 7],
+    enc: Encoder,
     frames: u64,
     poses: u64,
 }
@@ -139,183 +121,109 @@ impl<W: Write> McapWriter<W> {
             name: schema::HEADER_METADATA.into(),
             metadata: meta,
         })?;
-        let mut add = |schema_name: &str, schema: &str, topic: &str| {
-            let id = mcap.add_schema(schema_name, schema::SCHEMA_ENCODING, schema.as_bytes())?;
-            mcap.add_channel(id, topic, schema::MESSAGE_ENCODING, &BTreeMap::new())
-        };
-        let mut ch = Channels {
-            frame: add(name::FRAME, schema::FRAME, topic::FRAME)?,
-            pose: add(name::POSE, schema::POSE, topic::POSE)?,
-            status: add(name::STATUS, schema::STATUS, topic::STATUS)?,
-            image: 0,
-            vehicle_pose: 0,
-            truth_pose: 0,
-            tf: 0,
-        };
-        if opts.foxglove {
-            let pif = schema::POSE_IN_FRAME;
-            ch.image = add(name::RAW_IMAGE, schema::RAW_IMAGE, topic::IMAGE)?;
-            ch.vehicle_pose = add(name::POSE_IN_FRAME, pif, topic::VEHICLE_POSE)?;
-            ch.truth_pose = add(name::POSE_IN_FRAME, pif, topic::TRUTH_POSE)?;
-            ch.tf = add(name::FRAME_TRANSFORM, schema::FRAME_TRANSFORM, topic::TF)?;
+        let mut ids = [None; 7];
+        // Schemas by name: the two PoseInFrame channels share theirs.
+        let mut schemas: BTreeMap<&str, u16> = BTreeMap::new();
+        for c in Channel::ALL {
+            if c.is_foxglove() && !opts.foxglove {
+                continue;
+            }
+            let sid = match schemas.get(c.schema_name()) {
+                Some(&id) => id,
+                None => {
+                    let id = mcap.add_schema(
+                        c.schema_name(),
+                        schema::SCHEMA_ENCODING,
+                        c.schema().as_bytes(),
+                    )?;
+                    schemas.insert(c.schema_name(), id);
+                    id
+                }
+            };
+            let topic = c.topic();
+            let enc = schema::MESSAGE_ENCODING;
+            ids[c.index()] = Some(mcap.add_channel(sid, topic, enc, &BTreeMap::new())?);
         }
-        let mut lines = LogWriter::new(Vec::with_capacity(1024), &header)?;
-        lines.get_mut().clear();
         Ok(McapWriter {
             mcap,
-            ch,
-            foxglove: opts.foxglove,
-            lines,
-            buf: Vec::with_capacity(1024),
-            seqs: Sequences::default(),
+            ids,
+            enc: Encoder::new(&header, opts.foxglove)?,
             frames: 0,
             poses: 0,
         })
     }
 
-    fn put(
-        &mut self,
-        channel_id: u16,
-        sequence: u32,
-        time: u64,
-        data: &[u8],
-    ) -> Result<(), WriteError> {
-        let h = MessageHeader {
-            channel_id,
-            sequence,
-            log_time: time,
-            publish_time: time,
-        };
-        self.mcap.write_to_known_channel(&h, data)?;
-        Ok(())
+    /// The closure that writes each message the encoder makes.
+    fn sink<'a>(
+        mcap: &'a mut mcap::Writer<NoSeek<W>>,
+        ids: &'a [Option<u16>; 7],
+    ) -> impl FnMut(Message) -> Result<(), WriteError> + 'a {
+        move |m: Message| {
+            let Some(channel_id) = ids[m.channel.index()] else {
+                return Ok(());
+            };
+            let h = MessageHeader {
+                channel_id,
+                sequence: m.sequence,
+                log_time: m.log_time,
+                publish_time: m.log_time,
+            };
+            mcap.write_to_known_channel(&h, m.data)?;
+            Ok(())
+        }
     }
 
     /// Append one frame: its FRAME line, and with Foxglove channels its
-    /// image and, when it has one, its truth. Log time is the frame's t; a
-    /// negative t (an epoch that is not the log's start, say) is refused.
+    /// image and, when it has one, its truth (see [`Encoder::frame`]). Log
+    /// time is the frame's t; a negative t (an epoch that is not the log's
+    /// start, say) is refused.
     pub fn write_frame(&mut self, f: &Frame) -> Result<(), WriteError> {
-        self.lines.write_frame(f)?;
-        let line = std::mem::take(self.lines.get_mut());
-        let r = self.write_frame_line(f, &line);
-        // Give the buffer back (emptied) whatever happened.
-        *self.lines.get_mut() = line;
-        self.lines.get_mut().clear();
-        r
+        self.enc
+            .frame(f, &mut Self::sink(&mut self.mcap, &self.ids))?;
+        self.frames += 1;
+        Ok(())
     }
 
     /// As [`McapWriter::write_frame`], with the FRAME object as the text
     /// that a log held for `f` (a conversion carries lines as they are;
     /// the Foxglove messages are made from `f`).
     pub fn write_frame_line(&mut self, f: &Frame, line: &[u8]) -> Result<(), WriteError> {
-        let stamp = Stamp::of(f.t).ok_or(WriteError::Time {
-            what: "frame",
-            seq: f.seq,
-            t: f.t,
-        })?;
-        let time = stamp.nanos();
-        self.put(self.ch.frame, f.seq as u32, time, trim_newline(line))?;
-        if self.foxglove {
-            foxglove::raw_image(stamp, &f.counts, &mut self.buf);
-            self.put_buf(self.ch.image, f.seq as u32, time)?;
-            if let Some(tr) = f.truth {
-                if finite_pose(&tr.pose) {
-                    foxglove::pose_in_frame(stamp, &tr.pose, &mut self.buf);
-                    self.put_buf(self.ch.truth_pose, f.seq as u32, time)?;
-                }
-            }
-        }
+        self.enc
+            .frame_line(f, line, &mut Self::sink(&mut self.mcap, &self.ids))?;
         self.frames += 1;
-        Ok(())
-    }
-
-    /// `self.buf` on a channel (nothing when it is empty: a message that
-    /// could not be formatted).
-    fn put_buf(&mut self, channel_id: u16, sequence: u32, time: u64) -> Result<(), WriteError> {
-        if self.buf.is_empty() {
-            return Ok(());
-        }
-        let h = MessageHeader {
-            channel_id,
-            sequence,
-            log_time: time,
-            publish_time: time,
-        };
-        self.mcap.write_to_known_channel(&h, &self.buf)?;
         Ok(())
     }
 
     /// Append one estimate as its POSE object (with the wall-clock capture
     /// time, Unix seconds, when given), at its frame's t; with Foxglove
-    /// channels, also as a pose and a transform when x, y, z, pitch and yaw
-    /// are all known, whatever its status (which the POSE object carries).
+    /// channels, also as a pose and a transform (see [`Encoder::pose`]).
     pub fn write_pose(
         &mut self,
         p: &PoseEstimate,
         wall_unix: Option<f64>,
     ) -> Result<(), WriteError> {
-        let stamp = Stamp::of(p.t).ok_or(WriteError::Time {
-            what: "pose",
-            seq: p.seq,
-            t: p.t,
-        })?;
-        p.write_json(wall_unix, &mut self.buf);
-        self.put_buf(self.ch.pose, p.seq as u32, stamp.nanos())?;
-        let pose = pose_of(p.x, p.y, p.z, p.pitch_deg, p.yaw_deg);
-        self.foxglove_pose(p.seq, stamp, pose)
-    }
-
-    fn foxglove_pose(
-        &mut self,
-        seq: u64,
-        stamp: Stamp,
-        pose: Option<Pose>,
-    ) -> Result<(), WriteError> {
+        self.enc
+            .pose(p, wall_unix, &mut Self::sink(&mut self.mcap, &self.ids))?;
         self.poses += 1;
-        let Some(pose) = pose.filter(|p| self.foxglove && finite_pose(p)) else {
-            return Ok(());
-        };
-        foxglove::pose_in_frame(stamp, &pose, &mut self.buf);
-        self.put_buf(self.ch.vehicle_pose, seq as u32, stamp.nanos())?;
-        foxglove::frame_transform(stamp, &pose, &mut self.buf);
-        self.put_buf(self.ch.tf, seq as u32, stamp.nanos())
+        Ok(())
     }
 
     /// Append one POSE line as it is (e.g. from `lightpose replay`'s
     /// output), with its Foxglove messages. The line must be a POSE object
     /// with its frame's `seq` and a `t` ≥ 0.
     pub fn write_pose_line(&mut self, line: &[u8]) -> Result<(), WriteError> {
-        let text = trim_newline(line);
-        let p: PoseLine = serde_json::from_slice(text)
-            .map_err(|e| WriteError::PoseLine(format!("not a JSON object: {e}")))?;
-        if p.class.as_deref() != Some("POSE") {
-            return Err(WriteError::PoseLine("class is not POSE".into()));
-        }
-        let seq = p
-            .seq
-            .ok_or_else(|| WriteError::PoseLine("no integer seq".into()))?;
-        let t =
-            p.t.ok_or_else(|| WriteError::PoseLine("no number t".into()))?;
-        let stamp = Stamp::of(t).ok_or(WriteError::Time {
-            what: "pose",
-            seq,
-            t,
-        })?;
-        self.put(self.ch.pose, seq as u32, stamp.nanos(), text)?;
-        self.foxglove_pose(seq, stamp, pose_of(p.x, p.y, p.z, p.pitch, p.yaw))
+        self.enc
+            .pose_line(line, &mut Self::sink(&mut self.mcap, &self.ids))?;
+        self.poses += 1;
+        Ok(())
     }
 
     /// Append one STATUS object (the daemon's JSON, as it is) at `t`, in
     /// the log's epoch: the recorder gives the last frame's t, so that
     /// status sits among the frames it describes.
     pub fn write_status(&mut self, t: f64, json: &[u8]) -> Result<(), WriteError> {
-        let seq = self.seqs.status;
-        let stamp = Stamp::of(t).ok_or(WriteError::Time {
-            what: "status",
-            seq: seq as u64,
-            t,
-        })?;
-        self.seqs.status = seq.wrapping_add(1);
-        self.put(self.ch.status, seq, stamp.nanos(), trim_newline(json))
+        self.enc
+            .status(t, json, &mut Self::sink(&mut self.mcap, &self.ids))
     }
 
     /// Close the open chunk and flush the sink: everything written so far
@@ -339,43 +247,4 @@ impl<W: Write> McapWriter<W> {
         sink.flush()?;
         Ok(sink)
     }
-}
-
-/// The pose of an estimate that knows all five of its fields (degrees).
-fn pose_of(
-    x: Option<f64>,
-    y: Option<f64>,
-    z: Option<f64>,
-    pitch: Option<f64>,
-    yaw: Option<f64>,
-) -> Option<Pose> {
-    let (x, y, z, p, w) = (x?, y?, z?, pitch?, yaw?);
-    Some(Pose::new(x, y, z, Angle::from_deg(p), Angle::from_deg(w)))
-}
-
-fn finite_pose(p: &Pose) -> bool {
-    [p.x, p.y, p.z, p.pitch.rad(), p.yaw.rad()]
-        .iter()
-        .all(|v| v.is_finite())
-}
-
-fn trim_newline(b: &[u8]) -> &[u8] {
-    let mut b = b;
-    while let [rest @ .., b'\n' | b'\r'] = b {
-        b = rest;
-    }
-    b
-}
-
-/// The fields of a POSE line that its Foxglove messages need.
-#[derive(serde::Deserialize)]
-struct PoseLine {
-    class: Option<String>,
-    seq: Option<u64>,
-    t: Option<f64>,
-    x: Option<f64>,
-    y: Option<f64>,
-    z: Option<f64>,
-    pitch: Option<f64>,
-    yaw: Option<f64>,
 }

@@ -6,12 +6,14 @@
 //!
 //! One validator per table, each in its own file: [`top`] (the top-level
 //! keys), [`backend`] (handed to lightpose-hal), [`temperature`],
-//! [`outputs`], [`recording`], [`attitude`], [`logging`]; [`locate`] turns
-//! spans into lines and [`embedded`] resolves `embedded:NAME`.
+//! [`outputs`], [`recording`], [`attitude`], [`logging`], [`foxglove`];
+//! [`locate`] turns spans into lines and [`embedded`] resolves
+//! `embedded:NAME`.
 
 pub mod attitude;
 pub mod backend;
 pub mod embedded;
+pub mod foxglove;
 mod locate;
 pub mod logging;
 pub mod outputs;
@@ -20,9 +22,10 @@ pub mod temperature;
 pub mod top;
 
 pub use attitude::AttitudeInput;
+pub use foxglove::Foxglove;
 pub use logging::{LogFormat, Logging};
 pub use outputs::{Multicast, Outputs};
-pub use recording::Recording;
+pub use recording::{RecFormat, Recording};
 
 use lightpose_core::textfile::{read_text, TextError, TextSource};
 use lightpose_hal::ValidBackend;
@@ -51,6 +54,8 @@ pub struct Config {
     pub recording: Option<Recording>,
     pub attitude: Option<AttitudeInput>,
     pub logging: Logging,
+    /// The live view (Foxglove WebSocket), if configured.
+    pub foxglove: Option<Foxglove>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -84,6 +89,7 @@ struct Raw {
     recording: Option<recording::RawRecording>,
     attitude: Option<attitude::RawAttitude>,
     logging: Option<logging::RawLogging>,
+    foxglove: Option<foxglove::RawFoxglove>,
 }
 
 impl Config {
@@ -119,6 +125,7 @@ impl Config {
         let recording = recording::validate(&ctx, raw.recording.as_ref())?;
         let attitude = attitude::validate(&ctx, raw.attitude.as_ref())?;
         let logging = logging::validate(&ctx, raw.logging.as_ref())?;
+        let foxglove = foxglove::validate(&ctx, raw.foxglove.as_ref())?;
         if outputs.destinations.is_empty() && outputs.multicast.is_none() {
             tracing::warn!("{file}: no outputs.destinations and no multicast: poses go nowhere");
         }
@@ -134,6 +141,7 @@ impl Config {
             recording,
             attitude,
             logging,
+            foxglove,
         })
     }
 }

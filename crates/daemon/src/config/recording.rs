@@ -1,10 +1,12 @@
 //! `[recording]`: raw frames written as intensity logs, rotated by size or
-//! age, behind a bounded queue.
+//! age, behind a bounded queue; JSON Lines (the default) or MCAP (frames,
+//! estimates and STATUS), pushed to the disk every `flush_s`.
 //!
 //! Ranges: `rotate_mb` 0.01..=1048576 MiB (10 kB to 1 TiB);
 //! `rotate_minutes` 0.1..=525600 (six seconds to a year); `queue`
-//! 1..=1000000 frames.
-use super::locate::{within, Ctx};
+//! 1..=1000000 frames; `flush_s` (0, 3600].
+
+use super::locate::{positive_to, within, Ctx};
 use super::ConfigError;
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -20,7 +22,26 @@ pub struct Recording {
     pub rotate_after: Option<Duration>,
     /// Frames that may wait for the disk before they are counted as lost.
     pub queue: usize,
+    pub format: RecFormat,
+    /// How often what was written is pushed to the disk (MCAP: the open
+    /// chunk closed; both: the file synced): a power loss loses at most
+    /// this much.
+    pub flush: Duration,
 }
+
+/// The container of a recording.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RecFormat {
+    /// JSON Lines (FORMATS.md): frames only, each line written whole.
+    #[default]
+    Jsonl,
+    /// MCAP: frames, estimates and STATUS, with Foxglove's channels.
+    Mcap,
+}
+
+/// `flush_s` when not given.
+pub const DEFAULT_FLUSH: Duration = Duration::from_secs(2);
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -30,6 +51,8 @@ pub(super) struct RawRecording {
     rotate_mb: Option<Spanned<f64>>,
     rotate_minutes: Option<Spanned<f64>>,
     queue: Option<Spanned<i64>>,
+    format: Option<Spanned<RecFormat>>,
+    flush_s: Option<Spanned<f64>>,
 }
 
 /// `None` when the table is absent or not enabled.
@@ -71,10 +94,16 @@ pub(super) fn validate(
         }
         None => 4096,
     };
+    let flush = match &r.flush_s {
+        Some(v) => Duration::from_secs_f64(positive_to(ctx, v, "recording.flush_s", 3600.0, " s")?),
+        None => DEFAULT_FLUSH,
+    };
     Ok(Some(Recording {
         dir,
         rotate_bytes,
         rotate_after,
         queue,
+        format: r.format.as_ref().map_or(RecFormat::Jsonl, |f| *f.get_ref()),
+        flush,
     }))
 }

@@ -3,11 +3,14 @@
 //! readings, without the daemon's fallback temperature) and the estimate,
 //! in order, and measures latency to the last of them.
 //!
-//! Today: POSE datagrams over UDP ([`udp`]) and the recording of frames
-//! ([`recorder`]). A new output (another protocol, another recording
+//! Today: POSE datagrams over UDP ([`udp`]), the recording of frames (and,
+//! in MCAP, estimates and STATUS: [`recorder`], [`recfile`]) and the live
+//! view for Foxglove ([`live`]). A new output (another protocol, another recording
 //! format, a live viewer) is a file here implementing [`Output`], added to
 //! the engine in `wiring.rs`.
 
+pub mod live;
+pub mod recfile;
 pub mod recorder;
 pub mod udp;
 
@@ -22,4 +25,11 @@ pub trait Output: Send {
     /// The engine stops: flush what is queued. Called once, on the frame
     /// thread, before the engine returns.
     fn finish(&mut self) {}
+}
+
+/// Something that also takes each STATUS the daemon publishes (the MCAP
+/// recording, the live view). Called on the async side, once a second:
+/// it may allocate, but must not block.
+pub trait StatusTap: Send + Sync {
+    fn status(&self, json: &[u8]);
 }

@@ -1,19 +1,21 @@
-//! Recording of raw frames as intensity logs (core's LogWriter), in a thread
-//! of its own so that a slow, full or read-only disk never delays a POSE.
-//! Each line reaches the file in one `write(2)` on an unbuffered file, so
-//! after `kill -9` the log reads back complete up to its last line. Files
-//! rotate by size or age. A disk that refuses is reported (STATUS, log) and
-//! retried; frames that could not be recorded are counted, never hidden.
+//! Recording of raw frames as intensity logs, JSON Lines or MCAP (one file
+//! in its format: `recfile.rs`), in a thread of its own so that a slow,
+//! full or read-only disk never delays a POSE. The frame thread hands each
+//! frame and its estimate over a bounded queue whose slots are allocated
+//! once. Every `flush_s` the open file is pushed to the disk (MCAP: its
+//! chunk closed) and synced; files rotate by size or age. A disk that
+//! refuses is reported (STATUS, log) and retried; frames that could not be
+//! recorded are counted, never hidden.
 
-use super::Output;
-use crate::config::Recording;
+use super::recfile::{extension, RecFile};
+use super::{Output, StatusTap};
+use crate::config::{RecFormat, Recording};
 use crate::engine::Acquired;
-use lightpose_core::{Frame, LogHeader, LogWriter, PoseEstimate};
-use std::fs::File;
-use std::io::{self, Write};
+use lightpose_core::{Frame, LogHeader, PoseEstimate};
+use std::io;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering::Relaxed};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
@@ -69,6 +71,10 @@ pub struct RecStats {
     pub dropped: AtomicU64,
     pub files: AtomicU64,
     pub bytes: AtomicU64,
+    /// Frames known to be on the disk: written before the last flush
+    /// (`flush_s`) or in a file closed since. A power loss keeps these.
+    pub synced: AtomicU64,
+    pub format: RecFormat,
     pub current: Mutex<Option<String>>,
     /// Why the state is `error`; cleared when recording resumes.
     pub error: Mutex<Option<String>>,
@@ -87,68 +93,73 @@ impl RecStats {
     }
 }
 
+/// What the frame thread hands the recorder: the frame as acquired, its
+/// estimate and the wall clock of its arrival. All Copy: the queue's slots
+/// are allocated once, so handing over allocates nothing.
+#[derive(Clone, Copy)]
+struct Item {
+    frame: Frame,
+    est: PoseEstimate,
+    wall_unix: f64,
+}
+
+/// STATUS objects that may wait for the recorder (MCAP records them).
+const STATUS_QUEUE: usize = 4;
+
+/// Chunk size of an MCAP recording: chunks close when this full or on the
+/// `flush_s` timer, whichever comes first.
+const CHUNK_BYTES: u64 = 64 << 10;
+
+/// How long the recorder thread sleeps at most when no frame comes (a
+/// STATUS may be waiting).
+const IDLE: Duration = Duration::from_millis(250);
+
 /// The frame path's end of the recorder.
 pub struct Recorder {
-    tx: Option<SyncSender<Frame>>,
+    tx: Option<SyncSender<Item>>,
+    status_tx: SyncSender<Vec<u8>>,
     join: Option<JoinHandle<()>>,
     pub stats: Arc<RecStats>,
-}
-
-/// A file that counts what went into it, for size rotation.
-struct Counted {
-    file: File,
-    bytes: u64,
-}
-
-impl Write for Counted {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        let n = self.file.write(buf)?;
-        self.bytes += n as u64;
-        Ok(n)
-    }
-    fn flush(&mut self) -> io::Result<()> {
-        self.file.flush()
-    }
 }
 
 impl Recorder {
     /// Start the recorder thread. `header` is written at the top of every
     /// file (its adc_bits is taken from the first frame).
     pub fn start(cfg: &Recording, header: LogHeader) -> io::Result<Recorder> {
-        let stats = Arc::new(RecStats::default());
+        let stats = Arc::new(RecStats {
+            format: cfg.format,
+            ..RecStats::default()
+        });
         stats.set_state(RecState::Idle);
-        let worker = Worker {
-            cfg: cfg.clone(),
-            header,
-            stats,
-            writer: None,
-            opened: Instant::now(),
-            retry_at: None,
-            seq_in_run: 0,
-        };
-        Recorder::spawn(worker, cfg.queue)
+        Recorder::spawn(Worker::new(cfg, header, stats), cfg.queue)
     }
 
     /// `worker` on its thread behind a queue of `queue` frames.
     fn spawn(worker: Worker, queue: usize) -> io::Result<Recorder> {
-        let (tx, rx) = sync_channel::<Frame>(queue);
+        let (tx, rx) = sync_channel::<Item>(queue);
+        let (status_tx, status_rx) = sync_channel::<Vec<u8>>(STATUS_QUEUE);
         let stats = worker.stats.clone();
         let join = std::thread::Builder::new()
             .name("lightposed-rec".into())
-            .spawn(move || worker.run(rx))?;
+            .spawn(move || worker.run(rx, status_rx))?;
         Ok(Recorder {
             tx: Some(tx),
+            status_tx,
             join: Some(join),
             stats,
         })
     }
 
-    /// Hand a frame to the recorder without waiting (Frame is Copy, and the
-    /// channel's slots are allocated once).
+    /// Hand a frame and its estimate to the recorder without waiting.
     #[inline]
-    pub fn record(&self, f: &Frame) {
+    pub fn record(&self, frame: &Frame, est: &PoseEstimate, wall_unix: f64) {
         let Some(tx) = &self.tx else { return };
-        match tx.try_send(*f) {
+        let item = Item {
+            frame: *frame,
+            est: *est,
+            wall_unix,
+        };
+        match tx.try_send(item) {
             Ok(()) => {
                 self.stats.queued.fetch_add(1, Relaxed);
             }
@@ -165,6 +176,12 @@ impl Recorder {
                 self.stats.failed.fetch_add(1, Relaxed);
             }
         }
+    }
+
+    /// Where the supervisor hands each STATUS (recorded in MCAP only; a
+    /// full queue drops it).
+    pub fn status_tap(&self) -> Box<dyn StatusTap> {
+        Box::new(self.status_tx.clone())
     }
 
     /// Close the queue and wait until every queued frame is on disk, at
@@ -203,12 +220,19 @@ impl Recorder {
     }
 }
 
+impl StatusTap for SyncSender<Vec<u8>> {
+    fn status(&self, json: &[u8]) {
+        let _ = self.try_send(json.to_vec());
+    }
+}
+
 /// Records the frame as acquired (with its inputs' readings; the daemon's
-/// fallback temperature is not the board's, and a replay applies it again).
+/// fallback temperature is not the board's, and a replay applies it again)
+/// and, in MCAP, its estimate.
 impl Output for Recorder {
     #[inline]
-    fn emit(&mut self, frame: &Acquired, _est: &PoseEstimate) {
-        self.record(&frame.frame);
+    fn emit(&mut self, frame: &Acquired, est: &PoseEstimate) {
+        self.record(&frame.frame, est, frame.wall_unix);
     }
     fn finish(&mut self) {
         Recorder::finish(self);
@@ -225,20 +249,55 @@ struct Worker {
     cfg: Recording,
     header: LogHeader,
     stats: Arc<RecStats>,
-    writer: Option<LogWriter<Counted>>,
+    file: Option<RecFile>,
     opened: Instant,
     retry_at: Option<Instant>,
+    /// When the open file is next pushed to the disk (set by the first
+    /// write after a flush).
+    flush_at: Option<Instant>,
     seq_in_run: u32,
+    /// t of the last frame written: STATUS is recorded at it.
+    last_t: Option<f64>,
 }
 
 impl Worker {
-    fn run(mut self, rx: Receiver<Frame>) {
-        while let Ok(f) = rx.recv() {
-            self.stats.queued.fetch_sub(1, Relaxed);
-            if self.stats.abandoned.load(Relaxed) {
-                break;
+    fn new(cfg: &Recording, header: LogHeader, stats: Arc<RecStats>) -> Worker {
+        Worker {
+            cfg: cfg.clone(),
+            header,
+            stats,
+            file: None,
+            opened: Instant::now(),
+            retry_at: None,
+            flush_at: None,
+            seq_in_run: 0,
+            last_t: None,
+        }
+    }
+
+    fn run(mut self, rx: Receiver<Item>, status_rx: Receiver<Vec<u8>>) {
+        loop {
+            let now = Instant::now();
+            let wait = self
+                .flush_at
+                .map_or(IDLE, |t| t.saturating_duration_since(now).min(IDLE));
+            match rx.recv_timeout(wait) {
+                Ok(item) => {
+                    self.stats.queued.fetch_sub(1, Relaxed);
+                    if self.stats.abandoned.load(Relaxed) {
+                        break;
+                    }
+                    self.write(&item);
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
             }
-            self.write(&f);
+            while let Ok(s) = status_rx.try_recv() {
+                self.status(&s);
+            }
+            if self.flush_at.is_some_and(|t| Instant::now() >= t) {
+                self.flush();
+            }
         }
         self.close();
         // A refusing disk stays visible in the last STATUS.
@@ -258,56 +317,75 @@ impl Worker {
             *e = Some(what);
         }
         self.stats.set_state(RecState::Error);
-        self.writer = None;
+        self.file = None;
+        self.flush_at = None;
         self.retry_at = Some(Instant::now() + RETRY);
     }
 
-    fn write(&mut self, f: &Frame) {
-        let rotate = match &self.writer {
-            Some(w) => {
-                self.cfg
-                    .rotate_bytes
-                    .is_some_and(|b| w.get_ref().bytes >= b)
-                    || self
-                        .cfg
-                        .rotate_after
-                        .is_some_and(|a| self.opened.elapsed() >= a)
-            }
-            None => false,
-        };
-        if rotate {
+    fn due_for_rotation(&self) -> bool {
+        let Some(f) = &self.file else { return false };
+        self.cfg.rotate_bytes.is_some_and(|b| f.bytes() >= b)
+            || self
+                .cfg
+                .rotate_after
+                .is_some_and(|a| self.opened.elapsed() >= a)
+    }
+
+    fn write(&mut self, item: &Item) {
+        if self.due_for_rotation() {
             self.close();
         }
-        if self.writer.is_none() {
+        if self.file.is_none() {
             if self.retry_at.is_some_and(|t| Instant::now() < t) {
                 self.stats.failed.fetch_add(1, Relaxed);
                 return;
             }
-            if let Err(e) = self.open(f.adc_bits) {
+            if let Err(e) = self.open(item.frame.adc_bits) {
                 self.fail(e);
                 self.stats.failed.fetch_add(1, Relaxed);
                 return;
             }
         }
-        let Some(w) = self.writer.as_mut() else {
+        let Some(f) = self.file.as_mut() else {
             return;
         };
-        match w.write_frame(f) {
+        match f.write(&item.frame, &item.est, item.wall_unix) {
             Ok(()) => {
                 self.stats.frames.fetch_add(1, Relaxed);
-                self.stats.bytes.store(w.get_ref().bytes, Relaxed);
+                self.stats.bytes.store(f.bytes(), Relaxed);
+                self.last_t = Some(item.frame.t);
+                if self.flush_at.is_none() {
+                    self.flush_at = Some(Instant::now() + self.cfg.flush);
+                }
             }
             Err(e) => {
-                let name = self
-                    .stats
-                    .current
-                    .lock()
-                    .ok()
-                    .and_then(|c| c.clone())
-                    .unwrap_or_default();
                 self.stats.failed.fetch_add(1, Relaxed);
-                self.fail(format!("{name}: {e}"));
+                self.fail(e);
             }
+        }
+    }
+
+    /// A STATUS into the open file, at the last frame's t.
+    fn status(&mut self, json: &[u8]) {
+        let (Some(f), Some(t)) = (self.file.as_mut(), self.last_t) else {
+            return;
+        };
+        if let Err(e) = f.status(t, json) {
+            self.fail(e);
+        }
+    }
+
+    /// Push the open file to the disk (the flush_s timer).
+    fn flush(&mut self) {
+        self.flush_at = None;
+        let Some(f) = self.file.as_mut() else { return };
+        match f.flush() {
+            Ok(()) => {
+                self.stats.bytes.store(f.bytes(), Relaxed);
+                let synced = self.stats.frames.load(Relaxed) - f.unsynced();
+                self.stats.synced.store(synced, Relaxed);
+            }
+            Err(e) => self.fail(e),
         }
     }
 
@@ -316,47 +394,47 @@ impl Worker {
             .map_err(|e| format!("{}: {e}", self.cfg.dir.display()))?;
         self.seq_in_run += 1;
         let path: PathBuf = self.cfg.dir.join(format!(
-            "lightposed-{}-{:04}.jsonl",
+            "lightposed-{}-{:04}.{}",
             utc_stamp(SystemTime::now()),
-            self.seq_in_run
+            self.seq_in_run,
+            extension(self.cfg.format)
         ));
-        let file = File::options()
-            .write(true)
-            .create_new(true)
-            .open(&path)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
         let mut header = self.header.clone();
         header.adc_bits = adc_bits;
         header.extra.insert("started".into(), unix_now().into());
-        let w = LogWriter::new(Counted { file, bytes: 0 }, &header)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+        let file = RecFile::create(path, self.cfg.format, &header, CHUNK_BYTES)?;
         let was_error = self.stats.state() == RecState::Error;
-        self.writer = Some(w);
+        let shown = file.path.display().to_string();
+        self.file = Some(file);
         self.opened = Instant::now();
         self.retry_at = None;
         self.stats.files.fetch_add(1, Relaxed);
+        if was_error {
+            tracing::info!("recording resumed in {shown}");
+        } else {
+            tracing::info!("recording to {shown}");
+        }
         if let Ok(mut c) = self.stats.current.lock() {
-            *c = Some(path.display().to_string());
+            *c = Some(shown);
         }
         if let Ok(mut e) = self.stats.error.lock() {
             *e = None;
-        }
-        if was_error {
-            tracing::info!("recording resumed in {}", path.display());
-        } else {
-            tracing::info!("recording to {}", path.display());
         }
         self.stats.set_state(RecState::Recording);
         Ok(())
     }
 
+    /// Complete the open file (MCAP: summary and footer) and sync it, so
+    /// that a power cut after a clean stop or a rotation loses nothing.
     fn close(&mut self) {
-        if let Some(w) = self.writer.take() {
-            let c = w.into_inner();
-            // Lines are already in the page cache; sync so that a power cut
-            // after a clean stop or a rotation loses nothing either.
-            if let Err(e) = c.file.sync_all() {
-                tracing::warn!("recording: sync at close failed: {e}");
+        self.flush_at = None;
+        if let Some(f) = self.file.take() {
+            match f.close() {
+                Ok(()) => {
+                    let frames = self.stats.frames.load(Relaxed);
+                    self.stats.synced.store(frames, Relaxed);
+                }
+                Err(e) => tracing::warn!("recording: closing failed: {e}"),
             }
         }
     }
@@ -394,7 +472,8 @@ pub fn utc_stamp(t: SystemTime) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lightpose_core::{LogReader, NDET};
+    use lightpose_core::{LogReader, Status, NDET};
+    use std::fs::File;
 
     fn frame(seq: u64) -> Frame {
         Frame {
@@ -410,6 +489,21 @@ mod tests {
         }
     }
 
+    fn est(seq: u64) -> PoseEstimate {
+        PoseEstimate::empty(seq, seq as f64 * 0.01, Status::NoLight, "test")
+    }
+
+    fn cfg(dir: PathBuf, rotate_bytes: Option<u64>, queue: usize) -> Recording {
+        Recording {
+            dir,
+            rotate_bytes,
+            rotate_after: None,
+            queue,
+            format: crate::config::RecFormat::Jsonl,
+            flush: Duration::from_secs(2),
+        }
+    }
+
     #[test]
     fn stamp_of_known_instants() {
         assert_eq!(utc_stamp(SystemTime::UNIX_EPOCH), "19700101T000000Z");
@@ -420,15 +514,10 @@ mod tests {
     #[test]
     fn rotates_by_size_and_every_file_reads_back_whole() {
         let dir = tempfile::tempdir().unwrap();
-        let cfg = Recording {
-            dir: dir.path().to_path_buf(),
-            rotate_bytes: Some(2000),
-            rotate_after: None,
-            queue: 1024,
-        };
+        let cfg = cfg(dir.path().to_path_buf(), Some(2000), 1024);
         let mut r = Recorder::start(&cfg, LogHeader::new(10, 100.0)).unwrap();
         for s in 0..100 {
-            r.record(&frame(s));
+            r.record(&frame(s), &est(s), 1.7e9);
         }
         r.finish();
         assert_eq!(r.stats.frames.load(Relaxed), 100);
@@ -455,15 +544,11 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let blocker = dir.path().join("file");
         std::fs::write(&blocker, b"x").unwrap();
-        let cfg = Recording {
-            dir: blocker.join("sub"), // a directory under a file: ENOTDIR
-            rotate_bytes: None,
-            rotate_after: None,
-            queue: 16,
-        };
+        // A directory under a file: ENOTDIR.
+        let cfg = cfg(blocker.join("sub"), None, 16);
         let mut r = Recorder::start(&cfg, LogHeader::new(10, 5.0)).unwrap();
-        r.record(&frame(0));
-        r.record(&frame(1));
+        r.record(&frame(0), &est(0), 1.7e9);
+        r.record(&frame(1), &est(1), 1.7e9);
         let t0 = Instant::now();
         while r.stats.failed.load(Relaxed) < 2 && t0.elapsed() < Duration::from_secs(2) {
             std::thread::sleep(Duration::from_millis(5));
@@ -483,57 +568,42 @@ mod tests {
 
     #[test]
     fn full_disk_mid_file_is_reported() {
-        // /dev/full refuses every write with ENOSPC: swap it in under an
-        // open log, as a disk that fills up during a dive.
-        let Ok(full) = File::options().write(true).open("/dev/full") else {
-            eprintln!("skipped: no /dev/full on this machine");
-            return;
-        };
-        let dir = tempfile::tempdir().unwrap();
-        let stats = Arc::new(RecStats::default());
-        let mut w = Worker {
-            cfg: Recording {
-                dir: dir.path().to_path_buf(),
-                rotate_bytes: None,
-                rotate_after: None,
-                queue: 1,
-            },
-            header: LogHeader::new(10, 5.0),
-            stats: stats.clone(),
-            writer: None,
-            opened: Instant::now(),
-            retry_at: None,
-            seq_in_run: 0,
-        };
-        w.write(&frame(0));
-        assert_eq!(stats.state(), RecState::Recording);
-        if let Some(lw) = w.writer.as_mut() {
-            lw.get_mut().file = full;
-        }
-        w.write(&frame(1));
-        assert_eq!(stats.state(), RecState::Error);
-        let err = stats.error.lock().unwrap().clone().unwrap_or_default();
-        assert!(err.contains("No space left"), "{err}");
-        // Within the retry delay further frames are counted as not recorded.
-        w.write(&frame(2));
-        assert_eq!(stats.failed.load(Relaxed), 2);
-        assert_eq!(stats.frames.load(Relaxed), 1);
-    }
-
-    fn worker(dir: PathBuf, stats: &Arc<RecStats>) -> Worker {
-        Worker {
-            cfg: Recording {
-                dir,
-                rotate_bytes: None,
-                rotate_after: None,
-                queue: 4096,
-            },
-            header: LogHeader::new(10, 5.0),
-            stats: stats.clone(),
-            writer: None,
-            opened: Instant::now(),
-            retry_at: None,
-            seq_in_run: 0,
+        // /dev/full refuses every write with ENOSPC: put it under an open
+        // log (dup2 onto the sink's descriptor), as a disk that fills up
+        // during a dive. JSON Lines meets it at the next line, MCAP at the
+        // next flush (its chunk is held in memory until then).
+        use crate::config::RecFormat;
+        use std::os::fd::AsRawFd;
+        let full = File::options().write(true).open("/dev/full").unwrap();
+        for format in [RecFormat::Jsonl, RecFormat::Mcap] {
+            let dir = tempfile::tempdir().unwrap();
+            let stats = Arc::new(RecStats::default());
+            let mut c = cfg(dir.path().to_path_buf(), None, 1);
+            c.format = format;
+            let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone());
+            let item = |seq| Item {
+                frame: frame(seq),
+                est: est(seq),
+                wall_unix: 1.7e9,
+            };
+            w.write(&item(0));
+            assert_eq!(stats.state(), RecState::Recording);
+            let fd = w.file.as_ref().unwrap().sink_fd();
+            nix::unistd::dup2(full.as_raw_fd(), fd).unwrap();
+            w.write(&item(1));
+            w.flush();
+            assert_eq!(stats.state(), RecState::Error, "{format:?}");
+            let err = stats.error.lock().unwrap().clone().unwrap_or_default();
+            assert!(err.contains("No space left"), "{format:?}: {err}");
+            assert!(err.contains(dir.path().to_str().unwrap()), "{err}");
+            // Within the retry delay further frames are counted as not
+            // recorded.
+            w.write(&item(2));
+            let failed = stats.failed.load(Relaxed);
+            match format {
+                RecFormat::Jsonl => assert_eq!((failed, stats.frames.load(Relaxed)), (2, 1)),
+                RecFormat::Mcap => assert_eq!((failed, stats.frames.load(Relaxed)), (1, 2)),
+            }
         }
     }
 
@@ -544,22 +614,32 @@ mod tests {
         let blocker = dir.path().join("rec");
         std::fs::write(&blocker, b"x").unwrap();
         let stats = Arc::new(RecStats::default());
-        let mut w = worker(blocker.clone(), &stats);
-        w.write(&frame(0));
+        let mut w = Worker::new(
+            &cfg(blocker.clone(), None, 16),
+            LogHeader::new(10, 5.0),
+            stats.clone(),
+        );
+        let item = |seq| Item {
+            frame: frame(seq),
+            est: est(seq),
+            wall_unix: 1.7e9,
+        };
+        w.write(&item(0));
         assert_eq!(stats.state(), RecState::Error);
         assert!(stats.error.lock().unwrap().is_some());
         std::fs::remove_file(&blocker).unwrap();
         w.retry_at = None; // as after the retry delay
-        w.write(&frame(1));
+        w.write(&item(1));
         assert_eq!(stats.state(), RecState::Recording);
         assert_eq!(*stats.error.lock().unwrap(), None, "old error still shown");
     }
 
-    /// Issue 16: a disk that takes nothing more (here a FIFO nobody reads)
-    /// does not hold the stop: finish gives up after its bound and counts
-    /// what was left as not recorded.
+    /// Issue 16: a disk that takes nothing more (here a FIFO nobody reads,
+    /// put under the open log) does not hold the stop: finish gives up
+    /// after its bound and counts what was left as not recorded.
     #[test]
     fn finish_does_not_wait_for_a_stuck_disk() {
+        use std::os::fd::AsRawFd;
         let dir = tempfile::tempdir().unwrap();
         let fifo = dir.path().join("stuck");
         let made = std::process::Command::new("mkfifo")
@@ -571,14 +651,22 @@ mod tests {
         // once the pipe's 64 KiB are full.
         let stuck = File::options().read(true).write(true).open(&fifo).unwrap();
         let stats = Arc::new(RecStats::default());
-        let mut w = worker(dir.path().to_path_buf(), &stats);
-        w.write(&frame(0));
-        if let Some(lw) = w.writer.as_mut() {
-            lw.get_mut().file = stuck;
-        }
+        let rec = dir.path().join("rec");
+        let mut w = Worker::new(
+            &cfg(rec, None, 4096),
+            LogHeader::new(10, 5.0),
+            stats.clone(),
+        );
+        w.write(&Item {
+            frame: frame(0),
+            est: est(0),
+            wall_unix: 1.7e9,
+        });
+        let fd = w.file.as_ref().unwrap().sink_fd();
+        nix::unistd::dup2(stuck.as_raw_fd(), fd).unwrap();
         let mut r = Recorder::spawn(w, 4096).unwrap();
         for s in 1..2000 {
-            r.record(&frame(s));
+            r.record(&frame(s), &est(s), 1.7e9);
         }
         let t0 = Instant::now();
         r.finish_within(Duration::from_millis(300));

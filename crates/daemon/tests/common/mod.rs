@@ -2,6 +2,8 @@
 //! shipped files are, a loopback subscriber, and reading recordings back.
 #![allow(dead_code)] // each test binary uses its own subset
 
+pub mod run;
+
 use lightpose_core::LogReader;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};

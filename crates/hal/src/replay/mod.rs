@@ -1,7 +1,10 @@
 //! The replay source: a recorded intensity log as a [`FrameSource`], at its
 //! recorded pace or as fast as possible, so that a recording goes through
 //! exactly the path of live frames (estimator, POSE, STATUS, recording).
-//! The file format is behind [`log::FrameLog`].
+//! The container (JSON Lines or MCAP) is lightpose-logs' business: the
+//! log is opened with `lightpose_logs::open` and read through core's
+//! [`FrameLog`], so that a replay from MCAP gives the same frames, bit for
+//! bit, as from JSONL.
 //!
 //! Frames come in the order core's `FrameOrder` admits (a frame out of
 //! order is an error naming its line). At recorded pace, a forward step of
@@ -10,17 +13,22 @@
 //! the one before (pacing re-anchors there). Every wait ends on the
 //! [`Stop`].
 
-pub mod log;
-
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use lightpose_core::{Frame, LogError};
+use lightpose_core::{Frame, FrameLog, LogError};
 
 use crate::config::{Pace, ReplayPlan};
 use crate::pace::Stop;
+
+/// Open the log at `path` in its container; a forward step of `t` above
+/// `max_gap_s` is flagged as a jump.
+fn open_log(path: &std::path::Path, max_gap_s: f64) -> Result<Box<dyn FrameLog + Send>, LogError> {
+    Ok(Box::new(
+        lightpose_logs::LogFile::open(path)?.with_max_gap_s(max_gap_s),
+    ))
+}
 use crate::{FrameSource, SourceError, SourceHealth};
-use log::{open_log, FrameLog};
 
 /// Counters of the passes before the current one.
 #[derive(Debug, Default, Clone, Copy)]
@@ -34,7 +42,9 @@ pub struct ReplaySource {
     pace: Pace,
     looping: bool,
     max_gap_s: f64,
-    log: Box<dyn FrameLog>,
+    log: Box<dyn FrameLog + Send>,
+    /// What the log gave first, read at open (see [`ReplaySource::open`]).
+    first: Option<Option<Result<Frame, LogError>>>,
     adc_bits: u8,
     rate_hz: f64,
     stop: Stop,
@@ -59,9 +69,16 @@ pub struct ReplaySource {
 
 impl ReplaySource {
     /// Open the log `plan` names; waits for a frame's time end early on
-    /// `stop`.
+    /// `stop`. The first frame is read here: a log that breaks before it
+    /// (an MCAP whose frame channel has another schema, a structure broken
+    /// after the header) is refused now, with the error naming the file
+    /// and the place, rather than ending the replay at its first frame.
     pub fn open(plan: &ReplayPlan, stop: &Stop) -> Result<ReplaySource, LogError> {
-        let log = open_log(&plan.log, plan.max_gap_s)?;
+        let mut log = open_log(&plan.log, plan.max_gap_s)?;
+        let first = match log.next_frame() {
+            Some(Err(e)) if !e.skippable() => return Err(e),
+            first => first,
+        };
         let h = log.header();
         Ok(ReplaySource {
             adc_bits: h.adc_bits,
@@ -71,6 +88,7 @@ impl ReplaySource {
             looping: plan.looping,
             max_gap_s: plan.max_gap_s,
             log,
+            first: Some(first),
             stop: stop.clone(),
             anchor: None,
             last_due: None,
@@ -109,7 +127,7 @@ impl ReplaySource {
         self.reopen_failed = None;
         let o = self.log.order();
         self.done.skipped += o.skipped();
-        self.done.other += self.log.other_records().0;
+        self.done.other += self.log.other_records();
         self.log = log;
         if let (Some((s0, t0)), Some((sl, tl))) = (self.first_of_pass, self.last_out) {
             // Next pass starts one frame after this one ended, in seq and t.
@@ -160,7 +178,7 @@ impl ReplaySource {
         if self.other_logged {
             return;
         }
-        if let (_, Some(first)) = self.log.other_records() {
+        if let Some(first) = self.log.first_other() {
             tracing::warn!(
                 "replay: {first}: not a FRAME, passed over (all such lines are counted in STATUS)"
             );
@@ -172,7 +190,10 @@ impl ReplaySource {
 impl FrameSource for ReplaySource {
     fn next_frame(&mut self) -> Result<Frame, SourceError> {
         loop {
-            let next = self.log.next_frame();
+            let next = match self.first.take() {
+                Some(first) => first,
+                None => self.log.next_frame(),
+            };
             self.note_other();
             match next {
                 Some(Ok(f)) => return Ok(self.release(f)),
@@ -183,11 +204,8 @@ impl FrameSource for ReplaySource {
                     })
                 }
                 None => {
-                    if let Some(line) = self.log.truncated_at() {
-                        tracing::warn!(
-                            "{}:{line}: last line cut short, ignored",
-                            self.path.display()
-                        );
+                    if let Some(cut) = self.log.cut() {
+                        tracing::warn!("{}: {cut}", self.path.display());
                     }
                     // A loop over a log with no frame at all would spin.
                     if self.looping && self.first_of_pass.is_some() {
@@ -233,7 +251,7 @@ impl FrameSource for ReplaySource {
         SourceHealth {
             skipped_frames: self.done.skipped + self.log.order().skipped(),
             time_jumps: self.jumps,
-            other_lines: self.done.other + self.log.other_records().0,
+            other_lines: self.done.other + self.log.other_records(),
             ..SourceHealth::default()
         }
     }
@@ -329,6 +347,45 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(e.contains("none"), "{e}");
+    }
+
+    /// The same log as JSONL and as MCAP: the same frames, bit for bit.
+    #[test]
+    fn mcap_replays_as_jsonl() {
+        let d = tempfile::tempdir().unwrap();
+        let jsonl = write_log(d.path(), 7, 10.0);
+        let mcap = d.path().join("r.mcap");
+        let opts = lightpose_logs::McapOptions {
+            chunk_bytes: 512,
+            ..Default::default()
+        };
+        lightpose_logs::convert(&jsonl, &mcap, None, &opts, |e| panic!("{e}")).unwrap();
+        let all = |p: PathBuf| {
+            let mut s = open(p, Pace::Fast, false).unwrap();
+            let mut v = Vec::new();
+            while let Ok(f) = s.next_frame() {
+                v.push(f);
+            }
+            (v, s.adc_bits(), s.rate_hz())
+        };
+        let (a, b) = (all(jsonl), all(mcap));
+        assert_eq!(a.0.len(), 7);
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn bad_mcap_is_named_with_its_offset() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("g.mcap");
+        let mut bytes = b"\x89MCAP0\r\n".to_vec();
+        bytes.extend_from_slice(b"garbage garbage garbage");
+        std::fs::write(&p, bytes).unwrap();
+        let e = open(p, Pace::Fast, false).err().unwrap().to_string();
+        assert!(
+            e.starts_with(&format!("{}: byte 8: ", d.path().join("g.mcap").display())),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
     }
 
     #[test]

@@ -1,0 +1,142 @@
+//! The live view: the channels of an MCAP recording (frames, estimates,
+//! STATUS, and Foxglove's image, poses and transform) served to Foxglove
+//! over its WebSocket protocol while the daemon runs (`[foxglove]`,
+//! docs/foxglove.md).
+//!
+//! Three stages, so that no client can ever slow a frame:
+//! 1. the frame thread ([`LiveView::emit`]) copies the frame and its
+//!    estimate into a bounded queue whose slots are allocated once, and
+//!    only when some client subscribed to something; a full queue drops
+//!    the frame (counted, `handoff_dropped`);
+//! 2. the encoder thread formats the messages (lightpose-logs' `Encoder`,
+//!    the same bytes as a recording) and hands each to the [`hub::Hub`],
+//!    which puts it into the bounded queue of every subscribed client,
+//!    dropping (and counting) it for a client whose queue is full;
+//! 3. one task per client on the daemon's runtime writes its queue to its
+//!    socket ([`server`]).
+
+pub mod hub;
+pub mod server;
+
+use super::Output;
+use crate::config::Foxglove;
+use crate::engine::Acquired;
+use hub::Hub;
+use lightpose_core::{Frame, LogHeader, PoseEstimate};
+use lightpose_logs::{Encoder, Message};
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+/// Frames that may wait for the encoder thread.
+const HANDOFF_QUEUE: usize = 64;
+
+/// What the frame thread hands over: all Copy.
+#[derive(Clone, Copy)]
+struct Item {
+    frame: Frame,
+    est: PoseEstimate,
+    wall_unix: f64,
+}
+
+/// The frame thread's end of the live view.
+pub struct LiveView {
+    tx: Option<SyncSender<Item>>,
+    hub: Arc<Hub>,
+    join: Option<JoinHandle<()>>,
+}
+
+impl LiveView {
+    /// Start the encoder thread publishing into `hub`; frames are
+    /// formatted as a log of `header` would hold them.
+    pub fn start(hub: Arc<Hub>, header: &LogHeader) -> std::io::Result<LiveView> {
+        let (tx, rx) = sync_channel::<Item>(HANDOFF_QUEUE);
+        let enc = Encoder::new(header, true)?;
+        let h = hub.clone();
+        let join = std::thread::Builder::new()
+            .name("lightposed-live".into())
+            .spawn(move || encode(rx, enc, &h))?;
+        Ok(LiveView {
+            tx: Some(tx),
+            hub,
+            join: Some(join),
+        })
+    }
+}
+
+/// The encoder thread: each frame's and estimate's messages to the hub.
+fn encode(rx: Receiver<Item>, mut enc: Encoder, hub: &Hub) {
+    let mut publish = |m: Message| {
+        hub.publish(&m);
+        Ok(())
+    };
+    while let Ok(item) = rx.recv() {
+        hub.note_frame_t(item.frame.t);
+        // A frame or estimate without a log time (t < 0) has no message:
+        // the recording refuses it the same way.
+        let _ = enc.frame(&item.frame, &mut publish);
+        let _ = enc.pose(&item.est, Some(item.wall_unix), &mut publish);
+    }
+}
+
+impl Output for LiveView {
+    #[inline]
+    fn emit(&mut self, frame: &Acquired, est: &PoseEstimate) {
+        if !self.hub.wanted() {
+            return;
+        }
+        let Some(tx) = &self.tx else { return };
+        let item = Item {
+            frame: frame.frame,
+            est: *est,
+            wall_unix: frame.wall_unix,
+        };
+        if let Err(TrySendError::Full(_)) = tx.try_send(item) {
+            self.hub.handoff_dropped.fetch_add(1, Relaxed);
+        }
+    }
+
+    fn finish(&mut self) {
+        self.tx = None;
+        if let Some(j) = self.join.take() {
+            if j.join().is_err() {
+                tracing::error!("live view encoder thread panicked");
+            }
+        }
+    }
+}
+
+impl Drop for LiveView {
+    fn drop(&mut self) {
+        Output::finish(self);
+    }
+}
+
+/// The live view's parts once started: the hub (for STATUS and the
+/// shutdown), the frame thread's output, the accept task.
+pub struct Live {
+    pub hub: Arc<Hub>,
+    pub output: LiveView,
+    pub server: tokio::task::JoinHandle<()>,
+}
+
+/// Bind `cfg.listen` and start serving; frames are formatted as a log of
+/// `header` would hold them.
+pub async fn start(cfg: &Foxglove, header: &LogHeader) -> std::io::Result<Live> {
+    let listener = tokio::net::TcpListener::bind(cfg.listen).await?;
+    let listen = listener.local_addr()?;
+    let hub = Arc::new(Hub::new(listen));
+    let output = LiveView::start(hub.clone(), header)?;
+    let limits = server::Limits {
+        client_queue: cfg.client_queue,
+        max_clients: cfg.max_clients,
+    };
+    let server = tokio::spawn(server::serve(listener, hub.clone(), limits));
+    tracing::info!("foxglove live view on ws://{listen}");
+    Ok(Live {
+        hub,
+        output,
+        server,
+    })
+}

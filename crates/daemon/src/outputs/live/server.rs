@@ -1,0 +1,330 @@
+//! The server side of Foxglove's WebSocket protocol, the subset a live
+//! view needs (https://github.com/foxglove/ws-protocol, docs/foxglove.md
+//! says why not the `foxglove` crate): the handshake with subprotocol
+//! `foxglove.sdk.v1` or `foxglove.websocket.v1`, then `serverInfo` and
+//! `advertise` (the seven channels of a recording, each with its JSON
+//! Schema), then `subscribe` / `unsubscribe` from the client, and binary
+//! `messageData` frames (opcode 1, subscription id, log time, the JSON)
+//! from the hub. Anything else a client sends is answered with a warning
+//! `status` and otherwise ignored.
+//!
+//! One task per client, on the daemon's runtime: it reads the client's
+//! requests and writes what the hub queued for it. A write that does not
+//! finish within [`STALL`] (a client that stopped reading, a cable pulled)
+//! ends that client; meanwhile its queue fills and the hub drops and
+//! counts its messages.
+
+use super::hub::{Client, Hub};
+use futures_util::{SinkExt, StreamExt};
+use lightpose_logs::schema::{MESSAGE_ENCODING, SCHEMA_ENCODING};
+use lightpose_logs::Channel;
+use serde::Deserialize;
+use serde_json::json;
+use std::net::SocketAddr;
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::mpsc;
+use tokio_tungstenite::tungstenite::handshake::server::{ErrorResponse, Request, Response};
+use tokio_tungstenite::tungstenite::http::{HeaderValue, StatusCode};
+use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
+use tokio_tungstenite::tungstenite::Message as Ws;
+use tokio_tungstenite::WebSocketStream;
+
+/// Subprotocols served, best first: both name protocol v1 with channels
+/// advertised with their schemas inline (the newer name is the SDK's).
+pub const SUBPROTOCOLS: [&str; 2] = ["foxglove.sdk.v1", "foxglove.websocket.v1"];
+
+/// A write that takes longer ends the client.
+pub const STALL: Duration = Duration::from_secs(10);
+/// A handshake that takes longer ends the connection.
+const HANDSHAKE: Duration = Duration::from_secs(5);
+/// Queued messages written before one flush.
+const BATCH: usize = 64;
+/// Largest message a client may send (a subscribe to every channel is
+/// about 300 bytes).
+const REQUEST_LIMIT: usize = 64 << 10;
+
+/// Queue sizes and limits of the server.
+#[derive(Debug, Clone, Copy)]
+pub struct Limits {
+    pub client_queue: usize,
+    pub max_clients: usize,
+}
+
+/// Accept clients on `listener` until the task is aborted.
+pub async fn serve(listener: TcpListener, hub: Arc<Hub>, limits: Limits) {
+    loop {
+        match listener.accept().await {
+            Ok((stream, addr)) => {
+                tokio::spawn(client(stream, addr, hub.clone(), limits));
+            }
+            Err(e) => {
+                // Out of descriptors, say: wait rather than spin.
+                tracing::warn!("foxglove: accept failed: {e}");
+                tokio::time::sleep(Duration::from_millis(200)).await;
+            }
+        }
+    }
+}
+
+/// The subprotocol to answer with, from the client's offer.
+fn choose(req: &Request) -> Option<&'static str> {
+    let offered: Vec<String> = req
+        .headers()
+        .get_all("sec-websocket-protocol")
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(','))
+        .map(|p| p.trim().to_string())
+        .collect();
+    SUBPROTOCOLS
+        .into_iter()
+        .find(|p| offered.iter().any(|o| o == p))
+}
+
+async fn handshake(stream: TcpStream) -> Result<WebSocketStream<TcpStream>, String> {
+    #[allow(clippy::result_large_err)] // tungstenite's callback signature
+    let callback = |req: &Request, mut resp: Response| -> Result<Response, ErrorResponse> {
+        let Some(p) = choose(req) else {
+            let mut e = ErrorResponse::new(Some(format!(
+                "lightposed speaks Foxglove's WebSocket protocol: offer subprotocol {}",
+                SUBPROTOCOLS.join(" or ")
+            )));
+            *e.status_mut() = StatusCode::BAD_REQUEST;
+            return Err(e);
+        };
+        resp.headers_mut()
+            .insert("sec-websocket-protocol", HeaderValue::from_static(p));
+        Ok(resp)
+    };
+    // A client's requests are a few hundred bytes: refuse a flood.
+    let limits = WebSocketConfig::default()
+        .max_message_size(Some(REQUEST_LIMIT))
+        .max_frame_size(Some(REQUEST_LIMIT));
+    let accept = tokio_tungstenite::accept_hdr_async_with_config(stream, callback, Some(limits));
+    match tokio::time::timeout(HANDSHAKE, accept).await {
+        Ok(Ok(ws)) => Ok(ws),
+        Ok(Err(e)) => Err(e.to_string()),
+        Err(_) => Err("handshake timed out".into()),
+    }
+}
+
+/// `serverInfo` and `advertise`, the first two messages of a session.
+pub fn greeting(session: &str) -> [String; 2] {
+    let info = json!({
+        "op": "serverInfo",
+        "name": format!("lightposed {}", env!("CARGO_PKG_VERSION")),
+        "capabilities": [],
+        "metadata": {},
+        "sessionId": session,
+    });
+    let channels: Vec<_> = Channel::ALL
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            json!({
+                "id": i + 1,
+                "topic": c.topic(),
+                "encoding": MESSAGE_ENCODING,
+                "schemaName": c.schema_name(),
+                "schemaEncoding": SCHEMA_ENCODING,
+                "schema": c.schema(),
+            })
+        })
+        .collect();
+    let adv = json!({"op": "advertise", "channels": channels});
+    [info.to_string(), adv.to_string()]
+}
+
+/// What a client may send (the ops a live view needs).
+#[derive(Deserialize)]
+#[serde(tag = "op", rename_all = "camelCase")]
+enum Request_ {
+    Subscribe {
+        subscriptions: Vec<Subscription>,
+    },
+    #[serde(rename_all = "camelCase")]
+    Unsubscribe {
+        subscription_ids: Vec<u32>,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "camelCase")]
+struct Subscription {
+    id: u32,
+    channel_id: u64,
+}
+
+/// A warning `status` message for the client.
+fn warning(msg: &str) -> Ws {
+    Ws::text(json!({"op": "status", "level": 1, "message": msg}).to_string())
+}
+
+/// Act on one text message; a reply when there is something to say.
+fn request(hub: &Hub, c: &Client, text: &str) -> Option<Ws> {
+    match serde_json::from_str::<Request_>(text) {
+        Ok(Request_::Subscribe { subscriptions }) => {
+            let unknown: Vec<u64> = subscriptions
+                .iter()
+                .filter(|s| {
+                    let index = s.channel_id.checked_sub(1).map(|i| i as usize);
+                    !index.is_some_and(|i| i < Channel::ALL.len() && c.subscribe(hub, s.id, i))
+                })
+                .map(|s| s.channel_id)
+                .collect();
+            (!unknown.is_empty()).then(|| warning(&format!("no channel {unknown:?}")))
+        }
+        Ok(Request_::Unsubscribe { subscription_ids }) => {
+            for id in subscription_ids {
+                c.unsubscribe(hub, id);
+            }
+            None
+        }
+        Err(e) => Some(warning(&format!(
+            "not understood (lightposed takes subscribe and unsubscribe): {e}"
+        ))),
+    }
+}
+
+/// Write `first` and whatever else is queued (up to [`BATCH`]), then flush.
+async fn write_batch(
+    ws: &mut WebSocketStream<TcpStream>,
+    rx: &mut mpsc::Receiver<Vec<u8>>,
+    c: &Client,
+    first: Vec<u8>,
+) -> Result<(), String> {
+    let mut n = 1;
+    let write = async {
+        ws.feed(Ws::binary(first)).await?;
+        while n < BATCH {
+            let Ok(more) = rx.try_recv() else { break };
+            ws.feed(Ws::binary(more)).await?;
+            n += 1;
+        }
+        ws.flush().await
+    };
+    match tokio::time::timeout(STALL, write).await {
+        Ok(Ok(())) => {
+            c.sent.fetch_add(n as u64, Relaxed);
+            Ok(())
+        }
+        Ok(Err(e)) => Err(e.to_string()),
+        Err(_) => Err(format!("not reading: a write took more than {STALL:?}")),
+    }
+}
+
+/// One client's session, from the handshake to its end.
+async fn client(stream: TcpStream, addr: SocketAddr, hub: Arc<Hub>, limits: Limits) {
+    let _ = stream.set_nodelay(true);
+    let mut ws = match handshake(stream).await {
+        Ok(ws) => ws,
+        Err(e) => {
+            tracing::info!("foxglove: {addr}: {e}");
+            return;
+        }
+    };
+    let (tx, mut rx) = mpsc::channel(limits.client_queue);
+    let Some(c) = hub.join(addr, tx, limits.max_clients) else {
+        tracing::warn!(
+            "foxglove: {addr} turned away: {} clients already",
+            limits.max_clients
+        );
+        let _ = ws.close(None).await;
+        return;
+    };
+    tracing::info!("foxglove: {addr} connected");
+    let why = session_loop(&mut ws, &mut rx, &hub, &c).await;
+    hub.leave(c.id);
+    let _ = tokio::time::timeout(Duration::from_secs(1), ws.close(None)).await;
+    tracing::info!(
+        "foxglove: {addr} gone ({why}); {} messages sent, {} dropped",
+        c.sent.load(Relaxed),
+        c.dropped.load(Relaxed)
+    );
+}
+
+/// Greet, then serve requests and queued messages until the client or the
+/// hub ends; why it ended.
+async fn session_loop(
+    ws: &mut WebSocketStream<TcpStream>,
+    rx: &mut mpsc::Receiver<Vec<u8>>,
+    hub: &Hub,
+    c: &Client,
+) -> String {
+    for text in greeting(&hub.session) {
+        if let Err(e) = ws.send(Ws::text(text)).await {
+            return e.to_string();
+        }
+    }
+    loop {
+        tokio::select! {
+            msg = ws.next() => match msg {
+                Some(Ok(Ws::Text(t))) => {
+                    if let Some(reply) = request(hub, c, t.as_str()) {
+                        if let Err(e) = ws.send(reply).await {
+                            return e.to_string();
+                        }
+                    }
+                }
+                Some(Ok(Ws::Close(_))) | None => return "closed".into(),
+                Some(Ok(_)) => {} // pings are answered by tungstenite
+                Some(Err(e)) => return e.to_string(),
+            },
+            out = rx.recv() => match out {
+                Some(first) => {
+                    if let Err(e) = write_batch(ws, rx, c, first).await {
+                        return e;
+                    }
+                }
+                None => return "the daemon stops".into(),
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn greeting_advertises_every_channel_with_its_schema() {
+        let [info, adv] = greeting("s1");
+        let info: serde_json::Value = serde_json::from_str(&info).unwrap();
+        assert_eq!(info["op"], "serverInfo");
+        assert_eq!(info["sessionId"], "s1");
+        let adv: serde_json::Value = serde_json::from_str(&adv).unwrap();
+        let ch = adv["channels"].as_array().unwrap();
+        assert_eq!(ch.len(), 7);
+        for (i, c) in ch.iter().enumerate() {
+            assert_eq!(c["id"], i + 1);
+            assert_eq!(c["topic"], Channel::ALL[i].topic());
+            let schema: serde_json::Value =
+                serde_json::from_str(c["schema"].as_str().unwrap()).unwrap();
+            assert_eq!(schema["title"], c["schemaName"]);
+        }
+    }
+
+    #[test]
+    fn requests_subscribe_unsubscribe_and_the_rest_is_warned() {
+        let hub = Hub::new("127.0.0.1:1".parse().unwrap());
+        let (tx, _rx) = mpsc::channel(4);
+        let c = hub.join("127.0.0.1:2".parse().unwrap(), tx, 4).unwrap();
+        let sub = r#"{"op":"subscribe","subscriptions":[{"id":5,"channelId":1},{"id":6,"channelId":9},{"id":7,"channelId":0}]}"#;
+        let reply = request(&hub, &c, sub).expect("a warning for channels 9 and 0");
+        assert!(
+            reply.to_text().unwrap().contains("no channel [9, 0]"),
+            "{reply}"
+        );
+        assert!(hub.wanted());
+        assert!(request(&hub, &c, r#"{"op":"unsubscribe","subscriptionIds":[5]}"#).is_none());
+        assert!(!hub.wanted());
+        let reply = request(&hub, &c, r#"{"op":"advertise","channels":[]}"#).unwrap();
+        assert!(
+            reply.to_text().unwrap().contains("not understood"),
+            "{reply}"
+        );
+    }
+}

@@ -1,0 +1,169 @@
+//! Running a daemon for a test: in-process on its own thread, or the real
+//! binary; collecting its datagrams; the Python of tools/pyenv.sh.
+
+use super::{root, shipped};
+use lightposed::{Config, Publisher};
+use serde_json::Value;
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A config for the simulated tank at `rate` Hz sending to `dests`, plus
+/// `backend_extra` lines in `[backend]` and `extra` TOML appended (tables).
+pub fn sim_config(rate: f64, dests: &[SocketAddr], backend_extra: &str, extra: &str) -> String {
+    let (scene, traj, cal) = shipped();
+    let d: Vec<String> = dests.iter().map(|d| format!("\"{d}\"")).collect();
+    format!(
+        "rate_hz = {rate}\nestimator = \"moments\"\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\n{backend_extra}\n[outputs]\ndestinations = [{}]\nstatus_interval_s = 0.2\n{extra}\n",
+        cal.display(),
+        scene.display(),
+        traj.display(),
+        d.join(", ")
+    )
+}
+
+/// A config replaying `log` as fast as it goes, sending to `dest`.
+pub fn replay_config(log: &Path, dest: SocketAddr) -> String {
+    format!(
+        "rate_hz = 5.0\nestimator = \"moments\"\ncalibration = \"{}\"\n[backend]\nkind = \"replay\"\nlog = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{dest}\"]\n",
+        root().join("config/calibration/tank.toml").display(),
+        log.display()
+    )
+}
+
+/// Every datagram that arrives within `d`, as it came.
+pub fn collect_raw(s: &UdpSocket, d: Duration) -> Vec<Vec<u8>> {
+    let mut out = Vec::new();
+    let mut buf = vec![0u8; 65536];
+    let end = Instant::now() + d;
+    while Instant::now() < end {
+        if let Ok(n) = s.recv(&mut buf) {
+            out.push(buf[..n].to_vec());
+        }
+    }
+    out
+}
+
+/// Every datagram that arrives within `d`, parsed.
+pub fn collect(s: &UdpSocket, d: Duration) -> Vec<Value> {
+    collect_raw(s, d)
+        .iter()
+        .map(|b| serde_json::from_slice(b).expect("every datagram is one JSON object"))
+        .collect()
+}
+
+pub fn of_class<'a>(msgs: &'a [Value], class: &str) -> Vec<&'a Value> {
+    msgs.iter().filter(|v| v["class"] == class).collect()
+}
+
+/// Run the daemon in-process on a thread of its own until `run_for` has
+/// passed or its source ends.
+pub fn run_in_process(
+    cfg: Config,
+    run_for: Duration,
+) -> std::thread::JoinHandle<lightposed::Summary> {
+    std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        rt.block_on(async move {
+            let p = Publisher::open(&cfg.outputs).expect("publisher");
+            lightposed::run(cfg, p, tokio::time::sleep(run_for))
+                .await
+                .expect("daemon runs")
+        })
+    })
+}
+
+/// Start the real binary with `cfg_text` (written into `dir`); wait until
+/// POSE flows to `sub`, and give the datagrams received until then. The
+/// caller owns the child and waits for it.
+#[allow(clippy::zombie_processes)]
+pub fn spawn_daemon(dir: &Path, cfg_text: &str, sub: &UdpSocket) -> (Child, Vec<Vec<u8>>) {
+    let cfg = dir.join("lightposed.toml");
+    std::fs::write(&cfg, cfg_text).expect("write config");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lightposed"))
+        .arg("--config")
+        .arg(&cfg)
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn lightposed");
+    let mut buf = [0u8; 65536];
+    let mut got = Vec::new();
+    let t0 = Instant::now();
+    loop {
+        if t0.elapsed() > Duration::from_secs(10) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("no POSE from the binary within 10 s");
+        }
+        if let Ok(n) = sub.recv(&mut buf) {
+            got.push(buf[..n].to_vec());
+            if serde_json::from_slice::<Value>(&buf[..n]).is_ok_and(|v| v["class"] == "POSE") {
+                return (child, got);
+            }
+        }
+    }
+}
+
+pub fn signal(child: &Child, sig: nix::sys::signal::Signal) {
+    nix::sys::signal::kill(nix::unistd::Pid::from_raw(child.id() as i32), sig).expect("signal");
+}
+
+pub fn wait_exit(child: &mut Child, within: Duration) -> std::process::ExitStatus {
+    let t0 = Instant::now();
+    loop {
+        if let Some(s) = child.try_wait().expect("wait") {
+            return s;
+        }
+        if t0.elapsed() > within {
+            let _ = child.kill();
+            panic!("lightposed did not exit within {within:?}");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// The Python of tools/pyenv.sh (the pinned venv); its one line of
+/// failure fails the test, never a skip.
+pub fn python() -> PathBuf {
+    let out = Command::new(root().join("tools/pyenv.sh"))
+        .output()
+        .expect("tools/pyenv.sh runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr).trim()
+    );
+    PathBuf::from(String::from_utf8_lossy(&out.stdout).trim())
+}
+
+/// Run a Python script with `args`; its stdout (it must succeed, else its
+/// stderr fails the test).
+pub fn run_python(py: &Path, script: &Path, args: &[&std::ffi::OsStr]) -> String {
+    let out = Command::new(py)
+        .arg(script)
+        .args(args)
+        .output()
+        .expect("python runs");
+    assert!(
+        out.status.success(),
+        "{}: {}",
+        script.display(),
+        String::from_utf8_lossy(&out.stderr).trim()
+    );
+    String::from_utf8_lossy(&out.stdout).trim().to_string()
+}
+
+/// The files of `dir` in name order (recordings are named by time and
+/// number, so this is their order).
+pub fn files_in(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .expect("dir")
+        .map(|e| e.expect("entry").path())
+        .collect();
+    v.sort();
+    v
+}

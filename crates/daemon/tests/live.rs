@@ -1,0 +1,218 @@
+//! The live view (`[foxglove]`, issue 15): an independent client (Python
+//! `websockets`, the Foxglove protocol spoken by hand) subscribes and
+//! decodes frames, images and poses, the poses byte for byte the POSE
+//! datagrams; a client that subscribes and never reads costs the frame
+//! thread nothing (its messages are dropped and counted) and another
+//! client is served meanwhile.
+
+mod common;
+use common::run::{collect, collect_raw, python, run_python, sim_config};
+use common::{root, subscriber};
+
+use futures_util::{SinkExt, StreamExt};
+use lightposed::{Config, Publisher};
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::ffi::OsStr;
+use std::net::{SocketAddr, UdpSocket};
+use std::time::{Duration, Instant};
+use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+use tokio_tungstenite::tungstenite::Message as Ws;
+
+/// A daemon in-process on its own thread, stopped when `stop` is sent.
+fn start(
+    text: &str,
+) -> (
+    std::thread::JoinHandle<lightposed::Summary>,
+    tokio::sync::oneshot::Sender<()>,
+) {
+    let cfg = Config::parse(text, "live.toml", None).expect("valid config");
+    let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+    let h = std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        rt.block_on(async move {
+            let p = Publisher::open(&cfg.outputs).expect("publisher");
+            let stop = async move {
+                let _ = rx.await;
+            };
+            lightposed::run(cfg, p, stop).await.expect("daemon runs")
+        })
+    });
+    (h, tx)
+}
+
+/// A TCP port free a moment ago: the config refuses port 0 (a listener
+/// there gets a port nobody knows), so the test asks the kernel for one.
+fn free_tcp_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("probe listener");
+    l.local_addr().expect("probe address").port()
+}
+
+/// The live view's address, from STATUS.
+fn live_addr(sub: &UdpSocket) -> SocketAddr {
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(10) {
+        for v in collect(sub, Duration::from_millis(100)) {
+            if let Some(a) = v["foxglove"]["listen"].as_str() {
+                return a.parse().expect("listen is an address");
+            }
+        }
+    }
+    panic!("no STATUS with foxglove.listen within 10 s");
+}
+
+#[test]
+fn a_python_foxglove_client_decodes_frames_images_and_poses() {
+    let py = python();
+    let (sub, addr) = subscriber();
+    let text = sim_config(
+        100.0,
+        &[addr],
+        "",
+        &format!("[foxglove]\nlisten = \"127.0.0.1:{}\"\n", free_tcp_port()),
+    );
+    let (daemon, stop) = start(&text);
+    let ws = live_addr(&sub);
+    let script = root().join("crates/daemon/tests/foxglove_client.py");
+    let url = format!("ws://{ws}");
+    let out = run_python(&py, &script, &[OsStr::new(&url), OsStr::new("30")]);
+    let mut raw = collect_raw(&sub, Duration::from_millis(400));
+    let _ = stop.send(());
+    let summary = daemon.join().expect("daemon");
+    raw.extend(collect_raw(&sub, Duration::from_millis(300)));
+
+    let got: Value = serde_json::from_str(&out).expect("one JSON object");
+    assert_eq!(got["subprotocol"], "foxglove.websocket.v1");
+    let frames = got["frames"].as_object().expect("frames");
+    let poses = got["poses"].as_object().expect("poses");
+    assert_eq!(frames.len(), 30);
+    assert_eq!(poses.len(), 30, "a pose for every frame");
+    assert!(
+        got["other"]["/lightpose/vehicle_pose"].as_u64() > Some(0),
+        "{got}"
+    );
+    assert!(got["other"]["/lightpose/tf"].as_u64() > Some(0), "{got}");
+    // Each pose is the POSE datagram of its frame, byte for byte.
+    let sent: BTreeMap<String, &[u8]> = raw
+        .iter()
+        .filter_map(|d| {
+            let v: Value = serde_json::from_slice(d).ok()?;
+            (v["class"] == "POSE").then(|| (v["seq"].to_string(), d.as_slice()))
+        })
+        .collect();
+    for (seq, text) in poses {
+        let udp = sent.get(seq).unwrap_or_else(|| panic!("POSE {seq} sent"));
+        assert_eq!(text.as_str().unwrap().as_bytes(), *udp, "pose {seq}");
+    }
+    let last = raw
+        .iter()
+        .rev()
+        .filter_map(|d| serde_json::from_slice::<Value>(d).ok())
+        .find(|v| v["class"] == "STATUS")
+        .expect("STATUS");
+    let fx = &last["foxglove"];
+    assert_eq!(fx["connections"], 1, "{fx}");
+    assert!(fx["sent"].as_u64() >= Some(150), "{fx}");
+    assert!(summary.frames > 30);
+}
+
+/// A client that does the handshake, subscribes to every channel and then
+/// never reads again: its receive buffer is made small so that it fills.
+async fn stuck_client(addr: SocketAddr) -> impl Sized {
+    let sock = socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).unwrap();
+    sock.set_recv_buffer_size(4096).unwrap();
+    sock.connect(&addr.into()).unwrap();
+    sock.set_nonblocking(true).unwrap();
+    let tcp = tokio::net::TcpStream::from_std(sock.into()).unwrap();
+    let (mut ws, _) = tokio_tungstenite::client_async(request(addr), tcp)
+        .await
+        .expect("handshake");
+    for _ in 0..2 {
+        ws.next().await.expect("serverInfo, advertise").unwrap();
+    }
+    ws.send(Ws::text(subscribe_all())).await.unwrap();
+    ws
+}
+
+fn request(addr: SocketAddr) -> tokio_tungstenite::tungstenite::handshake::client::Request {
+    let mut req = format!("ws://{addr}").into_client_request().unwrap();
+    req.headers_mut()
+        .insert("sec-websocket-protocol", "foxglove.sdk.v1".parse().unwrap());
+    req
+}
+
+fn subscribe_all() -> String {
+    let subs: Vec<Value> = (1..=7)
+        .map(|i| serde_json::json!({"id": i, "channelId": i}))
+        .collect();
+    serde_json::json!({"op": "subscribe", "subscriptions": subs}).to_string()
+}
+
+#[test]
+fn a_client_that_never_reads_costs_the_frame_thread_nothing() {
+    let (sub, addr) = subscriber();
+    let text = sim_config(
+        100.0,
+        &[addr],
+        "pace = \"fast\"",
+        &format!(
+            "[foxglove]\nlisten = \"127.0.0.1:{}\"\nclient_queue = 64\n",
+            free_tcp_port()
+        ),
+    );
+    let (daemon, stop) = start(&text);
+    let ws_addr = live_addr(&sub);
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let (received, _stuck) = rt.block_on(async {
+        let stuck = stuck_client(ws_addr).await;
+        // A client that reads everything, beside it.
+        let tcp = tokio::net::TcpStream::connect(ws_addr).await.unwrap();
+        let (mut good, _) = tokio_tungstenite::client_async(request(ws_addr), tcp)
+            .await
+            .unwrap();
+        for _ in 0..2 {
+            good.next().await.unwrap().unwrap();
+        }
+        good.send(Ws::text(subscribe_all())).await.unwrap();
+        let mut n = 0u64;
+        let end = Instant::now() + Duration::from_millis(1500);
+        while Instant::now() < end {
+            match tokio::time::timeout(Duration::from_millis(100), good.next()).await {
+                Ok(Some(Ok(Ws::Binary(b)))) => {
+                    assert_eq!(b[0], 1, "messageData");
+                    n += 1;
+                }
+                Ok(Some(Ok(_))) | Err(_) => {}
+                Ok(other) => panic!("good client ended: {other:?}"),
+            }
+        }
+        (n, stuck)
+    });
+    let status = collect(&sub, Duration::from_millis(300))
+        .iter()
+        .rev()
+        .find(|v| v["class"] == "STATUS")
+        .cloned()
+        .expect("STATUS");
+    let _ = stop.send(());
+    let summary = daemon.join().expect("daemon");
+    // The good client has gone by now; the stuck one is still there,
+    // its messages dropped and counted.
+    let fx = &status["foxglove"];
+    assert_eq!(fx["connections"], 2, "{fx}");
+    let list = fx["client_list"].as_array().expect("client_list");
+    assert_eq!(list.len(), 1, "{fx}");
+    assert_eq!(list[0]["subscriptions"], 7, "{fx}");
+    assert!(
+        list[0]["dropped"].as_u64() > Some(1000),
+        "the stuck client: {fx}"
+    );
+    assert!(received > 1000, "the good client got {received} messages");
+    // The frame thread ran free all along: many thousands of frames, none
+    // failed or lost.
+    assert!(summary.frames > 5000, "{summary:?}");
+    assert_eq!((summary.failed, summary.lost), (0, 0));
+}
