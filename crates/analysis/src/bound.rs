@@ -27,7 +27,8 @@ pub fn sensor_of(s: &Scene) -> SensorModel {
 }
 
 /// The bound's view of `s`: spreads of `[montecarlo]` (a zero spread means
-/// known exactly) and the `[attitude]` sensor when present.
+/// known exactly) and the `[attitude]` and `[depth]` sensors when present
+/// (a `[dvl]` adds nothing to one frame's bound).
 pub fn crb_scene(s: &Scene) -> CrbScene {
     CrbScene {
         model: sensor_of(s),
@@ -35,6 +36,7 @@ pub fn crb_scene(s: &Scene) -> CrbScene {
         sigma_k_d: Some(s.montecarlo.sigma_k_d).filter(|v| *v > 0.0),
         sigma_temp_c: Some(s.montecarlo.sigma_temp_c).filter(|v| *v > 0.0),
         attitude_sigma: s.attitude.map(|n| (n.sigma_pitch, n.sigma_yaw)),
+        depth_sigma: s.depth.map(|d| d.sigma_m),
     }
 }
 

@@ -9,10 +9,11 @@
 //! `seed` on stream `i`, writes into its own slot of a preallocated buffer,
 //! and every reduction runs afterwards in index order.
 
+pub use crate::axis::{Axis, AXES, NAXES};
 use crate::stats::{self, Coverage, StepStats};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use lightpose_core::{Estimator, Pose, PoseEstimate};
-use lightpose_sim::{Scene, Simulator, Trajectory};
+use lightpose_core::Estimator;
+use lightpose_sim::{Kinematics, Scene, Simulator, Trajectory};
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -20,73 +21,6 @@ use rayon::prelude::*;
 use std::io::IsTerminal;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
-
-/// The quantities an estimate is judged on, in the order of every table.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Axis {
-    X,
-    Y,
-    Z,
-    Pitch,
-    Yaw,
-    Surge,
-}
-
-pub const NAXES: usize = 6;
-pub const AXES: [Axis; NAXES] = [
-    Axis::X,
-    Axis::Y,
-    Axis::Z,
-    Axis::Pitch,
-    Axis::Yaw,
-    Axis::Surge,
-];
-
-impl Axis {
-    /// Column prefix in the CSV and name in tables.
-    pub fn name(self) -> &'static str {
-        match self {
-            Axis::X => "x",
-            Axis::Y => "y",
-            Axis::Z => "z",
-            Axis::Pitch => "pitch",
-            Axis::Yaw => "yaw",
-            Axis::Surge => "surge",
-        }
-    }
-    pub fn unit(self) -> &'static str {
-        match self {
-            Axis::X | Axis::Y | Axis::Z => "m",
-            Axis::Pitch | Axis::Yaw => "°",
-            Axis::Surge => "m/s",
-        }
-    }
-    pub fn index(self) -> usize {
-        self as usize
-    }
-    /// The estimate's value of this axis (angles in degrees).
-    fn of(self, e: &PoseEstimate) -> Option<f64> {
-        match self {
-            Axis::X => e.x,
-            Axis::Y => e.y,
-            Axis::Z => e.z,
-            Axis::Pitch => e.pitch_deg,
-            Axis::Yaw => e.yaw_deg,
-            Axis::Surge => e.surge,
-        }
-    }
-    /// The estimate's own 1σ for this axis, if it reports one.
-    fn std_of(self, e: &PoseEstimate) -> Option<f64> {
-        match self {
-            Axis::X => e.std.x,
-            Axis::Y => e.std.y,
-            Axis::Z => e.std.z,
-            Axis::Pitch => e.std.pitch,
-            Axis::Yaw => e.std.yaw,
-            Axis::Surge => e.std.surge,
-        }
-    }
-}
 
 #[derive(Debug, thiserror::Error)]
 pub enum McError {
@@ -235,10 +169,14 @@ where
         .name()
         .to_string();
 
-    let truth_pose: Vec<(Pose, f64)> = times.iter().map(|&t| cfg.trajectory.sample(t)).collect();
-    let truth: Vec<[f64; NAXES]> = truth_pose
+    // The whole motion, so that a DVL reads sideslip and heave too.
+    let kinematics: Vec<Kinematics> = times
         .iter()
-        .map(|(p, s)| p.values_with_surge(*s))
+        .map(|&t| cfg.trajectory.kinematics(t))
+        .collect();
+    let truth: Vec<[f64; NAXES]> = kinematics
+        .iter()
+        .map(|k| k.pose.values_with_surge(k.surge()))
         .collect();
     let nsteps = times.len();
     let per_run = nsteps * NAXES;
@@ -268,7 +206,8 @@ where
                             cfg,
                             i as u64,
                             &times,
-                            &truth_pose,
+                            &kinematics,
+                            &truth,
                             est.as_mut(),
                             vals,
                             oks,
@@ -318,7 +257,8 @@ fn realization(
     cfg: &McConfig,
     index: u64,
     times: &[f64],
-    truth: &[(Pose, f64)],
+    kinematics: &[Kinematics],
+    truth: &[[f64; NAXES]],
     est: &mut dyn Estimator,
     vals: &mut [f64],
     oks: &mut [bool],
@@ -347,11 +287,10 @@ fn realization(
     sim.set_reported_temp(Some(nominal.temp_c));
 
     est.reset();
-    for (j, (&t, (pose, surge))) in times.iter().zip(truth).enumerate() {
-        let frame = sim.frame(j as u64, t, pose, Some(*surge));
+    for (j, ((&t, k), tr)) in times.iter().zip(kinematics).zip(truth).enumerate() {
+        let frame = sim.frame_moving(j as u64, t, k);
         let e = est.estimate(&frame);
         oks[j] = e.status == lightpose_core::Status::Ok;
-        let tr = pose.values_with_surge(*surge);
         for a in AXES {
             let k = j * NAXES + a.index();
             let v = a.of(&e).filter(|v| v.is_finite());

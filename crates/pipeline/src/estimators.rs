@@ -73,7 +73,7 @@ pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimato
         "tracker" => {
             let m = physical(cal, resolved)?.sensor_model();
             let e = Tracker::new(m, settings.tracker).map_err(|e| config(e.to_string()))?;
-            Ok(Box::new(e))
+            Ok(Box::new(e.with_paper(cal)))
         }
         _ => Err(BuildError::Unknown {
             name: name.to_string(),

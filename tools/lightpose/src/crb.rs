@@ -2,26 +2,30 @@
 //! row per frame — the limit every estimator is held against (docs/
 //! estimators.md). Thin: the bound is `lightpose_analysis::bound`.
 
-use crate::cells::{num, Z95};
+use anyhow::Context;
 use lightpose_analysis::bound::along_trajectory;
-use lightpose_sim::{AttitudeNoise, Scene, Trajectory};
+use lightpose_analysis::sensors::SensorSet;
+use lightpose_analysis::trade::{num, Z95};
+use lightpose_sim::{Scene, Trajectory};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct CrbArgs {
     /// Scene file (TOML): its sensor, its [montecarlo] spreads (K_D and
-    /// temperature the estimator does not know) and its [attitude] sensor.
+    /// temperature the estimator does not know) and its own sensors
+    /// ([attitude], [depth], [dvl]).
     #[arg(long)]
     scene: PathBuf,
     /// Trajectory knots (CSV: t,x,y,z,pitch,yaw); one row per frame at the
     /// scene's ADC rate.
     #[arg(long)]
     trajectory: PathBuf,
-    /// Attitude sensor: as the scene says, on (MODEL.md's 0.3° pitch, 1.5°
-    /// yaw when the scene has none) or off.
-    #[arg(long, default_value = "scene", value_parser = ["scene", "on", "off"])]
-    attitude: String,
+    /// The vehicle's own sensors: as the scene says, or none, attitude,
+    /// depth, attitude+depth, all (a sensor the scene lacks gets MODEL.md's
+    /// noise). A DVL adds nothing to one frame's bound.
+    #[arg(long, default_value = "scene")]
+    sensors: String,
     /// Print the 95 % half-width (1.96σ) instead of 1σ.
     #[arg(long)]
     half_width: bool,
@@ -33,10 +37,15 @@ pub struct CrbArgs {
 pub fn run(a: CrbArgs) -> anyhow::Result<()> {
     let mut scene = Scene::load(&a.scene)?;
     let traj = Trajectory::load(&a.trajectory)?;
-    match a.attitude.as_str() {
-        "off" => scene.attitude = None,
-        "on" if scene.attitude.is_none() => scene.attitude = Some(AttitudeNoise::default()),
-        _ => {}
+    if a.sensors != "scene" {
+        SensorSet::parse(&a.sensors)
+            .with_context(|| {
+                format!(
+                    "--sensors {}: scene, none, attitude, depth, attitude+depth or all",
+                    a.sensors
+                )
+            })?
+            .apply(&mut scene);
     }
     let steps = along_trajectory(&scene, &traj);
     let every = a.every.max(1);
@@ -45,13 +54,24 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
     } else {
         (1.0, "1σ")
     };
-    let sensor = match scene.attitude {
-        Some(n) => format!(
+    let mut own = Vec::new();
+    if let Some(n) = scene.attitude {
+        own.push(format!(
             "attitude sensor {:.2}° pitch, {:.2}° yaw",
             n.sigma_pitch.deg(),
             n.sigma_yaw.deg()
-        ),
-        None => "no attitude sensor".into(),
+        ));
+    }
+    if let Some(d) = scene.depth {
+        own.push(format!("depth sensor {} m", d.sigma_m));
+    }
+    if scene.dvl.is_some() {
+        own.push("DVL (adds nothing to one frame)".into());
+    }
+    let sensor = if own.is_empty() {
+        "no own sensor".to_string()
+    } else {
+        own.join(", ")
     };
     let mut out = String::new();
     let _ = writeln!(
