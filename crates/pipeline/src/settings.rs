@@ -179,18 +179,18 @@ pub struct TrackerConfig {
     pub estimate_k_d: bool,
     /// Estimate K_D from the first DVL reading on: the DVL gives the
     /// change of range independently of the light, so the brightness
-    /// along the track measures K_D (with all three sensors x's ±2σ
-    /// covered 87–88 % with K_D held, 93 % estimated; docs/estimators.md).
+    /// along the track measures K_D. Off by default: in water whose K_D
+    /// is the calibration's it costs range accuracy early in a run (the
+    /// estimate wanders within K_D's doubt until the track has covered a
+    /// few metres); in other water it gains a lot (docs/estimators.md).
     /// Not with `k_d_sigma = 0` (K_D known exactly).
     pub estimate_k_d_with_velocity: bool,
-    /// 1σ of K_D about the calibration's value, m⁻¹: the filter's prior
-    /// when K_D is estimated, else added to the reported x std (0: known).
+    /// 1σ of K_D about the calibration's value, m⁻¹ (0: known exactly):
+    /// the filter's prior when K_D is estimated, else the doubt of a
+    /// consider state (carried in P, K_D itself never moved).
     pub k_d_sigma: f64,
     /// Random-walk density of K_D, (m⁻¹)²/s.
     pub k_d_walk_psd: f64,
-    /// K_D held fixed and a frame without an attitude reading: add
-    /// k_d_sigma's effect on the counts to their covariance (see `update`).
-    pub k_d_consider_without_attitude: bool,
     /// Say `unobservable`, not `ok`, on a frame without an attitude
     /// reading. Off by default: with the body motion model, the
     /// sigma-point update and the beam term in σx, the std of every field
@@ -300,10 +300,9 @@ impl Default for TrackerConfig {
             accel_psd: 0.005,
             ang_accel_psd_deg: 20.0,
             estimate_k_d: false,
-            estimate_k_d_with_velocity: true,
+            estimate_k_d_with_velocity: false,
             k_d_sigma: 0.015,
             k_d_walk_psd: 1e-6,
-            k_d_consider_without_attitude: true,
             flag_unobservable: false,
             sigma_points_without_attitude: true,
             motion: Motion::Body,
@@ -327,7 +326,7 @@ impl Default for TrackerConfig {
             start_both_ways: true,
             init_lateral_sigma_deg: Some(6.0),
             paper_range: true,
-            paper_range_sigma_scale: 0.75,
+            paper_range_sigma_scale: 0.5,
             x_range: [3.0, 12.0],
             init_frames: 5,
             update_iterations: 1,

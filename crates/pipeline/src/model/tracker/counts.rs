@@ -62,29 +62,14 @@ impl Tracker {
         }
     }
 
-    /// The (pose, K_D) block of the covariance the sigma points span, with
-    /// K_D either a state or a consider parameter independent of the state.
-    fn sigma_block(&self, s: &State) -> Pm {
-        let mut pm = Pm::zeros();
-        for a in 0..5 {
-            for b in 0..5 {
-                pm[(a, b)] = s.p[(a, b)];
-            }
-        }
-        let kd_var = if s.k_d_free {
-            for a in 0..5 {
-                pm[(a, 5)] = s.p[(a, KD)];
-                pm[(5, a)] = s.p[(KD, a)];
-            }
-            s.p[(KD, KD)]
-        } else if self.cfg.k_d_consider_without_attitude {
-            self.cfg.k_d_sigma * self.cfg.k_d_sigma
-        } else {
-            0.0
-        };
+    /// The (pose, K_D) block of the covariance the sigma points span: K_D's
+    /// doubt is in P whether it is estimated or considered.
+    fn sigma_block(s: &State) -> Pm {
+        let idx = [0, 1, 2, 3, 4, KD];
+        let mut pm = Pm::from_fn(|a, b| s.p[(idx[a], idx[b])]);
         // A K_D known exactly still needs a positive pivot; its columns
         // then evaluate to nothing.
-        pm[(5, 5)] = kd_var.max(1e-18);
+        pm[(5, 5)] = pm[(5, 5)].max(1e-18);
         pm
     }
 
@@ -137,7 +122,7 @@ impl Tracker {
     fn update_sigma(&self, s: &mut State, inp: &CountsInput) -> bool {
         let m = &self.model;
         let fs = m.full_scale();
-        let Some(chol) = self.sigma_block(s).cholesky() else {
+        let Some(chol) = Self::sigma_block(s).cholesky() else {
             return REFUSED;
         };
         let l = chol.l();
@@ -173,24 +158,21 @@ impl Tracker {
         }
         // Cross-covariance of the whole state with the counts:
         // P[:, idx]·L⁻ᵀ·S1ᵀ (exact for the rates, which the counts see only
-        // through the pose). A consider K_D has no covariance with the state.
-        let mut pcols = SMatrix::<f64, NS, NP>::zeros();
-        for a in 0..NS {
-            for b in 0..5 {
-                pcols[(a, b)] = s.p[(a, b)];
-            }
-            if s.k_d_free {
-                pcols[(a, 5)] = s.p[(a, KD)];
-            }
-        }
+        // through the pose and K_D).
+        let idx = [0, 1, 2, 3, 4, KD];
+        let pcols = SMatrix::<f64, NS, NP>::from_fn(|a, b| s.p[(a, idx[b])]);
         // A = P[:, idx]·L⁻ᵀ, i.e. L·Aᵀ = P[idx, :].
         let Some(at) = l.solve_lower_triangular(&pcols.transpose()) else {
             return REFUSED;
         };
         let pxz = at.transpose() * sp.s1.transpose();
-        let k = pxz * cs.inverse();
+        let mut k = pxz * cs.inverse();
+        s.consider(&mut k);
         let xn = s.x + k * y;
-        let pn = s.p - k * pzz * k.transpose();
+        // The general form: the gain may be the optimal one with K_D's row
+        // cut (a consider K_D), for which P − K·Pzz·Kᵀ would be wrong.
+        let kpxz = k * pxz.transpose();
+        let pn = s.p - kpxz - kpxz.transpose() + k * pzz * k.transpose();
         if !commit(s, xn, pn) {
             return REFUSED;
         }
@@ -233,20 +215,7 @@ impl Tracker {
         let mut last: Option<(Hm, SMatrix<f64, NDET, NDET>, SMatrix<f64, NS, NDET>)> = None;
         for it in 0..self.cfg.update_iterations {
             let (h, y, rd, n_used) = self.counts_linearized(&xi, inp);
-            let mut r = SMatrix::<f64, NDET, NDET>::from_diagonal(&rd);
-            // Without a reading that pins the attitude, K_D's doubt belongs
-            // in the counts' covariance (a consider term, rank one): a K_D
-            // error dims the whole spot much as a move along the y/yaw or
-            // z/pitch ridge does, and ignoring it let each frame claim
-            // ridge information it does not hold (±2σ coverage 43–80 % in
-            // lightpose bench, 77–98 % with this term). With the reading
-            // the ridge is pinned and the term only double-counts what the
-            // reported σx already carries, so it is not added there.
-            if !inp.pinned && self.cfg.k_d_consider_without_attitude && !s.k_d_free {
-                let sk2 = self.cfg.k_d_sigma * self.cfg.k_d_sigma;
-                let g = h.column(KD).into_owned();
-                r += g * g.transpose() * sk2;
-            }
+            let r = SMatrix::<f64, NDET, NDET>::from_diagonal(&rd);
             // IEKF: innovation about the linearization point.
             let innov = y - h * (xbar - xi);
             let sm = h * pbar * h.transpose() + r;
@@ -259,7 +228,8 @@ impl Tracker {
                     return REFUSED;
                 }
             }
-            let k = pbar * h.transpose() * ch.inverse();
+            let mut k = pbar * h.transpose() * ch.inverse();
+            s.consider(&mut k);
             let xn = xbar + k * innov;
             if !xn.iter().all(|v| v.is_finite()) {
                 return REFUSED;

@@ -44,7 +44,7 @@ use lightpose_core::{
 use self::counts::CountsInput;
 use self::readings::{gate_thresholds, FrameReadings};
 use self::state::{beam_consider_sigma_x, State, Vs, KD, VEL};
-use crate::model::single_frame::{k_d_consider_sigma_x, ModelEstimator, WATER_TEMP_C};
+use crate::model::single_frame::{ModelEstimator, WATER_TEMP_C};
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
 use crate::paper::MomentsEstimator;
@@ -216,16 +216,18 @@ impl Tracker {
             }
         };
         e.surge = lightpose_core::finite(surge);
-        // K_D held at the calibrated value: its doubt still belongs in σx
-        // (see `k_d_consider_sigma_x`); estimated, it is in P already.
-        let kd_x = if s.k_d_free {
-            0.0
-        } else {
-            k_d_consider_sigma_x(x[0], x[KD], self.cfg.k_d_sigma)
+        // K_D's doubt is in P (estimated or considered), x–K_D covariance
+        // and all, so σx needs no term of its own for it.
+        // With the paper's range in x, its error is a bias that frames do
+        // not average away (its on-axis law, off the axis): σx holds the
+        // law's residual over the calibration grid whole, in place of the
+        // beam term (the same off-axis dimming, already in that residual).
+        let beam_x = match s.paper_x {
+            Some(sm) => sm,
+            None => beam_consider_sigma_x(x, p, self.model.light.sigma_b.rad()),
         };
-        let beam_x = beam_consider_sigma_x(x, p, self.model.light.sigma_b.rad());
         e.std = StdDev {
-            x: sd(0).map(|s| s.hypot(kd_x).hypot(beam_x)),
+            x: sd(0).map(|s| s.hypot(beam_x)),
             y: sd(1),
             z: sd(2),
             pitch: sd(3).map(f64::to_degrees),
@@ -281,17 +283,23 @@ impl Estimator for Tracker {
         let uses = self.update_readings(&mut s, &readings);
         // A DVL ties successive ranges together independently of the
         // light, so the brightness along the track measures K_D (Beer's
-        // law): from the first velocity reading on, K_D is a state.
-        if !s.k_d_free
-            && self.cfg.estimate_k_d_with_velocity
+        // law): optionally, from the first velocity reading on, K_D is
+        // estimated (its doubt so far is already in P).
+        if self.cfg.estimate_k_d_with_velocity
             && self.cfg.k_d_sigma > 0.0
             && uses[2] == ReadingUse::Used
         {
-            s.free_k_d(self.cfg.k_d_sigma);
+            s.k_d_free = true;
         }
+        s.paper_x = None;
         if uses[0] != ReadingUse::Used {
             if let Some(c) = self.paper_range(frame) {
-                self.update_paper_range(&mut s, &c);
+                if self.update_paper_range(&mut s, &c) == ReadingUse::Used {
+                    s.paper_x = self
+                        .paper
+                        .as_ref()
+                        .map(|p| p.sigma_m * self.cfg.paper_range_sigma_scale);
+                }
             }
         }
         if self.lost_to_readings(&mut s, &uses) {

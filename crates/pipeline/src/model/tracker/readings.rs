@@ -223,7 +223,8 @@ fn fuse<const M: usize>(
     if !(nis <= gate) {
         return ReadingUse::Refused(Refusal::Gate);
     }
-    let k = s.p * lin.jac.transpose() * ch.inverse();
+    let mut k = s.p * lin.jac.transpose() * ch.inverse();
+    s.consider(&mut k);
     let ikh = Ms::identity() - k * lin.jac;
     let p = ikh * s.p * ikh.transpose() + k * rm * k.transpose();
     let x = s.x + k * y;

@@ -209,10 +209,14 @@ impl Tracker {
         }
         x[KD] = self.model.light.k_d;
         let mut s = State::new(x, p, frame.t);
+        s.paper_x = paper_x.and(
+            self.paper
+                .as_ref()
+                .map(|p| p.sigma_m * c.paper_range_sigma_scale),
+        );
+        s.doubt_k_d(c.k_d_sigma);
         let with_velocity = c.estimate_k_d_with_velocity && r.velocity.ready().is_some();
-        if c.estimate_k_d || (with_velocity && c.k_d_sigma > 0.0) {
-            s.free_k_d(c.k_d_sigma);
-        }
+        s.k_d_free = c.estimate_k_d || (with_velocity && c.k_d_sigma > 0.0);
         if !s.is_finite() {
             return Err(Status::Diverged);
         }

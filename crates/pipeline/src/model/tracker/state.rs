@@ -26,9 +26,15 @@ pub(super) struct State {
     /// Per reading (attitude, depth, velocity): readings in a row that the
     /// innovation gate refused.
     pub gated: [u32; 3],
-    /// K_D is a state of the filter (else held at the calibration's value,
-    /// its doubt a consider parameter).
+    /// K_D is estimated. Otherwise it is a *consider* state (Schmidt):
+    /// its doubt and its covariance with the rest are carried in P, so every
+    /// σ includes what K_D's doubt does to it, but no update moves K_D away
+    /// from the calibration's value.
     pub k_d_free: bool,
+    /// The paper's range went into this frame's x, with this 1σ of its
+    /// error (the law's residual over the calibration grid): see
+    /// `Tracker::to_estimate`.
+    pub paper_x: Option<f64>,
 }
 
 impl State {
@@ -41,6 +47,7 @@ impl State {
             rejected: 0,
             gated: [0; 3],
             k_d_free: false,
+            paper_x: None,
         }
     }
 
@@ -49,14 +56,14 @@ impl State {
         self.x.iter().all(|v| v.is_finite()) && self.p.iter().all(|v| v.is_finite())
     }
 
-    /// Make K_D a state with 1σ `sigma_k_d` about its current value. The
-    /// range so far was estimated with K_D held, so it is only as good as
-    /// that value: brightness ∝ e^(−K_D·x)/x² pins K_D·x + 2·ln x, i.e.
+    /// Give K_D the doubt `sigma_k_d` (1σ) about its current value in P. The
+    /// range so far was found with K_D at that value, so it is only as good
+    /// as that value: brightness ∝ e^(−K_D·x)/x² pins K_D·x + 2·ln x, i.e.
     /// δx = −x·δK_D/(K_D + 2/x), which goes in as the x–K_D covariance.
     /// Without it the filter took x as known to its σ and K_D as an
     /// independent doubt, and x's ±2σ covered 51–79 % with the attitude
     /// sensor (ridge_diag, estimate_k_d = true).
-    pub fn free_k_d(&mut self, sigma_k_d: f64) {
+    pub fn doubt_k_d(&mut self, sigma_k_d: f64) {
         let sk2 = sigma_k_d * sigma_k_d;
         let r = self.x[0].max(0.1);
         let g = -r / (self.x[KD].max(0.0) + 2.0 / r);
@@ -68,7 +75,14 @@ impl State {
         self.p[(0, 0)] += g * g * sk2;
         self.p[(0, KD)] = g * sk2;
         self.p[(KD, 0)] = g * sk2;
-        self.k_d_free = true;
+    }
+
+    /// A Kalman gain as this state may apply it: with K_D a consider state,
+    /// its row is zero (K_D stays; the Joseph form then keeps P honest).
+    pub fn consider<const M: usize>(&self, k: &mut SMatrix<f64, NS, M>) {
+        if !self.k_d_free {
+            k.row_mut(KD).fill(0.0);
+        }
     }
 
     /// 1σ of state component `i`.

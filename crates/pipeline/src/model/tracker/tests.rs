@@ -92,7 +92,9 @@ fn tracks_zigzag_with_attitude_sensor_honestly() {
 /// the sigma-point update keeps the filter from claiming ridge
 /// information the counts do not hold, and σx carries the beam's even
 /// dependence on the ridge: the std covers the truth (it did 40–60 %
-/// with the plain EKF) and frames say `ok`.
+/// with the plain EKF) and frames say `ok`. This is the tracker on its
+/// own: without a calibration it has no paper's range to lean on (the
+/// `auto` estimator has; docs/estimators.md).
 #[test]
 fn tracks_zigzag_without_attitude_sensor_with_honest_std() {
     let (cover, rms) = run(TrackerConfig::default(), None, 40);
@@ -100,13 +102,14 @@ fn tracks_zigzag_without_attitude_sensor_with_honest_std() {
     for c in &cover {
         assert!(*c >= 0.9, "coverage {cover:?}");
     }
-    // Measured: x 0.52 m (range pays for the ridge's doubt through the
-    // beam factor), y 0.26 m, z 0.20 m, pitch 2.1°, yaw 2.7°, surge
-    // 0.15 m/s (world-velocity EKF: 0.25, 0.35, 0.27 m, 2.8°, 3.6°,
-    // 0.21 m/s).
-    assert!(rms[0] < 0.6 && rms[5] < 0.2, "{rms:?}");
+    // Measured: x 0.62 m (range pays for the ridge's doubt through the
+    // beam factor, and for K_D's, carried in P since K_D became a
+    // consider state: 0.52 m before), y 0.26 m, z 0.26 m, pitch 3.0°, yaw
+    // 2.8°, surge 0.28 m/s (0.15 before; world-velocity EKF: 0.25, 0.35,
+    // 0.27 m, 2.8°, 3.6°, 0.21 m/s).
+    assert!(rms[0] < 0.7 && rms[5] < 0.35, "{rms:?}");
     assert!(rms[1] < 0.35 && rms[2] < 0.3, "{rms:?}");
-    assert!(rms[3] < 3.0 && rms[4] < 3.5, "{rms:?}");
+    assert!(rms[3] < 3.5 && rms[4] < 3.5, "{rms:?}");
 }
 
 /// With K_D estimated, the water's K_D differs from the calibration's
