@@ -29,7 +29,7 @@ mkdir -p "$W"
 $L sweep --scene $H/tank.toml --out "$W/sweep.jsonl" --seed 31 2>/dev/null
 $L sweep --scene $H/tank.toml --out "$W/dark.jsonl" --kind dark --seed 32 2>/dev/null
 $L calibrate --sweep "$W/sweep.jsonl" --dark "$W/dark.jsonl" --out "$W/cal.toml" >"$W/calibrate.txt" 2>&1
-kd_std=$(awk '/^\[physical.k_d\]/{f=1} f && /^std/{print $3; exit}' "$W/cal.toml")
+kd_std=$(awk '/^\[physical.k_d\]/{f=1} f && /^std/{printf "%.1e", $3; exit}' "$W/cal.toml")
 cp "$W/cal.toml" "$W/cal-same-water.toml"
 printf '\n[estimator.tracker]\nk_d_sigma = %s\n' "$kd_std" >>"$W/cal-same-water.toml"
 
