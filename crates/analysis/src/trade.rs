@@ -16,13 +16,14 @@
 //! estimator's cost.
 
 use crate::axis::{Axis, AXES};
-use crate::bound::crb_scene;
+use crate::bound::{crb_scene, track_bound_along};
 use crate::montecarlo::{self, McConfig, McError, McResult};
 use crate::paper::{Figure, PaperCase};
 use crate::report::headline;
 use crate::sensors::SensorSet;
 use lightpose_core::{Estimator, Frame};
 use lightpose_pipeline::model::crb::{crb_along, CrbBound};
+use lightpose_pipeline::model::tracker::TrackBound;
 use lightpose_pipeline::{build_estimator, BuildError, Calibration};
 use lightpose_sim::{Scene, Simulator, Trajectory};
 use std::fmt::Write as _;
@@ -158,6 +159,9 @@ pub struct Section {
     pub rows: Vec<Row>,
     pub skipped: Vec<String>,
     pub crb: Vec<CrbBound>,
+    /// The bound for a tracker (the tracker's motion model, the whole
+    /// track) at the last frame, when the calibration has a light model.
+    pub track_end: Option<TrackBound>,
 }
 
 /// Median wall time per frame of `est` over the simulated realizations
@@ -225,6 +229,10 @@ pub fn run_section(
         .map(|&t| traj.sample(t).0)
         .collect();
     let crb = crb_along(&crb_scene(&scene), &ends);
+    let settings = l.calibration.estimator.clone().unwrap_or_default();
+    let track_end = track_bound_along(&scene, traj, &settings.tracker)
+        .ok()
+        .and_then(|b| b.last().copied());
     let timing = simulate_runs(&scene, traj, o.timing_runs.max(1), o.seed);
     let cfg = McConfig {
         scene,
@@ -239,6 +247,7 @@ pub fn run_section(
         rows: Vec::new(),
         skipped: Vec::new(),
         crb,
+        track_end,
     };
     for name in &o.estimators {
         let build = || build_estimator(name, &l.calibration);
@@ -287,6 +296,17 @@ pub fn num(v: Option<f64>) -> String {
     }
 }
 
+fn track_of(b: &TrackBound, a: Axis) -> f64 {
+    match a {
+        Axis::X => b.x,
+        Axis::Y => b.y,
+        Axis::Z => b.z,
+        Axis::Pitch => b.pitch_deg,
+        Axis::Yaw => b.yaw_deg,
+        Axis::Surge => b.surge,
+    }
+}
+
 fn crb_of(b: &CrbBound, a: Axis) -> Option<f64> {
     match a {
         Axis::X => Some(b.x),
@@ -321,18 +341,19 @@ pub fn table(sec: &Section) -> String {
     );
     let _ = writeln!(
         o,
-        "| estimator | µs/frame | axis | final nominal error | 95% start | 95% end | paper 95% start → end | ±2σ coverage | CRB 95% start | CRB 95% end |"
+        "| estimator | µs/frame | axis | final nominal error | 95% start | 95% end | paper 95% start → end | ±2σ coverage | CRB 95% start | CRB 95% end | tracker bound 95% end |"
     );
-    let _ = writeln!(o, "|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(o, "|---|---|---|---|---|---|---|---|---|---|---|");
     for r in &sec.rows {
         for a in AXES {
             let h = headline(&r.mc, a);
             let cov = r.mc.coverage[a.index()].map(|c| format!("{:.1}%", 100.0 * c.fraction()));
             let c0 = sec.crb.first().and_then(|b| crb_of(b, a)).map(|s| Z95 * s);
             let c1 = sec.crb.last().and_then(|b| crb_of(b, a)).map(|s| Z95 * s);
+            let tb = sec.track_end.map(|b| Z95 * track_of(&b, a));
             let _ = writeln!(
                 o,
-                "| {} | {} | {} ({}) | {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} ({}) | {} | {} | {} | {} | {} | {} | {} | {} |",
                 r.name,
                 num(Some(r.us_per_frame)),
                 a.name(),
@@ -344,15 +365,19 @@ pub fn table(sec: &Section) -> String {
                 cov.unwrap_or_else(|| "—".into()),
                 num(c0),
                 num(c1),
+                num(tb),
             );
         }
     }
-    if sec.sensors.dvl {
-        let _ = writeln!(
-            o,
-            "\nCRB columns: one frame's bound with attitude and depth; the DVL adds nothing to one frame (it measures velocity), so a tracker that pools frames can be below it."
-        );
-    }
+    let _ = writeln!(
+        o,
+        "\nCRB: one frame's bound{}. Tracker bound: the posterior bound along the whole track for an estimator that believes the tracker's motion model (a smoother vehicle can be tracked better).",
+        if sec.sensors.dvl {
+            " (with attitude and depth: the DVL adds nothing to one frame)"
+        } else {
+            ""
+        }
+    );
     for s in &sec.skipped {
         let _ = writeln!(o, "\n{s}");
     }

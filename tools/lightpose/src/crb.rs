@@ -3,9 +3,10 @@
 //! estimators.md). Thin: the bound is `lightpose_analysis::bound`.
 
 use anyhow::Context;
-use lightpose_analysis::bound::along_trajectory;
+use lightpose_analysis::bound::{along_trajectory, track_bound_along};
 use lightpose_analysis::sensors::SensorSet;
 use lightpose_analysis::trade::{num, Z95};
+use lightpose_pipeline::settings::TrackerConfig;
 use lightpose_sim::{Scene, Trajectory};
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -32,6 +33,11 @@ pub struct CrbArgs {
     /// Print every n-th frame (the first and last always).
     #[arg(long, default_value_t = 1)]
     every: usize,
+    /// Also the bound for a tracker: the posterior bound along the whole
+    /// trajectory for an estimator with the tracker's (default) motion
+    /// model, where a DVL counts; with surge.
+    #[arg(long)]
+    track: bool,
 }
 
 pub fn run(a: CrbArgs) -> anyhow::Result<()> {
@@ -48,6 +54,11 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
             .apply(&mut scene);
     }
     let steps = along_trajectory(&scene, &traj);
+    let track = if a.track {
+        Some(track_bound_along(&scene, &traj, &TrackerConfig::default())?)
+    } else {
+        None
+    };
     let every = a.every.max(1);
     let (k, what) = if a.half_width {
         (Z95, "95 % half-width (1.96σ)")
@@ -66,7 +77,7 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
         own.push(format!("depth sensor {} m", d.sigma_m));
     }
     if scene.dvl.is_some() {
-        own.push("DVL (adds nothing to one frame)".into());
+        own.push("DVL (adds nothing to one frame; see --track)".into());
     }
     let sensor = if own.is_empty() {
         "no own sensor".to_string()
@@ -81,19 +92,30 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
         scene.montecarlo.sigma_k_d,
         scene.montecarlo.sigma_temp_c,
     );
+    if track.is_some() {
+        let _ = writeln!(
+            out,
+            "Tracker bound ({what}): the whole trajectory, the tracker's default motion model as the prior between frames"
+        );
+    }
     let _ = writeln!(out);
-    let _ = writeln!(
+    let _ = write!(
         out,
         "| t (s) | x (m) | y (m) | z (m) | pitch (°) | yaw (°) | bound x (m) | bound y (m) | bound z (m) | bound pitch (°) | bound yaw (°) |"
     );
-    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|");
+    if track.is_some() {
+        let _ = write!(out, " track x (m) | track y (m) | track z (m) | track pitch (°) | track yaw (°) | track surge (m/s) |");
+    }
+    let _ = writeln!(out);
+    let cols = if track.is_some() { 17 } else { 11 };
+    let _ = writeln!(out, "|{}", "---|".repeat(cols));
     let last = steps.len().saturating_sub(1);
     for (i, s) in steps.iter().enumerate() {
         if i % every != 0 && i != last {
             continue;
         }
         let b = &s.bound;
-        let _ = writeln!(
+        let _ = write!(
             out,
             "| {:.2} | {:.2} | {:.2} | {:.2} | {:.1} | {:.1} | {} | {} | {} | {} | {} |",
             s.t,
@@ -108,6 +130,19 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
             num(Some(k * b.pitch_deg)),
             num(Some(k * b.yaw_deg)),
         );
+        if let Some(tb) = track.as_ref().and_then(|v| v.get(i)) {
+            let _ = write!(
+                out,
+                " {} | {} | {} | {} | {} | {} |",
+                num(Some(k * tb.x)),
+                num(Some(k * tb.y)),
+                num(Some(k * tb.z)),
+                num(Some(k * tb.pitch_deg)),
+                num(Some(k * tb.yaw_deg)),
+                num(Some(k * tb.surge)),
+            );
+        }
+        let _ = writeln!(out);
     }
     print!("{out}");
     Ok(())

@@ -203,6 +203,10 @@ fn bench_runs_every_estimator_on_one_case() {
     let cells: Vec<&str> = x.split('|').map(str::trim).collect();
     let crb_end: f64 = cells[10].parse().unwrap();
     assert!(crb_end > 0.0 && crb_end < 2.0, "{x}");
+    // And the bound for a tracker, which pools the frames: below one
+    // frame's bound by the end of the run.
+    let track_end: f64 = cells[11].parse().unwrap();
+    assert!(track_end > 0.0 && track_end < crb_end, "{x}");
     // The summary names every section and estimator.
     assert!(stdout.contains("| dive-tank | all | tracker |"), "{stdout}");
     let (ok, _, err) = lightpose(&["bench", "--case", "spiral", "--runs", "2"]);
@@ -247,6 +251,12 @@ fn crb_prints_the_bound_along_the_trajectory() {
     assert_eq!(free[40][0], 8.0);
     assert!(free.iter().all(|r| r[7] > 1.0), "{free:?}");
     assert!(pinned.iter().all(|r| r[7] < 0.3), "{pinned:?}");
+    // The bound for a tracker: six more columns, surge last; with the DVL
+    // surge's bound is the DVL's own noise or below.
+    let track = rows(&["--sensors", "all", "--track"]);
+    assert_eq!(track[40].len(), 17);
+    assert!(track.iter().all(|r| r[16] <= 0.02 + 1e-9), "{track:?}");
+    assert!(track[40][12] < track[0][12], "{track:?}");
     let every = rows(&["--every", "10", "--half-width"]);
     assert_eq!(every.len(), 5);
     assert!((every[4][6] / free[40][6] - 1.959964).abs() < 0.01);

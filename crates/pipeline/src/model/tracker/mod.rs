@@ -19,13 +19,15 @@
 //! - `readings`: checks, noise and Kalman updates of the own sensors;
 //! - `counts`: the update with the 25 counts (EKF, or sigma points when no
 //!   reading pins the attitude);
-//! - `start`: the start-up fit (with the readings as priors).
+//! - `start`: the start-up fit (with the readings as priors);
+//! - `bound`: the bound for a tracker along a known track (posterior CRB).
 //!
 //! Fixed-size matrices throughout: no allocation per frame.
 
 // `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod bound;
 mod counts;
 mod motion;
 mod readings;
@@ -41,6 +43,7 @@ use lightpose_core::{
     Estimator, Frame, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev,
 };
 
+pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
 use self::counts::CountsInput;
 use self::readings::{gate_thresholds, FrameReadings};
 use self::state::{beam_consider_sigma_x, State, Vs, KD, VEL};
