@@ -138,15 +138,17 @@ const COV_NONE: u8 = 0;
 const COV_IN: u8 = 1;
 const COV_OUT: u8 = 2;
 
-/// Run the ensemble. `factory` makes one estimator per rayon worker (it is
-/// reset before every realization, so state never leaks between runs);
-/// `progress` advances once per realization (pass `ProgressBar::hidden()`
-/// for none).
-pub fn run<F, E>(cfg: &McConfig, factory: F, progress: &ProgressBar) -> Result<McResult, McError>
-where
-    F: Fn() -> Result<Box<dyn Estimator>, E> + Sync,
-    E: std::fmt::Display,
-{
+/// What every realization shares: the frame times, the true motion at
+/// each (the whole of it, so that a DVL reads sideslip and heave too) and
+/// the truth rows.
+struct Track {
+    times: Vec<f64>,
+    kinematics: Vec<Kinematics>,
+    truth: Vec<[f64; NAXES]>,
+}
+
+/// The track of `cfg`, or why it cannot be run.
+fn track_of(cfg: &McConfig) -> Result<Track, McError> {
     if cfg.runs == 0 {
         return Err(McError::NoRuns);
     }
@@ -162,22 +164,41 @@ where
             spread.sigma_temp_c, spread.sigma_k_d
         )));
     }
+    let kinematics: Vec<Kinematics> = times
+        .iter()
+        .map(|&t| cfg.trajectory.kinematics(t))
+        .collect();
+    let truth = kinematics
+        .iter()
+        .map(|k| k.pose.values_with_surge(k.surge()))
+        .collect();
+    Ok(Track {
+        times,
+        kinematics,
+        truth,
+    })
+}
+
+/// Run the ensemble. `factory` makes one estimator per rayon worker (it is
+/// reset before every realization, so state never leaks between runs);
+/// `progress` advances once per realization (pass `ProgressBar::hidden()`
+/// for none).
+pub fn run<F, E>(cfg: &McConfig, factory: F, progress: &ProgressBar) -> Result<McResult, McError>
+where
+    F: Fn() -> Result<Box<dyn Estimator>, E> + Sync,
+    E: std::fmt::Display,
+{
+    let Track {
+        times,
+        kinematics,
+        truth,
+    } = track_of(cfg)?;
     // One probe both names the estimator and turns a factory error into a
     // clean error before any thread starts.
     let name = factory()
         .map_err(|e| McError::Estimator(e.to_string()))?
         .name()
         .to_string();
-
-    // The whole motion, so that a DVL reads sideslip and heave too.
-    let kinematics: Vec<Kinematics> = times
-        .iter()
-        .map(|&t| cfg.trajectory.kinematics(t))
-        .collect();
-    let truth: Vec<[f64; NAXES]> = kinematics
-        .iter()
-        .map(|k| k.pose.values_with_surge(k.surge()))
-        .collect();
     let nsteps = times.len();
     let per_run = nsteps * NAXES;
 

@@ -40,6 +40,29 @@ pub struct CrbArgs {
     track: bool,
 }
 
+/// The scene's own sensors, in words.
+fn own_sensors(scene: &Scene) -> String {
+    let mut own = Vec::new();
+    if let Some(n) = scene.attitude {
+        own.push(format!(
+            "attitude sensor {:.2}° pitch, {:.2}° yaw",
+            n.sigma_pitch.deg(),
+            n.sigma_yaw.deg()
+        ));
+    }
+    if let Some(d) = scene.depth {
+        own.push(format!("depth sensor {} m", d.sigma_m));
+    }
+    if scene.dvl.is_some() {
+        own.push("DVL (adds nothing to one frame; see --track)".into());
+    }
+    if own.is_empty() {
+        "no own sensor".to_string()
+    } else {
+        own.join(", ")
+    }
+}
+
 pub fn run(a: CrbArgs) -> anyhow::Result<()> {
     let mut scene = Scene::load(&a.scene)?;
     let traj = Trajectory::load(&a.trajectory)?;
@@ -65,25 +88,7 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
     } else {
         (1.0, "1σ")
     };
-    let mut own = Vec::new();
-    if let Some(n) = scene.attitude {
-        own.push(format!(
-            "attitude sensor {:.2}° pitch, {:.2}° yaw",
-            n.sigma_pitch.deg(),
-            n.sigma_yaw.deg()
-        ));
-    }
-    if let Some(d) = scene.depth {
-        own.push(format!("depth sensor {} m", d.sigma_m));
-    }
-    if scene.dvl.is_some() {
-        own.push("DVL (adds nothing to one frame; see --track)".into());
-    }
-    let sensor = if own.is_empty() {
-        "no own sensor".to_string()
-    } else {
-        own.join(", ")
-    };
+    let sensor = own_sensors(&scene);
     let mut out = String::new();
     let _ = writeln!(
         out,

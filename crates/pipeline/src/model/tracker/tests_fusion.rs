@@ -64,13 +64,17 @@ fn one(tr: &Tracker, f: &Frame) -> PoseEstimate {
     tr.clone().estimate(f)
 }
 
-#[test]
-fn each_refusal_reason_is_counted_and_the_light_still_updates() {
-    let (tr, f) = warmed([true, true, true], 12, 3);
-    let bare = one(&tr, &f);
-    assert_eq!(bare.status, Status::Ok, "{bare:?}");
-    let z = bare.z.unwrap();
-    let cases: Vec<(Frame, &str, ReadingUse)> = vec![
+/// Frames that are `f` plus one bad reading each, what is wrong with it,
+/// and the verdict it must get (`z`: the filter's z without it).
+fn bad_readings(f: &Frame, z: f64) -> Vec<(Frame, &'static str, ReadingUse)> {
+    let mut v = bad_depths(f, z);
+    v.extend(bad_velocities_and_attitudes(f));
+    v
+}
+
+fn bad_depths(f: &Frame, z: f64) -> Vec<(Frame, &'static str, ReadingUse)> {
+    let f = *f;
+    vec![
         (
             Frame {
                 depth: Some(DepthReading::new(f64::NAN)),
@@ -125,6 +129,12 @@ fn each_refusal_reason_is_counted_and_the_light_still_updates() {
             "a depth 3 m off",
             ReadingUse::Refused(Refusal::Gate),
         ),
+    ]
+}
+
+fn bad_velocities_and_attitudes(f: &Frame) -> Vec<(Frame, &'static str, ReadingUse)> {
+    let f = *f;
+    vec![
         (
             Frame {
                 velocity: Some(VelocityReading::new(50.0, 0.0, 0.0)),
@@ -179,7 +189,16 @@ fn each_refusal_reason_is_counted_and_the_light_still_updates() {
             "pitch 40° off",
             ReadingUse::Refused(Refusal::Gate),
         ),
-    ];
+    ]
+}
+
+#[test]
+fn each_refusal_reason_is_counted_and_the_light_still_updates() {
+    let (tr, f) = warmed([true, true, true], 12, 3);
+    let bare = one(&tr, &f);
+    assert_eq!(bare.status, Status::Ok, "{bare:?}");
+    let z = bare.z.unwrap();
+    let cases = bad_readings(&f, z);
     for (frame, what, want) in cases {
         let e = one(&tr, &frame);
         let got = e
