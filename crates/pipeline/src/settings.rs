@@ -215,6 +215,12 @@ pub struct TrackerConfig {
     /// (y, yaw RMS 0.04 m, 0.58° at 0.05 vs 0.06 m, 0.8° at 0.25).
     pub side_sigma: f64,
     pub side_tau_s: f64,
+    /// Surge is given (with its std) once its 1σ is at most this, m/s;
+    /// before, it is null and the status `initialising`: right after a
+    /// start without a DVL it is only the start-up's guess (0 ±
+    /// `init_velocity_sigma`), as the paper's method gives none until its
+    /// window is full.
+    pub surge_max_sigma: f64,
     /// Start-up 1σ of velocity (m/s) and of angular rates (°/s).
     pub init_velocity_sigma: f64,
     pub init_rate_sigma_deg: f64,
@@ -308,6 +314,7 @@ impl Default for TrackerConfig {
             motion: Motion::Body,
             side_sigma: 0.25,
             side_tau_s: 2.0,
+            surge_max_sigma: 0.35,
             init_velocity_sigma: 0.7,
             init_rate_sigma_deg: 10.0,
             init_attitude_sigma_deg: 10.0,
@@ -359,6 +366,7 @@ impl TrackerConfig {
             ("depth_limit_m", self.depth_limit_m),
             ("velocity_limit_mps", self.velocity_limit_mps),
             ("paper_range_sigma_scale", self.paper_range_sigma_scale),
+            ("surge_max_sigma", self.surge_max_sigma),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!("tracker {name} = {v} must be positive"));

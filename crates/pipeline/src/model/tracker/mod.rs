@@ -177,7 +177,9 @@ impl Tracker {
         let x = s.x[0];
         if !applied {
             Status::Diverged
-        } else if s.frames <= self.cfg.init_frames {
+        } else if s.frames <= self.cfg.init_frames || self.surge_of(s).1 > self.cfg.surge_max_sigma
+        {
+            // Until surge is known too, not every field is (FORMATS.md `ok`).
             Status::Initialising
         } else if x < self.cfg.x_range[0] || x > self.cfg.x_range[1] {
             Status::OutOfRange
@@ -190,16 +192,11 @@ impl Tracker {
         }
     }
 
-    fn to_estimate(&self, frame: &Frame, s: &State, status: Status) -> PoseEstimate {
-        let mut e = PoseEstimate::empty(frame.seq, frame.t, status, Self::NAME);
+    /// Surge and its 1σ: the body model's u, or the world model's velocity
+    /// along the bow.
+    fn surge_of(&self, s: &State) -> (f64, f64) {
         let x = &s.x;
         let p = &s.p;
-        let sd = |i: usize| lightpose_core::finite(s.sd(i));
-        e.x = lightpose_core::finite(x[0]);
-        e.y = lightpose_core::finite(x[1]);
-        e.z = lightpose_core::finite(x[2]);
-        e.pitch_deg = lightpose_core::finite(x[3].to_degrees());
-        e.yaw_deg = lightpose_core::finite(x[4].to_degrees());
         let (surge, var_s) = match self.cfg.motion {
             Motion::Body => (x[VEL], p[(VEL, VEL)]),
             Motion::World => {
@@ -218,7 +215,25 @@ impl Tracker {
                 (surge, (g.transpose() * p * g)[(0, 0)])
             }
         };
-        e.surge = lightpose_core::finite(surge);
+        (surge, var_s.max(0.0).sqrt())
+    }
+
+    fn to_estimate(&self, frame: &Frame, s: &State, status: Status) -> PoseEstimate {
+        let mut e = PoseEstimate::empty(frame.seq, frame.t, status, Self::NAME);
+        let x = &s.x;
+        let p = &s.p;
+        let sd = |i: usize| lightpose_core::finite(s.sd(i));
+        e.x = lightpose_core::finite(x[0]);
+        e.y = lightpose_core::finite(x[1]);
+        e.z = lightpose_core::finite(x[2]);
+        e.pitch_deg = lightpose_core::finite(x[3].to_degrees());
+        e.yaw_deg = lightpose_core::finite(x[4].to_degrees());
+        let (surge, surge_sd) = self.surge_of(s);
+        // Until the frames have said something about it, surge is the
+        // start-up's guess (0 ± `init_velocity_sigma`): null, not a number
+        // (FORMATS.md: a field the estimator does not know yet).
+        let known = surge_sd <= self.cfg.surge_max_sigma;
+        e.surge = lightpose_core::finite(surge).filter(|_| known);
         // K_D's doubt is in P (estimated or considered), x–K_D covariance
         // and all, so σx needs no term of its own for it.
         // With the paper's range in x, its error is a bias that frames do
@@ -235,7 +250,7 @@ impl Tracker {
             z: sd(2),
             pitch: sd(3).map(f64::to_degrees),
             yaw: sd(4).map(f64::to_degrees),
-            surge: lightpose_core::finite(var_s.max(0.0).sqrt()),
+            surge: lightpose_core::finite(surge_sd).filter(|_| known),
         };
         e
     }
