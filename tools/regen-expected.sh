@@ -8,7 +8,12 @@
 #
 # The logs (40-odd frames each): dive and zigzag in the tank (Table 2), the
 # dive through a 12-bit ADC, and "hard": an approach into saturation with
-# four beacon-off frames spliced in and one garbage line.
+# four beacon-off frames spliced in and one garbage line — replayed with
+# the paper's method. And, replayed with the tracker (spec v2 readings):
+# "fusion-all", the zigzag with attitude, depth and DVL and five bad
+# readings spliced in (a negative depth std, a depth 100 m off, a depth
+# 3 m off, a DVL at 50 m/s, an attitude std of 0), and "fusion-depth",
+# the dive with depth alone.
 set -eu
 cd "$(dirname "$0")/.."
 cargo build --release -q -p lightpose
@@ -33,8 +38,27 @@ if [ "${1:-}" = "--logs" ]; then
     } > $D/hard.jsonl
     # One line that is not JSON, after frame 10: replay must name and skip it.
     sed -i '12a this line is not a frame' $D/hard.jsonl
+    $L simulate --scene $D/tank-sensors.toml --trajectory config/trajectories/zigzag.csv --seed 26 --out "$tmp/fusion.jsonl"
+    {
+        head -n 1 "$tmp/fusion.jsonl"
+        tail -n +2 "$tmp/fusion.jsonl" | jq -c '
+            if .seq == 10 then .depth.std = {z: -0.02}
+            elif .seq == 15 then .depth.z += 100
+            elif .seq == 20 then .velocity.fwd = 50
+            elif .seq == 25 then .depth.z += 3
+            elif .seq == 30 then .attitude.std = {pitch: 0, yaw: 1.5}
+            else . end'
+    } > $D/fusion-all.jsonl
+    $L simulate --scene $D/tank-sensors.toml --trajectory config/trajectories/dive.csv --seed 27 --out "$tmp/dive-sensors.jsonl"
+    {
+        head -n 1 "$tmp/dive-sensors.jsonl"
+        tail -n +2 "$tmp/dive-sensors.jsonl" | jq -c 'del(.attitude) | del(.velocity)'
+    } > $D/fusion-depth.jsonl
 fi
 
 for log in $D/dive.jsonl $D/zigzag.jsonl $D/dive-12bit.jsonl $D/hard.jsonl; do
     $L replay --estimator moments --calibration $CAL --log "$log" --out "${log%.jsonl}.poses.jsonl"
+done
+for log in $D/fusion-all.jsonl $D/fusion-depth.jsonl; do
+    $L replay --estimator tracker --calibration $CAL --log "$log" --out "${log%.jsonl}.poses.jsonl"
 done

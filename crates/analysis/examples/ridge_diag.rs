@@ -7,7 +7,8 @@
 //!
 //! AXES: comma-separated of x,y,z,pitch,yaw,surge (default z,pitch).
 //! Environment: TRK = TOML of `[estimator.tracker]` settings to try,
-//! ATT = set to add the attitude sensor (0.3°, 1.5°), QUIET = summary only.
+//! SENSORS = the own sensors of the runs (none, attitude, depth,
+//! attitude+depth, all; default: the scene's), QUIET = summary only.
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{Scene, Simulator, Trajectory};
 use rand::SeedableRng;
@@ -24,8 +25,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let runs: usize = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(200);
     let name = args.get(5).cloned().unwrap_or("tracker".into());
     let mut base = Scene::load(std::path::Path::new(scene))?;
-    if std::env::var("ATT").is_ok() {
-        base.attitude = Some(lightpose_sim::AttitudeNoise::default());
+    if let Ok(set) = std::env::var("SENSORS") {
+        lightpose_analysis::sensors::SensorSet::parse(&set)
+            .ok_or("SENSORS: none, attitude, depth, attitude+depth or all")?
+            .apply(&mut base);
     }
     let traj = Trajectory::load(std::path::Path::new(traj))?;
     let mut cal = Calibration::load(std::path::Path::new(cal))?;
@@ -51,8 +54,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         sim.set_reported_temp(Some(base.temp_c));
         est.reset();
         for (j, &t) in times.iter().enumerate() {
-            let (p, su) = traj.sample(t);
-            let f = sim.frame(j as u64, t, &p, Some(su));
+            let k = traj.kinematics(t);
+            let (p, su) = (k.pose, k.surge());
+            let f = sim.frame_moving(j as u64, t, &k);
             let e = est.estimate(&f);
             *status.entry(format!("{:?}", e.status)).or_insert(0usize) += 1;
             let tr = p.values_with_surge(su);

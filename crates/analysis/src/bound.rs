@@ -2,14 +2,19 @@
 //! the scene's true sensor, its K_D and temperature spreads as the priors
 //! an estimator does not know, and its attitude sensor when it has one.
 //!
+//! Also the bound for a tracker along the whole trajectory
+//! ([`track_bound_along`]), which is where a DVL's worth shows.
+//!
 //! Why here: `lightpose bench` sets the bound beside every estimator and
 //! `lightpose crb` prints it along a trajectory; both must mean the same
 //! scene, and only this crate knows both the simulator's `Scene` and the
 //! pipeline's `CrbScene`.
 
-use lightpose_core::Pose;
+use lightpose_core::{Attitude, Pose};
 use lightpose_pipeline::model::crb::{crb_along, CrbBound, CrbScene};
-use lightpose_pipeline::model::SensorModel;
+use lightpose_pipeline::model::tracker::{TrackBound, TrackBoundScene, TrackPoint};
+use lightpose_pipeline::model::{SensorModel, Tracker};
+use lightpose_pipeline::settings::TrackerConfig;
 use lightpose_sim::{Scene, Trajectory};
 
 /// The true sensor of a scene (what the simulator draws frames from).
@@ -27,7 +32,8 @@ pub fn sensor_of(s: &Scene) -> SensorModel {
 }
 
 /// The bound's view of `s`: spreads of `[montecarlo]` (a zero spread means
-/// known exactly) and the `[attitude]` sensor when present.
+/// known exactly) and the `[attitude]` and `[depth]` sensors when present
+/// (a `[dvl]` adds nothing to one frame's bound).
 pub fn crb_scene(s: &Scene) -> CrbScene {
     CrbScene {
         model: sensor_of(s),
@@ -35,6 +41,7 @@ pub fn crb_scene(s: &Scene) -> CrbScene {
         sigma_k_d: Some(s.montecarlo.sigma_k_d).filter(|v| *v > 0.0),
         sigma_temp_c: Some(s.montecarlo.sigma_temp_c).filter(|v| *v > 0.0),
         attitude_sigma: s.attitude.map(|n| (n.sigma_pitch, n.sigma_yaw)),
+        depth_sigma: s.depth.map(|d| d.sigma_m),
     }
 }
 
@@ -58,6 +65,38 @@ pub fn along_trajectory(s: &Scene, traj: &Trajectory) -> Vec<BoundStep> {
         .zip(bounds)
         .map(|((t, pose), bound)| BoundStep { t, pose, bound })
         .collect()
+}
+
+/// The bound for a tracker with `cfg`'s motion model along `traj` in
+/// `s` (its spreads and own sensors, DVL included), at every frame time:
+/// see `lightpose_pipeline::model::tracker::bound`.
+pub fn track_bound_along(
+    s: &Scene,
+    traj: &Trajectory,
+    cfg: &TrackerConfig,
+) -> Result<Vec<TrackBound>, lightpose_pipeline::settings::ModelError> {
+    let tracker = Tracker::new(sensor_of(s), cfg.clone())?;
+    let track: Vec<TrackPoint> = traj
+        .frame_times(s.adc.rate_hz)
+        .map(|t| {
+            let k = traj.kinematics(t);
+            let att = Attitude::new(k.pose.pitch, k.pose.yaw);
+            TrackPoint {
+                t,
+                pose: k.pose,
+                velocity: att.to_body(&k.velocity),
+            }
+        })
+        .collect();
+    let sc = TrackBoundScene {
+        temp_c: s.temp_c,
+        sigma_k_d: Some(s.montecarlo.sigma_k_d).filter(|v| *v > 0.0),
+        sigma_temp_c: Some(s.montecarlo.sigma_temp_c).filter(|v| *v > 0.0),
+        attitude: s.attitude.map(|a| (a.sigma_pitch.rad(), a.sigma_yaw.rad())),
+        depth: s.depth.map(|d| d.sigma_m),
+        dvl: s.dvl.map(|d| d.sigma_mps),
+    };
+    Ok(tracker.track_bound(&track, &sc))
 }
 
 #[cfg(test)]

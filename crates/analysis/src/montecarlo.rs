@@ -9,10 +9,11 @@
 //! `seed` on stream `i`, writes into its own slot of a preallocated buffer,
 //! and every reduction runs afterwards in index order.
 
+pub use crate::axis::{Axis, AXES, NAXES};
 use crate::stats::{self, Coverage, StepStats};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use lightpose_core::{Estimator, Pose, PoseEstimate};
-use lightpose_sim::{Scene, Simulator, Trajectory};
+use lightpose_core::Estimator;
+use lightpose_sim::{Kinematics, Scene, Simulator, Trajectory};
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -20,73 +21,6 @@ use rayon::prelude::*;
 use std::io::IsTerminal;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
-
-/// The quantities an estimate is judged on, in the order of every table.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Axis {
-    X,
-    Y,
-    Z,
-    Pitch,
-    Yaw,
-    Surge,
-}
-
-pub const NAXES: usize = 6;
-pub const AXES: [Axis; NAXES] = [
-    Axis::X,
-    Axis::Y,
-    Axis::Z,
-    Axis::Pitch,
-    Axis::Yaw,
-    Axis::Surge,
-];
-
-impl Axis {
-    /// Column prefix in the CSV and name in tables.
-    pub fn name(self) -> &'static str {
-        match self {
-            Axis::X => "x",
-            Axis::Y => "y",
-            Axis::Z => "z",
-            Axis::Pitch => "pitch",
-            Axis::Yaw => "yaw",
-            Axis::Surge => "surge",
-        }
-    }
-    pub fn unit(self) -> &'static str {
-        match self {
-            Axis::X | Axis::Y | Axis::Z => "m",
-            Axis::Pitch | Axis::Yaw => "°",
-            Axis::Surge => "m/s",
-        }
-    }
-    pub fn index(self) -> usize {
-        self as usize
-    }
-    /// The estimate's value of this axis (angles in degrees).
-    fn of(self, e: &PoseEstimate) -> Option<f64> {
-        match self {
-            Axis::X => e.x,
-            Axis::Y => e.y,
-            Axis::Z => e.z,
-            Axis::Pitch => e.pitch_deg,
-            Axis::Yaw => e.yaw_deg,
-            Axis::Surge => e.surge,
-        }
-    }
-    /// The estimate's own 1σ for this axis, if it reports one.
-    fn std_of(self, e: &PoseEstimate) -> Option<f64> {
-        match self {
-            Axis::X => e.std.x,
-            Axis::Y => e.std.y,
-            Axis::Z => e.std.z,
-            Axis::Pitch => e.std.pitch,
-            Axis::Yaw => e.std.yaw,
-            Axis::Surge => e.std.surge,
-        }
-    }
-}
 
 #[derive(Debug, thiserror::Error)]
 pub enum McError {
@@ -204,15 +138,17 @@ const COV_NONE: u8 = 0;
 const COV_IN: u8 = 1;
 const COV_OUT: u8 = 2;
 
-/// Run the ensemble. `factory` makes one estimator per rayon worker (it is
-/// reset before every realization, so state never leaks between runs);
-/// `progress` advances once per realization (pass `ProgressBar::hidden()`
-/// for none).
-pub fn run<F, E>(cfg: &McConfig, factory: F, progress: &ProgressBar) -> Result<McResult, McError>
-where
-    F: Fn() -> Result<Box<dyn Estimator>, E> + Sync,
-    E: std::fmt::Display,
-{
+/// What every realization shares: the frame times, the true motion at
+/// each (the whole of it, so that a DVL reads sideslip and heave too) and
+/// the truth rows.
+struct Track {
+    times: Vec<f64>,
+    kinematics: Vec<Kinematics>,
+    truth: Vec<[f64; NAXES]>,
+}
+
+/// The track of `cfg`, or why it cannot be run.
+fn track_of(cfg: &McConfig) -> Result<Track, McError> {
     if cfg.runs == 0 {
         return Err(McError::NoRuns);
     }
@@ -228,18 +164,41 @@ where
             spread.sigma_temp_c, spread.sigma_k_d
         )));
     }
+    let kinematics: Vec<Kinematics> = times
+        .iter()
+        .map(|&t| cfg.trajectory.kinematics(t))
+        .collect();
+    let truth = kinematics
+        .iter()
+        .map(|k| k.pose.values_with_surge(k.surge()))
+        .collect();
+    Ok(Track {
+        times,
+        kinematics,
+        truth,
+    })
+}
+
+/// Run the ensemble. `factory` makes one estimator per rayon worker (it is
+/// reset before every realization, so state never leaks between runs);
+/// `progress` advances once per realization (pass `ProgressBar::hidden()`
+/// for none).
+pub fn run<F, E>(cfg: &McConfig, factory: F, progress: &ProgressBar) -> Result<McResult, McError>
+where
+    F: Fn() -> Result<Box<dyn Estimator>, E> + Sync,
+    E: std::fmt::Display,
+{
+    let Track {
+        times,
+        kinematics,
+        truth,
+    } = track_of(cfg)?;
     // One probe both names the estimator and turns a factory error into a
     // clean error before any thread starts.
     let name = factory()
         .map_err(|e| McError::Estimator(e.to_string()))?
         .name()
         .to_string();
-
-    let truth_pose: Vec<(Pose, f64)> = times.iter().map(|&t| cfg.trajectory.sample(t)).collect();
-    let truth: Vec<[f64; NAXES]> = truth_pose
-        .iter()
-        .map(|(p, s)| p.values_with_surge(*s))
-        .collect();
     let nsteps = times.len();
     let per_run = nsteps * NAXES;
 
@@ -268,7 +227,8 @@ where
                             cfg,
                             i as u64,
                             &times,
-                            &truth_pose,
+                            &kinematics,
+                            &truth,
                             est.as_mut(),
                             vals,
                             oks,
@@ -318,7 +278,8 @@ fn realization(
     cfg: &McConfig,
     index: u64,
     times: &[f64],
-    truth: &[(Pose, f64)],
+    kinematics: &[Kinematics],
+    truth: &[[f64; NAXES]],
     est: &mut dyn Estimator,
     vals: &mut [f64],
     oks: &mut [bool],
@@ -347,11 +308,10 @@ fn realization(
     sim.set_reported_temp(Some(nominal.temp_c));
 
     est.reset();
-    for (j, (&t, (pose, surge))) in times.iter().zip(truth).enumerate() {
-        let frame = sim.frame(j as u64, t, pose, Some(*surge));
+    for (j, ((&t, k), tr)) in times.iter().zip(kinematics).zip(truth).enumerate() {
+        let frame = sim.frame_moving(j as u64, t, k);
         let e = est.estimate(&frame);
         oks[j] = e.status == lightpose_core::Status::Ok;
-        let tr = pose.values_with_surge(*surge);
         for a in AXES {
             let k = j * NAXES + a.index();
             let v = a.of(&e).filter(|v| v.is_finite());

@@ -4,7 +4,7 @@
 //! covered the truth. Reductions walk runs in index order so that they do
 //! not depend on how the realizations were scheduled.
 
-use crate::montecarlo::{AXES, NAXES};
+use crate::axis::{AXES, NAXES};
 
 /// Statistics of one axis at one step, over the runs that gave a value.
 #[derive(Debug, Clone, Copy, PartialEq)]

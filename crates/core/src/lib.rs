@@ -24,7 +24,7 @@ pub use frame::{AttitudeReading, AttitudeStd, DepthReading, Frame, Truth, Veloci
 pub use geometry::{Attitude, BeamVec, BodyVec, Pose};
 pub use light::{LightParams, Scattering};
 pub use log::{ByteError, Cut, FrameLog, FrameOrder, LogError, LogHeader, LogReader, LogWriter};
-pub use pose::{PoseEstimate, Status, StdDev};
+pub use pose::{PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev, READINGS};
 
 /// Replace a non-finite number by `None`: no message or log ever carries
 /// NaN or infinity (FORMATS.md).

@@ -92,6 +92,132 @@ impl StdDev {
     }
 }
 
+/// Why an estimator refused one of a frame's own-sensor readings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Refusal {
+    /// A value is NaN or infinite.
+    NotFinite,
+    /// The reading's own `std` is not a positive finite number.
+    BadStd,
+    /// A value no vehicle that sees the beacon can have (e.g. 50 m/s).
+    Implausible,
+    /// Too far from what the estimator expects (innovation gate).
+    Gate,
+}
+
+impl Refusal {
+    pub const ALL: [Refusal; 4] = [
+        Refusal::NotFinite,
+        Refusal::BadStd,
+        Refusal::Implausible,
+        Refusal::Gate,
+    ];
+
+    /// Short word for summaries and STATUS counters.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Refusal::NotFinite => "not_finite",
+            Refusal::BadStd => "bad_std",
+            Refusal::Implausible => "implausible",
+            Refusal::Gate => "gate",
+        }
+    }
+
+    /// Position in [`Refusal::ALL`].
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// What an estimator did with one of a frame's own-sensor readings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum ReadingUse {
+    /// The frame carried no such reading (or the estimator did not say).
+    #[default]
+    Absent,
+    /// The reading went into the estimate.
+    Used,
+    /// The frame carried it, but this estimator does not use it (by
+    /// design or by its settings).
+    Ignored,
+    /// Refused, and why; the rest of the frame was still used.
+    Refused(Refusal),
+}
+
+impl ReadingUse {
+    /// Number of distinct outcomes: absent, used, ignored, then one per
+    /// [`Refusal`], for tables of counts.
+    pub const COUNT: usize = 3 + Refusal::ALL.len();
+
+    /// Position among [`ReadingUse::COUNT`] outcomes.
+    pub fn index(self) -> usize {
+        match self {
+            ReadingUse::Absent => 0,
+            ReadingUse::Used => 1,
+            ReadingUse::Ignored => 2,
+            ReadingUse::Refused(r) => 3 + r.index(),
+        }
+    }
+
+    /// The outcome at `index` (inverse of [`ReadingUse::index`]).
+    pub fn from_index(index: usize) -> Option<ReadingUse> {
+        match index {
+            0 => Some(ReadingUse::Absent),
+            1 => Some(ReadingUse::Used),
+            2 => Some(ReadingUse::Ignored),
+            i => Refusal::ALL.get(i - 3).map(|r| ReadingUse::Refused(*r)),
+        }
+    }
+
+    /// `absent`, `used`, `ignored` or `refused_<reason>`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ReadingUse::Absent => "absent",
+            ReadingUse::Used => "used",
+            ReadingUse::Ignored => "ignored",
+            ReadingUse::Refused(Refusal::NotFinite) => "refused_not_finite",
+            ReadingUse::Refused(Refusal::BadStd) => "refused_bad_std",
+            ReadingUse::Refused(Refusal::Implausible) => "refused_implausible",
+            ReadingUse::Refused(Refusal::Gate) => "refused_gate",
+        }
+    }
+}
+
+/// Per-frame verdicts on the vehicle's own sensors (spec v2): what became
+/// of the attitude, depth and velocity readings. Copy and fixed-size, so
+/// that a caller counts them without allocating.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct ReadingUses {
+    pub attitude: ReadingUse,
+    pub depth: ReadingUse,
+    pub velocity: ReadingUse,
+}
+
+/// Names of the three readings, in [`ReadingUses::all`] order.
+pub const READINGS: [&str; 3] = ["attitude", "depth", "velocity"];
+
+impl ReadingUses {
+    /// The three verdicts in [`READINGS`] order.
+    pub fn all(&self) -> [ReadingUse; 3] {
+        [self.attitude, self.depth, self.velocity]
+    }
+
+    /// These verdicts as seen against the frame they came from: a reading
+    /// the frame carried but the estimator left `Absent` (one that says
+    /// nothing about readings, like the paper's method) was `Ignored`.
+    pub fn settled(&self, frame: &crate::Frame) -> ReadingUses {
+        let settle = |u: ReadingUse, present: bool| match u {
+            ReadingUse::Absent if present => ReadingUse::Ignored,
+            u => u,
+        };
+        ReadingUses {
+            attitude: settle(self.attitude, frame.attitude.is_some()),
+            depth: settle(self.depth, frame.depth.is_some()),
+            velocity: settle(self.velocity, frame.velocity.is_some()),
+        }
+    }
+}
+
 /// One estimate. Angles in degrees, as they go on the wire.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoseEstimate {
@@ -107,6 +233,9 @@ pub struct PoseEstimate {
     pub std: StdDev,
     /// Name of the estimator that produced it.
     pub estimator: &'static str,
+    /// What became of the frame's own-sensor readings (not on the wire:
+    /// for counters such as STATUS and the replay summary).
+    pub readings: ReadingUses,
 }
 
 /// Names of the six estimated fields, in message order.
@@ -140,6 +269,7 @@ impl PoseEstimate {
             surge: None,
             std: StdDev::default(),
             estimator,
+            readings: ReadingUses::default(),
         }
     }
 
@@ -254,6 +384,26 @@ mod tests {
             e.std.values()[FIELDS.iter().position(|f| *f == "yaw").unwrap()],
             Some(4.0)
         );
+    }
+
+    #[test]
+    fn reading_outcomes_index_round_trip_and_settle() {
+        for i in 0..ReadingUse::COUNT {
+            let u = ReadingUse::from_index(i).unwrap();
+            assert_eq!(u.index(), i);
+        }
+        assert_eq!(ReadingUse::from_index(ReadingUse::COUNT), None);
+        assert_eq!(ReadingUse::Refused(Refusal::Gate).as_str(), "refused_gate");
+        let mut f = crate::Frame::new(0, 0.0, 10, [0; crate::NDET]);
+        f.depth = Some(crate::DepthReading::new(0.1));
+        let v = ReadingUses::default().settled(&f);
+        assert_eq!(v.depth, ReadingUse::Ignored);
+        assert_eq!(v.attitude, ReadingUse::Absent);
+        let used = ReadingUses {
+            depth: ReadingUse::Used,
+            ..ReadingUses::default()
+        };
+        assert_eq!(used.settled(&f).depth, ReadingUse::Used);
     }
 
     #[test]

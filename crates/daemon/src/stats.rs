@@ -3,7 +3,7 @@
 //! for STATUS once a second), and a fixed latency histogram so that p50/p99
 //! frame-to-datagram latency is known in flight, not only in benchmarks.
 
-use lightpose_core::Status;
+use lightpose_core::{ReadingUse, Status};
 use std::sync::atomic::{AtomicU64, AtomicU8, Ordering::Relaxed};
 use std::sync::Mutex;
 use std::time::Duration;
@@ -207,6 +207,11 @@ pub struct Stats {
     /// Estimates per status word, in Status::ALL order.
     pub by_status: [AtomicU64; Status::ALL.len()],
     pub frames_with_attitude: AtomicU64,
+    /// What the estimator did with the frames' own-sensor readings: per
+    /// reading (attitude, depth, velocity, core's `READINGS` order), frames
+    /// per outcome in `ReadingUse::index` order (used, ignored, refused by
+    /// reason; `absent` is not counted).
+    pub readings: [[AtomicU64; ReadingUse::COUNT]; 3],
     pub latency: Histogram,
     /// Monotonic nanoseconds since start of the acquisition thread's last
     /// loop: the watchdog pings only while this moves.

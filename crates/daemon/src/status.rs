@@ -7,7 +7,7 @@ use crate::outputs::live::hub::Hub;
 use crate::outputs::recorder::RecStats;
 use crate::outputs::udp::Publisher;
 use crate::stats::{Stats, TempSource};
-use lightpose_core::Status;
+use lightpose_core::{ReadingUse, Refusal, Status, READINGS};
 use lightpose_hal::SourceHealth;
 use serde_json::{json, Value};
 use std::sync::atomic::Ordering::Relaxed;
@@ -82,6 +82,7 @@ pub fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> Value {
         "temperature": temperature(c, health.as_ref()),
         "recording": recording(c.rec),
         "attitude": attitude(c),
+        "readings": readings(s),
         "outputs": outputs(c.publisher),
         "foxglove": c.live.map_or_else(|| json!({"enabled": false}), Hub::report),
     })
@@ -167,6 +168,30 @@ fn recording(rec: Option<&RecStats>) -> Value {
             "error": r.error.lock().ok().and_then(|g| g.clone()),
         }),
     }
+}
+
+/// Per own-sensor reading, frames per outcome of the estimator's verdict:
+/// `used`, `ignored` (this estimator does not use it), `refused` by reason
+/// (`not_finite`, `bad_std`, `implausible`, `gate`); the light still
+/// updated the pose on a frame whose reading was refused.
+fn readings(s: &Stats) -> Value {
+    let mut v = serde_json::Map::new();
+    for (name, counts) in READINGS.iter().zip(&s.readings) {
+        let n = |u: ReadingUse| counts[u.index()].load(Relaxed);
+        let refused: serde_json::Map<String, Value> = Refusal::ALL
+            .iter()
+            .map(|r| (r.as_str().to_string(), json!(n(ReadingUse::Refused(*r)))))
+            .collect();
+        v.insert(
+            name.to_string(),
+            json!({
+                "used": n(ReadingUse::Used),
+                "ignored": n(ReadingUse::Ignored),
+                "refused": refused,
+            }),
+        );
+    }
+    Value::Object(v)
 }
 
 fn attitude(c: &StatusCtx) -> Value {

@@ -6,8 +6,8 @@
 //! an effect the scene does not have costs nothing per frame: scattering is
 //! computed only when `[physical]` kept ω and σ_h; which DOF are free and
 //! whether K_D is estimated come from `[estimator.model]` and
-//! `[estimator.tracker]` (defaults when absent); an attitude reading is used
-//! exactly when a frame carries one.
+//! `[estimator.tracker]` (defaults when absent); an own-sensor reading
+//! (attitude, depth, DVL) is used exactly when a frame carries one.
 
 use crate::calibration::{Calibration, PhysicalCalibration};
 use crate::model::{ModelEstimator, Tracker};
@@ -30,12 +30,13 @@ pub enum BuildError {
     Config { name: String, msg: String },
 }
 
-/// The name "auto" resolves to for this calibration: the tracker (the most
-/// accurate, and it uses an attitude reading when frames carry one) when a
+/// The name "auto" resolves to for this calibration: the tracker when a
 /// light model is calibrated, else the paper's moments estimator. No
-/// per-frame switch: without a reading the tracker is still the best of the
-/// three (smallest y/z error, a std for every field covering 92–99.8 % in
-/// lightpose bench), docs/estimators.md.
+/// per-frame switch: the tracker fuses whatever own-sensor readings a frame
+/// carries (attitude, depth, DVL), and without them leans on the paper's
+/// range of the same calibration; it is the best of the three either way
+/// and the only one with a std on every field (docs/estimators.md, "Without
+/// own sensors").
 pub fn auto_choice(cal: &Calibration) -> &'static str {
     if cal.physical.is_some() {
         "tracker"
@@ -73,7 +74,7 @@ pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimato
         "tracker" => {
             let m = physical(cal, resolved)?.sensor_model();
             let e = Tracker::new(m, settings.tracker).map_err(|e| config(e.to_string()))?;
-            Ok(Box::new(e))
+            Ok(Box::new(e.with_paper(cal)))
         }
         _ => Err(BuildError::Unknown {
             name: name.to_string(),

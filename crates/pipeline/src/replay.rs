@@ -7,7 +7,9 @@
 
 mod running;
 
-use lightpose_core::{Cut, Estimator, FrameLog, LogError, PoseEstimate, Status};
+use lightpose_core::{
+    Cut, Estimator, FrameLog, LogError, PoseEstimate, ReadingUse, Status, READINGS,
+};
 use std::fmt;
 use std::io::Write;
 
@@ -158,6 +160,36 @@ pub struct ReplaySummary {
     pub cut: Option<Cut>,
     /// Gaps in `seq` and the frames they lost.
     pub seq_gaps: (u64, u64),
+    /// What became of the frames' own-sensor readings: per reading
+    /// (attitude, depth, velocity, as [`READINGS`]), frames per outcome in
+    /// [`ReadingUse::index`] order (absent, used, ignored, refused by
+    /// reason).
+    pub readings: [[u64; ReadingUse::COUNT]; 3],
+    /// Readings the log reader dropped as malformed (the frame was kept).
+    pub bad_readings: u64,
+}
+
+impl ReplaySummary {
+    /// "attitude 40 used, 1 refused_gate; depth 41 absent; ..." for the
+    /// readings some frame carried, or `None` when no frame carried any.
+    pub fn readings_line(&self) -> Option<String> {
+        let mut parts = Vec::new();
+        for (name, counts) in READINGS.iter().zip(&self.readings) {
+            if counts[1..].iter().all(|n| *n == 0) {
+                continue;
+            }
+            let words: Vec<String> = counts
+                .iter()
+                .enumerate()
+                .filter(|(i, n)| *i > 0 && **n > 0)
+                .filter_map(|(i, n)| {
+                    ReadingUse::from_index(i).map(|u| format!("{n} {}", u.as_str()))
+                })
+                .collect();
+            parts.push(format!("{name} {}", words.join(", ")));
+        }
+        (!parts.is_empty()).then(|| parts.join("; "))
+    }
 }
 
 /// Replay `log` through `est`, writing one POSE line per frame to `out`.
@@ -178,6 +210,8 @@ pub fn replay<W: Write>(
         report: None,
         cut: None,
         seq_gaps: (0, 0),
+        readings: [[0; ReadingUse::COUNT]; 3],
+        bad_readings: 0,
     };
     while let Some(item) = log.next_frame() {
         let frame = match item {
@@ -197,6 +231,13 @@ pub fn replay<W: Write>(
         if let Some(i) = Status::ALL.iter().position(|st| *st == pose.status) {
             s.status[i] += 1;
         }
+        for (row, u) in s
+            .readings
+            .iter_mut()
+            .zip(pose.readings.settled(&frame).all())
+        {
+            row[u.index()] += 1;
+        }
         if let Some(t) = &frame.truth {
             errors.add(&pose, t);
         }
@@ -205,6 +246,7 @@ pub fn replay<W: Write>(
     s.report = errors.report();
     s.cut = log.cut();
     s.seq_gaps = log.seq_gaps();
+    s.bad_readings = log.bad_readings().0;
     Ok(s)
 }
 

@@ -177,14 +177,20 @@ pub struct TrackerConfig {
     /// Estimate K_D as a slowly varying random walk (turbid or changing
     /// water); otherwise it is the calibration's value, fixed.
     pub estimate_k_d: bool,
-    /// 1σ of K_D about the calibration's value, m⁻¹: the filter's prior
-    /// when K_D is estimated, else added to the reported x std (0: known).
+    /// Estimate K_D from the first DVL reading on: the DVL gives the
+    /// change of range independently of the light, so the brightness
+    /// along the track measures K_D. Off by default: in water whose K_D
+    /// is the calibration's it costs range accuracy early in a run (the
+    /// estimate wanders within K_D's doubt until the track has covered a
+    /// few metres); in other water it gains a lot (docs/estimators.md).
+    /// Not with `k_d_sigma = 0` (K_D known exactly).
+    pub estimate_k_d_with_velocity: bool,
+    /// 1σ of K_D about the calibration's value, m⁻¹ (0: known exactly):
+    /// the filter's prior when K_D is estimated, else the doubt of a
+    /// consider state (carried in P, K_D itself never moved).
     pub k_d_sigma: f64,
     /// Random-walk density of K_D, (m⁻¹)²/s.
     pub k_d_walk_psd: f64,
-    /// K_D held fixed and a frame without an attitude reading: add
-    /// k_d_sigma's effect on the counts to their covariance (see `update`).
-    pub k_d_consider_without_attitude: bool,
     /// Say `unobservable`, not `ok`, on a frame without an attitude
     /// reading. Off by default: with the body motion model, the
     /// sigma-point update and the beam term in σx, the std of every field
@@ -209,15 +215,71 @@ pub struct TrackerConfig {
     /// (y, yaw RMS 0.04 m, 0.58° at 0.05 vs 0.06 m, 0.8° at 0.25).
     pub side_sigma: f64,
     pub side_tau_s: f64,
+    /// Surge is given (with its std) once its 1σ is at most this, m/s;
+    /// before, it is null and the status `initialising`: right after a
+    /// start without a DVL it is only the start-up's guess (0 ±
+    /// `init_velocity_sigma`), as the paper's method gives none until its
+    /// window is full.
+    pub surge_max_sigma: f64,
     /// Start-up 1σ of velocity (m/s) and of angular rates (°/s).
     pub init_velocity_sigma: f64,
     pub init_rate_sigma_deg: f64,
     /// Start-up attitude envelope without a sensor: pitch = yaw = 0 ± this.
     pub init_attitude_sigma_deg: f64,
-    /// Use `Frame.attitude` when present, with these 1σ.
+    /// Use `Frame.attitude` when present, with these 1σ unless the reading
+    /// gives its own `std` (MODEL.md's sensor: 0.3° pitch, 1.5° yaw).
     pub use_attitude: bool,
     pub attitude_sigma_pitch_deg: f64,
     pub attitude_sigma_yaw_deg: f64,
+    /// Use `Frame.depth` when present, with this 1σ (m) unless the reading
+    /// gives its own (MODEL.md's sensor: 0.02 m).
+    pub use_depth: bool,
+    pub depth_sigma_m: f64,
+    /// Where the depth sensor sits relative to the dome centre, in the body
+    /// frame V (forward, right, down), metres. A frame's `depth.z` is the
+    /// sensor's z in B; the tracker compares it with z + (R_BV·lever)_z,
+    /// its own attitude included (docs/spec-notes.md). Default: at the
+    /// dome centre.
+    pub depth_lever_arm_m: [f64; 3],
+    /// Use `Frame.velocity` (DVL, body frame) when present, with this 1σ
+    /// per component (m/s) unless the reading gives its own (MODEL.md's
+    /// DVL: 0.02 m/s).
+    pub use_velocity: bool,
+    pub velocity_sigma_mps: f64,
+    /// Innovation gate of each reading: the probability with which a
+    /// reading that agrees with the filter's prediction (χ² with one
+    /// degree of freedom per component) is refused anyway. 1e-6 refuses
+    /// beyond χ² 23.9 (depth), 27.6 (attitude) and 30.7 (DVL), i.e. ≈ 5σ.
+    pub reading_gate_p: f64,
+    /// After this many readings of one sensor in a row refused by the gate,
+    /// the filter takes itself to be lost and starts again from the
+    /// current frame, with the readings in its start fit.
+    pub reading_gate_restart: u32,
+    /// A depth reading with |z| beyond this (m), or a DVL component beyond
+    /// `velocity_limit_mps` (m/s), is implausible and refused whatever the
+    /// filter believes: the beacon could not be seen from there, and no
+    /// vehicle that docks moves that fast.
+    pub depth_limit_m: f64,
+    pub velocity_limit_mps: f64,
+    /// Start-up without an attitude or depth reading: besides the fit that
+    /// reads the spot's offset as position (attitude 0), also try the one
+    /// that reads it as attitude (on the beam axis), and keep the better.
+    pub start_both_ways: bool,
+    /// Start-up without an attitude reading: a prior that the vehicle is
+    /// within this angle (1σ, degrees) of the beam axis, i.e. y, z ~
+    /// N(0, (x·tan σ)²) (a depth reading replaces it on z). Absent: none.
+    pub init_lateral_sigma_deg: Option<f64>,
+    /// Frames whose attitude no reading pins: take the paper's range (its
+    /// on-axis brightness law, eqs. 2–3, from the same calibration) as a
+    /// measurement of x, with 1σ = `paper_range_sigma_scale` times the
+    /// law's residual over the calibration's translation grid (plus the
+    /// counts' own noise). Why: one frame cannot tell a far vehicle on the
+    /// beam axis from a near one off it (brightness trades range against
+    /// the off-axis angle, and the ridges leave that angle loose), and the
+    /// law carries the assumption the paper makes, that the vehicle is
+    /// near the axis, with its measured error (docs/estimators.md).
+    pub paper_range: bool,
+    pub paper_range_sigma_scale: f64,
     /// Range of x for which an estimate is `ok`.
     pub x_range: [f64; 2],
     /// Frames after (re)start reported as `initialising`.
@@ -244,20 +306,34 @@ impl Default for TrackerConfig {
             accel_psd: 0.005,
             ang_accel_psd_deg: 20.0,
             estimate_k_d: false,
+            estimate_k_d_with_velocity: false,
             k_d_sigma: 0.015,
             k_d_walk_psd: 1e-6,
-            k_d_consider_without_attitude: true,
             flag_unobservable: false,
             sigma_points_without_attitude: true,
             motion: Motion::Body,
             side_sigma: 0.25,
             side_tau_s: 2.0,
+            surge_max_sigma: 0.35,
             init_velocity_sigma: 0.7,
             init_rate_sigma_deg: 10.0,
             init_attitude_sigma_deg: 10.0,
             use_attitude: true,
             attitude_sigma_pitch_deg: 0.3,
             attitude_sigma_yaw_deg: 1.5,
+            use_depth: true,
+            depth_sigma_m: 0.02,
+            depth_lever_arm_m: [0.0; 3],
+            use_velocity: true,
+            velocity_sigma_mps: 0.02,
+            reading_gate_p: 1e-6,
+            reading_gate_restart: 5,
+            depth_limit_m: 20.0,
+            velocity_limit_mps: 5.0,
+            start_both_ways: true,
+            init_lateral_sigma_deg: Some(6.0),
+            paper_range: true,
+            paper_range_sigma_scale: 0.5,
             x_range: [3.0, 12.0],
             init_frames: 5,
             update_iterations: 1,
@@ -285,6 +361,12 @@ impl TrackerConfig {
             ("max_gap_s", self.max_gap_s),
             ("side_sigma", self.side_sigma),
             ("side_tau_s", self.side_tau_s),
+            ("depth_sigma_m", self.depth_sigma_m),
+            ("velocity_sigma_mps", self.velocity_sigma_mps),
+            ("depth_limit_m", self.depth_limit_m),
+            ("velocity_limit_mps", self.velocity_limit_mps),
+            ("paper_range_sigma_scale", self.paper_range_sigma_scale),
+            ("surge_max_sigma", self.surge_max_sigma),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!("tracker {name} = {v} must be positive"));
@@ -308,6 +390,25 @@ impl TrackerConfig {
         }
         if self.update_iterations == 0 {
             return bad("tracker update_iterations must be at least 1".into());
+        }
+        if !(self.reading_gate_p > 0.0 && self.reading_gate_p < 0.5) {
+            return bad(format!(
+                "tracker reading_gate_p = {} must be in (0, 0.5)",
+                self.reading_gate_p
+            ));
+        }
+        if self.reading_gate_restart == 0 {
+            return bad("tracker reading_gate_restart must be at least 1".into());
+        }
+        if let Some(v) = self.init_lateral_sigma_deg {
+            if !(v.is_finite() && v > 0.0 && v < 80.0) {
+                return bad(format!(
+                    "tracker init_lateral_sigma_deg = {v} must be in (0, 80)"
+                ));
+            }
+        }
+        if let Some(v) = self.depth_lever_arm_m.iter().find(|v| !v.is_finite()) {
+            return bad(format!("tracker depth_lever_arm_m has {v}: must be finite"));
         }
         Ok(())
     }

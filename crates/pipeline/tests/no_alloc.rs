@@ -1,26 +1,39 @@
-//! The moments estimator must not touch the heap per frame (the daemon's
-//! hot path): counted here with a global allocator that tallies every
-//! allocation while frames are estimated.
+//! The moments estimator and the tracker must not touch the heap per frame
+//! (the daemon's hot path): counted here with a global allocator that
+//! tallies every allocation while frames are estimated.
 
 use lightpose_core::{Estimator, Frame};
 use lightpose_pipeline::{Calibration, MomentsEstimator};
 use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 struct Counting;
-static ALLOCS: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    /// Allocations by this thread: the test harness allocates on threads
+    /// of its own (printing results) while a test runs.
+    static ALLOCS: Cell<u64> = const { Cell::new(0) };
+}
+
+fn count() {
+    let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
+}
+
+fn allocs() -> u64 {
+    ALLOCS.with(Cell::get)
+}
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::Relaxed);
+        count();
         System.alloc(l)
     }
     unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
         System.dealloc(p, l)
     }
     unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::Relaxed);
+        count();
         System.realloc(p, l, n)
     }
 }
@@ -44,11 +57,11 @@ fn estimating_a_log_allocates_nothing() {
         .collect();
     let mut est = MomentsEstimator::new(&cal);
     let mut statuses = 0u64;
-    let before = ALLOCS.load(Ordering::Relaxed);
+    let before = allocs();
     for f in &frames {
         statuses += est.estimate(f).status as u64;
     }
-    let after = ALLOCS.load(Ordering::Relaxed);
+    let after = allocs();
     assert!(statuses > 0);
     assert_eq!(
         after - before,
@@ -57,4 +70,38 @@ fn estimating_a_log_allocates_nothing() {
         after - before,
         frames.len()
     );
+}
+
+/// The tracker, with the vehicle's own sensors (good and refused readings)
+/// and without (the paper's range, the sigma-point update), must not touch
+/// the heap per frame either once built.
+#[test]
+fn tracking_with_and_without_own_sensors_allocates_nothing() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let cal = Calibration::load(&root.join("config/calibration/tank.toml")).expect("calibration");
+    let frames: Vec<Frame> = ["fusion-all", "fusion-depth", "dive", "hard"]
+        .iter()
+        .flat_map(|n| {
+            lightpose_core::LogReader::open(&root.join(format!("tests/data/{n}.jsonl")))
+                .expect("log")
+                .filter_map(Result::ok)
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let mut est = lightpose_pipeline::build_estimator("tracker", &cal).expect("tracker");
+    let mut used = 0u64;
+    let before = allocs();
+    for f in &frames {
+        let e = est.estimate(f);
+        used += u64::from(e.readings.depth == lightpose_core::ReadingUse::Used);
+    }
+    let after = allocs();
+    assert_eq!(
+        after - before,
+        0,
+        "{} allocations over {} frames",
+        after - before,
+        frames.len()
+    );
+    assert!(used >= 38);
 }

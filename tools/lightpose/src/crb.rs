@@ -2,57 +2,93 @@
 //! row per frame — the limit every estimator is held against (docs/
 //! estimators.md). Thin: the bound is `lightpose_analysis::bound`.
 
-use crate::cells::{num, Z95};
-use lightpose_analysis::bound::along_trajectory;
-use lightpose_sim::{AttitudeNoise, Scene, Trajectory};
+use anyhow::Context;
+use lightpose_analysis::bound::{along_trajectory, track_bound_along};
+use lightpose_analysis::sensors::SensorSet;
+use lightpose_analysis::trade::{num, Z95};
+use lightpose_pipeline::settings::TrackerConfig;
+use lightpose_sim::{Scene, Trajectory};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct CrbArgs {
     /// Scene file (TOML): its sensor, its [montecarlo] spreads (K_D and
-    /// temperature the estimator does not know) and its [attitude] sensor.
+    /// temperature the estimator does not know) and its own sensors
+    /// ([attitude], [depth], [dvl]).
     #[arg(long)]
     scene: PathBuf,
     /// Trajectory knots (CSV: t,x,y,z,pitch,yaw); one row per frame at the
     /// scene's ADC rate.
     #[arg(long)]
     trajectory: PathBuf,
-    /// Attitude sensor: as the scene says, on (MODEL.md's 0.3° pitch, 1.5°
-    /// yaw when the scene has none) or off.
-    #[arg(long, default_value = "scene", value_parser = ["scene", "on", "off"])]
-    attitude: String,
+    /// The vehicle's own sensors: as the scene says, or none, attitude,
+    /// depth, attitude+depth, all (a sensor the scene lacks gets MODEL.md's
+    /// noise). A DVL adds nothing to one frame's bound.
+    #[arg(long, default_value = "scene")]
+    sensors: String,
     /// Print the 95 % half-width (1.96σ) instead of 1σ.
     #[arg(long)]
     half_width: bool,
     /// Print every n-th frame (the first and last always).
     #[arg(long, default_value_t = 1)]
     every: usize,
+    /// Also the bound for a tracker: the posterior bound along the whole
+    /// trajectory for an estimator with the tracker's (default) motion
+    /// model, where a DVL counts; with surge.
+    #[arg(long)]
+    track: bool,
+}
+
+/// The scene's own sensors, in words.
+fn own_sensors(scene: &Scene) -> String {
+    let mut own = Vec::new();
+    if let Some(n) = scene.attitude {
+        own.push(format!(
+            "attitude sensor {:.2}° pitch, {:.2}° yaw",
+            n.sigma_pitch.deg(),
+            n.sigma_yaw.deg()
+        ));
+    }
+    if let Some(d) = scene.depth {
+        own.push(format!("depth sensor {} m", d.sigma_m));
+    }
+    if scene.dvl.is_some() {
+        own.push("DVL (adds nothing to one frame; see --track)".into());
+    }
+    if own.is_empty() {
+        "no own sensor".to_string()
+    } else {
+        own.join(", ")
+    }
 }
 
 pub fn run(a: CrbArgs) -> anyhow::Result<()> {
     let mut scene = Scene::load(&a.scene)?;
     let traj = Trajectory::load(&a.trajectory)?;
-    match a.attitude.as_str() {
-        "off" => scene.attitude = None,
-        "on" if scene.attitude.is_none() => scene.attitude = Some(AttitudeNoise::default()),
-        _ => {}
+    if a.sensors != "scene" {
+        SensorSet::parse(&a.sensors)
+            .with_context(|| {
+                format!(
+                    "--sensors {}: scene, none, attitude, depth, attitude+depth or all",
+                    a.sensors
+                )
+            })?
+            .apply(&mut scene);
     }
     let steps = along_trajectory(&scene, &traj);
+    let track = if a.track {
+        Some(track_bound_along(&scene, &traj, &TrackerConfig::default())?)
+    } else {
+        None
+    };
     let every = a.every.max(1);
     let (k, what) = if a.half_width {
         (Z95, "95 % half-width (1.96σ)")
     } else {
         (1.0, "1σ")
     };
-    let sensor = match scene.attitude {
-        Some(n) => format!(
-            "attitude sensor {:.2}° pitch, {:.2}° yaw",
-            n.sigma_pitch.deg(),
-            n.sigma_yaw.deg()
-        ),
-        None => "no attitude sensor".into(),
-    };
+    let sensor = own_sensors(&scene);
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -61,19 +97,30 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
         scene.montecarlo.sigma_k_d,
         scene.montecarlo.sigma_temp_c,
     );
+    if track.is_some() {
+        let _ = writeln!(
+            out,
+            "Tracker bound ({what}): the whole trajectory, the tracker's default motion model as the prior between frames"
+        );
+    }
     let _ = writeln!(out);
-    let _ = writeln!(
+    let _ = write!(
         out,
         "| t (s) | x (m) | y (m) | z (m) | pitch (°) | yaw (°) | bound x (m) | bound y (m) | bound z (m) | bound pitch (°) | bound yaw (°) |"
     );
-    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|");
+    if track.is_some() {
+        let _ = write!(out, " track x (m) | track y (m) | track z (m) | track pitch (°) | track yaw (°) | track surge (m/s) |");
+    }
+    let _ = writeln!(out);
+    let cols = if track.is_some() { 17 } else { 11 };
+    let _ = writeln!(out, "|{}", "---|".repeat(cols));
     let last = steps.len().saturating_sub(1);
     for (i, s) in steps.iter().enumerate() {
         if i % every != 0 && i != last {
             continue;
         }
         let b = &s.bound;
-        let _ = writeln!(
+        let _ = write!(
             out,
             "| {:.2} | {:.2} | {:.2} | {:.2} | {:.1} | {:.1} | {} | {} | {} | {} | {} |",
             s.t,
@@ -88,6 +135,19 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
             num(Some(k * b.pitch_deg)),
             num(Some(k * b.yaw_deg)),
         );
+        if let Some(tb) = track.as_ref().and_then(|v| v.get(i)) {
+            let _ = write!(
+                out,
+                " {} | {} | {} | {} | {} | {} |",
+                num(Some(k * tb.x)),
+                num(Some(k * tb.y)),
+                num(Some(k * tb.z)),
+                num(Some(k * tb.pitch_deg)),
+                num(Some(k * tb.yaw_deg)),
+                num(Some(k * tb.surge)),
+            );
+        }
+        let _ = writeln!(out);
     }
     print!("{out}");
     Ok(())

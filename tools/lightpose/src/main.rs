@@ -3,7 +3,6 @@
 
 mod bench;
 mod calibrate;
-mod cells;
 mod convert;
 mod crb;
 mod fake_autopilot;
@@ -37,7 +36,7 @@ enum Cmd {
     Replay(replay::ReplayArgs),
     /// Monte Carlo uncertainty of an estimator along a trajectory.
     Montecarlo(montecarlo::MontecarloArgs),
-    /// Trade table: every estimator's speed, accuracy and honesty on the paper's cases.
+    /// Trade table: every estimator's speed, accuracy and honesty on the paper's cases, per set of own sensors.
     Bench(bench::BenchArgs),
     /// Cramér–Rao bound of a scene along a trajectory, one row per frame.
     Crb(crb::CrbArgs),

@@ -6,6 +6,7 @@
 use anyhow::Context;
 use lightpose_analysis::montecarlo::{self, progress_bar, McConfig};
 use lightpose_analysis::report::{self, RunInfo};
+use lightpose_analysis::sensors::SensorSet;
 use lightpose_analysis::PaperCase;
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{Scene, Trajectory};
@@ -38,10 +39,25 @@ pub struct MontecarloArgs {
     /// scene's K_D), none, dive-clear, zigzag-clear or zigzag-turbid.
     #[arg(long, default_value = "auto")]
     case: String,
+    /// The vehicle's own sensors: as the scene says, or none, attitude,
+    /// depth, attitude+depth, all (a sensor the scene lacks gets MODEL.md's
+    /// noise).
+    #[arg(long, default_value = "scene")]
+    sensors: String,
 }
 
 pub fn run(a: MontecarloArgs) -> anyhow::Result<()> {
-    let scene = Scene::load(&a.scene)?;
+    let mut scene = Scene::load(&a.scene)?;
+    if a.sensors != "scene" {
+        SensorSet::parse(&a.sensors)
+            .with_context(|| {
+                format!(
+                    "--sensors {}: scene, none, attitude, depth, attitude+depth or all",
+                    a.sensors
+                )
+            })?
+            .apply(&mut scene);
+    }
     let trajectory = Trajectory::load(&a.trajectory)?;
     let cal = Calibration::load(&a.calibration)?;
     let case = match a.case.as_str() {
@@ -107,6 +123,7 @@ mod tests {
             seed: 3,
             out: out.to_path_buf(),
             case: "auto".into(),
+            sensors: "scene".into(),
         }
     }
 
@@ -134,6 +151,7 @@ mod tests {
                 Box::new(|a| a.trajectory = root("config/trajectories/nope.csv")),
                 "nope.csv",
             ),
+            (Box::new(|a| a.sensors = "sonar".into()), "--sensors sonar"),
         ];
         for (edit, want) in cases {
             let mut a = args(dir.path());

@@ -58,6 +58,16 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         statuses.join(", "),
         s.bad_lines
     );
+    if let Some(line) = s.readings_line() {
+        eprintln!("readings: {line}");
+    }
+    if s.bad_readings > 0 {
+        eprintln!(
+            "lightpose: {}: {} malformed sensor readings dropped (frames kept)",
+            a.log.display(),
+            s.bad_readings
+        );
+    }
     if let Some(cut) = s.cut {
         eprintln!("lightpose: {}: {cut}", a.log.display());
     }
@@ -92,7 +102,12 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     }
     if a.report {
         match &s.report {
-            Some(r) => print!("{r}"),
+            Some(r) => {
+                print!("{r}");
+                if let Some(line) = s.readings_line() {
+                    println!("readings: {line}");
+                }
+            }
             None => eprintln!(
                 "lightpose: {}: no truth in the log, no error report",
                 a.log.display()

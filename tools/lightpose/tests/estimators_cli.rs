@@ -170,8 +170,8 @@ fn bench_runs_every_estimator_on_one_case() {
         "1",
         "--case",
         "dive-tank",
-        "--attitude",
-        "on",
+        "--sensors",
+        "attitude,all",
         "--root",
         s(&root()),
         "--out",
@@ -179,17 +179,19 @@ fn bench_runs_every_estimator_on_one_case() {
     ]);
     assert!(ok, "{err}");
     assert_eq!(std::fs::read_to_string(&out).unwrap(), stdout);
+    assert!(stdout.contains("dive-tank — attitude (2 runs)"), "{stdout}");
     assert!(
-        stdout.contains("dive-tank — with attitude sensor (2 runs)"),
+        stdout.contains("dive-tank — attitude + depth + DVL (2 runs)"),
         "{stdout}"
     );
     for est in ["moments", "model", "tracker"] {
-        // Six axes per estimator, each row with a finite time per frame.
+        // Six axes per estimator and sensor set, each row with a finite
+        // time per frame.
         let rows: Vec<&str> = stdout
             .lines()
             .filter(|l| l.starts_with(&format!("| {est} |")))
             .collect();
-        assert_eq!(rows.len(), 6, "{stdout}");
+        assert_eq!(rows.len(), 12, "{stdout}");
         let us: f64 = rows[0].split('|').nth(2).unwrap().trim().parse().unwrap();
         assert!(us > 0.0 && us.is_finite(), "{}", rows[0]);
     }
@@ -201,13 +203,23 @@ fn bench_runs_every_estimator_on_one_case() {
     let cells: Vec<&str> = x.split('|').map(str::trim).collect();
     let crb_end: f64 = cells[10].parse().unwrap();
     assert!(crb_end > 0.0 && crb_end < 2.0, "{x}");
+    // And the bound for a tracker, which pools the frames: below one
+    // frame's bound by the end of the run.
+    let track_end: f64 = cells[11].parse().unwrap();
+    assert!(track_end > 0.0 && track_end < crb_end, "{x}");
+    // The summary names every section and estimator.
+    assert!(stdout.contains("| dive-tank | all | tracker |"), "{stdout}");
     let (ok, _, err) = lightpose(&["bench", "--case", "spiral", "--runs", "2"]);
     assert!(!ok);
     assert!(err.contains("unknown case \"spiral\""), "{err}");
+    let (ok, _, err) = lightpose(&["bench", "--sensors", "gps", "--runs", "2"]);
+    assert!(!ok);
+    assert!(err.contains("--sensors gps"), "{err}");
 }
 
 /// `lightpose crb` prints the bound at every frame of the trajectory: the
-/// y/yaw ridge without the attitude sensor, pinned with it (MODEL.md).
+/// y/yaw ridge without the attitude sensor, pinned with it (MODEL.md);
+/// depth pins z.
 #[test]
 fn crb_prints_the_bound_along_the_trajectory() {
     let scene = root().join("config/scenes/tank.toml");
@@ -228,13 +240,23 @@ fn crb_prints_the_bound_along_the_trajectory() {
             .collect()
     };
     let free = rows(&[]);
-    let pinned = rows(&["--attitude", "on"]);
+    let pinned = rows(&["--sensors", "attitude"]);
+    let depth = rows(&["--sensors", "depth"]);
+    // z's bound (column 8) is at most the depth sensor's 0.02 m.
+    assert!(depth.iter().all(|r| r[8] <= 0.02 + 1e-9), "{depth:?}");
+    assert!(free.iter().all(|r| r[8] > 0.02), "{free:?}");
     // 8 s at 5 Hz: 41 frames, t in column 0, bound y in column 7.
     assert_eq!(free.len(), 41);
     assert_eq!(pinned.len(), 41);
     assert_eq!(free[40][0], 8.0);
     assert!(free.iter().all(|r| r[7] > 1.0), "{free:?}");
     assert!(pinned.iter().all(|r| r[7] < 0.3), "{pinned:?}");
+    // The bound for a tracker: six more columns, surge last; with the DVL
+    // surge's bound is the DVL's own noise or below.
+    let track = rows(&["--sensors", "all", "--track"]);
+    assert_eq!(track[40].len(), 17);
+    assert!(track.iter().all(|r| r[16] <= 0.02 + 1e-9), "{track:?}");
+    assert!(track[40][12] < track[0][12], "{track:?}");
     let every = rows(&["--every", "10", "--half-width"]);
     assert_eq!(every.len(), 5);
     assert!((every[4][6] / free[40][6] - 1.959964).abs() < 0.01);

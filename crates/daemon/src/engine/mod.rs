@@ -22,7 +22,7 @@ mod ratelog;
 use crate::inputs::Input;
 use crate::outputs::Output;
 use crate::stats::{BackendState, Stats, TempSource};
-use lightpose_core::{Estimator, Frame, PoseEstimate};
+use lightpose_core::{Estimator, Frame, PoseEstimate, ReadingUse};
 use lightpose_hal::{FrameSource, SourceError, Stop};
 use ratelog::RateLog;
 use std::sync::atomic::Ordering::Relaxed;
@@ -352,6 +352,15 @@ impl Engine {
         stats.by_status[si].fetch_add(1, Relaxed);
         stats.last_status.store(si as u8, Relaxed);
         stats.frames.fetch_add(1, Relaxed);
+        for (counts, u) in stats
+            .readings
+            .iter()
+            .zip(est.readings.settled(&acq.frame).all())
+        {
+            if u != ReadingUse::Absent {
+                counts[u.index()].fetch_add(1, Relaxed);
+            }
+        }
 
         let Some(p) = self.period else { return };
         let seq = acq.frame.seq;

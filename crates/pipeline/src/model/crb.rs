@@ -6,7 +6,13 @@
 //! Fisher information comes from the light equation's analytic Jacobian and
 //! the noise model σ² = σ_e² + κE plus LSB²/12; K_D is a nuisance parameter
 //! with the Monte Carlo's spread as prior, so is the unknown temperature
-//! (a common gain), and the attitude sensor adds a prior on pitch and yaw.
+//! (a common gain), and the vehicle's own sensors add priors: the attitude
+//! sensor on pitch and yaw, the depth sensor 1/σ_d² on z (spec v2).
+//!
+//! A DVL adds nothing here: it measures velocity, and one frame's bound
+//! has no velocity in it. What the DVL buys is the tie between frames,
+//! which only a bound over the whole track (a tracker's bound) can show;
+//! docs/estimators.md says how the trade table treats it.
 
 // `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -37,6 +43,10 @@ pub struct CrbScene {
     pub sigma_temp_c: Option<f64>,
     /// The attitude sensor's 1σ (pitch, yaw), when the vehicle has one.
     pub attitude_sigma: Option<(Angle, Angle)>,
+    /// The depth sensor's 1σ (m), when the vehicle has one. Its reading is
+    /// the sensor's z; a lever arm only shifts it by a known function of
+    /// pitch, so the bound takes it at the dome centre.
+    pub depth_sigma: Option<f64>,
 }
 
 impl CrbScene {
@@ -49,6 +59,7 @@ impl CrbScene {
             sigma_k_d: Some(0.015),
             sigma_temp_c: Some(3.0),
             attitude_sigma: None,
+            depth_sigma: None,
         }
     }
 }
@@ -110,6 +121,9 @@ pub fn fisher(scene: &CrbScene, pose: &Pose) -> SMatrix<f64, NP, NP> {
     if let Some((sp, sy)) = scene.attitude_sigma {
         f[(3, 3)] += 1.0 / (sp.rad() * sp.rad());
         f[(4, 4)] += 1.0 / (sy.rad() * sy.rad());
+    }
+    if let Some(sd) = scene.depth_sigma.filter(|s| *s > 0.0 && s.is_finite()) {
+        f[(2, 2)] += 1.0 / (sd * sd);
     }
     f
 }
@@ -192,6 +206,21 @@ mod tests {
         }
         // Farther is dimmer: worse range bound.
         assert!(bare[2].x > bare[0].x);
+    }
+
+    /// Depth pins z, and through the z–pitch ridge pitch too; it does not
+    /// touch the y–yaw ridge.
+    #[test]
+    fn depth_pins_z_and_pitch_not_yaw() {
+        let mut scene = CrbScene::montecarlo(SensorModel::default());
+        let p = [Pose::new(6.5, 0.1, 0.2, Angle::from_deg(3.0), Angle::ZERO)];
+        let bare = crb_along(&scene, &p)[0];
+        scene.depth_sigma = Some(0.02);
+        let d = crb_along(&scene, &p)[0];
+        assert!(d.z <= 0.02 + 1e-12 && d.z < bare.z / 10.0, "{bare:?} {d:?}");
+        assert!(d.pitch_deg < bare.pitch_deg / 5.0, "{bare:?} {d:?}");
+        // The y/yaw ridge narrows (the beam couples it to z) but stays open.
+        assert!(d.yaw_deg > 10.0 && d.y > 1.0, "{bare:?} {d:?}");
     }
 
     #[test]

@@ -91,24 +91,16 @@ pub fn wait_until(timeout: Duration, mut cond: impl FnMut() -> bool) -> bool {
 /// An `ok` estimate of the test pose: x 5, y 1, z 0.5 m, pitch 10°, yaw
 /// −20°, surge 0.4 m/s, with std 0.2, 0.05, 0.03 m, 1°, 2°, 0.05 m/s.
 pub fn estimate(seq: u64, t: f64) -> PoseEstimate {
-    PoseEstimate {
-        seq,
-        t,
-        status: Status::Ok,
-        x: Some(5.0),
-        y: Some(1.0),
-        z: Some(0.5),
-        pitch_deg: Some(10.0),
-        yaw_deg: Some(-20.0),
-        surge: Some(0.4),
-        std: StdDev {
-            x: Some(0.2),
-            y: Some(0.05),
-            z: Some(0.03),
-            pitch: Some(1.0),
-            yaw: Some(2.0),
-            surge: Some(0.05),
-        },
-        estimator: "test",
-    }
+    let mut e = PoseEstimate::empty(seq, t, Status::Ok, "test");
+    (e.x, e.y, e.z) = (Some(5.0), Some(1.0), Some(0.5));
+    (e.pitch_deg, e.yaw_deg, e.surge) = (Some(10.0), Some(-20.0), Some(0.4));
+    e.std = StdDev {
+        x: Some(0.2),
+        y: Some(0.05),
+        z: Some(0.03),
+        pitch: Some(1.0),
+        yaw: Some(2.0),
+        surge: Some(0.05),
+    };
+    e
 }

@@ -1,0 +1,437 @@
+//! The speed-for-accuracy trade table (`lightpose bench`): every estimator
+//! on the paper's three Monte Carlo cases (dive and zigzag in the tank,
+//! zigzag in harbour water), each with a set of the vehicle's own sensors
+//! (none, attitude, depth, attitude + depth, attitude + depth + DVL);
+//! beside each axis the paper's published half-widths and the Cramér–Rao
+//! bound at the start and end poses, so that "better" is measured against
+//! both what was published and what the photodiodes allow.
+//!
+//! Why here and not in the tool: the table is analysis (it runs the Monte
+//! Carlo engine, the bound and the timing), and the tool stays a thin
+//! parser of arguments.
+//!
+//! Time per frame is measured apart from the Monte Carlo, on one thread over
+//! pre-simulated frames: the engine runs realizations in parallel with the
+//! simulator inside the loop, so its wall time says nothing about one
+//! estimator's cost.
+
+use crate::axis::{Axis, AXES};
+use crate::bound::{crb_scene, track_bound_along};
+use crate::montecarlo::{self, McConfig, McError, McResult};
+use crate::paper::{Figure, PaperCase};
+use crate::report::headline;
+use crate::sensors::SensorSet;
+use lightpose_core::{Estimator, Frame};
+use lightpose_pipeline::model::crb::{crb_along, CrbBound};
+use lightpose_pipeline::model::tracker::TrackBound;
+use lightpose_pipeline::{build_estimator, BuildError, Calibration};
+use lightpose_sim::{Scene, Simulator, Trajectory};
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+/// z of a 95 % two-sided interval: σ → half-width.
+pub const Z95: f64 = 1.959964;
+
+/// One of the paper's cases and its files under config/.
+#[derive(Debug)]
+pub struct Case {
+    pub name: &'static str,
+    pub paper: PaperCase,
+    pub scene: &'static str,
+    pub trajectory: &'static str,
+    pub calibration: &'static str,
+}
+
+pub const CASES: [Case; 3] = [
+    Case {
+        name: "dive-tank",
+        paper: PaperCase::DiveClear,
+        scene: "config/scenes/tank.toml",
+        trajectory: "config/trajectories/dive.csv",
+        calibration: "config/calibration/tank.toml",
+    },
+    Case {
+        name: "zigzag-tank",
+        paper: PaperCase::ZigzagClear,
+        scene: "config/scenes/tank.toml",
+        trajectory: "config/trajectories/zigzag.csv",
+        calibration: "config/calibration/tank.toml",
+    },
+    Case {
+        name: "zigzag-harbour",
+        paper: PaperCase::ZigzagTurbid,
+        scene: "config/scenes/harbour.toml",
+        trajectory: "config/trajectories/zigzag.csv",
+        calibration: "config/calibration/harbour.toml",
+    },
+];
+
+impl Case {
+    /// The case called `name`.
+    pub fn named(name: &str) -> Option<&'static Case> {
+        CASES.iter().find(|c| c.name == name)
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum TradeError {
+    #[error("case {case}: {source}")]
+    Scene {
+        case: &'static str,
+        #[source]
+        source: lightpose_sim::SceneError,
+    },
+    #[error("case {case}: {source}")]
+    Trajectory {
+        case: &'static str,
+        #[source]
+        source: lightpose_sim::TrajectoryError,
+    },
+    #[error("case {case}: {source}")]
+    Calibration {
+        case: &'static str,
+        #[source]
+        source: lightpose_pipeline::CalError,
+    },
+    #[error("case {case}, estimator {name}: {source}")]
+    Build {
+        case: &'static str,
+        name: String,
+        #[source]
+        source: BuildError,
+    },
+    #[error("case {case}, estimator {name}: {source}")]
+    MonteCarlo {
+        case: &'static str,
+        name: String,
+        #[source]
+        source: McError,
+    },
+}
+
+/// A case's files, loaded.
+pub struct Loaded {
+    pub case: &'static Case,
+    pub scene: Scene,
+    pub trajectory: Trajectory,
+    pub calibration: Calibration,
+}
+
+/// Load `case`'s scene, trajectory and calibration from under `root`.
+pub fn load(root: &Path, case: &'static Case) -> Result<Loaded, TradeError> {
+    let c = case.name;
+    Ok(Loaded {
+        case,
+        scene: Scene::load(&root.join(case.scene))
+            .map_err(|source| TradeError::Scene { case: c, source })?,
+        trajectory: Trajectory::load(&root.join(case.trajectory))
+            .map_err(|source| TradeError::Trajectory { case: c, source })?,
+        calibration: Calibration::load(&root.join(case.calibration))
+            .map_err(|source| TradeError::Calibration { case: c, source })?,
+    })
+}
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct TradeOptions {
+    /// Monte Carlo realizations per case and sensor set.
+    pub runs: usize,
+    pub seed: u64,
+    /// Realizations the time per frame is measured over (median).
+    pub timing_runs: usize,
+    pub estimators: Vec<String>,
+}
+
+/// One estimator's rows of a section.
+pub struct Row {
+    pub name: String,
+    pub us_per_frame: f64,
+    pub mc: McResult,
+}
+
+/// One case with one sensor set: its rows, the estimators it had to skip
+/// (with why), and the single-frame bound at the first and last frame.
+pub struct Section {
+    pub case: &'static Case,
+    pub sensors: SensorSet,
+    pub runs: usize,
+    pub rows: Vec<Row>,
+    pub skipped: Vec<String>,
+    pub crb: Vec<CrbBound>,
+    /// The bound for a tracker (the tracker's motion model, the whole
+    /// track) at the last frame, when the calibration has a light model.
+    pub track_end: Option<TrackBound>,
+}
+
+/// Median wall time per frame of `est` over the simulated realizations
+/// `frames`, microseconds. Each realization is replayed until at least
+/// 2 ms have passed, so the clock's resolution does not matter.
+pub fn time_per_frame(est: &mut dyn Estimator, frames: &[Vec<Frame>]) -> f64 {
+    let mut per: Vec<f64> = Vec::with_capacity(frames.len());
+    for run in frames {
+        if run.is_empty() {
+            continue;
+        }
+        let mut reps = 0u32;
+        let start = Instant::now();
+        loop {
+            est.reset();
+            for f in run {
+                std::hint::black_box(est.estimate(std::hint::black_box(f)));
+            }
+            reps += 1;
+            if start.elapsed().as_secs_f64() >= 2e-3 {
+                break;
+            }
+        }
+        per.push(start.elapsed().as_secs_f64() * 1e6 / (reps as f64 * run.len() as f64));
+    }
+    per.sort_by(f64::total_cmp);
+    per.get(per.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// `runs` realizations of the nominal scene along `traj`, the whole motion
+/// read by the scene's sensors.
+pub fn simulate_runs(scene: &Scene, traj: &Trajectory, runs: usize, seed: u64) -> Vec<Vec<Frame>> {
+    let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
+    (0..runs)
+        .map(|i| {
+            let mut sim = Simulator::new(scene.clone(), seed.wrapping_add(1000 + i as u64));
+            times
+                .iter()
+                .enumerate()
+                .map(|(j, &t)| sim.frame_moving(j as u64, t, &traj.kinematics(t)))
+                .collect()
+        })
+        .collect()
+}
+
+/// Run every estimator of `o` on `l`'s case with the sensor set `set`;
+/// `progress` is called with the number of realizations before each
+/// Monte Carlo and must return the bar to advance.
+pub fn run_section(
+    l: &Loaded,
+    set: SensorSet,
+    o: &TradeOptions,
+    progress: &dyn Fn(u64) -> indicatif::ProgressBar,
+) -> Result<Section, TradeError> {
+    let mut scene = l.scene.clone();
+    set.apply(&mut scene);
+    let traj = &l.trajectory;
+    let case = l.case;
+    // The bound at the ends of the trajectory, with the engine's K_D and
+    // temperature spreads and the sensors of the set.
+    let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
+    let ends: Vec<_> = [times.first(), times.last()]
+        .into_iter()
+        .flatten()
+        .map(|&t| traj.sample(t).0)
+        .collect();
+    let crb = crb_along(&crb_scene(&scene), &ends);
+    let settings = l.calibration.estimator.clone().unwrap_or_default();
+    let track_end = track_bound_along(&scene, traj, &settings.tracker)
+        .ok()
+        .and_then(|b| b.last().copied());
+    let timing = simulate_runs(&scene, traj, o.timing_runs.max(1), o.seed);
+    let cfg = McConfig {
+        scene,
+        trajectory: traj.clone(),
+        runs: o.runs,
+        seed: o.seed,
+    };
+    let mut sec = Section {
+        case,
+        sensors: set,
+        runs: o.runs,
+        rows: Vec::new(),
+        skipped: Vec::new(),
+        crb,
+        track_end,
+    };
+    for name in &o.estimators {
+        let build = || build_estimator(name, &l.calibration);
+        let mut est = match build() {
+            Ok(e) => e,
+            Err(e @ BuildError::NoPhysical { .. }) => {
+                sec.skipped
+                    .push(format!("{}: skipped: {e}", case.calibration));
+                continue;
+            }
+            Err(source) => {
+                return Err(TradeError::Build {
+                    case: case.name,
+                    name: name.clone(),
+                    source,
+                })
+            }
+        };
+        let us = time_per_frame(est.as_mut(), &timing);
+        let bar = progress(o.runs as u64);
+        let mc = montecarlo::run(&cfg, build, &bar);
+        bar.finish_and_clear();
+        let mc = mc.map_err(|source| TradeError::MonteCarlo {
+            case: case.name,
+            name: name.clone(),
+            source,
+        })?;
+        sec.rows.push(Row {
+            name: mc.estimator.clone(),
+            us_per_frame: us,
+            mc,
+        });
+    }
+    Ok(sec)
+}
+
+/// Three significant-ish digits, `1.2e3` from 1000 up, ∞ for a bound with
+/// no information, — for nothing.
+pub fn num(v: Option<f64>) -> String {
+    match v {
+        Some(v) if v.is_finite() && v >= 1e3 => format!("{v:.1e}"),
+        Some(v) if v.is_finite() && v >= 10.0 => format!("{v:.1}"),
+        Some(v) if v.is_finite() => format!("{v:.3}"),
+        Some(v) if v.is_infinite() => "∞".into(),
+        _ => "—".into(),
+    }
+}
+
+fn track_of(b: &TrackBound, a: Axis) -> f64 {
+    match a {
+        Axis::X => b.x,
+        Axis::Y => b.y,
+        Axis::Z => b.z,
+        Axis::Pitch => b.pitch_deg,
+        Axis::Yaw => b.yaw_deg,
+        Axis::Surge => b.surge,
+    }
+}
+
+fn crb_of(b: &CrbBound, a: Axis) -> Option<f64> {
+    match a {
+        Axis::X => Some(b.x),
+        Axis::Y => Some(b.y),
+        Axis::Z => Some(b.z),
+        Axis::Pitch => Some(b.pitch_deg),
+        Axis::Yaw => Some(b.yaw_deg),
+        Axis::Surge => None,
+    }
+}
+
+/// The paper's published 95 % half-widths of `a`, "start → end".
+fn paper_cell(case: PaperCase, a: Axis) -> String {
+    if a == Axis::Surge {
+        return "—".into();
+    }
+    let fig = case.figures();
+    let i = a.index();
+    let f = |x: Option<Figure>| x.map_or("—".to_string(), |f| format!("±{f}"));
+    format!("{} → {}", f(fig.ci_start[i]), f(fig.ci_end[i]))
+}
+
+/// The Markdown table of one section.
+pub fn table(sec: &Section) -> String {
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "\n### {} — {} ({} runs)\n",
+        sec.case.name,
+        sec.sensors.label(),
+        sec.runs
+    );
+    let _ = writeln!(
+        o,
+        "| estimator | µs/frame | axis | final nominal error | 95% start | 95% end | paper 95% start → end | ±2σ coverage | CRB 95% start | CRB 95% end | tracker bound 95% end |"
+    );
+    let _ = writeln!(o, "|---|---|---|---|---|---|---|---|---|---|---|");
+    for r in &sec.rows {
+        for a in AXES {
+            let h = headline(&r.mc, a);
+            let cov = r.mc.coverage[a.index()].map(|c| format!("{:.1}%", 100.0 * c.fraction()));
+            let c0 = sec.crb.first().and_then(|b| crb_of(b, a)).map(|s| Z95 * s);
+            let c1 = sec.crb.last().and_then(|b| crb_of(b, a)).map(|s| Z95 * s);
+            let tb = sec.track_end.map(|b| Z95 * track_of(&b, a));
+            let _ = writeln!(
+                o,
+                "| {} | {} | {} ({}) | {} | {} | {} | {} | {} | {} | {} | {} |",
+                r.name,
+                num(Some(r.us_per_frame)),
+                a.name(),
+                a.unit(),
+                num(h.map(|h| h.0)),
+                num(h.map(|h| h.1)),
+                num(h.map(|h| h.2)),
+                paper_cell(sec.case.paper, a),
+                cov.unwrap_or_else(|| "—".into()),
+                num(c0),
+                num(c1),
+                num(tb),
+            );
+        }
+    }
+    let _ = writeln!(
+        o,
+        "\nCRB: one frame's bound{}. Tracker bound: the posterior bound along the whole track for an estimator that believes the tracker's motion model (a smoother vehicle can be tracked better).",
+        if sec.sensors.dvl {
+            " (with attitude and depth: the DVL adds nothing to one frame)"
+        } else {
+            ""
+        }
+    );
+    for s in &sec.skipped {
+        let _ = writeln!(o, "\n{s}");
+    }
+    o
+}
+
+/// The summary table of a whole run: per section and estimator, time per
+/// frame, the end 95 % half-width and the ±2σ coverage of every axis —
+/// the rows docs/estimators.md quotes.
+pub fn summary(sections: &[Section]) -> String {
+    let mut o = String::new();
+    let _ = writeln!(o, "\n### Summary: end 95 % half-width (±2σ coverage)\n");
+    let mut head = "| case | sensors | estimator | µs/frame |".to_string();
+    let mut rule = "|---|---|---|---|".to_string();
+    for a in AXES {
+        let _ = write!(head, " {} ({}) |", a.name(), a.unit());
+        rule.push_str("---|");
+    }
+    let _ = writeln!(o, "{head}\n{rule}");
+    for sec in sections {
+        for r in &sec.rows {
+            let _ = write!(
+                o,
+                "| {} | {} | {} | {} |",
+                sec.case.name,
+                sec.sensors.name(),
+                r.name,
+                num(Some(r.us_per_frame))
+            );
+            for a in AXES {
+                let h = headline(&r.mc, a).map(|h| h.2);
+                let c = r.mc.coverage[a.index()].map_or("—".to_string(), |c| {
+                    format!("{:.1}%", 100.0 * c.fraction())
+                });
+                let _ = write!(o, " {} ({c}) |", num(h));
+            }
+            let _ = writeln!(o);
+        }
+    }
+    o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_print_as_the_tables_want() {
+        assert_eq!(num(Some(0.12345)), "0.123");
+        assert_eq!(num(Some(12.345)), "12.3");
+        assert_eq!(num(Some(1234.0)), "1.2e3");
+        assert_eq!(num(Some(f64::INFINITY)), "∞");
+        assert_eq!(num(None), "—");
+        assert_eq!(num(Some(f64::NAN)), "—");
+        assert!(Case::named("dive-tank").is_some() && Case::named("spiral").is_none());
+    }
+}

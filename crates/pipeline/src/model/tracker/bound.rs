@@ -1,0 +1,273 @@
+//! A bound for a tracker: the posterior Cramér–Rao bound along a known
+//! track, with the tracker's own motion model as the prior that ties one
+//! frame to the next.
+//!
+//! Why: one frame's bound (`model::crb`) has no velocity in it, so it says
+//! nothing of what a DVL, or simply following the vehicle, is worth; the
+//! trade table's DVL rows need a bound that pools frames. This is the
+//! recursive bound of Tichavský et al. (1998) for additive Gaussian noise,
+//! with the transition and measurement Jacobians taken along the true
+//! track: P⁻ = F·P·Fᵀ + Q, then each measurement's information added (the
+//! covariance form of J⁺ = (F·J⁻¹·Fᵀ + Q)⁻¹ + Hᵀ·R⁻¹·H). It bounds any
+//! unbiased estimator that believes the tracker's motion model (its Q) and
+//! the given priors; a vehicle that moves more smoothly than Q allows can
+//! be tracked better than this. The state is the tracker's plus the common
+//! gain of an unknown water temperature (as in the single-frame bound);
+//! K_D is an unknown constant with its prior, whether or not a tracker
+//! estimates it.
+
+// Channel loops index several parallel per-detector arrays at once.
+#![allow(clippy::needless_range_loop)]
+
+use lightpose_core::{BodyVec, Pose, NDET};
+use nalgebra::{SMatrix, SVector};
+
+use super::state::{Ms, State, Vs, KD, NS, VEL};
+use super::Tracker;
+use crate::model::light::{from_pose, predict_with_grad, PoseVec};
+
+/// The bound's state: the tracker's and the common gain.
+const NB: usize = NS + 1;
+const GAIN: usize = NS;
+type Mb = SMatrix<f64, NB, NB>;
+
+/// One frame of the true track.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackPoint {
+    pub t: f64,
+    pub pose: Pose,
+    /// Velocity over the ground in the body frame (what a DVL reads).
+    pub velocity: BodyVec,
+}
+
+/// What is known and measured besides the counts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackBoundScene {
+    /// True water temperature (the frames' g_T).
+    pub temp_c: f64,
+    /// 1σ of K_D about the calibration (None: known).
+    pub sigma_k_d: Option<f64>,
+    /// 1σ of the temperature the frames report (None: known).
+    pub sigma_temp_c: Option<f64>,
+    /// 1σ of the own sensors' readings: attitude (pitch, yaw, rad), depth
+    /// (m), DVL (m/s per component); None for a sensor the vehicle lacks.
+    pub attitude: Option<(f64, f64)>,
+    pub depth: Option<f64>,
+    pub dvl: Option<f64>,
+}
+
+/// Lower bounds (1σ) at one frame; angles in degrees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackBound {
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+    pub pitch_deg: f64,
+    pub yaw_deg: f64,
+    pub surge: f64,
+}
+
+/// Kalman covariance update with H (rows of `h`) and diagonal noise `r`.
+fn inform<const M: usize>(p: &mut Mb, h: &SMatrix<f64, M, NB>, r: &SVector<f64, M>) {
+    let s = h * *p * h.transpose() + SMatrix::<f64, M, M>::from_diagonal(r);
+    if let Some(ch) = s.cholesky() {
+        let k = *p * h.transpose() * ch.inverse();
+        let pn = *p - k * h * *p;
+        *p = (pn + pn.transpose()) * 0.5;
+    }
+}
+
+impl Tracker {
+    /// The tracker's transition over `dt` about state `x`: its Jacobian by
+    /// central differences of the prediction, and its process noise (the
+    /// prediction of a zero covariance).
+    fn transition(&self, x: &Vs, dt: f64) -> (Ms, Ms) {
+        let mut s = State::new(*x, Ms::zeros(), 0.0);
+        self.predict(&mut s, dt);
+        let q = s.p;
+        let mut f = Ms::zeros();
+        for j in 0..NS {
+            let h = 1e-6 * (1.0 + x[j].abs());
+            let mut a = State::new(*x, Ms::zeros(), 0.0);
+            let mut b = a;
+            a.x[j] += h;
+            b.x[j] -= h;
+            self.predict(&mut a, dt);
+            self.predict(&mut b, dt);
+            f.set_column(j, &((a.x - b.x) / (2.0 * h)));
+        }
+        (f, q)
+    }
+
+    /// The tracker's state at a point of the true track.
+    fn true_state(&self, p: &TrackPoint) -> Vs {
+        let mut x = Vs::zeros();
+        let q = from_pose(&p.pose);
+        for i in 0..5 {
+            x[i] = q[i];
+        }
+        for a in 0..3 {
+            x[VEL + a] = p.velocity.0[a];
+        }
+        x[KD] = self.model.light.k_d;
+        x
+    }
+
+    /// Add one frame's information: the counts (uncensored channels of
+    /// the true image) and the own sensors' readings.
+    fn inform_frame(&self, p: &mut Mb, x: &Vs, sc: &TrackBoundScene) {
+        let m = &self.model;
+        let gt = lightpose_core::light::temperature_gain(sc.temp_c);
+        let q = PoseVec::from_fn(|i, _| x[i]);
+        let (pred, irr, jac) = predict_with_grad(m, &q, x[KD], gt);
+        let fs = m.full_scale();
+        let cpv = m.counts_per_volt();
+        let mut h = SMatrix::<f64, NDET, NB>::zeros();
+        let mut r = SVector::<f64, NDET>::from_element(1.0);
+        for k in 0..NDET {
+            if !(pred[k] > 0.5 && pred[k] < fs - 0.5) {
+                continue;
+            }
+            for j in 0..5 {
+                h[(k, j)] = jac[(k, j)];
+            }
+            h[(k, KD)] = jac[(k, 5)];
+            h[(k, GAIN)] = m.gain[k] * gt * irr[k] * cpv;
+            r[k] = m.count_variance(irr[k] * m.gain[k] * gt);
+        }
+        inform(p, &h, &r);
+        if let Some((sp, sy)) = sc.attitude {
+            let mut h = SMatrix::<f64, 2, NB>::zeros();
+            h[(0, 3)] = 1.0;
+            h[(1, 4)] = 1.0;
+            inform(p, &h, &SVector::<f64, 2>::new(sp * sp, sy * sy));
+        }
+        if let Some(sd) = sc.depth {
+            let mut h = SMatrix::<f64, 1, NB>::zeros();
+            h[(0, 2)] = 1.0;
+            inform(p, &h, &SVector::<f64, 1>::new(sd * sd));
+        }
+        if let Some(sv) = sc.dvl {
+            let mut h = SMatrix::<f64, 3, NB>::zeros();
+            for a in 0..3 {
+                h[(a, VEL + a)] = 1.0;
+            }
+            inform(p, &h, &SVector::<f64, 3>::from_element(sv * sv));
+        }
+    }
+
+    /// The prior before the first frame: nothing on the pose (a vague
+    /// 1 km / 1 rad), the start-up doubt of the rates, and the priors of
+    /// K_D and of the common gain.
+    fn bound_prior(&self, sc: &TrackBoundScene) -> Mb {
+        let c = &self.cfg;
+        let mut p = Mb::zeros();
+        for i in 0..3 {
+            p[(i, i)] = 1e6;
+        }
+        for i in 3..5 {
+            p[(i, i)] = 1.0;
+        }
+        p[(VEL, VEL)] = c.init_velocity_sigma.powi(2);
+        p[(VEL + 1, VEL + 1)] = c.side_sigma.powi(2);
+        p[(VEL + 2, VEL + 2)] = c.side_sigma.powi(2);
+        for i in 8..10 {
+            p[(i, i)] = c.init_rate_sigma_deg.to_radians().powi(2);
+        }
+        p[(KD, KD)] = sc.sigma_k_d.unwrap_or(0.0).powi(2);
+        let sg = sc
+            .sigma_temp_c
+            .map_or(0.0, |s| s * 2.0 / (576.0 - 2.0 * sc.temp_c));
+        p[(GAIN, GAIN)] = sg * sg;
+        p
+    }
+
+    /// The bound at every point of `track` (in time order).
+    pub fn track_bound(&self, track: &[TrackPoint], sc: &TrackBoundScene) -> Vec<TrackBound> {
+        let mut p = self.bound_prior(sc);
+        let mut out = Vec::with_capacity(track.len());
+        let mut last: Option<(f64, Vs)> = None;
+        for pt in track {
+            let x = self.true_state(pt);
+            if let Some((t0, x0)) = last {
+                let (f, q) = self.transition(&x0, pt.t - t0);
+                let mut fb = Mb::identity();
+                let mut qb = Mb::zeros();
+                for i in 0..NS {
+                    for j in 0..NS {
+                        fb[(i, j)] = f[(i, j)];
+                        qb[(i, j)] = q[(i, j)];
+                    }
+                }
+                let pn = fb * p * fb.transpose() + qb;
+                p = (pn + pn.transpose()) * 0.5;
+            }
+            self.inform_frame(&mut p, &x, sc);
+            last = Some((pt.t, x));
+            let sd = |i: usize| p[(i, i)].max(0.0).sqrt();
+            out.push(TrackBound {
+                x: sd(0),
+                y: sd(1),
+                z: sd(2),
+                pitch_deg: sd(3).to_degrees(),
+                yaw_deg: sd(4).to_degrees(),
+                surge: sd(VEL),
+            });
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::SensorModel;
+    use crate::settings::TrackerConfig;
+    use lightpose_core::Angle;
+
+    fn approach() -> Vec<TrackPoint> {
+        (0..41)
+            .map(|i| {
+                let t = i as f64 * 0.2;
+                TrackPoint {
+                    t,
+                    pose: Pose::new(8.5 - 0.5 * t, 0.1, 0.2, Angle::from_deg(2.0), Angle::ZERO),
+                    velocity: BodyVec([0.5, 0.0, 0.0]),
+                }
+            })
+            .collect()
+    }
+
+    /// Information only adds: every sensor narrows the bound; the DVL
+    /// narrows surge most, depth z; and pooling frames beats one frame.
+    #[test]
+    fn every_sensor_narrows_the_bound_and_frames_pool() {
+        let tr = Tracker::new(SensorModel::default(), TrackerConfig::default()).unwrap();
+        let base = TrackBoundScene {
+            temp_c: 20.0,
+            sigma_k_d: Some(0.015),
+            sigma_temp_c: Some(3.0),
+            attitude: Some((0.3f64.to_radians(), 1.5f64.to_radians())),
+            depth: None,
+            dvl: None,
+        };
+        let track = approach();
+        let att = tr.track_bound(&track, &base);
+        let all = tr.track_bound(
+            &track,
+            &TrackBoundScene {
+                depth: Some(0.02),
+                dvl: Some(0.02),
+                ..base
+            },
+        );
+        for (a, b) in att.iter().zip(&all) {
+            assert!(b.x <= a.x * 1.0001 && b.z <= a.z * 1.0001, "{a:?} {b:?}");
+            assert!(b.surge <= a.surge * 1.0001, "{a:?} {b:?}");
+        }
+        let end = all.last().unwrap();
+        assert!(end.z < 0.02 && end.surge < 0.02, "{end:?}");
+        // Later frames know more than the first.
+        assert!(att[40].y < att[0].y && att[40].surge < att[0].surge);
+    }
+}

@@ -1,0 +1,374 @@
+//! The `"tracker"` estimator: a Kalman filter over pose and its rates (and
+//! optionally K_D), measuring the raw counts through the light equation and
+//! whatever of the vehicle's own sensors a frame carries (attitude, depth,
+//! DVL velocity; spec v2).
+//!
+//! Why: one frame barely separates y from yaw and z from pitch, and gives
+//! no velocity at all (MODEL.md). Following the vehicle through time does
+//! both: the motion model (by default surge along the bow plus a small
+//! sideslip, so ż = u·sin θ + …) ties attitude to the change of position,
+//! so the ridge of one frame is crossed by the next, and surge is a state
+//! with its own uncertainty. The vehicle's own sensors pin what the light
+//! leaves loose: attitude the angles, depth z (hence pitch), the DVL the
+//! velocity; each is fused when a frame has it and refused, with a reason,
+//! when it is unusable — never at the cost of the light's update.
+//!
+//! The room for each part:
+//! - `state`: the state vector's layout and the beam term of σx;
+//! - `motion`: the prediction (body or world motion model);
+//! - `readings`: checks, noise and Kalman updates of the own sensors;
+//! - `counts`: the update with the 25 counts (EKF, or sigma points when no
+//!   reading pins the attitude);
+//! - `start`: the start-up fit (with the readings as priors);
+//! - `bound`: the bound for a tracker along a known track (posterior CRB).
+//!
+//! Fixed-size matrices throughout: no allocation per frame.
+
+// `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+mod bound;
+mod counts;
+mod motion;
+mod readings;
+mod start;
+mod state;
+#[cfg(test)]
+mod tests;
+#[cfg(test)]
+mod tests_fusion;
+
+use lightpose_core::light::temperature_gain;
+use lightpose_core::{
+    Estimator, Frame, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev,
+};
+
+pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
+use self::counts::CountsInput;
+use self::readings::{gate_thresholds, FrameReadings};
+use self::state::{beam_consider_sigma_x, State, Vs, KD, VEL};
+use crate::model::single_frame::{ModelEstimator, WATER_TEMP_C};
+use crate::model::solver::Censoring;
+use crate::model::SensorModel;
+use crate::paper::MomentsEstimator;
+use crate::settings::{Dof, ModelConfig, ModelError, Motion, TrackerConfig};
+
+/// The paper's range law (eqs. 2–3) of the same calibration.
+#[derive(Debug, Clone)]
+struct PaperRange {
+    est: MomentsEstimator,
+    /// Residual σ of the law over the calibration's translation grid, m.
+    sigma_m: f64,
+    /// Its exponent, 1/m: ln-brightness per metre.
+    b1: f64,
+}
+
+/// Kalman tracker (name `"tracker"`).
+#[derive(Debug, Clone)]
+pub struct Tracker {
+    model: SensorModel,
+    cfg: TrackerConfig,
+    /// The `"model"` estimator's settings and its light check, which the
+    /// start-up fit shares.
+    init: ModelEstimator,
+    /// χ² gates of a reading with 1, 2 and 3 components.
+    gate: [f64; 3],
+    /// The paper's estimator, for its range (see `paper_range_sigma_scale`).
+    paper: Option<PaperRange>,
+    state: Option<State>,
+}
+
+impl Tracker {
+    pub const NAME: &'static str = "tracker";
+
+    pub fn new(model: SensorModel, cfg: TrackerConfig) -> Result<Self, ModelError> {
+        cfg.validate()?;
+        let init_cfg = ModelConfig {
+            dof: Dof::Full,
+            use_attitude: cfg.use_attitude,
+            attitude_sigma_pitch_deg: cfg.attitude_sigma_pitch_deg,
+            attitude_sigma_yaw_deg: cfg.attitude_sigma_yaw_deg,
+            attitude_envelope_deg: Some(cfg.init_attitude_sigma_deg),
+            x_range: cfg.x_range,
+            max_saturated: cfg.max_saturated,
+            k_d_sigma: if cfg.estimate_k_d { 0.0 } else { cfg.k_d_sigma },
+            ..ModelConfig::default()
+        };
+        let init = ModelEstimator::new(model.clone(), init_cfg)?;
+        Ok(Tracker {
+            model,
+            gate: gate_thresholds(cfg.reading_gate_p),
+            cfg,
+            init,
+            paper: None,
+            state: None,
+        })
+    }
+
+    /// Give the tracker the paper's estimator of the same calibration, for
+    /// the range it reads off the brightest channel.
+    pub fn with_paper(mut self, cal: &crate::calibration::Calibration) -> Self {
+        self.paper = Some(PaperRange {
+            est: MomentsEstimator::new(cal),
+            sigma_m: cal.fits.x.sigma_m,
+            b1: cal.fits.x.b1,
+        });
+        self
+    }
+
+    pub fn config(&self) -> &TrackerConfig {
+        &self.cfg
+    }
+
+    /// Current K_D of the filter and its 1σ (when it is estimated).
+    pub fn k_d(&self) -> Option<(f64, f64)> {
+        self.state.as_ref().map(|s| (s.x[KD], s.sd(KD)))
+    }
+
+    /// Start from `frame` (first frame, after a gap, or when lost).
+    fn restart(&mut self, frame: &Frame, r: &FrameReadings) -> PoseEstimate {
+        let paper_x = match r.attitude.ready() {
+            Some(_) => None,
+            None => self.paper_range(frame),
+        };
+        match self.start(frame, r, paper_x.as_ref()) {
+            Ok((s, uses)) => {
+                let mut e = self.to_estimate(frame, &s, Status::Initialising);
+                e.readings = verdicts(uses);
+                self.state = Some(s);
+                e
+            }
+            Err(st) => {
+                let mut e = PoseEstimate::empty(frame.seq, frame.t, st, Self::NAME);
+                e.readings = verdicts(unfused(r));
+                e
+            }
+        }
+    }
+
+    /// The filter carried to `frame`'s time, or `None` when it must start
+    /// again (no state, time going back, or a gap).
+    fn carried_to(&mut self, t: f64) -> Option<State> {
+        let mut s = self.state.take()?;
+        let dt = t - s.t;
+        if !(dt.is_finite() && (0.0..=self.cfg.max_gap_s).contains(&dt)) {
+            return None;
+        }
+        self.predict(&mut s, dt);
+        s.t = t;
+        Some(s)
+    }
+
+    /// Whether a gated sensor has disagreed with the filter for so long
+    /// that the filter, not the sensor, is taken to be wrong.
+    fn lost_to_readings(&self, s: &mut State, uses: &[ReadingUse; 3]) -> bool {
+        for (n, u) in s.gated.iter_mut().zip(uses) {
+            *n = match u {
+                ReadingUse::Refused(Refusal::Gate) => n.saturating_add(1),
+                ReadingUse::Used => 0,
+                _ => *n,
+            };
+        }
+        s.gated.iter().any(|n| *n >= self.cfg.reading_gate_restart)
+    }
+
+    /// The status of an estimate from an updated state.
+    fn status_of(&self, s: &State, applied: bool, n_sat: usize, uses: &[ReadingUse; 3]) -> Status {
+        let x = s.x[0];
+        if !applied {
+            Status::Diverged
+        } else if s.frames <= self.cfg.init_frames || self.surge_of(s).1 > self.cfg.surge_max_sigma
+        {
+            // Until surge is known too, not every field is (FORMATS.md `ok`).
+            Status::Initialising
+        } else if x < self.cfg.x_range[0] || x > self.cfg.x_range[1] {
+            Status::OutOfRange
+        } else if n_sat > self.cfg.max_saturated {
+            Status::Saturated
+        } else if self.cfg.flag_unobservable && uses[0] != ReadingUse::Used {
+            Status::Unobservable
+        } else {
+            Status::Ok
+        }
+    }
+
+    /// Surge and its 1σ: the body model's u, or the world model's velocity
+    /// along the bow.
+    fn surge_of(&self, s: &State) -> (f64, f64) {
+        let x = &s.x;
+        let p = &s.p;
+        let (surge, var_s) = match self.cfg.motion {
+            Motion::Body => (x[VEL], p[(VEL, VEL)]),
+            Motion::World => {
+                // Surge = forward axis · velocity, forward = (−cθcψ, cθsψ, sθ).
+                let (st, ct) = x[3].sin_cos();
+                let (sp, cp) = x[4].sin_cos();
+                let fwd = [-ct * cp, ct * sp, st];
+                let v = [x[VEL], x[VEL + 1], x[VEL + 2]];
+                let surge = fwd[0] * v[0] + fwd[1] * v[1] + fwd[2] * v[2];
+                let mut g = Vs::zeros();
+                g[VEL] = fwd[0];
+                g[VEL + 1] = fwd[1];
+                g[VEL + 2] = fwd[2];
+                g[3] = st * cp * v[0] - st * sp * v[1] + ct * v[2];
+                g[4] = ct * sp * v[0] + ct * cp * v[1];
+                (surge, (g.transpose() * p * g)[(0, 0)])
+            }
+        };
+        (surge, var_s.max(0.0).sqrt())
+    }
+
+    fn to_estimate(&self, frame: &Frame, s: &State, status: Status) -> PoseEstimate {
+        let mut e = PoseEstimate::empty(frame.seq, frame.t, status, Self::NAME);
+        let x = &s.x;
+        let p = &s.p;
+        let sd = |i: usize| lightpose_core::finite(s.sd(i));
+        e.x = lightpose_core::finite(x[0]);
+        e.y = lightpose_core::finite(x[1]);
+        e.z = lightpose_core::finite(x[2]);
+        e.pitch_deg = lightpose_core::finite(x[3].to_degrees());
+        e.yaw_deg = lightpose_core::finite(x[4].to_degrees());
+        let (surge, surge_sd) = self.surge_of(s);
+        // Until the frames have said something about it, surge is the
+        // start-up's guess (0 ± `init_velocity_sigma`): null, not a number
+        // (FORMATS.md: a field the estimator does not know yet).
+        let known = surge_sd <= self.cfg.surge_max_sigma;
+        e.surge = lightpose_core::finite(surge).filter(|_| known);
+        // K_D's doubt is in P (estimated or considered), x–K_D covariance
+        // and all, so σx needs no term of its own for it.
+        // With the paper's range in x, its error is a bias that frames do
+        // not average away (its on-axis law, off the axis): σx holds the
+        // law's residual over the calibration grid whole, in place of the
+        // beam term (the same off-axis dimming, already in that residual).
+        let beam_x = match s.paper_x {
+            Some(sm) => sm,
+            None => beam_consider_sigma_x(x, p, self.model.light.sigma_b.rad()),
+        };
+        e.std = StdDev {
+            x: sd(0).map(|s| s.hypot(beam_x)),
+            y: sd(1),
+            z: sd(2),
+            pitch: sd(3).map(f64::to_degrees),
+            yaw: sd(4).map(f64::to_degrees),
+            surge: lightpose_core::finite(surge_sd).filter(|_| known),
+        };
+        e
+    }
+}
+
+/// The verdicts of readings that were checked but never fused (no update
+/// happened): refusals stay, a ready reading was not used.
+fn unfused(r: &FrameReadings) -> [ReadingUse; 3] {
+    let keep = |u: ReadingUse| match u {
+        ReadingUse::Used => ReadingUse::Ignored,
+        u => u,
+    };
+    [
+        keep(r.attitude.if_fused()),
+        keep(r.depth.if_fused()),
+        keep(r.velocity.if_fused()),
+    ]
+}
+
+fn verdicts(u: [ReadingUse; 3]) -> ReadingUses {
+    ReadingUses {
+        attitude: u[0],
+        depth: u[1],
+        velocity: u[2],
+    }
+}
+
+impl Estimator for Tracker {
+    fn name(&self) -> &'static str {
+        Self::NAME
+    }
+
+    fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
+        let readings = FrameReadings::check(frame, &self.cfg);
+        // Issue 8: a temperature that is not water's is a bad frame, as in
+        // the model estimator; the update used to correct such a frame as
+        // if at 20 °C (up to 10 % off in brightness, a jump in range).
+        if frame.adc_bits != self.model.adc_bits
+            || frame.temp_c.is_some_and(|t| !WATER_TEMP_C.contains(&t))
+        {
+            let mut e = PoseEstimate::empty(frame.seq, frame.t, Status::BadFrame, Self::NAME);
+            e.readings = verdicts(unfused(&readings));
+            return e;
+        }
+        let Some(mut s) = self.carried_to(frame.t) else {
+            return self.restart(frame, &readings);
+        };
+        let uses = self.update_readings(&mut s, &readings);
+        // A DVL ties successive ranges together independently of the
+        // light, so the brightness along the track measures K_D (Beer's
+        // law): optionally, from the first velocity reading on, K_D is
+        // estimated (its doubt so far is already in P).
+        if self.cfg.estimate_k_d_with_velocity
+            && self.cfg.k_d_sigma > 0.0
+            && uses[2] == ReadingUse::Used
+        {
+            s.k_d_free = true;
+        }
+        s.paper_x = None;
+        if uses[0] != ReadingUse::Used {
+            if let Some(c) = self.paper_range(frame) {
+                if self.update_paper_range(&mut s, &c) == ReadingUse::Used {
+                    s.paper_x = self
+                        .paper
+                        .as_ref()
+                        .map(|p| p.sigma_m * self.cfg.paper_range_sigma_scale);
+                }
+            }
+        }
+        if self.lost_to_readings(&mut s, &uses) {
+            return self.restart(frame, &readings);
+        }
+        // A frame without light says nothing of pose; the readings still
+        // keep the filter on course.
+        if !self.init.has_light(frame) {
+            self.state = Some(s);
+            let mut e = PoseEstimate::empty(frame.seq, frame.t, Status::NoLight, Self::NAME);
+            e.readings = verdicts(uses);
+            return e;
+        }
+        let gt = frame
+            .temp_c
+            .filter(|t| t.is_finite())
+            .map_or(1.0, temperature_gain);
+        let kinds = Censoring::classify(&self.model, &frame.counts);
+        let n_sat = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
+        let inp = CountsInput {
+            frame,
+            gt,
+            kinds,
+            pinned: uses[0] == ReadingUse::Used,
+        };
+        let applied = self.update_counts(&mut s, &inp);
+        if applied {
+            s.rejected = 0;
+        } else {
+            s.rejected += 1;
+            if s.rejected >= self.cfg.max_rejected {
+                // The filter has lost the vehicle: start again from this frame.
+                return self.restart(frame, &readings);
+            }
+        }
+        s.frames = s.frames.saturating_add(1);
+        let sane = s.is_finite() && s.x[0] > 0.0 && s.x[3].abs() < 1.4 && s.x[4].abs() < 1.4;
+        if !sane {
+            self.state = None;
+            let mut e = PoseEstimate::empty(frame.seq, frame.t, Status::Diverged, Self::NAME);
+            e.readings = verdicts(uses);
+            return e;
+        }
+        let status = self.status_of(&s, applied, n_sat, &uses);
+        let mut e = self.to_estimate(frame, &s, status);
+        e.readings = verdicts(uses);
+        self.state = Some(s);
+        e
+    }
+
+    fn reset(&mut self) {
+        self.state = None;
+    }
+}

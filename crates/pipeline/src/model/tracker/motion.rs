@@ -1,0 +1,101 @@
+//! How the tracker moves its state from one frame to the next: the body
+//! model (surge along the bow plus a small sideslip, the default) or the
+//! world model (constant velocity in B).
+
+use super::state::{body_axes, body_axes_derivatives, Ms, State, KD, VEL};
+use super::Tracker;
+use crate::settings::Motion;
+
+/// Add the discrete noise of a white acceleration (density `qq`) over `dt`
+/// to coordinate `i` and its rate `i + 5`.
+fn add_white_accel(q: &mut Ms, i: usize, qq: f64, dt: f64) {
+    q[(i, i)] += qq * dt.powi(3) / 3.0;
+    q[(i, i + 5)] += qq * dt.powi(2) / 2.0;
+    q[(i + 5, i)] += qq * dt.powi(2) / 2.0;
+    q[(i + 5, i + 5)] += qq * dt;
+}
+
+impl Tracker {
+    pub(super) fn predict(&self, s: &mut State, dt: f64) {
+        match self.cfg.motion {
+            Motion::World => self.predict_world(s, dt),
+            Motion::Body => self.predict_body(s, dt),
+        }
+        if s.k_d_free {
+            s.p[(KD, KD)] += self.cfg.k_d_walk_psd * dt;
+        }
+        s.p = (s.p + s.p.transpose()) * 0.5;
+    }
+
+    /// `ang_accel_psd_deg` is a density in (°/s²)²/Hz; the state is in rad.
+    fn ang_accel_psd_rad(&self) -> f64 {
+        self.cfg.ang_accel_psd_deg * (std::f64::consts::PI / 180.0).powi(2)
+    }
+
+    /// Constant velocity in B, white acceleration on every axis.
+    fn predict_world(&self, s: &mut State, dt: f64) {
+        let mut f = Ms::identity();
+        for i in 0..5 {
+            f[(i, i + 5)] = dt;
+        }
+        let mut q = Ms::zeros();
+        let qa = self.ang_accel_psd_rad();
+        for i in 0..5 {
+            let qq = if i < 3 { self.cfg.accel_psd } else { qa };
+            add_white_accel(&mut q, i, qq, dt);
+        }
+        s.x = f * s.x;
+        s.p = f * s.p * f.transpose() + q;
+    }
+
+    /// Velocity in the body frame: the vehicle moves along its bow at
+    /// surge u (a random walk) with a small sideslip (v right, w down,
+    /// first-order Gauss–Markov towards 0), so that ż = u·sin θ + … ties
+    /// the z/pitch and y/yaw ridges of one frame to each other over time.
+    fn predict_body(&self, s: &mut State, dt: f64) {
+        let c = &self.cfg;
+        let x = s.x;
+        let axes = body_axes(x[3], x[4]);
+        let [d_t, d_p] = body_axes_derivatives(x[3], x[4]);
+        let vel = [x[VEL], x[VEL + 1], x[VEL + 2]];
+        let phi = (-dt / c.side_tau_s).exp();
+        let mut f = Ms::identity();
+        for i in 0..3 {
+            for (a, axis) in axes.iter().enumerate() {
+                s.x[i] += dt * vel[a] * axis[i];
+                f[(i, 3)] += dt * vel[a] * d_t[a][i];
+                f[(i, 4)] += dt * vel[a] * d_p[a][i];
+                f[(i, VEL + a)] = dt * axis[i];
+            }
+        }
+        s.x[3] += dt * x[8];
+        s.x[4] += dt * x[9];
+        s.x[VEL + 1] *= phi;
+        s.x[VEL + 2] *= phi;
+        f[(3, 8)] = dt;
+        f[(4, 9)] = dt;
+        f[(VEL + 1, VEL + 1)] = phi;
+        f[(VEL + 2, VEL + 2)] = phi;
+        let mut q = Ms::zeros();
+        // Each body axis' velocity noise, with the position it drags along
+        // (the continuous white-acceleration block, pointed along the axis).
+        let q_side = 2.0 * c.side_sigma * c.side_sigma / c.side_tau_s;
+        for (a, qq) in [c.accel_psd, q_side, q_side].into_iter().enumerate() {
+            let axis = axes[a];
+            let vi = VEL + a;
+            for i in 0..3 {
+                for j in 0..3 {
+                    q[(i, j)] += qq * dt.powi(3) / 3.0 * axis[i] * axis[j];
+                }
+                q[(i, vi)] += qq * dt.powi(2) / 2.0 * axis[i];
+                q[(vi, i)] += qq * dt.powi(2) / 2.0 * axis[i];
+            }
+            q[(vi, vi)] += qq * dt;
+        }
+        let qa = self.ang_accel_psd_rad();
+        for i in 3..5 {
+            add_white_accel(&mut q, i, qa, dt);
+        }
+        s.p = f * s.p * f.transpose() + q;
+    }
+}

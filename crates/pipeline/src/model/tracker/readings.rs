@@ -1,0 +1,372 @@
+//! The vehicle's own sensors in the tracker (spec v2): attitude (pitch,
+//! yaw), depth (the depth sensor's z in B) and DVL velocity (body frame).
+//!
+//! Each reading is checked on its own before it is used — numbers finite,
+//! its own `std` (if it gives one) positive, its value one a vehicle that
+//! sees the beacon can have — then fused as a linear(ized) Kalman update
+//! with an innovation gate. A reading that fails is refused with its
+//! reason and changes nothing; the frame's counts still update the pose.
+//! Noise: the reading's own `std`, else the tracker's setting (whose
+//! default is MODEL.md's sensor).
+//!
+//! Measurement models (state in `state.rs`):
+//! - attitude: (θ, ψ), the yaw innovation wrapped to ±π;
+//! - depth: z + (R_BV·lever)_z = z + l_f·sin θ − l_d·cos θ, the lever arm
+//!   from the dome centre to the sensor in V (docs/spec-notes.md);
+//! - velocity: the body model's (u, v, w) directly; with the world model
+//!   R_BVᵀ·v, linearized in θ, ψ and v.
+
+// `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+use lightpose_core::{Frame, ReadingUse, Refusal};
+use nalgebra::{SMatrix, SVector};
+
+use super::counts::commit;
+use super::state::{body_axes, body_axes_derivatives, Ms, State, NS, VEL};
+use super::Tracker;
+use crate::settings::{Motion, TrackerConfig};
+
+/// A reading that passed the checks: its values and 1σ per component.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Checked<const M: usize> {
+    pub z: SVector<f64, M>,
+    pub sigma: SVector<f64, M>,
+}
+
+/// A reading before the gate: nothing to do, or ready to fuse.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Pending<const M: usize> {
+    /// Absent, ignored by the settings, or refused by a check: the verdict.
+    Done(ReadingUse),
+    Ready(Checked<M>),
+}
+
+impl<const M: usize> Pending<M> {
+    pub fn ready(&self) -> Option<&Checked<M>> {
+        match self {
+            Pending::Ready(c) => Some(c),
+            Pending::Done(_) => None,
+        }
+    }
+
+    /// The verdict if the reading, when ready, was fused as it is.
+    pub fn if_fused(&self) -> ReadingUse {
+        match self {
+            Pending::Ready(_) => ReadingUse::Used,
+            Pending::Done(u) => *u,
+        }
+    }
+}
+
+/// A frame's three readings, checked.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct FrameReadings {
+    pub attitude: Pending<2>,
+    pub depth: Pending<1>,
+    pub velocity: Pending<3>,
+}
+
+/// The verdict of a value check: finite values, a positive finite std
+/// where the reading gives one, values within `limit`.
+fn check<const M: usize>(
+    z: [f64; M],
+    own_std: Option<[f64; M]>,
+    default_std: [f64; M],
+    limit: [f64; M],
+) -> Pending<M> {
+    if !z.iter().all(|v| v.is_finite()) {
+        return Pending::Done(ReadingUse::Refused(Refusal::NotFinite));
+    }
+    let sigma = match own_std {
+        Some(s) if s.iter().all(|v| v.is_finite() && *v > 0.0) => s,
+        Some(_) => return Pending::Done(ReadingUse::Refused(Refusal::BadStd)),
+        None => default_std,
+    };
+    if z.iter().zip(&limit).any(|(v, l)| !(v.abs() <= *l)) {
+        return Pending::Done(ReadingUse::Refused(Refusal::Implausible));
+    }
+    Pending::Ready(Checked {
+        z: SVector::from(z),
+        sigma: SVector::from(sigma),
+    })
+}
+
+impl FrameReadings {
+    /// Check each of `frame`'s readings against `cfg`.
+    pub fn check(frame: &Frame, cfg: &TrackerConfig) -> FrameReadings {
+        let (absent, ignored) = (ReadingUse::Absent, ReadingUse::Ignored);
+        let attitude = match frame.attitude {
+            None => Pending::Done(absent),
+            Some(_) if !cfg.use_attitude => Pending::Done(ignored),
+            // Pitch beyond ±90° or yaw beyond ±180° is no attitude at all.
+            Some(a) => check(
+                [a.pitch.rad(), a.yaw.rad()],
+                a.std.map(|s| [s.pitch.rad(), s.yaw.rad()]),
+                [
+                    cfg.attitude_sigma_pitch_deg.to_radians(),
+                    cfg.attitude_sigma_yaw_deg.to_radians(),
+                ],
+                [
+                    std::f64::consts::FRAC_PI_2 * (1.0 - 1e-9),
+                    std::f64::consts::PI,
+                ],
+            ),
+        };
+        let depth = match frame.depth {
+            None => Pending::Done(absent),
+            Some(_) if !cfg.use_depth => Pending::Done(ignored),
+            Some(d) => check(
+                [d.z],
+                d.std.map(|s| [s]),
+                [cfg.depth_sigma_m],
+                [cfg.depth_limit_m],
+            ),
+        };
+        let velocity = match frame.velocity {
+            None => Pending::Done(absent),
+            Some(_) if !cfg.use_velocity => Pending::Done(ignored),
+            Some(v) => check(
+                v.v.0,
+                v.std.map(|s| s.0),
+                [cfg.velocity_sigma_mps; 3],
+                [cfg.velocity_limit_mps; 3],
+            ),
+        };
+        FrameReadings {
+            attitude,
+            depth,
+            velocity,
+        }
+    }
+}
+
+/// χ² survival function P(χ²_k > x) for k = 1, 2, 3.
+fn chi2_survival(k: usize, x: f64) -> f64 {
+    let h = (0.5 * x).max(0.0);
+    match k {
+        1 => erfc(h.sqrt()),
+        2 => (-h).exp(),
+        _ => erfc(h.sqrt()) + (2.0 * x.max(0.0) / std::f64::consts::PI).sqrt() * (-h).exp(),
+    }
+}
+
+/// Complementary error function (Numerical Recipes' Chebyshev fit,
+/// relative error < 1.2e-7 everywhere): enough for a gate threshold.
+fn erfc(x: f64) -> f64 {
+    let z = x.abs();
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let poly = -z * z - 1.265_512_23
+        + t * (1.000_023_68
+            + t * (0.374_091_96
+                + t * (0.096_784_18
+                    + t * (-0.186_288_06
+                        + t * (0.278_868_07
+                            + t * (-1.135_203_98
+                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
+    let r = t * poly.exp();
+    if x >= 0.0 {
+        r
+    } else {
+        2.0 - r
+    }
+}
+
+/// The χ² values with 1, 2 and 3 degrees of freedom that a consistent
+/// reading exceeds with probability `p` (bisection on the survival
+/// function).
+pub(super) fn gate_thresholds(p: f64) -> [f64; 3] {
+    [1, 2, 3].map(|k| {
+        let (mut lo, mut hi) = (0.0f64, 2000.0f64);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if chi2_survival(k, mid) > p {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    })
+}
+
+/// A linear(ized) measurement of the state: prediction, Jacobian, and the
+/// reading it is compared with.
+struct Linear<const M: usize> {
+    h: SVector<f64, M>,
+    jac: SMatrix<f64, M, NS>,
+}
+
+/// Kalman update of `s` with reading `r` through `lin`; `wrap` marks
+/// components that are angles (innovation wrapped to ±π). Refused (and `s`
+/// untouched) when the innovation's χ² exceeds `gate`.
+fn fuse<const M: usize>(
+    s: &mut State,
+    r: &Checked<M>,
+    lin: &Linear<M>,
+    wrap: [bool; M],
+    gate: f64,
+) -> ReadingUse {
+    let mut y = r.z - lin.h;
+    for (i, w) in wrap.iter().enumerate() {
+        if *w {
+            y[i] = (y[i] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+        }
+    }
+    let rm = SMatrix::<f64, M, M>::from_diagonal(&r.sigma.component_mul(&r.sigma));
+    let sm = lin.jac * s.p * lin.jac.transpose() + rm;
+    let Some(ch) = sm.cholesky() else {
+        return ReadingUse::Refused(Refusal::Gate);
+    };
+    let nis = y.dot(&ch.solve(&y));
+    if !(nis <= gate) {
+        return ReadingUse::Refused(Refusal::Gate);
+    }
+    let mut k = s.p * lin.jac.transpose() * ch.inverse();
+    s.consider(&mut k);
+    let ikh = Ms::identity() - k * lin.jac;
+    let p = ikh * s.p * ikh.transpose() + k * rm * k.transpose();
+    let x = s.x + k * y;
+    if commit(s, x, p) {
+        ReadingUse::Used
+    } else {
+        ReadingUse::Refused(Refusal::Gate)
+    }
+}
+
+impl Tracker {
+    /// (θ, ψ) of the state.
+    fn attitude_model(s: &State) -> Linear<2> {
+        let mut jac = SMatrix::<f64, 2, NS>::zeros();
+        jac[(0, 3)] = 1.0;
+        jac[(1, 4)] = 1.0;
+        Linear {
+            h: SVector::<f64, 2>::new(s.x[3], s.x[4]),
+            jac,
+        }
+    }
+
+    /// The depth sensor's z: z + l_f·sin θ − l_d·cos θ.
+    fn depth_model(&self, s: &State) -> Linear<1> {
+        let [lf, _, ld] = self.cfg.depth_lever_arm_m;
+        let (st, ct) = s.x[3].sin_cos();
+        let mut jac = SMatrix::<f64, 1, NS>::zeros();
+        jac[(0, 2)] = 1.0;
+        jac[(0, 3)] = lf * ct + ld * st;
+        Linear {
+            h: SVector::<f64, 1>::new(s.x[2] + lf * st - ld * ct),
+            jac,
+        }
+    }
+
+    /// The velocity in V (forward, right, down) that the DVL reads.
+    fn velocity_model(&self, s: &State) -> Linear<3> {
+        let mut jac = SMatrix::<f64, 3, NS>::zeros();
+        match self.cfg.motion {
+            Motion::Body => {
+                for a in 0..3 {
+                    jac[(a, VEL + a)] = 1.0;
+                }
+                Linear {
+                    h: SVector::<f64, 3>::new(s.x[VEL], s.x[VEL + 1], s.x[VEL + 2]),
+                    jac,
+                }
+            }
+            Motion::World => {
+                let axes = body_axes(s.x[3], s.x[4]);
+                let [d_t, d_p] = body_axes_derivatives(s.x[3], s.x[4]);
+                let v = [s.x[VEL], s.x[VEL + 1], s.x[VEL + 2]];
+                let dot = |a: &[f64; 3]| a[0] * v[0] + a[1] * v[1] + a[2] * v[2];
+                let mut h = SVector::<f64, 3>::zeros();
+                for a in 0..3 {
+                    h[a] = dot(&axes[a]);
+                    jac[(a, 3)] = dot(&d_t[a]);
+                    jac[(a, 4)] = dot(&d_p[a]);
+                    for j in 0..3 {
+                        jac[(a, VEL + j)] = axes[a][j];
+                    }
+                }
+                Linear { h, jac }
+            }
+        }
+    }
+
+    /// The paper's range of `frame` (its on-axis law, eqs. 2–3) as a
+    /// reading of x, if configured: 1σ is the law's residual over the
+    /// calibration grid (scaled, see `paper_range_sigma_scale`) and the
+    /// counts' noise at the brightest channel through the law,
+    /// σ_count/(peak·b1), in quadrature.
+    pub(super) fn paper_range(&mut self, frame: &Frame) -> Option<Checked<1>> {
+        if !self.cfg.paper_range {
+            return None;
+        }
+        let scale = self.cfg.paper_range_sigma_scale;
+        let m = &self.model;
+        let p = self.paper.as_mut()?;
+        let x = lightpose_core::Estimator::estimate(&mut p.est, frame).x?;
+        let cpv = m.counts_per_volt();
+        let (peak, k) = (0..frame.counts.len())
+            .map(|k| (frame.counts[k] as f64 - m.offset_v[k] * cpv, k))
+            .fold((f64::NEG_INFINITY, 0), |a, b| if b.0 > a.0 { b } else { a });
+        let var = m.count_variance((peak / cpv / m.gain[k]).max(0.0));
+        let noise = var.sqrt() / (peak.max(1.0) * p.b1.max(1e-3));
+        let sigma = noise.hypot(p.sigma_m * scale);
+        (sigma.is_finite() && sigma > 0.0).then(|| Checked {
+            z: SVector::<f64, 1>::new(x),
+            sigma: SVector::<f64, 1>::new(sigma),
+        })
+    }
+
+    /// Fuse the paper's range as a measurement of x.
+    pub(super) fn update_paper_range(&self, s: &mut State, c: &Checked<1>) -> ReadingUse {
+        let mut jac = SMatrix::<f64, 1, NS>::zeros();
+        jac[(0, 0)] = 1.0;
+        let lin = Linear {
+            h: SVector::<f64, 1>::new(s.x[0]),
+            jac,
+        };
+        fuse(s, c, &lin, [false], self.gate[0])
+    }
+
+    /// Fuse the frame's checked readings into `s`, attitude first (it
+    /// sharpens the other two's models), and say what became of each.
+    pub(super) fn update_readings(&self, s: &mut State, r: &FrameReadings) -> [ReadingUse; 3] {
+        let g = self.gate;
+        let attitude = match &r.attitude {
+            Pending::Done(u) => *u,
+            Pending::Ready(c) => fuse(s, c, &Self::attitude_model(s), [false, true], g[1]),
+        };
+        let depth = match &r.depth {
+            Pending::Done(u) => *u,
+            Pending::Ready(c) => fuse(s, c, &self.depth_model(s), [false], g[0]),
+        };
+        let velocity = match &r.velocity {
+            Pending::Done(u) => *u,
+            Pending::Ready(c) => fuse(s, c, &self.velocity_model(s), [false; 3], g[2]),
+        };
+        [attitude, depth, velocity]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gate_thresholds_are_the_chi2_quantiles() {
+        // Tables: χ²(0.999) = 10.83, 13.82, 16.27; χ²(0.95) = 3.84, 5.99, 7.81.
+        let g = gate_thresholds(1e-3);
+        for (a, b) in g.iter().zip([10.828, 13.816, 16.266]) {
+            assert!((a - b).abs() < 2e-3, "{g:?}");
+        }
+        let g = gate_thresholds(0.05);
+        for (a, b) in g.iter().zip([3.841, 5.991, 7.815]) {
+            assert!((a - b).abs() < 2e-3, "{g:?}");
+        }
+        let g = gate_thresholds(1e-6);
+        for (a, b) in g.iter().zip([23.928, 27.631, 30.664]) {
+            assert!((a - b).abs() < 2e-2, "{g:?}");
+        }
+    }
+}

@@ -1,0 +1,150 @@
+//! The tracker's state vector, its covariance and the bookkeeping that goes
+//! with them, in one place so that every step (motion, readings, counts)
+//! names the same indices.
+
+use nalgebra::{SMatrix, SVector};
+
+/// State: x, y, z, θ, ψ, three velocities (body model: surge u, sideslip
+/// right v and down w; world model: ẋ, ẏ, ż), θ̇, ψ̇, K_D.
+pub(super) const NS: usize = 11;
+/// Index of the first velocity component.
+pub(super) const VEL: usize = 5;
+/// Index of K_D.
+pub(super) const KD: usize = 10;
+
+pub(super) type Vs = SVector<f64, NS>;
+pub(super) type Ms = SMatrix<f64, NS, NS>;
+
+#[derive(Debug, Clone, Copy)]
+pub(super) struct State {
+    pub x: Vs,
+    pub p: Ms,
+    pub t: f64,
+    pub frames: u32,
+    /// Frames in a row whose counts the gate refused.
+    pub rejected: u32,
+    /// Per reading (attitude, depth, velocity): readings in a row that the
+    /// innovation gate refused.
+    pub gated: [u32; 3],
+    /// K_D is estimated. Otherwise it is a *consider* state (Schmidt):
+    /// its doubt and its covariance with the rest are carried in P, so every
+    /// σ includes what K_D's doubt does to it, but no update moves K_D away
+    /// from the calibration's value.
+    pub k_d_free: bool,
+    /// The paper's range went into this frame's x, with this 1σ of its
+    /// error (the law's residual over the calibration grid): see
+    /// `Tracker::to_estimate`.
+    pub paper_x: Option<f64>,
+}
+
+impl State {
+    pub fn new(x: Vs, p: Ms, t: f64) -> Self {
+        State {
+            x,
+            p,
+            t,
+            frames: 1,
+            rejected: 0,
+            gated: [0; 3],
+            k_d_free: false,
+            paper_x: None,
+        }
+    }
+
+    /// Every number finite: what a step must leave behind.
+    pub fn is_finite(&self) -> bool {
+        self.x.iter().all(|v| v.is_finite()) && self.p.iter().all(|v| v.is_finite())
+    }
+
+    /// Give K_D the doubt `sigma_k_d` (1σ) about its current value in P. The
+    /// range so far was found with K_D at that value, so it is only as good
+    /// as that value: brightness ∝ e^(−K_D·x)/x² pins K_D·x + 2·ln x, i.e.
+    /// δx = −x·δK_D/(K_D + 2/x), which goes in as the x–K_D covariance.
+    /// Without it the filter took x as known to its σ and K_D as an
+    /// independent doubt, and x's ±2σ covered 51–79 % with the attitude
+    /// sensor (ridge_diag, estimate_k_d = true).
+    pub fn doubt_k_d(&mut self, sigma_k_d: f64) {
+        let sk2 = sigma_k_d * sigma_k_d;
+        let r = self.x[0].max(0.1);
+        let g = -r / (self.x[KD].max(0.0) + 2.0 / r);
+        for j in 0..NS {
+            self.p[(KD, j)] = 0.0;
+            self.p[(j, KD)] = 0.0;
+        }
+        self.p[(KD, KD)] = sk2;
+        self.p[(0, 0)] += g * g * sk2;
+        self.p[(0, KD)] = g * sk2;
+        self.p[(KD, 0)] = g * sk2;
+    }
+
+    /// A Kalman gain as this state may apply it: with K_D a consider state,
+    /// its row is zero (K_D stays; the Joseph form then keeps P honest).
+    pub fn consider<const M: usize>(&self, k: &mut SMatrix<f64, NS, M>) {
+        if !self.k_d_free {
+            k.row_mut(KD).fill(0.0);
+        }
+    }
+
+    /// 1σ of state component `i`.
+    pub fn sd(&self, i: usize) -> f64 {
+        self.p[(i, i)].max(0.0).sqrt()
+    }
+}
+
+/// What the ridges' doubt does to range, m (1σ), for the reported σx.
+///
+/// Why: the beam factor exp(−α²/2σ_b²) is even in the vehicle's off-axis
+/// angle α, so a spread of the estimate across the beam axis (wide y or z,
+/// as without an attitude sensor) leaves the spot's brightness, hence
+/// range, uncertain in a way that has no linear correlation with y or z,
+/// so no Gaussian filter's covariance carries it. With α² ≈ (y² + z²)/x²
+/// and (y, z) ~ N(μ, Σ), Var(α²) = (4·μᵀΣμ + 2·tr Σ²)/x⁴ (a quadratic
+/// form's variance); the first term is the linear part, already in P
+/// through the x–y and x–z covariances, so only 2·tr Σ² is added here.
+/// ln-brightness moves by half of that over σ_b², and range by that over
+/// K_D + 2/x. With an attitude sensor Σ is centimetres and this vanishes.
+pub(super) fn beam_consider_sigma_x(x: &Vs, p: &Ms, sigma_b_rad: f64) -> f64 {
+    let r = x[0].max(0.1);
+    let (syy, szz, syz) = (p[(1, 1)], p[(2, 2)], p[(1, 2)]);
+    let tr_s2 = syy * syy + szz * szz + 2.0 * syz * syz;
+    let var_q = (2.0 * tr_s2).max(0.0) / r.powi(4);
+    let sd_ln_b = var_q.sqrt() / (2.0 * sigma_b_rad * sigma_b_rad);
+    let v = sd_ln_b / (x[KD].max(0.0) + 2.0 / r);
+    if v.is_finite() {
+        v
+    } else {
+        0.0
+    }
+}
+
+/// The body axes in B (columns of R_BV: forward, right, down) at pitch θ
+/// and yaw ψ (MODEL.md's R0·Rz(ψ)·Ry(θ)).
+#[inline]
+pub(super) fn body_axes(theta: f64, psi: f64) -> [[f64; 3]; 3] {
+    let (st, ct) = theta.sin_cos();
+    let (sp, cp) = psi.sin_cos();
+    [
+        [-cp * ct, sp * ct, st],
+        [sp, cp, 0.0],
+        [-cp * st, sp * st, -ct],
+    ]
+}
+
+/// ∂(body axes)/∂θ and ∂(body axes)/∂ψ, in the order of [`body_axes`].
+#[inline]
+pub(super) fn body_axes_derivatives(theta: f64, psi: f64) -> [[[f64; 3]; 3]; 2] {
+    let (st, ct) = theta.sin_cos();
+    let (sp, cp) = psi.sin_cos();
+    [
+        [
+            [cp * st, -sp * st, ct],
+            [0.0, 0.0, 0.0],
+            [-cp * ct, sp * ct, st],
+        ],
+        [
+            [sp * ct, cp * ct, 0.0],
+            [cp, -sp, 0.0],
+            [sp * st, cp * st, 0.0],
+        ],
+    ]
+}
