@@ -19,6 +19,20 @@ pub struct SensorSet {
     pub dvl: bool,
 }
 
+/// What `--sensors` takes, for error messages.
+pub const CHOICES: &str =
+    "scene, none, attitude, depth, attitude+depth or all (or a + of attitude, depth, dvl)";
+
+/// `--sensors` of `crb` and `montecarlo`: `scene` leaves the scene's own
+/// sensors as they are; any other word is a set ([`SensorSet::parse`]) put
+/// on the scene. `None` when the word is neither.
+pub fn apply_choice(choice: &str, scene: &mut Scene) -> Option<()> {
+    if choice != "scene" {
+        SensorSet::parse(choice)?.apply(scene);
+    }
+    Some(())
+}
+
 impl SensorSet {
     pub const NONE: SensorSet = SensorSet::new(false, false, false);
     pub const ATTITUDE: SensorSet = SensorSet::new(true, false, false);

@@ -5,10 +5,11 @@
 //! binary, real sockets, real files; each test a few seconds at most.
 
 mod common;
+use common::run::{collect, run_in_process, wait_exit};
 use common::{shipped, subscriber};
 
 use lightpose_core::{LogHeader, LogWriter, NDET};
-use lightposed::{Config, Publisher};
+use lightposed::Config;
 use serde_json::Value;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
@@ -47,54 +48,11 @@ fn replay_config(log: &Path, dests: &[SocketAddr], backend_extra: &str, extra: &
     )
 }
 
-/// Every datagram that arrives within `d`.
-fn collect(s: &UdpSocket, d: Duration) -> Vec<Value> {
-    let mut out = Vec::new();
-    let mut buf = vec![0u8; 65536];
-    let end = Instant::now() + d;
-    while Instant::now() < end {
-        if let Ok(n) = s.recv(&mut buf) {
-            out.push(serde_json::from_slice(&buf[..n]).expect("JSON datagram"));
-        }
-    }
-    out
-}
-
 fn last_status(msgs: &[Value]) -> &Value {
     msgs.iter()
         .rev()
         .find(|v| v["class"] == "STATUS")
         .expect("a STATUS")
-}
-
-fn run_in_process(cfg: Config, run_for: Duration) -> std::thread::JoinHandle<lightposed::Summary> {
-    std::thread::spawn(move || {
-        let rt = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .expect("runtime");
-        rt.block_on(async move {
-            let p = Publisher::open(&cfg.outputs).expect("publisher");
-            lightposed::run(cfg, p, tokio::time::sleep(run_for))
-                .await
-                .expect("daemon runs")
-        })
-    })
-}
-
-fn wait_exit(child: &mut std::process::Child, within: Duration) -> std::process::ExitStatus {
-    let t0 = Instant::now();
-    loop {
-        if let Some(s) = child.try_wait().expect("wait") {
-            return s;
-        }
-        if t0.elapsed() > within {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("lightposed did not exit within {within:?}");
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
 }
 
 /// Item 1: SIGTERM while the replay waits through a 60 s gap of `t` (a gap

@@ -6,11 +6,10 @@
 
 mod common;
 
+use common::run::{collect, of_class, run_in_process};
 use common::{root, subscriber};
-use lightposed::outputs::udp::Publisher;
 use lightposed::Config;
-use serde_json::Value;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 #[test]
 fn bad_readings_are_refused_by_reason_and_counted_in_status() {
@@ -22,40 +21,22 @@ fn bad_readings_are_refused_by_reason_and_counted_in_status() {
         r.join("tests/data/fusion-all.jsonl").display(),
     );
     let cfg = Config::parse(&text, "readings.toml", None).expect("valid config");
-    let h = std::thread::spawn(move || {
-        let rt = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .expect("runtime");
-        rt.block_on(async move {
-            let p = Publisher::open(&cfg.outputs).expect("publisher");
-            // The log's end stops the daemon; the timer is a backstop.
-            lightposed::run(cfg, p, tokio::time::sleep(Duration::from_secs(20)))
-                .await
-                .expect("daemon runs")
-        })
-    });
-    let mut msgs: Vec<Value> = Vec::new();
-    let mut buf = vec![0u8; 65536];
-    let end = Instant::now() + Duration::from_secs(20);
-    while !h.is_finished() && Instant::now() < end {
-        if let Ok(n) = sub.recv(&mut buf) {
-            msgs.push(serde_json::from_slice(&buf[..n]).expect("JSON datagram"));
-        }
+    // The log's end stops the daemon; the time is a backstop.
+    let h = run_in_process(cfg, Duration::from_secs(20));
+    let mut msgs = Vec::new();
+    while !h.is_finished() {
+        msgs.extend(collect(&sub, Duration::from_millis(100)));
     }
     // The final STATUS may still be on its way.
-    while let Ok(n) = sub.recv(&mut buf) {
-        msgs.push(serde_json::from_slice(&buf[..n]).expect("JSON datagram"));
-    }
+    msgs.extend(collect(&sub, Duration::from_millis(200)));
     let summary = h.join().expect("daemon");
     assert_eq!(summary.frames, 41, "{summary:?}");
-    let poses = msgs.iter().filter(|v| v["class"] == "POSE").count();
-    assert_eq!(poses, 41, "every frame has its POSE, bad readings or not");
-    let st = msgs
-        .iter()
-        .rev()
-        .find(|v| v["class"] == "STATUS")
-        .expect("a STATUS");
+    assert_eq!(
+        of_class(&msgs, "POSE").len(),
+        41,
+        "every frame has its POSE, bad readings or not"
+    );
+    let st = *of_class(&msgs, "STATUS").last().expect("a STATUS");
     let rd = &st["readings"];
     let n = |sensor: &str, path: &[&str]| {
         let mut v = &rd[sensor];

@@ -4,7 +4,7 @@
 
 use anyhow::Context;
 use lightpose_analysis::bound::{along_trajectory, track_bound_along};
-use lightpose_analysis::sensors::SensorSet;
+use lightpose_analysis::sensors;
 use lightpose_analysis::trade::{num, Z95};
 use lightpose_pipeline::settings::TrackerConfig;
 use lightpose_sim::{Scene, Trajectory};
@@ -66,16 +66,8 @@ fn own_sensors(scene: &Scene) -> String {
 pub fn run(a: CrbArgs) -> anyhow::Result<()> {
     let mut scene = Scene::load(&a.scene)?;
     let traj = Trajectory::load(&a.trajectory)?;
-    if a.sensors != "scene" {
-        SensorSet::parse(&a.sensors)
-            .with_context(|| {
-                format!(
-                    "--sensors {}: scene, none, attitude, depth, attitude+depth or all",
-                    a.sensors
-                )
-            })?
-            .apply(&mut scene);
-    }
+    sensors::apply_choice(&a.sensors, &mut scene)
+        .with_context(|| format!("--sensors {}: {}", a.sensors, sensors::CHOICES))?;
     let steps = along_trajectory(&scene, &traj);
     let track = if a.track {
         Some(track_bound_along(&scene, &traj, &TrackerConfig::default())?)

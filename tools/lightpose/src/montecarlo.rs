@@ -6,7 +6,7 @@
 use anyhow::Context;
 use lightpose_analysis::montecarlo::{self, progress_bar, McConfig};
 use lightpose_analysis::report::{self, RunInfo};
-use lightpose_analysis::sensors::SensorSet;
+use lightpose_analysis::sensors;
 use lightpose_analysis::PaperCase;
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{Scene, Trajectory};
@@ -48,16 +48,8 @@ pub struct MontecarloArgs {
 
 pub fn run(a: MontecarloArgs) -> anyhow::Result<()> {
     let mut scene = Scene::load(&a.scene)?;
-    if a.sensors != "scene" {
-        SensorSet::parse(&a.sensors)
-            .with_context(|| {
-                format!(
-                    "--sensors {}: scene, none, attitude, depth, attitude+depth or all",
-                    a.sensors
-                )
-            })?
-            .apply(&mut scene);
-    }
+    sensors::apply_choice(&a.sensors, &mut scene)
+        .with_context(|| format!("--sensors {}: {}", a.sensors, sensors::CHOICES))?;
     let trajectory = Trajectory::load(&a.trajectory)?;
     let cal = Calibration::load(&a.calibration)?;
     let case = match a.case.as_str() {

@@ -192,7 +192,7 @@ impl ModelEstimator {
 
     /// The solver's bounds and knobs from the settings, for a frame of
     /// temperature gain `gt`.
-    fn solve_options(&self, free: [bool; 5], gt: f64) -> SolveOptions {
+    pub(crate) fn solve_options(&self, free: [bool; 5], gt: f64) -> SolveOptions {
         let (m, c) = (&self.model, &self.cfg);
         SolveOptions {
             free,

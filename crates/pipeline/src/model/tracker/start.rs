@@ -37,20 +37,10 @@ use crate::model::solver::{solve, LmResult, Prior, SolveOptions};
 use crate::settings::Motion;
 
 impl Tracker {
-    /// The solver's limits, as the `"model"` estimator sets them.
+    /// The solver's limits, as the `"model"` estimator sets them (its
+    /// model is the tracker's).
     fn start_options(&self, gt: f64) -> SolveOptions {
-        let c = self.init.config();
-        let m = &self.model;
-        SolveOptions {
-            free: [true; 5],
-            max_iter: c.max_iter,
-            x_min: (c.x_range[0] / c.search_margin).max(m.geometry.radius_m * 2.0),
-            x_max: c.x_range[1] * c.search_margin,
-            max_lateral_ratio: c.max_lateral_ratio,
-            max_angle: c.max_angle_deg.to_radians(),
-            k_d: m.light.k_d,
-            gt,
-        }
+        self.init.solve_options([true; 5], gt)
     }
 
     /// The start fit's prior: the attitude reading (else the start-up
