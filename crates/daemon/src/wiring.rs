@@ -140,12 +140,13 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         // Readings before the estimator (the JSON attitude input, below,
         // is added after: a frame takes the first fresh reading), the pose
         // to the autopilot right after the POSE.
-        engine = engine
-            .input(Box::new(VehicleReadings {
-                hub: v.hub.clone(),
-                max_age: vc.max_age,
-            }))
-            .output(Box::new(ToAutopilot::new(v.hub.clone())));
+        engine = engine.input(Box::new(VehicleReadings {
+            hub: v.hub.clone(),
+            max_age: vc.max_age,
+        }));
+        if vc.mavlink.is_some() {
+            engine = engine.output(Box::new(ToAutopilot::new(v.hub.clone())));
+        }
     }
     if let Some(r) = recorder {
         engine = engine.output(Box::new(r));
