@@ -136,18 +136,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         .epoch(started)
         // The POSE first, so that it leaves as soon as it can.
         .output(Box::new(PoseDatagrams::new(publisher.clone())));
-    if let (Some(v), Some(vc)) = (&vehicle, &cfg.vehicle) {
-        // Readings before the estimator (the JSON attitude input, below,
-        // is added after: a frame takes the first fresh reading), the pose
-        // to the autopilot right after the POSE.
-        engine = engine.input(Box::new(VehicleReadings {
-            hub: v.hub.clone(),
-            max_age: vc.max_age,
-        }));
-        if vc.mavlink.is_some() {
-            engine = engine.output(Box::new(ToAutopilot::new(v.hub.clone())));
-        }
-    }
+    engine = plug_vehicle(engine, cfg, vehicle.as_ref());
     if let Some(r) = recorder {
         engine = engine.output(Box::new(r));
     }
@@ -160,9 +149,10 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         None => (None, None),
     };
     if let (Some(cell), Some(a)) = (&attitude, &cfg.attitude) {
+        let max_age = a.max_age;
         engine = engine.input(Box::new(LatestAttitude {
             cell: cell.clone(),
-            max_age: a.max_age,
+            max_age,
         }));
     }
 
@@ -196,6 +186,24 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         frames: Some(frames),
         done,
     })
+}
+
+/// The vehicle link's ends on the frame thread: its readings before the
+/// estimator (the JSON attitude input is added after it: a frame takes the
+/// first fresh reading), and, with `[mavlink]`, the pose to the autopilot
+/// right after the POSE datagram.
+fn plug_vehicle(mut engine: Engine, cfg: &Config, vehicle: Option<&VehicleLink>) -> Engine {
+    let (Some(v), Some(vc)) = (vehicle, &cfg.vehicle) else {
+        return engine;
+    };
+    engine = engine.input(Box::new(VehicleReadings {
+        hub: v.hub.clone(),
+        max_age: vc.max_age,
+    }));
+    if vc.mavlink.is_some() {
+        engine = engine.output(Box::new(ToAutopilot::new(v.hub.clone())));
+    }
+    engine
 }
 
 /// The attitude input's socket and task, if configured.

@@ -271,3 +271,99 @@ fn bad_mavlink_input_costs_no_frame() {
         "{sent} sent, {queued} queued: {m}"
     );
 }
+
+/// The binary with `cfg_text`: its exit code and stderr.
+fn start_binary(dir: &std::path::Path, cfg_text: &str) -> (Option<i32>, String) {
+    let cfg = dir.join("lightposed.toml");
+    std::fs::write(&cfg, cfg_text).expect("write config");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lightposed"))
+        .arg("--config")
+        .arg(&cfg)
+        .output()
+        .expect("run lightposed");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).trim().to_string(),
+    )
+}
+
+/// A port that is taken or a serial device that is not there stops the
+/// start with exit 1 (a restart may help); a value that cannot be is
+/// exit 2 (it cannot). Each is one line on stderr.
+#[test]
+fn a_link_that_cannot_open_is_exit_1_a_bad_value_exit_2() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (_sub, dest) = subscriber();
+    let held = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    let taken = held.local_addr().expect("addr");
+    let with = |conn: &str| {
+        let extra = format!(
+            "[site]\nbeacon_heading_deg = 30.0\nbeacon_depth_m = 3.0\n[mavlink]\nconnection = \"{conn}\"\n"
+        );
+        common::run::sim_config(20.0, &[dest], "", &extra)
+    };
+    for (conn, code, says) in [
+        (format!("udpin:{taken}"), 1, "mavlink: udpin:"),
+        (
+            "serial:/dev/lightpose-no-such-tty:115200".into(),
+            1,
+            "mavlink: serial:/dev/lightpose-no-such-tty:115200: cannot open",
+        ),
+        (
+            "udpin:127.0.0.1:0".into(),
+            2,
+            "mavlink.connection: udpin:127.0.0.1:0: port 0",
+        ),
+        (
+            "tcp:127.0.0.1:14550".into(),
+            2,
+            "mavlink.connection: unknown transport",
+        ),
+    ] {
+        let (got, err) = start_binary(dir.path(), &with(&conn));
+        assert_eq!(got, Some(code), "{conn}: {err}");
+        let last = err.lines().last().unwrap_or("");
+        assert!(last.contains(says), "{conn}: {err}");
+    }
+}
+
+/// SIGHUP reloads the calibration with the link up: the link is neither
+/// reopened nor stopped (heartbeats and poses go on), and SIGTERM ends
+/// the daemon and its link with exit 0.
+#[test]
+fn sighup_keeps_the_link_and_sigterm_ends_it() {
+    use common::run::{signal, spawn_daemon, wait_exit};
+    use nix::sys::signal::Signal;
+    let dir = tempfile::tempdir().expect("tmp");
+    let (sub, dest) = subscriber();
+    let ap = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    ap.set_read_timeout(Some(Duration::from_millis(50)))
+        .expect("timeout");
+    let extra = format!(
+        "[site]\nbeacon_heading_deg = 30.0\nbeacon_depth_m = 3.0\n[mavlink]\nconnection = \"udpout:{}\"\n",
+        ap.local_addr().expect("addr")
+    );
+    let text = common::run::sim_config(20.0, &[dest], "", &extra);
+    let (mut child, _) = spawn_daemon(dir.path(), &text, &sub);
+    signal(&child, Signal::SIGHUP);
+    let msgs = collect(&sub, Duration::from_millis(800));
+    let mut buf = [0u8; 2048];
+    let (t0, mut after) = (std::time::Instant::now(), 0);
+    while t0.elapsed() < Duration::from_millis(1500) {
+        if let Ok(n) = ap.recv(&mut buf) {
+            after += usize::from(n > 0 && buf[0] == 0xFD);
+        }
+    }
+    signal(&child, Signal::SIGTERM);
+    let status = wait_exit(&mut child, Duration::from_secs(5));
+    assert_eq!(status.code(), Some(0), "SIGTERM exits 0");
+    let st = of_class(&msgs, "STATUS");
+    let last = st.last().expect("STATUS");
+    assert_eq!(last["estimator"]["reloads"], 1, "{}", last["estimator"]);
+    assert_eq!(
+        last["vehicle"]["mavlink"]["link_opens"], 1,
+        "{}",
+        last["vehicle"]
+    );
+    assert!(after >= 1, "MAVLink 2 frames after the reload: {after}");
+}
