@@ -14,7 +14,8 @@ HEARTBEAT (it starts with the replay), and before that the log's start.
 Everything the daemon sends is decoded by pymavlink (MAVLink 2 only, CRC
 checked); at the end it judges the VISION_POSITION_ESTIMATEs against the
 truth, converted B -> NED with its own few lines (FORMATS.md, "Vehicle
-integration"), and prints one JSON line with counts, coverage and p95s.
+integration"), and prints one JSON line with counts, coverage and p95s
+(after a first line {"ready": true} once it is ready to send).
 
 usage: autopilot_replay.py LOG PORT HEADING_DEG BEACON_DEPTH_M WATER_C
        COVER_AFTER_S P95_AFTER_S QUIET_S DEADLINE_S
@@ -103,6 +104,9 @@ def run(args, truth):
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sock.bind(("127.0.0.1", 0))
     sock.settimeout(0.005)
+    # The caller starts the daemon on this line: pymavlink is imported and
+    # the log read, so the first frames already find readings.
+    print(json.dumps({"ready": True}), flush=True)
     daemon = ("127.0.0.1", args["port"])
     rx = apm.MAVLink(None)
     rx.robust_parsing = True

@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::run::{collect, of_class, python, run_in_process, run_python};
+use common::run::{collect, of_class, python, run_in_process};
 use common::subscriber;
 use common::vehicle::{free_port, judge, mavlink_config, stand_in, write_bare_log};
 use common::vehicle::{BEACON_DEPTH_M, HEADING_DEG, WATER_C};
@@ -80,16 +80,30 @@ fn pymavlink_autopilot_gets_poses_within_bounds() {
     .into_iter()
     .map(Into::into)
     .collect();
-    let stand_in = std::thread::spawn(move || {
-        let a: Vec<&std::ffi::OsStr> = args.iter().map(|s| s.as_os_str()).collect();
-        run_python(&py, &script, &a)
-    });
+    // The stand-in first; the daemon once it says it is ready.
+    let mut child = std::process::Command::new(&py)
+        .arg(&script)
+        .args(&args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("python runs");
+    let mut out = std::io::BufReader::new(child.stdout.take().expect("stdout"));
+    let mut ready = String::new();
+    std::io::BufRead::read_line(&mut out, &mut ready).expect("a first line");
     let summary = run_in_process(cfg, Duration::from_secs(30))
         .join()
         .expect("daemon");
-    let out = stand_in.join().expect("python thread");
+    let done = child.wait_with_output().expect("python ends");
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut out, &mut rest).expect("stdout");
+    let err = String::from_utf8_lossy(&done.stderr);
+    assert!(
+        ready.contains("ready") && done.status.success(),
+        "{ready}{err}"
+    );
     assert!(summary.source_ended, "{summary:?}");
-    let r: Value = serde_json::from_str(out.lines().last().unwrap_or("")).expect("one JSON line");
+    let r: Value = serde_json::from_str(rest.lines().last().unwrap_or("")).expect("one JSON line");
     eprintln!("pymavlink stand-in: {r}");
     assert_eq!(
         (r["bad"].as_u64(), r["v1"].as_u64()),
