@@ -12,6 +12,7 @@ use common::run::{collect, of_class, python, run_in_process};
 use common::subscriber;
 use common::vehicle::{free_port, judge, mavlink_config, stand_in, write_bare_log};
 use common::vehicle::{BEACON_DEPTH_M, HEADING_DEG, WATER_C};
+use lightpose_core::LogReader;
 use lightposed::Config;
 use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA};
 use mavlink::{MAVLinkV2MessageRaw, MavHeader};
@@ -149,7 +150,10 @@ fn rust_stand_in_autopilot_gets_poses_within_bounds() {
     let (sub, dest) = subscriber();
     let port = free_port();
     let conn = format!("udpin:127.0.0.1:{port}");
-    let cfg = Config::parse(&mavlink_config(&log, dest, &conn, ""), "t.toml", None).expect("valid");
+    let rec = dir.path().join("rec");
+    let extra = format!("[recording]\ndir = \"{}\"\n", rec.display());
+    let cfg =
+        Config::parse(&mavlink_config(&log, dest, &conn, &extra), "t.toml", None).expect("valid");
     let daemon = run_in_process(cfg, Duration::from_secs(30));
     let to = Some(([127, 0, 0, 1], port).into());
     let heard = stand_in(
@@ -179,6 +183,53 @@ fn rust_stand_in_autopilot_gets_poses_within_bounds() {
         v["readings"]["attitude"]["attached"].as_u64().unwrap_or(0) > 0,
         "{v}"
     );
+    replay_sees_what_the_live_estimator_saw(&rec, &of_class(&msgs, "POSE"));
+}
+
+/// The recording carries the readings the stand-in sent, and replaying it
+/// (fast, no MAVLink) gives the poses the live daemon gave.
+fn replay_sees_what_the_live_estimator_saw(rec: &std::path::Path, live: &[&Value]) {
+    let files = common::run::files_in(rec);
+    let [file] = &files[..] else {
+        panic!("one recording: {files:?}")
+    };
+    let frames: Vec<_> = LogReader::open(file)
+        .expect("log")
+        .map(|f| f.expect("reads back"))
+        .collect();
+    let with = frames
+        .iter()
+        .filter(|f| f.attitude.is_some() && f.depth.is_some() && f.temp_c == Some(WATER_C))
+        .count();
+    assert!(
+        with * 10 >= frames.len() * 9,
+        "{with} of {} frames with all three",
+        frames.len()
+    );
+    let (sub, dest) = subscriber();
+    let text = format!(
+        "rate_hz = 20.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"replay\"\nlog = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{dest}\"]\n",
+        common::root().join("config/calibration/tank.toml").display(),
+        file.display()
+    );
+    let cfg = Config::parse(&text, "replay.toml", None).expect("valid");
+    run_in_process(cfg, Duration::from_secs(30))
+        .join()
+        .expect("replay");
+    let again = collect(&sub, Duration::from_millis(300));
+    let again = of_class(&again, "POSE");
+    assert_eq!(again.len(), live.len());
+    for (a, b) in live.iter().zip(&again) {
+        assert_eq!((&a["seq"], &a["status"]), (&b["seq"], &b["status"]));
+        for k in ["x", "y", "z", "pitch", "yaw"] {
+            let (u, v) = (a[k].as_f64(), b[k].as_f64());
+            let same = match (u, v) {
+                (Some(u), Some(v)) => (u - v).abs() <= 1e-6 * (1.0 + u.abs()),
+                (u, v) => u == v,
+            };
+            assert!(same, "seq {}: {k} live {u:?}, replayed {v:?}", a["seq"]);
+        }
+    }
 }
 
 fn raw_v2(msg: &MavMessage, seq: u8) -> Vec<u8> {
