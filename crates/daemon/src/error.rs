@@ -44,6 +44,10 @@ pub enum DaemonError {
         #[source]
         source: std::io::Error,
     },
+    /// The MAVLink link could not be opened (the cause names the
+    /// endpoint): a port in use, a serial device not (yet) there.
+    #[error("mavlink")]
+    Mavlink(#[source] lightpose_vehicle::mav::link::LinkError),
     #[error("recording: cannot start the recorder thread")]
     Recorder(#[source] std::io::Error),
     #[error("cannot start the acquisition thread")]
@@ -67,6 +71,7 @@ impl DaemonError {
             DaemonError::Publish(_)
             | DaemonError::AttitudeBind { .. }
             | DaemonError::FoxgloveListen { .. }
+            | DaemonError::Mavlink(_)
             | DaemonError::Recorder(_)
             | DaemonError::Thread(_) => false,
         }

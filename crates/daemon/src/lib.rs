@@ -8,8 +8,10 @@
 //! - [`wiring`]: from a config to a running daemon (estimator, source,
 //!   inputs, outputs, the frame thread);
 //! - [`engine`]: the per-frame path on its own thread;
-//! - [`inputs`]: readings that ride with frames (attitude);
-//! - [`outputs`]: where each frame and estimate go (UDP, recording);
+//! - [`inputs`]: readings that ride with frames (attitude, the vehicle's);
+//! - [`outputs`]: where each frame and estimate go (UDP, recording, the
+//!   autopilot);
+//! - [`vehicle`]: the MAVLink and DVL tasks and their shared hub;
 //! - [`supervisor`]: signals, reloads, STATUS and the watchdog;
 //! - [`status`], [`stats`], [`notify`]: STATUS/VERSION, the counters
 //!   behind them, systemd;
@@ -26,6 +28,7 @@ pub mod outputs;
 pub mod stats;
 pub mod status;
 pub mod supervisor;
+pub mod vehicle;
 pub mod wiring;
 
 pub use config::{Config, ConfigError};

@@ -51,6 +51,8 @@ pub struct StatusCtx<'a> {
     pub att: Option<&'a AttitudeCell>,
     /// The live view, if on.
     pub live: Option<&'a Hub>,
+    /// The vehicle link's hub, if `[mavlink]` or `[dvl]` is on.
+    pub vehicle: Option<&'a lightpose_vehicle::Hub>,
     pub publisher: &'a Publisher,
     pub source: &'a str,
     pub estimator: &'a str,
@@ -85,7 +87,26 @@ pub fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> Value {
         "readings": readings(s),
         "outputs": outputs(c.publisher),
         "foxglove": c.live.map_or_else(|| json!({"enabled": false}), Hub::report),
+        "vehicle": vehicle(c),
     })
+}
+
+/// The vehicle link: lightpose-vehicle's `VehicleStatus` (readings
+/// attached and stale, the outbox, the MAVLink and DVL counters) with what
+/// is configured.
+fn vehicle(c: &StatusCtx) -> Value {
+    let (Some(hub), Some(cfg)) = (c.vehicle, &c.cfg.vehicle) else {
+        return json!({"enabled": false});
+    };
+    let mut v = serde_json::to_value(hub.status(Instant::now())).unwrap_or(Value::Null);
+    if let Value::Object(m) = &mut v {
+        m.insert("enabled".into(), true.into());
+        let conn = cfg.mavlink.as_ref().map(|m| m.endpoint.to_string());
+        m.insert("connection".into(), conn.into());
+        let dvl = cfg.dvl.as_ref().map(|d| d.address.clone());
+        m.insert("dvl_address".into(), dvl.into());
+    }
+    v
 }
 
 fn backend(c: &StatusCtx, health: Option<&SourceHealth>) -> Value {

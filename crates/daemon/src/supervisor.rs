@@ -113,12 +113,15 @@ pub async fn supervise(
         prev_at: Instant::now(),
         taps: std::mem::take(&mut d.status_taps),
     };
+    // The hub outlives the tasks it is taken from (the last STATUS reads it).
+    let vehicle_hub = d.vehicle.as_ref().map(|v| v.hub.clone());
     let ctx = StatusCtx {
         cfg,
         stats: &d.stats,
         rec: d.rec_stats.as_deref(),
         att: d.attitude.as_deref(),
         live: d.live.as_deref(),
+        vehicle: vehicle_hub.as_deref(),
         publisher: &d.publisher,
         source: &d.source,
         estimator: d.estimator,
@@ -148,6 +151,9 @@ pub async fn supervise(
         h.abort();
     }
     let reason = stop(&d.stop, d.frames.take(), end).await;
+    if let Some(v) = d.vehicle.take() {
+        v.stop().await;
+    }
     if let Some(hub) = &d.live {
         hub.close();
     }

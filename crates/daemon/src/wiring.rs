@@ -7,13 +7,16 @@ use crate::config::Config;
 use crate::engine::{EndReason, Engine};
 use crate::error::DaemonError;
 use crate::inputs::attitude::{self, AttitudeCell, LatestAttitude};
+use crate::inputs::vehicle::VehicleReadings;
 use crate::notify::{notify, NotifyState};
 use crate::outputs::live::{self, hub::Hub};
+use crate::outputs::mavlink::ToAutopilot;
 use crate::outputs::recorder::{RecStats, Recorder};
 use crate::outputs::udp::{PoseDatagrams, Publisher};
 use crate::outputs::StatusTap;
 use crate::stats::Stats;
 use crate::status::version_message;
+use crate::vehicle::VehicleLink;
 use lightpose_core::{Estimator, LogHeader};
 use lightpose_hal::{FrameSource, Stop};
 use lightpose_pipeline::Calibration;
@@ -70,6 +73,9 @@ pub struct Running {
     /// task (aborted at stop).
     pub live: Option<Arc<Hub>>,
     pub live_server: Option<JoinHandle<()>>,
+    /// The MAVLink and DVL tasks and their hub, stopped after the frame
+    /// thread.
+    pub vehicle: Option<VehicleLink>,
     pub source: String,
     pub estimator: &'static str,
     /// Raised to stop the frame thread (and end its source's waits).
@@ -96,6 +102,10 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     let (attitude, listener) = match start_attitude(cfg).await? {
         Some((cell, task)) => (Some(cell), Some(task)),
         None => (None, None),
+    };
+    let vehicle = match &cfg.vehicle {
+        Some(v) => Some(crate::vehicle::start(v).await?),
+        None => None,
     };
     let header = log_header(cfg, source.as_ref(), &source_desc);
     let recorder = match &cfg.recording {
@@ -126,6 +136,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         .epoch(started)
         // The POSE first, so that it leaves as soon as it can.
         .output(Box::new(PoseDatagrams::new(publisher.clone())));
+    engine = plug_vehicle(engine, cfg, vehicle.as_ref());
     if let Some(r) = recorder {
         engine = engine.output(Box::new(r));
     }
@@ -138,9 +149,10 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         None => (None, None),
     };
     if let (Some(cell), Some(a)) = (&attitude, &cfg.attitude) {
+        let max_age = a.max_age;
         engine = engine.input(Box::new(LatestAttitude {
             cell: cell.clone(),
-            max_age: a.max_age,
+            max_age,
         }));
     }
 
@@ -166,6 +178,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         status_taps,
         live,
         live_server,
+        vehicle,
         source: source_desc,
         estimator: est_name,
         stop,
@@ -173,6 +186,24 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         frames: Some(frames),
         done,
     })
+}
+
+/// The vehicle link's ends on the frame thread: its readings before the
+/// estimator (the JSON attitude input is added after it: a frame takes the
+/// first fresh reading), and, with `[mavlink]`, the pose to the autopilot
+/// right after the POSE datagram.
+fn plug_vehicle(mut engine: Engine, cfg: &Config, vehicle: Option<&VehicleLink>) -> Engine {
+    let (Some(v), Some(vc)) = (vehicle, &cfg.vehicle) else {
+        return engine;
+    };
+    engine = engine.input(Box::new(VehicleReadings {
+        hub: v.hub.clone(),
+        max_age: vc.max_age,
+    }));
+    if vc.mavlink.is_some() {
+        engine = engine.output(Box::new(ToAutopilot::new(v.hub.clone())));
+    }
+    engine
 }
 
 /// The attitude input's socket and task, if configured.

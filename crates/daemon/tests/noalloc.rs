@@ -1,12 +1,18 @@
 //! The per-frame path (simulate → estimate → POSE → UDP send) must not
 //! allocate per frame: a counting global allocator shows that the
-//! allocations of a run do not grow with the number of frames.
+//! allocations of a run do not grow with the number of frames. With the
+//! vehicle link on, its readings are attached to every frame and every
+//! estimate is offered to the autopilot's outbox, on the same path.
 
+use lightpose_core::DepthReading;
 use lightpose_core::{Angle, AttitudeReading};
 use lightpose_hal::{Pace, Stop, ValidBackend};
+use lightpose_vehicle::{Hub, MaxAge};
 use lightposed::config::Config;
 use lightposed::engine::Engine;
 use lightposed::inputs::attitude::{AttitudeCell, LatestAttitude};
+use lightposed::inputs::vehicle::VehicleReadings;
+use lightposed::outputs::mavlink::ToAutopilot;
 use lightposed::outputs::udp::PoseDatagrams;
 use lightposed::Publisher;
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -41,9 +47,28 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static A: Counting = Counting;
 
+/// The vehicle's readings, fresh for an hour, in a hub.
+fn vehicle_hub() -> std::sync::Arc<Hub> {
+    let hub = Hub::new();
+    let at = Instant::now() + Duration::from_secs(3600);
+    let r = &hub.readings;
+    r.store_attitude(
+        at,
+        &AttitudeReading {
+            pitch: Angle::from_deg(1.0),
+            yaw: Angle::from_deg(-2.0),
+            std: None,
+        },
+    );
+    r.store_depth(at, &DepthReading::new(0.1));
+    r.store_temperature(at, 15.0);
+    hub
+}
+
 /// Allocations made by the engine over `frames` frames with `estimator`
-/// on `scene` (a file under config/scenes/).
-fn allocations(frames: u64, sink: &UdpSocket, estimator: &str, scene: &str) -> u64 {
+/// on `scene` (a file under config/scenes/), with the vehicle link's
+/// input and output when `vehicle`.
+fn allocations(frames: u64, sink: &UdpSocket, estimator: &str, scene: &str, vehicle: bool) -> u64 {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let cal = root.join("config/calibration/tank.toml");
     let scene = root.join("config/scenes").join(scene);
@@ -74,7 +99,7 @@ fn allocations(frames: u64, sink: &UdpSocket, estimator: &str, scene: &str) -> u
             std: None,
         },
     );
-    let engine = Engine::new(
+    let mut engine = Engine::new(
         source,
         lightposed::build_estimator(&cfg).expect("estimator"),
     )
@@ -85,6 +110,15 @@ fn allocations(frames: u64, sink: &UdpSocket, estimator: &str, scene: &str) -> u
         max_age: Duration::from_secs(1),
     }))
     .output(Box::new(PoseDatagrams::new(publisher)));
+    if vehicle {
+        let hub = vehicle_hub();
+        engine = engine
+            .input(Box::new(VehicleReadings {
+                hub: hub.clone(),
+                max_age: MaxAge::default(),
+            }))
+            .output(Box::new(ToAutopilot::new(hub)));
+    }
     ALLOCS.store(0, Relaxed);
     COUNTING.store(true, Relaxed);
     engine.run();
@@ -97,14 +131,16 @@ fn hot_path_does_not_allocate_per_frame() {
     let sink = UdpSocket::bind("127.0.0.1:0").expect("sink");
     // Every estimator path the daemon runs: the paper's, and the tracker
     // without and with the attitude sensor's readings in the frames.
-    for (estimator, scene) in [
-        ("moments", "tank.toml"),
-        ("tracker", "tank.toml"),
-        ("tracker", "tank-ahrs.toml"),
+    // and the tracker with the vehicle link's readings and outbox.
+    for (estimator, scene, vehicle) in [
+        ("moments", "tank.toml", false),
+        ("tracker", "tank.toml", false),
+        ("tracker", "tank-ahrs.toml", false),
+        ("tracker", "tank.toml", true),
     ] {
-        let few = allocations(50, &sink, estimator, scene);
-        let many = allocations(400, &sink, estimator, scene);
-        eprintln!("{estimator} on {scene}: {few} allocations for 50 frames, {many} for 400");
+        let few = allocations(50, &sink, estimator, scene, vehicle);
+        let many = allocations(400, &sink, estimator, scene, vehicle);
+        eprintln!("{estimator} on {scene} (vehicle {vehicle}): {few} allocations for 50 frames, {many} for 400");
         // The start-up allocations (buffers, the first source health copy)
         // are the same in both runs; 350 more frames must add none.
         assert!(

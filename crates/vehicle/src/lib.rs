@@ -77,6 +77,15 @@ impl Hub {
     }
 }
 
+/// Counts per name, serialized as a JSON object (`{"bad_crc": 3}`) rather
+/// than a list of pairs: what a reader of STATUS looks a reason up by.
+pub(crate) fn counts_as_map<S: serde::Serializer>(
+    v: &[(&'static str, u64)],
+    s: S,
+) -> Result<S::Ok, S::Error> {
+    s.collect_map(v.iter().map(|(k, n)| (*k, *n)))
+}
+
 /// An error and its causes on one line.
 pub(crate) fn error_chain(e: &dyn std::error::Error) -> String {
     let mut s = e.to_string();

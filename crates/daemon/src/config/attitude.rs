@@ -2,6 +2,11 @@
 //!
 //! Ranges: `listen` not on port 0; `beacon_axis_heading_deg` -360..=360;
 //! `max_age_s` (0, 60] s.
+//!
+//! The beacon's heading is `[site] beacon_heading_deg`, which the MAVLink
+//! link uses too; `beacon_axis_heading_deg` here is the older spelling,
+//! still accepted alone. Both at once must agree: two headings for one
+//! beacon would make the two inputs disagree about yaw.
 
 use super::locate::{positive_to, socket_addr, within, AddrUse, Ctx};
 use super::ConfigError;
@@ -28,10 +33,12 @@ pub(super) struct RawAttitude {
     max_age_s: Option<Spanned<f64>>,
 }
 
-/// `None` unless the table says `enabled = true`.
+/// `None` unless the table says `enabled = true`; the heading from
+/// `[site]` (`site_heading_deg`) unless the table gives its own.
 pub(super) fn validate(
     ctx: &Ctx,
     raw: Option<&RawAttitude>,
+    site_heading_deg: Option<f64>,
 ) -> Result<Option<AttitudeInput>, ConfigError> {
     let Some(a) = raw.filter(|a| a.enabled.unwrap_or(false)) else {
         return Ok(None);
@@ -40,17 +47,30 @@ pub(super) fn validate(
         Some(l) => socket_addr(ctx, l, "attitude.listen", AddrUse::Listen)?,
         None => SocketAddr::from((Ipv4Addr::LOCALHOST, 17151)),
     };
-    let beacon_axis_heading_deg = match &a.beacon_axis_heading_deg {
-        Some(h) => within(
-            ctx,
-            h,
-            "attitude.beacon_axis_heading_deg",
-            (-360.0, 360.0),
-            " degrees",
-        )?,
-        None => {
+    let beacon_axis_heading_deg = match (&a.beacon_axis_heading_deg, site_heading_deg) {
+        (Some(h), site_deg) => {
+            let own = within(
+                ctx,
+                h,
+                "attitude.beacon_axis_heading_deg",
+                (-360.0, 360.0),
+                " degrees",
+            )?;
+            match site_deg {
+                Some(s) if (s - own).abs() > 1e-9 => {
+                    return Err(ctx.err(
+                        h.span(),
+                        "attitude.beacon_axis_heading_deg",
+                        format!("{own}° conflicts with [site] beacon_heading_deg = {s}°: give the beacon's heading once, in [site]"),
+                    ))
+                }
+                _ => own,
+            }
+        }
+        (None, Some(s)) => s,
+        (None, None) => {
             return Err(ctx.whole(
-                "attitude.beacon_axis_heading_deg: missing (needed to refer yaw to the beam)",
+                "[site] beacon_heading_deg: missing (the [attitude] input needs it to refer yaw to the beam)",
             ))
         }
     };

@@ -99,7 +99,7 @@ fn deserialize(ctx: &Ctx, table: &toml::Table, start: usize) -> Result<BackendCo
 /// ("unknown field `speed`"), or else the key whose value it quotes
 /// ("invalid value: integer `-1`", "invalid type: string \"one\""),
 /// looked for in inline tables too (`faults.seed`).
-fn key_of(table: &toml::Table, msg: &str) -> Option<String> {
+pub(super) fn key_of(table: &toml::Table, msg: &str) -> Option<String> {
     let ticked = msg.split('`').nth(1);
     if let Some(k) = ticked.filter(|k| table.contains_key(*k)) {
         return Some(k.to_string());

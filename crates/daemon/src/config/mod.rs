@@ -6,7 +6,8 @@
 //!
 //! One validator per table, each in its own file: [`top`] (the top-level
 //! keys), [`backend`] (handed to lightpose-hal), [`temperature`],
-//! [`outputs`], [`recording`], [`attitude`], [`logging`], [`foxglove`];
+//! [`outputs`], [`recording`], [`attitude`], [`logging`], [`foxglove`],
+//! [`vehicle`] (`[site]`, `[mavlink]`, `[dvl]`);
 //! [`locate`] turns spans into lines and [`embedded`] resolves
 //! `embedded:NAME`.
 
@@ -20,12 +21,14 @@ pub mod outputs;
 pub mod recording;
 pub mod temperature;
 pub mod top;
+pub mod vehicle;
 
 pub use attitude::AttitudeInput;
 pub use foxglove::Foxglove;
 pub use logging::{LogFormat, Logging};
 pub use outputs::{Multicast, Outputs};
 pub use recording::{RecFormat, Recording};
+pub use vehicle::VehicleConfig;
 
 use lightpose_core::textfile::{read_text, TextError, TextSource};
 use lightpose_hal::ValidBackend;
@@ -56,6 +59,10 @@ pub struct Config {
     pub logging: Logging,
     /// The live view (Foxglove WebSocket), if configured.
     pub foxglove: Option<Foxglove>,
+    /// `[site]`: the beacon's heading and depth, if given.
+    pub site: Option<lightpose_vehicle::Site>,
+    /// The autopilot and DVL links (`[mavlink]`, `[dvl]`), if configured.
+    pub vehicle: Option<VehicleConfig>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -90,6 +97,9 @@ struct Raw {
     attitude: Option<attitude::RawAttitude>,
     logging: Option<logging::RawLogging>,
     foxglove: Option<foxglove::RawFoxglove>,
+    site: Option<Spanned<toml::Table>>,
+    mavlink: Option<Spanned<toml::Table>>,
+    dvl: Option<Spanned<toml::Table>>,
 }
 
 impl Config {
@@ -123,9 +133,16 @@ impl Config {
         let fallback_temp_c = temperature::validate(&ctx, raw.temperature.as_ref())?;
         let outputs = outputs::validate(&ctx, raw.outputs.as_ref())?;
         let recording = recording::validate(&ctx, raw.recording.as_ref())?;
-        let attitude = attitude::validate(&ctx, raw.attitude.as_ref())?;
+        let site = vehicle::site(&ctx, raw.site.as_ref())?;
+        let attitude = attitude::validate(&ctx, raw.attitude.as_ref(), site.map(|s| s.1))?;
+        let site = site.map(|s| s.0);
         let logging = logging::validate(&ctx, raw.logging.as_ref())?;
         let foxglove = foxglove::validate(&ctx, raw.foxglove.as_ref())?;
+        let tables = vehicle::RawVehicle {
+            mavlink: raw.mavlink.as_ref(),
+            dvl: raw.dvl.as_ref(),
+        };
+        let vehicle = vehicle::validate(&ctx, &tables, site)?;
         if outputs.destinations.is_empty() && outputs.multicast.is_none() {
             tracing::warn!("{file}: no outputs.destinations and no multicast: poses go nowhere");
         }
@@ -142,6 +159,8 @@ impl Config {
             attitude,
             logging,
             foxglove,
+            site,
+            vehicle,
         })
     }
 }

@@ -3,11 +3,14 @@
 //! once per frame, attaches what it holds to the frame if it is fresh — so
 //! that the estimator, the POSE and the recording all see the same frame.
 //!
-//! Today: the vehicle's attitude over UDP JSON ([`attitude`]). A new input
+//! Today: the vehicle's attitude over UDP JSON ([`attitude`]), and the
+//! autopilot's and the DVL's readings through lightpose-vehicle's hub
+//! ([`vehicle`]). A new input
 //! (another sensor, another protocol) is a file here implementing
 //! [`Input`], started in `wiring.rs`, with its counters in STATUS.
 
 pub mod attitude;
+pub mod vehicle;
 
 use lightpose_core::Frame;
 use std::time::Instant;

@@ -5,11 +5,13 @@
 //!
 //! Today: POSE datagrams over UDP ([`udp`]), the recording of frames (and,
 //! in MCAP, estimates and STATUS: [`recorder`], [`recfile`]) and the live
-//! view for Foxglove ([`live`]). A new output (another protocol, another recording
+//! view for Foxglove ([`live`]), the pose to the autopilot over MAVLink
+//! ([`mavlink`]). A new output (another protocol, another recording
 //! format, a live viewer) is a file here implementing [`Output`], added to
 //! the engine in `wiring.rs`.
 
 pub mod live;
+pub mod mavlink;
 pub mod recfile;
 pub mod recorder;
 pub mod udp;

@@ -3,6 +3,7 @@
 #![allow(dead_code)] // each test binary uses its own subset
 
 pub mod run;
+pub mod vehicle;
 
 use lightpose_core::LogReader;
 use std::net::{SocketAddr, UdpSocket};

@@ -183,6 +183,7 @@ pub struct DvlStatus {
     /// Lines of other report types.
     pub other: u64,
     pub high_temperature: u64,
+    #[serde(serialize_with = "crate::counts_as_map")]
     pub refused: Vec<(&'static str, u64)>,
     pub last_error: Option<String>,
 }

@@ -44,17 +44,22 @@ pub struct MavlinkStatus {
     /// CRC-valid frames received.
     pub frames: u64,
     /// Messages used, per kind.
+    #[serde(serialize_with = "crate::counts_as_map")]
     pub used: Vec<(&'static str, u64)>,
     /// Valid messages with nothing for us.
     pub unused: u64,
     /// Messages or frame candidates refused, per reason.
+    #[serde(serialize_with = "crate::counts_as_map")]
     pub refused: Vec<(&'static str, u64)>,
     /// Bytes that were no part of any frame.
     pub garbage_bytes: u64,
+    #[serde(serialize_with = "crate::counts_as_map")]
     pub sent: Vec<(&'static str, u64)>,
     /// `ok` poses not sent, per reason.
+    #[serde(serialize_with = "crate::counts_as_map")]
     pub skipped: Vec<(&'static str, u64)>,
     /// Speeds not sent although the surge was known, per reason.
+    #[serde(serialize_with = "crate::counts_as_map")]
     pub speed_skipped: Vec<(&'static str, u64)>,
     /// Frames not sent because a `udpin` link had heard nobody yet.
     pub no_peer: u64,

@@ -147,6 +147,7 @@ pub struct OutboxStatus {
     pub queued: u64,
     pub incomplete: u64,
     /// Poses not sent because their status was not `ok`, per status word.
+    #[serde(serialize_with = "crate::counts_as_map")]
     pub not_ok: Vec<(&'static str, u64)>,
 }
 

@@ -60,14 +60,29 @@ enum Ended {
 
 /// Run the MAVLink component until `shutdown` resolves.
 pub async fn run(s: MavlinkSettings, hub: Arc<Hub>, shutdown: impl Future<Output = ()>) {
+    run_with(s, hub, None, shutdown).await
+}
+
+/// As [`run`], on a link the caller has already opened (the daemon opens
+/// it before it starts, so that a port it cannot have stops the start);
+/// later failures reopen it as `run` does.
+pub async fn run_with(
+    s: MavlinkSettings,
+    hub: Arc<Hub>,
+    mut first: Option<Link>,
+    shutdown: impl Future<Output = ()>,
+) {
     let mut shutdown = std::pin::pin!(shutdown);
     let mut backoff = Backoff::new(Duration::from_millis(200), s.reopen_max);
     let mut tx = Sender::new(&s);
     let c = &hub.mavlink;
     loop {
-        let opened = tokio::select! {
-            _ = &mut shutdown => return,
-            r = Link::open(&s.endpoint) => r,
+        let opened = match first.take() {
+            Some(link) => Ok(link),
+            None => tokio::select! {
+                _ = &mut shutdown => return,
+                r = Link::open(&s.endpoint) => r,
+            },
         };
         match opened {
             Ok(link) => {

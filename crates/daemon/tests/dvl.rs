@@ -1,0 +1,111 @@
+//! A stand-in Water Linked DVL (a TCP server in the test speaking the
+//! vendor's JSON, one report per line) drives the daemon's velocity input:
+//! the frames the daemon records carry its velocity; garbage lines,
+//! `velocity_valid: false` and the server closing the connection are
+//! counted in STATUS and survived (the client connects again), and no
+//! frame is lost meanwhile.
+
+mod common;
+
+use common::run::{collect, of_class, run_in_process, sim_config};
+use common::subscriber;
+use lightpose_core::LogReader;
+use lightposed::Config;
+use std::io::Write;
+use std::net::{TcpListener, TcpStream};
+use std::time::{Duration, Instant};
+
+const V: [f64; 3] = [0.3, 0.05, -0.02];
+
+fn report(valid: bool) -> String {
+    format!(
+        concat!(
+            r#"{{"time": 99.8, "vx": {}, "vy": {}, "vz": {}, "fom": 0.002, "#,
+            r#""covariance": [[1e-4, 0.0, 0.0], [0.0, 4e-4, 0.0], [0.0, 0.0, 9e-4]], "#,
+            r#""altitude": 1.8, "transducers": [{{"id": 0, "velocity": 0.1, "distance": 2.0, "rssi": -30.0, "nsd": -90.0, "beam_valid": true}}], "#,
+            r#""velocity_valid": {}, "status": 0, "tracking_mode": "bottom", "format": "json_v3.2", "type": "velocity", "#,
+            r#""time_of_validity": 1638191471563017, "time_of_transmission": 1638191471573017}}"#,
+            "\n"
+        ),
+        V[0], V[1], V[2], valid
+    )
+}
+
+/// Good reports at 10 Hz for `d`.
+fn reports(s: &mut TcpStream, d: Duration) {
+    let t0 = Instant::now();
+    while t0.elapsed() < d {
+        s.write_all(report(true).as_bytes()).expect("write");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// The DVL: reports, then garbage and invalid ones, then it closes the
+/// connection; the daemon connects again and gets reports.
+fn dvl(listener: TcpListener) {
+    let (mut s, _) = listener.accept().expect("the daemon connects");
+    reports(&mut s, Duration::from_millis(800));
+    for line in ["garbage\n", "{\"vx\": \n", "\u{0}\u{1}binary\n"] {
+        s.write_all(line.as_bytes()).expect("write");
+    }
+    for _ in 0..5 {
+        s.write_all(report(false).as_bytes()).expect("write");
+    }
+    reports(&mut s, Duration::from_millis(300));
+    drop(s); // unplugged
+    let (mut s, _) = listener.accept().expect("the daemon connects again");
+    reports(&mut s, Duration::from_millis(800));
+}
+
+#[test]
+fn a_dvl_drives_the_velocity_input_and_its_faults_are_counted() {
+    let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let port = listener.local_addr().expect("addr").port();
+    let server = std::thread::spawn(move || dvl(listener));
+    let rec = tempfile::tempdir().expect("tmp");
+    let (sub, dest) = subscriber();
+    let extra = format!(
+        "[dvl]\naddress = \"127.0.0.1:{port}\"\nreconnect_max_s = 0.2\n[recording]\ndir = \"{}\"\n",
+        rec.path().display()
+    );
+    let text = sim_config(20.0, &[dest], "loop = true", &extra);
+    let cfg = Config::parse(&text, "t.toml", None).expect("valid");
+    let daemon = run_in_process(cfg, Duration::from_millis(3000));
+    let msgs = collect(&sub, Duration::from_millis(3300));
+    let summary = daemon.join().expect("the daemon ends without panic");
+    server.join().expect("the stand-in DVL ran its script");
+    assert_eq!((summary.lost, summary.failed), (0, 0), "{summary:?}");
+    assert!(summary.frames >= 50, "{summary:?}");
+
+    let status = of_class(&msgs, "STATUS");
+    let v = &status.last().expect("STATUS")["vehicle"];
+    eprintln!("{summary:?}; vehicle {v}");
+    let d = &v["dvl"];
+    assert_eq!(v["enabled"], true);
+    assert!(d["connects"].as_u64() >= Some(2), "{d}");
+    assert!(d["drops"].as_u64() >= Some(1), "{d}");
+    assert!(d["reports"].as_u64() >= Some(15), "{d}");
+    assert!(d["refused"]["garbage"].as_u64() >= Some(2), "{d}");
+    assert_eq!(d["refused"]["velocity_invalid"].as_u64(), Some(5), "{d}");
+    assert!(d["last_error"].is_string(), "{d}");
+    let attached = v["readings"]["velocity"]["attached"].as_u64().unwrap_or(0);
+    assert!(attached >= 20, "{v}");
+
+    // The recording carries the velocity with the frames that got it.
+    let mut with = 0;
+    for f in common::run::files_in(rec.path()) {
+        for frame in LogReader::open(&f).expect("log opens") {
+            let frame = frame.expect("every line reads back");
+            if let Some(r) = frame.velocity {
+                assert_eq!(r.v.0, V, "seq {}", frame.seq);
+                let std = r.std.expect("std from the covariance").0;
+                assert!((std[1] - 0.02).abs() < 1e-12, "{std:?}");
+                with += 1;
+            }
+        }
+    }
+    assert!(
+        with >= 20 && with as u64 <= summary.frames,
+        "{with} recorded with a velocity"
+    );
+}
