@@ -28,13 +28,11 @@ const RATE_HZ: f64 = 20.0;
 const SECONDS: f64 = 8.0;
 /// Coverage is counted after the first second of the log.
 const COVER_AFTER_S: f64 = 1.0;
-/// Errors are judged once the tracker has settled. Its track starts at
-/// the first frame; its y–yaw mode (a lateral offset looks like a turn)
-/// is pulled in by the attitude reading, weighed with the pipeline's
-/// 1.5° attitude noise, within about two seconds (measured: the east
-/// error last exceeds 0.25 m at t ≈ 1.4 s, also with the vehicle at rest
-/// for its first second). The MAVLink path itself adds nothing to that.
-const P95_AFTER_S: f64 = 2.0;
+/// Errors are judged after the first second too, as the issue asks. (The
+/// stand-in keeps step with the replay from the daemon's first HEARTBEAT
+/// until the first pose: the daemon greets a udpin peer at once, so the
+/// readings of the first frames are the truth of their own time.)
+const P95_AFTER_S: f64 = 1.0;
 
 fn check_p95(who: &str, p95: [f64; 5]) {
     eprintln!(

@@ -247,3 +247,43 @@ fn a_flood_costs_no_frame_and_the_latest_valid_reading_wins() {
     assert_eq!(hub.outbox.status().queued, frames);
     assert!(st.sent[2].1 > 0, "heartbeats");
 }
+
+/// A `udpin` component knows its autopilot only from the first datagram;
+/// it greets it with a HEARTBEAT then, not a heartbeat period later (here
+/// a minute, so that only the greeting can arrive in time).
+#[test]
+fn a_udpin_component_greets_a_new_peer_at_once() {
+    let port = UdpSocket::bind("127.0.0.1:0")
+        .and_then(|s| s.local_addr())
+        .expect("probe port")
+        .port();
+    let at = std::net::SocketAddr::from(([127, 0, 0, 1], port));
+    let mut s = MavlinkSettings::new(
+        lightpose_vehicle::Endpoint::UdpIn(at),
+        Site::new(Angle::ZERO, 3.0),
+    );
+    s.heartbeat_period = Duration::from_secs(60);
+    let hub = Arc::new(Hub::default());
+    let _running = spawn_mavlink(s, hub.clone());
+    let ap = UdpSocket::bind("127.0.0.1:0").expect("autopilot");
+    ap.set_read_timeout(Some(Duration::from_millis(100)))
+        .expect("timeout");
+    let mut sc = Scanner::new(Framing::Datagram);
+    let mut buf = [0u8; 2048];
+    let t0 = Instant::now();
+    let mut greeted = false;
+    // Resend until the link is up; the first tick of a 60 s period is
+    // spent before any peer is known.
+    while !greeted && t0.elapsed() < Duration::from_secs(10) {
+        ap.send_to(&v2(&attitude(0.0, 0.0), 1, 0), at)
+            .expect("send");
+        if let Ok(n) = ap.recv(&mut buf) {
+            sc.push(&buf[..n]);
+            while let Some(ev) = sc.next_frame() {
+                greeted |= matches!(ev, Scanned::Frame(f) if f.msg_id == 0);
+            }
+            sc.end_of_datagram();
+        }
+    }
+    assert!(greeted, "no HEARTBEAT within 10 s of the first datagram");
+}

@@ -199,6 +199,12 @@ impl Link {
         }
     }
 
+    /// Whether a send has somewhere to go: always, but on `udpin` only
+    /// once a datagram has come in (the peer is whoever sent the last).
+    pub fn has_peer(&self) -> bool {
+        !matches!(self.inner, Inner::UdpIn { peer: None, .. })
+    }
+
     /// Receive a datagram or a burst of serial bytes. Cancel-safe.
     pub async fn recv(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         match &mut self.inner {

@@ -125,6 +125,7 @@ async fn serve(
     let mut beat = tokio::time::interval(s.heartbeat_period);
     beat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
+        let had_peer = link.has_peer();
         tokio::select! {
             _ = &mut shutdown => return Ended::Shutdown,
             r = link.recv(scanner.spare()) => match r {
@@ -132,6 +133,11 @@ async fn serve(
                     scanner.commit(n);
                     absorb(&mut scanner, s, hub);
                     backoff.reset();
+                    // On udpin the autopilot is known from its first
+                    // datagram: greet it now, not up to a period later.
+                    if !had_peer && link.has_peer() {
+                        beat.reset_immediately();
+                    }
                 }
                 Err(e) if link.framing() == Framing::Stream => return Ended::Lost(e),
                 // UDP: an ICMP "port unreachable" from a peer not yet up.
