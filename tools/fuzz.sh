@@ -6,7 +6,7 @@
 #
 #   tools/fuzz.sh            # 60 s per target
 #   tools/fuzz.sh 3600       # the longer run: an hour per target
-#   FUZZ_SANITIZER=none tools/fuzz.sh 10   # CI: no AddressSanitizer
+#   FUZZ_SANITIZER=none FUZZ_OPT=--dev tools/fuzz.sh 5   # CI: no ASan, dev build
 #
 # The targets look for panics and broken invariants in safe Rust; ASan
 # (the default) also watches the few unsafe lines in dependencies and is
@@ -21,11 +21,14 @@ secs=${1:-60}
 command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
 export RUSTC_BOOTSTRAP=1
 san=(--sanitizer "${FUZZ_SANITIZER:-address}")
-cargo fuzz build -O "${san[@]}"
+# FUZZ_OPT: -O (optimised, the default: more runs a second) or --dev
+# (CI: half the build time for a smoke run of a few seconds).
+opt=(${FUZZ_OPT--O})
+cargo fuzz build "${opt[@]}" "${san[@]}"
 for t in log_reader mcap_reader scene calibration trajectory serial_line daemon_config attitude; do
   mkdir -p "corpus/$t"
   echo "== $t ($secs s)"
-  cargo fuzz run -O "${san[@]}" "$t" "corpus/$t" "seeds/$t" -- -max_total_time="$secs" -rss_limit_mb=2048 2>&1 | grep -E "^(Done|==[0-9]+==|SUMMARY)|panicked" || true
+  cargo fuzz run "${opt[@]}" "${san[@]}" "$t" "corpus/$t" "seeds/$t" -- -max_total_time="$secs" -rss_limit_mb=2048 2>&1 | grep -E "^(Done|==[0-9]+==|SUMMARY)|panicked" || true
   if ls "artifacts/$t"/crash-* >/dev/null 2>&1; then
     echo "fuzz: $t crashed; inputs in fuzz/artifacts/$t" >&2
     exit 1
