@@ -4,10 +4,11 @@
 //! runs a few seconds at most (high frame rates).
 
 mod common;
+use common::run::run_in_process;
 use common::{read_logs, root, shipped, subscriber};
 
 use lightpose_core::LogReader;
-use lightposed::{Config, Publisher};
+use lightposed::Config;
 use serde_json::Value;
 use std::io::{BufRead, BufReader};
 use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
@@ -58,22 +59,6 @@ fn collect(s: &UdpSocket, d: Duration) -> Vec<(Instant, Value)> {
 
 fn of_class<'a>(msgs: &'a [(Instant, Value)], class: &str) -> Vec<&'a (Instant, Value)> {
     msgs.iter().filter(|(_, v)| v["class"] == class).collect()
-}
-
-/// Run the daemon in-process on a thread of its own for `run_for`.
-fn run_in_process(cfg: Config, run_for: Duration) -> std::thread::JoinHandle<lightposed::Summary> {
-    std::thread::spawn(move || {
-        let rt = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .expect("runtime");
-        rt.block_on(async move {
-            let p = Publisher::open(&cfg.outputs).expect("publisher");
-            lightposed::run(cfg, p, tokio::time::sleep(run_for))
-                .await
-                .expect("daemon runs")
-        })
-    })
 }
 
 fn assert_pose_fields(v: &Value) {

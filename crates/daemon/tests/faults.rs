@@ -9,10 +9,11 @@
 //! recovers much faster (see docs/daemon.md, "Faults").
 
 mod common;
+use common::run::run_until;
 use common::{read_logs, shipped, subscriber};
 
 use lightpose_hal::serial::protocol::format_line;
-use lightposed::{Config, Publisher};
+use lightposed::Config;
 use serde_json::Value;
 use std::fs::File;
 use std::io::Write;
@@ -104,21 +105,11 @@ fn run_in_process(
     cfg: Config,
     stop: Arc<AtomicBool>,
 ) -> std::thread::JoinHandle<lightposed::Summary> {
-    std::thread::spawn(move || {
-        let rt = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .expect("runtime");
-        rt.block_on(async move {
-            let p = Publisher::open(&cfg.outputs).expect("publisher");
-            let stopped = async move {
-                let t0 = Instant::now();
-                while !stop.load(Relaxed) && t0.elapsed() < Duration::from_secs(60) {
-                    tokio::time::sleep(Duration::from_millis(20)).await;
-                }
-            };
-            lightposed::run(cfg, p, stopped).await.expect("daemon runs")
-        })
+    run_until(cfg, async move {
+        let t0 = Instant::now();
+        while !stop.load(Relaxed) && t0.elapsed() < Duration::from_secs(60) {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
     })
 }
 

@@ -6,11 +6,11 @@
 //! client is served meanwhile.
 
 mod common;
-use common::run::{collect, collect_raw, python, run_python, sim_config};
+use common::run::{collect, collect_raw, python, run_python, run_until, sim_config};
 use common::{root, subscriber};
 
 use futures_util::{SinkExt, StreamExt};
-use lightposed::{Config, Publisher};
+use lightposed::Config;
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::ffi::OsStr;
@@ -28,18 +28,8 @@ fn start(
 ) {
     let cfg = Config::parse(text, "live.toml", None).expect("valid config");
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
-    let h = std::thread::spawn(move || {
-        let rt = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .expect("runtime");
-        rt.block_on(async move {
-            let p = Publisher::open(&cfg.outputs).expect("publisher");
-            let stop = async move {
-                let _ = rx.await;
-            };
-            lightposed::run(cfg, p, stop).await.expect("daemon runs")
-        })
+    let h = run_until(cfg, async move {
+        let _ = rx.await;
     });
     (h, tx)
 }

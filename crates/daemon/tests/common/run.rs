@@ -57,12 +57,12 @@ pub fn of_class<'a>(msgs: &'a [Value], class: &str) -> Vec<&'a Value> {
     msgs.iter().filter(|v| v["class"] == class).collect()
 }
 
-/// Run the daemon in-process on a thread of its own until `run_for` has
-/// passed or its source ends.
-pub fn run_in_process(
-    cfg: Config,
-    run_for: Duration,
-) -> std::thread::JoinHandle<lightposed::Summary> {
+/// Run the daemon in-process on a thread of its own until `stop`
+/// resolves or its source ends.
+pub fn run_until<F>(cfg: Config, stop: F) -> std::thread::JoinHandle<lightposed::Summary>
+where
+    F: std::future::Future<Output = ()> + Send + 'static,
+{
     std::thread::spawn(move || {
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
@@ -70,11 +70,19 @@ pub fn run_in_process(
             .expect("runtime");
         rt.block_on(async move {
             let p = Publisher::open(&cfg.outputs).expect("publisher");
-            lightposed::run(cfg, p, tokio::time::sleep(run_for))
-                .await
-                .expect("daemon runs")
+            lightposed::run(cfg, p, stop).await.expect("daemon runs")
         })
     })
+}
+
+/// Run the daemon in-process on a thread of its own until `run_for` has
+/// passed or its source ends.
+pub fn run_in_process(
+    cfg: Config,
+    run_for: Duration,
+) -> std::thread::JoinHandle<lightposed::Summary> {
+    // The timer is made inside the daemon's runtime, when first polled.
+    run_until(cfg, async move { tokio::time::sleep(run_for).await })
 }
 
 /// Start the real binary with `cfg_text` (written into `dir`); wait until
