@@ -4,7 +4,7 @@
 //! runs a few seconds at most (high frame rates).
 
 mod common;
-use common::run::run_in_process;
+use common::run::{run_in_process, signal, spawn_daemon, wait_exit};
 use common::{read_logs, root, shipped, subscriber};
 
 use lightpose_core::LogReader;
@@ -12,7 +12,7 @@ use lightposed::Config;
 use serde_json::Value;
 use std::io::{BufRead, BufReader};
 use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -399,52 +399,6 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_lightposed"))
 }
 
-/// Start the binary with `cfg_text`; wait until POSE flows to `sub`.
-/// The caller owns the child and waits for it (the lint cannot see that).
-#[allow(clippy::zombie_processes)]
-fn spawn_daemon(dir: &Path, cfg_text: &str, sub: &UdpSocket) -> std::process::Child {
-    let cfg = dir.join("lightposed.toml");
-    std::fs::write(&cfg, cfg_text).expect("write config");
-    let mut child = bin()
-        .arg("--config")
-        .arg(&cfg)
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("spawn lightposed");
-    let mut buf = [0u8; 65536];
-    let t0 = Instant::now();
-    loop {
-        if t0.elapsed() > Duration::from_secs(10) {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("no POSE from the binary within 10 s");
-        }
-        if let Ok(n) = sub.recv(&mut buf) {
-            if serde_json::from_slice::<Value>(&buf[..n]).is_ok_and(|v| v["class"] == "POSE") {
-                return child;
-            }
-        }
-    }
-}
-
-fn signal(child: &std::process::Child, sig: nix::sys::signal::Signal) {
-    nix::sys::signal::kill(nix::unistd::Pid::from_raw(child.id() as i32), sig).expect("signal");
-}
-
-fn wait_exit(child: &mut std::process::Child, within: Duration) -> std::process::ExitStatus {
-    let t0 = Instant::now();
-    loop {
-        if let Some(s) = child.try_wait().expect("wait") {
-            return s;
-        }
-        if t0.elapsed() > within {
-            let _ = child.kill();
-            panic!("lightposed did not exit within {within:?}");
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-}
-
 #[test]
 fn sigterm_exits_0_with_recording_complete_and_sighup_reloads() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -455,7 +409,7 @@ fn sigterm_exits_0_with_recording_complete_and_sighup_reloads() {
         rec.display()
     );
     let text = sim_config(200.0, &[addr], "", &extra);
-    let mut child = spawn_daemon(dir.path(), &text, &sub);
+    let (mut child, _) = spawn_daemon(dir.path(), &text, &sub);
     signal(&child, nix::sys::signal::Signal::SIGHUP);
     // Run until STATUS shows the log has rotated (the daemon's own word,
     // not a guess at how fast a loaded machine goes), then stop it.
@@ -505,7 +459,7 @@ fn kill_9_leaves_a_log_complete_to_its_last_line() {
     let (sub, addr) = subscriber();
     let extra = format!("[recording]\ndir = \"{}\"\n", rec.display());
     let text = sim_config(500.0, &[addr], "", &extra);
-    let mut child = spawn_daemon(dir.path(), &text, &sub);
+    let (mut child, _) = spawn_daemon(dir.path(), &text, &sub);
     std::thread::sleep(Duration::from_millis(600));
     signal(&child, nix::sys::signal::Signal::SIGKILL);
     wait_exit(&mut child, Duration::from_secs(5));

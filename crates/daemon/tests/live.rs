@@ -7,7 +7,7 @@
 
 mod common;
 use common::run::{collect, collect_raw, python, run_python, run_until, sim_config};
-use common::{root, subscriber};
+use common::{free_tcp_port, root, subscriber};
 
 use futures_util::{SinkExt, StreamExt};
 use lightposed::Config;
@@ -32,13 +32,6 @@ fn start(
         let _ = rx.await;
     });
     (h, tx)
-}
-
-/// A TCP port free a moment ago: the config refuses port 0 (a listener
-/// there gets a port nobody knows), so the test asks the kernel for one.
-fn free_tcp_port() -> u16 {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("probe listener");
-    l.local_addr().expect("probe address").port()
 }
 
 /// The live view's address, from STATUS.

@@ -32,6 +32,13 @@ pub fn shipped() -> (PathBuf, PathBuf, PathBuf) {
     files
 }
 
+/// A TCP port free a moment ago: the config refuses port 0 (a listener
+/// there gets a port nobody knows), so a test asks the kernel for one.
+pub fn free_tcp_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("probe listener");
+    l.local_addr().expect("probe address").port()
+}
+
 pub fn subscriber() -> (UdpSocket, SocketAddr) {
     let s = UdpSocket::bind("127.0.0.1:0").expect("bind subscriber");
     s.set_read_timeout(Some(Duration::from_millis(50)))
