@@ -28,6 +28,7 @@ pub fn sensor_of(s: &Scene) -> SensorModel {
         adc_bits: s.adc.bits,
         sigma_e_v: s.noise.map_or(0.0, |n| n.sigma_e_v),
         kappa_v: s.noise.map_or(0.0, |n| n.kappa_v),
+        k_d_sigma: 0.0,
     }
 }
 
@@ -75,7 +76,11 @@ pub fn track_bound_along(
     traj: &Trajectory,
     cfg: &TrackerConfig,
 ) -> Result<Vec<TrackBound>, lightpose_pipeline::settings::ModelError> {
-    let tracker = Tracker::new(sensor_of(s), cfg.clone())?;
+    // The scene's truth is the model here; the water's doubt is the
+    // Monte Carlo's, as for the estimators the bench runs.
+    let mut cfg = cfg.clone();
+    cfg.k_d_sigma.get_or_insert(s.montecarlo.sigma_k_d);
+    let tracker = Tracker::new(sensor_of(s), cfg)?;
     let track: Vec<TrackPoint> = traj
         .frame_times(s.adc.rate_hz)
         .map(|t| {

@@ -249,8 +249,13 @@ pub fn run_section(
         crb,
         track_end,
     };
+    // Each run's water is drawn about the calibration's: the estimators
+    // are told so (their K_D doubt), as an operator in such water would.
+    let cal = l
+        .calibration
+        .in_water_known_to(cfg.scene.montecarlo.sigma_k_d);
     for name in &o.estimators {
-        let build = || build_estimator(name, &l.calibration);
+        let build = || build_estimator(name, &cal);
         let mut est = match build() {
             Ok(e) => e,
             Err(e @ BuildError::NoPhysical { .. }) => {

@@ -88,6 +88,7 @@ mod tests {
     use super::*;
     use crate::calibration::file::tests::{sample, sample_physical};
     use crate::settings::EstimatorSettings;
+    use lightpose_core::Angle;
 
     #[test]
     fn every_name_builds_the_estimator_it_names() {
@@ -133,6 +134,65 @@ mod tests {
         let e = build_estimator("model", &cal).err().unwrap().to_string();
         assert!(e.contains("max_iter must be at least 1"), "{e}");
         // The tracker's own settings are still the defaults: it builds.
+        assert_eq!(build_estimator("tracker", &cal).unwrap().name(), "tracker");
+    }
+
+    /// K_D's doubt: unset, the calibration's own standard error (the water
+    /// of the sweep); a Monte Carlo's drawn water fills in its spread
+    /// where the user set none; a user's setting stays.
+    #[test]
+    fn k_d_doubt_is_the_calibrations_unless_the_water_is_said_to_differ() {
+        use crate::model::testutil::{synth_frame, Rng};
+        let mut cal = sample();
+        cal.physical = Some(sample_physical());
+        let model = cal.physical.as_ref().unwrap().sensor_model();
+        assert_eq!(model.k_d_sigma, 0.0007);
+        let pose = lightpose_core::Pose::new(8.0, 0.1, 0.2, Angle::ZERO, Angle::ZERO);
+        let sig = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
+        let frame = synth_frame(&model, &pose, 0, 0.0, sig, &mut Rng::new(4));
+        let sx = |cal: &Calibration| {
+            let mut e = build_estimator("model", cal).unwrap();
+            e.estimate(&frame).std.x.unwrap()
+        };
+        let in_sweep_water = sx(&cal);
+        let drawn = cal.in_water_known_to(0.015);
+        let in_other_water = sx(&drawn);
+        // x·δK_D/(K_D + 2/x) at 8 m: 0.0007 → 0.016 m, 0.015 → 0.35 m.
+        assert!(in_sweep_water < 0.2, "{in_sweep_water}");
+        assert!(in_other_water > 0.3, "{in_other_water}");
+        let st = drawn.estimator.unwrap();
+        assert_eq!(
+            (st.model.k_d_sigma, st.tracker.k_d_sigma),
+            (Some(0.015), Some(0.015))
+        );
+        let mut mine = EstimatorSettings::default();
+        mine.tracker.k_d_sigma = Some(0.002);
+        cal.estimator = Some(mine);
+        let st = cal.in_water_known_to(0.015).estimator.unwrap();
+        assert_eq!(
+            (st.model.k_d_sigma, st.tracker.k_d_sigma),
+            (Some(0.015), Some(0.002))
+        );
+        // Unset, it stays out of a written file (and reads back unset).
+        let text = toml::to_string(&EstimatorSettings::default()).unwrap();
+        assert!(!text.contains("k_d_sigma"), "{text}");
+    }
+
+    /// Estimating K_D needs a prior: from a model that gives none, the
+    /// setting must say it, in one clear line.
+    #[test]
+    fn estimating_k_d_without_any_doubt_is_refused_clearly() {
+        let mut cal = sample();
+        let mut physical = sample_physical();
+        physical.k_d.std = 0.0;
+        cal.physical = Some(physical);
+        let mut s = EstimatorSettings::default();
+        s.tracker.estimate_k_d = true;
+        cal.estimator = Some(s.clone());
+        let e = build_estimator("tracker", &cal).err().unwrap().to_string();
+        assert!(e.contains("estimate_k_d needs k_d_sigma"), "{e}");
+        s.tracker.k_d_sigma = Some(0.01);
+        cal.estimator = Some(s);
         assert_eq!(build_estimator("tracker", &cal).unwrap().name(), "tracker");
     }
 }

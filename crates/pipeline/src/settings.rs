@@ -25,6 +25,18 @@ pub struct EstimatorSettings {
     pub tracker: TrackerConfig,
 }
 
+impl EstimatorSettings {
+    /// These settings in water whose K_D is known only to `sigma_k_d` (1σ,
+    /// m⁻¹) about the calibration's, as in a Monte Carlo that draws each
+    /// run's water: a `k_d_sigma` left unset (the sweep's water) takes it,
+    /// one set by the user stays.
+    pub fn in_water_known_to(mut self, sigma_k_d: f64) -> Self {
+        self.model.k_d_sigma.get_or_insert(sigma_k_d);
+        self.tracker.k_d_sigma.get_or_insert(sigma_k_d);
+        self
+    }
+}
+
 /// Which pose coordinates one frame is asked for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
@@ -74,11 +86,15 @@ pub struct ModelConfig {
     pub max_reduced_chi2: f64,
     /// Warm start only across gaps shorter than this (seconds).
     pub max_gap_s: f64,
-    /// 1σ by which the water's K_D may differ from the calibrated value
-    /// (m⁻¹; MODEL.md's Monte Carlo spread 0.015). K_D is not fitted per
-    /// frame, so its doubt is added to the reported x std ("consider"
-    /// covariance); 0 means K_D is known exactly.
-    pub k_d_sigma: f64,
+    /// 1σ by which the water's K_D may differ from the calibrated value,
+    /// m⁻¹. K_D is not fitted per frame, so its doubt is added to the
+    /// reported x std ("consider" covariance); 0 means K_D is known
+    /// exactly. Unset: the calibration's own standard error of K_D, i.e.
+    /// the water of the sweep; in other water say how far it may be off
+    /// (MODEL.md's Monte Carlo spread is 0.015, which `lightpose
+    /// montecarlo` and `bench` tell the estimator).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub k_d_sigma: Option<f64>,
 }
 
 impl Default for ModelConfig {
@@ -100,7 +116,7 @@ impl Default for ModelConfig {
             min_signal_sigma: 6.0,
             max_reduced_chi2: 100.0,
             max_gap_s: 2.0,
-            k_d_sigma: 0.015,
+            k_d_sigma: None,
         }
     }
 }
@@ -135,8 +151,10 @@ impl ModelConfig {
                 return bad(format!("{name} = {v} must be positive"));
             }
         }
-        if !(self.k_d_sigma.is_finite() && self.k_d_sigma >= 0.0) {
-            return bad(format!("k_d_sigma = {} must be ≥ 0", self.k_d_sigma));
+        if let Some(v) = self.k_d_sigma {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("k_d_sigma = {v} must be ≥ 0"));
+            }
         }
         if let Some(v) = self.attitude_envelope_deg {
             if !(v.is_finite() && v > 0.0) {
@@ -187,8 +205,12 @@ pub struct TrackerConfig {
     pub estimate_k_d_with_velocity: bool,
     /// 1σ of K_D about the calibration's value, m⁻¹ (0: known exactly):
     /// the filter's prior when K_D is estimated, else the doubt of a
-    /// consider state (carried in P, K_D itself never moved).
-    pub k_d_sigma: f64,
+    /// consider state (carried in P, K_D itself never moved). Unset: the
+    /// calibration's own standard error of K_D (the water of the sweep);
+    /// in other water say how far it may be off (MODEL.md's Monte Carlo
+    /// spread is 0.015, which `lightpose montecarlo` and `bench` tell it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub k_d_sigma: Option<f64>,
     /// Random-walk density of K_D, (m⁻¹)²/s.
     pub k_d_walk_psd: f64,
     /// Say `unobservable`, not `ok`, on a frame without an attitude
@@ -307,7 +329,7 @@ impl Default for TrackerConfig {
             ang_accel_psd_deg: 20.0,
             estimate_k_d: false,
             estimate_k_d_with_velocity: false,
-            k_d_sigma: 0.015,
+            k_d_sigma: None,
             k_d_walk_psd: 1e-6,
             flag_unobservable: false,
             sigma_points_without_attitude: true,
@@ -374,13 +396,12 @@ impl TrackerConfig {
         }
         // 0 means "K_D known exactly", possible only when it is not
         // estimated (the filter's prior on it must be positive).
-        if !(self.k_d_sigma.is_finite() && self.k_d_sigma >= 0.0)
-            || (self.estimate_k_d && self.k_d_sigma == 0.0)
-        {
-            return bad(format!(
-                "tracker k_d_sigma = {} must be positive (≥ 0 without estimate_k_d)",
-                self.k_d_sigma
-            ));
+        if let Some(v) = self.k_d_sigma {
+            if !(v.is_finite() && v >= 0.0) || (self.estimate_k_d && v == 0.0) {
+                return bad(format!(
+                    "tracker k_d_sigma = {v} must be positive (≥ 0 without estimate_k_d)"
+                ));
+            }
         }
         let [lo, hi] = self.x_range;
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {

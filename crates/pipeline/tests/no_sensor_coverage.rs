@@ -44,6 +44,8 @@ fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
         scene.attitude.is_none(),
         "the tank scene has no attitude sensor"
     );
+    // Each run's water is drawn below: the tracker is told its spread.
+    let cal = cal.in_water_known_to(scene.montecarlo.sigma_k_d);
     let mut est = build_estimator("tracker", &cal).expect("tracker");
     let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
     let mut rng = Lcg(7);

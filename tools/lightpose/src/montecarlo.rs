@@ -51,7 +51,9 @@ pub fn run(a: MontecarloArgs) -> anyhow::Result<()> {
     sensors::apply_choice(&a.sensors, &mut scene)
         .with_context(|| format!("--sensors {}: {}", a.sensors, sensors::CHOICES))?;
     let trajectory = Trajectory::load(&a.trajectory)?;
-    let cal = Calibration::load(&a.calibration)?;
+    // Each run's water is drawn about the calibration's: the estimator is
+    // told so (its K_D doubt, unless the calibration's settings say).
+    let cal = Calibration::load(&a.calibration)?.in_water_known_to(scene.montecarlo.sigma_k_d);
     let case = match a.case.as_str() {
         "auto" => PaperCase::detect(&a.trajectory, scene.light.k_d),
         other => PaperCase::parse(other)?,

@@ -503,6 +503,15 @@ pub struct Calibration {
 }
 
 impl Calibration {
+    /// This calibration used in water whose K_D is known only to
+    /// `sigma_k_d` about its own (see `EstimatorSettings::in_water_known_to`).
+    pub fn in_water_known_to(&self, sigma_k_d: f64) -> Calibration {
+        let mut c = self.clone();
+        let settings = c.estimator.take().unwrap_or_default();
+        c.estimator = Some(settings.in_water_known_to(sigma_k_d));
+        c
+    }
+
     /// Read, parse and check a calibration file.
     pub fn load(path: &Path) -> Result<Calibration, CalError> {
         let text = read_text(path)?;

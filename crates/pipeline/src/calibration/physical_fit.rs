@@ -97,6 +97,7 @@ impl PhysicalCalibration {
             adc_bits: self.adc_bits,
             sigma_e_v: self.sigma_e_v,
             kappa_v: self.kappa_v,
+            k_d_sigma: self.k_d.std,
         }
     }
 

@@ -52,6 +52,11 @@ pub struct SensorModel {
     pub sigma_e_v: f64,
     /// κ, shot-noise factor in volts: variance grows by κ·E.
     pub kappa_v: f64,
+    /// 1σ of `light.k_d` as its source knows it, m⁻¹: a calibration's
+    /// standard error of its fit (the water of the sweep), 0 for a model
+    /// taken as exact (a scene's truth). The estimators' `k_d_sigma`
+    /// defaults to it.
+    pub k_d_sigma: f64,
 }
 
 impl Default for SensorModel {
@@ -67,6 +72,7 @@ impl Default for SensorModel {
             adc_bits: 10,
             sigma_e_v: 0.05,
             kappa_v: 0.0,
+            k_d_sigma: 0.0,
         }
     }
 }
@@ -112,6 +118,12 @@ impl SensorModel {
         pos("radius_m", self.geometry.radius_m)?;
         if !(l.k_d.is_finite() && l.k_d >= 0.0) {
             return Err(format!("k_d = {} must be a non-negative number", l.k_d));
+        }
+        if !(self.k_d_sigma.is_finite() && self.k_d_sigma >= 0.0) {
+            return Err(format!(
+                "k_d's std = {} must be a non-negative number",
+                self.k_d_sigma
+            ));
         }
         if let Some(s) = l.scattering {
             if !(s.omega.is_finite() && s.omega >= 0.0) {

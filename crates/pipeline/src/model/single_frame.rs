@@ -90,8 +90,9 @@ fn reduced_chi2(r: &LmResult, free: &[bool; 5]) -> f64 {
 impl ModelEstimator {
     pub const NAME: &'static str = "model";
 
-    pub fn new(model: SensorModel, cfg: ModelConfig) -> Result<Self, ModelError> {
+    pub fn new(model: SensorModel, mut cfg: ModelConfig) -> Result<Self, ModelError> {
         model.validate().map_err(ModelError::Model)?;
+        cfg.k_d_sigma.get_or_insert(model.k_d_sigma);
         cfg.validate()?;
         Ok(ModelEstimator {
             model,
@@ -106,6 +107,11 @@ impl ModelEstimator {
 
     pub fn config(&self) -> &ModelConfig {
         &self.cfg
+    }
+
+    /// K_D's doubt in use: the setting, else the model's own (see `new`).
+    pub fn k_d_sigma(&self) -> f64 {
+        self.cfg.k_d_sigma.unwrap_or(self.model.k_d_sigma)
     }
 
     /// Whether some channel stands clearly (`min_signal_sigma`) above its
@@ -333,7 +339,7 @@ impl ModelEstimator {
         e.z = lightpose_core::finite(pose.z);
         e.pitch_deg = lightpose_core::finite(pose.pitch.deg());
         e.yaw_deg = lightpose_core::finite(pose.yaw.deg());
-        let kd_x = k_d_consider_sigma_x(pose.x, self.model.light.k_d, self.cfg.k_d_sigma);
+        let kd_x = k_d_consider_sigma_x(pose.x, self.model.light.k_d, self.k_d_sigma());
         e.std = StdDev {
             x: sd(0, false).map(|s| s.hypot(kd_x)),
             y: sd(1, false),
@@ -486,7 +492,7 @@ mod tests {
         let m = SensorModel::default();
         // The synthetic water has exactly the model's K_D: nothing to add.
         let cfg = ModelConfig {
-            k_d_sigma: 0.0,
+            k_d_sigma: Some(0.0),
             ..ModelConfig::default()
         };
         let mut est = ModelEstimator::new(m.clone(), cfg).unwrap();
@@ -568,7 +574,7 @@ mod tests {
         let f = synth_frame(&m, &pose, 1, 0.0, sig, &mut rng);
         let sx = |k_d_sigma| {
             let cfg = ModelConfig {
-                k_d_sigma,
+                k_d_sigma: Some(k_d_sigma),
                 ..ModelConfig::default()
             };
             let mut e = ModelEstimator::new(m.clone(), cfg).unwrap();

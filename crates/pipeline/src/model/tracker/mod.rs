@@ -81,7 +81,14 @@ pub struct Tracker {
 impl Tracker {
     pub const NAME: &'static str = "tracker";
 
-    pub fn new(model: SensorModel, cfg: TrackerConfig) -> Result<Self, ModelError> {
+    pub fn new(model: SensorModel, mut cfg: TrackerConfig) -> Result<Self, ModelError> {
+        if cfg.k_d_sigma.is_none() && cfg.estimate_k_d && !(model.k_d_sigma > 0.0) {
+            return Err(ModelError::Config(
+                "tracker estimate_k_d needs k_d_sigma: the calibration gives K_D no standard error"
+                    .into(),
+            ));
+        }
+        cfg.k_d_sigma.get_or_insert(model.k_d_sigma);
         cfg.validate()?;
         let init_cfg = ModelConfig {
             dof: Dof::Full,
@@ -91,7 +98,11 @@ impl Tracker {
             attitude_envelope_deg: Some(cfg.init_attitude_sigma_deg),
             x_range: cfg.x_range,
             max_saturated: cfg.max_saturated,
-            k_d_sigma: if cfg.estimate_k_d { 0.0 } else { cfg.k_d_sigma },
+            k_d_sigma: Some(if cfg.estimate_k_d {
+                0.0
+            } else {
+                k_d_sigma(&cfg, &model)
+            }),
             ..ModelConfig::default()
         };
         let init = ModelEstimator::new(model.clone(), init_cfg)?;
@@ -256,6 +267,11 @@ impl Tracker {
     }
 }
 
+/// K_D's doubt in use: the setting, else the model's own (see `new`).
+fn k_d_sigma(cfg: &TrackerConfig, model: &SensorModel) -> f64 {
+    cfg.k_d_sigma.unwrap_or(model.k_d_sigma)
+}
+
 /// The verdicts of readings that were checked but never fused (no update
 /// happened): refusals stay, a ready reading was not used.
 fn unfused(r: &FrameReadings) -> [ReadingUse; 3] {
@@ -304,7 +320,7 @@ impl Estimator for Tracker {
         // law): optionally, from the first velocity reading on, K_D is
         // estimated (its doubt so far is already in P).
         if self.cfg.estimate_k_d_with_velocity
-            && self.cfg.k_d_sigma > 0.0
+            && k_d_sigma(&self.cfg, &self.model) > 0.0
             && uses[2] == ReadingUse::Used
         {
             s.k_d_free = true;

@@ -77,7 +77,7 @@ fn tracks_zigzag_with_attitude_sensor_honestly() {
     let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
     // The synthetic water has exactly the model's K_D: nothing to add.
     let known_k_d = TrackerConfig {
-        k_d_sigma: 0.0,
+        k_d_sigma: Some(0.0),
         ..TrackerConfig::default()
     };
     let (cover, rms) = run(known_k_d, att, 40);
@@ -130,8 +130,11 @@ fn tracks_zigzag_without_attitude_sensor_with_honest_std() {
 #[test]
 fn estimated_k_d_keeps_range_std_honest_in_other_water() {
     let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
+    // The water is drawn ± 0.015 about the calibration's: the tracker is
+    // told so (a model taken as exact has no K_D doubt of its own).
     let cfg = TrackerConfig {
         estimate_k_d: true,
+        k_d_sigma: Some(0.015),
         ..TrackerConfig::default()
     };
     let calibrated = SensorModel::default();
@@ -171,7 +174,7 @@ fn world_motion_model_tracks_with_attitude_sensor() {
     let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
     let cfg = TrackerConfig {
         motion: Motion::World,
-        k_d_sigma: 0.0,
+        k_d_sigma: Some(0.0),
         ..TrackerConfig::default()
     };
     let (cover, rms) = run(cfg, att, 20);
@@ -191,6 +194,7 @@ proptest! {
     ) {
         let mut tr = Tracker::new(SensorModel::default(), TrackerConfig {
             estimate_k_d: true,
+            k_d_sigma: Some(0.015),
             ..TrackerConfig::default()
         }).unwrap();
         let mut t = 0.0;

@@ -319,7 +319,7 @@ fn the_depth_lever_arm_is_applied_with_the_attitude() {
 fn all_three_sensors_track_the_zigzag_tightly_and_honestly() {
     let m = SensorModel::default();
     let cfg = TrackerConfig {
-        k_d_sigma: 0.0,
+        k_d_sigma: Some(0.0),
         ..TrackerConfig::default()
     };
     let mut tr = Tracker::new(m.clone(), cfg).unwrap();
