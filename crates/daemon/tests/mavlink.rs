@@ -13,9 +13,9 @@ use common::subscriber;
 use common::vehicle::{free_port, judge, mavlink_config, stand_in, write_bare_log};
 use common::vehicle::{BEACON_DEPTH_M, HEADING_DEG, WATER_C};
 use lightpose_core::LogReader;
+use lightpose_vehicle::mav::outbound::Encoder;
 use lightposed::Config;
 use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA};
-use mavlink::{MAVLinkV2MessageRaw, MavHeader};
 use serde_json::Value;
 use std::net::UdpSocket;
 use std::time::Duration;
@@ -230,17 +230,6 @@ fn replay_sees_what_the_live_estimator_saw(rec: &std::path::Path, live: &[&Value
     }
 }
 
-fn raw_v2(msg: &MavMessage, seq: u8) -> Vec<u8> {
-    let mut raw = MAVLinkV2MessageRaw::new();
-    let h = MavHeader {
-        system_id: 1,
-        component_id: 1,
-        sequence: seq,
-    };
-    raw.serialize_message(h, msg);
-    raw.raw_bytes().to_vec()
-}
-
 fn attitude(pitch: f32, yaw: f32) -> MavMessage {
     MavMessage::ATTITUDE(ATTITUDE_DATA {
         pitch,
@@ -269,13 +258,15 @@ fn bad_mavlink_input_costs_no_frame() {
     let to = std::net::SocketAddr::from(([127, 0, 0, 1], port));
     let tx = UdpSocket::bind("127.0.0.1:0").expect("bind");
     std::thread::sleep(Duration::from_millis(500));
-    let good = raw_v2(&attitude(0.1, 0.5), 0);
+    // The autopilot's own framing (system 1, component 1), sequence 0, 1.
+    let mut autopilot = Encoder::new(1, 1);
+    let good = autopilot.encode(&attitude(0.1, 0.5)).to_vec();
     let mut bad_crc = good.clone();
     let n = bad_crc.len();
     bad_crc[n - 2] ^= 0x5A;
     let mut unknown = good.clone();
     unknown[7..10].copy_from_slice(&[0x77, 0x77, 0x07]);
-    let nan = raw_v2(&attitude(f32::NAN, 0.5), 1);
+    let nan = autopilot.encode(&attitude(f32::NAN, 0.5)).to_vec();
     for d in [&bad_crc, &unknown, &nan, &b"not mavlink at all".to_vec()] {
         for _ in 0..50 {
             tx.send_to(d, to).expect("send");

@@ -41,12 +41,12 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static A: Counting = Counting;
 
-#[test]
-fn estimating_a_log_allocates_nothing() {
+/// The shipped tank calibration and the frames of the regression logs
+/// `names` (tests/data), read before any counting starts.
+fn calibration_and_frames(names: &[&str]) -> (Calibration, Vec<Frame>) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let cal = Calibration::load(&root.join("config/calibration/tank.toml")).expect("calibration");
-    // Every path: lit, initialising, dark and saturated frames.
-    let frames: Vec<Frame> = ["dive", "hard"]
+    let frames = names
         .iter()
         .flat_map(|n| {
             lightpose_core::LogReader::open(&root.join(format!("tests/data/{n}.jsonl")))
@@ -55,6 +55,13 @@ fn estimating_a_log_allocates_nothing() {
                 .collect::<Vec<_>>()
         })
         .collect();
+    (cal, frames)
+}
+
+#[test]
+fn estimating_a_log_allocates_nothing() {
+    // Every path: lit, initialising, dark and saturated frames.
+    let (cal, frames) = calibration_and_frames(&["dive", "hard"]);
     let mut est = MomentsEstimator::new(&cal);
     let mut statuses = 0u64;
     let before = allocs();
@@ -77,17 +84,7 @@ fn estimating_a_log_allocates_nothing() {
 /// the heap per frame either once built.
 #[test]
 fn tracking_with_and_without_own_sensors_allocates_nothing() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let cal = Calibration::load(&root.join("config/calibration/tank.toml")).expect("calibration");
-    let frames: Vec<Frame> = ["fusion-all", "fusion-depth", "dive", "hard"]
-        .iter()
-        .flat_map(|n| {
-            lightpose_core::LogReader::open(&root.join(format!("tests/data/{n}.jsonl")))
-                .expect("log")
-                .filter_map(Result::ok)
-                .collect::<Vec<_>>()
-        })
-        .collect();
+    let (cal, frames) = calibration_and_frames(&["fusion-all", "fusion-depth", "dive", "hard"]);
     let mut est = lightpose_pipeline::build_estimator("tracker", &cal).expect("tracker");
     let mut used = 0u64;
     let before = allocs();

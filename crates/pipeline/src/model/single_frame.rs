@@ -47,6 +47,8 @@ pub(crate) const WATER_TEMP_C: std::ops::RangeInclusive<f64> = -10.0..=60.0;
 pub struct ModelEstimator {
     model: SensorModel,
     cfg: ModelConfig,
+    /// K_D's doubt in use: the setting, else the model's own.
+    k_d_sigma: f64,
     last: Option<(f64, PoseVec)>,
 }
 
@@ -92,11 +94,13 @@ impl ModelEstimator {
 
     pub fn new(model: SensorModel, mut cfg: ModelConfig) -> Result<Self, ModelError> {
         model.validate().map_err(ModelError::Model)?;
-        cfg.k_d_sigma.get_or_insert(model.k_d_sigma);
+        // Unset: the model's own doubt (a calibration's standard error).
+        let k_d_sigma = *cfg.k_d_sigma.get_or_insert(model.k_d_sigma);
         cfg.validate()?;
         Ok(ModelEstimator {
             model,
             cfg,
+            k_d_sigma,
             last: None,
         })
     }
@@ -107,11 +111,6 @@ impl ModelEstimator {
 
     pub fn config(&self) -> &ModelConfig {
         &self.cfg
-    }
-
-    /// K_D's doubt in use: the setting, else the model's own (see `new`).
-    pub fn k_d_sigma(&self) -> f64 {
-        self.cfg.k_d_sigma.unwrap_or(self.model.k_d_sigma)
     }
 
     /// Whether some channel stands clearly (`min_signal_sigma`) above its
@@ -339,7 +338,7 @@ impl ModelEstimator {
         e.z = lightpose_core::finite(pose.z);
         e.pitch_deg = lightpose_core::finite(pose.pitch.deg());
         e.yaw_deg = lightpose_core::finite(pose.yaw.deg());
-        let kd_x = k_d_consider_sigma_x(pose.x, self.model.light.k_d, self.k_d_sigma());
+        let kd_x = k_d_consider_sigma_x(pose.x, self.model.light.k_d, self.k_d_sigma);
         e.std = StdDev {
             x: sd(0, false).map(|s| s.hypot(kd_x)),
             y: sd(1, false),

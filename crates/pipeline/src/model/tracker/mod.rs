@@ -75,6 +75,8 @@ pub struct Tracker {
     gate: [f64; 3],
     /// The paper's estimator, for its range (see `paper_range_sigma_scale`).
     paper: Option<PaperRange>,
+    /// K_D's doubt in use: the setting, else the model's own.
+    k_d_sigma: f64,
     state: Option<State>,
 }
 
@@ -88,7 +90,7 @@ impl Tracker {
                     .into(),
             ));
         }
-        cfg.k_d_sigma.get_or_insert(model.k_d_sigma);
+        let k_d_sigma = *cfg.k_d_sigma.get_or_insert(model.k_d_sigma);
         cfg.validate()?;
         let init_cfg = ModelConfig {
             dof: Dof::Full,
@@ -98,11 +100,7 @@ impl Tracker {
             attitude_envelope_deg: Some(cfg.init_attitude_sigma_deg),
             x_range: cfg.x_range,
             max_saturated: cfg.max_saturated,
-            k_d_sigma: Some(if cfg.estimate_k_d {
-                0.0
-            } else {
-                k_d_sigma(&cfg, &model)
-            }),
+            k_d_sigma: Some(if cfg.estimate_k_d { 0.0 } else { k_d_sigma }),
             ..ModelConfig::default()
         };
         let init = ModelEstimator::new(model.clone(), init_cfg)?;
@@ -112,6 +110,7 @@ impl Tracker {
             cfg,
             init,
             paper: None,
+            k_d_sigma,
             state: None,
         })
     }
@@ -267,11 +266,6 @@ impl Tracker {
     }
 }
 
-/// K_D's doubt in use: the setting, else the model's own (see `new`).
-fn k_d_sigma(cfg: &TrackerConfig, model: &SensorModel) -> f64 {
-    cfg.k_d_sigma.unwrap_or(model.k_d_sigma)
-}
-
 /// The verdicts of readings that were checked but never fused (no update
 /// happened): refusals stay, a ready reading was not used.
 fn unfused(r: &FrameReadings) -> [ReadingUse; 3] {
@@ -320,7 +314,7 @@ impl Estimator for Tracker {
         // law): optionally, from the first velocity reading on, K_D is
         // estimated (its doubt so far is already in P).
         if self.cfg.estimate_k_d_with_velocity
-            && k_d_sigma(&self.cfg, &self.model) > 0.0
+            && self.k_d_sigma > 0.0
             && uses[2] == ReadingUse::Used
         {
             s.k_d_free = true;

@@ -204,10 +204,9 @@ impl Tracker {
                 .as_ref()
                 .map(|p| p.sigma_m * c.paper_range_sigma_scale),
         );
-        let k_d_sigma = super::k_d_sigma(c, &self.model);
-        s.doubt_k_d(k_d_sigma);
+        s.doubt_k_d(self.k_d_sigma);
         let with_velocity = c.estimate_k_d_with_velocity && r.velocity.ready().is_some();
-        s.k_d_free = c.estimate_k_d || (with_velocity && k_d_sigma > 0.0);
+        s.k_d_free = c.estimate_k_d || (with_velocity && self.k_d_sigma > 0.0);
         if !s.is_finite() {
             return Err(Status::Diverged);
         }
