@@ -14,6 +14,7 @@
 # the tracker's k_d_sigma set to MODEL.md's Monte Carlo spread).
 #
 #   tools/heldout-check.sh            # everything under target/heldout/
+#   TRK='accel_psd = 0.01' tools/heldout-check.sh   # a setting tried
 set -eu
 cd "$(dirname "$0")/.."
 cargo build --release -q -p lightpose
@@ -28,8 +29,12 @@ mkdir -p "$W"
 $L sweep --scene $H/tank.toml --out "$W/sweep.jsonl" --seed 31 2>/dev/null
 $L sweep --scene $H/tank.toml --out "$W/dark.jsonl" --kind dark --seed 32 2>/dev/null
 $L calibrate --sweep "$W/sweep.jsonl" --dark "$W/dark.jsonl" --out "$W/cal.toml" >"$W/calibrate.txt" 2>&1
+# TRK (optional): `[estimator.tracker]` lines to try on top of the defaults.
 cp "$W/cal.toml" "$W/cal-doubt.toml"
-printf '\n[estimator.tracker]\nk_d_sigma = 0.015\n' >>"$W/cal-doubt.toml"
+printf '\n[estimator.tracker]\nk_d_sigma = 0.015\n%s\n' "${TRK:-}" >>"$W/cal-doubt.toml"
+if [ -n "${TRK:-}" ]; then
+    printf '\n[estimator.tracker]\n%s\n' "$TRK" >>"$W/cal.toml"
+fi
 
 # The scene with a set of own sensors: empty tables take MODEL.md's noise.
 scene() { # set

