@@ -122,11 +122,6 @@ fn tracks_zigzag_without_attitude_sensor_with_honest_std() {
     assert!(rms[3] < 3.5 && rms[4] < 3.5, "{rms:?}");
 }
 
-/// With K_D estimated, the water's K_D differs from the calibration's
-/// by the Monte Carlo spread: x's σ must carry the x–K_D trade of the
-/// start-up fit. Measured: 0.83 (0.58 before the joint start
-/// covariance); on the tank scene 89–94 % (ridge_diag). Still a little
-/// short of 2σ's 95 %: `estimate_k_d` stays off by default.
 /// Without a DVL, surge is null (and the status `initialising`) until its
 /// σ is at most `surge_max_sigma`: the first second's surge is mostly the
 /// start-up's guess, and a surge is given only when it says how fast the
@@ -166,6 +161,11 @@ fn surge_is_given_only_once_known_to_its_threshold() {
     }
 }
 
+/// With K_D estimated, the water's K_D differs from the calibration's
+/// by the Monte Carlo spread: x's σ must carry the x–K_D trade of the
+/// start-up fit. Measured: 0.83 (0.58 before the joint start
+/// covariance); on the tank scene 89–94 % (ridge_diag). Still a little
+/// short of 2σ's 95 %: `estimate_k_d` stays off by default.
 #[test]
 fn estimated_k_d_keeps_range_std_honest_in_other_water() {
     let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));

