@@ -29,7 +29,8 @@ mkdir -p "$W"
 $L sweep --scene $H/tank.toml --out "$W/sweep.jsonl" --seed 31 2>/dev/null
 $L sweep --scene $H/tank.toml --out "$W/dark.jsonl" --kind dark --seed 32 2>/dev/null
 $L calibrate --sweep "$W/sweep.jsonl" --dark "$W/dark.jsonl" --out "$W/cal.toml" >"$W/calibrate.txt" 2>&1
-# TRK (optional): `[estimator.tracker]` lines to try on top of the defaults.
+# TRK (optional): `[estimator.tracker]` lines to try on top of the defaults
+# (not k_d_sigma: the doubted-water replay sets it).
 cp "$W/cal.toml" "$W/cal-doubt.toml"
 printf '\n[estimator.tracker]\nk_d_sigma = 0.015\n%s\n' "${TRK:-}" >>"$W/cal-doubt.toml"
 if [ -n "${TRK:-}" ]; then

@@ -32,7 +32,7 @@ impl EstimatorSettings {
     /// one set by the user stays.
     pub fn in_water_known_to(mut self, sigma_k_d: f64) -> Self {
         self.model.k_d_sigma.get_or_insert(sigma_k_d);
-        self.tracker.k_d_sigma.get_or_insert(sigma_k_d);
+        self.tracker = self.tracker.in_water_known_to(sigma_k_d);
         self
     }
 }
@@ -375,6 +375,13 @@ impl Default for TrackerConfig {
 }
 
 impl TrackerConfig {
+    /// The tracker's part of [`EstimatorSettings::in_water_known_to`]:
+    /// an unset `k_d_sigma` takes `sigma_k_d`, a set one stays.
+    pub fn in_water_known_to(mut self, sigma_k_d: f64) -> Self {
+        self.k_d_sigma.get_or_insert(sigma_k_d);
+        self
+    }
+
     pub fn validate(&self) -> Result<(), ModelError> {
         let bad = |m: String| Err(ModelError::Config(m));
         for (name, v) in [
