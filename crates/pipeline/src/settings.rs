@@ -309,6 +309,18 @@ pub struct TrackerConfig {
     /// near the axis, with its measured error (docs/estimators.md).
     pub paper_range: bool,
     pub paper_range_sigma_scale: f64,
+    /// With the paper's range in use: also its change over the last
+    /// `paper_rate_frames` frames that had one, as a measurement of ẋ, with
+    /// the counts' noise of both ends and `paper_rate_drift_mps` (1σ) for
+    /// the law's bias drifting in between. It moves only x and the
+    /// velocities. Why: the law's error is mostly a bias that changes only
+    /// as the off-axis geometry does, so the difference of two ranges is
+    /// far steadier than either; it is what the paper's surge (a slope over
+    /// its window) lives on, and without it the tracker's surge lagged a
+    /// vehicle that slows (docs/estimators.md).
+    pub paper_rate: bool,
+    pub paper_rate_frames: usize,
+    pub paper_rate_drift_mps: f64,
     /// Range of x for which an estimate is `ok`.
     pub x_range: [f64; 2],
     /// Frames after (re)start reported as `initialising`.
@@ -328,6 +340,10 @@ pub struct TrackerConfig {
     /// More channels at full scale than this gives `saturated`.
     pub max_saturated: usize,
 }
+
+/// The most frames `paper_rate_frames` may span (the tracker keeps that
+/// many paper ranges, in a fixed ring: no allocation per frame).
+pub const PAPER_RATE_MAX_FRAMES: usize = 8;
 
 impl Default for TrackerConfig {
     fn default() -> Self {
@@ -363,6 +379,9 @@ impl Default for TrackerConfig {
             init_lateral_sigma_deg: Some(6.0),
             paper_range: true,
             paper_range_sigma_scale: 0.5,
+            paper_rate: true,
+            paper_rate_frames: 3,
+            paper_rate_drift_mps: 0.1,
             x_range: [3.0, 12.0],
             init_frames: 5,
             update_iterations: 1,
@@ -402,6 +421,7 @@ impl TrackerConfig {
             ("depth_limit_m", self.depth_limit_m),
             ("velocity_limit_mps", self.velocity_limit_mps),
             ("paper_range_sigma_scale", self.paper_range_sigma_scale),
+            ("paper_rate_drift_mps", self.paper_rate_drift_mps),
             ("surge_max_sigma", self.surge_max_sigma),
         ] {
             if !(v.is_finite() && v > 0.0) {
@@ -434,6 +454,12 @@ impl TrackerConfig {
         }
         if self.reading_gate_restart == 0 {
             return bad("tracker reading_gate_restart must be at least 1".into());
+        }
+        if !(1..=PAPER_RATE_MAX_FRAMES).contains(&self.paper_rate_frames) {
+            return bad(format!(
+                "tracker paper_rate_frames = {} must be 1 to {PAPER_RATE_MAX_FRAMES}",
+                self.paper_rate_frames
+            ));
         }
         if let Some(v) = self.init_lateral_sigma_deg {
             if !(v.is_finite() && v > 0.0 && v < 80.0) {

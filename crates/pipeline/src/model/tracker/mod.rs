@@ -137,12 +137,15 @@ impl Tracker {
 
     /// Start from `frame` (first frame, after a gap, or when lost).
     fn restart(&mut self, frame: &Frame, r: &FrameReadings) -> PoseEstimate {
-        let paper_x = match r.attitude.ready() {
+        let paper = match r.attitude.ready() {
             Some(_) => None,
             None => self.paper_range(frame),
         };
-        match self.start(frame, r, paper_x.as_ref()) {
-            Ok((s, uses)) => {
+        match self.start(frame, r, paper.as_ref().map(|p| &p.range)) {
+            Ok((mut s, uses)) => {
+                if let Some(p) = paper {
+                    s.push_paper(p);
+                }
                 let mut e = self.to_estimate(frame, &s, Status::Initialising);
                 e.readings = verdicts(uses);
                 self.state = Some(s);
@@ -322,7 +325,9 @@ impl Estimator for Tracker {
         s.paper_x = None;
         if uses[0] != ReadingUse::Used {
             if let Some(c) = self.paper_range(frame) {
-                if self.update_paper_range(&mut s, &c) == ReadingUse::Used {
+                self.update_paper_rate(&mut s, &c);
+                s.push_paper(c);
+                if self.update_paper_range(&mut s, &c.range) == ReadingUse::Used {
                     s.paper_x = self
                         .paper
                         .as_ref()

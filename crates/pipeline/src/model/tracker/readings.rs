@@ -34,6 +34,16 @@ pub(super) struct Checked<const M: usize> {
     pub sigma: SVector<f64, M>,
 }
 
+/// The paper's range of one frame as the tracker reads it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct PaperReading {
+    /// As a reading of x: the law's residual and the counts' noise.
+    pub range: Checked<1>,
+    /// The counts' noise alone through the law, m (1σ).
+    pub noise: f64,
+    pub t: f64,
+}
+
 /// A reading before the gate: nothing to do, or ready to fuse.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Pending<const M: usize> {
@@ -207,6 +217,19 @@ fn fuse<const M: usize>(
     wrap: [bool; M],
     gate: f64,
 ) -> ReadingUse {
+    fuse_into(s, r, lin, wrap, gate, &[true; NS])
+}
+
+/// [`fuse`], moving only the state components marked in `moves` (the
+/// Joseph form keeps P honest for the restricted gain).
+fn fuse_into<const M: usize>(
+    s: &mut State,
+    r: &Checked<M>,
+    lin: &Linear<M>,
+    wrap: [bool; M],
+    gate: f64,
+    moves: &[bool; NS],
+) -> ReadingUse {
     let mut y = r.z - lin.h;
     for (i, w) in wrap.iter().enumerate() {
         if *w {
@@ -225,6 +248,11 @@ fn fuse<const M: usize>(
     }
     let mut k = s.p * lin.jac.transpose() * ch.inverse();
     s.consider(&mut k);
+    for (i, m) in moves.iter().enumerate() {
+        if !m {
+            k.row_mut(i).fill(0.0);
+        }
+    }
     let ikh = Ms::identity() - k * lin.jac;
     let p = ikh * s.p * ikh.transpose() + k * rm * k.transpose();
     let x = s.x + k * y;
@@ -297,7 +325,7 @@ impl Tracker {
     /// calibration grid (scaled, see `paper_range_sigma_scale`) and the
     /// counts' noise at the brightest channel through the law,
     /// σ_count/(peak·b1), in quadrature.
-    pub(super) fn paper_range(&mut self, frame: &Frame) -> Option<Checked<1>> {
+    pub(super) fn paper_range(&mut self, frame: &Frame) -> Option<PaperReading> {
         if !self.cfg.paper_range {
             return None;
         }
@@ -312,10 +340,75 @@ impl Tracker {
         let var = m.count_variance((peak / cpv / m.gain[k]).max(0.0));
         let noise = var.sqrt() / (peak.max(1.0) * p.b1.max(1e-3));
         let sigma = noise.hypot(p.sigma_m * scale);
-        (sigma.is_finite() && sigma > 0.0).then(|| Checked {
-            z: SVector::<f64, 1>::new(x),
-            sigma: SVector::<f64, 1>::new(sigma),
+        (sigma.is_finite() && sigma > 0.0).then(|| PaperReading {
+            range: Checked {
+                z: SVector::<f64, 1>::new(x),
+                sigma: SVector::<f64, 1>::new(sigma),
+            },
+            noise,
+            t: frame.t,
         })
+    }
+
+    /// Fuse the change of the paper's range over the last
+    /// `paper_rate_frames` frames that had one as a measurement of ẋ (see
+    /// `TrackerConfig::paper_rate`). It is read as the rate now, though it
+    /// is the mean over its span (0.6 s at 5 Hz by default: a lag of 0.3 s,
+    /// 0.02 m/s at the dock's 0.06 m/s²), and its ends' noise is taken as
+    /// independent of what the state already holds of those ranges
+    /// (through x, whose σ is the law's whole residual, far above the
+    /// counts' noise). Only x and the velocities move: the bias's drift
+    /// follows the off-axis geometry, and letting it move y, z, pitch and
+    /// yaw widened their Monte Carlo spread by a quarter.
+    pub(super) fn update_paper_rate(&self, s: &mut State, now: &PaperReading) -> ReadingUse {
+        if !self.cfg.paper_rate {
+            return ReadingUse::Absent;
+        }
+        let Some(prev) = s.paper_back(self.cfg.paper_rate_frames - 1) else {
+            return ReadingUse::Absent;
+        };
+        let dt = now.t - prev.t;
+        if !(dt > 1e-3 && dt <= self.cfg.max_gap_s) {
+            return ReadingUse::Absent;
+        }
+        let rate = (now.range.z[0] - prev.range.z[0]) / dt;
+        let sigma = (now.noise.hypot(prev.noise) / dt).hypot(self.cfg.paper_rate_drift_mps);
+        let c = Checked {
+            z: SVector::<f64, 1>::new(rate),
+            sigma: SVector::<f64, 1>::new(sigma),
+        };
+        let mut moves = [false; NS];
+        moves[0] = true;
+        moves[VEL..VEL + 3].fill(true);
+        fuse_into(s, &c, &self.x_rate_model(s), [false], self.gate[0], &moves)
+    }
+
+    /// ẋ of the state: the velocity's component along B's x.
+    fn x_rate_model(&self, s: &State) -> Linear<1> {
+        let mut jac = SMatrix::<f64, 1, NS>::zeros();
+        let h = match self.cfg.motion {
+            Motion::Body => {
+                let axes = body_axes(s.x[3], s.x[4]);
+                let [d_t, d_p] = body_axes_derivatives(s.x[3], s.x[4]);
+                let mut h = 0.0;
+                for a in 0..3 {
+                    let v = s.x[VEL + a];
+                    h += v * axes[a][0];
+                    jac[(0, VEL + a)] = axes[a][0];
+                    jac[(0, 3)] += v * d_t[a][0];
+                    jac[(0, 4)] += v * d_p[a][0];
+                }
+                h
+            }
+            Motion::World => {
+                jac[(0, VEL)] = 1.0;
+                s.x[VEL]
+            }
+        };
+        Linear {
+            h: SVector::<f64, 1>::new(h),
+            jac,
+        }
     }
 
     /// Fuse the paper's range as a measurement of x.
@@ -351,7 +444,106 @@ impl Tracker {
 
 #[cfg(test)]
 mod tests {
+    use super::super::state::Vs;
     use super::*;
+    use crate::model::SensorModel;
+
+    /// A state cruising at 0.4 m/s along the beam axis, a little off it.
+    fn cruising() -> State {
+        let mut x = Vs::zeros();
+        x.copy_from_slice(&[6.0, 0.1, 0.2, 0.05, 0.02, 0.4, 0.0, 0.0, 0.0, 0.0, 0.14]);
+        let sd = [0.3, 0.2, 0.2, 0.1, 0.1, 0.15, 0.05, 0.05, 0.05, 0.05, 0.01];
+        let p = Ms::from_diagonal(&Vs::from_iterator(sd.iter().map(|s| s * s)));
+        State::new(x, p, 0.6)
+    }
+
+    fn reading(t: f64, range: f64) -> PaperReading {
+        PaperReading {
+            range: Checked {
+                z: SVector::<f64, 1>::new(range),
+                sigma: SVector::<f64, 1>::new(0.15),
+            },
+            noise: 0.01,
+            t,
+        }
+    }
+
+    #[test]
+    fn the_paper_range_s_change_pulls_surge_and_moves_only_x_and_velocity() {
+        let tr = Tracker::new(SensorModel::default(), TrackerConfig::default()).unwrap();
+        let mut s = cruising();
+        // Nothing to difference against yet.
+        let now = reading(0.6, 6.0 - 0.6 * 0.2);
+        assert_eq!(tr.update_paper_rate(&mut s, &now), ReadingUse::Absent);
+        // The ranges say 0.2 m/s closing (x falls), the state 0.4 m/s; the
+        // span is the default three frames back (0.6 s), not the last frame
+        // (whose range is off by 5 cm: it must not be the one used).
+        for (t, r) in [(0.0, 6.0), (0.2, 5.96), (0.4, 5.97)] {
+            s.push_paper(reading(t, r));
+        }
+        let before = s;
+        assert_eq!(tr.update_paper_rate(&mut s, &now), ReadingUse::Used);
+        let u = s.x[VEL];
+        assert!(u < 0.4 && u > 0.2, "surge {u} not pulled toward 0.2");
+        assert!(s.p[(VEL, VEL)] < before.p[(VEL, VEL)]);
+        for i in 1..5 {
+            assert_eq!(s.x[i], before.x[i], "component {i} moved");
+            assert!(
+                (s.p[(i, i)] - before.p[(i, i)]).abs() < 1e-15,
+                "σ of {i} moved"
+            );
+        }
+        // Less noise at the ends pulls harder.
+        let mut quiet = before;
+        let mut sharp = now;
+        sharp.noise = 0.001;
+        tr.update_paper_rate(&mut quiet, &sharp);
+        assert!(quiet.x[VEL] < u, "{} vs {u}", quiet.x[VEL]);
+    }
+
+    #[test]
+    fn no_paper_rate_across_a_gap_or_when_turned_off() {
+        let mut s = cruising();
+        for (t, r) in [(0.0, 6.0), (0.2, 5.96), (0.4, 5.92)] {
+            s.push_paper(reading(t, r));
+        }
+        let tr = Tracker::new(SensorModel::default(), TrackerConfig::default()).unwrap();
+        let late = reading(0.0 + TrackerConfig::default().max_gap_s + 0.1, 5.0);
+        assert_eq!(
+            tr.update_paper_rate(&mut s.clone(), &late),
+            ReadingUse::Absent
+        );
+        let cfg = TrackerConfig {
+            paper_rate: false,
+            ..TrackerConfig::default()
+        };
+        let off = Tracker::new(SensorModel::default(), cfg).unwrap();
+        let now = reading(0.6, 5.88);
+        assert_eq!(off.update_paper_rate(&mut s, &now), ReadingUse::Absent);
+        // The ring keeps the newest `PAPER_RATE_MAX_FRAMES`, newest first.
+        for k in 0..10 {
+            s.push_paper(reading(1.0 + k as f64, k as f64));
+        }
+        assert_eq!(s.paper_back(0).map(|p| p.t), Some(10.0));
+        assert_eq!(s.paper_back(7).map(|p| p.t), Some(3.0));
+    }
+
+    #[test]
+    fn paper_rate_settings_are_checked() {
+        for frames in [0, crate::settings::PAPER_RATE_MAX_FRAMES + 1] {
+            let cfg = TrackerConfig {
+                paper_rate_frames: frames,
+                ..TrackerConfig::default()
+            };
+            let e = cfg.validate().unwrap_err().to_string();
+            assert!(e.contains("paper_rate_frames"), "{e}");
+        }
+        let cfg = TrackerConfig {
+            paper_rate_drift_mps: -0.1,
+            ..TrackerConfig::default()
+        };
+        assert!(cfg.validate().is_err());
+    }
 
     #[test]
     fn gate_thresholds_are_the_chi2_quantiles() {

@@ -9,6 +9,8 @@ use nalgebra::{SMatrix, SVector};
 pub(super) const NS: usize = 11;
 /// Index of the first velocity component.
 pub(super) const VEL: usize = 5;
+/// Paper ranges kept for their change over `paper_rate_frames`.
+pub(super) const PAPER_RING: usize = crate::settings::PAPER_RATE_MAX_FRAMES;
 /// Index of K_D.
 pub(super) const KD: usize = 10;
 
@@ -35,6 +37,10 @@ pub(super) struct State {
     /// error (the law's residual over the calibration grid): see
     /// `Tracker::to_estimate`.
     pub paper_x: Option<f64>,
+    /// The last frames' paper ranges, newest at `paper_head`, for their
+    /// change (`paper_rate`).
+    pub last_paper: [Option<super::readings::PaperReading>; PAPER_RING],
+    pub paper_head: usize,
 }
 
 impl State {
@@ -48,6 +54,8 @@ impl State {
             gated: [0; 3],
             k_d_free: false,
             paper_x: None,
+            last_paper: [None; PAPER_RING],
+            paper_head: 0,
         }
     }
 
@@ -83,6 +91,17 @@ impl State {
         if !self.k_d_free {
             k.row_mut(KD).fill(0.0);
         }
+    }
+
+    /// Keep `p` as the newest paper range.
+    pub fn push_paper(&mut self, p: super::readings::PaperReading) {
+        self.paper_head = (self.paper_head + 1) % PAPER_RING;
+        self.last_paper[self.paper_head] = Some(p);
+    }
+
+    /// The paper range `back` frames before the newest (0: the newest).
+    pub fn paper_back(&self, back: usize) -> Option<super::readings::PaperReading> {
+        self.last_paper[(self.paper_head + PAPER_RING - back % PAPER_RING) % PAPER_RING]
     }
 
     /// 1σ of state component `i`.
