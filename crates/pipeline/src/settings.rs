@@ -317,7 +317,8 @@ pub struct TrackerConfig {
     /// as the off-axis geometry does, so the difference of two ranges is
     /// far steadier than either; it is what the paper's surge (a slope over
     /// its window) lives on, and without it the tracker's surge lagged a
-    /// vehicle that slows (docs/estimators.md).
+    /// vehicle that slows (docs/estimators.md). A span longer than
+    /// `max_gap_s` (frames slower than 1.5 Hz at 3 frames) is not used.
     pub paper_rate: bool,
     pub paper_rate_frames: usize,
     pub paper_rate_drift_mps: f64,

@@ -359,7 +359,7 @@ impl Tracker {
     /// (through x, whose σ is the law's whole residual, far above the
     /// counts' noise). Only x and the velocities move: the bias's drift
     /// follows the off-axis geometry, and letting it move y, z, pitch and
-    /// yaw widened their Monte Carlo spread by a quarter.
+    /// yaw widened their Monte Carlo spread by 17–29 % on the dive.
     pub(super) fn update_paper_rate(&self, s: &mut State, now: &PaperReading) -> ReadingUse {
         if !self.cfg.paper_rate {
             return ReadingUse::Absent;
