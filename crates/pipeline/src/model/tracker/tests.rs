@@ -224,6 +224,44 @@ fn world_motion_model_tracks_with_attitude_sensor() {
     assert!(rms[0] < 0.25 && rms[1] < 0.1 && rms[2] < 0.1, "{rms:?}");
 }
 
+/// With the paper's range in x, its bias reaches the reported σ of every
+/// pose axis that moves with x, by P_ix/P_xx of it, and only those.
+#[test]
+fn the_paper_range_s_bias_is_shared_by_the_pose_axes_that_move_with_x() {
+    use super::state::{Ms, Vs, KD, VEL};
+    let m = SensorModel::default();
+    let tr = Tracker::new(m.clone(), TrackerConfig::default()).unwrap();
+    let mut x = Vs::zeros();
+    x[0] = 6.0;
+    x[VEL] = 0.4;
+    x[KD] = 0.14;
+    let mut p = Ms::identity() * 0.01;
+    p[(0, 0)] = 0.09;
+    // Pitch and surge move with x; y, z and yaw do not.
+    for (i, c) in [(3, 0.006), (VEL, 0.01)] {
+        p[(i, 0)] = c;
+        p[(0, i)] = c;
+    }
+    let mut s = State::new(x, p, 1.0);
+    let (pose, _) = zigzag(1.0);
+    let f = synth_frame(&m, &pose, 5, 1.0, None, &mut Rng::new(3));
+    let plain = tr.to_estimate(&f, &s, Status::Ok);
+    s.paper_x = Some(0.3);
+    let biased = tr.to_estimate(&f, &s, Status::Ok);
+    let pitch = |e: &PoseEstimate| e.std.pitch.unwrap().to_radians();
+    let want = 0.1f64.hypot(0.006 / 0.09 * 0.3);
+    assert!((pitch(&plain) - 0.1).abs() < 1e-12);
+    assert!((pitch(&biased) - want).abs() < 1e-12, "{}", pitch(&biased));
+    assert_eq!(biased.std.y, plain.std.y);
+    assert_eq!(biased.std.z, plain.std.z);
+    assert_eq!(biased.std.yaw, plain.std.yaw);
+    // Surge's σ carries the bias's drift instead (`paper_rate_drift_mps`).
+    assert_eq!(biased.std.surge, plain.std.surge);
+    // x holds the bias whole, as before.
+    let sx = biased.std.x.unwrap();
+    assert!((sx - 0.3f64.hypot(0.3)).abs() < 1e-12, "{sx}");
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
     #[test]
