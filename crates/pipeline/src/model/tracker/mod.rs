@@ -250,9 +250,11 @@ impl Tracker {
         // K_D's doubt is in P (estimated or considered), x–K_D covariance
         // and all, so σx needs no term of its own for it.
         // With the paper's range in x, its error is a bias that frames do
-        // not average away (its on-axis law, off the axis): σx holds the
-        // law's residual over the calibration grid whole, in place of the
-        // beam term (the same off-axis dimming, already in that residual).
+        // not average away (its on-axis law, off the axis): σx holds that
+        // bias whole (the law's residual over the calibration grid, scaled
+        // as the reading's σ: 0.29 m in the tank) in place of the beam term
+        // (the same off-axis dimming, already in that residual), and the
+        // other pose axes their share of it (`paper_bias_share`).
         let beam_x = match s.paper_x {
             Some(sm) => sm,
             None => beam_consider_sigma_x(x, p, self.model.light.sigma_b.rad()),
