@@ -356,8 +356,8 @@ impl Tracker {
     /// is the mean over its span (0.6 s at 5 Hz by default: a lag of 0.3 s,
     /// 0.02 m/s at the dock's 0.06 m/s²), and its ends' noise is taken as
     /// independent of what the state already holds of those ranges
-    /// (through x, whose σ is the law's whole residual, far above the
-    /// counts' noise). Only x and the velocities move: the bias's drift
+    /// (through x, whose σ is the law's scaled residual, 2–10× the counts'
+    /// noise). Only x and the velocities move: the bias's drift
     /// follows the off-axis geometry, and letting it move y, z, pitch and
     /// yaw widened their Monte Carlo spread by 17–29 % on the dive.
     pub(super) fn update_paper_rate(&self, s: &mut State, now: &PaperReading) -> ReadingUse {
