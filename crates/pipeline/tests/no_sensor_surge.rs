@@ -19,7 +19,8 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// 95th percentile (nearest rank) of `v`.
+/// 95th percentile (nearest rank, as `replay --report` ranks it) of `v`;
+/// the replay's own running quantile is internal to the pipeline.
 fn p95(mut v: Vec<f64>) -> f64 {
     assert!(!v.is_empty(), "no frames to rank");
     v.sort_by(f64::total_cmp);

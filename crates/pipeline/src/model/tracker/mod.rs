@@ -285,12 +285,7 @@ fn paper_bias_share(s: &State, i: usize) -> f64 {
     let p = &s.p;
     match s.paper_x {
         Some(b) if p[(0, 0)] > 0.0 && (1..5).contains(&i) => {
-            let v = p[(i, 0)] / p[(0, 0)] * b;
-            if v.is_finite() {
-                v
-            } else {
-                0.0
-            }
+            lightpose_core::finite(p[(i, 0)] / p[(0, 0)] * b).unwrap_or(0.0)
         }
         _ => 0.0,
     }

@@ -44,6 +44,17 @@ pub(super) struct PaperReading {
     pub t: f64,
 }
 
+/// What the paper range's change may move: x and the three velocities
+/// (see `Tracker::update_paper_rate`).
+const RATE_MOVES: [bool; NS] = {
+    let mut m = [false; NS];
+    m[0] = true;
+    m[VEL] = true;
+    m[VEL + 1] = true;
+    m[VEL + 2] = true;
+    m
+};
+
 /// A reading before the gate: nothing to do, or ready to fuse.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Pending<const M: usize> {
@@ -377,10 +388,14 @@ impl Tracker {
             z: SVector::<f64, 1>::new(rate),
             sigma: SVector::<f64, 1>::new(sigma),
         };
-        let mut moves = [false; NS];
-        moves[0] = true;
-        moves[VEL..VEL + 3].fill(true);
-        fuse_into(s, &c, &self.x_rate_model(s), [false], self.gate[0], &moves)
+        fuse_into(
+            s,
+            &c,
+            &self.x_rate_model(s),
+            [false],
+            self.gate[0],
+            &RATE_MOVES,
+        )
     }
 
     /// ẋ of the state: the velocity's component along B's x.
