@@ -312,7 +312,8 @@ pub struct TrackerConfig {
     /// With the paper's range in use: also its change over the last
     /// `paper_rate_frames` frames that had one, as a measurement of ẋ, with
     /// the counts' noise of both ends and `paper_rate_drift_mps` (1σ) for
-    /// the law's bias drifting in between. It moves only x and the
+    /// the law's bias drifting in between; that drift, which successive
+    /// readings share, is also in the reported surge σ whole. It moves only x and the
     /// velocities. Why: the law's error is mostly a bias that changes only
     /// as the off-axis geometry does, so the difference of two ranges is
     /// far steadier than either; it is what the paper's surge (a slope over
@@ -382,7 +383,7 @@ impl Default for TrackerConfig {
             paper_range_sigma_scale: 0.5,
             paper_rate: true,
             paper_rate_frames: 3,
-            paper_rate_drift_mps: 0.1,
+            paper_rate_drift_mps: 0.05,
             x_range: [3.0, 12.0],
             init_frames: 5,
             update_iterations: 1,

@@ -28,15 +28,24 @@ fn p95(mut v: Vec<f64>) -> f64 {
     v[k - 1]
 }
 
-/// Per seed: p95 of |surge error| after 1 s of `est` and of the paper's
-/// method over the frames where both give a surge.
-fn surge_p95s(cal: &Calibration, est: &mut dyn Estimator, seeds: &[u64]) -> Vec<(f64, f64)> {
+/// What one estimator did over the seeds: per seed the p95 of |surge
+/// error| after 1 s of `est` and of the paper's method over the frames
+/// where both give a surge; over all those frames, how many of `est`'s
+/// errors its ±2σ covered.
+struct Surge {
+    p95s: Vec<(f64, f64)>,
+    covered: usize,
+    frames: usize,
+}
+
+fn surge_p95s(cal: &Calibration, est: &mut dyn Estimator, seeds: &[u64]) -> Surge {
     let r = root();
     let scene = Scene::load(&r.join("config/scenes/tank.toml")).expect("tank scene");
     let traj = Trajectory::load(&r.join("config/trajectories/dock.csv")).expect("dock");
     let mut paper = build_estimator("moments", cal).expect("moments");
     let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
-    seeds
+    let (mut covered, mut frames) = (0, 0);
+    let p95s = seeds
         .iter()
         .map(|&seed| {
             let mut sim = Simulator::new(scene.clone(), seed);
@@ -50,6 +59,9 @@ fn surge_p95s(cal: &Calibration, est: &mut dyn Estimator, seeds: &[u64]) -> Vec<
                 if let (Some(sa), Some(sb), true) = (ea.surge, eb.surge, t >= 1.0) {
                     a.push((sa - surge).abs());
                     b.push((sb - surge).abs());
+                    let sd = ea.std.surge.expect("a surge comes with its σ");
+                    covered += usize::from((sa - surge).abs() <= 2.0 * sd);
+                    frames += 1;
                 }
             }
             assert!(
@@ -59,7 +71,12 @@ fn surge_p95s(cal: &Calibration, est: &mut dyn Estimator, seeds: &[u64]) -> Vec<
             );
             (p95(a), p95(b))
         })
-        .collect()
+        .collect();
+    Surge {
+        p95s,
+        covered,
+        frames,
+    }
 }
 
 fn tank_calibration(paper_rate: bool) -> Calibration {
@@ -80,7 +97,7 @@ fn surge_keeps_up_with_a_slowing_vehicle_without_own_sensors() {
     let off = tank_calibration(false);
     let mut without = build_estimator("auto", &off).expect("auto");
     let lagging = surge_p95s(&off, without.as_mut(), &seeds);
-    let ratios = |v: &[(f64, f64)]| v.iter().map(|(a, b)| a / b).collect::<Vec<_>>();
+    let ratios = |v: &Surge| v.p95s.iter().map(|(a, b)| a / b).collect::<Vec<_>>();
     let (on, off) = (ratios(&with), ratios(&lagging));
     eprintln!("surge p95 auto/paper per seed: with the paper's rate {on:.2?}, without {off:.2?}");
     for (seed, r) in seeds.iter().zip(&on) {
@@ -93,4 +110,20 @@ fn surge_keeps_up_with_a_slowing_vehicle_without_own_sensors() {
     // with it 0.64–1.06.
     let worse = off.iter().zip(&on).filter(|(b, a)| b > a).count();
     assert!(worse >= 5, "without the rate: {off:.2?}, with: {on:.2?}");
+}
+
+/// And its σ says how far off it may be while the vehicle slows: the
+/// change of range carries the law's bias drift, which successive readings
+/// share and so the filter cannot average away; the reported surge σ holds
+/// it (`paper_rate_drift_mps`). Measured here: 250 of 252 frames; before,
+/// 231 (91.7 %; 91.5 % in a 200-run Monte Carlo of this run, and on the
+/// held-out approach 1–4 % of runs at its slowest).
+#[test]
+fn surge_sigma_covers_a_slowing_vehicle_without_own_sensors() {
+    let cal = tank_calibration(true);
+    let mut auto = build_estimator("auto", &cal).expect("auto");
+    let s = surge_p95s(&cal, auto.as_mut(), &[1, 2, 3, 4, 5, 6]);
+    let share = s.covered as f64 / s.frames as f64;
+    eprintln!("surge ±2σ covers {}/{} frames", s.covered, s.frames);
+    assert!(share >= 0.93, "surge ±2σ covers {:.1} %", 100.0 * share);
 }
