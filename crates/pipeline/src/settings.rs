@@ -313,7 +313,8 @@ pub struct TrackerConfig {
     /// `paper_rate_frames` frames that had one, as a measurement of ẋ, with
     /// the counts' noise of both ends and `paper_rate_drift_mps` (1σ) for
     /// the law's bias drifting in between; that drift, which successive
-    /// readings share, is also in the reported surge σ whole. It moves only x and the
+    /// readings share, is also in the reported surge σ whole (and in the
+    /// `surge_max_sigma` test on it). It moves only x and the
     /// velocities. Why: the law's error is mostly a bias that changes only
     /// as the off-axis geometry does, so the difference of two ranges is
     /// far steadier than either; it is what the paper's surge (a slope over

@@ -38,7 +38,7 @@ struct Surge {
     frames: usize,
 }
 
-fn surge_p95s(cal: &Calibration, est: &mut dyn Estimator, seeds: &[u64]) -> Surge {
+fn surge_over_seeds(cal: &Calibration, est: &mut dyn Estimator, seeds: &[u64]) -> Surge {
     let r = root();
     let scene = Scene::load(&r.join("config/scenes/tank.toml")).expect("tank scene");
     let traj = Trajectory::load(&r.join("config/trajectories/dock.csv")).expect("dock");
@@ -93,10 +93,10 @@ fn surge_keeps_up_with_a_slowing_vehicle_without_own_sensors() {
     let seeds = [1, 2, 3, 4, 5, 6];
     let cal = tank_calibration(true);
     let mut auto = build_estimator("auto", &cal).expect("auto");
-    let with = surge_p95s(&cal, auto.as_mut(), &seeds);
+    let with = surge_over_seeds(&cal, auto.as_mut(), &seeds);
     let off = tank_calibration(false);
     let mut without = build_estimator("auto", &off).expect("auto");
-    let lagging = surge_p95s(&off, without.as_mut(), &seeds);
+    let lagging = surge_over_seeds(&off, without.as_mut(), &seeds);
     let ratios = |v: &Surge| v.p95s.iter().map(|(a, b)| a / b).collect::<Vec<_>>();
     let (on, off) = (ratios(&with), ratios(&lagging));
     eprintln!("surge p95 auto/paper per seed: with the paper's rate {on:.2?}, without {off:.2?}");
@@ -122,7 +122,7 @@ fn surge_keeps_up_with_a_slowing_vehicle_without_own_sensors() {
 fn surge_sigma_covers_a_slowing_vehicle_without_own_sensors() {
     let cal = tank_calibration(true);
     let mut auto = build_estimator("auto", &cal).expect("auto");
-    let s = surge_p95s(&cal, auto.as_mut(), &[1, 2, 3, 4, 5, 6]);
+    let s = surge_over_seeds(&cal, auto.as_mut(), &[1, 2, 3, 4, 5, 6]);
     let share = s.covered as f64 / s.frames as f64;
     eprintln!("surge ±2σ covers {}/{} frames", s.covered, s.frames);
     assert!(share >= 0.93, "surge ±2σ covers {:.1} %", 100.0 * share);

@@ -206,7 +206,7 @@ impl Tracker {
     }
 
     /// Surge and its 1σ: the body model's u, or the world model's velocity
-    /// along the bow.
+    /// along the bow; the σ with the paper rate's drift when it was read.
     fn surge_of(&self, s: &State) -> (f64, f64) {
         let x = &s.x;
         let p = &s.p;
