@@ -63,6 +63,15 @@ struct PaperRange {
     b1: f64,
 }
 
+impl PaperRange {
+    /// The law's bias as the tracker reads it, m (1σ): its residual over
+    /// the calibration grid times `paper_range_sigma_scale`, the reading's
+    /// σ and what σx holds while the range is in x.
+    fn bias(&self, scale: f64) -> f64 {
+        self.sigma_m * scale
+    }
+}
+
 /// Kalman tracker (name `"tracker"`).
 #[derive(Debug, Clone)]
 pub struct Tracker {
@@ -124,6 +133,12 @@ impl Tracker {
             b1: cal.fits.x.b1,
         });
         self
+    }
+
+    /// [`PaperRange::bias`] of this tracker's paper range, if it has one.
+    fn paper_bias(&self) -> Option<f64> {
+        let scale = self.cfg.paper_range_sigma_scale;
+        self.paper.as_ref().map(|p| p.bias(scale))
     }
 
     pub fn config(&self) -> &TrackerConfig {
@@ -235,7 +250,11 @@ impl Tracker {
         // Surge, which those readings make, holds it whole. Without it the
         // held-out approach's surge covered 1–4 % of runs (±2σ) as the
         // vehicle slowed: a bias of 0.17 m/s against a σ of 0.06.
-        let drift = s.paper_rate_drift.unwrap_or(0.0);
+        let drift = if s.paper_rate_used {
+            self.cfg.paper_rate_drift_mps
+        } else {
+            0.0
+        };
         (surge, var_s.max(0.0).sqrt().hypot(drift))
     }
 
@@ -353,18 +372,13 @@ impl Estimator for Tracker {
             s.k_d_free = true;
         }
         s.paper_x = None;
-        s.paper_rate_drift = None;
+        s.paper_rate_used = false;
         if uses[0] != ReadingUse::Used {
             if let Some(c) = self.paper_range(frame) {
-                if self.update_paper_rate(&mut s, &c) == ReadingUse::Used {
-                    s.paper_rate_drift = Some(self.cfg.paper_rate_drift_mps);
-                }
+                s.paper_rate_used = self.update_paper_rate(&mut s, &c) == ReadingUse::Used;
                 s.push_paper(c);
                 if self.update_paper_range(&mut s, &c.range) == ReadingUse::Used {
-                    s.paper_x = self
-                        .paper
-                        .as_ref()
-                        .map(|p| p.sigma_m * self.cfg.paper_range_sigma_scale);
+                    s.paper_x = self.paper_bias();
                 }
             }
         }

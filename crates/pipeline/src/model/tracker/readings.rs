@@ -340,7 +340,6 @@ impl Tracker {
         if !self.cfg.paper_range {
             return None;
         }
-        let scale = self.cfg.paper_range_sigma_scale;
         let m = &self.model;
         let p = self.paper.as_mut()?;
         let x = lightpose_core::Estimator::estimate(&mut p.est, frame).x?;
@@ -350,7 +349,7 @@ impl Tracker {
             .fold((f64::NEG_INFINITY, 0), |a, b| if b.0 > a.0 { b } else { a });
         let var = m.count_variance((peak / cpv / m.gain[k]).max(0.0));
         let noise = var.sqrt() / (peak.max(1.0) * p.b1.max(1e-3));
-        let sigma = noise.hypot(p.sigma_m * scale);
+        let sigma = noise.hypot(p.bias(self.cfg.paper_range_sigma_scale));
         (sigma.is_finite() && sigma > 0.0).then(|| PaperReading {
             range: Checked {
                 z: SVector::<f64, 1>::new(x),
@@ -398,7 +397,8 @@ impl Tracker {
         )
     }
 
-    /// ẋ of the state: the velocity's component along B's x.
+    /// ẋ of the state: the velocity's component along B's x (the x row of
+    /// the position's rate in `predict_body` / `predict_world`).
     fn x_rate_model(&self, s: &State) -> Linear<1> {
         let mut jac = SMatrix::<f64, 1, NS>::zeros();
         let h = match self.cfg.motion {

@@ -199,11 +199,7 @@ impl Tracker {
         }
         x[KD] = self.model.light.k_d;
         let mut s = State::new(x, p, frame.t);
-        s.paper_x = paper_x.and(
-            self.paper
-                .as_ref()
-                .map(|p| p.sigma_m * c.paper_range_sigma_scale),
-        );
+        s.paper_x = paper_x.and(self.paper_bias());
         s.doubt_k_d(self.k_d_sigma);
         let with_velocity = c.estimate_k_d_with_velocity && r.velocity.ready().is_some();
         s.k_d_free = c.estimate_k_d || (with_velocity && self.k_d_sigma > 0.0);

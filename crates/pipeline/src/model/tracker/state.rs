@@ -37,9 +37,10 @@ pub(super) struct State {
     /// error (the law's residual over the calibration grid): see
     /// `Tracker::to_estimate`.
     pub paper_x: Option<f64>,
-    /// The paper range's change went into this frame's velocity, with this
-    /// 1σ of its drift (`paper_rate_drift_mps`): see `Tracker::to_estimate`.
-    pub paper_rate_drift: Option<f64>,
+    /// The paper range's change went into this frame's velocity, so
+    /// surge's σ holds its drift (`paper_rate_drift_mps`): see
+    /// `Tracker::surge_of`.
+    pub paper_rate_used: bool,
     /// The last frames' paper ranges, newest at `paper_head`, for their
     /// change (`paper_rate`).
     pub last_paper: [Option<super::readings::PaperReading>; PAPER_RING],
@@ -57,7 +58,7 @@ impl State {
             gated: [0; 3],
             k_d_free: false,
             paper_x: None,
-            paper_rate_drift: None,
+            paper_rate_used: false,
             last_paper: [None; PAPER_RING],
             paper_head: 0,
         }

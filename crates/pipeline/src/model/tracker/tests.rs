@@ -262,7 +262,7 @@ fn the_paper_range_s_bias_is_shared_by_the_pose_axes_that_move_with_x() {
     assert!((sx - 0.3f64.hypot(0.3)).abs() < 1e-12, "{sx}");
     // With the range's change in the velocity, surge holds its drift
     // whole, and no pose axis moves.
-    s.paper_rate_drift = Some(0.05);
+    s.paper_rate_used = true;
     let drifting = tr.to_estimate(&f, &s, Status::Ok);
     let su = drifting.std.surge.unwrap();
     assert!((su - 0.1f64.hypot(0.05)).abs() < 1e-12, "{su}");
