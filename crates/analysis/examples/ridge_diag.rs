@@ -8,9 +8,14 @@
 //! AXES: comma-separated of x,y,z,pitch,yaw,surge (default z,pitch).
 //! Environment: TRK = TOML of `[estimator.tracker]` settings to try,
 //! SENSORS = the own sensors of the runs (none, attitude, depth,
-//! attitude+depth, all; default: the scene's), QUIET = summary only.
+//! attitude+depth, all; default: the scene's), QUIET = summary only,
+//! OFF_AXIS = "LAT,ATT" (degrees): each run's truth moved off the
+//! trajectory's knots by a constant y, z ~ N(0, (x₀·tan LAT)²) and pitch,
+//! yaw ~ N(0, ATT²), to see whether the σ holds where the vehicle is not
+//! on the runs' axis (the tracker's own start priors are 6° and 10°).
+use lightpose_core::Angle;
 use lightpose_pipeline::{build_estimator, Calibration};
-use lightpose_sim::{Scene, Simulator, Trajectory};
+use lightpose_sim::{Knot, Scene, Simulator, Trajectory};
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
@@ -37,6 +42,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         st.tracker = toml::from_str(&t)?;
         cal.estimator = Some(st);
     }
+    let off_axis: Option<(f64, f64)> = match std::env::var("OFF_AXIS") {
+        Ok(v) => {
+            let (a, b) = v.split_once(',').ok_or("OFF_AXIS: LAT,ATT in degrees")?;
+            Some((a.trim().parse()?, b.trim().parse()?))
+        }
+        Err(_) => None,
+    };
     let times: Vec<f64> = traj.frame_times(base.adc.rate_hz).collect();
     let n = times.len();
     // [step][axis] sums: err, err², σ, inside
@@ -52,6 +64,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let n2: f64 = StandardNormal.sample(&mut rng);
         s.temp_c += s.montecarlo.sigma_temp_c * n1;
         s.light.k_d = (s.light.k_d + s.montecarlo.sigma_k_d * n2).max(0.0);
+        let traj = match off_axis {
+            Some(off) => moved_off_axis(&traj, off, &mut rng),
+            None => traj.clone(),
+        };
         let mut sim = Simulator::new(s, 1000 + r as u64);
         sim.set_reported_temp(Some(base.temp_c));
         est.reset();
@@ -125,4 +141,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!();
     }
     Ok(())
+}
+
+/// `traj` moved by one draw of `OFF_AXIS`'s constant offsets.
+fn moved_off_axis(
+    traj: &Trajectory,
+    (lat, att): (f64, f64),
+    rng: &mut impl rand::Rng,
+) -> Trajectory {
+    let mut n = || -> f64 { StandardNormal.sample(&mut *rng) };
+    let lateral = traj.knots()[0].pose.x * lat.to_radians().tan();
+    let (dy, dz) = (lateral * n(), lateral * n());
+    let (dp, dw) = (Angle::from_deg(att * n()), Angle::from_deg(att * n()));
+    let knots = traj
+        .knots()
+        .iter()
+        .map(|k| {
+            let mut pose = k.pose;
+            pose.y += dy;
+            pose.z += dz;
+            pose.pitch = pose.pitch + dp;
+            pose.yaw = pose.yaw + dw;
+            Knot { t: k.t, pose }
+        })
+        .collect();
+    Trajectory::from_knots(knots)
 }

@@ -65,7 +65,7 @@ fn surge_over_seeds(cal: &Calibration, est: &mut dyn Estimator, seeds: &[u64]) -
                 }
             }
             assert!(
-                a.len() > 40,
+                a.len() >= 35,
                 "seed {seed}: only {} frames with surge",
                 a.len()
             );
@@ -106,8 +106,9 @@ fn surge_keeps_up_with_a_slowing_vehicle_without_own_sensors() {
             "seed {seed}: surge {r:.2}× the paper's ({on:.2?})"
         );
     }
-    // Measured without it: 1.14–1.34 on five seeds, 0.98 on the sixth;
-    // with it 0.64–1.06.
+    // Measured without it: 1.29–1.38 on five seeds, 0.97 on the sixth;
+    // with it 0.65–1.06 (with `paper_range_sigma_scale` 0.5: 1.14–1.34 and
+    // 0.98 without, 0.64–1.06 with).
     let worse = off.iter().zip(&on).filter(|(b, a)| b > a).count();
     assert!(worse >= 5, "without the rate: {off:.2?}, with: {on:.2?}");
 }
@@ -115,7 +116,8 @@ fn surge_keeps_up_with_a_slowing_vehicle_without_own_sensors() {
 /// And its σ says how far off it may be while the vehicle slows: the
 /// change of range carries the law's bias drift, which successive readings
 /// share and so the filter cannot average away; the reported surge σ holds
-/// it (`paper_rate_drift_mps`). Measured here: 250 of 252 frames; before,
+/// it (`paper_rate_drift_mps`). Measured here: 249 of 252 frames (250 with
+/// `paper_range_sigma_scale` 0.5); before,
 /// 231 (91.7 %; 91.5 % in a 200-run Monte Carlo of this run, and on the
 /// held-out approach 1–4 % of runs at its slowest).
 #[test]

@@ -132,6 +132,13 @@ mod tests {
                 })
             })
             .collect();
+        // Wait for the first store: on a loaded machine the writers may not
+        // have run yet, and the reads below must overlap their writes.
+        let t0 = std::time::Instant::now();
+        while c.version() == 0 {
+            assert!(t0.elapsed().as_secs() < 30, "no writer ran in 30 s");
+            std::thread::yield_now();
+        }
         let mut seen = 0;
         for _ in 0..200_000 {
             if let Some((_, [a, b, m, x])) = c.load() {

@@ -279,7 +279,7 @@ impl Tracker {
         // With the paper's range in x, its error is a bias that frames do
         // not average away (its on-axis law, off the axis): σx holds that
         // bias whole (the law's residual over the calibration grid, scaled
-        // as the reading's σ: 0.29 m in the tank) in place of the beam term
+        // as the reading's σ: 0.59 m in the tank) in place of the beam term
         // (the same off-axis dimming, already in that residual), and the
         // other pose axes their share of it (`paper_bias_share`).
         let beam_x = match s.paper_x {
@@ -305,7 +305,8 @@ impl Tracker {
 /// sensitivity to a bias in one reading, the same for every component).
 /// Why: with depth alone pitch rides on x through the light (a range too
 /// far reads as a spot dimmed by pitch), and its ±2σ covered 90.1 % on the
-/// dive while the law's bias grew to 0.3 m; with this share, 94.6 %.
+/// dive while the law's bias grew to 0.3 m; with this share, 94.6 % (98.3 % with
+/// the whole residual as the bias, `paper_range_sigma_scale` 1.0).
 /// Only the pose: a constant bias shifts position, not its rate, and the
 /// bias's drift is in surge's σ already (`paper_rate_drift_mps`).
 fn paper_bias_share(s: &State, i: usize) -> f64 {
