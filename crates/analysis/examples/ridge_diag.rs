@@ -15,7 +15,7 @@
 //! on the runs' axis (the tracker's own start priors are 6° and 10°).
 use lightpose_core::Angle;
 use lightpose_pipeline::{build_estimator, Calibration};
-use lightpose_sim::{Knot, Scene, Simulator, Trajectory};
+use lightpose_sim::{Scene, Simulator, Trajectory};
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
@@ -153,17 +153,5 @@ fn moved_off_axis(
     let lateral = traj.knots()[0].pose.x * lat.to_radians().tan();
     let (dy, dz) = (lateral * n(), lateral * n());
     let (dp, dw) = (Angle::from_deg(att * n()), Angle::from_deg(att * n()));
-    let knots = traj
-        .knots()
-        .iter()
-        .map(|k| {
-            let mut pose = k.pose;
-            pose.y += dy;
-            pose.z += dz;
-            pose.pitch = pose.pitch + dp;
-            pose.yaw = pose.yaw + dw;
-            Knot { t: k.t, pose }
-        })
-        .collect();
-    Trajectory::from_knots(knots)
+    traj.moved(dy, dz, dp, dw)
 }

@@ -11,7 +11,7 @@
 use lightpose_core::Angle;
 use lightpose_core::Status;
 use lightpose_pipeline::{build_estimator, Calibration};
-use lightpose_sim::{Knot, Scene, Simulator, Trajectory};
+use lightpose_sim::{Scene, Simulator, Trajectory};
 use std::path::{Path, PathBuf};
 
 fn root() -> PathBuf {
@@ -129,17 +129,7 @@ fn tracker_std_of_x_holds_off_the_axis_without_own_sensors() {
         let (dy, dz) = (lateral * rng.normal(), lateral * rng.normal());
         let dp = Angle::from_deg(5.0 * rng.normal());
         let dw = Angle::from_deg(5.0 * rng.normal());
-        let moved = Trajectory::from_knots(
-            traj.knots()
-                .iter()
-                .map(|k| {
-                    let mut pose = k.pose;
-                    (pose.y, pose.z) = (pose.y + dy, pose.z + dz);
-                    (pose.pitch, pose.yaw) = (pose.pitch + dp, pose.yaw + dw);
-                    Knot { t: k.t, pose }
-                })
-                .collect(),
-        );
+        let moved = traj.moved(dy, dz, dp, dw);
         let mut s = scene.clone();
         s.temp_c += s.montecarlo.sigma_temp_c * rng.normal();
         s.light.k_d = (s.light.k_d + s.montecarlo.sigma_k_d * rng.normal()).max(0.0);

@@ -17,4 +17,4 @@ pub mod trajectory;
 pub use scene::{Adc, AttitudeNoise, DepthNoise, DvlNoise, McSpread, Noise, Scene, SceneError};
 pub use simulator::Simulator;
 pub use sweep::{SweepKind, SweepPlan};
-pub use trajectory::{Kinematics, Knot, Trajectory, TrajectoryError};
+pub use trajectory::{Kinematics, Trajectory, TrajectoryError};

@@ -243,6 +243,23 @@ impl Trajectory {
         self.knots[self.knots.len() - 1].t
     }
 
+    /// The same trajectory moved by a constant lateral offset (`dy`, `dz`,
+    /// m) and attitude offset: the vehicle flies the same course beside it,
+    /// pointed off it (so with a sideslip). For measuring estimators off the
+    /// runs' axis (the Monte Carlo diagnostics, the off-axis coverage test).
+    pub fn moved(&self, dy: f64, dz: f64, dpitch: Angle, dyaw: Angle) -> Trajectory {
+        let knots = self
+            .knots
+            .iter()
+            .map(|k| {
+                let p = k.pose;
+                let pose = Pose::new(p.x, p.y + dy, p.z + dz, p.pitch + dpitch, p.yaw + dyaw);
+                Knot { t: k.t, pose }
+            })
+            .collect();
+        Self::from_knots(knots)
+    }
+
     /// Pose and true surge (m/s along the forward axis) at time `t`.
     pub fn sample(&self, t: f64) -> (Pose, f64) {
         let k = self.kinematics(t);
@@ -283,6 +300,27 @@ mod tests {
     use super::*;
 
     const DIVE: &str = "t,x,y,z,pitch,yaw\n0,8.5,0,0,10,0\n2.6,7.22,0,0.22,8.7,0\n5.2,5.93,0,0.38,5.2,0\n8,4.53,0,0.45,0,0\n";
+
+    #[test]
+    fn moved_keeps_the_course_beside_the_original() {
+        let tr = Trajectory::parse(DIVE, "dive.csv").unwrap();
+        let (dp, dw) = (Angle::from_deg(3.0), Angle::from_deg(-4.0));
+        let m = tr.moved(0.5, -0.2, dp, dw);
+        for t in [0.0, 1.3, 2.6, 7.9] {
+            let (a, b) = (tr.kinematics(t), m.kinematics(t));
+            assert!((b.pose.x - a.pose.x).abs() < 1e-12);
+            assert!((b.pose.y - a.pose.y - 0.5).abs() < 1e-12);
+            assert!((b.pose.z - a.pose.z + 0.2).abs() < 1e-12);
+            assert!((b.pose.pitch.deg() - a.pose.pitch.deg() - 3.0).abs() < 1e-9);
+            assert!((b.pose.yaw.deg() - a.pose.yaw.deg() + 4.0).abs() < 1e-9);
+            // The same velocity over the ground: a course beside it.
+            let (vb, va) = (b.velocity.0, a.velocity.0);
+            assert!(
+                (0..3).all(|i| (vb[i] - va[i]).abs() < 1e-9),
+                "{vb:?} vs {va:?}"
+            );
+        }
+    }
 
     #[test]
     fn dive_has_41_frames_at_5_hz_and_positive_surge() {
