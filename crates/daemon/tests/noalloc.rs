@@ -139,7 +139,14 @@ fn hot_path_does_not_allocate_per_frame() {
         ("tracker", "tank.toml", true),
     ] {
         let few = allocations(50, &sink, estimator, scene, vehicle);
-        let many = allocations(400, &sink, estimator, scene, vehicle);
+        // The engine copies the source's health once a second, and that copy
+        // allocates: a run that a loaded host stalls past a second carries
+        // one (seen once: 4 allocations for 400 frames of moments while a
+        // fuzzer ran). The fewest of three runs is the per-frame cost.
+        let many = (0..3)
+            .map(|_| allocations(400, &sink, estimator, scene, vehicle))
+            .min()
+            .unwrap_or(u64::MAX);
         eprintln!("{estimator} on {scene} (vehicle {vehicle}): {few} allocations for 50 frames, {many} for 400");
         // The start-up allocations (buffers, the first source health copy)
         // are the same in both runs; 350 more frames must add none.
