@@ -115,7 +115,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let quiet = std::env::var("QUIET").is_ok();
     let mc = std::env::var("MC").is_ok();
     if mc {
-        cal = cal.in_water_known_to(base.montecarlo.sigma_k_d);
+        cal = cal.in_water_known_to(base.montecarlo.sigma_k_d, base.montecarlo.sigma_temp_c);
     }
     let mut ests = names
         .iter()

@@ -56,7 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     let mut status = std::collections::BTreeMap::new();
     // Each run's water is drawn about the calibration's: say so.
-    let cal = cal.in_water_known_to(base.montecarlo.sigma_k_d);
+    let cal = cal.in_water_known_to(base.montecarlo.sigma_k_d, base.montecarlo.sigma_temp_c);
     let mut est = build_estimator(&name, &cal)?;
     for r in 0..runs {
         let mut s = base.clone();

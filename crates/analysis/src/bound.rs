@@ -78,7 +78,9 @@ pub fn track_bound_along(
 ) -> Result<Vec<TrackBound>, lightpose_pipeline::settings::ModelError> {
     // The scene's truth is the model here; the water's doubt is the
     // Monte Carlo's, as for the estimators the bench runs.
-    let cfg = cfg.clone().in_water_known_to(s.montecarlo.sigma_k_d);
+    let cfg = cfg
+        .clone()
+        .in_water_known_to(s.montecarlo.sigma_k_d, s.montecarlo.sigma_temp_c);
     let tracker = Tracker::new(sensor_of(s), cfg)?;
     let track: Vec<TrackPoint> = traj
         .frame_times(s.adc.rate_hz)

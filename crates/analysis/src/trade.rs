@@ -251,9 +251,10 @@ pub fn run_section(
     };
     // Each run's water is drawn about the calibration's: the estimators
     // are told so (their K_D doubt), as an operator in such water would.
+    let mc = cfg.scene.montecarlo;
     let cal = l
         .calibration
-        .in_water_known_to(cfg.scene.montecarlo.sigma_k_d);
+        .in_water_known_to(mc.sigma_k_d, mc.sigma_temp_c);
     for name in &o.estimators {
         let build = || build_estimator(name, &cal);
         let mut est = match build() {

@@ -155,7 +155,7 @@ mod tests {
             e.estimate(&frame).std.x.unwrap()
         };
         let in_sweep_water = sx(&cal);
-        let drawn = cal.in_water_known_to(0.015);
+        let drawn = cal.in_water_known_to(0.015, 3.0);
         let in_other_water = sx(&drawn);
         // x·δK_D/(K_D + 2/x) at 8 m: 0.0007 → 0.016 m, 0.015 → 0.35 m.
         assert!(in_sweep_water < 0.2, "{in_sweep_water}");
@@ -165,14 +165,17 @@ mod tests {
             (st.model.k_d_sigma, st.tracker.k_d_sigma),
             (Some(0.015), Some(0.015))
         );
+        assert_eq!(st.tracker.temp_sigma_c, Some(3.0));
         let mut mine = EstimatorSettings::default();
         mine.tracker.k_d_sigma = Some(0.002);
+        mine.tracker.temp_sigma_c = Some(0.5);
         cal.estimator = Some(mine);
-        let st = cal.in_water_known_to(0.015).estimator.unwrap();
+        let st = cal.in_water_known_to(0.015, 3.0).estimator.unwrap();
         assert_eq!(
             (st.model.k_d_sigma, st.tracker.k_d_sigma),
             (Some(0.015), Some(0.002))
         );
+        assert_eq!(st.tracker.temp_sigma_c, Some(0.5));
         // Unset, it stays out of a written file (and reads back unset).
         let text = toml::to_string(&EstimatorSettings::default()).unwrap();
         assert!(!text.contains("k_d_sigma"), "{text}");

@@ -30,9 +30,13 @@ impl EstimatorSettings {
     /// m⁻¹) about the calibration's, as in a Monte Carlo that draws each
     /// run's water: a `k_d_sigma` left unset (the sweep's water) takes it,
     /// one set by the user stays.
-    pub fn in_water_known_to(mut self, sigma_k_d: f64) -> Self {
+    ///
+    /// And whose temperature the frames report only to `sigma_temp_c` (1σ,
+    /// °C, the same for a whole run): the tracker's `temp_sigma_c`, if
+    /// unset, takes it.
+    pub fn in_water_known_to(mut self, sigma_k_d: f64, sigma_temp_c: f64) -> Self {
         self.model.k_d_sigma.get_or_insert(sigma_k_d);
-        self.tracker = self.tracker.in_water_known_to(sigma_k_d);
+        self.tracker = self.tracker.in_water_known_to(sigma_k_d, sigma_temp_c);
         self
     }
 }
@@ -211,6 +215,17 @@ pub struct TrackerConfig {
     /// spread is 0.015, which `lightpose montecarlo` and `bench` tell it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub k_d_sigma: Option<f64>,
+    /// 1σ by which the frames' temperature may be off the photodiodes'
+    /// for a whole run, °C (unset: 0, the reading believed). Read wrong,
+    /// it scales every channel alike (0.37 %/°C, MODEL.md's g_T), which the
+    /// light reads as range: σx holds that range bias whole,
+    /// σ_T·|g_T'|/g_T / (K_D + 2/x), since frames do not average it away.
+    /// MODEL.md's Monte Carlo spread is 3 °C (the reported temperature
+    /// stays T0), which `lightpose montecarlo` and `bench` tell it. Why:
+    /// in the calibrated water with all three sensors, x's ±2σ covered
+    /// 70–76 % of those runs (RMS 0.023 m against a σ of 0.009–0.016).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temp_sigma_c: Option<f64>,
     /// Random-walk density of K_D, (m⁻¹)²/s.
     pub k_d_walk_psd: f64,
     /// Say `unobservable`, not `ok`, on a frame without an attitude
@@ -361,6 +376,7 @@ impl Default for TrackerConfig {
             estimate_k_d: false,
             estimate_k_d_with_velocity: false,
             k_d_sigma: None,
+            temp_sigma_c: None,
             k_d_walk_psd: 1e-6,
             flag_unobservable: false,
             sigma_points_without_attitude: true,
@@ -403,9 +419,11 @@ impl Default for TrackerConfig {
 
 impl TrackerConfig {
     /// The tracker's part of [`EstimatorSettings::in_water_known_to`]:
-    /// an unset `k_d_sigma` takes `sigma_k_d`, a set one stays.
-    pub fn in_water_known_to(mut self, sigma_k_d: f64) -> Self {
+    /// an unset `k_d_sigma` takes `sigma_k_d`, an unset `temp_sigma_c`
+    /// `sigma_temp_c`; set ones stay.
+    pub fn in_water_known_to(mut self, sigma_k_d: f64, sigma_temp_c: f64) -> Self {
         self.k_d_sigma.get_or_insert(sigma_k_d);
+        self.temp_sigma_c.get_or_insert(sigma_temp_c);
         self
     }
 
@@ -443,6 +461,11 @@ impl TrackerConfig {
                 return bad(format!(
                     "tracker k_d_sigma = {v} must be positive (≥ 0 without estimate_k_d)"
                 ));
+            }
+        }
+        if let Some(v) = self.temp_sigma_c {
+            if !(v.is_finite() && (0.0..=50.0).contains(&v)) {
+                return bad(format!("tracker temp_sigma_c = {v} must be in [0, 50] °C"));
             }
         }
         let [lo, hi] = self.x_range;

@@ -46,7 +46,7 @@ fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
         "the tank scene has no attitude sensor"
     );
     // Each run's water is drawn below: the tracker is told its spread.
-    let cal = cal.in_water_known_to(scene.montecarlo.sigma_k_d);
+    let cal = cal.in_water_known_to(scene.montecarlo.sigma_k_d, scene.montecarlo.sigma_temp_c);
     let mut est = build_estimator("tracker", &cal).expect("tracker");
     let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
     let mut rng = Lcg(7);
@@ -119,7 +119,7 @@ fn tracker_std_of_x_holds_off_the_axis_without_own_sensors() {
     let scene = Scene::load(&r.join("config/scenes/tank.toml")).expect("tank scene");
     let traj = Trajectory::load(&r.join("config/trajectories/dive.csv")).expect("dive");
     let cal = Calibration::load(&r.join("config/calibration/tank.toml")).expect("tank cal");
-    let cal = cal.in_water_known_to(scene.montecarlo.sigma_k_d);
+    let cal = cal.in_water_known_to(scene.montecarlo.sigma_k_d, scene.montecarlo.sigma_temp_c);
     let mut est = build_estimator("tracker", &cal).expect("tracker");
     let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
     let mut rng = Lcg(11);

@@ -53,7 +53,8 @@ pub fn run(a: MontecarloArgs) -> anyhow::Result<()> {
     let trajectory = Trajectory::load(&a.trajectory)?;
     // Each run's water is drawn about the calibration's: the estimator is
     // told so (its K_D doubt, unless the calibration's settings say).
-    let cal = Calibration::load(&a.calibration)?.in_water_known_to(scene.montecarlo.sigma_k_d);
+    let cal = Calibration::load(&a.calibration)?
+        .in_water_known_to(scene.montecarlo.sigma_k_d, scene.montecarlo.sigma_temp_c);
     let case = match a.case.as_str() {
         "auto" => PaperCase::detect(&a.trajectory, scene.light.k_d),
         other => PaperCase::parse(other)?,

@@ -504,11 +504,12 @@ pub struct Calibration {
 
 impl Calibration {
     /// This calibration used in water whose K_D is known only to
-    /// `sigma_k_d` about its own (see `EstimatorSettings::in_water_known_to`).
-    pub fn in_water_known_to(&self, sigma_k_d: f64) -> Calibration {
+    /// `sigma_k_d` about its own, and whose temperature the frames report
+    /// only to `sigma_temp_c` (see `EstimatorSettings::in_water_known_to`).
+    pub fn in_water_known_to(&self, sigma_k_d: f64, sigma_temp_c: f64) -> Calibration {
         let mut c = self.clone();
         let settings = c.estimator.take().unwrap_or_default();
-        c.estimator = Some(settings.in_water_known_to(sigma_k_d));
+        c.estimator = Some(settings.in_water_known_to(sigma_k_d, sigma_temp_c));
         c
     }
 

@@ -111,13 +111,8 @@ pub fn fisher(scene: &CrbScene, pose: &Pose) -> SMatrix<f64, NP, NP> {
         }
     };
     fix(5, scene.sigma_k_d);
-    // g_T changes by 2/(576 − 2T) per °C.
-    fix(
-        6,
-        scene
-            .sigma_temp_c
-            .map(|s| s * 2.0 / (576.0 - 2.0 * scene.temp_c)),
-    );
+    let slope = lightpose_core::light::temperature_gain_slope(scene.temp_c);
+    fix(6, scene.sigma_temp_c.map(|s| s * slope));
     if let Some((sp, sy)) = scene.attitude_sigma {
         f[(3, 3)] += 1.0 / (sp.rad() * sp.rad());
         f[(4, 4)] += 1.0 / (sy.rad() * sy.rad());

@@ -175,9 +175,9 @@ impl Tracker {
             p[(i, i)] = c.init_rate_sigma_deg.to_radians().powi(2);
         }
         p[(KD, KD)] = sc.sigma_k_d.unwrap_or(0.0).powi(2);
-        let sg = sc
-            .sigma_temp_c
-            .map_or(0.0, |s| s * 2.0 / (576.0 - 2.0 * sc.temp_c));
+        let sg = sc.sigma_temp_c.map_or(0.0, |s| {
+            s * lightpose_core::light::temperature_gain_slope(sc.temp_c)
+        });
         p[(GAIN, GAIN)] = sg * sg;
         p
     }

@@ -286,9 +286,10 @@ impl Tracker {
             Some(sm) => sm,
             None => beam_consider_sigma_x(x, p, self.model.light.sigma_b.rad()),
         };
+        let temp_x = self.temperature_bias_x(frame, x);
         let sdb = |i: usize| sd(i).map(|v| v.hypot(paper_bias_share(s, i)));
         e.std = StdDev {
-            x: sd(0).map(|s| s.hypot(beam_x)),
+            x: sd(0).map(|s| s.hypot(beam_x).hypot(temp_x)),
             y: sdb(1),
             z: sdb(2),
             pitch: sdb(3).map(f64::to_degrees),
@@ -296,6 +297,26 @@ impl Tracker {
             surge: lightpose_core::finite(surge_sd).filter(|_| known),
         };
         e
+    }
+}
+
+impl Tracker {
+    /// The range bias of a temperature read `temp_sigma_c` wrong (1σ, m):
+    /// every channel scaled by σ_T·|g_T'|/g_T, read as ln-brightness per
+    /// metre of range, K_D + 2/x. A bias of the whole run, which frames do
+    /// not average, so σx holds it as it holds K_D's doubt (the Cramér–Rao
+    /// bounds carry the same gain doubt as a state).
+    fn temperature_bias_x(&self, frame: &Frame, x: &Vs) -> f64 {
+        let Some(sigma_t) = self.cfg.temp_sigma_c.filter(|s| *s > 0.0) else {
+            return 0.0;
+        };
+        let t = frame
+            .temp_c
+            .filter(|t| WATER_TEMP_C.contains(t))
+            .unwrap_or(lightpose_core::light::T_REF_C);
+        let slope = lightpose_core::light::temperature_gain_slope(t);
+        let r = x[0].max(0.1);
+        lightpose_core::finite(sigma_t * slope / (x[KD].max(0.0) + 2.0 / r)).unwrap_or(0.0)
     }
 }
 
