@@ -801,6 +801,24 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn a_temperature_doubt_is_read_and_checked() {
+        let mut text = sample().to_toml().unwrap();
+        text.push_str("\n[estimator.tracker]\ntemp_sigma_c = 0.5\n");
+        let c = Calibration::parse(&text, "c.toml").unwrap();
+        let st = c.estimator.unwrap();
+        assert_eq!(st.tracker.temp_sigma_c, Some(0.5));
+        for bad in ["-1.0", "nan", "80.0"] {
+            let mut text = sample().to_toml().unwrap();
+            text.push_str(&format!("\n[estimator.tracker]\ntemp_sigma_c = {bad}\n"));
+            let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+            assert!(
+                e.contains("temp_sigma_c") && e.contains("c.toml"),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    #[test]
     fn features_round_trip_as_words() {
         for f in Feature::RATIOS.iter().chain(Feature::FIRST.iter()) {
             assert_eq!(Feature::try_from(f.to_string()), Ok(*f));
