@@ -248,7 +248,10 @@ fn run(
         let settings = cal.estimator.clone().unwrap_or_default();
         ests[1] =
             Box::new(ModelEstimator::new(m.clone(), settings.model).map_err(|e| e.to_string())?);
-        ests[2] = Box::new(Tracker::new(m, settings.tracker).map_err(|e| e.to_string())?);
+        // With the paper's range, as `build_estimator` gives the tracker
+        // (the paper's estimator reads any resolution's counts as volts).
+        let tracker = Tracker::new(m, settings.tracker).map_err(|e| e.to_string())?;
+        ests[2] = Box::new(tracker.with_paper(cal));
     }
     let mut tallies: Vec<(&'static str, Tally)> =
         ests.iter().map(|e| (e.name(), Tally::default())).collect();

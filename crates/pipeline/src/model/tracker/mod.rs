@@ -203,7 +203,11 @@ impl Tracker {
     /// The status of an estimate from an updated state.
     fn status_of(&self, s: &State, applied: bool, n_sat: usize, uses: &[ReadingUse; 3]) -> Status {
         let x = s.x[0];
-        if !applied {
+        if !applied && n_sat > self.cfg.max_saturated {
+            // Refused because the clipped channels left too little light:
+            // the sensor's limit, not the filter's (as the start fit says).
+            Status::Saturated
+        } else if !applied {
             Status::Diverged
         } else if s.frames <= self.cfg.init_frames || self.surge_of(s).1 > self.cfg.surge_max_sigma
         {
@@ -441,7 +445,12 @@ impl Estimator for Tracker {
         let sane = s.is_finite() && s.x[0] > 0.0 && s.x[3].abs() < 1.4 && s.x[4].abs() < 1.4;
         if !sane {
             self.state = None;
-            let mut e = PoseEstimate::empty(frame.seq, frame.t, Status::Diverged, Self::NAME);
+            let status = if n_sat > self.cfg.max_saturated {
+                Status::Saturated
+            } else {
+                Status::Diverged
+            };
+            let mut e = PoseEstimate::empty(frame.seq, frame.t, status, Self::NAME);
             e.readings = verdicts(uses);
             return e;
         }
