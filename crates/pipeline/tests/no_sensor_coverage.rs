@@ -35,6 +35,18 @@ impl Lcg {
     }
 }
 
+/// A run of `scene` in water drawn as `lightpose bench` draws it (its
+/// temperature, then its K_D, about the scene's), the vehicle reporting the
+/// nominal temperature.
+fn in_drawn_water(scene: &Scene, rng: &mut Lcg, seed: u64) -> Simulator {
+    let mut s = scene.clone();
+    s.temp_c += s.montecarlo.sigma_temp_c * rng.normal();
+    s.light.k_d = (s.light.k_d + s.montecarlo.sigma_k_d * rng.normal()).max(0.0);
+    let mut sim = Simulator::new(s, seed);
+    sim.set_reported_temp(Some(scene.temp_c));
+    sim
+}
+
 #[test]
 fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
     let r = root();
@@ -52,12 +64,7 @@ fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
     let mut rng = Lcg(7);
     let (mut inside, mut n) = ([0usize; 6], 0usize);
     for run in 0..30u64 {
-        let mut s = scene.clone();
-        s.temp_c += s.montecarlo.sigma_temp_c * rng.normal();
-        s.light.k_d = (s.light.k_d + s.montecarlo.sigma_k_d * rng.normal()).max(0.0);
-        let mut sim = Simulator::new(s, 100 + run);
-        // The vehicle reports the nominal temperature, as in the bench.
-        sim.set_reported_temp(Some(scene.temp_c));
+        let mut sim = in_drawn_water(&scene, &mut rng, 100 + run);
         est.reset();
         for (j, &t) in times.iter().enumerate() {
             let (p, surge) = traj.sample(t);
@@ -131,11 +138,7 @@ fn tracker_std_of_x_holds_off_the_axis_without_own_sensors() {
         let dp = Angle::from_deg(5.0 * rng.normal());
         let dw = Angle::from_deg(5.0 * rng.normal());
         let moved = traj.moved(dy, dz, dp, dw);
-        let mut s = scene.clone();
-        s.temp_c += s.montecarlo.sigma_temp_c * rng.normal();
-        s.light.k_d = (s.light.k_d + s.montecarlo.sigma_k_d * rng.normal()).max(0.0);
-        let mut sim = Simulator::new(s, 300 + run);
-        sim.set_reported_temp(Some(scene.temp_c));
+        let mut sim = in_drawn_water(&scene, &mut rng, 300 + run);
         est.reset();
         for (j, &t) in times.iter().enumerate() {
             let k = moved.kinematics(t);

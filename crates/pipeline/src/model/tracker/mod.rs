@@ -46,7 +46,7 @@ use lightpose_core::{
 pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
 use self::counts::CountsInput;
 use self::readings::{gate_thresholds, FrameReadings};
-use self::state::{beam_consider_sigma_x, State, Vs, KD, VEL};
+use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
 use crate::model::single_frame::{ModelEstimator, WATER_TEMP_C};
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
@@ -203,12 +203,8 @@ impl Tracker {
     /// The status of an estimate from an updated state.
     fn status_of(&self, s: &State, applied: bool, n_sat: usize, uses: &[ReadingUse; 3]) -> Status {
         let x = s.x[0];
-        if !applied && n_sat > self.cfg.max_saturated {
-            // Refused because the clipped channels left too little light:
-            // the sensor's limit, not the filter's (as the start fit says).
-            Status::Saturated
-        } else if !applied {
-            Status::Diverged
+        if !applied {
+            unusable(n_sat, self.cfg.max_saturated)
         } else if s.frames <= self.cfg.init_frames || self.surge_of(s).1 > self.cfg.surge_max_sigma
         {
             // Until surge is known too, not every field is (FORMATS.md `ok`).
@@ -302,9 +298,7 @@ impl Tracker {
         };
         e
     }
-}
 
-impl Tracker {
     /// The range bias of a temperature read `temp_sigma_c` wrong (1σ, m):
     /// every channel scaled by σ_T·|g_T'|/g_T, read as ln-brightness per
     /// metre of range, K_D + 2/x. A bias of the whole run, which frames do
@@ -319,8 +313,18 @@ impl Tracker {
             .filter(|t| WATER_TEMP_C.contains(t))
             .unwrap_or(lightpose_core::light::T_REF_C);
         let slope = lightpose_core::light::temperature_gain_slope(t);
-        let r = x[0].max(0.1);
-        lightpose_core::finite(sigma_t * slope / (x[KD].max(0.0) + 2.0 / r)).unwrap_or(0.0)
+        lightpose_core::finite(sigma_t * slope / ln_brightness_per_metre(x)).unwrap_or(0.0)
+    }
+}
+
+/// The status of a frame the filter could not use: `saturated` when more
+/// than `max_saturated` channels were clipped (the sensor's limit, as the
+/// `model` estimator says it), else `diverged` (the filter's).
+fn unusable(clipped: usize, max_saturated: usize) -> Status {
+    if clipped > max_saturated {
+        Status::Saturated
+    } else {
+        Status::Diverged
     }
 }
 
@@ -445,11 +449,7 @@ impl Estimator for Tracker {
         let sane = s.is_finite() && s.x[0] > 0.0 && s.x[3].abs() < 1.4 && s.x[4].abs() < 1.4;
         if !sane {
             self.state = None;
-            let status = if n_sat > self.cfg.max_saturated {
-                Status::Saturated
-            } else {
-                Status::Diverged
-            };
+            let status = unusable(n_sat, self.cfg.max_saturated);
             let mut e = PoseEstimate::empty(frame.seq, frame.t, status, Self::NAME);
             e.readings = verdicts(uses);
             return e;

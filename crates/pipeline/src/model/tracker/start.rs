@@ -145,11 +145,7 @@ impl Tracker {
         let dof = 5usize;
         let red = f.chi2 / (f.n_data.saturating_sub(dof).max(1)) as f64;
         if !f.converged || !f.q.iter().all(|v| v.is_finite()) || !(red <= c.max_reduced_chi2) {
-            return if clipped > c.max_saturated {
-                Status::Saturated
-            } else {
-                Status::Diverged
-            };
+            return super::unusable(clipped, c.max_saturated);
         }
         if !(0..5).all(|i| f.cov[(i, i)].is_finite()) {
             return Status::Diverged;

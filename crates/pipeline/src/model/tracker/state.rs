@@ -133,12 +133,19 @@ pub(super) fn beam_consider_sigma_x(x: &Vs, p: &Ms, sigma_b_rad: f64) -> f64 {
     let tr_s2 = syy * syy + szz * szz + 2.0 * syz * syz;
     let var_q = (2.0 * tr_s2).max(0.0) / r.powi(4);
     let sd_ln_b = var_q.sqrt() / (2.0 * sigma_b_rad * sigma_b_rad);
-    let v = sd_ln_b / (x[KD].max(0.0) + 2.0 / r);
+    let v = sd_ln_b / ln_brightness_per_metre(x);
     if v.is_finite() {
         v
     } else {
         0.0
     }
+}
+
+/// How fast the spot's ln-brightness falls with range at the state, per
+/// metre: Beer's law and the inverse square, K_D + 2/x. What turns a
+/// brightness doubt (the beam's, the temperature's gain) into range.
+pub(super) fn ln_brightness_per_metre(x: &Vs) -> f64 {
+    x[KD].max(0.0) + 2.0 / x[0].max(0.1)
 }
 
 /// The body axes in B (columns of R_BV: forward, right, down) at pitch θ
