@@ -37,6 +37,9 @@ const SPEED: f64 = 0.1;
 /// 1001, 1002 gave baseline median |x| errors of 0.09, 0.02 and 0.63 m).
 const RUNS: u64 = 5;
 const SEED: u64 = 1000;
+/// The K_D doubt an operator who takes a tank calibration into water it
+/// did not see would tell the estimators (1σ, m⁻¹; the tank's K_D is 0.09).
+const TOLD_K_D_SIGMA: f64 = 0.3;
 const BEGIN: &str = "<!-- BEGIN GENERATED -->";
 const END: &str = "<!-- END GENERATED -->";
 
@@ -53,6 +56,10 @@ struct Scenario {
     temp_c: Option<f64>,
     bits: Option<u8>,
     beacon: bool,
+    /// The model-based estimators told that K_D may be this far (1σ, m⁻¹)
+    /// from the calibration's (`k_d_sigma`): the operator's remedy for
+    /// water the calibration did not see.
+    told_k_d_sigma: Option<f64>,
 }
 
 impl Scenario {
@@ -67,6 +74,7 @@ impl Scenario {
             temp_c: None,
             bits: None,
             beacon: true,
+            told_k_d_sigma: None,
         }
     }
 }
@@ -134,6 +142,24 @@ fn scenarios() -> Vec<Scenario> {
             k_d: Some(1.0),
             x0: 3.0,
             ..b("turbid K_D 1.0 at 3 m")
+        },
+        // The same waters, with the doubt told (`k_d_sigma`), and what that
+        // doubt costs in the tank's own water.
+        Scenario {
+            k_d: Some(0.5),
+            x0: 4.0,
+            told_k_d_sigma: Some(TOLD_K_D_SIGMA),
+            ..b("turbid K_D 0.5 at 4 m, told ±0.3")
+        },
+        Scenario {
+            k_d: Some(1.0),
+            x0: 3.0,
+            told_k_d_sigma: Some(TOLD_K_D_SIGMA),
+            ..b("turbid K_D 1.0 at 3 m, told ±0.3")
+        },
+        Scenario {
+            told_k_d_sigma: Some(TOLD_K_D_SIGMA),
+            ..b("baseline, told K_D ±0.3")
         },
         Scenario {
             temp_c: Some(-5.0),
@@ -233,7 +259,8 @@ fn run(
     // the shipped calibration, as a user gets them. The calibration was
     // made on a 10-bit board; for another resolution the model-based ones
     // use the same light model at the board's resolution (what a
-    // calibration on that board would give: a 10-bit model refuses them).
+    // calibration on that board would give: a 10-bit model refuses them),
+    // and a scenario that tells them K_D's doubt builds them with it.
     let mut ests: Vec<Box<dyn Estimator>> = Vec::new();
     for name in ["moments", "model", "tracker"] {
         ests.push(build_estimator(name, cal).map_err(|e| e.to_string())?);
@@ -243,9 +270,13 @@ fn run(
         .as_ref()
         .ok_or("the calibration has no [physical] light model")?;
     let mut m = phys.sensor_model();
-    if m.adc_bits != scene.adc.bits {
+    if m.adc_bits != scene.adc.bits || sc.told_k_d_sigma.is_some() {
         m.adc_bits = scene.adc.bits;
-        let settings = cal.estimator.clone().unwrap_or_default();
+        let mut settings = cal.estimator.clone().unwrap_or_default();
+        if let Some(v) = sc.told_k_d_sigma {
+            settings.model.k_d_sigma = Some(v);
+            settings.tracker.k_d_sigma = Some(v);
+        }
         ests[1] =
             Box::new(ModelEstimator::new(m.clone(), settings.model).map_err(|e| e.to_string())?);
         // With the paper's range, as `build_estimator` gives the tracker

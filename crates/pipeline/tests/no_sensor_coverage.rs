@@ -90,11 +90,12 @@ fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
     }
     // Every frame after the start-up is tracked: surge, the last field to
     // be known, reaches `surge_max_sigma` 1.2–1.4 s (6–7 frames) in the
-    // tank; measured 1003 of 1230 (1016 with `paper_range_sigma_scale`
-    // 0.5, 1027 before surge's σ held the paper rate's drift, 889 before
-    // `paper_rate`, when it took 1.6–2.2 s). Measured coverage: x 1.000
-    // (0.903 with the scale at 0.5: see the next test for why it is not),
-    // surge 0.980, the ridge axes 1.000.
+    // tank; measured 1006 of 1230 (1003 before the paper's law read K_D's
+    // doubt, 1016 with `paper_range_sigma_scale` 0.5, 1027 before surge's
+    // σ held the paper rate's drift, 889 before `paper_rate`, when it took
+    // 1.6–2.2 s). Measured coverage: x 1.000 (0.903 with the scale at 0.5:
+    // see the next test for why it is not), surge 0.988 (0.980 before the
+    // law read K_D's doubt), the ridge axes 1.000.
     let start_frames = 13;
     assert!(
         n >= 30 * (times.len() - start_frames),
@@ -119,8 +120,10 @@ fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
 /// Why: with the law's residual halved in σx (`paper_range_sigma_scale`
 /// 0.5, the default until it was measured here), x's ±2σ covered 66 % of
 /// these runs (200 runs, `ridge_diag` with `OFF_AXIS=3,5`); at 1.0, 93 %.
-/// Here: 786 of 1317 frames (59.7 %) at 0.5, 1195 of 1293 (92.4 %) at 1.0
-/// (1193 before the tracker was told the temperature's doubt too).
+/// Here: 786 of 1317 frames (59.7 %) at 0.5, 1164 of 1289 (90.3 %) at 1.0
+/// (1195 of 1293 before the paper's law read K_D's doubt: it now pins x
+/// only outside that doubt, which the light's own range shares; 1193
+/// before the tracker was told the temperature's doubt too).
 #[test]
 fn tracker_std_of_x_holds_off_the_axis_without_own_sensors() {
     let r = root();

@@ -23,7 +23,7 @@ use lightpose_core::{Frame, ReadingUse, Refusal};
 use nalgebra::{SMatrix, SVector};
 
 use super::counts::commit;
-use super::state::{body_axes, body_axes_derivatives, Ms, State, NS, VEL};
+use super::state::{body_axes, body_axes_derivatives, Ms, State, KD, NS, VEL};
 use super::Tracker;
 use crate::settings::{Motion, TrackerConfig};
 
@@ -397,8 +397,10 @@ impl Tracker {
         )
     }
 
-    /// ẋ of the state: the velocity's component along B's x (the x row of
-    /// the position's rate in `predict_body` / `predict_world`).
+    /// ẋ of the state as the paper range's change reads it: the velocity's
+    /// component along B's x (the x row of the position's rate in
+    /// `predict_body` / `predict_world`), scaled by the law's reading of
+    /// the state's water (`paper_k_d_scale`).
     fn x_rate_model(&self, s: &State) -> Linear<1> {
         let mut jac = SMatrix::<f64, 1, NS>::zeros();
         let h = match self.cfg.motion {
@@ -420,21 +422,44 @@ impl Tracker {
                 s.x[VEL]
             }
         };
+        // The law's range reads x·(1 + δ/b1), so its change ẋ·(1 + δ/b1).
+        let (scale, per_k_d) = self.paper_k_d_scale(s);
+        jac *= scale;
+        jac[(0, KD)] = h * per_k_d;
         Linear {
-            h: SVector::<f64, 1>::new(h),
+            h: SVector::<f64, 1>::new(h * scale),
             jac,
         }
     }
 
-    /// Fuse the paper's range as a measurement of x.
+    /// Fuse the paper's range as a measurement of x. The law was fitted
+    /// in the calibration's water (K_D0): water with K_D0 + δ dims the
+    /// peak by a further e^(−δ·x), which the law reads as range, so it
+    /// reads x·(1 + δ/b1). That is its model, K_D's column and all, so that
+    /// the range it pins holds K_D's doubt as the light's own range does.
     pub(super) fn update_paper_range(&self, s: &mut State, c: &Checked<1>) -> ReadingUse {
+        let (scale, per_k_d) = self.paper_k_d_scale(s);
         let mut jac = SMatrix::<f64, 1, NS>::zeros();
-        jac[(0, 0)] = 1.0;
+        jac[(0, 0)] = scale;
+        jac[(0, KD)] = s.x[0] * per_k_d;
         let lin = Linear {
-            h: SVector::<f64, 1>::new(s.x[0]),
+            h: SVector::<f64, 1>::new(s.x[0] * scale),
             jac,
         };
         fuse(s, c, &lin, [false], self.gate[0])
+    }
+
+    /// How the paper's law scales a range (or its rate) in the state's
+    /// water: 1 + (K_D − K_D0)/b1, and its slope in K_D, 1/b1 (see
+    /// `update_paper_range`); (1, 0) without the law.
+    fn paper_k_d_scale(&self, s: &State) -> (f64, f64) {
+        match &self.paper {
+            Some(p) if p.b1 > 0.0 => {
+                let per = 1.0 / p.b1;
+                (1.0 + (s.x[KD] - self.model.light.k_d) * per, per)
+            }
+            _ => (1.0, 0.0),
+        }
     }
 
     /// Fuse the frame's checked readings into `s`, attitude first (it
