@@ -342,6 +342,26 @@ pub struct TrackerConfig {
     /// vehicle that slows (docs/estimators.md). A span longer than
     /// `max_gap_s` (frames slower than 1.5 Hz at 3 frames) is not used.
     pub paper_rate: bool,
+    /// `paper_rate` also on frames whose attitude a reading pins but whose
+    /// velocity no DVL reading gives: the range's change only (the light's
+    /// own range is unbiased there, so the paper's range is not read).
+    /// Why: with the attitude sensor alone the random-walk surge lagged a
+    /// vehicle that slows, and its ±2σ covered 89.5 % of the tank dock
+    /// (`ridge_diag`, 200 runs); with the change read, 98.4 %, and the
+    /// dock's surge end RMS 0.088 → 0.046 m/s (docs/estimators.md).
+    pub paper_rate_with_attitude: bool,
+    /// The paper range's change, less the change of the law's own bias
+    /// between its two frames as the light model predicts it at the state
+    /// (the law read off the model's frame there, minus x): the law's
+    /// error follows the geometry, which an attitude or depth reading
+    /// pins, so on frames with one the rate reads ẋ, not ẋ plus the drift.
+    /// Without either the state's geometry lies on the ridges and the
+    /// predicted change follows their error, so it is not taken there (the
+    /// held-out dive's surge p95 went 0.091 → 0.149 m/s). Why: with the
+    /// attitude sensor alone the tank dive's surge carried the law's
+    /// drift, end RMS 0.080 m/s (bias 0.07); with it 0.043; with depth
+    /// alone 0.078 → 0.035 (`ridge_diag`, 200 runs; docs/estimators.md).
+    pub paper_rate_geometry: bool,
     pub paper_rate_frames: usize,
     pub paper_rate_drift_mps: f64,
     /// Range of x for which an estimate is `ok`.
@@ -404,6 +424,8 @@ impl Default for TrackerConfig {
             paper_range: true,
             paper_range_sigma_scale: 1.0,
             paper_rate: true,
+            paper_rate_with_attitude: true,
+            paper_rate_geometry: true,
             paper_rate_frames: 3,
             paper_rate_drift_mps: 0.05,
             x_range: [3.0, 12.0],

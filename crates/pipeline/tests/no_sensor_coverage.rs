@@ -11,41 +11,15 @@
 use lightpose_core::Angle;
 use lightpose_core::Status;
 use lightpose_pipeline::{build_estimator, Calibration};
-use lightpose_sim::{Scene, Simulator, Trajectory};
+use lightpose_sim::{Scene, Trajectory};
 use std::path::{Path, PathBuf};
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// A deterministic normal draw (Box–Muller on a small LCG) so the test
-/// needs no RNG crate and every run is the same.
-struct Lcg(u64);
-impl Lcg {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-}
-
-/// A run of `scene` in water drawn as `lightpose bench` draws it (its
-/// temperature, then its K_D, about the scene's), the vehicle reporting the
-/// nominal temperature.
-fn in_drawn_water(scene: &Scene, rng: &mut Lcg, seed: u64) -> Simulator {
-    let mut s = scene.clone();
-    s.temp_c += s.montecarlo.sigma_temp_c * rng.normal();
-    s.light.k_d = (s.light.k_d + s.montecarlo.sigma_k_d * rng.normal()).max(0.0);
-    let mut sim = Simulator::new(s, seed);
-    sim.set_reported_temp(Some(scene.temp_c));
-    sim
-}
+mod common;
+use common::{in_drawn_water, Lcg};
 
 #[test]
 fn tracker_std_covers_the_truth_without_the_attitude_sensor() {

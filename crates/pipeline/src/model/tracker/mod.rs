@@ -404,12 +404,25 @@ impl Estimator for Tracker {
         s.paper_x = None;
         s.paper_rate_used = false;
         if uses[0] != ReadingUse::Used {
-            if let Some(c) = self.paper_range(frame) {
+            if let Some(mut c) = self.paper_range(frame) {
+                if self.cfg.paper_rate_geometry && uses[1] == ReadingUse::Used {
+                    c.model_bias = self.law_bias_at(&s, frame);
+                }
                 s.paper_rate_used = self.update_paper_rate(&mut s, &c) == ReadingUse::Used;
                 s.push_paper(c);
                 if self.update_paper_range(&mut s, &c.range) == ReadingUse::Used {
                     s.paper_x = self.paper_bias();
                 }
+            }
+        } else if self.cfg.paper_rate_with_attitude && uses[2] != ReadingUse::Used {
+            // The attitude pins the light's own range; its change is what
+            // the random-walk surge lacks without a DVL.
+            if let Some(mut c) = self.paper_range(frame) {
+                if self.cfg.paper_rate_geometry {
+                    c.model_bias = self.law_bias_at(&s, frame);
+                }
+                s.paper_rate_used = self.update_paper_rate(&mut s, &c) == ReadingUse::Used;
+                s.push_paper(c);
             }
         }
         if self.lost_to_readings(&mut s, &uses) {

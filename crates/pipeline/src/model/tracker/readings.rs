@@ -42,6 +42,9 @@ pub(super) struct PaperReading {
     /// The counts' noise alone through the law, m (1σ).
     pub noise: f64,
     pub t: f64,
+    /// What the law reads off the light model's own frame at the state,
+    /// minus the state's x: its bias where the filter puts the vehicle.
+    pub model_bias: Option<f64>,
 }
 
 /// What the paper range's change may move: x and the three velocities
@@ -357,7 +360,35 @@ impl Tracker {
             },
             noise,
             t: frame.t,
+            model_bias: None,
         })
+    }
+
+    /// The paper law's bias at the state: its range read off the light
+    /// model's own frame there, minus the state's x.
+    pub(super) fn law_bias_at(&mut self, s: &State, frame: &Frame) -> Option<f64> {
+        let m = &self.model;
+        let q = crate::model::light::PoseVec::from_fn(|i, _| s.x[i]);
+        let gt = frame
+            .temp_c
+            .filter(|t| t.is_finite())
+            .map_or(1.0, lightpose_core::light::temperature_gain);
+        let (pred, _) = crate::model::light::predict(m, &q, s.x[KD].max(0.0), gt);
+        let fs = m.full_scale();
+        let mut f = Frame::new(
+            frame.seq,
+            frame.t,
+            frame.adc_bits,
+            [0; lightpose_core::NDET],
+        );
+        f.temp_c = frame.temp_c;
+        for (c, p) in f.counts.iter_mut().zip(pred.iter()) {
+            *c = p.round().clamp(0.0, fs) as u16;
+        }
+        let p = self.paper.as_mut()?;
+        let x = lightpose_core::Estimator::estimate(&mut p.est, &f).x?;
+        let b = x - s.x[0];
+        b.is_finite().then_some(b)
     }
 
     /// Fuse the change of the paper's range over the last
@@ -381,7 +412,10 @@ impl Tracker {
         if !(dt > 1e-3 && dt <= self.cfg.max_gap_s) {
             return ReadingUse::Absent;
         }
-        let rate = (now.range.z[0] - prev.range.z[0]) / dt;
+        let mut rate = (now.range.z[0] - prev.range.z[0]) / dt;
+        if let (Some(b1), Some(b0)) = (now.model_bias, prev.model_bias) {
+            rate -= (b1 - b0) / dt;
+        }
         let sigma = (now.noise.hypot(prev.noise) / dt).hypot(self.cfg.paper_rate_drift_mps);
         let c = Checked {
             z: SVector::<f64, 1>::new(rate),
@@ -505,6 +539,7 @@ mod tests {
             },
             noise: 0.01,
             t,
+            model_bias: None,
         }
     }
 
@@ -600,5 +635,77 @@ mod tests {
         for (a, b) in g.iter().zip([23.928, 27.631, 30.664]) {
             assert!((a - b).abs() < 2e-2, "{g:?}");
         }
+    }
+
+    /// The tracker with the shipped tank calibration's light model and
+    /// paper's estimator.
+    fn tank_tracker() -> Tracker {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../config/calibration/tank.toml");
+        let cal = crate::calibration::Calibration::load(&path).expect("tank calibration");
+        let m = cal.physical.as_ref().expect("light model").sensor_model();
+        Tracker::new(m, TrackerConfig::default())
+            .expect("tracker")
+            .with_paper(&cal)
+    }
+
+    #[test]
+    fn the_paper_range_pins_x_only_outside_k_d_s_doubt() {
+        let tr = tank_tracker();
+        let pinned = |sigma_k_d: f64| {
+            let mut s = cruising();
+            s.x[KD] = tr.model.light.k_d;
+            s.doubt_k_d(sigma_k_d);
+            let c = Checked {
+                z: SVector::<f64, 1>::new(s.x[0]),
+                sigma: SVector::<f64, 1>::new(0.6),
+            };
+            assert_eq!(tr.update_paper_range(&mut s, &c), ReadingUse::Used);
+            s.sd(0)
+        };
+        // The law reads water with K_D0 + δ as range x·(1 + δ/b1), as the
+        // light's own range does: a doubt of ±0.3 m⁻¹ is ~4 m of range at
+        // 6 m, which the reading must not take away; without a doubt it
+        // pins x within its own σ.
+        let (wide, none) = (pinned(0.3), pinned(0.0));
+        assert!(wide > 3.0, "σx {wide} with K_D ± 0.3");
+        assert!(none < 0.6, "σx {none} with K_D known");
+        // Its model is the law's reading of the state's water.
+        let mut s = cruising();
+        s.x[KD] = tr.model.light.k_d + 0.1;
+        let (scale, per) = tr.paper_k_d_scale(&s);
+        let b1 = tr.paper.as_ref().expect("paper").b1;
+        assert!((per - 1.0 / b1).abs() < 1e-12);
+        assert!((scale - (1.0 + 0.1 / b1)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_paper_rate_takes_out_the_law_s_predicted_drift() {
+        let tr = Tracker::new(SensorModel::default(), TrackerConfig::default()).unwrap();
+        // The vehicle closes at 0.4 m/s (as the state says) while the law's
+        // bias grows by 0.12 m over the 0.6 s span: the ranges fall at only
+        // 0.2 m/s. Told that drift, the rate reads 0.4 and leaves surge;
+        // not told, it pulls surge toward 0.2.
+        let run = |told: bool| {
+            let mut s = cruising();
+            for (i, t) in [0.0, 0.2, 0.4, 0.6].into_iter().enumerate() {
+                let bias = 0.2 * t;
+                let mut r = reading(t, 6.0 - 0.4 * t + bias);
+                r.model_bias = told.then_some(bias);
+                if i < 3 {
+                    s.push_paper(r);
+                } else {
+                    assert_eq!(tr.update_paper_rate(&mut s, &r), ReadingUse::Used);
+                }
+            }
+            s.x[VEL]
+        };
+        let (told, not) = (run(true), run(false));
+        // (The state's ẋ is 0.4·cos θ·cos ψ, a hair under 0.4.)
+        assert!(
+            (told - 0.4).abs() < 2e-3,
+            "surge {told} moved though the rate agreed"
+        );
+        assert!(not < 0.39, "surge {not} not pulled by the drift");
     }
 }
