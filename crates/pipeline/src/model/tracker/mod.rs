@@ -187,6 +187,30 @@ impl Tracker {
         Some(s)
     }
 
+    /// The paper's range of this frame, where it is read: without an
+    /// attitude reading its change (as ẋ) and the range itself (as x); with
+    /// one but no DVL reading, its change only (the attitude pins the
+    /// light's own range; its change is what the random-walk surge lacks
+    /// without a DVL). With an attitude or depth reading the change is
+    /// taken less the law's own drift the light model predicts.
+    fn read_paper(&mut self, s: &mut State, frame: &Frame, uses: &[ReadingUse; 3]) {
+        let attitude = uses[0] == ReadingUse::Used;
+        if attitude && !(self.cfg.paper_rate_with_attitude && uses[2] != ReadingUse::Used) {
+            return;
+        }
+        let Some(mut c) = self.paper_range(frame) else {
+            return;
+        };
+        if self.cfg.paper_rate_geometry && (attitude || uses[1] == ReadingUse::Used) {
+            c.model_bias = self.law_bias_at(s, frame);
+        }
+        s.paper_rate_used = self.update_paper_rate(s, &c) == ReadingUse::Used;
+        s.push_paper(c);
+        if !attitude && self.update_paper_range(s, &c.range) == ReadingUse::Used {
+            s.paper_x = self.paper_bias();
+        }
+    }
+
     /// Whether a gated sensor has disagreed with the filter for so long
     /// that the filter, not the sensor, is taken to be wrong.
     fn lost_to_readings(&self, s: &mut State, uses: &[ReadingUse; 3]) -> bool {
@@ -317,6 +341,15 @@ impl Tracker {
     }
 }
 
+/// The temperature gain g_T of `frame` (1 without a water temperature:
+/// the calibration's own, 20 °C).
+pub(super) fn gain_of(frame: &Frame) -> f64 {
+    frame
+        .temp_c
+        .filter(|t| t.is_finite() && WATER_TEMP_C.contains(t))
+        .map_or(1.0, temperature_gain)
+}
+
 /// The status of a frame the filter could not use: `saturated` when more
 /// than `max_saturated` channels were clipped (the sensor's limit, as the
 /// `model` estimator says it), else `diverged` (the filter's).
@@ -403,28 +436,7 @@ impl Estimator for Tracker {
         }
         s.paper_x = None;
         s.paper_rate_used = false;
-        if uses[0] != ReadingUse::Used {
-            if let Some(mut c) = self.paper_range(frame) {
-                if self.cfg.paper_rate_geometry && uses[1] == ReadingUse::Used {
-                    c.model_bias = self.law_bias_at(&s, frame);
-                }
-                s.paper_rate_used = self.update_paper_rate(&mut s, &c) == ReadingUse::Used;
-                s.push_paper(c);
-                if self.update_paper_range(&mut s, &c.range) == ReadingUse::Used {
-                    s.paper_x = self.paper_bias();
-                }
-            }
-        } else if self.cfg.paper_rate_with_attitude && uses[2] != ReadingUse::Used {
-            // The attitude pins the light's own range; its change is what
-            // the random-walk surge lacks without a DVL.
-            if let Some(mut c) = self.paper_range(frame) {
-                if self.cfg.paper_rate_geometry {
-                    c.model_bias = self.law_bias_at(&s, frame);
-                }
-                s.paper_rate_used = self.update_paper_rate(&mut s, &c) == ReadingUse::Used;
-                s.push_paper(c);
-            }
-        }
+        self.read_paper(&mut s, frame, &uses);
         if self.lost_to_readings(&mut s, &uses) {
             return self.restart(frame, &readings);
         }
@@ -436,10 +448,7 @@ impl Estimator for Tracker {
             e.readings = verdicts(uses);
             return e;
         }
-        let gt = frame
-            .temp_c
-            .filter(|t| t.is_finite())
-            .map_or(1.0, temperature_gain);
+        let gt = gain_of(frame);
         let kinds = Censoring::classify(&self.model, &frame.counts);
         let n_sat = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
         let inp = CountsInput {

@@ -365,14 +365,12 @@ impl Tracker {
     }
 
     /// The paper law's bias at the state: its range read off the light
-    /// model's own frame there, minus the state's x.
+    /// model's own frame there (on the stack: nothing allocated), minus the
+    /// state's x.
     pub(super) fn law_bias_at(&mut self, s: &State, frame: &Frame) -> Option<f64> {
         let m = &self.model;
         let q = crate::model::light::PoseVec::from_fn(|i, _| s.x[i]);
-        let gt = frame
-            .temp_c
-            .filter(|t| t.is_finite())
-            .map_or(1.0, lightpose_core::light::temperature_gain);
+        let gt = super::gain_of(frame);
         let (pred, _) = crate::model::light::predict(m, &q, s.x[KD].max(0.0), gt);
         let fs = m.full_scale();
         let mut f = Frame::new(

@@ -25,14 +25,13 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use lightpose_core::frame::full_scale;
-use lightpose_core::light::temperature_gain;
 use lightpose_core::{Frame, ReadingUse, Status};
 
 use super::readings::{Checked, FrameReadings};
 use super::state::{body_axes, Ms, State, Vs, KD, VEL};
 use super::Tracker;
 use crate::model::light::PoseVec;
-use crate::model::single_frame::{coarse_start, WATER_TEMP_C};
+use crate::model::single_frame::coarse_start;
 use crate::model::solver::{solve, LmResult, Prior, SolveOptions};
 use crate::settings::Motion;
 
@@ -164,10 +163,7 @@ impl Tracker {
         if !self.init.has_light(frame) {
             return Err(Status::NoLight);
         }
-        let gt = frame
-            .temp_c
-            .filter(|t| t.is_finite() && WATER_TEMP_C.contains(t))
-            .map_or(1.0, temperature_gain);
+        let gt = super::gain_of(frame);
         let Some(mut fit) = self.start_fit(frame, r, paper_x, gt) else {
             return Err(Status::NoLight);
         };
