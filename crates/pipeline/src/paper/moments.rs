@@ -141,6 +141,19 @@ impl MomentsEstimator {
             track: Track::new(),
         }
     }
+
+    /// The paper's range of one frame (steps 1–4's x: the brightest
+    /// channel through eqs. 2–3), the same as `estimate` gives, but
+    /// without touching the track that its y, z and surge carry: what the
+    /// tracker reads of the law, of the frames and of its own model's.
+    pub fn range_of(&self, frame: &lightpose_core::Frame) -> Option<f64> {
+        if !frame.t.is_finite() {
+            return None;
+        }
+        let k = &self.k;
+        let p = steps::prepare(frame, k.v_ref, &k.dark, k.default_temp_c, k.no_light_v).ok()?;
+        steps::range_from_peak(p.peak.value, k.x.a1, k.x.b1)
+    }
 }
 
 fn inside(v: f64, r: [f64; 2]) -> bool {
@@ -293,6 +306,24 @@ mod tests {
         assert_eq!(e.estimate(&f).status, Status::BadFrame);
         f.temp_c = None; // falls back to the default temperature
         assert_ne!(e.estimate(&f).status, Status::BadFrame);
+    }
+
+    #[test]
+    fn range_of_is_estimate_s_x() {
+        let cal = sample();
+        let (mut e, probe) = (MomentsEstimator::new(&cal), MomentsEstimator::new(&cal));
+        for (i, x) in [8.0, 6.5, 5.0, 2.0].into_iter().enumerate() {
+            let f = frame(i as u64, &on_axis(x), 10);
+            assert_eq!(probe.range_of(&f), e.estimate(&f).x, "at {x} m");
+        }
+        // No light, or no time: no range, as `estimate` says.
+        let mut dark = frame(9, &on_axis(6.0), 10);
+        dark.counts = [0; NDET];
+        assert_eq!(probe.range_of(&dark), None);
+        let mut timeless = frame(9, &on_axis(6.0), 10);
+        assert!(probe.range_of(&timeless).is_some());
+        timeless.t = f64::NAN;
+        assert_eq!(probe.range_of(&timeless), None);
     }
 
     #[test]

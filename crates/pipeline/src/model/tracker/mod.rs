@@ -193,7 +193,7 @@ impl Tracker {
     /// light's own range; its change is what the random-walk surge lacks
     /// without a DVL). With an attitude or depth reading the change is
     /// taken less the law's own drift the light model predicts.
-    fn read_paper(&mut self, s: &mut State, frame: &Frame, uses: &[ReadingUse; 3]) {
+    fn read_paper(&self, s: &mut State, frame: &Frame, uses: &[ReadingUse; 3]) {
         let attitude = uses[0] == ReadingUse::Used;
         if attitude && !(self.cfg.paper_rate_with_attitude && uses[2] != ReadingUse::Used) {
             return;

@@ -339,13 +339,13 @@ impl Tracker {
     /// calibration grid (scaled, see `paper_range_sigma_scale`) and the
     /// counts' noise at the brightest channel through the law,
     /// σ_count/(peak·b1), in quadrature.
-    pub(super) fn paper_range(&mut self, frame: &Frame) -> Option<PaperReading> {
+    pub(super) fn paper_range(&self, frame: &Frame) -> Option<PaperReading> {
         if !self.cfg.paper_range {
             return None;
         }
         let m = &self.model;
-        let p = self.paper.as_mut()?;
-        let x = lightpose_core::Estimator::estimate(&mut p.est, frame).x?;
+        let p = self.paper.as_ref()?;
+        let x = p.est.range_of(frame)?;
         let cpv = m.counts_per_volt();
         let (peak, k) = (0..frame.counts.len())
             .map(|k| (frame.counts[k] as f64 - m.offset_v[k] * cpv, k))
@@ -367,7 +367,7 @@ impl Tracker {
     /// The paper law's bias at the state: its range read off the light
     /// model's own frame there (on the stack: nothing allocated), minus the
     /// state's x.
-    pub(super) fn law_bias_at(&mut self, s: &State, frame: &Frame) -> Option<f64> {
+    pub(super) fn law_bias_at(&self, s: &State, frame: &Frame) -> Option<f64> {
         let m = &self.model;
         let q = crate::model::light::PoseVec::from_fn(|i, _| s.x[i]);
         let gt = super::gain_of(frame);
@@ -383,8 +383,8 @@ impl Tracker {
         for (c, p) in f.counts.iter_mut().zip(pred.iter()) {
             *c = p.round().clamp(0.0, fs) as u16;
         }
-        let p = self.paper.as_mut()?;
-        let x = lightpose_core::Estimator::estimate(&mut p.est, &f).x?;
+        let p = self.paper.as_ref()?;
+        let x = p.est.range_of(&f)?;
         let b = x - s.x[0];
         b.is_finite().then_some(b)
     }
