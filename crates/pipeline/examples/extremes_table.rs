@@ -22,7 +22,6 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use lightpose_core::{Angle, Estimator, Pose, PoseEstimate, Status};
-use lightpose_pipeline::model::{ModelEstimator, Tracker};
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{Scene, Simulator};
 
@@ -259,30 +258,24 @@ fn run(
     // the shipped calibration, as a user gets them. The calibration was
     // made on a 10-bit board; for another resolution the model-based ones
     // use the same light model at the board's resolution (what a
-    // calibration on that board would give: a 10-bit model refuses them),
-    // and a scenario that tells them K_D's doubt builds them with it.
-    let mut ests: Vec<Box<dyn Estimator>> = Vec::new();
-    for name in ["moments", "model", "tracker"] {
-        ests.push(build_estimator(name, cal).map_err(|e| e.to_string())?);
-    }
+    // calibration on that board would give: a 10-bit model refuses them;
+    // the paper's estimator reads any resolution's counts as volts), and a
+    // scenario that tells them K_D's doubt has it in their settings.
+    let mut cal = cal.clone();
     let phys = cal
         .physical
-        .as_ref()
+        .as_mut()
         .ok_or("the calibration has no [physical] light model")?;
-    let mut m = phys.sensor_model();
-    if m.adc_bits != scene.adc.bits || sc.told_k_d_sigma.is_some() {
-        m.adc_bits = scene.adc.bits;
+    phys.adc_bits = scene.adc.bits;
+    if let Some(v) = sc.told_k_d_sigma {
         let mut settings = cal.estimator.clone().unwrap_or_default();
-        if let Some(v) = sc.told_k_d_sigma {
-            settings.model.k_d_sigma = Some(v);
-            settings.tracker.k_d_sigma = Some(v);
-        }
-        ests[1] =
-            Box::new(ModelEstimator::new(m.clone(), settings.model).map_err(|e| e.to_string())?);
-        // With the paper's range, as `build_estimator` gives the tracker
-        // (the paper's estimator reads any resolution's counts as volts).
-        let tracker = Tracker::new(m, settings.tracker).map_err(|e| e.to_string())?;
-        ests[2] = Box::new(tracker.with_paper(cal));
+        settings.model.k_d_sigma = Some(v);
+        settings.tracker.k_d_sigma = Some(v);
+        cal.estimator = Some(settings);
+    }
+    let mut ests: Vec<Box<dyn Estimator>> = Vec::new();
+    for name in ["moments", "model", "tracker"] {
+        ests.push(build_estimator(name, &cal).map_err(|e| e.to_string())?);
     }
     let mut tallies: Vec<(&'static str, Tally)> =
         ests.iter().map(|e| (e.name(), Tally::default())).collect();

@@ -150,9 +150,18 @@ impl MomentsEstimator {
         if !frame.t.is_finite() {
             return None;
         }
+        self.prepared(frame).ok().and_then(|p| self.range(&p))
+    }
+
+    /// Steps 1–3 of `frame` with this calibration's coefficients.
+    fn prepared(&self, frame: &lightpose_core::Frame) -> Result<steps::Prepared, Status> {
         let k = &self.k;
-        let p = steps::prepare(frame, k.v_ref, &k.dark, k.default_temp_c, k.no_light_v).ok()?;
-        steps::range_from_peak(p.peak.value, k.x.a1, k.x.b1)
+        steps::prepare(frame, k.v_ref, &k.dark, k.default_temp_c, k.no_light_v)
+    }
+
+    /// Step 4's x: the peak through the range law (eqs. 2–3).
+    fn range(&self, p: &steps::Prepared) -> Option<f64> {
+        steps::range_from_peak(p.peak.value, self.k.x.a1, self.k.x.b1)
     }
 }
 
@@ -182,16 +191,16 @@ impl Estimator for MomentsEstimator {
         }
 
         // Steps 1–3: volts, offset, temperature, peak, moments.
-        let p = match steps::prepare(frame, k.v_ref, &k.dark, k.default_temp_c, k.no_light_v) {
+        let p = match self.prepared(frame) {
             Ok(p) => p,
             Err(st) => return empty(st),
         };
-        let (peak, m) = (p.peak, p.moments);
 
         // Step 4: x, pitch, yaw, and y, z as measured in this image.
-        let Some(x) = steps::range_from_peak(peak.value, k.x.a1, k.x.b1) else {
+        let Some(x) = self.range(&p) else {
             return empty(Status::NoLight);
         };
+        let m = p.moments;
         let mut est = empty(Status::Ok);
         est.x = Some(x);
         est.std.x = Some(k.x.sigma_m);

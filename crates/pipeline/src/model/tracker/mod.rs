@@ -332,22 +332,23 @@ impl Tracker {
         let Some(sigma_t) = self.cfg.temp_sigma_c.filter(|s| *s > 0.0) else {
             return 0.0;
         };
-        let t = frame
-            .temp_c
-            .filter(|t| WATER_TEMP_C.contains(t))
-            .unwrap_or(lightpose_core::light::T_REF_C);
-        let slope = lightpose_core::light::temperature_gain_slope(t);
+        let slope = lightpose_core::light::temperature_gain_slope(water_temp_of(frame));
         lightpose_core::finite(sigma_t * slope / ln_brightness_per_metre(x)).unwrap_or(0.0)
     }
 }
 
-/// The temperature gain g_T of `frame` (1 without a water temperature:
-/// the calibration's own, 20 °C).
-pub(super) fn gain_of(frame: &Frame) -> f64 {
+/// The water temperature of `frame`, °C: its own when it is one water can
+/// have, else the calibration's reference (20 °C, where g_T = 1).
+fn water_temp_of(frame: &Frame) -> f64 {
     frame
         .temp_c
-        .filter(|t| t.is_finite() && WATER_TEMP_C.contains(t))
-        .map_or(1.0, temperature_gain)
+        .filter(|t| WATER_TEMP_C.contains(t))
+        .unwrap_or(lightpose_core::light::T_REF_C)
+}
+
+/// The temperature gain g_T of `frame` (see `water_temp_of`).
+pub(super) fn gain_of(frame: &Frame) -> f64 {
+    temperature_gain(water_temp_of(frame))
 }
 
 /// The status of a frame the filter could not use: `saturated` when more
