@@ -10,7 +10,7 @@
 //! (attitude, depth, DVL) is used exactly when a frame carries one.
 
 use crate::calibration::{Calibration, PhysicalCalibration};
-use crate::model::{ModelEstimator, Tracker};
+use crate::model::{ModelEstimator, Tracker, WaterBank};
 use crate::paper::MomentsEstimator;
 use lightpose_core::Estimator;
 
@@ -73,8 +73,14 @@ pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimato
         }
         "tracker" => {
             let m = physical(cal, resolved)?.sensor_model();
-            let e = Tracker::new(m, settings.tracker).map_err(|e| config(e.to_string()))?;
-            Ok(Box::new(e.with_paper(cal)))
+            let e = Tracker::new(m, settings.tracker)
+                .map_err(|e| config(e.to_string()))?
+                .with_paper(cal);
+            if WaterBank::wanted(&e) {
+                let bank = WaterBank::new(&e).map_err(|e| config(e.to_string()))?;
+                return Ok(Box::new(bank));
+            }
+            Ok(Box::new(e))
         }
         _ => Err(BuildError::Unknown {
             name: name.to_string(),

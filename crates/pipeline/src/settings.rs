@@ -213,6 +213,9 @@ pub struct TrackerConfig {
     /// calibration's own standard error of K_D (the water of the sweep);
     /// in other water say how far it may be off (MODEL.md's Monte Carlo
     /// spread is 0.015, which `lightpose montecarlo` and `bench` tell it).
+    /// The tracker holds ln K_D, with this doubt as ln(1 + σ/K_D): +1σ is
+    /// K_D + σ, −1σ K_D/(1 + σ/K_D), so a wide doubt never reaches a water
+    /// with K_D < 0.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub k_d_sigma: Option<f64>,
     /// 1σ by which the frames' temperature may be off the photodiodes'
@@ -226,7 +229,15 @@ pub struct TrackerConfig {
     /// 70–76 % of those runs (RMS 0.023 m against a σ of 0.009–0.016).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub temp_sigma_c: Option<f64>,
-    /// Random-walk density of K_D, (m⁻¹)²/s.
+    /// Told a doubt about the water wider than `WaterBank::WIDE_LN_K_D`
+    /// (k_d_sigma above 0.65·K_D), run a bank of seven trackers in waters
+    /// spread over it, weighed by how well each explains the counts, and
+    /// report their mixture (7× the cost). Why: one tracker linearizes
+    /// Beer's law at one K_D, and told ±0.3 about 0.09 its x was beyond 3σ
+    /// on 160 of 165 `ok` frames in water of K_D 0.29 (docs/extremes.md).
+    pub water_bank: bool,
+    /// Random-walk density of K_D, (m⁻¹)²/s (the tracker's ln K_D walks
+    /// by this over K_D²).
     pub k_d_walk_psd: f64,
     /// Say `unobservable`, not `ok`, on a frame without an attitude
     /// reading. Off by default: with the body motion model, the
@@ -428,6 +439,7 @@ impl Default for TrackerConfig {
             paper_rate_geometry: true,
             paper_rate_frames: 3,
             paper_rate_drift_mps: 0.05,
+            water_bank: true,
             x_range: [3.0, 12.0],
             init_frames: 5,
             update_iterations: 1,

@@ -81,24 +81,31 @@ fn estimating_a_log_allocates_nothing() {
 
 /// The tracker, with the vehicle's own sensors (good and refused readings)
 /// and without (the paper's range, the sigma-point update), must not touch
-/// the heap per frame either once built.
+/// the heap per frame either once built; nor must the bank of waters it
+/// becomes when told a wide doubt about the water (`k_d_sigma = 0.3`).
 #[test]
 fn tracking_with_and_without_own_sensors_allocates_nothing() {
     let (cal, frames) = calibration_and_frames(&["fusion-all", "fusion-depth", "dive", "hard"]);
-    let mut est = lightpose_pipeline::build_estimator("tracker", &cal).expect("tracker");
-    let mut used = 0u64;
-    let before = allocs();
-    for f in &frames {
-        let e = est.estimate(f);
-        used += u64::from(e.readings.depth == lightpose_core::ReadingUse::Used);
+    let mut wide = cal.clone();
+    let mut settings = wide.estimator.clone().unwrap_or_default();
+    settings.tracker.k_d_sigma = Some(0.3);
+    wide.estimator = Some(settings);
+    for cal in [&cal, &wide] {
+        let mut est = lightpose_pipeline::build_estimator("tracker", cal).expect("tracker");
+        let mut used = 0u64;
+        let before = allocs();
+        for f in &frames {
+            let e = est.estimate(f);
+            used += u64::from(e.readings.depth == lightpose_core::ReadingUse::Used);
+        }
+        let after = allocs();
+        assert_eq!(
+            after - before,
+            0,
+            "{} allocations over {} frames",
+            after - before,
+            frames.len()
+        );
+        assert!(used >= 38);
     }
-    let after = allocs();
-    assert_eq!(
-        after - before,
-        0,
-        "{} allocations over {} frames",
-        after - before,
-        frames.len()
-    );
-    assert!(used >= 38);
 }

@@ -99,7 +99,10 @@ impl Tracker {
         (f, q)
     }
 
-    /// The tracker's state at a point of the true track.
+    /// The tracker's state at a point of the true track. The bound's K_D
+    /// coordinate is K_D itself, not the tracker's ln K_D: its prior is the
+    /// Monte Carlo's draw, Gaussian in K_D, and the transition leaves it
+    /// alone either way.
     fn true_state(&self, p: &TrackPoint) -> Vs {
         let mut x = Vs::zeros();
         let q = from_pose(&p.pose);

@@ -13,7 +13,7 @@
 use lightpose_core::{Frame, NDET};
 use nalgebra::{SMatrix, SVector};
 
-use super::state::{Ms, State, Vs, KD, NS};
+use super::state::{k_d_of, Ms, State, Vs, KD, NS};
 use super::Tracker;
 use crate::model::light::{predict, predict_with_grad, PoseVec};
 use crate::model::solver::Censoring;
@@ -79,12 +79,12 @@ impl Tracker {
         let m = &self.model;
         let at = |d: &SVector<f64, NP>| -> Zv {
             let q = PoseVec::from_fn(|i, _| s.x[i] + d[i]);
-            let kd = (s.x[KD] + d[5]).max(0.0);
+            let kd = (s.x[KD] + d[5]).exp();
             predict(m, &q, kd, gt).0
         };
         let h = H2.sqrt();
         // The centre point also gives the irradiance the noise model needs.
-        let (z0, irr) = predict(m, &PoseVec::from_fn(|i, _| s.x[i]), s.x[KD].max(0.0), gt);
+        let (z0, irr) = predict(m, &PoseVec::from_fn(|i, _| s.x[i]), k_d_of(&s.x), gt);
         let mut sp = SigmaSpread {
             s1: SMatrix::zeros(),
             s2: SMatrix::zeros(),
@@ -152,10 +152,12 @@ impl Tracker {
         let Some(cs) = pzz.cholesky() else {
             return REFUSED;
         };
-        let nis = y.dot(&cs.solve(&y)) / (n_used.max(1) as f64);
+        let chi2 = y.dot(&cs.solve(&y));
+        let nis = chi2 / (n_used.max(1) as f64);
         if !(nis <= self.cfg.nis_gate) {
             return REFUSED;
         }
+        let ll = log_likelihood(chi2, &cs.l());
         // Cross-covariance of the whole state with the counts:
         // P[:, idx]·L⁻ᵀ·S1ᵀ (exact for the rates, which the counts see only
         // through the pose and K_D).
@@ -176,6 +178,7 @@ impl Tracker {
         if !commit(s, xn, pn) {
             return REFUSED;
         }
+        s.counts_ll = Some(ll);
         true
     }
 
@@ -185,7 +188,8 @@ impl Tracker {
         let m = &self.model;
         let fs = m.full_scale();
         let q = PoseVec::from_fn(|i, _| xi[i]);
-        let (pred, irr, jac) = predict_with_grad(m, &q, xi[KD].max(0.0), inp.gt);
+        let k_d = k_d_of(xi);
+        let (pred, irr, jac) = predict_with_grad(m, &q, k_d, inp.gt);
         let mut h = Hm::zeros();
         let mut y = Zv::zeros();
         let mut r = Zv::from_element(1.0);
@@ -198,7 +202,7 @@ impl Tracker {
             for j in 0..5 {
                 h[(k, j)] = jac[(k, j)];
             }
-            h[(k, KD)] = jac[(k, 5)];
+            h[(k, KD)] = jac[(k, 5)] * k_d;
             y[k] = z - pred[k];
             r[k] = m.count_variance(irr[k] * m.gain[k] * inp.gt);
             n_used += 1;
@@ -212,6 +216,7 @@ impl Tracker {
         let xbar = s.x;
         let pbar = s.p;
         let mut xi = xbar;
+        let mut ll = 0.0;
         let mut last: Option<(Hm, SMatrix<f64, NDET, NDET>, SMatrix<f64, NS, NDET>)> = None;
         for it in 0..self.cfg.update_iterations {
             let (h, y, rd, n_used) = self.counts_linearized(&xi, inp);
@@ -223,10 +228,11 @@ impl Tracker {
                 return REFUSED;
             };
             if it == 0 {
-                let nis = innov.dot(&ch.solve(&innov)) / (n_used.max(1) as f64);
-                if !(nis <= self.cfg.nis_gate) {
+                let chi2 = innov.dot(&ch.solve(&innov));
+                if !(chi2 / (n_used.max(1) as f64) <= self.cfg.nis_gate) {
                     return REFUSED;
                 }
+                ll = log_likelihood(chi2, &ch.l());
             }
             let mut k = pbar * h.transpose() * ch.inverse();
             s.consider(&mut k);
@@ -250,12 +256,22 @@ impl Tracker {
         if !commit(s, xi, p) {
             return REFUSED;
         }
+        s.counts_ll = Some(ll);
         true
     }
 }
 
+/// ln of the counts' Gaussian density at the innovation, less the constant:
+/// −(χ² + ln det S)/2 with S = L·Lᵀ. Channels that did not enter carry a
+/// unit variance and a zero innovation: nothing.
+fn log_likelihood(chi2: f64, l: &SMatrix<f64, NDET, NDET>) -> f64 {
+    let log_det: f64 = (0..NDET).map(|k| 2.0 * l[(k, k)].ln()).sum();
+    -0.5 * (chi2 + log_det)
+}
+
 /// Take `x`, `p` as the new state if every number is finite and no variance
-/// that was positive has gone non-positive; K_D is kept ≥ 0.
+/// that was positive has gone non-positive; K_D is kept at least
+/// `MIN_K_D` (its state is ln K_D, so it is positive by construction).
 pub(super) fn commit(s: &mut State, x: Vs, p: Ms) -> bool {
     if !(x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite())) {
         return false;
@@ -264,7 +280,7 @@ pub(super) fn commit(s: &mut State, x: Vs, p: Ms) -> bool {
         return false;
     }
     s.x = x;
-    s.x[KD] = s.x[KD].max(0.0);
+    s.x[KD] = s.x[KD].max(super::state::ln_k_d(0.0));
     s.p = (p + p.transpose()) * 0.5;
     true
 }

@@ -20,13 +20,15 @@
 //! - `counts`: the update with the 25 counts (EKF, or sigma points when no
 //!   reading pins the attitude);
 //! - `start`: the start-up fit (with the readings as priors);
-//! - `bound`: the bound for a tracker along a known track (posterior CRB).
+//! - `bound`: the bound for a tracker along a known track (posterior CRB);
+//! - `bank`: trackers in several waters, when told the water is unknown.
 //!
 //! Fixed-size matrices throughout: no allocation per frame.
 
 // `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod bank;
 mod bound;
 mod counts;
 mod motion;
@@ -43,6 +45,7 @@ use lightpose_core::{
     Estimator, Frame, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev,
 };
 
+pub use self::bank::WaterBank;
 pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
 use self::counts::CountsInput;
 use self::readings::{gate_thresholds, FrameReadings};
@@ -61,6 +64,8 @@ struct PaperRange {
     sigma_m: f64,
     /// Its exponent, 1/m: ln-brightness per metre.
     b1: f64,
+    /// K_D of the water it was fitted in (the calibration's), m⁻¹.
+    k_d0: f64,
 }
 
 impl PaperRange {
@@ -131,8 +136,24 @@ impl Tracker {
             est: MomentsEstimator::new(cal),
             sigma_m: cal.fits.x.sigma_m,
             b1: cal.fits.x.b1,
+            k_d0: self.model.light.k_d,
         });
         self
+    }
+
+    /// This tracker in water of K_D `k_d` known to `sigma` (1σ, m⁻¹): its
+    /// light model, start-up fit and K_D state are there; the paper's law
+    /// keeps the water it was fitted in. One member of a [`WaterBank`].
+    pub fn in_water(&self, k_d: f64, sigma: f64) -> Result<Self, ModelError> {
+        let mut model = self.model.clone();
+        model.light.k_d = k_d;
+        let cfg = TrackerConfig {
+            k_d_sigma: Some(sigma),
+            ..self.cfg.clone()
+        };
+        let mut t = Tracker::new(model, cfg)?;
+        t.paper = self.paper.clone();
+        Ok(t)
     }
 
     /// [`PaperRange::bias`] of this tracker's paper range, if it has one.
@@ -145,9 +166,23 @@ impl Tracker {
         &self.cfg
     }
 
-    /// Current K_D of the filter and its 1σ (when it is estimated).
+    /// Current K_D of the filter and its 1σ (when it is estimated; the
+    /// state's σ of ln K_D times K_D).
     pub fn k_d(&self) -> Option<(f64, f64)> {
-        self.state.as_ref().map(|s| (s.x[KD], s.sd(KD)))
+        self.state.as_ref().map(|s| {
+            let k = state::k_d_of(&s.x);
+            (k, k * s.sd(KD))
+        })
+    }
+
+    /// ln of the counts' density at the innovation (less the constant) of
+    /// the frame at time `t`, if the state's last step fused that frame's
+    /// counts: what a bank of trackers in different waters weighs them by.
+    pub fn counts_log_likelihood(&self, t: f64) -> Option<f64> {
+        self.state
+            .as_ref()
+            .filter(|s| s.t == t)
+            .and_then(|s| s.counts_ll)
     }
 
     /// Start from `frame` (first frame, after a gap, or when lost).
@@ -424,6 +459,7 @@ impl Estimator for Tracker {
         let Some(mut s) = self.carried_to(frame.t) else {
             return self.restart(frame, &readings);
         };
+        s.counts_ll = None;
         let uses = self.update_readings(&mut s, &readings);
         // A DVL ties successive ranges together independently of the
         // light, so the brightness along the track measures K_D (Beer's

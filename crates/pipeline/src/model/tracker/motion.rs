@@ -22,7 +22,9 @@ impl Tracker {
             Motion::Body => self.predict_body(s, dt),
         }
         if s.k_d_free {
-            s.p[(KD, KD)] += self.cfg.k_d_walk_psd * dt;
+            // The walk's density is in K_D, the state in ln K_D.
+            let k = super::state::k_d_of(&s.x);
+            s.p[(KD, KD)] += self.cfg.k_d_walk_psd * dt / (k * k).max(1e-18);
         }
         s.p = (s.p + s.p.transpose()) * 0.5;
     }

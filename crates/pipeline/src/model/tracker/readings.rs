@@ -23,7 +23,7 @@ use lightpose_core::{Frame, ReadingUse, Refusal};
 use nalgebra::{SMatrix, SVector};
 
 use super::counts::commit;
-use super::state::{body_axes, body_axes_derivatives, Ms, State, KD, NS, VEL};
+use super::state::{body_axes, body_axes_derivatives, k_d_of, Ms, State, KD, NS, VEL};
 use super::Tracker;
 use crate::settings::{Motion, TrackerConfig};
 
@@ -371,7 +371,7 @@ impl Tracker {
         let m = &self.model;
         let q = crate::model::light::PoseVec::from_fn(|i, _| s.x[i]);
         let gt = super::gain_of(frame);
-        let (pred, _) = crate::model::light::predict(m, &q, s.x[KD].max(0.0), gt);
+        let (pred, _) = crate::model::light::predict(m, &q, k_d_of(&s.x), gt);
         let fs = m.full_scale();
         let mut f = Frame::new(
             frame.seq,
@@ -482,13 +482,13 @@ impl Tracker {
     }
 
     /// How the paper's law scales a range (or its rate) in the state's
-    /// water: 1 + (K_D − K_D0)/b1, and its slope in K_D, 1/b1 (see
+    /// water: 1 + (K_D − K_D0)/b1, and its slope in ln K_D, K_D/b1 (see
     /// `update_paper_range`); (1, 0) without the law.
     fn paper_k_d_scale(&self, s: &State) -> (f64, f64) {
         match &self.paper {
             Some(p) if p.b1 > 0.0 => {
-                let per = 1.0 / p.b1;
-                (1.0 + (s.x[KD] - self.model.light.k_d) * per, per)
+                let k = k_d_of(&s.x);
+                (1.0 + (k - p.k_d0) / p.b1, k / p.b1)
             }
             _ => (1.0, 0.0),
         }
@@ -523,8 +523,33 @@ mod tests {
     /// A state cruising at 0.4 m/s along the beam axis, a little off it.
     fn cruising() -> State {
         let mut x = Vs::zeros();
-        x.copy_from_slice(&[6.0, 0.1, 0.2, 0.05, 0.02, 0.4, 0.0, 0.0, 0.0, 0.0, 0.14]);
-        let sd = [0.3, 0.2, 0.2, 0.1, 0.1, 0.15, 0.05, 0.05, 0.05, 0.05, 0.01];
+        // K_D 0.14 ± 0.01 (the state holds ln K_D).
+        x.copy_from_slice(&[
+            6.0,
+            0.1,
+            0.2,
+            0.05,
+            0.02,
+            0.4,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.14f64.ln(),
+        ]);
+        let sd = [
+            0.3,
+            0.2,
+            0.2,
+            0.1,
+            0.1,
+            0.15,
+            0.05,
+            0.05,
+            0.05,
+            0.05,
+            0.01 / 0.14,
+        ];
         let p = Ms::from_diagonal(&Vs::from_iterator(sd.iter().map(|s| s * s)));
         State::new(x, p, 0.6)
     }
@@ -652,7 +677,7 @@ mod tests {
         let tr = tank_tracker();
         let pinned = |sigma_k_d: f64| {
             let mut s = cruising();
-            s.x[KD] = tr.model.light.k_d;
+            s.x[KD] = super::super::state::ln_k_d(tr.model.light.k_d);
             s.doubt_k_d(sigma_k_d);
             let c = Checked {
                 z: SVector::<f64, 1>::new(s.x[0]),
@@ -662,18 +687,20 @@ mod tests {
             s.sd(0)
         };
         // The law reads water with K_D0 + δ as range x·(1 + δ/b1), as the
-        // light's own range does: a doubt of ±0.3 m⁻¹ is ~4 m of range at
-        // 6 m, which the reading must not take away; without a doubt it
-        // pins x within its own σ.
+        // light's own range does: a doubt of ±0.3 m⁻¹ about 0.09 (in ln
+        // K_D, +1σ at 0.39, −1σ at 0.021) is 2.2 m nearer and 1.3 m
+        // farther at 6 m, which the reading must not take away; without a
+        // doubt it pins x within its own σ.
         let (wide, none) = (pinned(0.3), pinned(0.0));
-        assert!(wide > 3.0, "σx {wide} with K_D ± 0.3");
+        assert!(wide > 1.5, "σx {wide} with K_D ± 0.3");
         assert!(none < 0.6, "σx {none} with K_D known");
         // Its model is the law's reading of the state's water.
         let mut s = cruising();
-        s.x[KD] = tr.model.light.k_d + 0.1;
+        let k = tr.model.light.k_d + 0.1;
+        s.x[KD] = super::super::state::ln_k_d(k);
         let (scale, per) = tr.paper_k_d_scale(&s);
         let b1 = tr.paper.as_ref().expect("paper").b1;
-        assert!((per - 1.0 / b1).abs() < 1e-12);
+        assert!((per - k / b1).abs() < 1e-12, "slope per ln K_D");
         assert!((scale - (1.0 + 0.1 / b1)).abs() < 1e-12);
     }
 

@@ -189,7 +189,7 @@ impl Tracker {
         for i in 8..10 {
             p[(i, i)] = c.init_rate_sigma_deg.to_radians().powi(2);
         }
-        x[KD] = self.model.light.k_d;
+        x[KD] = super::state::ln_k_d(self.model.light.k_d);
         let mut s = State::new(x, p, frame.t);
         s.paper_x = paper_x.and(self.paper_bias());
         s.doubt_k_d(self.k_d_sigma);

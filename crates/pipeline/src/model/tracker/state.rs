@@ -5,14 +5,41 @@
 use nalgebra::{SMatrix, SVector};
 
 /// State: x, y, z, θ, ψ, three velocities (body model: surge u, sideslip
-/// right v and down w; world model: ẋ, ẏ, ż), θ̇, ψ̇, K_D.
+/// right v and down w; world model: ẋ, ẏ, ż), θ̇, ψ̇, ln K_D.
 pub(super) const NS: usize = 11;
 /// Index of the first velocity component.
 pub(super) const VEL: usize = 5;
 /// Paper ranges kept for their change over `paper_rate_frames`.
 pub(super) const PAPER_RING: usize = crate::settings::PAPER_RATE_MAX_FRAMES;
-/// Index of K_D.
+/// Index of ln K_D. Why the logarithm: K_D is positive, and a doubt as
+/// wide as turbid water's (±0.3 m⁻¹ about the tank's 0.09) put the sigma
+/// points at K_D < 0, where the light equation had to be clamped at 0
+/// (biasing the predicted brightness up); in ln K_D every point is a
+/// water, and a doubt is a factor (`ln_k_d_sigma`).
 pub(super) const KD: usize = 10;
+
+/// The least K_D the state holds, m⁻¹: clearer than any natural water
+/// (the clearest ocean's is ~0.02), so that a calibration's K_D of 0 still
+/// has a logarithm.
+pub(super) const MIN_K_D: f64 = 1e-3;
+
+/// ln K_D as the state holds it.
+pub(super) fn ln_k_d(k_d: f64) -> f64 {
+    k_d.max(MIN_K_D).ln()
+}
+
+/// K_D of state `x`, m⁻¹.
+pub(super) fn k_d_of(x: &Vs) -> f64 {
+    x[KD].exp()
+}
+
+/// A doubt of `sigma_k_d` (m⁻¹, 1σ) about `k_d` as the state carries it,
+/// in ln K_D: ln(1 + σ/K_D), so that +1σ reaches K_D + σ exactly (turbid
+/// water, the side that matters) and a small doubt is σ/K_D to first
+/// order, as it was in K_D.
+pub(super) fn ln_k_d_sigma(k_d: f64, sigma_k_d: f64) -> f64 {
+    (sigma_k_d / k_d.max(MIN_K_D)).ln_1p()
+}
 
 pub(super) type Vs = SVector<f64, NS>;
 pub(super) type Ms = SMatrix<f64, NS, NS>;
@@ -45,6 +72,10 @@ pub(super) struct State {
     /// change (`paper_rate`).
     pub last_paper: [Option<super::readings::PaperReading>; PAPER_RING],
     pub paper_head: usize,
+    /// ln of the counts' density at this frame's innovation (less its
+    /// constant), when the counts were fused: how well the state's water
+    /// and pose explain the frame (`Tracker::counts_log_likelihood`).
+    pub counts_ll: Option<f64>,
 }
 
 impl State {
@@ -61,6 +92,7 @@ impl State {
             paper_rate_used: false,
             last_paper: [None; PAPER_RING],
             paper_head: 0,
+            counts_ll: None,
         }
     }
 
@@ -77,9 +109,12 @@ impl State {
     /// independent doubt, and x's ±2σ covered 51–79 % with the attitude
     /// sensor (ridge_diag, estimate_k_d = true).
     pub fn doubt_k_d(&mut self, sigma_k_d: f64) {
-        let sk2 = sigma_k_d * sigma_k_d;
+        let k = k_d_of(&self.x);
+        let sl = ln_k_d_sigma(k, sigma_k_d);
+        let sk2 = sl * sl;
         let r = self.x[0].max(0.1);
-        let g = -r / (self.x[KD].max(0.0) + 2.0 / r);
+        // ∂x/∂ln K_D = K_D·∂x/∂K_D.
+        let g = -r * k / (k + 2.0 / r);
         for j in 0..NS {
             self.p[(KD, j)] = 0.0;
             self.p[(j, KD)] = 0.0;
@@ -145,7 +180,7 @@ pub(super) fn beam_consider_sigma_x(x: &Vs, p: &Ms, sigma_b_rad: f64) -> f64 {
 /// metre: Beer's law and the inverse square, K_D + 2/x. What turns a
 /// brightness doubt (the beam's, the temperature's gain) into range.
 pub(super) fn ln_brightness_per_metre(x: &Vs) -> f64 {
-    x[KD].max(0.0) + 2.0 / x[0].max(0.1)
+    k_d_of(x) + 2.0 / x[0].max(0.1)
 }
 
 /// The body axes in B (columns of R_BV: forward, right, down) at pitch θ
@@ -178,4 +213,28 @@ pub(super) fn body_axes_derivatives(theta: f64, psi: f64) -> [[[f64; 3]; 3]; 2] 
             [sp * st, cp * st, 0.0],
         ],
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The told doubt in ln K_D: +1σ is K_D + σ exactly, −1σ is
+        /// K_D/(1 + σ/K_D) (above 0 however wide the doubt), and a small
+        /// doubt is σ/K_D to first order.
+        #[test]
+        fn a_k_d_doubt_in_ln_k_d_reaches_k_d_plus_sigma(k in 0.01f64..2.0, r in 0.0f64..50.0) {
+            let sigma = k * r;
+            let s = ln_k_d_sigma(k, sigma);
+            let up = (ln_k_d(k) + s).exp();
+            let down = (ln_k_d(k) - s).exp();
+            prop_assert!((up - (k + sigma)).abs() <= 1e-9 * (k + sigma));
+            prop_assert!(down > 0.0 && (down - k / (1.0 + r)).abs() <= 1e-9 * k);
+            if r < 0.01 {
+                prop_assert!((s - r).abs() <= r * r);
+            }
+        }
+    }
 }

@@ -1,0 +1,182 @@
+//! The tracker in water it was told it does not know: a bank of trackers,
+//! each in its own water (K_D spread over the told doubt), weighed by how
+//! well each explains the frames' counts, and reported as their mixture.
+//!
+//! Why: one tracker linearizes Beer's law at one K_D. Told a doubt as
+//! wide as unknown water's (±0.3 m⁻¹ about a tank's 0.09), the truth can
+//! be 1–2 nepers of brightness away from that point, where the filter's
+//! covariance no longer describes its error: in water of K_D 0.29 along a
+//! tank zigzag at 5–7 m, 160 of 165 `ok` frames were more than 3σ off in
+//! x. Each member of the bank is told only the doubt of its own cell, so
+//! its linearization holds; the mixture's σ holds the members' spread, and
+//! the weights learn the water as the vehicle moves (the ratio of
+//! brightness over a change of range is K_D's).
+
+use lightpose_core::{Estimator, Frame, PoseEstimate, StdDev};
+
+use super::state::ln_k_d_sigma;
+use super::Tracker;
+use crate::settings::ModelError;
+
+/// The nodes of the bank in units of the told doubt's σ in ln K_D: ±2σ in
+/// steps of 2/3σ (7 waters).
+const NODES: [f64; 7] = [-2.0, -4.0 / 3.0, -2.0 / 3.0, 0.0, 2.0 / 3.0, 4.0 / 3.0, 2.0];
+/// What one frame's likelihood counts for. A member in the wrong water
+/// makes the same error frame after frame, and its state absorbs part of
+/// it, so successive frames are far from independent evidence about the
+/// water: taken whole (1.0), the weights fell onto one member within a
+/// second, often the wrong one, and x was beyond 3σ on 35 of 660 `ok`
+/// frames in the calibration's own water (one tracker: 10). At 0.1 (a
+/// frame is a tenth of an independent look; 5 Hz frames decorrelate over
+/// about 2 s): 0, and in water of K_D + 0.1 / + 0.2, 17 of 431 / 3 of 210
+/// (0.3: 19 / 33 / 24; 0.05: 0 / 0 / 0 with σx 1.5–4× wider).
+const EVIDENCE: f64 = 0.1;
+/// Each frame a share of every member's prior weight is given back, so
+/// that a water ruled out long ago can return (the vehicle may leave a
+/// turbid plume): about one in ten thousand.
+const REVIVE: f64 = 1e-4;
+
+/// A bank of trackers in different waters (name `"tracker"`).
+#[derive(Debug, Clone)]
+pub struct WaterBank {
+    members: Vec<Tracker>,
+    prior: [f64; NODES.len()],
+    weight: [f64; NODES.len()],
+    /// The members' estimates of the current frame (reused).
+    last: Vec<PoseEstimate>,
+}
+
+impl WaterBank {
+    /// The doubt in ln K_D above which a tracker is run as a bank (`water_bank`):
+    /// 0.5, a told σ of 0.65·K_D, where e^(−K_D·x) at 6 m is already a
+    /// neper or more from its tangent at 2σ. MODEL.md's Monte Carlo spread
+    /// (0.015 about 0.09) is 0.15 and stays one tracker.
+    pub const WIDE_LN_K_D: f64 = 0.5;
+
+    /// Whether `tracker` should run as a bank: `water_bank` on and its
+    /// told doubt about its water wide.
+    pub fn wanted(tracker: &Tracker) -> bool {
+        tracker.cfg.water_bank
+            && ln_k_d_sigma(tracker.model.light.k_d, tracker.k_d_sigma) > Self::WIDE_LN_K_D
+    }
+
+    /// The bank about `tracker`'s water and its told doubt.
+    pub fn new(tracker: &Tracker) -> Result<Self, ModelError> {
+        let k0 = tracker.model.light.k_d;
+        let sl = ln_k_d_sigma(k0, tracker.k_d_sigma);
+        let half_cell = sl * (NODES[1] - NODES[0]) / 2.0;
+        let mut members = Vec::with_capacity(NODES.len());
+        let mut prior = [0.0; NODES.len()];
+        for (i, g) in NODES.iter().enumerate() {
+            let k = (super::state::ln_k_d(k0) + g * sl).exp();
+            // The member's own doubt spans half its cell: ln(1 + σ/K) = it.
+            members.push(tracker.in_water(k, k * half_cell.exp_m1())?);
+            prior[i] = (-0.5 * g * g).exp();
+        }
+        let total: f64 = prior.iter().sum();
+        prior.iter_mut().for_each(|w| *w /= total);
+        Ok(WaterBank {
+            members,
+            prior,
+            weight: prior,
+            last: Vec::with_capacity(NODES.len()),
+        })
+    }
+
+    /// The bank's K_D: the weighted geometric mean of its members' waters,
+    /// m⁻¹.
+    pub fn k_d(&self) -> f64 {
+        let ln: f64 = self
+            .members
+            .iter()
+            .zip(&self.weight)
+            .map(|(m, w)| w * m.model.light.k_d.ln())
+            .sum();
+        ln.exp()
+    }
+
+    /// Weigh the members by this frame's counts: each member's likelihood;
+    /// a member that fused no counts this frame while others did is taken
+    /// as explaining them no better than the worst that did.
+    fn weigh(&mut self, t: f64) {
+        let mut ll = [None; NODES.len()];
+        for (l, m) in ll.iter_mut().zip(&self.members) {
+            *l = m.counts_log_likelihood(t);
+        }
+        let Some(worst) = ll.iter().flatten().copied().reduce(f64::min) else {
+            return;
+        };
+        let best = ll.iter().flatten().copied().fold(worst, f64::max);
+        for (w, l) in self.weight.iter_mut().zip(&ll) {
+            *w *= (EVIDENCE * (l.unwrap_or(worst) - best)).exp();
+        }
+        let total: f64 = self.weight.iter().sum();
+        if !(total > 0.0 && total.is_finite()) {
+            self.weight = self.prior;
+            return;
+        }
+        for (w, p) in self.weight.iter_mut().zip(&self.prior) {
+            *w = (1.0 - REVIVE) * *w / total + REVIVE * p;
+        }
+    }
+
+    /// The mixture of the members' estimates: each field's weighted mean
+    /// over the members that give it, and a σ that holds their spread;
+    /// status and readings' verdicts of the heaviest member.
+    fn mixture(&self) -> PoseEstimate {
+        let heaviest = (0..self.last.len())
+            .max_by(|&a, &b| self.weight[a].total_cmp(&self.weight[b]))
+            .unwrap_or(0);
+        let mut out = self.last[heaviest];
+        let mut vals = [None; 6];
+        let mut sds = [None; 6];
+        for f in 0..6 {
+            let (mut sw, mut m1, mut m2) = (0.0, 0.0, 0.0);
+            let centre = out.values()[f].unwrap_or(0.0);
+            for (e, w) in self.last.iter().zip(&self.weight) {
+                if let (Some(v), Some(s)) = (e.values()[f], e.std.values()[f]) {
+                    // Angles about the heaviest member's (no wrap at ±180°).
+                    let d = v - centre;
+                    sw += w;
+                    m1 += w * d;
+                    m2 += w * (s * s + d * d);
+                }
+            }
+            if sw > 0.0 {
+                let mean = m1 / sw;
+                vals[f] = Some(centre + mean);
+                sds[f] = Some((m2 / sw - mean * mean).max(0.0).sqrt());
+            }
+        }
+        [out.x, out.y, out.z, out.pitch_deg, out.yaw_deg, out.surge] = vals;
+        out.std = StdDev {
+            x: sds[0],
+            y: sds[1],
+            z: sds[2],
+            pitch: sds[3],
+            yaw: sds[4],
+            surge: sds[5],
+        };
+        out
+    }
+}
+
+impl Estimator for WaterBank {
+    fn name(&self) -> &'static str {
+        Tracker::NAME
+    }
+
+    fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
+        self.last.clear();
+        for m in self.members.iter_mut() {
+            self.last.push(m.estimate(frame));
+        }
+        self.weigh(frame.t);
+        self.mixture()
+    }
+
+    fn reset(&mut self) {
+        self.members.iter_mut().for_each(Estimator::reset);
+        self.weight = self.prior;
+    }
+}
