@@ -18,7 +18,7 @@ use std::sync::OnceLock;
 use lightpose_core::frame::full_scale;
 use lightpose_core::{Angle, AttitudeReading, Estimator, Frame, Pose, PoseEstimate, Status, NDET};
 use lightpose_pipeline::calibration::{Feature, Moment, Origin};
-use lightpose_pipeline::model::{ModelEstimator, Tracker};
+use lightpose_pipeline::model::{ModelEstimator, Tracker, WaterBank};
 use lightpose_pipeline::paper::steps;
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{Scene, Simulator};
@@ -49,23 +49,34 @@ fn tank() -> &'static Scene {
 /// the model-based ones are built from the same light model with that
 /// board's resolution (what a calibration made on that board would give),
 /// since a 10-bit model refuses other frames (see
-/// `resolution_mismatch_is_bad_frame_for_the_model_based`).
+/// `resolution_mismatch_is_bad_frame_for_the_model_based`). And the
+/// tracker told a wide doubt about the water, which makes it a bank of
+/// seven trackers in seven waters.
 fn estimators(bits: u8) -> Vec<Box<dyn Estimator>> {
     let c = cal();
     let phys = c.physical.as_ref().expect("tank.toml has [physical]");
     let mut m = phys.sensor_model();
+    let mut settings = c.estimator.clone().unwrap_or_default();
+    let mut wide = settings.tracker.clone();
+    wide.k_d_sigma = Some(0.3);
     if m.adc_bits == bits {
+        let mut told = c.clone();
+        settings.tracker = wide;
+        told.estimator = Some(settings);
+        let bank = build_estimator("tracker", &told).expect("bank");
         return ["moments", "model", "tracker"]
             .iter()
             .map(|n| build_estimator(n, c).expect("estimator"))
+            .chain([bank])
             .collect();
     }
     m.adc_bits = bits;
-    let settings = c.estimator.clone().unwrap_or_default();
+    let bank = Tracker::new(m.clone(), wide).expect("tracker told ±0.3");
     vec![
         build_estimator("moments", c).expect("moments"),
         Box::new(ModelEstimator::new(m.clone(), settings.model).expect("model")),
         Box::new(Tracker::new(m, settings.tracker).expect("tracker")),
+        Box::new(WaterBank::new(&bank).expect("bank")),
     ]
 }
 
