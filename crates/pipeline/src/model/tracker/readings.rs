@@ -524,31 +524,10 @@ mod tests {
     fn cruising() -> State {
         let mut x = Vs::zeros();
         // K_D 0.14 ± 0.01 (the state holds ln K_D).
-        x.copy_from_slice(&[
-            6.0,
-            0.1,
-            0.2,
-            0.05,
-            0.02,
-            0.4,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            0.14f64.ln(),
-        ]);
+        let (ln_k, sd_ln_k) = (0.14f64.ln(), 0.01 / 0.14);
+        x.copy_from_slice(&[6.0, 0.1, 0.2, 0.05, 0.02, 0.4, 0.0, 0.0, 0.0, 0.0, ln_k]);
         let sd = [
-            0.3,
-            0.2,
-            0.2,
-            0.1,
-            0.1,
-            0.15,
-            0.05,
-            0.05,
-            0.05,
-            0.05,
-            0.01 / 0.14,
+            0.3, 0.2, 0.2, 0.1, 0.1, 0.15, 0.05, 0.05, 0.05, 0.05, sd_ln_k,
         ];
         let p = Ms::from_diagonal(&Vs::from_iterator(sd.iter().map(|s| s * s)));
         State::new(x, p, 0.6)
