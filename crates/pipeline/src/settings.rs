@@ -231,10 +231,11 @@ pub struct TrackerConfig {
     pub temp_sigma_c: Option<f64>,
     /// Told a doubt about the water wider than `WaterBank::WIDE_LN_K_D`
     /// (k_d_sigma above 0.65·K_D), run a bank of seven trackers in waters
-    /// spread over it, weighed by how well each explains the counts, and
-    /// report their mixture (7× the cost). Why: one tracker linearizes
-    /// Beer's law at one K_D, and told ±0.3 about 0.09 its x was beyond 3σ
-    /// on 160 of 165 `ok` frames in water of K_D 0.29 (docs/extremes.md).
+    /// spread over it, each estimating K_D within its cell, weighed by how
+    /// well each explains the counts, and report their mixture (7× the
+    /// cost). Why: one tracker linearizes Beer's law at one K_D, and told
+    /// ±0.3 about 0.09 its x was beyond 3σ on 160 of 165 `ok` frames in
+    /// water of K_D 0.29 (the bank: 11 of 295; docs/estimators.md, "K_D").
     pub water_bank: bool,
     /// Random-walk density of K_D, (m⁻¹)²/s (the tracker's ln K_D walks
     /// by this over K_D²).

@@ -7,10 +7,11 @@
 //! be 1–2 nepers of brightness away from that point, where the filter's
 //! covariance no longer describes its error: in water of K_D 0.29 along a
 //! tank zigzag at 5–7 m, 160 of 165 `ok` frames were more than 3σ off in
-//! x. Each member of the bank is told only the doubt of its own cell, so
-//! its linearization holds; the mixture's σ holds the members' spread, and
-//! the weights learn the water as the vehicle moves (the ratio of
-//! brightness over a change of range is K_D's).
+//! x. Each member of the bank starts in its own water, told only the doubt
+//! of its cell, and estimates K_D from there (the ratio of brightness over
+//! a change of range is K_D's), so its linearization holds; the mixture's
+//! σ holds the members' spread, and the weights say which waters explain
+//! the frames.
 
 use lightpose_core::{Estimator, Frame, PoseEstimate, StdDev};
 
@@ -25,11 +26,11 @@ const NODES: [f64; 7] = [-2.0, -4.0 / 3.0, -2.0 / 3.0, 0.0, 2.0 / 3.0, 4.0 / 3.0
 /// makes the same error frame after frame, and its state absorbs part of
 /// it, so successive frames are far from independent evidence about the
 /// water: taken whole (1.0), the weights fell onto one member within a
-/// second, often the wrong one, and x was beyond 3σ on 35 of 660 `ok`
-/// frames in the calibration's own water (one tracker: 10). At 0.1 (a
-/// frame is a tenth of an independent look; 5 Hz frames decorrelate over
-/// about 2 s): 0, and in water of K_D + 0.1 / + 0.2, 17 of 431 / 3 of 210
-/// (0.3: 19 / 33 / 24; 0.05: 0 / 0 / 0 with σx 1.5–4× wider).
+/// second, often the wrong one. On the tank zigzag told ±0.3 (20 runs, in
+/// K_D 0.09 / 0.19 / 0.29; `tests.rs`), `ok` frames beyond 3σ: 21 / 39 / —
+/// at 1.0, 4 / 41 / — at 0.3, 0 / 4 / 11 at 0.1 (a frame is a tenth of an
+/// independent look); over a minute in K_D 0.19 / 0.29 / 0.49, 24 / 7 /
+/// 653 of ~1400 at 1.0, 9 / 1 / 495 at 0.3, 0 / 0 / 171 at 0.1.
 const EVIDENCE: f64 = 0.1;
 /// Each frame a share of every member's prior weight is given back, so
 /// that a water ruled out long ago can return (the vehicle may leave a
@@ -83,14 +84,14 @@ impl WaterBank {
         })
     }
 
-    /// The bank's K_D: the weighted geometric mean of its members' waters,
-    /// m⁻¹.
+    /// The bank's K_D: the weighted geometric mean of its members' (each
+    /// its estimate, or its water before it has one), m⁻¹.
     pub fn k_d(&self) -> f64 {
         let ln: f64 = self
             .members
             .iter()
             .zip(&self.weight)
-            .map(|(m, w)| w * m.model.light.k_d.ln())
+            .map(|(m, w)| w * m.k_d().map_or(m.model.light.k_d, |(k, _)| k).ln())
             .sum();
         ln.exp()
     }

@@ -141,14 +141,16 @@ impl Tracker {
         self
     }
 
-    /// This tracker in water of K_D `k_d` known to `sigma` (1σ, m⁻¹): its
-    /// light model, start-up fit and K_D state are there; the paper's law
-    /// keeps the water it was fitted in. One member of a [`WaterBank`].
+    /// This tracker in water of K_D `k_d` known to `sigma` (1σ, m⁻¹),
+    /// estimated from there on: its light model, start-up fit and K_D state
+    /// are there; the paper's law keeps the water it was fitted in. One
+    /// member of a [`WaterBank`].
     pub fn in_water(&self, k_d: f64, sigma: f64) -> Result<Self, ModelError> {
         let mut model = self.model.clone();
         model.light.k_d = k_d;
         let cfg = TrackerConfig {
             k_d_sigma: Some(sigma),
+            estimate_k_d: true,
             ..self.cfg.clone()
         };
         let mut t = Tracker::new(model, cfg)?;
