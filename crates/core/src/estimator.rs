@@ -14,4 +14,11 @@ pub trait Estimator: Send {
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate;
     /// Forget all state (a new run, or a jump in time).
     fn reset(&mut self);
+    /// The water's K_D (m⁻¹) as the estimator has learned it from the
+    /// frames so far, if it learns it; None when it takes the
+    /// calibration's (the default). What STATUS and the replay summary
+    /// report as `water_k_d`: water the calibration did not see, found.
+    fn water_k_d(&self) -> Option<f64> {
+        None
+    }
 }

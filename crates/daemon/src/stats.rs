@@ -219,6 +219,10 @@ pub struct Stats {
     /// Last error of the source, for STATUS.
     pub last_error: Mutex<Option<String>>,
     pub calibration_reloads: AtomicU64,
+    /// f64 bits of the water's K_D as the estimator has learned it
+    /// (`Estimator::water_k_d`); 0 (0.0) while it learns none, as no
+    /// learned water is that clear.
+    pub water_k_d_bits: AtomicU64,
     /// The source's own counters (temperature sensor and its fallback,
     /// bad serial lines, reopens, injected faults), copied about once a
     /// second by the frame thread.
@@ -238,6 +242,16 @@ impl Stats {
             t.is_finite().then_some(t),
             TempSource::from_u8(self.temp_source.load(Relaxed)),
         )
+    }
+    pub fn water_k_d(&self) -> Option<f64> {
+        let k = f64::from_bits(self.water_k_d_bits.load(Relaxed));
+        (k.is_finite() && k > 0.0).then_some(k)
+    }
+    pub fn set_water_k_d(&self, k: Option<f64>) {
+        self.water_k_d_bits.store(
+            k.filter(|k| k.is_finite()).unwrap_or(0.0).to_bits(),
+            Relaxed,
+        );
     }
     pub fn set_temp(&self, t: Option<f64>, src: TempSource) {
         self.temp_bits

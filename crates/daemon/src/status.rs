@@ -145,6 +145,7 @@ fn estimator(c: &StatusCtx) -> Value {
         "counts": counts,
         "calibration": c.cfg.calibration.describe(),
         "reloads": s.calibration_reloads.load(Relaxed),
+        "water_k_d": opt(s.water_k_d()),
     })
 }
 

@@ -655,3 +655,54 @@ fn tells_systemd_ready_status_and_watchdog() {
     assert!(got.contains("WATCHDOG=1"), "{got}");
     assert!(got.contains("STATUS=") && got.contains("frames"), "{got}");
 }
+
+/// Told that the water may be far from the calibration's (`k_d_sigma =
+/// 0.3`: the tracker runs as a bank of waters), the daemon's STATUS says
+/// which water the tracker found: a minute of coming and going at 4–6 m in
+/// K_D 0.19 water, against the tank calibration's 0.09. The paper's method
+/// learns no water, and says null.
+#[test]
+fn status_reports_the_water_the_tracker_learned() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = dir.path().join("murky.toml");
+    let text = std::fs::read_to_string(root().join("config/scenes/tank-ahrs.toml")).unwrap();
+    std::fs::write(&scene, text.replace("k_d = 0.09", "k_d = 0.19")).unwrap();
+    let traj = dir.path().join("to-and-fro.csv");
+    let mut csv = String::from("t,x,y,z,pitch,yaw\n");
+    for (i, x) in [6.0, 4.0, 6.0, 4.0, 6.0, 4.0, 6.0].iter().enumerate() {
+        csv += &format!("{},{x},0.1,0.1,2,-3\n", i * 10);
+    }
+    std::fs::write(&traj, csv).unwrap();
+    let cal = dir.path().join("told.toml");
+    let mut told = std::fs::read_to_string(root().join("config/calibration/tank.toml")).unwrap();
+    told += "\n[estimator.tracker]\nk_d_sigma = 0.3\n";
+    std::fs::write(&cal, told).unwrap();
+    for (estimator, want) in [("tracker", true), ("moments", false)] {
+        let (sub, addr) = subscriber();
+        let text = format!(
+            "rate_hz = 5.0\nestimator = \"{estimator}\"\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\npace = \"fast\"\nloop = false\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 1.0\n",
+            cal.display(),
+            scene.display(),
+            traj.display()
+        );
+        let cfg = Config::parse(&text, "murky.toml", None).expect("valid");
+        let h = run_in_process(cfg, Duration::from_secs(60));
+        // Until the run has ended and its last STATUS has come.
+        let mut msgs = Vec::new();
+        while !h.is_finished() {
+            msgs.extend(collect(&sub, Duration::from_millis(300)));
+        }
+        msgs.extend(collect(&sub, Duration::from_millis(300)));
+        let s = h.join().expect("daemon");
+        assert!(s.source_ended && s.frames == 301, "{} frames", s.frames);
+        let status = of_class(&msgs, "STATUS");
+        let last = &status.last().expect("a STATUS at stop").1;
+        let k = &last["estimator"]["water_k_d"];
+        if want {
+            let k = k.as_f64().unwrap_or_else(|| panic!("water_k_d in {last}"));
+            assert!((0.15..=0.24).contains(&k), "learned K_D {k}");
+        } else {
+            assert!(k.is_null(), "{last}");
+        }
+    }
+}

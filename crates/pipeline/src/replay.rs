@@ -167,6 +167,9 @@ pub struct ReplaySummary {
     pub readings: [[u64; ReadingUse::COUNT]; 3],
     /// Readings the log reader dropped as malformed (the frame was kept).
     pub bad_readings: u64,
+    /// The water's K_D as the estimator learned it by the log's end
+    /// (`Estimator::water_k_d`), m⁻¹, if it learns it.
+    pub water_k_d: Option<f64>,
 }
 
 impl ReplaySummary {
@@ -212,6 +215,7 @@ pub fn replay<W: Write>(
         seq_gaps: (0, 0),
         readings: [[0; ReadingUse::COUNT]; 3],
         bad_readings: 0,
+        water_k_d: None,
     };
     while let Some(item) = log.next_frame() {
         let frame = match item {
@@ -247,6 +251,7 @@ pub fn replay<W: Write>(
     s.cut = log.cut();
     s.seq_gaps = log.seq_gaps();
     s.bad_readings = log.bad_readings().0;
+    s.water_k_d = est.water_k_d();
     Ok(s)
 }
 

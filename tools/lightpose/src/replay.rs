@@ -61,6 +61,9 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     if let Some(line) = s.readings_line() {
         eprintln!("readings: {line}");
     }
+    if let Some(k) = s.water_k_d {
+        eprintln!("water: K_D {k:.3} m⁻¹ as the estimator learned it by the end");
+    }
     if s.bad_readings > 0 {
         eprintln!(
             "lightpose: {}: {} malformed sensor readings dropped (frames kept)",

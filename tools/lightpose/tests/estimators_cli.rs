@@ -272,3 +272,67 @@ fn crb_prints_the_bound_along_the_trajectory() {
     assert!(err.contains("no/such/scene.toml"), "{err}");
     assert_eq!(err.trim().lines().count(), 1, "{err}");
 }
+
+/// Told that the water may be far from the calibration's (`k_d_sigma =
+/// 0.3`, a bank of waters), the tracker learns the water of a log flown in
+/// murkier water than the tank's (K_D 0.19 against 0.09, a minute of
+/// coming and going at 4–6 m with the attitude sensor) and `replay` says
+/// so; told nothing, it says nothing about the water.
+#[test]
+fn replay_reports_the_water_the_tracker_learned_when_told_to_doubt_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("murky.toml");
+    let text = std::fs::read_to_string(root().join("config/scenes/tank-ahrs.toml")).unwrap();
+    assert!(text.contains("k_d = 0.09"), "the tank's water");
+    std::fs::write(&scene, text.replace("k_d = 0.09", "k_d = 0.19")).unwrap();
+    let traj = dir.path().join("to-and-fro.csv");
+    let mut csv = String::from("t,x,y,z,pitch,yaw\n");
+    for (i, x) in [6.0, 4.0, 6.0, 4.0, 6.0, 4.0, 6.0].iter().enumerate() {
+        csv += &format!("{},{x},0.1,0.1,2,-3\n", i * 10);
+    }
+    std::fs::write(&traj, csv).unwrap();
+    let log = dir.path().join("murky.jsonl");
+    let (ok, _, err) = lightpose(&[
+        "simulate",
+        "--scene",
+        s(&scene),
+        "--trajectory",
+        s(&traj),
+        "--seed",
+        "7",
+        "--out",
+        s(&log),
+    ]);
+    assert!(ok, "{err}");
+    let shipped = root().join("config/calibration/tank.toml");
+    let told = dir.path().join("told.toml");
+    let mut cal = std::fs::read_to_string(&shipped).unwrap();
+    cal += "\n[estimator.tracker]\nk_d_sigma = 0.3\n";
+    std::fs::write(&told, cal).unwrap();
+    let replay = |cal: &Path| {
+        let poses = dir.path().join("poses.jsonl");
+        let (ok, _, err) = lightpose(&[
+            "replay",
+            "--calibration",
+            s(cal),
+            "--estimator",
+            "tracker",
+            "--log",
+            s(&log),
+            "--out",
+            s(&poses),
+        ]);
+        assert!(ok, "{err}");
+        err
+    };
+    let err = replay(&told);
+    let k: f64 = err
+        .lines()
+        .find_map(|l| l.strip_prefix("water: K_D "))
+        .and_then(|l| l.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no water line in {err}"));
+    assert!((0.15..=0.24).contains(&k), "learned K_D {k}: {err}");
+    let err = replay(&shipped);
+    assert!(!err.contains("water:"), "{err}");
+}

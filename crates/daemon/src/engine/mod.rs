@@ -339,7 +339,9 @@ impl Engine {
             }
             (None, None) => self.stats.set_temp(None, TempSource::Missing),
         }
-        self.estimator.estimate(&f)
+        let est = self.estimator.estimate(&f);
+        self.stats.set_water_k_d(self.estimator.water_k_d());
+        est
     }
 
     /// Latency, counts, and the deadline: with a period, frame `seq` is

@@ -180,4 +180,12 @@ impl Estimator for WaterBank {
         self.members.iter_mut().for_each(Estimator::reset);
         self.weight = self.prior;
     }
+
+    /// The weighted water of the members, once one has started.
+    fn water_k_d(&self) -> Option<f64> {
+        self.members
+            .iter()
+            .any(|m| m.k_d().is_some())
+            .then(|| self.k_d())
+    }
 }

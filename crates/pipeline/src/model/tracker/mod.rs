@@ -525,4 +525,13 @@ impl Estimator for Tracker {
     fn reset(&mut self) {
         self.state = None;
     }
+
+    /// K_D while it is estimated (`estimate_k_d`, or from the first DVL
+    /// reading with `estimate_k_d_with_velocity`).
+    fn water_k_d(&self) -> Option<f64> {
+        self.state
+            .as_ref()
+            .filter(|s| s.k_d_free)
+            .map(|s| state::k_d_of(&s.x))
+    }
 }
