@@ -230,7 +230,7 @@ pub struct TrackerConfig {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub temp_sigma_c: Option<f64>,
     /// Told a doubt about the water wider than `WaterBank::WIDE_LN_K_D`
-    /// (k_d_sigma above 0.65·K_D), run a bank of seven trackers in waters
+    /// (k_d_sigma above 0.28·K_D), run a bank of seven trackers in waters
     /// spread over it, each estimating K_D within its cell, weighed by how
     /// well each explains the counts, and report their mixture (7× the
     /// cost). Why: one tracker linearizes Beer's law at one K_D, and told
