@@ -664,15 +664,8 @@ fn tells_systemd_ready_status_and_watchdog() {
 #[test]
 fn status_reports_the_water_the_tracker_learned() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let scene = dir.path().join("murky.toml");
-    let text = std::fs::read_to_string(root().join("config/scenes/tank-ahrs.toml")).unwrap();
-    std::fs::write(&scene, text.replace("k_d = 0.09", "k_d = 0.19")).unwrap();
-    let traj = dir.path().join("to-and-fro.csv");
-    let mut csv = String::from("t,x,y,z,pitch,yaw\n");
-    for (i, x) in [6.0, 4.0, 6.0, 4.0, 6.0, 4.0, 6.0].iter().enumerate() {
-        csv += &format!("{},{x},0.1,0.1,2,-3\n", i * 10);
-    }
-    std::fs::write(&traj, csv).unwrap();
+    let scene = root().join("tests/data/tank-murky.toml");
+    let traj = root().join("tests/data/to-and-fro.csv");
     let cal = dir.path().join("told.toml");
     let mut told = std::fs::read_to_string(root().join("config/calibration/tank.toml")).unwrap();
     told += "\n[estimator.tracker]\nk_d_sigma = 0.3\n";

@@ -281,16 +281,8 @@ fn crb_prints_the_bound_along_the_trajectory() {
 #[test]
 fn replay_reports_the_water_the_tracker_learned_when_told_to_doubt_it() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("murky.toml");
-    let text = std::fs::read_to_string(root().join("config/scenes/tank-ahrs.toml")).unwrap();
-    assert!(text.contains("k_d = 0.09"), "the tank's water");
-    std::fs::write(&scene, text.replace("k_d = 0.09", "k_d = 0.19")).unwrap();
-    let traj = dir.path().join("to-and-fro.csv");
-    let mut csv = String::from("t,x,y,z,pitch,yaw\n");
-    for (i, x) in [6.0, 4.0, 6.0, 4.0, 6.0, 4.0, 6.0].iter().enumerate() {
-        csv += &format!("{},{x},0.1,0.1,2,-3\n", i * 10);
-    }
-    std::fs::write(&traj, csv).unwrap();
+    let scene = root().join("tests/data/tank-murky.toml");
+    let traj = root().join("tests/data/to-and-fro.csv");
     let log = dir.path().join("murky.jsonl");
     let (ok, _, err) = lightpose(&[
         "simulate",
