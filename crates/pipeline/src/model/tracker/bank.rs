@@ -135,23 +135,26 @@ impl WaterBank {
             .max_by(|&a, &b| self.weight[a].total_cmp(&self.weight[b]))
             .unwrap_or(0);
         let mut out = self.last[heaviest];
-        let mut vals = [None; 6];
-        let mut sds = [None; 6];
-        for f in 0..6 {
-            let (mut sw, mut m1, mut m2) = (0.0, 0.0, 0.0);
-            let centre = out.values()[f].unwrap_or(0.0);
-            for (e, w) in self.last.iter().zip(&self.weight) {
-                if let (Some(v), Some(s)) = (e.values()[f], e.std.values()[f]) {
-                    // Angles about the heaviest member's (no wrap at ±180°).
-                    let d = v - centre;
-                    sw += w;
-                    m1 += w * d;
-                    m2 += w * (s * s + d * d);
+        // Angles about the heaviest member's (no wrap at ±180°).
+        let centre = out.values().map(|v| v.unwrap_or(0.0));
+        // Per field: Σw, Σw·d, Σw·(σ² + d²) over the members that give it.
+        let mut sums = [[0.0; 3]; 6];
+        for (e, w) in self.last.iter().zip(&self.weight) {
+            for (f, (v, s)) in e.values().into_iter().zip(e.std.values()).enumerate() {
+                if let (Some(v), Some(s)) = (v, s) {
+                    let d = v - centre[f];
+                    sums[f][0] += w;
+                    sums[f][1] += w * d;
+                    sums[f][2] += w * (s * s + d * d);
                 }
             }
+        }
+        let mut vals = [None; 6];
+        let mut sds = [None; 6];
+        for (f, [sw, m1, m2]) in sums.into_iter().enumerate() {
             if sw > 0.0 {
                 let mean = m1 / sw;
-                vals[f] = Some(centre + mean);
+                vals[f] = Some(centre[f] + mean);
                 sds[f] = Some((m2 / sw - mean * mean).max(0.0).sqrt());
             }
         }

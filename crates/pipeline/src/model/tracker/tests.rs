@@ -175,23 +175,9 @@ fn surge_is_given_only_once_known_to_its_threshold() {
 fn a_wide_k_d_doubt_is_held_by_a_bank_of_waters() {
     let (calibrated, mut one, mut bank) = told(0.3);
     assert!(WaterBank::wanted(&one));
-    let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
     // `ok` frames, and those whose x is beyond 3σ.
     let count = |est: &mut dyn Estimator, water: &SensorModel| {
-        let (mut n, mut beyond) = (0usize, 0usize);
-        for seed in 0..20u64 {
-            est.reset();
-            let mut rng = Rng::new(7000 + seed);
-            for i in 0..41u64 {
-                let t = i as f64 * 0.2;
-                let (pose, _) = zigzag(t);
-                let e = est.estimate(&synth_frame(water, &pose, i, t, att, &mut rng));
-                if let (Status::Ok, Some(x), Some(sx)) = (e.status, e.x, e.std.x) {
-                    n += 1;
-                    beyond += usize::from((x - pose.x).abs() > 3.0 * sx);
-                }
-            }
-        }
+        let (n, beyond, _) = x_over_runs(est, water, 7000..7020, 41, |t| zigzag(t).0);
         (n, beyond)
     };
     for extra in [0.0, 0.1, 0.2] {
@@ -362,28 +348,42 @@ proptest! {
     }
 }
 
-/// A minute of coming and going between 4 and 6 m (300 frames, 3 runs)
-/// in `water` with the attitude sensor: `ok` frames, those whose x is
-/// beyond 3σ, and x's RMS.
-fn a_minute(est: &mut dyn Estimator, water: &SensorModel) -> (usize, usize, f64) {
+/// Runs of `frames` frames at 5 Hz along `pose_at` in `water` with the
+/// attitude sensor, one per seed of `seeds`: `ok` frames, those whose x is
+/// beyond 3σ, and x's RMS over them.
+fn x_over_runs(
+    est: &mut dyn Estimator,
+    water: &SensorModel,
+    seeds: std::ops::Range<u64>,
+    frames: u64,
+    pose_at: impl Fn(f64) -> Pose,
+) -> (usize, usize, f64) {
     let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
     let (mut n, mut beyond, mut sq) = (0usize, 0usize, 0.0);
-    for seed in 0..3u64 {
+    for seed in seeds {
         est.reset();
-        let mut rng = Rng::new(99 + seed);
-        for i in 0..300u64 {
+        let mut rng = Rng::new(seed);
+        for i in 0..frames {
             let t = i as f64 * 0.2;
-            let x = 6.0 - 2.0 * (t / 20.0 * std::f64::consts::PI).sin().abs();
-            let pose = Pose::new(x, 0.1, 0.1, Angle::from_deg(2.0), Angle::from_deg(-3.0));
+            let pose = pose_at(t);
             let e = est.estimate(&synth_frame(water, &pose, i, t, att, &mut rng));
-            if let (Status::Ok, Some(ex), Some(sx)) = (e.status, e.x, e.std.x) {
+            if let (Status::Ok, Some(x), Some(sx)) = (e.status, e.x, e.std.x) {
                 n += 1;
-                sq += (ex - x) * (ex - x);
-                beyond += usize::from((ex - x).abs() > 3.0 * sx);
+                sq += (x - pose.x) * (x - pose.x);
+                beyond += usize::from((x - pose.x).abs() > 3.0 * sx);
             }
         }
     }
     (n, beyond, (sq / n.max(1) as f64).sqrt())
+}
+
+/// A minute of coming and going between 4 and 6 m (300 frames, 3 runs)
+/// in `water` (see `x_over_runs`).
+fn a_minute(est: &mut dyn Estimator, water: &SensorModel) -> (usize, usize, f64) {
+    x_over_runs(est, water, 99..102, 300, |t| {
+        let x = 6.0 - 2.0 * (t / 20.0 * std::f64::consts::PI).sin().abs();
+        Pose::new(x, 0.1, 0.1, Angle::from_deg(2.0), Angle::from_deg(-3.0))
+    })
 }
 
 /// The tank's calibration told `sigma` about its water: the tracker as
