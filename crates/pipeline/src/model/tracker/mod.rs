@@ -463,6 +463,7 @@ impl Estimator for Tracker {
         };
         s.counts_ll = None;
         let uses = self.update_readings(&mut s, &readings);
+        s.attitude_fused = uses[0] == ReadingUse::Used;
         // A DVL ties successive ranges together independently of the
         // light, so the brightness along the track measures K_D (Beer's
         // law): optionally, from the first velocity reading on, K_D is

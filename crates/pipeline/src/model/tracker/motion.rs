@@ -54,13 +54,20 @@ impl Tracker {
     /// surge u (a random walk) with a small sideslip (v right, w down,
     /// first-order Gauss–Markov towards 0), so that ż = u·sin θ + … ties
     /// the z/pitch and y/yaw ridges of one frame to each other over time.
+    /// Its memory is the vehicle's while the attitude is measured, shorter
+    /// while it is not (`side_tau_with_attitude_s`).
     fn predict_body(&self, s: &mut State, dt: f64) {
         let c = &self.cfg;
         let x = s.x;
         let axes = body_axes(x[3], x[4]);
         let [d_t, d_p] = body_axes_derivatives(x[3], x[4]);
         let vel = [x[VEL], x[VEL + 1], x[VEL + 2]];
-        let phi = (-dt / c.side_tau_s).exp();
+        let tau = if s.attitude_fused {
+            c.side_tau_with_attitude_s
+        } else {
+            c.side_tau_s
+        };
+        let phi = (-dt / tau).exp();
         let mut f = Ms::identity();
         for i in 0..3 {
             for (a, axis) in axes.iter().enumerate() {
@@ -81,7 +88,7 @@ impl Tracker {
         let mut q = Ms::zeros();
         // Each body axis' velocity noise, with the position it drags along
         // (the continuous white-acceleration block, pointed along the axis).
-        let q_side = 2.0 * c.side_sigma * c.side_sigma / c.side_tau_s;
+        let q_side = 2.0 * c.side_sigma * c.side_sigma / tau;
         for (a, qq) in [c.accel_psd, q_side, q_side].into_iter().enumerate() {
             let axis = axes[a];
             let vi = VEL + a;

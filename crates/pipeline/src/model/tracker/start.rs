@@ -203,6 +203,7 @@ impl Tracker {
             r.depth.if_fused(),
             r.velocity.if_fused(),
         ];
+        s.attitude_fused = uses[0] == ReadingUse::Used;
         Ok((s, uses))
     }
 

@@ -68,6 +68,9 @@ pub(super) struct State {
     /// surge's σ holds its drift (`paper_rate_drift_mps`): see
     /// `Tracker::surge_of`.
     pub paper_rate_used: bool,
+    /// This frame's attitude reading was fused: the next step's sideslip
+    /// is the vehicle's own (`side_tau_with_attitude_s`).
+    pub attitude_fused: bool,
     /// The last frames' paper ranges, newest at `paper_head`, for their
     /// change (`paper_rate`).
     pub last_paper: [Option<super::readings::PaperReading>; PAPER_RING],
@@ -90,6 +93,7 @@ impl State {
             k_d_free: false,
             paper_x: None,
             paper_rate_used: false,
+            attitude_fused: false,
             last_paper: [None; PAPER_RING],
             paper_head: 0,
             counts_ll: None,
