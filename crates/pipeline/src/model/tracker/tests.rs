@@ -264,6 +264,65 @@ fn world_motion_model_tracks_with_attitude_sensor() {
     assert!(rms[0] < 0.25 && rms[1] < 0.1 && rms[2] < 0.1, "{rms:?}");
 }
 
+/// The sideslip keeps the vehicle's memory (`side_tau_with_attitude_s`)
+/// only after a frame whose attitude reading was fused: without one it
+/// also carries the ridge's attitude error, and decays and wanders with
+/// `side_tau_s`. Everything else in the step is the same either way.
+#[test]
+fn the_sideslip_keeps_the_vehicle_s_memory_only_while_the_attitude_is_measured() {
+    use super::state::{Ms, Vs, VEL};
+    let tr = Tracker::new(SensorModel::default(), TrackerConfig::default()).unwrap();
+    let c = tr.config().clone();
+    assert!(c.side_tau_with_attitude_s > c.side_tau_s);
+    let mut x = Vs::zeros();
+    x[0] = 6.0;
+    x[VEL] = 0.5;
+    x[VEL + 1] = 0.1;
+    x[VEL + 2] = -0.08;
+    let p0 = 1e-4;
+    let dt = 0.2;
+    let step = |fused: bool| {
+        let mut s = State::new(x, Ms::identity() * p0, 0.0);
+        s.attitude_fused = fused;
+        tr.predict(&mut s, dt);
+        s
+    };
+    let (with, without) = (step(true), step(false));
+    for (s, tau) in [(with, c.side_tau_with_attitude_s), (without, c.side_tau_s)] {
+        let phi = (-dt / tau).exp();
+        let q = 2.0 * c.side_sigma * c.side_sigma / tau * dt;
+        for (i, v) in [(VEL + 1, 0.1), (VEL + 2, -0.08)] {
+            assert!((s.x[i] - v * phi).abs() < 1e-12, "{} {}", s.x[i], v * phi);
+            let want = phi * phi * p0 + q;
+            assert!((s.p[(i, i)] - want).abs() < 1e-12, "{} {want}", s.p[(i, i)]);
+        }
+    }
+    // Surge and the attitude's rates are the vehicle's either way.
+    assert_eq!(with.p[(VEL, VEL)], without.p[(VEL, VEL)]);
+    assert_eq!(with.p[(8, 8)], without.p[(8, 8)]);
+    assert_eq!(with.x[VEL], without.x[VEL]);
+    // The flag follows each frame's attitude reading: fused at a start and
+    // an update, not on a frame without one.
+    let m = SensorModel::default();
+    let mut tr = Tracker::new(m.clone(), TrackerConfig::default()).unwrap();
+    let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
+    let mut rng = Rng::new(5);
+    for (i, att, fused) in [
+        (0u64, att, true),
+        (1, att, true),
+        (2, None, false),
+        (3, att, true),
+    ] {
+        let t = i as f64 * 0.2;
+        tr.estimate(&synth_frame(&m, &zigzag(t).0, i, t, att, &mut rng));
+        assert_eq!(
+            tr.state.as_ref().map(|s| s.attitude_fused),
+            Some(fused),
+            "frame {i}"
+        );
+    }
+}
+
 /// With the paper's range in x, its bias reaches the reported σ of every
 /// pose axis that moves with x, by P_ix/P_xx of it, and only those.
 #[test]
