@@ -82,14 +82,21 @@ fn run_on(
     )
 }
 
-#[test]
-fn tracks_zigzag_with_attitude_sensor_honestly() {
+/// MODEL.md's attitude sensor (0.3° pitch, 1.5° yaw), and the tracker's
+/// defaults in water of exactly the synthetic model's K_D (nothing to
+/// doubt).
+fn ahrs_in_known_water() -> (Option<(f64, f64)>, TrackerConfig) {
     let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
-    // The synthetic water has exactly the model's K_D: nothing to add.
     let known_k_d = TrackerConfig {
         k_d_sigma: Some(0.0),
         ..TrackerConfig::default()
     };
+    (att, known_k_d)
+}
+
+#[test]
+fn tracks_zigzag_with_attitude_sensor_honestly() {
+    let (att, known_k_d) = ahrs_in_known_water();
     let (cover, rms) = run(known_k_d, att, 40);
     eprintln!("with AHRS: coverage {cover:.3?}, rms {rms:.3?}");
     for c in &cover[..5] {
@@ -117,11 +124,7 @@ fn crab(t: f64) -> (Pose, f64) {
 
 #[test]
 fn a_vehicle_that_starts_to_crab_stays_covered_with_the_attitude_sensor() {
-    let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
-    let known_k_d = TrackerConfig {
-        k_d_sigma: Some(0.0),
-        ..TrackerConfig::default()
-    };
+    let (att, known_k_d) = ahrs_in_known_water();
     let (cover, rms) = run_on(crab, known_k_d, att, 40);
     eprintln!("crabbing, with AHRS: coverage {cover:.3?}, rms {rms:.3?}");
     for c in &cover[..5] {
