@@ -80,15 +80,19 @@ fn inform<const M: usize>(p: &mut Mb, h: &SMatrix<f64, M, NB>, r: &SVector<f64, 
 impl Tracker {
     /// The tracker's transition over `dt` about state `x`: its Jacobian by
     /// central differences of the prediction, and its process noise (the
-    /// prediction of a zero covariance).
-    fn transition(&self, x: &Vs, dt: f64) -> (Ms, Ms) {
+    /// prediction of a zero covariance). `attitude`: the frames carry an
+    /// attitude reading, so the tracker steps as after one it fused (the
+    /// sideslip's `side_tau_with_attitude_s`).
+    fn transition(&self, x: &Vs, dt: f64, attitude: bool) -> (Ms, Ms) {
         let mut s = State::new(*x, Ms::zeros(), 0.0);
+        s.attitude_fused = attitude;
+        let at = s;
         self.predict(&mut s, dt);
         let q = s.p;
         let mut f = Ms::zeros();
         for j in 0..NS {
             let h = 1e-6 * (1.0 + x[j].abs());
-            let mut a = State::new(*x, Ms::zeros(), 0.0);
+            let mut a = at;
             let mut b = a;
             a.x[j] += h;
             b.x[j] -= h;
@@ -193,7 +197,7 @@ impl Tracker {
         for pt in track {
             let x = self.true_state(pt);
             if let Some((t0, x0)) = last {
-                let (f, q) = self.transition(&x0, pt.t - t0);
+                let (f, q) = self.transition(&x0, pt.t - t0, sc.attitude.is_some());
                 let mut fb = Mb::identity();
                 let mut qb = Mb::zeros();
                 for i in 0..NS {
@@ -272,5 +276,36 @@ mod tests {
         assert!(end.z < 0.02 && end.surge < 0.02, "{end:?}");
         // Later frames know more than the first.
         assert!(att[40].y < att[0].y && att[40].surge < att[0].surge);
+    }
+
+    /// The bound believes the tracker's motion model as the tracker runs
+    /// it: with attitude readings the sideslip's memory is
+    /// `side_tau_with_attitude_s`, without them `side_tau_s`.
+    #[test]
+    fn the_bound_steps_as_the_tracker_does_with_and_without_the_attitude() {
+        let short = TrackerConfig {
+            side_tau_with_attitude_s: TrackerConfig::default().side_tau_s,
+            ..TrackerConfig::default()
+        };
+        let scene = |attitude| TrackBoundScene {
+            temp_c: 20.0,
+            sigma_k_d: Some(0.015),
+            sigma_temp_c: Some(3.0),
+            attitude,
+            depth: Some(0.02),
+            dvl: Some(0.02),
+        };
+        let track = approach();
+        let bound = |cfg: &TrackerConfig, att| {
+            let tr = Tracker::new(SensorModel::default(), cfg.clone()).unwrap();
+            *tr.track_bound(&track, &scene(att)).last().unwrap()
+        };
+        let ahrs = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
+        let (long, brief) = (bound(&TrackerConfig::default(), ahrs), bound(&short, ahrs));
+        // A longer memory is more prior information on the sideslip.
+        assert!(long.y < brief.y * 0.95, "{long:?} {brief:?}");
+        assert!(long.z <= brief.z, "{long:?} {brief:?}");
+        // Without attitude readings the setting is not used.
+        assert_eq!(bound(&TrackerConfig::default(), None), bound(&short, None));
     }
 }
