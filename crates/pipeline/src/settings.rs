@@ -213,9 +213,10 @@ pub struct TrackerConfig {
     /// calibration's own standard error of K_D (the water of the sweep);
     /// in other water say how far it may be off (MODEL.md's Monte Carlo
     /// spread is 0.015, which `lightpose montecarlo` and `bench` tell it).
-    /// The tracker holds ln K_D, with this doubt as ln(1 + σ/K_D): +1σ is
-    /// K_D + σ, −1σ K_D/(1 + σ/K_D), so a wide doubt never reaches a water
-    /// with K_D < 0.
+    /// The tracker holds ln K_D, with this doubt as σ/K_D (its first-order
+    /// spread), so no sigma point is a water with K_D < 0; a doubt wider
+    /// than a quarter of K_D is a bank of waters (`water_bank`) spread
+    /// over ±2 ln(1 + σ/K_D), which reaches K_D + σ at +1σ.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub k_d_sigma: Option<f64>,
     /// 1σ by which the frames' temperature may be off the photodiodes'
@@ -230,7 +231,7 @@ pub struct TrackerConfig {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub temp_sigma_c: Option<f64>,
     /// Told a doubt about the water wider than `WaterBank::WIDE_LN_K_D`
-    /// (k_d_sigma above 0.28·K_D), run a bank of seven trackers in waters
+    /// (k_d_sigma above a quarter of K_D), run a bank of seven trackers in waters
     /// spread over it, each estimating K_D within its cell, weighed by how
     /// well each explains the counts, and report their mixture (7× the
     /// cost). Why: one tracker linearizes Beer's law at one K_D, and told

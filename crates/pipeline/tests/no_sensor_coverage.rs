@@ -94,8 +94,9 @@ fn tracker_std_covers_the_truth_without_the_attitude_sensor() {
 /// Why: with the law's residual halved in σx (`paper_range_sigma_scale`
 /// 0.5, the default until it was measured here), x's ±2σ covered 66 % of
 /// these runs (200 runs, `ridge_diag` with `OFF_AXIS=3,5`); at 1.0, 93 %.
-/// Here: 786 of 1317 frames (59.7 %) at 0.5, 1171 of 1291 (90.7 %) at 1.0
-/// (1164 of 1289 before K_D was held as ln K_D; 1195 of 1293 before the paper's law read K_D's doubt: it now pins x
+/// Here: 786 of 1317 frames (59.7 %) at 0.5, 1164 of 1289 (90.3 %) at 1.0
+/// (1171 of 1291 while one tracker took a told K_D doubt as ln(1 +
+/// σ/K_D), and 1164 of 1289 before K_D was held as ln K_D; 1195 of 1293 before the paper's law read K_D's doubt: it now pins x
 /// only outside that doubt, which the light's own range shares; 1193
 /// before the tracker was told the temperature's doubt too).
 #[test]

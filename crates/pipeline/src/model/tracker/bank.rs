@@ -15,7 +15,7 @@
 
 use lightpose_core::{Estimator, Frame, PoseEstimate, StdDev};
 
-use super::state::ln_k_d_sigma;
+use super::state::{ln_k_d_reach, ln_k_d_sigma};
 use super::Tracker;
 use crate::settings::ModelError;
 
@@ -49,15 +49,17 @@ pub struct WaterBank {
 
 impl WaterBank {
     /// The doubt in ln K_D above which a tracker is run as a bank
-    /// (`water_bank`): 0.25, a told σ of 0.28·K_D. Over a minute at 4–6 m
-    /// (3 runs, attitude sensor, tank calibration), one tracker told σ in
+    /// (`water_bank`): 0.25, a told σ of a quarter of K_D. Over a minute at
+    /// 4–6 m (3 runs, attitude sensor, tank calibration), one tracker told σ in
     /// water at +2σ had x beyond 3σ on 25 / 104 / 700 / 873 of ~880 `ok`
     /// frames told 0.015 / 0.03 / 0.05 / 0.08 (0.17 / 0.33 / 0.56 / 0.89
     /// of K_D), the bank on none, with half the x RMS. The bank wins even
-    /// at MODEL.md's Monte Carlo spread (0.015, 0.15 in ln K_D), but at
+    /// at MODEL.md's Monte Carlo spread (0.015, 0.17 in ln K_D), but at
     /// seven times the cost the Monte Carlo's doubt stays one tracker,
-    /// whose x ±2σ covers 93–96 % over its 8 s runs with the attitude
-    /// sensor (docs/estimators.md).
+    /// whose x ±2σ covers 95–97 % over its 8 s runs with the attitude
+    /// sensor (docs/estimators.md). Measured while one tracker held a
+    /// told doubt as ln(1 + σ/K_D); it holds σ/K_D now, so the threshold
+    /// is σ > 0.25·K_D (0.28·K_D then).
     pub const WIDE_LN_K_D: f64 = 0.25;
 
     /// Whether `tracker` should run as a bank: `water_bank` on and its
@@ -70,14 +72,14 @@ impl WaterBank {
     /// The bank about `tracker`'s water and its told doubt.
     pub fn new(tracker: &Tracker) -> Result<Self, ModelError> {
         let k0 = tracker.model.light.k_d;
-        let sl = ln_k_d_sigma(k0, tracker.k_d_sigma);
+        let sl = ln_k_d_reach(k0, tracker.k_d_sigma);
         let half_cell = sl * (NODES[1] - NODES[0]) / 2.0;
         let mut members = Vec::with_capacity(NODES.len());
         let mut prior = [0.0; NODES.len()];
         for (i, g) in NODES.iter().enumerate() {
             let k = (super::state::ln_k_d(k0) + g * sl).exp();
-            // The member's own doubt spans half its cell: ln(1 + σ/K) = it.
-            members.push(tracker.in_water(k, k * half_cell.exp_m1())?);
+            // The member's own doubt spans half its cell: σ/K = it.
+            members.push(tracker.in_water(k, k * half_cell)?);
             prior[i] = (-0.5 * g * g).exp();
         }
         let total: f64 = prior.iter().sum();
