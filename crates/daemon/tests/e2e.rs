@@ -4,7 +4,7 @@
 //! runs a few seconds at most (high frame rates).
 
 mod common;
-use common::run::{run_in_process, signal, spawn_daemon, wait_exit};
+use common::run::{run_in_process, run_to_end, signal, spawn_daemon, wait_exit};
 use common::{read_logs, root, shipped, subscriber};
 
 use lightpose_core::LogReader;
@@ -679,17 +679,10 @@ fn status_reports_the_water_the_tracker_learned() {
             traj.display()
         );
         let cfg = Config::parse(&text, "murky.toml", None).expect("valid");
-        let h = run_in_process(cfg, Duration::from_secs(60));
-        // Until the run has ended and its last STATUS has come.
-        let mut msgs = Vec::new();
-        while !h.is_finished() {
-            msgs.extend(collect(&sub, Duration::from_millis(300)));
-        }
-        msgs.extend(collect(&sub, Duration::from_millis(300)));
-        let s = h.join().expect("daemon");
+        let (s, msgs) = run_to_end(cfg, Duration::from_secs(60), &sub);
         assert!(s.source_ended && s.frames == 301, "{} frames", s.frames);
-        let status = of_class(&msgs, "STATUS");
-        let last = &status.last().expect("a STATUS at stop").1;
+        let status = common::run::of_class(&msgs, "STATUS");
+        let last = *status.last().expect("a STATUS at stop");
         let k = &last["estimator"]["water_k_d"];
         if want {
             let k = k.as_f64().unwrap_or_else(|| panic!("water_k_d in {last}"));

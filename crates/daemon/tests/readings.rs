@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::run::{collect, of_class, run_in_process};
+use common::run::{of_class, run_to_end};
 use common::{root, subscriber};
 use lightposed::Config;
 use std::time::Duration;
@@ -22,14 +22,7 @@ fn bad_readings_are_refused_by_reason_and_counted_in_status() {
     );
     let cfg = Config::parse(&text, "readings.toml", None).expect("valid config");
     // The log's end stops the daemon; the time is a backstop.
-    let h = run_in_process(cfg, Duration::from_secs(20));
-    let mut msgs = Vec::new();
-    while !h.is_finished() {
-        msgs.extend(collect(&sub, Duration::from_millis(100)));
-    }
-    // The final STATUS may still be on its way.
-    msgs.extend(collect(&sub, Duration::from_millis(200)));
-    let summary = h.join().expect("daemon");
+    let (summary, msgs) = run_to_end(cfg, Duration::from_secs(20), &sub);
     assert_eq!(summary.frames, 41, "{summary:?}");
     assert_eq!(
         of_class(&msgs, "POSE").len(),

@@ -50,6 +50,22 @@ fn sweep(dir: &Path, scene: &Path) -> (PathBuf, PathBuf) {
 
 /// `lightpose calibrate` on a (sweep, dark) pair into `out`, plus `extra`
 /// arguments; as [`lightpose`] returns.
+/// `lightpose simulate` of `scene` along `traj` with `seed` into `out`.
+fn simulate(scene: &Path, traj: &Path, seed: &str, out: &Path) {
+    let (ok, _, err) = lightpose(&[
+        "simulate",
+        "--scene",
+        s(scene),
+        "--trajectory",
+        s(traj),
+        "--seed",
+        seed,
+        "--out",
+        s(out),
+    ]);
+    assert!(ok, "{err}");
+}
+
 fn calibrate(sw: &Path, dk: &Path, out: &Path, extra: &[&str]) -> (bool, String, String) {
     let mut args = vec![
         "calibrate",
@@ -92,18 +108,12 @@ fn calibrate_fits_the_light_model_and_auto_replay_uses_the_tracker() {
     // Replay a short simulated log with "auto": the tracker is chosen and
     // named on stderr and in every POSE line.
     let log = dir.path().join("dive.jsonl");
-    let (ok, _, err) = lightpose(&[
-        "simulate",
-        "--scene",
-        s(&root().join("config/scenes/tank.toml")),
-        "--trajectory",
-        s(&root().join("config/trajectories/dive.csv")),
-        "--seed",
+    simulate(
+        &root().join("config/scenes/tank.toml"),
+        &root().join("config/trajectories/dive.csv"),
         "3",
-        "--out",
-        s(&log),
-    ]);
-    assert!(ok, "{err}");
+        &log,
+    );
     let poses = dir.path().join("poses.jsonl");
     let (ok, _, err) = lightpose(&[
         "replay",
@@ -284,18 +294,7 @@ fn replay_reports_the_water_the_tracker_learned_when_told_to_doubt_it() {
     let scene = root().join("tests/data/tank-murky.toml");
     let traj = root().join("tests/data/to-and-fro.csv");
     let log = dir.path().join("murky.jsonl");
-    let (ok, _, err) = lightpose(&[
-        "simulate",
-        "--scene",
-        s(&scene),
-        "--trajectory",
-        s(&traj),
-        "--seed",
-        "7",
-        "--out",
-        s(&log),
-    ]);
-    assert!(ok, "{err}");
+    simulate(&scene, &traj, "7", &log);
     let shipped = root().join("config/calibration/tank.toml");
     let told = dir.path().join("told.toml");
     let mut cal = std::fs::read_to_string(&shipped).unwrap();

@@ -85,6 +85,23 @@ pub fn run_in_process(
     run_until(cfg, async move { tokio::time::sleep(run_for).await })
 }
 
+/// Run the daemon in-process until its source ends (`backstop`: the most
+/// it may take), collecting what `sub` receives meanwhile and the last
+/// STATUS, which may still be on its way when the run ends.
+pub fn run_to_end(
+    cfg: Config,
+    backstop: Duration,
+    sub: &UdpSocket,
+) -> (lightposed::Summary, Vec<Value>) {
+    let h = run_in_process(cfg, backstop);
+    let mut msgs = Vec::new();
+    while !h.is_finished() {
+        msgs.extend(collect(sub, Duration::from_millis(100)));
+    }
+    msgs.extend(collect(sub, Duration::from_millis(300)));
+    (h.join().expect("daemon"), msgs)
+}
+
 /// Start the real binary with `cfg_text` (written into `dir`); wait until
 /// POSE flows to `sub`, and give the datagrams received until then. The
 /// caller owns the child and waits for it.
