@@ -13,7 +13,10 @@
 //! MC = draw T and K_D per run as the Monte Carlo does (frames report T0);
 //! QUIET = summary only; TRACE = one line per frame of the first seed;
 //! COMMON = "after 1 s" only over frames where every estimator gave the
-//! axis; TIME = the time per frame of each estimator on each run.
+//! axis; TIME = the time per frame of each estimator on each run;
+//! UNTOLD = with MC, leave the estimators unaware of the water's spread,
+//! as the daemon is by default. A run whose estimator learned the water
+//! (a bank, or the water check fired) says so on a line of its own.
 // Axis loops index several per-axis arrays at once.
 #![allow(clippy::needless_range_loop)]
 
@@ -114,7 +117,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let quiet = std::env::var("QUIET").is_ok();
     let mc = std::env::var("MC").is_ok();
-    if mc {
+    if mc && std::env::var("UNTOLD").is_err() {
         cal = cal.in_water_known_to(base.montecarlo.sigma_k_d, base.montecarlo.sigma_temp_c);
     }
     let mut ests = names
@@ -164,6 +167,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 eprintln!("--- {} seed {seed}", names[ei]);
             }
             let (mut all, mut late, per) = run_one(est.as_mut(), &frames, t0, trace);
+            if let Some(k) = est.water_k_d() {
+                println!("seed {seed:3} {:8} water K_D {k:.4} learned", names[ei]);
+            }
             let pa: Vec<f64> = all.iter_mut().map(|v| p95(v)).collect();
             let pl: Vec<f64> = late.iter_mut().map(|v| p95(v)).collect();
             p.push((pa, pl));

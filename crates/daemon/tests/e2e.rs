@@ -660,17 +660,29 @@ fn tells_systemd_ready_status_and_watchdog() {
 /// 0.3`: the tracker runs as a bank of waters), the daemon's STATUS says
 /// which water the tracker found: a minute of coming and going at 4–6 m in
 /// K_D 0.19 water, against the tank calibration's 0.09. The paper's method
-/// learns no water, and says null.
+/// learns no water, and says null. Told nothing, the tracker finds it too
+/// when the vehicle has a DVL (its water check); without one it cannot,
+/// and says null.
 #[test]
 fn status_reports_the_water_the_tracker_learned() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let scene = root().join("tests/data/tank-murky.toml");
+    let murky = root().join("tests/data/tank-murky.toml");
+    let with_dvl = dir.path().join("murky-dvl.toml");
+    let mut scene = std::fs::read_to_string(&murky).unwrap();
+    scene += "\n[depth]\n\n[dvl]\n";
+    std::fs::write(&with_dvl, scene).unwrap();
     let traj = root().join("tests/data/to-and-fro.csv");
+    let untold = root().join("config/calibration/tank.toml");
     let cal = dir.path().join("told.toml");
-    let mut told = std::fs::read_to_string(root().join("config/calibration/tank.toml")).unwrap();
+    let mut told = std::fs::read_to_string(&untold).unwrap();
     told += "\n[estimator.tracker]\nk_d_sigma = 0.3\n";
     std::fs::write(&cal, told).unwrap();
-    for (estimator, want) in [("tracker", true), ("moments", false)] {
+    for (estimator, cal, scene, want) in [
+        ("tracker", &cal, &murky, true),
+        ("moments", &cal, &murky, false),
+        ("tracker", &untold, &with_dvl, true),
+        ("tracker", &untold, &murky, false),
+    ] {
         let (sub, addr) = subscriber();
         let text = format!(
             "rate_hz = 5.0\nestimator = \"{estimator}\"\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\npace = \"fast\"\nloop = false\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 1.0\n",
@@ -686,9 +698,13 @@ fn status_reports_the_water_the_tracker_learned() {
         let k = &last["estimator"]["water_k_d"];
         if want {
             let k = k.as_f64().unwrap_or_else(|| panic!("water_k_d in {last}"));
-            assert!((0.15..=0.24).contains(&k), "learned K_D {k}");
+            assert!(
+                (0.15..=0.24).contains(&k),
+                "{estimator} {}: K_D {k}",
+                scene.display()
+            );
         } else {
-            assert!(k.is_null(), "{last}");
+            assert!(k.is_null(), "{estimator} {}: {last}", scene.display());
         }
     }
 }

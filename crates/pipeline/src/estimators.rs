@@ -10,7 +10,7 @@
 //! (attitude, depth, DVL) is used exactly when a frame carries one.
 
 use crate::calibration::{Calibration, PhysicalCalibration};
-use crate::model::{ModelEstimator, Tracker, WaterBank};
+use crate::model::{ModelEstimator, Tracker, WaterBank, WaterWatch};
 use crate::paper::MomentsEstimator;
 use lightpose_core::Estimator;
 
@@ -79,6 +79,9 @@ pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimato
             if WaterBank::wanted(&e) {
                 let bank = WaterBank::new(&e).map_err(|e| config(e.to_string()))?;
                 return Ok(Box::new(bank));
+            }
+            if WaterWatch::wanted(&e) {
+                return Ok(Box::new(WaterWatch::new(e)));
             }
             Ok(Box::new(e))
         }

@@ -238,6 +238,23 @@ pub struct TrackerConfig {
     /// ±0.3 about 0.09 its x was beyond 3σ on 160 of 165 `ok` frames in
     /// water of K_D 0.29 (the bank: 11 of 295; docs/estimators.md, "K_D").
     pub water_bank: bool,
+    /// Frames of the water check (0: off): while a DVL's readings are
+    /// fused, the mean over this many frames of the counts' normalized
+    /// innovation squared per channel. Above `water_check_nis`, the water
+    /// is taken to be unlike the calibration's and the tracker goes on as
+    /// a bank of waters told `water_check_doubt` (`water_bank`), which
+    /// learns it. Why: untold, water of K_D 0.19 about a tank's 0.09 put
+    /// x 1.1 m off, reported `ok`; the DVL fixes the change of range
+    /// independently of the light, so a wrong K_D no longer hides in x and
+    /// shows as a misfit (docs/estimators.md, "The water check"). Only
+    /// with one tracker holding K_D (no `estimate_k_d`, no wide doubt).
+    pub water_check_frames: usize,
+    /// The water check's limit on that mean (1 in the calibration's
+    /// water).
+    pub water_check_nis: f64,
+    /// The K_D doubt (1σ, m⁻¹) the bank is told when the check fires:
+    /// what an operator who takes a calibration into unknown water sets.
+    pub water_check_doubt: f64,
     /// Random-walk density of K_D, (m⁻¹)²/s (the tracker's ln K_D walks
     /// by this over K_D²).
     pub k_d_walk_psd: f64,
@@ -408,6 +425,9 @@ pub struct TrackerConfig {
     pub max_saturated: usize,
 }
 
+/// The most frames `water_check_frames` may span (a fixed ring).
+pub const WATER_CHECK_MAX_FRAMES: usize = 64;
+
 /// The most frames `paper_rate_frames` may span (the tracker keeps that
 /// many paper ranges, in a fixed ring: no allocation per frame).
 pub const PAPER_RATE_MAX_FRAMES: usize = 8;
@@ -454,6 +474,9 @@ impl Default for TrackerConfig {
             paper_rate_frames: 3,
             paper_rate_drift_mps: 0.05,
             water_bank: true,
+            water_check_frames: 25,
+            water_check_nis: 1.7,
+            water_check_doubt: 0.3,
             x_range: [3.0, 12.0],
             init_frames: 5,
             update_iterations: 1,
@@ -498,6 +521,7 @@ impl TrackerConfig {
             ("paper_range_sigma_scale", self.paper_range_sigma_scale),
             ("paper_rate_drift_mps", self.paper_rate_drift_mps),
             ("surge_max_sigma", self.surge_max_sigma),
+            ("water_check_doubt", self.water_check_doubt),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!("tracker {name} = {v} must be positive"));
@@ -539,6 +563,18 @@ impl TrackerConfig {
             return bad(format!(
                 "tracker paper_rate_frames = {} must be 1 to {PAPER_RATE_MAX_FRAMES}",
                 self.paper_rate_frames
+            ));
+        }
+        if self.water_check_frames > WATER_CHECK_MAX_FRAMES {
+            return bad(format!(
+                "tracker water_check_frames = {} must be 0 (off) to {WATER_CHECK_MAX_FRAMES}",
+                self.water_check_frames
+            ));
+        }
+        if !(self.water_check_nis.is_finite() && self.water_check_nis > 1.0) {
+            return bad(format!(
+                "tracker water_check_nis = {} must be above 1 (its mean in the calibrated water)",
+                self.water_check_nis
             ));
         }
         if let Some(v) = self.init_lateral_sigma_deg {

@@ -340,7 +340,16 @@ impl Engine {
             (None, None) => self.stats.set_temp(None, TempSource::Missing),
         }
         let est = self.estimator.estimate(&f);
-        self.stats.set_water_k_d(self.estimator.water_k_d());
+        let water = self.estimator.water_k_d();
+        if let (Some(k), None) = (water, self.stats.water_k_d()) {
+            // A bank told the doubt, or the tracker's water check finding
+            // counts unlike the calibration's water (with a DVL).
+            tracing::warn!(
+                t = frame.t,
+                "the estimator is learning the water (K_D {k:.3} m⁻¹ so far): STATUS water_k_d"
+            );
+        }
+        self.stats.set_water_k_d(water);
         est
     }
 

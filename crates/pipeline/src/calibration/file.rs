@@ -819,6 +819,28 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn the_water_check_s_settings_are_read_and_checked() {
+        let mut text = sample().to_toml().unwrap();
+        text.push_str("\n[estimator.tracker]\nwater_check_frames = 0\n");
+        let c = Calibration::parse(&text, "c.toml").unwrap();
+        assert_eq!(c.estimator.unwrap().tracker.water_check_frames, 0);
+        for (key, bad, says) in [
+            ("water_check_frames", "65", "0 (off) to 64"),
+            ("water_check_nis", "1.0", "must be above 1"),
+            ("water_check_nis", "nan", "must be above 1"),
+            ("water_check_doubt", "-0.3", "must be positive"),
+        ] {
+            let mut text = sample().to_toml().unwrap();
+            text.push_str(&format!("\n[estimator.tracker]\n{key} = {bad}\n"));
+            let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+            assert!(
+                e.contains(key) && e.contains(says) && e.contains("c.toml"),
+                "{key} = {bad}: {e}"
+            );
+        }
+    }
+
+    #[test]
     fn features_round_trip_as_words() {
         for f in Feature::RATIOS.iter().chain(Feature::FIRST.iter()) {
             assert_eq!(Feature::try_from(f.to_string()), Ok(*f));

@@ -30,7 +30,7 @@ pub mod tracker;
 pub use light::{predict, predict_with_grad, PoseJacobian, NGRAD};
 pub use single_frame::ModelEstimator;
 pub use solver::{solve, Censoring, LmResult, Prior, SolveOptions};
-pub use tracker::{Tracker, WaterBank};
+pub use tracker::{Tracker, WaterBank, WaterWatch};
 
 use lightpose_core::frame::full_scale;
 use lightpose_core::{ArrayGeometry, LightParams, NDET};

@@ -179,6 +179,7 @@ impl Tracker {
             return REFUSED;
         }
         s.counts_ll = Some(ll);
+        s.counts_nis = Some(nis);
         true
     }
 
@@ -217,6 +218,7 @@ impl Tracker {
         let pbar = s.p;
         let mut xi = xbar;
         let mut ll = 0.0;
+        let mut nis = 0.0;
         let mut last: Option<(Hm, SMatrix<f64, NDET, NDET>, SMatrix<f64, NS, NDET>)> = None;
         for it in 0..self.cfg.update_iterations {
             let (h, y, rd, n_used) = self.counts_linearized(&xi, inp);
@@ -229,7 +231,8 @@ impl Tracker {
             };
             if it == 0 {
                 let chi2 = innov.dot(&ch.solve(&innov));
-                if !(chi2 / (n_used.max(1) as f64) <= self.cfg.nis_gate) {
+                nis = chi2 / (n_used.max(1) as f64);
+                if !(nis <= self.cfg.nis_gate) {
                     return REFUSED;
                 }
                 ll = log_likelihood(chi2, &ch.l());
@@ -257,6 +260,7 @@ impl Tracker {
             return REFUSED;
         }
         s.counts_ll = Some(ll);
+        s.counts_nis = Some(nis);
         true
     }
 }

@@ -21,7 +21,9 @@
 //!   reading pins the attitude);
 //! - `start`: the start-up fit (with the readings as priors);
 //! - `bound`: the bound for a tracker along a known track (posterior CRB);
-//! - `bank`: trackers in several waters, when told the water is unknown.
+//! - `bank`: trackers in several waters, when told the water is unknown;
+//! - `water_check`: one tracker that turns into a bank when, with a DVL,
+//!   its counts stop fitting the calibration's water.
 //!
 //! Fixed-size matrices throughout: no allocation per frame.
 
@@ -39,6 +41,7 @@ mod state;
 mod tests;
 #[cfg(test)]
 mod tests_fusion;
+mod water_check;
 
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{
@@ -50,6 +53,7 @@ pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
 use self::counts::CountsInput;
 use self::readings::{gate_thresholds, FrameReadings};
 use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
+pub use self::water_check::WaterWatch;
 use crate::model::single_frame::{ModelEstimator, WATER_TEMP_C};
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
@@ -156,6 +160,29 @@ impl Tracker {
         let mut t = Tracker::new(model, cfg)?;
         t.paper = self.paper.clone();
         Ok(t)
+    }
+
+    /// This tracker told a K_D doubt of `sigma` (1σ, m⁻¹) about the
+    /// calibration's water, as if set: what the water check hands a bank.
+    pub fn doubting(&self, sigma: f64) -> Result<Self, ModelError> {
+        let cfg = TrackerConfig {
+            k_d_sigma: Some(sigma),
+            ..self.cfg.clone()
+        };
+        let mut t = Tracker::new(self.model.clone(), cfg)?;
+        t.paper = self.paper.clone();
+        Ok(t)
+    }
+
+    /// The water check's window mean, when it is full and above
+    /// `water_check_nis`: the counts no longer fit the calibration's
+    /// water (see `water_check`).
+    pub fn water_misfit(&self) -> Option<f64> {
+        let span = self.cfg.water_check_frames;
+        let s = self.state.as_ref()?;
+        s.water_nis
+            .median(span)
+            .filter(|m| *m > self.cfg.water_check_nis)
     }
 
     /// [`PaperRange::bias`] of this tracker's paper range, if it has one.
@@ -462,6 +489,7 @@ impl Estimator for Tracker {
             return self.restart(frame, &readings);
         };
         s.counts_ll = None;
+        s.counts_nis = None;
         let uses = self.update_readings(&mut s, &readings);
         s.attitude_fused = uses[0] == ReadingUse::Used;
         // A DVL ties successive ranges together independently of the
@@ -500,6 +528,16 @@ impl Estimator for Tracker {
         let applied = self.update_counts(&mut s, &inp);
         if applied {
             s.rejected = 0;
+            // The water check reads only frames whose change of range a
+            // DVL fixed (`water_check`), with a K_D held, not estimated,
+            // and no channel clipped: a saturated channel is a bound, and
+            // in clear water at the closest point of a pass its misfit
+            // (up to 3.7 per channel) is the clipping's, not the water's.
+            if let (Some(nis), ReadingUse::Used, false, 0) =
+                (s.counts_nis, uses[2], s.k_d_free, n_sat)
+            {
+                s.water_nis.push(nis, self.cfg.water_check_frames);
+            }
         } else {
             s.rejected += 1;
             if s.rejected >= self.cfg.max_rejected {

@@ -92,6 +92,12 @@ pub(super) struct State {
     /// constant), when the counts were fused: how well the state's water
     /// and pose explain the frame (`Tracker::counts_log_likelihood`).
     pub counts_ll: Option<f64>,
+    /// This frame's counts' normalized innovation squared per channel,
+    /// when they were fused.
+    pub counts_nis: Option<f64>,
+    /// The last frames' `counts_nis` with a DVL reading fused (the water
+    /// check, `water_check_frames`).
+    pub water_nis: super::water_check::NisWindow,
 }
 
 impl State {
@@ -110,6 +116,8 @@ impl State {
             last_paper: [None; PAPER_RING],
             paper_head: 0,
             counts_ll: None,
+            counts_nis: None,
+            water_nis: Default::default(),
         }
     }
 

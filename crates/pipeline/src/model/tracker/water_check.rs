@@ -1,0 +1,348 @@
+//! The water check: a tracker that holds the calibration's K_D watches
+//! how well its counts fit while a DVL's readings are fused, and when they
+//! stop fitting it goes on as a bank of waters that learns the water.
+//!
+//! Why: told nothing, a tracker takes the water to be the sweep's, and in
+//! murkier water a dimmer beacon reads as a farther one (K_D 0.19 about a
+//! tank's 0.09: x 1.1 m off on every frame, reported `ok`). Without a DVL
+//! nothing in the frames says so: a wrong K_D is a wrong range, which the
+//! state absorbs. With one, the change of range is fixed independently of
+//! the light, so the brightness along the track no longer fits the
+//! calibration's Beer's law, and the counts' normalized innovation squared
+//! per channel, about 1 in the calibration's water, stands at 1.7–2.0 in
+//! that water. The limit, its median over 25 frames above 1.7, was passed
+//! on 3 of 12,000 eight-second Monte Carlo runs told the water's spread
+//! (and 3 of the bench's 6,000) and on none of 400 minute-long ones
+//! (docs/estimators.md, "The water check").
+
+use lightpose_core::{Estimator, Frame, PoseEstimate};
+
+use super::{Tracker, WaterBank};
+use crate::settings::{ModelError, WATER_CHECK_MAX_FRAMES};
+
+/// The last frames' normalized innovation squared per channel, in a fixed
+/// ring (no allocation per frame).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct NisWindow {
+    vals: [f64; WATER_CHECK_MAX_FRAMES],
+    head: usize,
+    len: usize,
+}
+
+impl Default for NisWindow {
+    fn default() -> Self {
+        NisWindow {
+            vals: [0.0; WATER_CHECK_MAX_FRAMES],
+            head: 0,
+            len: 0,
+        }
+    }
+}
+
+impl NisWindow {
+    /// Add a frame's value to a window of `span` frames (at most
+    /// `WATER_CHECK_MAX_FRAMES`), dropping the oldest when full.
+    pub fn push(&mut self, nis: f64, span: usize) {
+        let span = span.clamp(1, WATER_CHECK_MAX_FRAMES);
+        self.vals[self.head] = nis;
+        self.head = (self.head + 1) % WATER_CHECK_MAX_FRAMES;
+        self.len = (self.len + 1).min(span);
+    }
+
+    /// The median over a full window of `span` frames; None until it is
+    /// full. The median, not the mean: a few frames of large misfit (a
+    /// saturating channel at the closest point of a pass) are not the
+    /// water, which misfits every frame.
+    pub fn median(&self, span: usize) -> Option<f64> {
+        if span == 0 || self.len < span {
+            return None;
+        }
+        let n = WATER_CHECK_MAX_FRAMES;
+        let mut v = [0.0; WATER_CHECK_MAX_FRAMES];
+        for (k, slot) in v.iter_mut().take(span).enumerate() {
+            *slot = self.vals[(self.head + n - 1 - k) % n];
+        }
+        let v = &mut v[..span];
+        let (_, mid, _) = v.select_nth_unstable_by(span / 2, f64::total_cmp);
+        let mid = *mid;
+        if span % 2 == 1 {
+            return Some(mid);
+        }
+        // Even span: the mean of the two middle values.
+        let below = v[..span / 2]
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        Some(0.5 * (below + mid))
+    }
+}
+
+/// One tracker with the water check (name `"tracker"`): itself until the
+/// check fires, then a bank of waters told `water_check_doubt`, until
+/// `reset`.
+#[derive(Debug, Clone)]
+pub struct WaterWatch {
+    tracker: Tracker,
+    bank: Option<WaterBank>,
+    /// When the check fired (s) and the window's median then.
+    fired: Option<(f64, f64)>,
+}
+
+impl WaterWatch {
+    /// Whether `tracker` should be watched: the check on, and the tracker
+    /// holding the calibration's K_D (a bank or a tracker estimating K_D
+    /// learns the water already; `water_bank = false` keeps one tracker).
+    pub fn wanted(tracker: &Tracker) -> bool {
+        let c = tracker.config();
+        c.water_check_frames > 0
+            && c.water_bank
+            && !c.estimate_k_d
+            && !c.estimate_k_d_with_velocity
+            && !WaterBank::wanted(tracker)
+    }
+
+    pub fn new(tracker: Tracker) -> Self {
+        WaterWatch {
+            tracker,
+            bank: None,
+            fired: None,
+        }
+    }
+
+    /// When the check fired (s, the frame's time) and its window's median.
+    pub fn fired(&self) -> Option<(f64, f64)> {
+        self.fired
+    }
+
+    /// The bank the check turns the tracker into: its waters spread over
+    /// `water_check_doubt` about the calibration's.
+    fn bank(&self) -> Result<WaterBank, ModelError> {
+        let doubt = self.tracker.config().water_check_doubt;
+        WaterBank::new(&self.tracker.doubting(doubt)?)
+    }
+}
+
+impl Estimator for WaterWatch {
+    fn name(&self) -> &'static str {
+        Tracker::NAME
+    }
+
+    fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
+        if let Some(bank) = self.bank.as_mut() {
+            return bank.estimate(frame);
+        }
+        let e = self.tracker.estimate(frame);
+        let Some(median) = self.tracker.water_misfit() else {
+            return e;
+        };
+        // The bank starts from this frame: its members, each in its own
+        // water, fit the start afresh (`initialising` for a second), since
+        // the tracker's state is the wrong water's.
+        match self.bank() {
+            Ok(mut bank) => {
+                self.fired = Some((frame.t, median));
+                let e = bank.estimate(frame);
+                self.bank = Some(bank);
+                e
+            }
+            // Settings the tracker was built with always make a bank; if
+            // not, the tracker goes on as it was.
+            Err(_) => e,
+        }
+    }
+
+    fn reset(&mut self) {
+        self.tracker.reset();
+        self.bank = None;
+        self.fired = None;
+    }
+
+    fn water_k_d(&self) -> Option<f64> {
+        match &self.bank {
+            Some(b) => b.water_k_d(),
+            None => self.tracker.water_k_d(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibration::Calibration;
+    use crate::model::testutil::{synth_frame, Rng};
+    use crate::model::SensorModel;
+    use crate::settings::TrackerConfig;
+    use lightpose_core::{Angle, Attitude, BeamVec, DepthReading, Pose, Status, VelocityReading};
+
+    /// The tank's calibration and the tracker `auto` builds from it, told
+    /// nothing about the water.
+    fn tank() -> (SensorModel, Tracker) {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../config/calibration/tank.toml");
+        let cal = Calibration::load(&path).expect("tank calibration");
+        let m = cal.physical.as_ref().expect("light model").sensor_model();
+        let t = Tracker::new(m.clone(), TrackerConfig::default())
+            .unwrap()
+            .with_paper(&cal);
+        (m, t)
+    }
+
+    /// A minute of coming and going between 4 and 6 m, smoothly (a DVL
+    /// would not believe a reversal at once), in `water` (300
+    /// frames at 5 Hz), with the attitude sensor, and depth and the DVL
+    /// when `dvl`, MODEL.md's noise: per `ok` frame its time, x's error
+    /// and σ.
+    fn a_minute(
+        est: &mut dyn Estimator,
+        water: &SensorModel,
+        dvl: bool,
+        seed: u64,
+    ) -> Vec<(f64, f64, f64)> {
+        let w = std::f64::consts::PI / 10.0;
+        let (pitch, yaw) = (Angle::from_deg(2.0), Angle::from_deg(-3.0));
+        let mut rng = Rng::new(seed);
+        let mut out = Vec::new();
+        est.reset();
+        for i in 0..300u64 {
+            let t = i as f64 * 0.2;
+            let pose = Pose::new(5.0 + (w * t).cos(), 0.1, 0.1, pitch, yaw);
+            let vx = -w * (w * t).sin();
+            let att = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
+            let mut f = synth_frame(water, &pose, i, t, att, &mut rng);
+            if dvl {
+                let v = Attitude::new(pitch, yaw)
+                    .to_body(&BeamVec([vx, 0.0, 0.0]))
+                    .0;
+                let n = |r: &mut Rng| 0.02 * r.normal();
+                f.velocity = Some(VelocityReading::new(
+                    v[0] + n(&mut rng),
+                    v[1] + n(&mut rng),
+                    v[2] + n(&mut rng),
+                ));
+                f.depth = Some(DepthReading::new(pose.z + n(&mut rng)));
+            }
+            let e = est.estimate(&f);
+            if let (Status::Ok, Some(x), Some(sx)) = (e.status, e.x, e.std.x) {
+                out.push((t, x - pose.x, sx));
+            }
+        }
+        out
+    }
+
+    /// Untold, water of K_D 0.19 about the tank's 0.09 put x 1.1 m off,
+    /// reported `ok`, over the whole minute (one tracker, all three
+    /// sensors: 295 of 295 `ok` frames beyond 3σ). With the check the
+    /// tracker turns into a bank once its window is full and learns the
+    /// water. Measured: fired at 6.0–7.2 s (median 1.76–1.97), then x
+    /// beyond 3σ on none of 254–260 frames, x RMS 0.030–0.054 m, K_D
+    /// 0.190–0.192 learned.
+    #[test]
+    fn with_a_dvl_the_check_finds_water_it_was_not_told() {
+        let (calibrated, tracker) = tank();
+        assert!(WaterWatch::wanted(&tracker));
+        let mut water = calibrated.clone();
+        water.light.k_d += 0.1;
+        let mut one = tracker.clone();
+        let mut watch = WaterWatch::new(tracker);
+        for seed in 40..43 {
+            let untold = a_minute(&mut one, &water, true, seed);
+            let off = untold.iter().filter(|(_, e, s)| e.abs() > 3.0 * s).count();
+            let got = a_minute(&mut watch, &water, true, seed);
+            let (t, median) = watch.fired().expect("the check fired");
+            // The frames from two seconds after it fired (the bank's start).
+            let after: Vec<_> = got.iter().filter(|(ti, _, _)| *ti >= t + 2.0).collect();
+            let beyond: Vec<_> = after.iter().filter(|(_, e, s)| e.abs() > 3.0 * s).collect();
+            let beyond = beyond.len();
+            let rms =
+                (after.iter().map(|(_, e, _)| e * e).sum::<f64>() / after.len() as f64).sqrt();
+            let k = watch.water_k_d().expect("the bank's water");
+            eprintln!(
+                "seed {seed}: untold {off} of {} beyond 3σ; fired at {t:.1} s (median {median:.2}), \
+                 then {beyond} of {} beyond 3σ, x RMS {rms:.3} m, K_D {k:.3}",
+                untold.len(),
+                after.len()
+            );
+            assert!(off * 2 > untold.len(), "untold: the check's reason is gone");
+            assert!(t <= 10.0, "fired only at {t} s");
+            assert!(after.len() >= 200 && beyond * 100 <= after.len());
+            assert!(rms < 0.15, "x RMS {rms}");
+            assert!((k / water.light.k_d - 1.0).abs() < 0.1, "K_D {k}");
+        }
+    }
+
+    /// In the calibration's own water the check stays quiet (the counts fit:
+    /// its window's median is about 1), and without a DVL it never fires: a
+    /// wrong K_D is then a wrong range, which nothing in the frames
+    /// contradicts (docs/extremes.md).
+    #[test]
+    fn the_check_is_quiet_in_the_calibrated_water_and_without_a_dvl() {
+        let (calibrated, tracker) = tank();
+        let mut watch = WaterWatch::new(tracker);
+        let mut murky = calibrated.clone();
+        murky.light.k_d += 0.1;
+        for seed in 50..53 {
+            let n = a_minute(&mut watch, &calibrated, true, seed).len();
+            assert!(
+                n > 250 && watch.fired().is_none(),
+                "seed {seed}: {:?}",
+                watch.fired()
+            );
+            assert_eq!(watch.water_k_d(), None);
+            a_minute(&mut watch, &murky, false, seed);
+            assert!(
+                watch.fired().is_none(),
+                "no DVL, seed {seed}: {:?}",
+                watch.fired()
+            );
+        }
+        // Off, or with K_D learned some other way, there is nothing to watch.
+        let (_, t) = tank();
+        for cfg in [
+            TrackerConfig {
+                water_check_frames: 0,
+                ..t.config().clone()
+            },
+            TrackerConfig {
+                estimate_k_d_with_velocity: true,
+                ..t.config().clone()
+            },
+            TrackerConfig {
+                water_bank: false,
+                ..t.config().clone()
+            },
+            TrackerConfig {
+                k_d_sigma: Some(0.3),
+                ..t.config().clone()
+            },
+        ] {
+            let tr = Tracker::new(calibrated.clone(), cfg).unwrap();
+            assert!(!WaterWatch::wanted(&tr), "{:?}", tr.config());
+        }
+    }
+
+    #[test]
+    fn the_window_is_the_median_of_the_last_frames_once_full() {
+        let mut w = NisWindow::default();
+        for (i, v) in [1.0, 2.0, 30.0].into_iter().enumerate() {
+            assert_eq!(w.median(4), None, "not full after {i} frames");
+            w.push(v, 4);
+        }
+        w.push(4.0, 4);
+        // 1, 2, 30, 4: a spike does not carry it.
+        assert_eq!(w.median(4), Some(3.0));
+        w.push(10.0, 4);
+        assert_eq!(w.median(4), Some(7.0));
+        let mut odd = NisWindow::default();
+        for v in [5.0, 1.0, 9.0, 2.0, 7.0] {
+            odd.push(v, 3);
+        }
+        assert_eq!(odd.median(3), Some(7.0), "of 9, 2, 7");
+        // Round the ring more than once: still the last four.
+        for k in 0..(3 * WATER_CHECK_MAX_FRAMES) {
+            w.push(k as f64, 4);
+        }
+        let n = (3 * WATER_CHECK_MAX_FRAMES) as f64;
+        assert_eq!(w.median(4), Some(n - 2.5));
+        assert_eq!(w.median(0), None, "a span of 0 is the check off");
+    }
+}
