@@ -287,7 +287,8 @@ fn crb_prints_the_bound_along_the_trajectory() {
 /// 0.3`, a bank of waters), the tracker learns the water of a log flown in
 /// murkier water than the tank's (K_D 0.19 against 0.09, a minute of
 /// coming and going at 4–6 m with the attitude sensor) and `replay` says
-/// so; told nothing, it says nothing about the water.
+/// so; told nothing, it says nothing about the water, unless the log has
+/// a DVL, with which the tracker's water check finds it untold.
 #[test]
 fn replay_reports_the_water_the_tracker_learned_when_told_to_doubt_it() {
     let dir = tempfile::tempdir().unwrap();
@@ -316,14 +317,24 @@ fn replay_reports_the_water_the_tracker_learned_when_told_to_doubt_it() {
         assert!(ok, "{err}");
         err
     };
+    let learned = |err: &str| -> f64 {
+        err.lines()
+            .find_map(|l| l.strip_prefix("water: K_D "))
+            .and_then(|l| l.split_whitespace().next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("no water line in {err}"))
+    };
     let err = replay(&told);
-    let k: f64 = err
-        .lines()
-        .find_map(|l| l.strip_prefix("water: K_D "))
-        .and_then(|l| l.split_whitespace().next())
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("no water line in {err}"));
+    let k = learned(&err);
     assert!((0.15..=0.24).contains(&k), "learned K_D {k}: {err}");
     let err = replay(&shipped);
     assert!(!err.contains("water:"), "{err}");
+    let with_dvl = dir.path().join("murky-dvl.toml");
+    let mut text = std::fs::read_to_string(&scene).unwrap();
+    text += "\n[depth]\n\n[dvl]\n";
+    std::fs::write(&with_dvl, text).unwrap();
+    simulate(&with_dvl, &traj, "7", &log);
+    let err = replay(&shipped);
+    let k = learned(&err);
+    assert!((0.15..=0.24).contains(&k), "found untold, K_D {k}: {err}");
 }
