@@ -59,6 +59,10 @@ struct Scenario {
     /// from the calibration's (`k_d_sigma`): the operator's remedy for
     /// water the calibration did not see.
     told_k_d_sigma: Option<f64>,
+    /// The vehicle's depth sensor and DVL (MODEL.md's noise) ride with the
+    /// frames: with the DVL the tracker's water check can find water the
+    /// calibration did not see.
+    dvl: bool,
 }
 
 impl Scenario {
@@ -74,6 +78,7 @@ impl Scenario {
             bits: None,
             beacon: true,
             told_k_d_sigma: None,
+            dvl: false,
         }
     }
 }
@@ -159,6 +164,25 @@ fn scenarios() -> Vec<Scenario> {
         Scenario {
             told_k_d_sigma: Some(TOLD_K_D_SIGMA),
             ..b("baseline, told K_D ±0.3")
+        },
+        // Untold again, but with the depth sensor and a DVL: the tracker's
+        // water check (after 25 frames with the DVL), and what it costs in
+        // the tank's own water.
+        Scenario {
+            k_d: Some(0.5),
+            x0: 4.0,
+            dvl: true,
+            ..b("turbid K_D 0.5 at 4 m, depth + DVL")
+        },
+        Scenario {
+            k_d: Some(1.0),
+            x0: 3.0,
+            dvl: true,
+            ..b("turbid K_D 1.0 at 3 m, depth + DVL")
+        },
+        Scenario {
+            dvl: true,
+            ..b("baseline, depth + DVL")
         },
         Scenario {
             temp_c: Some(-5.0),
@@ -253,6 +277,10 @@ fn run(
     }
     if let Some(b) = sc.bits {
         scene.adc.bits = b;
+    }
+    if sc.dvl {
+        scene.depth = Some(Default::default());
+        scene.dvl = Some(Default::default());
     }
     // The estimators know only what was calibrated, the tank: by name from
     // the shipped calibration, as a user gets them. The calibration was
