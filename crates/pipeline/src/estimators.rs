@@ -81,7 +81,8 @@ pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimato
                 return Ok(Box::new(bank));
             }
             if WaterWatch::wanted(&e) {
-                return Ok(Box::new(WaterWatch::new(e)));
+                let watch = WaterWatch::new(e).map_err(|e| config(e.to_string()))?;
+                return Ok(Box::new(watch));
             }
             Ok(Box::new(e))
         }

@@ -238,9 +238,10 @@ pub struct TrackerConfig {
     /// ±0.3 about 0.09 its x was beyond 3σ on 160 of 165 `ok` frames in
     /// water of K_D 0.29 (the bank: 11 of 295; docs/estimators.md, "K_D").
     pub water_bank: bool,
-    /// Frames of the water check (0: off): while a DVL's readings are
-    /// fused, the mean over this many frames of the counts' normalized
-    /// innovation squared per channel. Above `water_check_nis`, the water
+    /// Frames of the water check (0: off): the median over this many
+    /// frames with a DVL reading fused and no channel clipped of the
+    /// counts' normalized innovation squared per channel (at most
+    /// `WATER_CHECK_MAX_FRAMES`). Above `water_check_nis`, the water
     /// is taken to be unlike the calibration's and the tracker goes on as
     /// a bank of waters told `water_check_doubt` (`water_bank`), which
     /// learns it. Why: untold, water of K_D 0.19 about a tank's 0.09 put
@@ -249,8 +250,8 @@ pub struct TrackerConfig {
     /// shows as a misfit (docs/estimators.md, "The water check"). Only
     /// with one tracker holding K_D (no `estimate_k_d`, no wide doubt).
     pub water_check_frames: usize,
-    /// The water check's limit on that mean (1 in the calibration's
-    /// water).
+    /// The water check's limit on that median (about 1 in the
+    /// calibration's water).
     pub water_check_nis: f64,
     /// The K_D doubt (1σ, m⁻¹) the bank is told when the check fires:
     /// what an operator who takes a calibration into unknown water sets.
@@ -573,7 +574,7 @@ impl TrackerConfig {
         }
         if !(self.water_check_nis.is_finite() && self.water_check_nis > 1.0) {
             return bad(format!(
-                "tracker water_check_nis = {} must be above 1 (its mean in the calibrated water)",
+                "tracker water_check_nis = {} must be above 1 (its median in the calibrated water)",
                 self.water_check_nis
             ));
         }

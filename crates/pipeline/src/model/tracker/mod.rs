@@ -174,7 +174,7 @@ impl Tracker {
         Ok(t)
     }
 
-    /// The water check's window mean, when it is full and above
+    /// The water check's window median, when it is full and above
     /// `water_check_nis`: the counts no longer fit the calibration's
     /// water (see `water_check`).
     pub fn water_misfit(&self) -> Option<f64> {

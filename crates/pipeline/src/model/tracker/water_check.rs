@@ -83,8 +83,11 @@ impl NisWindow {
 #[derive(Debug, Clone)]
 pub struct WaterWatch {
     tracker: Tracker,
-    bank: Option<WaterBank>,
-    /// When the check fired (s) and the window's median then.
+    /// The bank the check turns the tracker into, built with it (its
+    /// settings checked then, nothing allocated when it fires).
+    bank: WaterBank,
+    /// When the check fired (s) and the window's median then; the bank
+    /// runs from then on.
     fired: Option<(f64, f64)>,
 }
 
@@ -101,24 +104,21 @@ impl WaterWatch {
             && !WaterBank::wanted(tracker)
     }
 
-    pub fn new(tracker: Tracker) -> Self {
-        WaterWatch {
+    /// `tracker` watched, with the bank it turns into: its waters spread
+    /// over `water_check_doubt` about the calibration's.
+    pub fn new(tracker: Tracker) -> Result<Self, ModelError> {
+        let doubt = tracker.config().water_check_doubt;
+        let bank = WaterBank::new(&tracker.doubting(doubt)?)?;
+        Ok(WaterWatch {
             tracker,
-            bank: None,
+            bank,
             fired: None,
-        }
+        })
     }
 
     /// When the check fired (s, the frame's time) and its window's median.
     pub fn fired(&self) -> Option<(f64, f64)> {
         self.fired
-    }
-
-    /// The bank the check turns the tracker into: its waters spread over
-    /// `water_check_doubt` about the calibration's.
-    fn bank(&self) -> Result<WaterBank, ModelError> {
-        let doubt = self.tracker.config().water_check_doubt;
-        WaterBank::new(&self.tracker.doubting(doubt)?)
     }
 }
 
@@ -128,8 +128,8 @@ impl Estimator for WaterWatch {
     }
 
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
-        if let Some(bank) = self.bank.as_mut() {
-            return bank.estimate(frame);
+        if self.fired.is_some() {
+            return self.bank.estimate(frame);
         }
         let e = self.tracker.estimate(frame);
         let Some(median) = self.tracker.water_misfit() else {
@@ -138,28 +138,20 @@ impl Estimator for WaterWatch {
         // The bank starts from this frame: its members, each in its own
         // water, fit the start afresh (`initialising` for a second), since
         // the tracker's state is the wrong water's.
-        match self.bank() {
-            Ok(mut bank) => {
-                self.fired = Some((frame.t, median));
-                let e = bank.estimate(frame);
-                self.bank = Some(bank);
-                e
-            }
-            // Settings the tracker was built with always make a bank; if
-            // not, the tracker goes on as it was.
-            Err(_) => e,
-        }
+        self.fired = Some((frame.t, median));
+        self.bank.reset();
+        self.bank.estimate(frame)
     }
 
     fn reset(&mut self) {
         self.tracker.reset();
-        self.bank = None;
+        self.bank.reset();
         self.fired = None;
     }
 
     fn water_k_d(&self) -> Option<f64> {
-        match &self.bank {
-            Some(b) => b.water_k_d(),
+        match self.fired {
+            Some(_) => self.bank.water_k_d(),
             None => self.tracker.water_k_d(),
         }
     }
@@ -243,7 +235,7 @@ mod tests {
         let mut water = calibrated.clone();
         water.light.k_d += 0.1;
         let mut one = tracker.clone();
-        let mut watch = WaterWatch::new(tracker);
+        let mut watch = WaterWatch::new(tracker).unwrap();
         for seed in 40..43 {
             let untold = a_minute(&mut one, &water, true, seed);
             let off = untold.iter().filter(|(_, e, s)| e.abs() > 3.0 * s).count();
@@ -277,7 +269,7 @@ mod tests {
     #[test]
     fn the_check_is_quiet_in_the_calibrated_water_and_without_a_dvl() {
         let (calibrated, tracker) = tank();
-        let mut watch = WaterWatch::new(tracker);
+        let mut watch = WaterWatch::new(tracker).unwrap();
         let mut murky = calibrated.clone();
         murky.light.k_d += 0.1;
         for seed in 50..53 {
