@@ -50,11 +50,11 @@ impl NisWindow {
     }
 
     /// The median over a full window of `span` frames; None until it is
-    /// full. The median, not the mean: a few frames of large misfit (a
-    /// saturating channel at the closest point of a pass) are not the
-    /// water, which misfits every frame.
+    /// full (or for a span the ring cannot hold). The median, not the
+    /// mean: a few frames of large misfit are not the water, which
+    /// misfits every frame.
     pub fn median(&self, span: usize) -> Option<f64> {
-        if span == 0 || self.len < span {
+        if span == 0 || span > WATER_CHECK_MAX_FRAMES || self.len < span {
             return None;
         }
         let n = WATER_CHECK_MAX_FRAMES;
@@ -336,5 +336,6 @@ mod tests {
         let n = (3 * WATER_CHECK_MAX_FRAMES) as f64;
         assert_eq!(w.median(4), Some(n - 2.5));
         assert_eq!(w.median(0), None, "a span of 0 is the check off");
+        assert_eq!(w.median(WATER_CHECK_MAX_FRAMES + 1), None);
     }
 }
