@@ -241,7 +241,9 @@ pub struct TrackerConfig {
     /// Frames of the water check (0: off): the median over this many
     /// frames with a DVL reading fused and no channel clipped of the
     /// counts' normalized innovation squared per channel (at most
-    /// `WATER_CHECK_MAX_FRAMES`). Above `water_check_nis`, the water
+    /// `WATER_CHECK_MAX_FRAMES`; 25 is 5 s at MODEL.md's 5 Hz: at a faster
+    /// frame rate successive frames' misfits are less independent, so
+    /// give it more). Above `water_check_nis`, the water
     /// is taken to be unlike the calibration's and the tracker goes on as
     /// a bank of waters told `water_check_doubt` (`water_bank`), which
     /// learns it. Why: untold, water of K_D 0.19 about a tank's 0.09 put

@@ -312,6 +312,50 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(32))]
+        /// Frames of a vehicle coming in (so that the tracker starts and
+        /// the watch, set to fire on any misfit after two frames, turns
+        /// into the bank), with garbage spliced in: counts, time steps and
+        /// DVL readings of any size. No NaN and no panic, before or after.
+        #[test]
+        fn any_frames_through_the_watch_give_no_nan(
+            seed in 0u64..1000,
+            garbage in proptest::collection::vec(
+                (proptest::option::of(proptest::array::uniform25(0u16..=1023)),
+                 0.0f64..0.5, -10.0f64..10.0), 10..40),
+        ) {
+            let m = SensorModel::default();
+            let cfg = TrackerConfig {
+                water_check_frames: 2,
+                water_check_nis: 1.0001,
+                ..TrackerConfig::default()
+            };
+            let mut watch = WaterWatch::new(Tracker::new(m.clone(), cfg).unwrap()).unwrap();
+            let mut rng = Rng::new(seed);
+            let mut t = 0.0;
+            for (i, (counts, dt, v)) in garbage.into_iter().enumerate() {
+                t += dt;
+                let pose = Pose::new(6.0 - 0.3 * t, 0.1, 0.1, Angle::ZERO, Angle::ZERO);
+                let mut f = synth_frame(&m, &pose, i as u64, t, Some((0.005, 0.03)), &mut rng);
+                if let Some(c) = counts.filter(|_| i % 4 == 3) {
+                    f.counts = c;
+                }
+                let u = if i % 5 == 4 { v } else { 0.3 };
+                f.velocity = Some(VelocityReading::new(u, 0.0, 0.0));
+                f.depth = Some(DepthReading::new(0.1));
+                let e = watch.estimate(&f);
+                for x in [e.x, e.y, e.z, e.pitch_deg, e.yaw_deg, e.surge,
+                          e.std.x, e.std.y, e.std.z, e.std.pitch, e.std.yaw, e.std.surge] {
+                    proptest::prop_assert!(x.is_none_or(|x| x.is_finite()));
+                }
+                if let Some(k) = watch.water_k_d() {
+                    proptest::prop_assert!(k.is_finite() && k > 0.0);
+                }
+            }
+        }
+    }
+
     #[test]
     fn the_window_is_the_median_of_the_last_frames_once_full() {
         let mut w = NisWindow::default();
