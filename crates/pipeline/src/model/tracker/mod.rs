@@ -157,9 +157,7 @@ impl Tracker {
             estimate_k_d: true,
             ..self.cfg.clone()
         };
-        let mut t = Tracker::new(model, cfg)?;
-        t.paper = self.paper.clone();
-        Ok(t)
+        self.rebuilt(model, cfg)
     }
 
     /// This tracker told a K_D doubt of `sigma` (1σ, m⁻¹) about the
@@ -169,7 +167,12 @@ impl Tracker {
             k_d_sigma: Some(sigma),
             ..self.cfg.clone()
         };
-        let mut t = Tracker::new(self.model.clone(), cfg)?;
+        self.rebuilt(self.model.clone(), cfg)
+    }
+
+    /// A tracker with `model` and `cfg` and this one's paper range.
+    fn rebuilt(&self, model: SensorModel, cfg: TrackerConfig) -> Result<Self, ModelError> {
+        let mut t = Tracker::new(model, cfg)?;
         t.paper = self.paper.clone();
         Ok(t)
     }
@@ -533,8 +536,8 @@ impl Estimator for Tracker {
             // and no channel clipped: a saturated channel is a bound, and
             // in clear water at the closest point of a pass its misfit
             // (up to 3.7 per channel) is the clipping's, not the water's.
-            if let (Some(nis), ReadingUse::Used, false, 0) =
-                (s.counts_nis, uses[2], s.k_d_free, n_sat)
+            let watched = self.cfg.water_check_frames > 0 && !s.k_d_free;
+            if let (Some(nis), ReadingUse::Used, true, 0) = (s.counts_nis, uses[2], watched, n_sat)
             {
                 s.water_nis.push(nis, self.cfg.water_check_frames);
             }

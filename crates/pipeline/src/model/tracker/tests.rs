@@ -492,19 +492,25 @@ fn a_minute(est: &mut dyn Estimator, water: &SensorModel) -> (usize, usize, f64)
 /// The tank's calibration told `sigma` about its water: the tracker as
 /// `auto` builds it (with the paper's law), alone and as the bank.
 fn told(sigma: f64) -> (SensorModel, Tracker, WaterBank) {
+    let (calibrated, one) = tank_tracker(TrackerConfig {
+        k_d_sigma: Some(sigma),
+        ..TrackerConfig::default()
+    });
+    let bank = WaterBank::new(&one).unwrap();
+    (calibrated, one, bank)
+}
+
+/// The tank's calibration (config/) and the tracker with `cfg` built from
+/// it as `auto` builds it, with the paper's law.
+pub(super) fn tank_tracker(cfg: TrackerConfig) -> (SensorModel, Tracker) {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/calibration/tank.toml");
     let cal = crate::calibration::Calibration::load(&path).expect("tank calibration");
     let calibrated = cal.physical.as_ref().expect("light model").sensor_model();
-    let cfg = TrackerConfig {
-        k_d_sigma: Some(sigma),
-        ..TrackerConfig::default()
-    };
     let one = Tracker::new(calibrated.clone(), cfg)
         .unwrap()
         .with_paper(&cal);
-    let bank = WaterBank::new(&one).unwrap();
-    (calibrated, one, bank)
+    (calibrated, one)
 }
 
 /// Told ±0.3 over a minute of coming and going between 4 and 6 m: one

@@ -160,7 +160,6 @@ impl Estimator for WaterWatch {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::Calibration;
     use crate::model::testutil::{synth_frame, Rng};
     use crate::model::SensorModel;
     use crate::settings::TrackerConfig;
@@ -169,14 +168,7 @@ mod tests {
     /// The tank's calibration and the tracker `auto` builds from it, told
     /// nothing about the water.
     fn tank() -> (SensorModel, Tracker) {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../config/calibration/tank.toml");
-        let cal = Calibration::load(&path).expect("tank calibration");
-        let m = cal.physical.as_ref().expect("light model").sensor_model();
-        let t = Tracker::new(m.clone(), TrackerConfig::default())
-            .unwrap()
-            .with_paper(&cal);
-        (m, t)
+        super::super::tests::tank_tracker(TrackerConfig::default())
     }
 
     /// A minute of coming and going between 4 and 6 m, smoothly (a DVL
