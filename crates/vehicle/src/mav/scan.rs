@@ -191,16 +191,20 @@ impl Scanner {
         } else {
             c[5] as u32
         };
+        // A candidate that cannot be checked or fails its check is skipped
+        // whole in a datagram; in a stream by one byte, since it may be
+        // line noise with a real frame starting inside it.
+        let skip = match self.framing {
+            Framing::Datagram => total,
+            Framing::Stream => 1,
+        };
         let Some(extra) = extra_crc(msg_id) else {
-            self.start += total;
+            self.start += skip;
             return Some(Scanned::Unknown { msg_id });
         };
         let crc = calculate_crc(&c[1..header + len], extra);
         if crc != u16::from_le_bytes([c[header + len], c[header + len + 1]]) {
-            self.start += match self.framing {
-                Framing::Datagram => total,
-                Framing::Stream => 1,
-            };
+            self.start += skip;
             return Some(Scanned::BadCrc { msg_id });
         }
         let at = self.start;
@@ -302,6 +306,20 @@ mod tests {
             }
         }
         assert_eq!(s.garbage_bytes(), 0);
+    }
+
+    #[test]
+    fn noise_that_looks_like_an_unknown_message_does_not_hide_a_frame_in_a_stream() {
+        // Line noise: a v2 start byte, a length of 40 and an id no dialect
+        // has, so the candidate spans the real frame that follows.
+        let mut bytes = vec![0xFD, 40, 0, 0, 0, 1, 1, 0x21, 0x43, 0x0F];
+        bytes.extend(frame(&attitude(0.1), 9));
+        bytes.extend([0u8; 40]);
+        let mut s = Scanner::new(Framing::Stream);
+        s.push(&bytes);
+        let got = ids(&mut s);
+        assert!(got.contains(&"30@9".to_string()), "{got:?}");
+        assert_eq!(got[0], format!("unknown{}", 0x0F4321));
     }
 
     #[test]
