@@ -2,7 +2,8 @@
 # Coverage-guided fuzzing (libFuzzer via cargo fuzz) of every parser that
 # reads outside input: intensity logs (JSONL and MCAP), scene files,
 # calibration files, trajectory CSVs, the serial line protocol, the
-# daemon's configuration and its ATTITUDE datagrams.
+# daemon's configuration, its ATTITUDE datagrams, the autopilot's MAVLink
+# link (serial and UDP) and the DVL's report lines.
 #
 #   tools/fuzz.sh            # 60 s per target
 #   tools/fuzz.sh 3600       # the longer run: an hour per target
@@ -25,7 +26,7 @@ san=(--sanitizer "${FUZZ_SANITIZER:-address}")
 # (CI: half the build time for a smoke run of a few seconds).
 opt=(${FUZZ_OPT--O})
 cargo fuzz build "${opt[@]}" "${san[@]}"
-for t in log_reader mcap_reader scene calibration trajectory serial_line daemon_config attitude; do
+for t in log_reader mcap_reader scene calibration trajectory serial_line daemon_config attitude mavlink_stream dvl_line; do
   mkdir -p "corpus/$t"
   echo "== $t ($secs s)"
   cargo fuzz run "${opt[@]}" "${san[@]}" "$t" "corpus/$t" "seeds/$t" -- -max_total_time="$secs" -rss_limit_mb=2048 2>&1 | grep -E "^(Done|==[0-9]+==|SUMMARY)|panicked" || true

@@ -131,6 +131,14 @@ impl LightParams {
     }
 }
 
+/// Reported temperatures (°C) that are taken as water's; outside it a
+/// frame is `bad_frame` for every estimator, and a temperature sensor that
+/// reads it gives its fallback instead. Issue 8: the window used to end at
+/// −5 °C, the end of the operating envelope itself, so in −5 °C water the
+/// temperature sensor's own noise (0.1 °C) made half the frames
+/// `bad_frame`; the lower end now leaves room for that noise.
+pub const WATER_TEMP_C: std::ops::RangeInclusive<f64> = -10.0..=60.0;
+
 /// Reference temperature of the responsivity model, °C.
 pub const T_REF_C: f64 = 20.0;
 

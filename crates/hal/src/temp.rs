@@ -27,6 +27,15 @@ pub enum TempError {
     Format { path: String, msg: String },
     #[error("{path}: 85.000 °C is the DS18B20 power-on value, not a reading")]
     PowerOn { path: String },
+    #[error("{path}: all-zero scratchpad, which passes its CRC: the 1-wire bus read nothing (device lost or line shorted)")]
+    Blank { path: String },
+    #[error("{path}: {t_c:.3} °C is not water's ({min_c}..{max_c} °C)")]
+    NotWater {
+        path: String,
+        t_c: f64,
+        min_c: f64,
+        max_c: f64,
+    },
     #[error("no DS18B20 (28-*) under {root}")]
     NoDevice { root: String },
     #[error("no reading for {age_s:.1} s")]
@@ -55,6 +64,11 @@ pub fn parse_w1_slave(text: &str, path: &str) -> Result<f64, TempError> {
             msg: "first line has no YES/NO".into(),
         });
     }
+    // A bus that answers nothing reads all zeros, whose CRC is 0: "YES".
+    let bytes = crc.split(':').next().unwrap_or("");
+    if bytes.split_whitespace().count() == 9 && bytes.split_whitespace().all(|b| b == "00") {
+        return Err(TempError::Blank { path: path.into() });
+    }
     let data = lines.next().unwrap_or("");
     let t = data
         .split_once("t=")
@@ -70,7 +84,20 @@ pub fn parse_w1_slave(text: &str, path: &str) -> Result<f64, TempError> {
     if milli == 85_000 {
         return Err(TempError::PowerOn { path: path.into() });
     }
-    Ok(milli as f64 / 1000.0)
+    // A glitch can give any value the 12 bits hold (−55…125 °C): one no
+    // water has would be a wrong correction of every channel, so the
+    // fallback is taken instead, as for any other failed reading.
+    let t_c = milli as f64 / 1000.0;
+    let water = lightpose_core::light::WATER_TEMP_C;
+    if !water.contains(&t_c) {
+        return Err(TempError::NotWater {
+            path: path.into(),
+            t_c,
+            min_c: *water.start(),
+            max_c: *water.end(),
+        });
+    }
+    Ok(t_c)
 }
 
 /// Find and read one DS18B20 under a sysfs root (normally
@@ -383,6 +410,22 @@ mod tests {
             parse_w1_slave("", "x"),
             Err(TempError::Format { .. })
         ));
+        let blank = "00 00 00 00 00 00 00 00 00 : crc=00 YES\n00 00 00 00 00 00 00 00 00 t=0\n";
+        let e = parse_w1_slave(blank, "/sys/x/w1_slave").unwrap_err();
+        assert!(matches!(e, TempError::Blank { .. }), "{e}");
+        assert!(
+            e.to_string().starts_with("/sys/x/w1_slave: all-zero"),
+            "{e}"
+        );
+        // A real 0 °C reading is not blank.
+        let zero = "00 00 4b 46 7f ff 0c 10 1c : crc=1c YES\n00 00 4b 46 7f ff 0c 10 1c t=0\n";
+        assert_eq!(parse_w1_slave(zero, "x"), Ok(0.0));
+        let hot = "f8 07 4b 46 7f ff 08 10 87 : crc=87 YES\nf8 07 4b 46 7f ff 08 10 87 t=127500\n";
+        let e = parse_w1_slave(hot, "/sys/x/w1_slave").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "/sys/x/w1_slave: 127.500 °C is not water's (-10..60 °C)"
+        );
         assert!(matches!(
             parse_w1_slave("a YES\nb t=2x1\n", "x"),
             Err(TempError::Format { .. })
@@ -469,6 +512,32 @@ mod tests {
         wait_for_reads(w, n + 2);
         assert_eq!(r.for_frame(&[]), Some(23.125));
         assert!(!r.health().fallback_active);
+    }
+
+    #[test]
+    fn a_reading_no_water_has_gives_the_fallback_and_says_why() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().to_path_buf();
+        let hot = "f8 07 4b 46 7f ff 08 10 87 : crc=87 YES\nf8 07 4b 46 7f ff 08 10 87 t=127500\n";
+        write_fake_w1(&root, "28-aa", hot).unwrap();
+        let w = Ds18b20Watcher::spawn(
+            Ds18b20 {
+                root: root.clone(),
+                device: None,
+            },
+            Duration::from_millis(10),
+            Duration::from_secs(5),
+        );
+        wait_for_reads(&w, 1);
+        let mut r = TempReader::new(TempKind::Ds18b20(w), 14.0);
+        assert_eq!(r.for_frame(&[]), Some(14.0));
+        let h = r.health().clone();
+        assert!(h.fallback_active && h.fallbacks == 1, "{h:?}");
+        let why = h.last_error.unwrap();
+        assert!(
+            why.contains("28-aa/w1_slave: 127.500 °C is not water's"),
+            "{why}"
+        );
     }
 
     /// A β = 3950 NTC (R0 = 10 kΩ at 25 °C) written as Steinhart–Hart with

@@ -16,7 +16,7 @@ use super::physical_fit::PhysicalCalibration;
 use crate::settings::EstimatorSettings;
 use lightpose_core::textfile::{parse_toml, read_text, TextError};
 use lightpose_core::textpos::line_of_key;
-use lightpose_core::{light::temperature_gain, NDET};
+use lightpose_core::NDET;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
@@ -358,11 +358,17 @@ impl SceneFacts {
                 ),
             ));
         }
-        if !(self.default_temp_c.is_finite() && temperature_gain(self.default_temp_c) > 0.0) {
+        let water = lightpose_core::light::WATER_TEMP_C;
+        if !water.contains(&self.default_temp_c) {
             return Err((
                 "scene",
                 "default_temp_c",
-                format!("{} °C is not a water temperature", self.default_temp_c),
+                format!(
+                    "{} °C is not a water temperature ({}..{} °C)",
+                    self.default_temp_c,
+                    water.start(),
+                    water.end()
+                ),
             ));
         }
         Ok(())
@@ -722,6 +728,19 @@ pub(crate) mod tests {
             .replace("m10@centre", "m11@centre");
         let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
         assert!(e.contains("unknown moment \"m11\""), "{e}");
+    }
+
+    #[test]
+    fn a_default_temperature_no_water_has_is_refused() {
+        for t in ["100.0", "-20.0"] {
+            let text = sample()
+                .to_toml()
+                .unwrap()
+                .replace("default_temp_c = 20.0", &format!("default_temp_c = {t}"));
+            let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+            assert!(e.contains("c.toml") && e.contains("default_temp_c"), "{e}");
+            assert!(e.contains("not a water temperature (-10..60 °C)"), "{e}");
+        }
     }
 
     /// A physical table as the fitter writes it: V1 135, K_D 0.09, unit

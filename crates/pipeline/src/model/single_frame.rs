@@ -21,7 +21,7 @@ use super::solver::{solve, LmResult, Prior, SolveOptions};
 use super::SensorModel;
 use crate::settings::{Dof, ModelConfig, ModelError};
 use lightpose_core::frame::full_scale;
-use lightpose_core::light::temperature_gain;
+use lightpose_core::light::{temperature_gain, WATER_TEMP_C};
 
 /// 1σ of x caused by a K_D error of `sigma_k_d` at range `x`: near the beam
 /// axis ln E = −K_D·x − 2 ln x + const, so a K_D error δ is read as a range
@@ -34,13 +34,6 @@ pub(crate) fn k_d_consider_sigma_x(x: f64, k_d: f64, sigma_k_d: f64) -> f64 {
     }
     x * sigma_k_d / (k_d.max(0.0) + 2.0 / x)
 }
-
-/// Reported temperatures (°C) that are taken as water's; outside it a
-/// frame is `bad_frame`. Issue 8: the window used to end at −5 °C, the end
-/// of the operating envelope itself, so in −5 °C water the temperature
-/// sensor's own noise (0.1 °C) made half the frames `bad_frame`; the lower
-/// end now leaves room for that noise.
-pub(crate) const WATER_TEMP_C: std::ops::RangeInclusive<f64> = -10.0..=60.0;
 
 /// Single-frame model-based estimator (name `"model"`).
 #[derive(Debug, Clone)]

@@ -7,7 +7,8 @@
 //! returning NaN.
 
 use crate::calibration::{Feature, Moment, Origin};
-use lightpose_core::{frame::full_scale, light::temperature_gain, COLS, NDET, ROWS};
+use lightpose_core::light::{temperature_gain, WATER_TEMP_C};
+use lightpose_core::{frame::full_scale, COLS, NDET, ROWS};
 
 /// 3 × 3 moment matrix, `m[p][q]`: p the power of the column offset, q of
 /// the row offset (0-based; the paper's M33 is `m[2][2]`).
@@ -36,13 +37,15 @@ pub fn signal_volts(
 /// Step 2: undo the responsivity's temperature dependence. MODEL.md has
 /// V = g_k·g_T(T)·E + o_k, so the offset-free signal is divided by g_T(T)
 /// (the paper's eq. 14 as a relative change). `false` when T is not a water
-/// temperature (g_T would be ≤ 0), and the signal is left untouched.
+/// temperature (`WATER_TEMP_C`, as for the model and the tracker: at 100 °C
+/// g_T would still be 0.70, a range 14 % short at 6 m), and the signal is left
+/// untouched.
 #[inline]
 pub fn correct_temperature(signal: &mut [f64; NDET], temp_c: f64) -> bool {
-    let g = temperature_gain(temp_c);
-    if !(g.is_finite() && g > 1e-3) {
+    if !WATER_TEMP_C.contains(&temp_c) {
         return false;
     }
+    let g = temperature_gain(temp_c);
     let inv = 1.0 / g;
     for s in signal.iter_mut() {
         *s *= inv;
@@ -333,6 +336,8 @@ mod tests {
         }
         let mut v = e;
         assert!(!correct_temperature(&mut v, 400.0));
+        assert!(!correct_temperature(&mut v, 100.0));
+        assert!(!correct_temperature(&mut v, -20.0));
         assert!(!correct_temperature(&mut v, f64::NAN));
         assert_eq!(v, e);
     }

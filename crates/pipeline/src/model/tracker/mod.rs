@@ -54,11 +54,12 @@ use self::counts::CountsInput;
 use self::readings::{gate_thresholds, FrameReadings};
 use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
 pub use self::water_check::WaterWatch;
-use crate::model::single_frame::{ModelEstimator, WATER_TEMP_C};
+use crate::model::single_frame::ModelEstimator;
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
 use crate::paper::MomentsEstimator;
 use crate::settings::{Dof, ModelConfig, ModelError, Motion, TrackerConfig};
+use lightpose_core::light::WATER_TEMP_C;
 
 /// The paper's range law (eqs. 2–3) of the same calibration.
 #[derive(Debug, Clone)]
