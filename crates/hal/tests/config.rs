@@ -407,6 +407,12 @@ fn numbers_out_of_their_range_are_refused_by_key() {
             "temperature.max_c",
         ),
         (
+            // A thermistor's window within water's: at 80 °C every
+            // estimator would refuse the frame.
+            serial_with("", &thermistor("max_c = 80.0")),
+            "temperature.max_c",
+        ),
+        (
             serial_with("", &ds("interval_s = 1e9")),
             "temperature.interval_s",
         ),

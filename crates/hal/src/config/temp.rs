@@ -198,8 +198,12 @@ pub(super) fn temp_plan(
                     format!("board \"{board}\" channel {channel} already feeds a detector"),
                 ));
             }
-            within("temperature.min_c", *min_c, -55.0, 150.0, " °C")?;
-            within("temperature.max_c", *max_c, -55.0, 150.0, " °C")?;
+            // Within water's window: outside it every estimator refuses
+            // the frame, where the fallback keeps the poses coming.
+            let water = lightpose_core::light::WATER_TEMP_C;
+            let (lo, hi) = (*water.start(), *water.end());
+            within("temperature.min_c", *min_c, lo, hi, " °C")?;
+            within("temperature.max_c", *max_c, lo, hi, " °C")?;
             if min_c.partial_cmp(max_c) != Some(std::cmp::Ordering::Less) {
                 return Err(err("temperature.min_c", "must be below max_c"));
             }
