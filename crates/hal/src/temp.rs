@@ -464,20 +464,27 @@ mod tests {
         }
     }
 
-    #[test]
-    fn watcher_falls_back_and_recovers_without_blocking() {
-        let dir = tempfile::tempdir().unwrap();
-        let root = dir.path().to_path_buf();
-        write_fake_w1(&root, "28-aa", GOOD).unwrap();
+    /// A watcher of the first DS18B20 under `root`, read every 10 ms, once
+    /// it has read.
+    fn watcher_read_once(root: &Path) -> Ds18b20Watcher {
         let w = Ds18b20Watcher::spawn(
             Ds18b20 {
-                root: root.clone(),
+                root: root.to_path_buf(),
                 device: None,
             },
             Duration::from_millis(10),
             Duration::from_secs(5),
         );
         wait_for_reads(&w, 1);
+        w
+    }
+
+    #[test]
+    fn watcher_falls_back_and_recovers_without_blocking() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().to_path_buf();
+        write_fake_w1(&root, "28-aa", GOOD).unwrap();
+        let w = watcher_read_once(&root);
         let mut r = TempReader::new(TempKind::Ds18b20(w), 19.5);
         assert_eq!(r.for_frame(&[]), Some(23.125));
         assert!(!r.health().fallback_active);
@@ -520,15 +527,7 @@ mod tests {
         let root = dir.path().to_path_buf();
         let hot = "f8 07 4b 46 7f ff 08 10 87 : crc=87 YES\nf8 07 4b 46 7f ff 08 10 87 t=127500\n";
         write_fake_w1(&root, "28-aa", hot).unwrap();
-        let w = Ds18b20Watcher::spawn(
-            Ds18b20 {
-                root: root.clone(),
-                device: None,
-            },
-            Duration::from_millis(10),
-            Duration::from_secs(5),
-        );
-        wait_for_reads(&w, 1);
+        let w = watcher_read_once(&root);
         let mut r = TempReader::new(TempKind::Ds18b20(w), 14.0);
         assert_eq!(r.for_frame(&[]), Some(14.0));
         let h = r.health().clone();

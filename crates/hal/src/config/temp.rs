@@ -200,8 +200,8 @@ pub(super) fn temp_plan(
             }
             // Within water's window: outside it every estimator refuses
             // the frame, where the fallback keeps the poses coming.
-            let water = lightpose_core::light::WATER_TEMP_C;
-            let (lo, hi) = (*water.start(), *water.end());
+            let window = lightpose_core::light::WATER_TEMP_C;
+            let (lo, hi) = (*window.start(), *window.end());
             within("temperature.min_c", *min_c, lo, hi, " °C")?;
             within("temperature.max_c", *max_c, lo, hi, " °C")?;
             if min_c.partial_cmp(max_c) != Some(std::cmp::Ordering::Less) {
