@@ -91,14 +91,19 @@ fn mavlink_over_a_serial_port_both_ways_and_through_an_unplug() {
     s.reopen_max = Duration::from_millis(200);
     let _running = spawn_mavlink(s, hub.clone());
 
-    // In: attitudes split across writes, garbage and a broken CRC between.
+    // In: attitudes split across writes, garbage and a broken CRC between,
+    // and line noise that reads as the start of a message no dialect has,
+    // long enough to span the last frame (which must not be lost in it).
     let mut stream = b"\x00\x13garbage".to_vec();
     stream.extend(attitude_frame(0.1, 1));
     let mut broken = attitude_frame(0.9, 2);
     let n = broken.len();
     broken[n - 1] ^= 0xFF;
     stream.extend(broken);
+    stream.extend([0xFD, 40, 0, 0, 0, 1, 1, 0x21, 0x43, 0x0F]);
     stream.extend(attitude_frame(0.2, 3));
+    // The noise claims 52 bytes: until they have come it is undecided.
+    stream.extend([0u8; 32]);
     for part in stream.chunks(7) {
         ap.master.write_all(part).unwrap();
         std::thread::sleep(Duration::from_millis(1));
@@ -115,6 +120,7 @@ fn mavlink_over_a_serial_port_both_ways_and_through_an_unplug() {
     );
     assert_eq!(hub.mavlink.used(0), 2);
     assert!(hub.mavlink.refused(Refusal::BadCrc) >= 1);
+    assert!(hub.mavlink.refused(Refusal::UnknownMessage) >= 1);
 
     // Out: heartbeats and poses reach the autopilot.
     hub.outbox.offer(&estimate(1, 5.0), 0);
