@@ -157,12 +157,25 @@ pub fn one_line(msg: &str) -> String {
 }
 
 /// `s` cut to at most `max` characters (on a character boundary), with an
-/// ellipsis when something was cut.
+/// ellipsis when something was cut, and its control characters escaped
+/// (`\n`, `\u{1b}`): an excerpt quotes outside text in a one-line message,
+/// and a JSON or TOML string can hold a newline (the attitude fuzz target
+/// found a class "A#b\ny…" that split its refusal over lines).
 pub fn excerpt(s: &str, max: usize) -> String {
-    match s.char_indices().nth(max) {
-        None => s.to_string(),
-        Some((end, _)) => format!("{}…", &s[..end]),
+    let cut = s.char_indices().nth(max).map(|(end, _)| end);
+    let kept = &s[..cut.unwrap_or(s.len())];
+    let mut out = String::with_capacity(kept.len() + 3);
+    for c in kept.chars() {
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
     }
+    if cut.is_some() {
+        out.push('…');
+    }
+    out
 }
 
 /// Where a text a program reads comes from: a file, read when it is needed
@@ -222,6 +235,7 @@ mod tests {
         assert_eq!(excerpt("abc", 5), "abc");
         assert_eq!(excerpt("abcdef", 3), "abc…");
         assert_eq!(excerpt("ééééé", 2), "éé…");
+        assert_eq!(excerpt("A#b\ny\r\u{1b}z", 7), "A#b\\ny\\r\\u{1b}…");
         let long = "x".repeat(1 << 20);
         assert!(one_line(&long).chars().count() <= 4 * EXCERPT_CHARS + 1);
         assert_eq!(one_line("a\nb\r\nc"), "a b  c");

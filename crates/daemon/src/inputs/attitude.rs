@@ -283,6 +283,18 @@ mod tests {
             "x".repeat(5000)
         );
         assert!(parse(long.as_bytes(), 0.0).unwrap_err().msg.len() < 300);
+        // Found by the fuzz target: a class with newlines in it is quoted
+        // on one line.
+        let e = parse(
+            br#"{"class":"A#b\ny\n{ \nK#b\n\n\n\nTTITUDE","t":1.0,"pitch":4.0,"yaw":280.0}"#,
+            0.0,
+        )
+        .unwrap_err();
+        assert!(
+            !e.msg.contains('\n') && e.msg.contains(r"A#b\ny"),
+            "{}",
+            e.msg
+        );
         let e = parse(format!("\"{}\"", "y".repeat(5000)).as_bytes(), 0.0).unwrap_err();
         assert!(
             e.msg.len() < 300 && e.reason == Reason::Malformed,
