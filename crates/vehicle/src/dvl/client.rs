@@ -162,8 +162,9 @@ fn take_line(s: &DvlSettings, hub: &Hub, line: &[u8]) -> bool {
             false
         }
         Err(r) => {
-            let excerpt: String = String::from_utf8_lossy(&text[..text.len().min(60)]).into_owned();
-            refuse(hub, r, &excerpt);
+            // Control characters escaped: the line goes to the log.
+            let head = String::from_utf8_lossy(&text[..text.len().min(60)]);
+            refuse(hub, r, &lightpose_core::textfile::excerpt(&head, 60));
             false
         }
     }
