@@ -156,24 +156,32 @@ pub fn one_line(msg: &str) -> String {
     excerpt(&flat, 4 * EXCERPT_CHARS)
 }
 
-/// `s` cut to at most `max` characters (on a character boundary), with an
-/// ellipsis when something was cut, and its control characters escaped
-/// (`\n`, `\u{1b}`): an excerpt quotes outside text in a one-line message,
-/// and a JSON or TOML string can hold a newline (the attitude fuzz target
-/// found a class "A#b\ny…" that split its refusal over lines).
+/// `s` with its control characters escaped (`\n`, `\u{0}`), cut to at
+/// most `max` characters of that (never inside an escape), with an
+/// ellipsis when something was cut. An excerpt quotes outside text in a
+/// one-line message, and a JSON or TOML string can hold a newline (the
+/// attitude fuzz target found a class "A#b\ny…" that split its refusal
+/// over lines); the bound is on what is written, so that a run of NULs
+/// (five characters each escaped) cannot make a message long.
 pub fn excerpt(s: &str, max: usize) -> String {
-    let cut = s.char_indices().nth(max).map(|(end, _)| end);
-    let kept = &s[..cut.unwrap_or(s.len())];
-    let mut out = String::with_capacity(kept.len() + 3);
-    for c in kept.chars() {
+    let mut out = String::with_capacity(s.len().min(4 * max) + 3);
+    let mut n = 0;
+    for c in s.chars() {
+        let w = if c.is_control() {
+            c.escape_default().count()
+        } else {
+            1
+        };
+        if n + w > max {
+            out.push('…');
+            return out;
+        }
+        n += w;
         if c.is_control() {
             out.extend(c.escape_default());
         } else {
             out.push(c);
         }
-    }
-    if cut.is_some() {
-        out.push('…');
     }
     out
 }
@@ -235,7 +243,10 @@ mod tests {
         assert_eq!(excerpt("abc", 5), "abc");
         assert_eq!(excerpt("abcdef", 3), "abc…");
         assert_eq!(excerpt("ééééé", 2), "éé…");
-        assert_eq!(excerpt("A#b\ny\r\u{1b}z", 7), "A#b\\ny\\r\\u{1b}…");
+        assert_eq!(excerpt("A#b\ny\r\u{1b}z", 7), "A#b\\ny…");
+        assert_eq!(excerpt("A#b\ny\r\u{1b}z", 16), "A#b\\ny\\r\\u{1b}z");
+        // The bound is on what is written: NULs escape to five characters.
+        assert_eq!(excerpt(&"\0".repeat(100), 12), "\\u{0}\\u{0}…");
         let long = "x".repeat(1 << 20);
         assert!(one_line(&long).chars().count() <= 4 * EXCERPT_CHARS + 1);
         assert_eq!(one_line("a\nb\r\nc"), "a b  c");

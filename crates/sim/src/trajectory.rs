@@ -378,6 +378,21 @@ mod hardening_tests {
     }
 
     #[test]
+    fn control_characters_are_quoted_escaped_and_still_bounded() {
+        // Found by the fuzz target once excerpts escaped control
+        // characters: a header of NULs, each five characters escaped.
+        let mut data = b"t7.2.\x00\x005,0,0\t".to_vec();
+        data.extend([0u8; 67]);
+        data.extend(b",10,053,0,0.\x004\x00\t\x1e\x15\x00\x00\x00\x00\x00,0,0\n");
+        let e = Trajectory::read(&data[..], "fuzz.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("fuzz.csv:") && !e.contains('\n'), "{e}");
+        assert!(e.chars().count() < 400, "{} chars: {e}", e.chars().count());
+        assert!(e.contains(r"\u{0}"), "{e}");
+    }
+
+    #[test]
     fn a_byte_order_mark_before_the_header_is_accepted() {
         let text = "\u{feff}t,x,y,z,pitch,yaw\n0,1,0,0,0,0\n1,2,0,0,0,0\n";
         let tr = Trajectory::parse(text, "bom.csv").expect("BOM accepted");

@@ -319,7 +319,10 @@ impl Meta {
             return Err((
                 "meta",
                 "format",
-                format!("\"{}\" is not \"{FORMAT}\"", self.format),
+                format!(
+                    "\"{}\" is not \"{FORMAT}\"",
+                    lightpose_core::textfile::excerpt(&self.format, 40)
+                ),
             ));
         }
         if self.version != VERSION {
@@ -728,6 +731,20 @@ pub(crate) mod tests {
             .replace("m10@centre", "m11@centre");
         let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
         assert!(e.contains("unknown moment \"m11\""), "{e}");
+    }
+
+    #[test]
+    fn a_wrong_format_is_quoted_on_one_line_and_bounded() {
+        // Found by the fuzz target: the whole value was quoted, newlines
+        // and all.
+        let wrong = format!("lig{}\\n/cu0ve{}", "R".repeat(300), "R".repeat(300));
+        let text = sample()
+            .to_toml()
+            .unwrap()
+            .replace("\"lightpose-calibration\"", &format!("\"{wrong}\""));
+        let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+        assert!(e.starts_with("c.toml:") && e.contains("meta.format"), "{e}");
+        assert!(!e.contains('\n') && e.chars().count() < 200, "{e}");
     }
 
     #[test]
