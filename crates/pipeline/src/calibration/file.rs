@@ -719,18 +719,16 @@ pub(crate) mod tests {
 
     #[test]
     fn missing_key_and_bad_feature_are_refused() {
-        let text = sample()
-            .to_toml()
-            .unwrap()
-            .replace("surge_window = 10\n", "");
-        let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+        let e = refusal_with("surge_window = 10\n", "");
         assert!(e.contains("surge_window"), "{e}");
-        let text = sample()
-            .to_toml()
-            .unwrap()
-            .replace("m10@centre", "m11@centre");
-        let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+        let e = refusal_with("m10@centre", "m11@centre");
         assert!(e.contains("unknown moment \"m11\""), "{e}");
+    }
+
+    /// The refusal of the sample calibration with `from` written as `to`.
+    fn refusal_with(from: &str, to: &str) -> String {
+        let text = sample().to_toml().unwrap().replace(from, to);
+        Calibration::parse(&text, "c.toml").unwrap_err().to_string()
     }
 
     #[test]
@@ -738,11 +736,7 @@ pub(crate) mod tests {
         // Found by the fuzz target: the whole value was quoted, newlines
         // and all.
         let wrong = format!("lig{}\\n/cu0ve{}", "R".repeat(300), "R".repeat(300));
-        let text = sample()
-            .to_toml()
-            .unwrap()
-            .replace("\"lightpose-calibration\"", &format!("\"{wrong}\""));
-        let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+        let e = refusal_with("\"lightpose-calibration\"", &format!("\"{wrong}\""));
         assert!(e.starts_with("c.toml:") && e.contains("meta.format"), "{e}");
         assert!(!e.contains('\n') && e.chars().count() < 200, "{e}");
     }
@@ -750,11 +744,7 @@ pub(crate) mod tests {
     #[test]
     fn a_default_temperature_no_water_has_is_refused() {
         for t in ["100.0", "-20.0"] {
-            let text = sample()
-                .to_toml()
-                .unwrap()
-                .replace("default_temp_c = 20.0", &format!("default_temp_c = {t}"));
-            let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+            let e = refusal_with("default_temp_c = 20.0", &format!("default_temp_c = {t}"));
             assert!(e.contains("c.toml") && e.contains("default_temp_c"), "{e}");
             assert!(e.contains("not a water temperature (-10..60 °C)"), "{e}");
         }
