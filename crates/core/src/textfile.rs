@@ -177,10 +177,11 @@ pub fn excerpt(s: &str, max: usize) -> String {
             return out;
         }
         n += w;
-        if c.is_control() {
-            out.extend(c.escape_default());
-        } else {
+        // A control character escapes to two or more.
+        if w == 1 {
             out.push(c);
+        } else {
+            out.extend(c.escape_default());
         }
     }
     out

@@ -15,6 +15,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use crate::chanmap::RawBoard;
+use lightpose_core::light::WATER_TEMP_C;
 
 /// Why a temperature reading was not usable.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -29,13 +30,12 @@ pub enum TempError {
     PowerOn { path: String },
     #[error("{path}: all-zero scratchpad, which passes its CRC: the 1-wire bus read nothing (device lost or line shorted)")]
     Blank { path: String },
-    #[error("{path}: {t_c:.3} °C is not water's ({min_c}..{max_c} °C)")]
-    NotWater {
-        path: String,
-        t_c: f64,
-        min_c: f64,
-        max_c: f64,
-    },
+    #[error(
+        "{path}: {t_c:.3} °C is not water's ({}..{} °C)",
+        WATER_TEMP_C.start(),
+        WATER_TEMP_C.end()
+    )]
+    NotWater { path: String, t_c: f64 },
     #[error("no DS18B20 (28-*) under {root}")]
     NoDevice { root: String },
     #[error("no reading for {age_s:.1} s")]
@@ -88,13 +88,10 @@ pub fn parse_w1_slave(text: &str, path: &str) -> Result<f64, TempError> {
     // water has would be a wrong correction of every channel, so the
     // fallback is taken instead, as for any other failed reading.
     let t_c = milli as f64 / 1000.0;
-    let water = lightpose_core::light::WATER_TEMP_C;
-    if !water.contains(&t_c) {
+    if !WATER_TEMP_C.contains(&t_c) {
         return Err(TempError::NotWater {
             path: path.into(),
             t_c,
-            min_c: *water.start(),
-            max_c: *water.end(),
         });
     }
     Ok(t_c)
