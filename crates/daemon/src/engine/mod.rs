@@ -323,6 +323,9 @@ impl Engine {
         for i in &mut self.inputs {
             i.attach(&mut acq.frame, acq.arrival);
         }
+        // What the recording will read back as, so that a replay of it
+        // gives these poses bit for bit.
+        lightpose_core::log::as_logged(&mut acq.frame);
         if acq.frame.attitude.is_some() {
             self.stats.frames_with_attitude.fetch_add(1, Relaxed);
         }
