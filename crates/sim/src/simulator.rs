@@ -11,8 +11,8 @@ use crate::Scene;
 use lightpose_core::frame::volts_to_counts;
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{
-    Angle, Attitude, AttitudeReading, BeamVec, BodyVec, DepthReading, Frame, Pose, Truth,
-    VelocityReading, NDET,
+    Angle, Attitude, AttitudeReading, AttitudeStd, BeamVec, BodyVec, DepthReading, Frame, Pose,
+    Truth, VelocityReading, NDET,
 };
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -124,14 +124,21 @@ impl Simulator {
         let attitude = s.attitude.map(|a| {
             let dp = a.sigma_pitch.rad() * normal();
             let dy = a.sigma_yaw.rad() * normal();
-            AttitudeReading::new(
-                pose.pitch + Angle::from_rad(dp),
-                pose.yaw + Angle::from_rad(dy),
-            )
+            AttitudeReading {
+                std: told(a.sigma_pitch.rad().min(a.sigma_yaw.rad())).then_some(AttitudeStd {
+                    pitch: a.sigma_pitch,
+                    yaw: a.sigma_yaw,
+                }),
+                ..AttitudeReading::new(
+                    pose.pitch + Angle::from_rad(dp),
+                    pose.yaw + Angle::from_rad(dy),
+                )
+            }
         });
-        let depth = s
-            .depth
-            .map(|d| DepthReading::new(pose.z + d.sigma_m * normal()));
+        let depth = s.depth.map(|d| DepthReading {
+            z: pose.z + d.sigma_m * normal(),
+            std: told(d.sigma_m).then_some(d.sigma_m),
+        });
         let velocity = s.dvl.map(|d| {
             let v = Attitude::new(pose.pitch, pose.yaw).to_body(velocity).0;
             let mut noisy = [0.0; 3];
@@ -140,7 +147,7 @@ impl Simulator {
             }
             VelocityReading {
                 v: BodyVec(noisy),
-                std: None,
+                std: told(d.sigma_mps).then_some(BodyVec([d.sigma_mps; 3])),
             }
         });
         Frame {
@@ -155,4 +162,13 @@ impl Simulator {
             velocity,
         }
     }
+}
+
+/// Whether a sensor's noise goes into its readings as their `std`
+/// (FORMATS.md): the simulated sensor knows its σ as a real DVL reports its
+/// covariance, so that a replay sees what the live estimator saw. A scene's
+/// noise-free sensor (σ 0) says nothing; a std of 0 is no std a filter can
+/// use, and the estimator's configured noise applies.
+fn told(sigma: f64) -> bool {
+    sigma > 0.0
 }

@@ -14,10 +14,11 @@
 // Channel loops index several parallel per-detector arrays at once.
 #![allow(clippy::needless_range_loop)]
 
-use lightpose_core::{Estimator, Frame, PoseEstimate, Status, StdDev, NDET};
+use lightpose_core::{Estimator, Frame, PoseEstimate, ReadingUse, Status, StdDev, NDET};
 
 use super::light::{to_pose, PoseVec};
 use super::solver::{solve, LmResult, Prior, SolveOptions};
+use super::tracker::readings::{check_attitude, Pending};
 use super::SensorModel;
 use crate::settings::{Dof, ModelConfig, ModelError};
 use lightpose_core::frame::full_scale;
@@ -74,6 +75,8 @@ struct Constraints {
     free: [bool; 5],
     prior: Prior,
     att_q: Option<(f64, f64)>,
+    /// What became of the frame's attitude reading.
+    attitude: ReadingUse,
 }
 
 /// χ² per degree of freedom of a fit over the `free` coordinates.
@@ -156,13 +159,20 @@ impl ModelEstimator {
     /// prior (`Dof::Full`).
     fn constraints(&self, frame: &Frame) -> Constraints {
         let c = &self.cfg;
-        let att = frame.attitude.filter(|_| c.use_attitude);
+        let sigma_deg = [c.attitude_sigma_pitch_deg, c.attitude_sigma_yaw_deg];
+        let (attitude, checked) = match frame.attitude {
+            None => (ReadingUse::Absent, None),
+            Some(_) if !c.use_attitude => (ReadingUse::Ignored, None),
+            Some(a) => match check_attitude(&a, sigma_deg) {
+                Pending::Ready(k) => (ReadingUse::Used, Some(k)),
+                Pending::Done(u) => (u, None),
+            },
+        };
+        let att_sigma =
+            checked.map_or(sigma_deg.map(f64::to_radians), |k| [k.sigma[0], k.sigma[1]]);
+        let att = checked.map(|k| (k.z[0], k.z[1]));
         let (free, prior, att_q) = match (c.dof, att) {
-            (Dof::Position, Some(a)) => (
-                [true, true, true, false, false],
-                Prior::none(),
-                Some((a.pitch.rad(), a.yaw.rad())),
-            ),
+            (Dof::Position, Some(a)) => ([true, true, true, false, false], Prior::none(), Some(a)),
             (Dof::Position, None) => (
                 [true, true, true, false, false],
                 Prior::none(),
@@ -170,11 +180,10 @@ impl ModelEstimator {
             ),
             (Dof::Full, Some(a)) => {
                 let mut p = Prior::none();
-                p.mean[3] = a.pitch.rad();
-                p.mean[4] = a.yaw.rad();
-                p.inv_sigma[3] = 1.0 / c.attitude_sigma_pitch_deg.to_radians();
-                p.inv_sigma[4] = 1.0 / c.attitude_sigma_yaw_deg.to_radians();
-                ([true; 5], p, Some((a.pitch.rad(), a.yaw.rad())))
+                (p.mean[3], p.mean[4]) = a;
+                p.inv_sigma[3] = 1.0 / att_sigma[0];
+                p.inv_sigma[4] = 1.0 / att_sigma[1];
+                ([true; 5], p, Some(a))
             }
             (Dof::Full, None) => {
                 let mut p = Prior::none();
@@ -185,7 +194,12 @@ impl ModelEstimator {
                 ([true; 5], p, None)
             }
         };
-        Constraints { free, prior, att_q }
+        Constraints {
+            free,
+            prior,
+            att_q,
+            attitude,
+        }
     }
 
     /// The solver's bounds and knobs from the settings, for a frame of
@@ -301,6 +315,10 @@ impl ModelEstimator {
 
     fn to_estimate(&self, frame: &Frame, f: &FrameFit) -> PoseEstimate {
         let mut e = PoseEstimate::empty(frame.seq, frame.t, f.status, Self::NAME);
+        let k = self.constraints(frame);
+        // Depth and velocity are the tracker's: one frame's fit holds no
+        // speed, and `settled` calls them ignored.
+        e.readings.attitude = k.attitude;
         let Some(r) = f.fit.as_ref() else {
             return e;
         };
@@ -312,12 +330,16 @@ impl ModelEstimator {
             let v = r.cov[(i, i)];
             let s = if f.free[i] {
                 v.sqrt()
-            } else if i >= 3 && frame.attitude.is_some() && self.cfg.use_attitude {
-                // Held at the sensor's reading: its own σ.
-                return Some(if i == 3 {
-                    self.cfg.attitude_sigma_pitch_deg
-                } else {
-                    self.cfg.attitude_sigma_yaw_deg
+            } else if i >= 3 && k.attitude == ReadingUse::Used {
+                // Held at the sensor's reading: its own σ (in the degrees
+                // it was given in).
+                let own = frame.attitude.and_then(|a| a.std);
+                let c = &self.cfg;
+                return lightpose_core::finite(match (own, i) {
+                    (Some(s), 3) => s.pitch.deg(),
+                    (Some(s), _) => s.yaw.deg(),
+                    (None, 3) => c.attitude_sigma_pitch_deg,
+                    (None, _) => c.attitude_sigma_yaw_deg,
                 });
             } else {
                 return None;
@@ -479,6 +501,56 @@ mod tests {
 
     /// With the attitude sensor, every coordinate lands within its reported
     /// σ often enough (≈95% inside 2σ), and the σ are small.
+    /// The reading report says what became of the attitude (it said
+    /// `ignored` while the fit used it), a bad reading is refused and the
+    /// light still gives a pose, and a reading's own std is the σ that
+    /// holds its angles.
+    #[test]
+    fn the_attitude_is_reported_refused_or_used_with_its_own_std() {
+        use lightpose_core::{AttitudeStd, ReadingUse, Refusal};
+        let m = SensorModel::default();
+        let pose = Pose::new(6.0, 0.2, 0.1, Angle::from_deg(4.0), Angle::from_deg(-3.0));
+        let sig = (0.3f64.to_radians(), 1.5f64.to_radians());
+        let f = synth_frame(&m, &pose, 1, 0.0, Some(sig), &mut Rng::new(3));
+        let mut est = ModelEstimator::new(m.clone(), ModelConfig::default()).unwrap();
+        let e = est.estimate(&f);
+        assert_eq!(
+            (e.status, e.readings.attitude),
+            (Status::Ok, ReadingUse::Used)
+        );
+        let mut bad = f;
+        if let Some(a) = bad.attitude.as_mut() {
+            a.pitch = Angle::from_rad(f64::NAN);
+        }
+        est.reset();
+        let e = est.estimate(&bad);
+        assert_eq!(e.readings.attitude, ReadingUse::Refused(Refusal::NotFinite));
+        assert!(
+            e.x.is_some() && e.pitch_deg.is_some_and(f64::is_finite),
+            "{e:?}"
+        );
+        let pos = ModelConfig {
+            dof: Dof::Position,
+            ..ModelConfig::default()
+        };
+        let mut held = ModelEstimator::new(m.clone(), pos).unwrap();
+        let mut own = f;
+        if let Some(a) = own.attitude.as_mut() {
+            a.std = Some(AttitudeStd {
+                pitch: Angle::from_deg(0.7),
+                yaw: Angle::from_deg(2.5),
+            });
+        }
+        let e = held.estimate(&own);
+        assert_eq!((e.std.pitch, e.std.yaw), (Some(0.7), Some(2.5)));
+        let off = ModelConfig {
+            use_attitude: false,
+            ..ModelConfig::default()
+        };
+        let e = ModelEstimator::new(m, off).unwrap().estimate(&f);
+        assert_eq!(e.readings.attitude, ReadingUse::Ignored);
+    }
+
     #[test]
     fn recovers_pose_with_attitude_prior_and_honest_std() {
         let m = SensorModel::default();

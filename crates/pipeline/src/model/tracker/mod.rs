@@ -34,7 +34,7 @@ mod bank;
 mod bound;
 mod counts;
 mod motion;
-mod readings;
+pub(crate) mod readings;
 mod start;
 mod state;
 #[cfg(test)]

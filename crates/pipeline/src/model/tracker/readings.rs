@@ -19,7 +19,7 @@
 // `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use lightpose_core::{Frame, ReadingUse, Refusal};
+use lightpose_core::{AttitudeReading, Frame, ReadingUse, Refusal};
 use nalgebra::{SMatrix, SVector};
 
 use super::counts::commit;
@@ -29,7 +29,7 @@ use crate::settings::{Motion, TrackerConfig};
 
 /// A reading that passed the checks: its values and 1σ per component.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct Checked<const M: usize> {
+pub(crate) struct Checked<const M: usize> {
     pub z: SVector<f64, M>,
     pub sigma: SVector<f64, M>,
 }
@@ -60,7 +60,7 @@ const RATE_MOVES: [bool; NS] = {
 
 /// A reading before the gate: nothing to do, or ready to fuse.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) enum Pending<const M: usize> {
+pub(crate) enum Pending<const M: usize> {
     /// Absent, ignored by the settings, or refused by a check: the verdict.
     Done(ReadingUse),
     Ready(Checked<M>),
@@ -93,7 +93,7 @@ pub(super) struct FrameReadings {
 
 /// The verdict of a value check: finite values, a positive finite std
 /// where the reading gives one, values within `limit`.
-fn check<const M: usize>(
+pub(crate) fn check<const M: usize>(
     z: [f64; M],
     own_std: Option<[f64; M]>,
     default_std: [f64; M],
@@ -116,6 +116,21 @@ fn check<const M: usize>(
     })
 }
 
+/// An attitude reading's check (radians), its noise its own `std` or
+/// `sigma_deg` (pitch, yaw): pitch beyond ±90° or yaw beyond ±180° is no
+/// attitude at all. The tracker's and the single-frame fit's alike.
+pub(crate) fn check_attitude(a: &AttitudeReading, sigma_deg: [f64; 2]) -> Pending<2> {
+    check(
+        [a.pitch.rad(), a.yaw.rad()],
+        a.std.map(|s| [s.pitch.rad(), s.yaw.rad()]),
+        sigma_deg.map(f64::to_radians),
+        [
+            std::f64::consts::FRAC_PI_2 * (1.0 - 1e-9),
+            std::f64::consts::PI,
+        ],
+    )
+}
+
 impl FrameReadings {
     /// Check each of `frame`'s readings against `cfg`.
     pub fn check(frame: &Frame, cfg: &TrackerConfig) -> FrameReadings {
@@ -123,18 +138,9 @@ impl FrameReadings {
         let attitude = match frame.attitude {
             None => Pending::Done(absent),
             Some(_) if !cfg.use_attitude => Pending::Done(ignored),
-            // Pitch beyond ±90° or yaw beyond ±180° is no attitude at all.
-            Some(a) => check(
-                [a.pitch.rad(), a.yaw.rad()],
-                a.std.map(|s| [s.pitch.rad(), s.yaw.rad()]),
-                [
-                    cfg.attitude_sigma_pitch_deg.to_radians(),
-                    cfg.attitude_sigma_yaw_deg.to_radians(),
-                ],
-                [
-                    std::f64::consts::FRAC_PI_2 * (1.0 - 1e-9),
-                    std::f64::consts::PI,
-                ],
+            Some(a) => check_attitude(
+                &a,
+                [cfg.attitude_sigma_pitch_deg, cfg.attitude_sigma_yaw_deg],
             ),
         };
         let depth = match frame.depth {
