@@ -413,8 +413,10 @@ impl Fits {
         positive("fits.x", "a1", x.a1)?;
         positive("fits.x", "b1", x.b1)?;
         finite("fits.x", "r2", x.r2)?;
-        finite("fits.x", "sigma_ln", x.sigma_ln)?;
-        finite("fits.x", "sigma_m", x.sigma_m)?;
+        // A residual's σ goes into every pose's std: 0 or less would
+        // publish a certainty no fit has.
+        positive("fits.x", "sigma_ln", x.sigma_ln)?;
+        positive("fits.x", "sigma_m", x.sigma_m)?;
         let lines = [
             ("fits.pitch", &self.pitch, false),
             ("fits.yaw", &self.yaw, false),
@@ -425,7 +427,7 @@ impl Fits {
             finite(t, "a", f.a)?;
             finite(t, "b", f.b)?;
             finite(t, "r2", f.r2)?;
-            finite(t, "sigma", f.sigma)?;
+            positive(t, "sigma", f.sigma)?;
         }
         for (t, f, first) in lines {
             if matches!(f.feature.moment, Moment::M10 | Moment::M01) != first {
@@ -572,6 +574,76 @@ impl Calibration {
         std::fs::write(path, text).map_err(|err| CalError::Io { file, err })
     }
 
+    /// Volts that this calibration's ADC can read: the dark offsets and
+    /// the no-light threshold within ±`scene.v_ref`.
+    fn fits_this_adc(&self) -> Result<(), Refusal> {
+        let v_ref = self.scene.v_ref;
+        if let Some(v) = self.dark.offset_v.iter().find(|v| v.abs() > v_ref) {
+            return Err((
+                "dark",
+                "offset_v",
+                format!("{v} V is beyond the ADC's ±{v_ref} V (scene.v_ref)"),
+            ));
+        }
+        if self.limits.no_light_v > v_ref {
+            return Err((
+                "limits",
+                "no_light_v",
+                format!(
+                    "{} V is beyond the ADC's {v_ref} V (scene.v_ref): no frame could have light",
+                    self.limits.no_light_v
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The light model was fitted on this calibration's ADC, and every
+    /// standard error is a σ (finite, ≥ 0).
+    fn physical_fits_this_adc(&self, p: &PhysicalCalibration) -> Result<(), Refusal> {
+        if p.adc_bits != self.scene.adc_bits {
+            return Err((
+                "physical",
+                "adc_bits",
+                format!(
+                    "{} differs from scene.adc_bits {}: the light model is of another ADC",
+                    p.adc_bits, self.scene.adc_bits
+                ),
+            ));
+        }
+        if p.v_ref != self.scene.v_ref {
+            return Err((
+                "physical",
+                "v_ref",
+                format!(
+                    "{} differs from scene.v_ref {}: the light model is of another ADC",
+                    p.v_ref, self.scene.v_ref
+                ),
+            ));
+        }
+        let mut named = vec![
+            ("v1", &p.v1),
+            ("sigma_b_deg", &p.sigma_b_deg),
+            ("sigma_r_deg", &p.sigma_r_deg),
+            ("k_d", &p.k_d),
+        ];
+        named.extend(p.omega.as_ref().map(|e| ("omega", e)));
+        named.extend(p.sigma_h_deg.as_ref().map(|e| ("sigma_h_deg", e)));
+        named.extend(p.gain.iter().map(|e| ("gain", e)));
+        named.extend(p.offset_v.iter().map(|e| ("offset_v", e)));
+        match named
+            .iter()
+            .find(|(_, e)| !(e.std.is_finite() && e.std >= 0.0))
+        {
+            Some((k, e)) => Err((
+                "physical",
+                k,
+                format!("std {} must be a non-negative number", e.std),
+            )),
+            None => Ok(()),
+        }
+    }
+
     /// Every value that parses but cannot be right, as (table, key, why):
     /// each table by its own check, in the file's order.
     pub fn check(&self) -> Result<(), Refusal> {
@@ -581,8 +653,10 @@ impl Calibration {
         self.fits.check()?;
         self.coverage.check()?;
         self.limits.check()?;
+        self.fits_this_adc()?;
         if let Some(p) = &self.physical {
             p.validate().map_err(|m| ("physical", "", m))?;
+            self.physical_fits_this_adc(p)?;
         }
         if let Some(e) = &self.estimator {
             e.model
@@ -815,6 +889,52 @@ pub(crate) mod tests {
         text.push_str("\n[physical]\nv1 = 135.0\n");
         let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
         assert!(e.contains("c.toml:"), "{e}");
+    }
+
+    /// Values that parse but that no fit or ADC gives: a residual σ of 0
+    /// or less (published as a pose's std), volts beyond the ADC, a light
+    /// model of another ADC, a negative standard error.
+    #[test]
+    fn values_no_fit_or_adc_gives_are_refused_by_key() {
+        for (from, to, want) in [
+            ("sigma_m = 0.07", "sigma_m = -0.6", "fits.x.sigma_m"),
+            ("sigma_m = 0.07", "sigma_m = 0.0", "fits.x.sigma_m"),
+            ("sigma_ln = 0.02", "sigma_ln = 0.0", "fits.x.sigma_ln"),
+            ("offset_v = [0.15,", "offset_v = [1e9,", "dark.offset_v"),
+        ] {
+            let e = refusal_with(from, to);
+            assert!(
+                e.starts_with("c.toml:") && e.contains(want),
+                "{from} → {to}: {e}"
+            );
+        }
+        let mut c = sample();
+        let no_light = c.scene.v_ref * 2.0;
+        c.limits.no_light_v = no_light;
+        let e = Calibration::parse(&c.to_toml().unwrap(), "c.toml").unwrap_err();
+        assert!(e.to_string().contains("limits.no_light_v"), "{e}");
+        let with = |f: &dyn Fn(&mut PhysicalCalibration)| {
+            let mut c = sample();
+            let mut p = sample_physical();
+            f(&mut p);
+            c.physical = Some(p);
+            Calibration::parse(&c.to_toml().unwrap(), "c.toml").map_err(|e| e.to_string())
+        };
+        assert!(with(&|_| {}).is_ok());
+        let e = with(&|p| p.adc_bits = 12).unwrap_err();
+        assert!(
+            e.contains("physical.adc_bits") && e.contains("another ADC"),
+            "{e}"
+        );
+        let e = with(&|p| p.v_ref = 3.3).unwrap_err();
+        assert!(e.contains("physical.v_ref"), "{e}");
+        let e = with(&|p| p.v1.std = -1.0).unwrap_err();
+        assert!(
+            e.contains("physical.v1") && e.contains("non-negative"),
+            "{e}"
+        );
+        let e = with(&|p| p.gain[3].std = f64::NAN).unwrap_err();
+        assert!(e.contains("physical.gain"), "{e}");
     }
 
     #[test]
