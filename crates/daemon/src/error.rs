@@ -2,7 +2,7 @@
 //! libraries' own errors as their sources; turned into one line of text
 //! only where it is shown (`main.rs`, a log line) by [`report`].
 
-use crate::config::ConfigError;
+use crate::config::{ConfigError, KeyAt};
 use crate::outputs::udp::PublishError;
 use std::error::Error;
 
@@ -10,14 +10,25 @@ use std::error::Error;
 pub enum DaemonError {
     #[error(transparent)]
     Config(#[from] ConfigError),
-    /// The calibration could not be read (the cause names the file).
-    #[error("calibration")]
-    CalibrationRead(#[source] lightpose_core::textfile::TextError),
+    /// The calibration could not be read (the cause names the file), said
+    /// at the config's `calibration` key as any refused key is.
+    #[error("{at}: calibration")]
+    CalibrationRead {
+        at: KeyAt,
+        #[source]
+        source: lightpose_core::textfile::TextError,
+    },
     /// The calibration is wrong (the message names the file and line).
     #[error(transparent)]
     Calibration(#[from] lightpose_pipeline::CalError),
-    #[error("estimator")]
-    Estimator(#[source] lightpose_pipeline::BuildError),
+    /// No such estimator, or not with this calibration: at the config's
+    /// `estimator` key.
+    #[error("{at}: estimator")]
+    Estimator {
+        at: KeyAt,
+        #[source]
+        source: lightpose_pipeline::BuildError,
+    },
     #[error("backend {kind}")]
     Backend {
         kind: &'static str,
@@ -63,9 +74,9 @@ impl DaemonError {
     pub fn refuses_config(&self) -> bool {
         match self {
             DaemonError::Config(_)
-            | DaemonError::CalibrationRead(_)
+            | DaemonError::CalibrationRead { .. }
             | DaemonError::Calibration(_)
-            | DaemonError::Estimator(_)
+            | DaemonError::Estimator { .. }
             | DaemonError::NotFreeRunning { .. } => true,
             DaemonError::Backend { source, .. } => source.refuses_config(),
             DaemonError::Publish(_)

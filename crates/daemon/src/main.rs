@@ -11,6 +11,7 @@ use clap::Parser;
 use lightposed::config::LogFormat;
 use lightposed::error::report;
 use lightposed::{Config, DaemonError, Publisher};
+use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -59,12 +60,21 @@ fn init_logging(cfg: &Config) {
     let journald = std::env::var_os("JOURNAL_STREAM").is_some();
     let b = tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr);
+        .with_writer(std::io::stderr)
+        .with_ansi(colour(journald, std::io::stderr().is_terminal()));
     match (cfg.logging.format, journald) {
         (LogFormat::Json, _) => b.json().init(),
-        (LogFormat::Plain, true) => b.without_time().with_ansi(false).with_target(false).init(),
+        (LogFormat::Plain, true) => b.without_time().with_target(false).init(),
         (LogFormat::Plain, false) => b.with_target(false).init(),
     }
+}
+
+/// Colour only for a person at a terminal: escape codes in a file, a pipe
+/// (`2>log`, `| tee`) or the journal are noise, and NO_COLOR (no-color.org:
+/// set and not empty) turns it off everywhere.
+fn colour(journald: bool, terminal: bool) -> bool {
+    let no_color = std::env::var_os("NO_COLOR").is_some_and(|v| !v.is_empty());
+    terminal && !journald && !no_color
 }
 
 async fn serve(cfg: Config) -> anyhow::Result<lightposed::Summary> {

@@ -31,9 +31,17 @@ pub fn build_estimator(cfg: &Config) -> Result<Box<dyn Estimator>, DaemonError> 
     let text = cfg
         .calibration
         .read()
-        .map_err(DaemonError::CalibrationRead)?;
+        .map_err(|source| DaemonError::CalibrationRead {
+            at: cfg.calibration_at.clone(),
+            source,
+        })?;
     let cal = Calibration::parse(&text, &cfg.calibration.describe())?;
-    lightpose_pipeline::build_estimator(&cfg.estimator, &cal).map_err(DaemonError::Estimator)
+    lightpose_pipeline::build_estimator(&cfg.estimator, &cal).map_err(|source| {
+        DaemonError::Estimator {
+            at: cfg.estimator_at.clone(),
+            source,
+        }
+    })
 }
 
 /// Check everything a start would read, without starting: the calibration

@@ -254,6 +254,27 @@ fn open_source_sim_from_files_and_missing_file() {
     assert!(e.to_string().contains("/nonexistent/t.csv"), "{e}");
 }
 
+/// The mock's loop key is `loop`, as for sim and replay (the name
+/// config/lightposed.toml documents); `looping`, its first spelling, is
+/// still read so that older configs keep working.
+#[test]
+fn mock_takes_loop_and_its_old_spelling_looping() {
+    let looping = |extra: &str| {
+        let text = format!("kind = \"mock\"\ntrajectory = \"t.csv\"\n{extra}");
+        match validate(&text) {
+            Ok(ValidBackend::Sim(p)) => Ok(p.looping),
+            Ok(other) => panic!("not a simulator: {other:?}"),
+            Err(e) => Err(e),
+        }
+    };
+    assert_eq!(looping(""), Ok(true), "loops by default");
+    assert_eq!(looping("loop = false\n"), Ok(false));
+    assert_eq!(looping("loop = true\n"), Ok(true));
+    assert_eq!(looping("looping = false\n"), Ok(false));
+    let e = looping("loop = false\nlooping = true\n").unwrap_err();
+    assert!(e.contains("duplicate field `loop`"), "{e}");
+}
+
 #[cfg(not(feature = "linux"))]
 #[test]
 fn hardware_kinds_need_the_linux_feature() {

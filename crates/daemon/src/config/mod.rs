@@ -48,6 +48,12 @@ pub struct Config {
     pub late_tolerance: f64,
     pub estimator: String,
     pub calibration: TextSource,
+    /// Where `estimator` and `calibration` are written: what is wrong with
+    /// them shows only when they are used (a calibration that cannot be
+    /// read, a name this build does not know), and is then refused at
+    /// their line like every other key.
+    pub estimator_at: KeyAt,
+    pub calibration_at: KeyAt,
     /// Where frames come from, validated by lightpose-hal; opened with
     /// `lightpose_hal::open`, the daemon never looks inside.
     pub backend: ValidBackend,
@@ -63,6 +69,23 @@ pub struct Config {
     pub site: Option<lightpose_vehicle::Site>,
     /// The autopilot and DVL links (`[mavlink]`, `[dvl]`), if configured.
     pub vehicle: Option<VehicleConfig>,
+}
+
+/// Where a key is written, shown `FILE:LINE` (`FILE` alone for a key left
+/// out, which has no line).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct KeyAt {
+    pub file: String,
+    pub line: Option<usize>,
+}
+
+impl std::fmt::Display for KeyAt {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.line {
+            Some(l) => write!(f, "{}:{l}", self.file),
+            None => f.write_str(&self.file),
+        }
+    }
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -152,6 +175,14 @@ impl Config {
             late_tolerance: top.late_tolerance,
             estimator: top.estimator,
             calibration: top.calibration,
+            estimator_at: KeyAt {
+                file: file.to_string(),
+                line: top.estimator_line,
+            },
+            calibration_at: KeyAt {
+                file: file.to_string(),
+                line: Some(top.calibration_line),
+            },
             backend,
             fallback_temp_c,
             outputs,
@@ -198,6 +229,11 @@ destinations = ["127.0.0.1:9999"]
         assert_eq!(c.rate_hz, 50.0);
         assert_eq!(c.estimator, "auto");
         assert_eq!(c.calibration, TextSource::File("/etc/lp/cal.toml".into()));
+        assert_eq!(c.calibration_at.to_string(), "t.toml:3");
+        assert_eq!(c.estimator_at.to_string(), "t.toml", "not written: no line");
+        let c = parse(&MIN.replace("rate_hz = 50.0", "rate_hz = 50.0\nestimator = \"x\""))
+            .expect("valid");
+        assert_eq!(c.estimator_at.to_string(), "t.toml:3");
         assert_eq!(
             c.backend,
             ValidBackend::Replay(ReplayPlan {

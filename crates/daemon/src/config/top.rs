@@ -13,6 +13,9 @@ pub(super) struct Top {
     pub late_tolerance: f64,
     pub estimator: String,
     pub calibration: TextSource,
+    /// The lines of `estimator` (none when left out) and `calibration`.
+    pub estimator_line: Option<usize>,
+    pub calibration_line: usize,
 }
 
 pub(super) fn validate(ctx: &Ctx, raw: &Raw) -> Result<Top, ConfigError> {
@@ -40,9 +43,13 @@ pub(super) fn validate(ctx: &Ctx, raw: &Raw) -> Result<Top, ConfigError> {
         Some(v) => v.get_ref().clone(),
         None => "auto".into(),
     };
-    let calibration = match &raw.calibration {
-        Some(v) => embedded::resolve(ctx, v.get_ref())
-            .map_err(|msg| ctx.err(v.span(), "calibration", msg))?,
+    let estimator_line = raw.estimator.as_ref().map(|v| ctx.line(v.span().start));
+    let (calibration, calibration_line) = match &raw.calibration {
+        Some(v) => (
+            embedded::resolve(ctx, v.get_ref())
+                .map_err(|msg| ctx.err(v.span(), "calibration", msg))?,
+            ctx.line(v.span().start),
+        ),
         None => {
             return Err(ctx.whole(
                 "calibration: missing (a calibration file, or \"embedded:tank-calibration\")",
@@ -54,5 +61,7 @@ pub(super) fn validate(ctx: &Ctx, raw: &Raw) -> Result<Top, ConfigError> {
         late_tolerance,
         estimator,
         calibration,
+        estimator_line,
+        calibration_line,
     })
 }

@@ -9,7 +9,8 @@
 //! - `kind = "mock"`: the same simulator with injected faults (bus errors,
 //!   dropped frames, stuck channels) for robustness tests: paths taken as
 //!   written, no scene = the simulator's default tank, its own `rate_hz`
-//!   (0 = free-running), `looping`, `seed` (default 0), `faults`.
+//!   (0 = free-running), `loop` (`looping`, its first spelling, still
+//!   read), `seed` (default 0), `faults`.
 //!
 //! Both validate into one [`SimPlan`], opened by one source.
 
@@ -58,8 +59,10 @@ pub struct MockConfig {
     pub scene: Option<PathBuf>,
     /// Trajectory CSV (`t,x,y,z,pitch,yaw`).
     pub trajectory: PathBuf,
-    /// Start again at the trajectory's beginning when it ends.
-    #[serde(default = "true_")]
+    /// Start again at the trajectory's beginning when it ends. `loop`, as
+    /// for sim and replay; `looping`, the mock's first spelling, is still
+    /// read so that configs written for it keep working.
+    #[serde(rename = "loop", alias = "looping", default = "true_")]
     pub looping: bool,
     #[serde(default)]
     pub seed: u64,
