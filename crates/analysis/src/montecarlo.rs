@@ -32,15 +32,13 @@ pub enum McError {
     Scene(String),
     #[error("estimator: {0}")]
     Estimator(String),
-    #[error("{path}: {source}")]
-    Io {
-        path: String,
-        #[source]
-        source: std::io::Error,
-    },
+    // The I/O error is in the message, not chained as a source, so that a
+    // one-line `{:#}` report does not say it twice.
+    #[error("{path}: {err}")]
+    Io { path: String, err: std::io::Error },
     #[error("{path}: cannot plot: {msg}")]
     Plot { path: String, msg: String },
-    #[error("unknown case \"{0}\" (known: auto, none, dive-clear, zigzag-clear, zigzag-turbid)")]
+    #[error("unknown case \"{0}\" (known: auto, none, dive-clear, zigzag-clear, zigzag-turbid, or their aliases dive-tank, zigzag-tank, zigzag-harbour)")]
     UnknownCase(String),
 }
 

@@ -61,13 +61,31 @@ impl PaperCase {
         PaperCase::ZigzagTurbid,
     ];
 
-    /// The `--case` word.
-    pub fn as_str(self) -> &'static str {
+    /// The `--case` word of `lightpose montecarlo`, named for the water.
+    pub const fn as_str(self) -> &'static str {
         match self {
             PaperCase::DiveClear => "dive-clear",
             PaperCase::ZigzagClear => "zigzag-clear",
             PaperCase::ZigzagTurbid => "zigzag-turbid",
         }
+    }
+
+    /// The `--case` word of `lightpose bench`, named for the scene file
+    /// (`trade::CASES`). This and [`PaperCase::as_str`] are the one
+    /// mapping between the two spellings: each command takes both.
+    pub const fn scene_name(self) -> &'static str {
+        match self {
+            PaperCase::DiveClear => "dive-tank",
+            PaperCase::ZigzagClear => "zigzag-tank",
+            PaperCase::ZigzagTurbid => "zigzag-harbour",
+        }
+    }
+
+    /// The case either spelling names (`dive-clear` or `dive-tank`, …).
+    pub fn named(s: &str) -> Option<PaperCase> {
+        PaperCase::ALL
+            .into_iter()
+            .find(|c| c.as_str() == s || c.scene_name() == s)
     }
 
     /// Title as the paper names it.
@@ -84,14 +102,13 @@ impl PaperCase {
     }
 
     /// `--case`: "auto" → `Ok(None)` is not decided here (the caller
-    /// detects); "none" → no comparison; else one of [`PaperCase::ALL`].
+    /// detects); "none" → no comparison; else one of [`PaperCase::ALL`]
+    /// in either spelling ([`PaperCase::named`]).
     pub fn parse(s: &str) -> Result<Option<PaperCase>, McError> {
         if s == "none" {
             return Ok(None);
         }
-        PaperCase::ALL
-            .into_iter()
-            .find(|c| c.as_str() == s)
+        PaperCase::named(s)
             .map(Some)
             .ok_or_else(|| McError::UnknownCase(s.to_string()))
     }
@@ -170,6 +187,24 @@ mod tests {
             Some(PaperCase::ZigzagTurbid)
         );
         assert!(PaperCase::parse("zigzag").is_err());
+    }
+
+    #[test]
+    fn each_case_is_named_in_both_spellings() {
+        for c in PaperCase::ALL {
+            assert_eq!(PaperCase::named(c.as_str()), Some(c));
+            assert_eq!(PaperCase::named(c.scene_name()), Some(c));
+            assert_eq!(PaperCase::parse(c.scene_name()).unwrap(), Some(c));
+        }
+        assert_eq!(
+            PaperCase::parse("dive-tank").unwrap(),
+            Some(PaperCase::DiveClear)
+        );
+        assert_eq!(
+            PaperCase::named("zigzag-harbour"),
+            Some(PaperCase::ZigzagTurbid)
+        );
+        assert_eq!(PaperCase::named("harbour"), None);
     }
 
     #[test]

@@ -259,18 +259,18 @@ fn write_coverage(o: &mut String, r: &McResult) {
 }
 
 fn write_file(path: &Path, text: &str) -> Result<(), McError> {
-    std::fs::write(path, text).map_err(|source| McError::Io {
+    std::fs::write(path, text).map_err(|err| McError::Io {
         path: path.display().to_string(),
-        source,
+        err,
     })
 }
 
 /// Write `steps.csv`, `summary.md`, `montecarlo.png` and `montecarlo.svg`
 /// into `dir` (created if missing).
 pub fn write_all(r: &McResult, info: &RunInfo, dir: &Path) -> Result<(), McError> {
-    std::fs::create_dir_all(dir).map_err(|source| McError::Io {
+    std::fs::create_dir_all(dir).map_err(|err| McError::Io {
         path: dir.display().to_string(),
-        source,
+        err,
     })?;
     write_file(&dir.join(CSV_NAME), &csv_text(r))?;
     write_file(&dir.join(SUMMARY_NAME), &summary_text(r, info))?;

@@ -45,21 +45,21 @@ pub struct Case {
 
 pub const CASES: [Case; 3] = [
     Case {
-        name: "dive-tank",
+        name: PaperCase::DiveClear.scene_name(),
         paper: PaperCase::DiveClear,
         scene: "config/scenes/tank.toml",
         trajectory: "config/trajectories/dive.csv",
         calibration: "config/calibration/tank.toml",
     },
     Case {
-        name: "zigzag-tank",
+        name: PaperCase::ZigzagClear.scene_name(),
         paper: PaperCase::ZigzagClear,
         scene: "config/scenes/tank.toml",
         trajectory: "config/trajectories/zigzag.csv",
         calibration: "config/calibration/tank.toml",
     },
     Case {
-        name: "zigzag-harbour",
+        name: PaperCase::ZigzagTurbid.scene_name(),
         paper: PaperCase::ZigzagTurbid,
         scene: "config/scenes/harbour.toml",
         trajectory: "config/trajectories/zigzag.csv",
@@ -68,45 +68,45 @@ pub const CASES: [Case; 3] = [
 ];
 
 impl Case {
-    /// The case called `name`.
+    /// The case called `name`, in either spelling (`dive-tank` or the
+    /// paper case's `dive-clear`, [`PaperCase::named`]).
     pub fn named(name: &str) -> Option<&'static Case> {
-        CASES.iter().find(|c| c.name == name)
+        let paper = PaperCase::named(name)?;
+        CASES.iter().find(|c| c.paper == paper)
     }
 }
 
+// Each cause is in the message, not chained as a source as well, so that
+// a one-line `{:#}` report says it once (the causes' own messages name
+// the file and why).
 #[derive(Debug, thiserror::Error)]
 pub enum TradeError {
-    #[error("case {case}: {source}")]
+    #[error("case {case}: {err}")]
     Scene {
         case: &'static str,
-        #[source]
-        source: lightpose_sim::SceneError,
+        err: lightpose_sim::SceneError,
     },
-    #[error("case {case}: {source}")]
+    #[error("case {case}: {err}")]
     Trajectory {
         case: &'static str,
-        #[source]
-        source: lightpose_sim::TrajectoryError,
+        err: lightpose_sim::TrajectoryError,
     },
-    #[error("case {case}: {source}")]
+    #[error("case {case}: {err}")]
     Calibration {
         case: &'static str,
-        #[source]
-        source: lightpose_pipeline::CalError,
+        err: lightpose_pipeline::CalError,
     },
-    #[error("case {case}, estimator {name}: {source}")]
+    #[error("case {case}, estimator {name}: {err}")]
     Build {
         case: &'static str,
         name: String,
-        #[source]
-        source: BuildError,
+        err: BuildError,
     },
-    #[error("case {case}, estimator {name}: {source}")]
+    #[error("case {case}, estimator {name}: {err}")]
     MonteCarlo {
         case: &'static str,
         name: String,
-        #[source]
-        source: McError,
+        err: McError,
     },
 }
 
@@ -124,11 +124,11 @@ pub fn load(root: &Path, case: &'static Case) -> Result<Loaded, TradeError> {
     Ok(Loaded {
         case,
         scene: Scene::load(&root.join(case.scene))
-            .map_err(|source| TradeError::Scene { case: c, source })?,
+            .map_err(|err| TradeError::Scene { case: c, err })?,
         trajectory: Trajectory::load(&root.join(case.trajectory))
-            .map_err(|source| TradeError::Trajectory { case: c, source })?,
+            .map_err(|err| TradeError::Trajectory { case: c, err })?,
         calibration: Calibration::load(&root.join(case.calibration))
-            .map_err(|source| TradeError::Calibration { case: c, source })?,
+            .map_err(|err| TradeError::Calibration { case: c, err })?,
     })
 }
 
@@ -264,11 +264,11 @@ pub fn run_section(
                     .push(format!("{}: skipped: {e}", case.calibration));
                 continue;
             }
-            Err(source) => {
+            Err(err) => {
                 return Err(TradeError::Build {
                     case: case.name,
                     name: name.clone(),
-                    source,
+                    err,
                 })
             }
         };
@@ -276,10 +276,10 @@ pub fn run_section(
         let bar = progress(o.runs as u64);
         let mc = montecarlo::run(&cfg, build, &bar);
         bar.finish_and_clear();
-        let mc = mc.map_err(|source| TradeError::MonteCarlo {
+        let mc = mc.map_err(|err| TradeError::MonteCarlo {
             case: case.name,
             name: name.clone(),
-            source,
+            err,
         })?;
         sec.rows.push(Row {
             name: mc.estimator.clone(),
@@ -335,6 +335,25 @@ fn paper_cell(case: PaperCase, a: Axis) -> String {
     format!("{} → {}", f(fig.ci_start[i]), f(fig.ci_end[i]))
 }
 
+/// What the CRB column is computed with when the set has a DVL: the set's
+/// other sensors, named (the DVL measures velocity, which one frame's bound
+/// has no place for). Empty without a DVL: the set is the heading's.
+fn crb_sensors_note(set: SensorSet) -> String {
+    if !set.dvl {
+        return String::new();
+    }
+    let rest: Vec<&str> = [(set.attitude, "attitude"), (set.depth, "depth")]
+        .into_iter()
+        .filter_map(|(on, n)| on.then_some(n))
+        .collect();
+    let with = if rest.is_empty() {
+        "no own sensor".to_string()
+    } else {
+        rest.join(" and ")
+    };
+    format!(" (with {with}: the DVL adds nothing to one frame)")
+}
+
 /// The Markdown table of one section.
 pub fn table(sec: &Section) -> String {
     let mut o = String::new();
@@ -378,11 +397,7 @@ pub fn table(sec: &Section) -> String {
     let _ = writeln!(
         o,
         "\nCRB: one frame's bound{}. Tracker bound: the posterior bound along the whole track for an estimator that believes the tracker's motion model (a smoother vehicle can be tracked better).",
-        if sec.sensors.dvl {
-            " (with attitude and depth: the DVL adds nothing to one frame)"
-        } else {
-            ""
-        }
+        crb_sensors_note(sec.sensors)
     );
     for s in &sec.skipped {
         let _ = writeln!(o, "\n{s}");
@@ -439,5 +454,54 @@ mod tests {
         assert_eq!(num(None), "—");
         assert_eq!(num(Some(f64::NAN)), "—");
         assert!(Case::named("dive-tank").is_some() && Case::named("spiral").is_none());
+    }
+
+    /// A case's missing file is said once in a report of the chain: the
+    /// cause is in the message and not chained as well.
+    #[test]
+    fn a_missing_case_file_is_said_once() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let Err(e) = load(dir.path(), &CASES[0]) else {
+            panic!("loaded from an empty directory")
+        };
+        let line = e.to_string();
+        assert!(line.starts_with("case dive-tank: "), "{line}");
+        assert_eq!(line.matches("tank.toml").count(), 1, "{line}");
+        assert!(std::error::Error::source(&e).is_none(), "{e:?}");
+    }
+
+    #[test]
+    fn the_crb_note_names_the_sensors_of_the_set() {
+        let note = |s: &str| crb_sensors_note(SensorSet::parse(s).expect("a set"));
+        assert_eq!(
+            note("all"),
+            " (with attitude and depth: the DVL adds nothing to one frame)"
+        );
+        assert_eq!(
+            note("attitude+dvl"),
+            " (with attitude: the DVL adds nothing to one frame)"
+        );
+        assert_eq!(
+            note("depth+dvl"),
+            " (with depth: the DVL adds nothing to one frame)"
+        );
+        assert_eq!(
+            note("dvl"),
+            " (with no own sensor: the DVL adds nothing to one frame)"
+        );
+        assert_eq!(note("attitude+depth"), "");
+    }
+
+    #[test]
+    fn cases_take_montecarlos_spelling_too() {
+        for c in &CASES {
+            assert_eq!(c.name, c.paper.scene_name());
+            let by_paper = Case::named(c.paper.as_str()).map(|k| k.name);
+            assert_eq!(by_paper, Some(c.name));
+        }
+        assert_eq!(
+            Case::named("zigzag-turbid").map(|c| c.name),
+            Some("zigzag-harbour")
+        );
     }
 }

@@ -42,26 +42,49 @@ pub enum LineRead {
     TooLong,
 }
 
-#[derive(Debug, thiserror::Error)]
+/// Why a text file could not be read. Every message is one line that
+/// already says its cause, so no variant has a `source()`: a reporter that
+/// joins the chain (`{:#}`) would otherwise say the I/O error twice.
+#[derive(Debug)]
 pub enum TextError {
-    #[error("{file}: {source}")]
+    /// `source` is the I/O error, shown in the message (not chained).
     Io {
         file: String,
-        #[source]
         source: std::io::Error,
     },
-    #[error("{file}: {size} bytes is too large for this kind of file (at most {max})")]
-    TooLarge { file: String, size: u64, max: u64 },
-    #[error("{file}: not valid UTF-8 text")]
-    NotUtf8 { file: String },
+    TooLarge {
+        file: String,
+        size: u64,
+        max: u64,
+    },
+    NotUtf8 {
+        file: String,
+    },
     /// A TOML syntax or type error; `line` is 1-based.
-    #[error("{file}:{line}: {msg}")]
     Syntax {
         file: String,
         line: usize,
         msg: String,
     },
 }
+
+// By hand, not thiserror: the derive makes a field named `source` the
+// error's source, and the name is part of the public variant.
+impl std::fmt::Display for TextError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            TextError::Io { file, source } => write!(f, "{file}: {source}"),
+            TextError::TooLarge { file, size, max } => write!(
+                f,
+                "{file}: {size} bytes is too large for this kind of file (at most {max})"
+            ),
+            TextError::NotUtf8 { file } => write!(f, "{file}: not valid UTF-8 text"),
+            TextError::Syntax { file, line, msg } => write!(f, "{file}:{line}: {msg}"),
+        }
+    }
+}
+
+impl std::error::Error for TextError {}
 
 /// The whole text of `path`, refusing files over [`MAX_TEXT_BYTES`] without
 /// reading them.
@@ -314,6 +337,15 @@ mod tests {
         assert_eq!(read_text(&p).unwrap(), "a = 1\n");
         let missing = read_text(&dir.path().join("nope.toml")).unwrap_err();
         assert!(missing.to_string().contains("nope.toml"), "{missing}");
+        // The cause is in the message and not chained as well, so that a
+        // report of the whole chain says it once.
+        match &missing {
+            TextError::Io { source, .. } => {
+                assert!(missing.to_string().ends_with(&source.to_string()));
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(std::error::Error::source(&missing).is_none());
         let big = dir.path().join("big.toml");
         let f = std::fs::File::create(&big).unwrap();
         f.set_len(MAX_TEXT_BYTES + 1).unwrap();
