@@ -91,6 +91,13 @@ pub struct SourceHealth {
     pub time_jumps: u64,
     /// Replay: log lines of other classes passed over.
     pub other_lines: u64,
+    /// Replay: lone frames out of line in `seq` or `t` gone over, the
+    /// frames after them kept (core's `FrameOrder::glitches`).
+    pub glitches: u64,
+    /// Replay: malformed own-sensor readings dropped (their frames kept),
+    /// and the last one's place and reason.
+    pub bad_readings: u64,
+    pub last_bad_reading: Option<String>,
 }
 
 /// "Give me the next frame": 25 channels in MODEL.md's order, the ADC
@@ -128,8 +135,10 @@ pub enum HalError {
     /// A config value is wrong; `key` is relative to the source's table.
     #[error("source config: {key}: {msg}")]
     Config { key: String, msg: String },
+    // The map's refusal is in the message, not chained as a source, so that
+    // a one-line report of the chain does not say it twice.
     #[error("source config: {0}")]
-    Map(#[from] MapError),
+    Map(MapError),
     /// A device could not be opened or set up.
     #[error("{place}: {msg}")]
     Open { place: String, msg: String },
@@ -150,6 +159,12 @@ pub enum HalError {
     /// A replayed log could not be opened or has no header.
     #[error(transparent)]
     Log(#[from] lightpose_core::LogError),
+}
+
+impl From<MapError> for HalError {
+    fn from(e: MapError) -> Self {
+        HalError::Map(e)
+    }
 }
 
 impl HalError {

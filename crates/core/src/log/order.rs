@@ -17,9 +17,16 @@
 //!   [`FrameOrder::last_jump`] says so for the frame just admitted, so that
 //!   a reader at recorded pace does not sleep through it.
 //!
-//! A log whose clock restarts mid-file (a board reset) therefore loses the
-//! frames after the restart, each one named: split such a file at the line
-//! the first skip names.
+//! - A lone glitch: when the frame just admitted claimed a gap in `seq`
+//!   (or a jump in `t`) and the next frame steps back in that one only,
+//!   in line with the frame before the claim, the claim was the glitch:
+//!   the next frame is admitted, counted as a glitch, and the gap taken
+//!   back. One corrupt `seq` (500 among 4, 5, 6) used to cost every frame
+//!   after it. Once only: the frame after a glitch must be in line.
+//!
+//! A log whose clock restarts mid-file (a board reset: `seq` and `t` both
+//! back) therefore loses the frames after the restart, each one named:
+//! split such a file at the line the first skip names.
 
 /// Largest |t| (seconds) a frame or message may carry.
 pub const MAX_ABS_T_S: f64 = 1e10;
@@ -36,6 +43,13 @@ pub fn plausible_t(t: f64) -> bool {
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameOrder {
     last: Option<(u64, f64)>,
+    /// The frame admitted before `last` (none just after a glitch), the
+    /// frames `last`'s gap counted as lost and whether its `t` jumped:
+    /// what a glitch in `last` takes back.
+    prev: Option<(u64, f64)>,
+    last_gap: u64,
+    last_jumped: bool,
+    glitches: u64,
     max_gap_s: f64,
     gaps: u64,
     lost: u64,
@@ -55,6 +69,10 @@ impl FrameOrder {
     pub fn new(max_gap_s: f64) -> Self {
         FrameOrder {
             last: None,
+            prev: None,
+            last_gap: 0,
+            last_jumped: false,
+            glitches: 0,
             max_gap_s,
             gaps: 0,
             lost: 0,
@@ -78,6 +96,26 @@ impl FrameOrder {
             ));
         }
         self.last_jump = None;
+        let mut glitch = false;
+        if let (Some((ls, lt)), Some((ps, pt))) = (self.last, self.prev) {
+            let seq_glitch = self.last_gap > 0 && seq < ls && t > lt;
+            let t_glitch = self.last_jumped && t <= lt && seq > ls;
+            if (seq_glitch || t_glitch) && seq > ps && t > pt {
+                // `last` was the glitch: go on from the frame before it.
+                glitch = true;
+                self.glitches += 1;
+                if self.last_gap > 0 {
+                    self.gaps -= 1;
+                    self.lost -= self.last_gap;
+                }
+                if self.last_jumped {
+                    self.jumps -= 1;
+                }
+                self.last = self.prev;
+            }
+        }
+        self.last_gap = 0;
+        self.last_jumped = false;
         if let Some((ls, lt)) = self.last {
             let why = if seq == ls {
                 Some(format!("seq {seq} repeats: frame skipped"))
@@ -98,15 +136,24 @@ impl FrameOrder {
             }
             if seq > ls + 1 {
                 self.gaps += 1;
-                self.lost += seq - ls - 1;
+                self.last_gap = seq - ls - 1;
+                self.lost += self.last_gap;
             }
             if t - lt > self.max_gap_s {
                 self.jumps += 1;
+                self.last_jumped = true;
                 self.last_jump = Some(t - lt);
             }
         }
+        self.prev = if glitch { None } else { self.last };
         self.last = Some((seq, t));
         Ok(())
+    }
+
+    /// Lone glitches gone over (see the module): frames admitted after one
+    /// frame out of line in its `seq` or its `t`.
+    pub fn glitches(&self) -> u64 {
+        self.glitches
     }
 
     /// Gaps in `seq`, and the frames they lost.
@@ -166,9 +213,41 @@ mod tests {
                 }
             }
             prop_assert_eq!(kept.len() as u64 + o.skipped(), frames.len() as u64);
-            for w in kept.windows(2) {
-                prop_assert!(w[1].0 > w[0].0 && w[1].1 > w[0].1);
+            let mut glitches = 0;
+            for w in kept.windows(3) {
+                if !(w[2].0 > w[1].0 && w[2].1 > w[1].1) {
+                    // Only across a glitch, and in line with the one before.
+                    prop_assert!(w[2].0 > w[0].0 && w[2].1 > w[0].1);
+                    glitches += 1;
+                }
             }
+            if let [a, b, ..] = kept[..] {
+                prop_assert!(b.0 > a.0 && b.1 > a.1);
+            }
+            prop_assert_eq!(glitches, o.glitches());
         }
+    }
+
+    /// One corrupt seq, then one corrupt t: each costs nothing after it,
+    /// and the gap the corrupt seq claimed is taken back; a board reset
+    /// (both back) still loses what follows.
+    #[test]
+    fn a_lone_glitch_costs_no_frame_after_it() {
+        let mut o = FrameOrder::default();
+        for (s, t) in [(1, 0.2), (2, 0.4), (500, 0.6), (4, 0.8), (5, 1.0)] {
+            assert!(o.admit(s, t).is_ok(), "{s}");
+        }
+        assert_eq!(
+            (o.glitches(), o.seq_gaps()),
+            (1, (1, 1)),
+            "3 is lost, not 497"
+        );
+        for (s, t) in [(6, 1e6), (7, 1.4), (8, 1.6)] {
+            assert!(o.admit(s, t).is_ok(), "{s}");
+        }
+        assert_eq!(o.glitches(), 2);
+        assert_eq!(o.skipped(), 0);
+        assert!(o.admit(0, 0.0).is_err(), "a reset: both back");
+        assert!(o.admit(1, 0.2).is_err());
     }
 }

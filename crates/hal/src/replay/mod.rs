@@ -35,6 +35,8 @@ use crate::{FrameSource, SourceError, SourceHealth};
 struct Done {
     skipped: u64,
     other: u64,
+    glitches: u64,
+    bad_readings: u64,
 }
 
 pub struct ReplaySource {
@@ -127,7 +129,9 @@ impl ReplaySource {
         self.reopen_failed = None;
         let o = self.log.order();
         self.done.skipped += o.skipped();
+        self.done.glitches += o.glitches();
         self.done.other += self.log.other_records();
+        self.done.bad_readings += self.log.bad_readings().0;
         self.log = log;
         if let (Some((s0, t0)), Some((sl, tl))) = (self.first_of_pass, self.last_out) {
             // Next pass starts one frame after this one ended, in seq and t.
@@ -251,7 +255,10 @@ impl FrameSource for ReplaySource {
         SourceHealth {
             skipped_frames: self.done.skipped + self.log.order().skipped(),
             time_jumps: self.jumps,
+            glitches: self.done.glitches + self.log.order().glitches(),
             other_lines: self.done.other + self.log.other_records(),
+            bad_readings: self.done.bad_readings + self.log.bad_readings().0,
+            last_bad_reading: self.log.bad_readings().1.map(str::to_string),
             ..SourceHealth::default()
         }
     }
