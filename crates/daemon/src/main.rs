@@ -41,7 +41,8 @@ struct Args {
     /// prints frames/s, latency of the first and last 10 %, and memory.
     #[arg(long)]
     soak: bool,
-    /// Frames for --bench (default 100000) or --soak (default 3600000).
+    /// Frames for --bench (default 100000) or --soak (default 3600000); at
+    /// least 1.
     #[arg(long)]
     frames: Option<u64>,
 }
@@ -147,6 +148,16 @@ fn log_start(cfg: &Config) {
     );
 }
 
+/// Why `--frames` cannot be taken, if it cannot: it needs --bench or
+/// --soak, and 0 frames measure nothing (the latencies would be NaN).
+fn frames_refused(frames: Option<u64>, measuring: bool) -> Option<&'static str> {
+    match frames {
+        Some(_) if !measuring => Some("--frames goes with --bench or --soak"),
+        Some(0) => Some("--frames 0: nothing to measure (give at least 1)"),
+        _ => None,
+    }
+}
+
 fn main() -> ExitCode {
     let args = Args::parse();
     if let Some(p) = &args.check_config {
@@ -156,8 +167,8 @@ fn main() -> ExitCode {
         Ok(c) => c,
         Err(e) => return fail(&e, 2),
     };
-    if args.frames.is_some() && !(args.bench || args.soak) {
-        eprintln!("lightposed: --frames goes with --bench or --soak");
+    if let Some(why) = frames_refused(args.frames, args.bench || args.soak) {
+        eprintln!("lightposed: {why}");
         return ExitCode::from(2);
     }
     if args.soak {
@@ -201,5 +212,18 @@ fn main() -> ExitCode {
                 .map_or(1, DaemonError::exit_code);
             ExitCode::from(code)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::frames_refused;
+
+    #[test]
+    fn frames_must_be_measured_and_more_than_none() {
+        assert_eq!(frames_refused(None, false), None);
+        assert_eq!(frames_refused(Some(10), true), None);
+        assert!(frames_refused(Some(10), false).is_some_and(|w| w.contains("--bench")));
+        assert!(frames_refused(Some(0), true).is_some_and(|w| w.starts_with("--frames 0")));
     }
 }

@@ -182,13 +182,6 @@ enum Poses {
     Carry(Vec<u8>),
 }
 
-fn same_file(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => false,
-    }
-}
-
 /// Where the POSE lines go, by the direction of the conversion.
 fn route_poses(
     log: &mut LogFile,
@@ -254,7 +247,7 @@ pub fn convert(
             output.display()
         ))
     })?;
-    if same_file(input, output) {
+    if crate::same_file(input, output) {
         return Err(ConvertError::Usage(format!(
             "{}: input and output are the same file",
             input.display()

@@ -50,6 +50,29 @@ use std::fs::File;
 use std::io::{BufReader, Read};
 use std::path::Path;
 
+/// Whether `a` and `b` name one existing file, however spelled (`./a`, a
+/// symlink, a hard link): a command must refuse to write its output over
+/// its own input, since creating the output truncates it before a line is
+/// read. A path that does not exist (yet) is no other file.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    // Device and inode: also catches a hard link, which canonical paths miss.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        match (std::fs::metadata(a), std::fs::metadata(b)) {
+            (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+            _ => false,
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        match (a.canonicalize(), b.canonicalize()) {
+            (Ok(x), Ok(y)) => x == y,
+            _ => false,
+        }
+    }
+}
+
 /// The containers of an intensity log.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Format {

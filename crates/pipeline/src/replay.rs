@@ -18,8 +18,16 @@ pub enum ReplayError {
     /// The log could not be read on (an I/O error, not a bad line).
     #[error(transparent)]
     Read(LogError),
+    // The I/O error is in the message, not chained as a source, so that a
+    // one-line `{:#}` report does not say it twice.
     #[error("writing poses: {0}")]
-    Write(#[from] std::io::Error),
+    Write(std::io::Error),
+}
+
+impl From<std::io::Error> for ReplayError {
+    fn from(e: std::io::Error) -> Self {
+        ReplayError::Write(e)
+    }
 }
 
 /// Error statistics of one axis (estimate − truth), over the frames where
@@ -167,6 +175,9 @@ pub struct ReplaySummary {
     pub readings: [[u64; ReadingUse::COUNT]; 3],
     /// Readings the log reader dropped as malformed (the frame was kept).
     pub bad_readings: u64,
+    /// The first of them, "name:line: why" (FORMATS.md: a reader names the
+    /// line of anything it cannot accept).
+    pub first_bad_reading: Option<String>,
     /// The water's K_D as the estimator learned it by the log's end
     /// (`Estimator::water_k_d`), m⁻¹, if it learns it.
     pub water_k_d: Option<f64>,
@@ -215,9 +226,17 @@ pub fn replay<W: Write>(
         seq_gaps: (0, 0),
         readings: [[0; ReadingUse::COUNT]; 3],
         bad_readings: 0,
+        first_bad_reading: None,
         water_k_d: None,
     };
     while let Some(item) = log.next_frame() {
+        // The reader keeps only the last bad reading's text: taken as soon
+        // as there is one, it is the first line's.
+        if s.first_bad_reading.is_none() {
+            if let (1.., Some(m)) = log.bad_readings() {
+                s.first_bad_reading = Some(m.to_string());
+            }
+        }
         let frame = match item {
             Ok(f) => f,
             Err(e) if e.skippable() => {

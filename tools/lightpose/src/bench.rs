@@ -2,20 +2,27 @@
 //! on the paper's three Monte Carlo cases, with each set of the vehicle's
 //! own sensors. Thin: the table is `lightpose_analysis::trade`.
 
+use crate::guard;
 use anyhow::Context;
 use lightpose_analysis::montecarlo::progress_bar;
 use lightpose_analysis::sensors::SensorSet;
 use lightpose_analysis::trade::{self, Case, TradeOptions, CASES};
 use std::path::PathBuf;
 
+/// Most timing realizations: each one's frames are held in memory.
+const MAX_TIMING_RUNS: usize = 1000;
+
 #[derive(clap::Args)]
 pub struct BenchArgs {
-    /// Monte Carlo realizations per case and sensor set (the paper used 2000).
+    /// Monte Carlo realizations per case and sensor set (the paper used
+    /// 2000; at most 1000000: each one's results are kept in memory).
     #[arg(long, default_value_t = 200)]
     runs: usize,
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Cases: all, or any of dive-tank, zigzag-tank, zigzag-harbour.
+    /// Cases: all, or any of dive-tank, zigzag-tank, zigzag-harbour
+    /// (aliases: dive-clear, zigzag-clear, zigzag-turbid, as `montecarlo
+    /// --case` names them).
     #[arg(long = "case", default_value = "all")]
     cases: Vec<String>,
     /// Estimators, comma separated.
@@ -30,7 +37,8 @@ pub struct BenchArgs {
         value_delimiter = ','
     )]
     sensors: Vec<String>,
-    /// Realizations the time per frame is measured over (median).
+    /// Realizations the time per frame is measured over (median; at most
+    /// 1000: their frames are simulated up front).
     #[arg(long, default_value_t = 15)]
     timing_runs: usize,
     /// Repository root the config/ paths are read from.
@@ -42,11 +50,18 @@ pub struct BenchArgs {
 }
 
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
+    guard::at_most("runs", a.runs, guard::MAX_RUNS, guard::RUNS_WHY)?;
+    guard::at_most(
+        "timing-runs",
+        a.timing_runs,
+        MAX_TIMING_RUNS,
+        "their frames are simulated up front",
+    )?;
     let all = a.cases.iter().any(|c| c == "all");
     let mut cases: Vec<&'static Case> = Vec::new();
     for c in a.cases.iter().filter(|c| *c != "all") {
         cases.push(Case::named(c).with_context(|| {
-            format!("unknown case \"{c}\" (known: all, dive-tank, zigzag-tank, zigzag-harbour)")
+            format!("unknown case \"{c}\" (known: all, dive-tank, zigzag-tank, zigzag-harbour, or their aliases dive-clear, zigzag-clear, zigzag-turbid)")
         })?);
     }
     if all {
@@ -71,6 +86,8 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     let mut sections = Vec::new();
     for case in cases {
         let loaded = trade::load(&a.root, case)?;
+        let frames = loaded.trajectory.frame_count(loaded.scene.adc.rate_hz);
+        guard::run_frames(format_args!("{}'s trajectory", case.name), a.runs, frames)?;
         for &set in &sets {
             let sec = trade::run_section(&loaded, set, &o, &progress_bar)?;
             for r in &sec.rows {

@@ -5,6 +5,7 @@
 //! with their standard errors (or one line saying which one the sweeps could
 //! not determine).
 
+use crate::guard;
 use anyhow::Context;
 use lightpose_pipeline::calibration::{
     calibrate_full, CalibrateOptions, ParamEstimate, ScatterFit,
@@ -42,6 +43,10 @@ pub struct CalibrateArgs {
 }
 
 pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
+    let mut inputs: Vec<(&str, &std::path::Path)> =
+        a.sweeps.iter().map(|p| ("sweep", p.as_path())).collect();
+    inputs.extend(a.dark.as_deref().map(|p| ("dark", p)));
+    guard::not_an_input(&a.out, &inputs)?;
     let mut opts = CalibrateOptions::new(a.sweeps);
     opts.dark = a.dark;
     opts.v_ref = a.v_ref;
@@ -68,8 +73,8 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
     if bad > 20 {
         eprintln!("lightpose: skipped {} more bad lines", bad - 20);
     }
-    cal.save(&a.out)
-        .with_context(|| format!("writing {}", a.out.display()))?;
+    // The error names the file.
+    cal.save(&a.out).context("writing the calibration")?;
     let f = &cal.fits;
     eprintln!(
         "calibrated from {} frames (dark offsets: {}) -> {}",

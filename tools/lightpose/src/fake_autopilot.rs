@@ -47,8 +47,9 @@ pub struct FakeAutopilotArgs {
     rate: Option<f64>,
     #[arg(long, default_value = "vfr_hud", value_parser = ["vfr_hud", "global_position_int"])]
     depth_source: String,
-    /// 1σ noise of pitch and heading (degrees) and depth (m); default: the
-    /// scene's attitude and depth sensors, else none.
+    /// 1σ noise of pitch and heading (degrees, 0 to 180) and depth (m, 0
+    /// to 1000); default: the scene's attitude and depth sensors, else
+    /// none.
     #[arg(long)]
     pitch_noise_deg: Option<f64>,
     #[arg(long)]
@@ -57,7 +58,8 @@ pub struct FakeAutopilotArgs {
     depth_noise_m: Option<f64>,
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Stop after this many seconds (default: until Ctrl-C).
+    /// Stop after this many seconds (at most a year; default: until
+    /// Ctrl-C).
     #[arg(long)]
     duration: Option<f64>,
     /// Run the trajectory over and over (else the vehicle stays at its end).
@@ -96,7 +98,45 @@ struct Session {
     verbose: bool,
 }
 
+/// Longest `--duration`, s (a year): more is a typo, and leaving it out
+/// runs until Ctrl-C.
+const MAX_DURATION_S: f64 = 365.0 * 86_400.0;
+
+/// Largest noise options: a 1σ beyond these is no sensor.
+const MAX_ANGLE_NOISE_DEG: f64 = 180.0;
+const MAX_DEPTH_NOISE_M: f64 = 1000.0;
+
+/// Refuse what would panic (a `Duration` of −1 s or NaN) or send nonsense
+/// (a negative or NaN 1σ), before any file is read or socket opened.
+fn check_numbers(a: &FakeAutopilotArgs) -> anyhow::Result<()> {
+    if let Some(d) = a.duration {
+        if !(d.is_finite() && d > 0.0 && d <= MAX_DURATION_S) {
+            return Err(anyhow!(
+                "--duration {d}: must be more than 0 and at most {MAX_DURATION_S} s (leave it out to run until Ctrl-C)"
+            ));
+        }
+    }
+    for (flag, v, max, unit) in [
+        (
+            "pitch-noise-deg",
+            a.pitch_noise_deg,
+            MAX_ANGLE_NOISE_DEG,
+            "°",
+        ),
+        ("yaw-noise-deg", a.yaw_noise_deg, MAX_ANGLE_NOISE_DEG, "°"),
+        ("depth-noise-m", a.depth_noise_m, MAX_DEPTH_NOISE_M, " m"),
+    ] {
+        if let Some(v) = v {
+            if !(v.is_finite() && (0.0..=max).contains(&v)) {
+                return Err(anyhow!("--{flag} {v}: a 1σ must be 0 to {max}{unit}"));
+            }
+        }
+    }
+    Ok(())
+}
+
 pub fn run(a: FakeAutopilotArgs) -> anyhow::Result<()> {
+    check_numbers(&a)?;
     let scene = Scene::load(&a.scene)?;
     let traj = Trajectory::load(&a.trajectory)?;
     let site = SiteTable {

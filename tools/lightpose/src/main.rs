@@ -6,6 +6,7 @@ mod calibrate;
 mod convert;
 mod crb;
 mod fake_autopilot;
+mod guard;
 mod montecarlo;
 mod replay;
 mod simulate;
@@ -63,9 +64,57 @@ fn main() -> ExitCode {
     match r {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            // One line: the chain of causes joined, the place named first.
-            eprintln!("lightpose: {e:#}");
+            eprintln!("lightpose: {}", one_line(&e));
             ExitCode::FAILURE
         }
+    }
+}
+
+/// One line: the chain of causes joined by ": ", the place named first. A
+/// cause whose text the line already holds is left out: the libraries put
+/// their cause in their own message, and a stray one that also chains it
+/// must not make the line say it twice.
+fn one_line(e: &anyhow::Error) -> String {
+    let mut line = e.to_string();
+    for cause in e.chain().skip(1) {
+        let text = cause.to_string();
+        if !text.is_empty() && !line.contains(&text) {
+            line.push_str(": ");
+            line.push_str(&text);
+        }
+    }
+    line.replace(['\n', '\r'], " ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::one_line;
+    use anyhow::Context;
+
+    /// An error that says its cause and also chains it, as a careless
+    /// library type might.
+    #[derive(Debug)]
+    struct Both(std::io::Error);
+    impl std::fmt::Display for Both {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            write!(f, "a.toml: {}", self.0)
+        }
+    }
+    impl std::error::Error for Both {
+        fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+            Some(&self.0)
+        }
+    }
+
+    #[test]
+    fn each_cause_is_said_once() {
+        let io = || std::io::Error::new(std::io::ErrorKind::NotFound, "gone");
+        let e = anyhow::Error::new(Both(io()));
+        assert_eq!(one_line(&e), "a.toml: gone");
+        let e = Err::<(), _>(Both(io())).context("loading").unwrap_err();
+        assert_eq!(one_line(&e), "loading: a.toml: gone");
+        // Causes that say something new are all kept.
+        let e = Err::<(), _>(io()).context("replaying x").unwrap_err();
+        assert_eq!(one_line(&e), "replaying x: gone");
     }
 }

@@ -3,6 +3,7 @@
 //! `lightpose_analysis`; this loads the inputs, names the paper's case,
 //! writes the results and prints the speed.
 
+use crate::guard;
 use anyhow::Context;
 use lightpose_analysis::montecarlo::{self, progress_bar, McConfig};
 use lightpose_analysis::report::{self, RunInfo};
@@ -24,7 +25,9 @@ pub struct MontecarloArgs {
     /// Calibration of the same scene (TOML).
     #[arg(long)]
     calibration: PathBuf,
-    /// Realizations (the paper used 2000).
+    /// Realizations (the paper used 2000; at most 1000000, and at most
+    /// 50000000 realizations × frames: each one's results are kept in
+    /// memory).
     #[arg(long, default_value_t = 2000)]
     runs: usize,
     /// Estimator, any name the pipeline knows (the paper's is "moments").
@@ -36,7 +39,9 @@ pub struct MontecarloArgs {
     #[arg(long, default_value = "montecarlo")]
     out: PathBuf,
     /// Paper case to compare with: auto (from the trajectory's name and the
-    /// scene's K_D), none, dive-clear, zigzag-clear or zigzag-turbid.
+    /// scene's K_D), none, dive-clear, zigzag-clear or zigzag-turbid
+    /// (aliases: dive-tank, zigzag-tank, zigzag-harbour, as `bench --case`
+    /// names them).
     #[arg(long, default_value = "auto")]
     case: String,
     /// The vehicle's own sensors: as the scene says, or none, attitude,
@@ -47,10 +52,13 @@ pub struct MontecarloArgs {
 }
 
 pub fn run(a: MontecarloArgs) -> anyhow::Result<()> {
+    guard::at_most("runs", a.runs, guard::MAX_RUNS, guard::RUNS_WHY)?;
     let mut scene = Scene::load(&a.scene)?;
     sensors::apply_choice(&a.sensors, &mut scene)
         .with_context(|| format!("--sensors {}: {}", a.sensors, sensors::CHOICES))?;
     let trajectory = Trajectory::load(&a.trajectory)?;
+    let frames = trajectory.frame_count(scene.adc.rate_hz);
+    guard::run_frames(a.trajectory.display(), a.runs, frames)?;
     // Each run's water is drawn about the calibration's: the estimator is
     // told so (its K_D doubt, unless the calibration's settings say).
     let cal = Calibration::load(&a.calibration)?
@@ -77,8 +85,8 @@ pub fn run(a: MontecarloArgs) -> anyhow::Result<()> {
         calibration: a.calibration.display().to_string(),
         case,
     };
-    report::write_all(&result, &info, &a.out)
-        .with_context(|| format!("writing results to {}", a.out.display()))?;
+    // The error names the file.
+    report::write_all(&result, &info, &a.out).context("writing results")?;
     println!(
         "montecarlo: {} realizations x {} frames ({}) in {:.2} s: {:.0} realizations/s on {} threads",
         result.runs,
@@ -172,5 +180,16 @@ mod tests {
         }
         let summary = std::fs::read_to_string(dir.path().join("summary.md")).unwrap();
         assert!(summary.contains("Case I: dive"), "{summary}");
+    }
+
+    /// `bench`'s name of a case is taken as well.
+    #[test]
+    fn the_case_takes_benchs_spelling() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut a = args(dir.path());
+        a.case = "zigzag-harbour".into();
+        run(a).unwrap();
+        let summary = std::fs::read_to_string(dir.path().join("summary.md")).unwrap();
+        assert!(summary.contains("turbid water"), "{summary}");
     }
 }

@@ -2,6 +2,7 @@
 //! write one POSE line per frame; with `--report`, the error of each axis
 //! against the log's truth. Thin: the loop is `lightpose_pipeline::replay`.
 
+use crate::guard;
 use anyhow::Context;
 use lightpose_core::Status;
 use lightpose_pipeline::{build_estimator, replay, Calibration};
@@ -30,6 +31,7 @@ pub struct ReplayArgs {
 }
 
 pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
+    guard::not_an_input(&a.out, &[("log", &a.log), ("calibration", &a.calibration)])?;
     let cal = Calibration::load(&a.calibration)?;
     let mut est = build_estimator(&a.estimator, &cal)?;
     // Say which one "auto" chose, before any output.
@@ -38,13 +40,28 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     let file = File::create(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let mut out = BufWriter::new(file);
     let mut shown = 0u32;
+    let mut first_bad = None;
     let s = replay(est.as_mut(), log.as_mut(), &mut out, |e| {
         shown += 1;
         if shown <= 20 {
             eprintln!("lightpose: skipped {e}");
         }
+        first_bad.get_or_insert_with(|| e.to_string());
     })
     .with_context(|| format!("replaying {} into {}", a.log.display(), a.out.display()))?;
+    if s.frames == 0 {
+        // Nothing replayed is a failure, not an empty success.
+        let mut why = match (s.bad_lines, first_bad) {
+            (0, _) => "the log has no frames".to_string(),
+            (1, Some(m)) => format!("1 bad line ({m})"),
+            (n, Some(m)) => format!("{n} bad lines (first: {m})"),
+            (n, None) => format!("{n} bad lines"),
+        };
+        if let Some(cut) = s.cut {
+            why.push_str(&format!("; {cut}"));
+        }
+        anyhow::bail!("{}: no frame could be replayed: {why}", a.log.display());
+    }
     let statuses: Vec<String> = Status::ALL
         .iter()
         .zip(s.status)
@@ -58,15 +75,21 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         statuses.join(", "),
         s.bad_lines
     );
-    if let Some(line) = s.readings_line() {
+    // Once: on stdout with the report it belongs to, else on stderr.
+    if let (false, Some(line)) = (a.report, s.readings_line()) {
         eprintln!("readings: {line}");
     }
     if let Some(k) = s.water_k_d {
         eprintln!("water: K_D {k:.3} m⁻¹ as the estimator learned it by the end");
     }
     if s.bad_readings > 0 {
+        let first = s
+            .first_bad_reading
+            .as_deref()
+            .map(|m| format!("; first: {m}"))
+            .unwrap_or_default();
         eprintln!(
-            "lightpose: {}: {} malformed sensor readings dropped (frames kept)",
+            "lightpose: {}: {} malformed sensor readings dropped (frames kept{first})",
             a.log.display(),
             s.bad_readings
         );
@@ -95,6 +118,13 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
             order.jumps()
         );
     }
+    if order.glitches() > 0 {
+        eprintln!(
+            "lightpose: {}: {} lone frame(s) out of line in seq or t gone over (the frames after them kept)",
+            a.log.display(),
+            order.glitches()
+        );
+    }
     if s.seq_gaps.0 > 0 {
         eprintln!(
             "lightpose: {}: {} gaps in seq, {} frames lost",
@@ -105,16 +135,14 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     }
     if a.report {
         match &s.report {
-            Some(r) => {
-                print!("{r}");
-                if let Some(line) = s.readings_line() {
-                    println!("readings: {line}");
-                }
-            }
+            Some(r) => print!("{r}"),
             None => eprintln!(
                 "lightpose: {}: no truth in the log, no error report",
                 a.log.display()
             ),
+        }
+        if let Some(line) = s.readings_line() {
+            println!("readings: {line}");
         }
     }
     Ok(())

@@ -1,6 +1,7 @@
 //! `lightpose simulate` and `lightpose sweep`: write intensity logs from the
 //! simulator, deterministic for a given seed.
 
+use crate::guard;
 use anyhow::Context;
 use lightpose_core::{LogHeader, LogWriter};
 use lightpose_sim::{Scene, Simulator, SweepKind, SweepPlan, Trajectory};
@@ -42,6 +43,10 @@ pub struct SweepArgs {
     kind: String,
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Refuse a sweep of more frames than this (its poses × --samples): a
+    /// typo in --samples must not fill the disk.
+    #[arg(long, default_value_t = lightpose_sim::trajectory::DEFAULT_MAX_FRAMES)]
+    max_frames: u64,
 }
 
 fn create(path: &PathBuf) -> anyhow::Result<BufWriter<File>> {
@@ -54,14 +59,19 @@ pub fn simulate(a: SimulateArgs) -> anyhow::Result<()> {
     let traj = Trajectory::load(&a.trajectory)?;
     let rate = scene.adc.rate_hz;
     let frames = traj.frame_count(rate);
-    if frames > a.max_frames {
-        anyhow::bail!(
-            "{}: {} s at {rate} Hz is {frames} frames, more than --max-frames {} (raise it to write them)",
+    guard::max_frames(
+        format_args!(
+            "{}: {} s at {rate} Hz",
             a.trajectory.display(),
-            traj.t_end() - traj.t0(),
-            a.max_frames
-        );
-    }
+            traj.t_end() - traj.t0()
+        ),
+        frames,
+        a.max_frames,
+    )?;
+    guard::not_an_input(
+        &a.out,
+        &[("scene", &a.scene), ("trajectory", &a.trajectory)],
+    )?;
     let mut header = LogHeader::new(scene.adc.bits, scene.adc.rate_hz);
     header
         .extra
@@ -96,6 +106,17 @@ pub fn sweep(a: SweepArgs) -> anyhow::Result<()> {
     }
     let scene = Scene::load(&a.scene)?;
     let plan = SweepPlan::new(kind, a.samples);
+    let what = match kind {
+        SweepKind::Dark => format!("--samples {}: the dark sweep", a.samples),
+        _ => format!(
+            "--samples {}: the {} sweep ({} poses)",
+            a.samples,
+            kind.as_str(),
+            plan.poses.len()
+        ),
+    };
+    guard::max_frames(what, plan.frames(), a.max_frames)?;
+    guard::not_an_input(&a.out, &[("scene", &a.scene)])?;
     let n = plan
         .write(&scene, a.seed, create(&a.out)?)
         .with_context(|| format!("{}: write failed", a.out.display()))?;

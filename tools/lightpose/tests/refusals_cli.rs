@@ -1,0 +1,491 @@
+//! The `lightpose` binary refusing what it cannot do well, at once and in
+//! one line (FORMATS.md, "Command line"): counts that would exhaust the
+//! memory or the disk, numbers that would panic, an output that is one of
+//! its inputs (left byte for byte as it was), and a replay with nothing to
+//! replay; and replay's account of what it dropped, each thing said once.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn root() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+/// What a run printed and how it ended.
+struct Run {
+    code: Option<i32>,
+    out: String,
+    err: String,
+}
+
+/// Run `lightpose args`, killed if it runs longer than `within` (then the
+/// test fails: a refusal must come at once).
+fn lightpose(args: &[&str], within: Duration) -> Run {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (out_path, err_path) = (dir.path().join("stdout"), dir.path().join("stderr"));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lightpose"))
+        .args(args)
+        .env_remove("RUST_BACKTRACE")
+        .stdout(std::fs::File::create(&out_path).expect("stdout file"))
+        .stderr(std::fs::File::create(&err_path).expect("stderr file"))
+        .stdin(Stdio::null())
+        .spawn()
+        .expect("runs lightpose");
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(st) = child.try_wait().expect("wait") {
+            break st;
+        }
+        if t0.elapsed() > within {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("lightpose {args:?} still running after {within:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    Run {
+        code: status.code(),
+        out: std::fs::read_to_string(&out_path).unwrap_or_default(),
+        err: std::fs::read_to_string(&err_path).unwrap_or_default(),
+    }
+}
+
+/// A refusal: exit 1, and stderr is one line holding each of `want`.
+fn refused(args: &[&str], want: &[&str]) -> String {
+    let r = lightpose(args, Duration::from_secs(20));
+    assert_eq!(r.code, Some(1), "{args:?}: {}", r.err);
+    assert_eq!(r.err.lines().count(), 1, "{args:?}: {}", r.err);
+    assert!(r.err.starts_with("lightpose: "), "{}", r.err);
+    for w in want {
+        assert!(r.err.contains(w), "{args:?}: {:?} lacks {w:?}", r.err);
+    }
+    r.err
+}
+
+fn scene() -> PathBuf {
+    root().join("config/scenes/tank.toml")
+}
+fn dive() -> PathBuf {
+    root().join("config/trajectories/dive.csv")
+}
+fn cal() -> PathBuf {
+    root().join("config/calibration/tank.toml")
+}
+
+/// Item 1: a run count that cannot be allocated is refused before any
+/// work, with its bound; so is one a long trajectory makes too big.
+#[test]
+fn monte_carlo_run_counts_are_bounded() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("mc");
+    let mc = |runs: &'static str, traj: &Path| {
+        vec![
+            "montecarlo".to_string(),
+            "--scene".into(),
+            s(&scene()).into(),
+            "--trajectory".into(),
+            s(traj).into(),
+            "--calibration".into(),
+            s(&cal()).into(),
+            "--out".into(),
+            s(&out).into(),
+            "--runs".into(),
+            runs.into(),
+        ]
+    };
+    for runs in ["18446744073709551615", "1000000000", "1000001"] {
+        let a = mc(runs, &dive());
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        refused(&a, &[&format!("--runs {runs}: at most 1000000")]);
+    }
+    // 10^5 s at 5 Hz: 500001 frames; 200 runs of them is too many.
+    let long = dir.path().join("long.csv");
+    std::fs::write(&long, "t,x,y,z,pitch,yaw\n0,8,0,0,0,0\n1e5,4,0,0,0,0\n").expect("write");
+    let a = mc("200", &long);
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    refused(&a, &["--runs 200", "long.csv", "500001 frames", "50000000"]);
+    assert!(!out.exists(), "nothing written");
+
+    let bench = |flag: &str, n: &str| {
+        vec![
+            "bench".to_string(),
+            "--root".into(),
+            s(&root()).into(),
+            "--case".into(),
+            "dive-tank".into(),
+            "--sensors".into(),
+            "none".into(),
+            format!("--{flag}"),
+            n.into(),
+        ]
+    };
+    let a = bench("runs", "18446744073709551615");
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    refused(&a, &["--runs 18446744073709551615: at most 1000000"]);
+    let a = bench("timing-runs", "18446744073709551615");
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    refused(&a, &["--timing-runs 18446744073709551615: at most 1000"]);
+}
+
+/// Item 2: a duration or noise that would panic or mean nothing.
+#[test]
+fn fake_autopilot_refuses_impossible_numbers() {
+    let (sc, tr) = (scene(), dive());
+    // A port nobody listens on: the refusal comes before any socket.
+    let base = [
+        "fake-autopilot",
+        "--scene",
+        s(&sc),
+        "--trajectory",
+        s(&tr),
+        "--connect",
+        "udpout:127.0.0.1:9",
+    ];
+    for (arg, want) in [
+        ("--duration=-1", "--duration -1: must be more than 0"),
+        ("--duration=NaN", "--duration NaN"),
+        (
+            "--duration=1e30",
+            "--duration 1000000000000000000000000000000",
+        ),
+        ("--duration=0", "--duration 0"),
+        (
+            "--pitch-noise-deg=-1",
+            "--pitch-noise-deg -1: a 1σ must be 0 to 180°",
+        ),
+        ("--yaw-noise-deg=NaN", "--yaw-noise-deg NaN"),
+        ("--depth-noise-m=inf", "--depth-noise-m inf"),
+    ] {
+        let mut a = base.to_vec();
+        a.push(arg);
+        refused(&a, &[want]);
+    }
+}
+
+/// Item 3: every command that writes a file refuses to write it over one
+/// of its inputs, however spelled, and leaves that input as it was.
+#[test]
+fn no_command_writes_over_its_own_input() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let p = |n: &str| dir.path().join(n);
+    let copy = |from: &Path, to: &str| {
+        std::fs::copy(from, p(to)).expect("copy");
+        p(to)
+    };
+    let log = copy(&root().join("tests/data/dive.jsonl"), "log.jsonl");
+    let cal = copy(&cal(), "cal.toml");
+    let scene = copy(&scene(), "scene.toml");
+    let traj = copy(&dive(), "traj.csv");
+    let sweep = p("sweep.jsonl");
+    let dark = p("dark.jsonl");
+    for (kind, out) in [("orientation", &sweep), ("dark", &dark)] {
+        let r = lightpose(
+            &[
+                "sweep",
+                "--scene",
+                s(&scene),
+                "--out",
+                s(out),
+                "--kind",
+                kind,
+                "--samples",
+                "2",
+            ],
+            Duration::from_secs(60),
+        );
+        assert_eq!(r.code, Some(0), "{}", r.err);
+    }
+    // The same file by another spelling, and by a hard link.
+    let dotted_scene = dir.path().join(".").join("scene.toml");
+    let linked = p("linked.jsonl");
+    std::fs::hard_link(&log, &linked).expect("hard link");
+
+    let cases: Vec<(Vec<&str>, &PathBuf, &str)> = vec![
+        (
+            vec![
+                "replay",
+                "--calibration",
+                s(&cal),
+                "--log",
+                s(&log),
+                "--out",
+                s(&log),
+            ],
+            &log,
+            "(--log and --out)",
+        ),
+        (
+            vec![
+                "replay",
+                "--calibration",
+                s(&cal),
+                "--log",
+                s(&log),
+                "--out",
+                s(&linked),
+            ],
+            &log,
+            "(--log and --out)",
+        ),
+        (
+            vec![
+                "replay",
+                "--calibration",
+                s(&cal),
+                "--log",
+                s(&log),
+                "--out",
+                s(&cal),
+            ],
+            &cal,
+            "(--calibration and --out)",
+        ),
+        (
+            vec![
+                "simulate",
+                "--scene",
+                s(&scene),
+                "--trajectory",
+                s(&traj),
+                "--out",
+                s(&dotted_scene),
+            ],
+            &scene,
+            "(--scene and --out)",
+        ),
+        (
+            vec![
+                "simulate",
+                "--scene",
+                s(&scene),
+                "--trajectory",
+                s(&traj),
+                "--out",
+                s(&traj),
+            ],
+            &traj,
+            "(--trajectory and --out)",
+        ),
+        (
+            vec!["sweep", "--scene", s(&scene), "--out", s(&scene)],
+            &scene,
+            "(--scene and --out)",
+        ),
+        (
+            vec!["calibrate", "--sweep", s(&sweep), "--out", s(&sweep)],
+            &sweep,
+            "(--sweep and --out)",
+        ),
+        (
+            vec![
+                "calibrate",
+                "--sweep",
+                s(&sweep),
+                "--dark",
+                s(&dark),
+                "--out",
+                s(&dark),
+            ],
+            &dark,
+            "(--dark and --out)",
+        ),
+    ];
+    for (a, input, want) in cases {
+        let before = std::fs::read(input).expect("input");
+        refused(&a, &["input and output are the same file", want]);
+        assert_eq!(
+            std::fs::read(input).expect("input"),
+            before,
+            "{a:?} changed it"
+        );
+    }
+}
+
+/// Item 4: a sweep past the frame bound is refused before a byte is
+/// written, and the bound is the user's to move, as simulate's is.
+#[test]
+fn sweep_refuses_a_sample_count_past_the_frame_bound() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("sweep.jsonl");
+    let sc = scene();
+    let sweep = |extra: &[&str]| {
+        let mut a = vec!["sweep", "--scene", s(&sc), "--out", s(&out)];
+        a.extend_from_slice(extra);
+        lightpose(&a, Duration::from_secs(20))
+    };
+    let r = sweep(&["--samples", "100000000"]);
+    assert_eq!(r.code, Some(1), "{}", r.err);
+    assert_eq!(r.err.lines().count(), 1, "{}", r.err);
+    assert!(
+        r.err.contains("--samples 100000000: the all sweep (")
+            && r.err.contains("more than --max-frames 10000000"),
+        "{}",
+        r.err
+    );
+    assert!(!out.exists(), "nothing written");
+    let r = sweep(&["--kind", "dark", "--samples", "3", "--max-frames", "2"]);
+    assert_eq!(r.code, Some(1), "{}", r.err);
+    assert!(r.err.contains("the dark sweep is 3 frames"), "{}", r.err);
+    assert!(!out.exists(), "nothing written");
+    let r = sweep(&["--kind", "dark", "--samples", "3", "--max-frames", "3"]);
+    assert_eq!(r.code, Some(0), "{}", r.err);
+    assert!(r.err.contains("3 frames (dark sweep)"), "{}", r.err);
+}
+
+/// A replay of `log` with the tank's calibration.
+fn replay(log: &Path, out: &Path, extra: &[&str]) -> Run {
+    let c = cal();
+    let mut a = vec![
+        "replay",
+        "--calibration",
+        s(&c),
+        "--log",
+        s(log),
+        "--out",
+        s(out),
+    ];
+    a.extend_from_slice(extra);
+    lightpose(&a, Duration::from_secs(30))
+}
+
+/// Item 5: a replay that could replay nothing fails, naming the log and
+/// why.
+#[test]
+fn a_replay_of_nothing_fails() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = std::fs::read_to_string(root().join("tests/data/dive.jsonl")).expect("dive log");
+    let lines: Vec<&str> = text.lines().collect();
+    let out = dir.path().join("poses.jsonl");
+    let last = |r: &Run| r.err.lines().last().unwrap_or_default().to_string();
+
+    let header = dir.path().join("header.jsonl");
+    std::fs::write(&header, format!("{}\n", lines[0])).expect("write");
+    let r = replay(&header, &out, &[]);
+    assert_eq!(r.code, Some(1), "{}", r.err);
+    assert_eq!(
+        last(&r),
+        format!(
+            "lightpose: {}: no frame could be replayed: the log has no frames",
+            header.display()
+        )
+    );
+
+    let bad = dir.path().join("bad.jsonl");
+    std::fs::write(
+        &bad,
+        format!("{}\ngarbage\n{{\"class\":\"FRAME\"}}\n", lines[0]),
+    )
+    .expect("write");
+    let r = replay(&bad, &out, &[]);
+    assert_eq!(r.code, Some(1), "{}", r.err);
+    let l = last(&r);
+    assert!(
+        l.starts_with(&format!(
+            "lightpose: {}: no frame could be replayed: 2 bad lines (first: {}:2: not valid JSON",
+            bad.display(),
+            bad.display()
+        )),
+        "{l}"
+    );
+    assert!(!r.err.contains("0 poses"), "{}", r.err);
+
+    // Every t absurd: each frame refused by its line.
+    let absurd = dir.path().join("absurd.jsonl");
+    let frames: Vec<String> = lines[1..4]
+        .iter()
+        .map(|l| l.replacen("\"t\":", "\"t\":1e300,\"was\":", 1))
+        .collect();
+    std::fs::write(&absurd, format!("{}\n{}\n", lines[0], frames.join("\n"))).expect("write");
+    let r = replay(&absurd, &out, &[]);
+    assert_eq!(r.code, Some(1), "{}", r.err);
+    assert!(
+        last(&r).contains("no frame could be replayed: 3 bad lines (first: ")
+            && last(&r).contains("absurd.jsonl:2:"),
+        "{}",
+        r.err
+    );
+}
+
+/// Item 5 (a, b): the readings line is said once (stdout with --report,
+/// else stderr), and malformed readings are named by their first line.
+#[test]
+fn replay_says_each_thing_once_and_names_the_first_bad_reading() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text =
+        std::fs::read_to_string(root().join("tests/data/fusion-all.jsonl")).expect("fusion log");
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    for i in [3, 6] {
+        assert!(
+            lines[i].contains("\"attitude\":{\"pitch\":"),
+            "{}",
+            lines[i]
+        );
+        lines[i] = lines[i].replacen(
+            "\"attitude\":{\"pitch\":",
+            "\"attitude\":{\"pitch\":\"x\",\"was\":",
+            1,
+        );
+    }
+    let log = dir.path().join("readings.jsonl");
+    std::fs::write(&log, lines.join("\n") + "\n").expect("write");
+    let out = dir.path().join("poses.jsonl");
+
+    let r = replay(&log, &out, &["--report"]);
+    assert_eq!(r.code, Some(0), "{}", r.err);
+    assert_eq!(r.out.matches("readings: ").count(), 1, "{}", r.out);
+    assert!(!r.err.contains("readings: "), "{}", r.err);
+    let dropped = format!(
+        "lightpose: {}: 2 malformed sensor readings dropped (frames kept; first: {}:4: ",
+        log.display(),
+        log.display()
+    );
+    assert!(r.err.contains(&dropped), "{}", r.err);
+
+    let r = replay(&log, &out, &[]);
+    assert_eq!(r.code, Some(0), "{}", r.err);
+    assert_eq!(r.err.matches("readings: ").count(), 1, "{}", r.err);
+    assert!(!r.out.contains("readings: "), "{}", r.out);
+}
+
+/// One corrupt `seq` in a recorded log (found by a bad-input audit: seq 500
+/// in frame 5 of 41 cost the 36 frames after it and claimed 494 lost) costs
+/// nothing after it: every frame is replayed, the glitch is said, and only
+/// the one frame its seq claimed to skip is counted lost.
+#[test]
+fn one_corrupt_seq_costs_no_frame_after_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = std::fs::read_to_string(root().join("tests/data/dive.jsonl")).expect("log");
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    // Line 6 is frame seq 4: make it 500.
+    assert!(lines[5].contains("\"seq\":4,"), "{}", lines[5]);
+    lines[5] = lines[5].replacen("\"seq\":4,", "\"seq\":500,", 1);
+    let log = dir.path().join("glitch.jsonl");
+    std::fs::write(&log, lines.join("\n") + "\n").expect("write");
+    let out = dir.path().join("poses.jsonl");
+    let r = lightpose(
+        &[
+            "replay",
+            "--calibration",
+            s(&cal()),
+            "--log",
+            s(&log),
+            "--out",
+            s(&out),
+        ],
+        Duration::from_secs(30),
+    );
+    assert_eq!(r.code, Some(0), "{}", r.err);
+    let poses = std::fs::read_to_string(&out)
+        .expect("poses")
+        .lines()
+        .count();
+    assert_eq!(poses, lines.len() - 1, "{}", r.err);
+    assert!(r.err.contains("1 lone frame(s) out of line"), "{}", r.err);
+    // The corrupt frame's own seq (4) is missing from the line: one lost.
+    assert!(r.err.contains("1 gaps in seq, 1 frames lost"), "{}", r.err);
+}
