@@ -236,6 +236,10 @@ pub struct PoseEstimate {
     /// What became of the frame's own-sensor readings (not on the wire:
     /// for counters such as STATUS and the replay summary).
     pub readings: ReadingUses,
+    /// The channels the estimator left out of this frame as stuck, bit k
+    /// for detector k = 5·row + col (not on the wire: for STATUS and the
+    /// replay summary).
+    pub excluded_channels: u32,
 }
 
 /// Names of the six estimated fields, in message order.
@@ -270,6 +274,7 @@ impl PoseEstimate {
             std: StdDev::default(),
             estimator,
             readings: ReadingUses::default(),
+            excluded_channels: 0,
         }
     }
 

@@ -3,7 +3,7 @@
 //! for STATUS once a second), and a fixed latency histogram so that p50/p99
 //! frame-to-datagram latency is known in flight, not only in benchmarks.
 
-use lightpose_core::{ReadingUse, Status};
+use lightpose_core::{ReadingUse, Status, NDET};
 use std::sync::atomic::{AtomicU64, AtomicU8, Ordering::Relaxed};
 use std::sync::Mutex;
 use std::time::Duration;
@@ -212,6 +212,11 @@ pub struct Stats {
     /// per outcome in `ReadingUse::index` order (used, ignored, refused by
     /// reason; `absent` is not counted).
     pub readings: [[AtomicU64; ReadingUse::COUNT]; 3],
+    /// Frames on which the estimator left each channel out as stuck
+    /// (`PoseEstimate::excluded_channels`), by detector 5·row + col.
+    pub excluded: [AtomicU64; NDET],
+    /// The channels left out of the last frame (bit mask).
+    pub excluded_now: AtomicU64,
     pub latency: Histogram,
     /// Monotonic nanoseconds since start of the acquisition thread's last
     /// loop: the watchdog pings only while this moves.

@@ -7,7 +7,7 @@ use crate::outputs::live::hub::Hub;
 use crate::outputs::recorder::RecStats;
 use crate::outputs::udp::Publisher;
 use crate::stats::{Stats, TempSource};
-use lightpose_core::{ReadingUse, Refusal, Status, READINGS};
+use lightpose_core::{ReadingUse, Refusal, Status, COLS, NDET, READINGS};
 use lightpose_hal::SourceHealth;
 use serde_json::{json, Value};
 use std::sync::atomic::Ordering::Relaxed;
@@ -85,6 +85,7 @@ pub fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> Value {
         "recording": recording(c.rec),
         "attitude": attitude(c),
         "readings": readings(s),
+        "channels": channels(s),
         "outputs": outputs(c.publisher),
         "foxglove": c.live.map_or_else(|| json!({"enabled": false}), Hub::report),
         "vehicle": vehicle(c),
@@ -124,7 +125,10 @@ fn backend(c: &StatusCtx, health: Option<&SourceHealth>) -> Value {
             "injected_faults": h.injected_faults,
             "skipped_frames": h.skipped_frames,
             "time_jumps": h.time_jumps,
+            "glitches": h.glitches,
             "other_lines": h.other_lines,
+            "bad_readings": h.bad_readings,
+            "last_bad_reading": h.last_bad_reading,
         })),
     })
 }
@@ -190,6 +194,26 @@ fn recording(rec: Option<&RecStats>) -> Value {
             "error": r.error.lock().ok().and_then(|g| g.clone()),
         }),
     }
+}
+
+/// The channels the estimator leaves out as stuck (a photodiode or ADC
+/// input at full scale or zero that its neighbours' light rules out):
+/// those left out of the last frame, and frames per channel so far, each
+/// as `[row, col]`.
+fn channels(s: &Stats) -> Value {
+    let now = s.excluded_now.load(Relaxed);
+    let rc = |k: usize| json!([k / COLS, k % COLS]);
+    let excluded_now: Vec<Value> = (0..NDET).filter(|k| now & (1 << k) != 0).map(rc).collect();
+    let frames: Vec<Value> = s
+        .excluded
+        .iter()
+        .enumerate()
+        .filter_map(|(k, n)| {
+            let n = n.load(Relaxed);
+            (n > 0).then(|| json!({"channel": rc(k), "frames": n}))
+        })
+        .collect();
+    json!({"excluded_now": excluded_now, "excluded_frames": frames})
 }
 
 /// Per own-sensor reading, frames per outcome of the estimator's verdict:

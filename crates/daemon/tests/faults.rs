@@ -437,6 +437,67 @@ dir = "{}"
     assert!(rseqs.iter().all(|q| (q + 1) % 7 != 0));
 }
 
+/// The tracker on the mock tank for 2.5 s with `faults`: its POSE
+/// statuses by word and the last STATUS.
+fn mock_run(faults: &str) -> (std::collections::BTreeMap<String, usize>, Value) {
+    let (scene, traj, cal) = shipped();
+    let (sock, addr) = subscriber();
+    let text = format!(
+        r#"rate_hz = 50.0
+estimator = "tracker"
+calibration = "{}"
+[backend]
+kind = "mock"
+scene = "{}"
+trajectory = "{}"
+faults = {{ {faults} }}
+[outputs]
+destinations = ["{addr}"]
+status_interval_s = 0.5
+"#,
+        cal.display(),
+        scene.display(),
+        traj.display(),
+    );
+    let cfg = Config::parse(&text, "mock.toml", None).expect("valid");
+    let stop = Arc::new(AtomicBool::new(false));
+    let h = run_in_process(cfg, stop.clone());
+    let mut inbox = Inbox::new(sock);
+    inbox.pump(Duration::from_millis(2500));
+    stop.store(true, Relaxed);
+    h.join().expect("daemon");
+    inbox.pump(Duration::from_millis(300));
+    let mut statuses = std::collections::BTreeMap::new();
+    for (_, v) in inbox.of_class("POSE") {
+        *statuses
+            .entry(v["status"].as_str().unwrap_or("?").to_string())
+            .or_insert(0) += 1;
+    }
+    (statuses, inbox.last("STATUS").cloned().expect("STATUS"))
+}
+
+/// A channel stuck at full scale (the shipped mock example's fault) is left
+/// out by the tracker: as many poses come `ok` as without it, and STATUS
+/// names the channel. (Read as saturated, it made 91 of 98 `diverged`.)
+#[test]
+fn a_stuck_channel_is_left_out_named_and_poses_go_on() {
+    let (clean, _) = mock_run("");
+    let (stuck, fin) = mock_run("stuck = [{ r = 0, c = 0, value = 1023 }]");
+    let ok = |m: &std::collections::BTreeMap<String, usize>| m.get("ok").copied().unwrap_or(0);
+    assert!(ok(&clean) > 30, "clean: {clean:?}");
+    assert!(
+        ok(&stuck) * 10 >= ok(&clean) * 9,
+        "stuck {stuck:?}, clean {clean:?}"
+    );
+    assert_eq!(
+        fin["channels"]["excluded_now"],
+        serde_json::json!([[0, 0]]),
+        "{fin}"
+    );
+    let frames = fin["channels"]["excluded_frames"][0]["frames"].as_u64();
+    assert!(frames.is_some_and(|n| n > 50), "{fin}");
+}
+
 // ---- the DS18B20 vanishing -------------------------------------------------
 
 const W1_GOOD: &str =

@@ -8,7 +8,7 @@
 mod running;
 
 use lightpose_core::{
-    Cut, Estimator, FrameLog, LogError, PoseEstimate, ReadingUse, Status, READINGS,
+    Cut, Estimator, FrameLog, LogError, PoseEstimate, ReadingUse, Status, COLS, NDET, READINGS,
 };
 use std::fmt;
 use std::io::Write;
@@ -181,6 +181,9 @@ pub struct ReplaySummary {
     /// The water's K_D as the estimator learned it by the log's end
     /// (`Estimator::water_k_d`), m⁻¹, if it learns it.
     pub water_k_d: Option<f64>,
+    /// Frames on which the estimator left each channel out as stuck
+    /// (`PoseEstimate::excluded_channels`), by detector 5·row + col.
+    pub excluded: [u64; NDET],
 }
 
 impl ReplaySummary {
@@ -203,6 +206,16 @@ impl ReplaySummary {
             parts.push(format!("{name} {}", words.join(", ")));
         }
         (!parts.is_empty()).then(|| parts.join("; "))
+    }
+
+    /// "(0,0) on 41 frames, (2,2) on 3" for the channels the estimator
+    /// left out as stuck, or `None`.
+    pub fn excluded_line(&self) -> Option<String> {
+        let parts: Vec<String> = (0..NDET)
+            .filter(|&k| self.excluded[k] > 0)
+            .map(|k| format!("({},{}) on {} frames", k / COLS, k % COLS, self.excluded[k]))
+            .collect();
+        (!parts.is_empty()).then(|| parts.join(", "))
     }
 }
 
@@ -228,6 +241,7 @@ pub fn replay<W: Write>(
         bad_readings: 0,
         first_bad_reading: None,
         water_k_d: None,
+        excluded: [0; NDET],
     };
     while let Some(item) = log.next_frame() {
         // The reader keeps only the last bad reading's text: taken as soon
@@ -260,6 +274,9 @@ pub fn replay<W: Write>(
             .zip(pose.readings.settled(&frame).all())
         {
             row[u.index()] += 1;
+        }
+        for (k, n) in s.excluded.iter_mut().enumerate() {
+            *n += u64::from(pose.excluded_channels >> k & 1);
         }
         if let Some(t) = &frame.truth {
             errors.add(&pose, t);

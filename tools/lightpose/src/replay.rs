@@ -79,6 +79,12 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     if let (false, Some(line)) = (a.report, s.readings_line()) {
         eprintln!("readings: {line}");
     }
+    if let Some(line) = s.excluded_line() {
+        eprintln!(
+            "lightpose: {}: channel(s) left out as stuck (a bound no light gives beside its neighbours): {line}",
+            a.log.display()
+        );
+    }
     if let Some(k) = s.water_k_d {
         eprintln!("water: K_D {k:.3} m⁻¹ as the estimator learned it by the end");
     }

@@ -489,3 +489,50 @@ fn one_corrupt_seq_costs_no_frame_after_it() {
     // The corrupt frame's own seq (4) is missing from the line: one lost.
     assert!(r.err.contains("1 gaps in seq, 1 frames lost"), "{}", r.err);
 }
+
+/// A log whose corner channel reads full scale throughout (a stuck
+/// photodiode) replays with poses, and the summary names the channel.
+#[test]
+fn a_stuck_channel_is_named_and_poses_come() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = std::fs::read_to_string(root().join("tests/data/dive.jsonl")).expect("log");
+    let stuck: Vec<String> = text
+        .lines()
+        .map(|l| match l.find("\"counts\":[") {
+            Some(i) => {
+                let at = i + "\"counts\":[".len();
+                let end = at + l[at..].find(',').expect("25 counts");
+                format!("{}1023{}", &l[..at], &l[end..])
+            }
+            None => l.to_string(),
+        })
+        .collect();
+    let log = dir.path().join("stuck.jsonl");
+    std::fs::write(&log, stuck.join("\n") + "\n").expect("write");
+    let out = dir.path().join("poses.jsonl");
+    let cal = cal();
+    let args = [
+        "replay",
+        "--calibration",
+        s(&cal),
+        "--log",
+        s(&log),
+        "--out",
+        s(&out),
+    ];
+    let r = lightpose(&args, Duration::from_secs(30));
+    assert_eq!(r.code, Some(0), "{}", r.err);
+    assert!(r.err.contains("left out as stuck"), "{}", r.err);
+    assert!(
+        r.err
+            .contains(&format!("(0,0) on {} frames", stuck.len() - 1)),
+        "{}",
+        r.err
+    );
+    let ok = std::fs::read_to_string(&out)
+        .expect("poses")
+        .lines()
+        .filter(|l| l.contains("\"status\":\"ok\""))
+        .count();
+    assert!(ok >= 30, "{ok} ok poses: {}", r.err);
+}

@@ -375,6 +375,39 @@ impl Engine {
                 counts[u.index()].fetch_add(1, Relaxed);
             }
         }
+        let mask = est.excluded_channels;
+        for (k, n) in stats.excluded.iter().enumerate() {
+            if mask & (1 << k) != 0 {
+                n.fetch_add(1, Relaxed);
+            }
+        }
+        let before = stats.excluded_now.swap(u64::from(mask), Relaxed);
+        if before != u64::from(mask) {
+            // Said when the set changes, not per frame: a stuck channel
+            // stays stuck.
+            let rc = |m: u64| {
+                (0..lightpose_core::NDET)
+                    .filter(|k| m & (1 << k) != 0)
+                    .map(|k| {
+                        format!(
+                            "({},{})",
+                            k / lightpose_core::COLS,
+                            k % lightpose_core::COLS
+                        )
+                    })
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            if mask != 0 {
+                tracing::warn!(
+                    seq = acq.frame.seq,
+                    "channel(s) {} left out as stuck: a bound no light gives beside its neighbours (STATUS channels)",
+                    rc(u64::from(mask))
+                );
+            } else {
+                tracing::info!(seq = acq.frame.seq, "channel(s) {} read again", rc(before));
+            }
+        }
 
         let Some(p) = self.period else { return };
         let seq = acq.frame.seq;

@@ -17,7 +17,7 @@
 use lightpose_core::{Estimator, Frame, PoseEstimate, ReadingUse, Status, StdDev, NDET};
 
 use super::light::{to_pose, PoseVec};
-use super::solver::{solve, LmResult, Prior, SolveOptions};
+use super::solver::{solve, Censoring, LmResult, Prior, SolveOptions};
 use super::tracker::readings::{check_attitude, Pending};
 use super::SensorModel;
 use crate::settings::{Dof, ModelConfig, ModelError};
@@ -115,7 +115,10 @@ impl ModelEstimator {
         let m = &self.model;
         let cpv = m.counts_per_volt();
         let sigma0 = m.count_variance(0.0).sqrt();
+        // A channel stuck at full scale is no light.
+        let kinds = Censoring::classify(m, &frame.counts);
         let best = (0..NDET)
+            .filter(|&k| kinds[k] != Censoring::Excluded)
             .map(|k| (frame.counts[k] as f64 - m.offset_v[k] * cpv) / sigma0)
             .fold(f64::NEG_INFINITY, f64::max);
         best >= self.cfg.min_signal_sigma
@@ -319,6 +322,8 @@ impl ModelEstimator {
         // Depth and velocity are the tracker's: one frame's fit holds no
         // speed, and `settled` calls them ignored.
         e.readings.attitude = k.attitude;
+        e.excluded_channels =
+            Censoring::excluded_mask(&Censoring::classify(&self.model, &frame.counts));
         let Some(r) = f.fit.as_ref() else {
             return e;
         };
@@ -377,6 +382,7 @@ pub(crate) fn coarse_start(
     o: &SolveOptions,
 ) -> Option<PoseVec> {
     let cpv = m.counts_per_volt();
+    let frame = &Censoring::stand_in(m, &Censoring::classify(m, &frame.counts), frame);
     let mut e = [0.0; NDET];
     for k in 0..NDET {
         let v = frame.counts[k] as f64 / cpv - m.offset_v[k];

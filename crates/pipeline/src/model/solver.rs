@@ -17,7 +17,7 @@
 // Channel loops index several parallel per-detector arrays at once.
 #![allow(clippy::needless_range_loop)]
 
-use lightpose_core::NDET;
+use lightpose_core::{COLS, NDET, ROWS};
 use nalgebra::{SMatrix, SVector};
 
 use super::light::{predict, predict_with_grad, PoseJacobian, PoseVec};
@@ -35,25 +35,150 @@ pub enum Censoring {
     /// At or below the channel's dark offset (or at zero): the true value
     /// is at most what was read.
     Dark,
+    /// A bound no light can give this channel beside what its neighbours
+    /// read (a photodiode or ADC input stuck at full scale or at zero):
+    /// left out of the frame, so that one bad channel does not cost the
+    /// pose. See [`Censoring::classify`].
+    Excluded,
 }
 
 impl Censoring {
     /// Classify the channels of one frame.
+    ///
+    /// A censored channel is checked against its neighbours on the dome
+    /// (`Excluded` when the light cannot explain it). The light on the
+    /// dome is a Gaussian of the angle to each detector's normal (σ_r,
+    /// widened by the halo when there is one), so along a row or a column
+    /// its logarithm is concave with curvature −1/σ_r²:
+    /// - a channel at full scale has a 4-neighbour with at least
+    ///   e^(−s²/σ_r²) of its light (s the spacing: 0.5 in the tank), the
+    ///   worst case being the spot's centre half a spacing past it; one
+    ///   whose every neighbour has less than half of that (a quarter of
+    ///   full scale in the tank: a margin for the channels' gains and a
+    ///   response flatter than a Gaussian, both of which only brighten a
+    ///   neighbour) is stuck;
+    /// - a channel between two lit neighbours of one row or column has at
+    ///   least the lesser one's light; one that reads dark between two
+    ///   clearly lit (10 σ of the dark noise and 5 % of full scale) is
+    ///   stuck.
     pub fn classify(m: &SensorModel, counts: &[u16; NDET]) -> [Censoring; NDET] {
         let fs = m.full_scale();
         let cpv = m.counts_per_volt();
         let mut out = [Censoring::Data; NDET];
+        // Each channel's light above its dark level, as a share of what
+        // full scale leaves it.
+        let mut lit = [0.0; NDET];
         for k in 0..NDET {
             let c = counts[k] as f64;
+            let dark = m.offset_v[k] * cpv;
+            lit[k] = (c - dark) / (fs - dark).max(1.0);
             out[k] = if c >= fs {
                 Censoring::Saturated
-            } else if c <= 0.0 || c <= m.offset_v[k] * cpv {
+            } else if c <= 0.0 || c <= dark {
                 Censoring::Dark
             } else {
                 Censoring::Data
             };
         }
+        let s = m.geometry.spacing.rad();
+        let sigma = m.light.sigma_r.rad();
+        let dim = 0.5 * (-(s * s) / (sigma * sigma)).exp();
+        let clear = (10.0 * m.count_variance(0.0).sqrt() / fs).max(0.05);
+        for k in 0..NDET {
+            let (r, c) = ((k / COLS) as isize, (k % COLS) as isize);
+            let at = |dr: isize, dc: isize| {
+                let (rr, cc) = (r + dr, c + dc);
+                ((0..ROWS as isize).contains(&rr) && (0..COLS as isize).contains(&cc))
+                    .then(|| lit[rr as usize * COLS + cc as usize])
+            };
+            let stuck = match out[k] {
+                Censoring::Saturated => [(0, 1), (0, -1), (1, 0), (-1, 0)]
+                    .iter()
+                    .filter_map(|&(dr, dc)| at(dr, dc))
+                    .all(|l| l < dim),
+                Censoring::Dark => [[(0, 1), (0, -1)], [(1, 0), (-1, 0)]].iter().any(|pair| {
+                    pair.iter()
+                        .all(|&(dr, dc)| at(dr, dc).is_some_and(|l| l >= clear))
+                }),
+                _ => false,
+            };
+            if stuck {
+                out[k] = Censoring::Excluded;
+            }
+        }
         out
+    }
+
+    /// `frame` with each `Excluded` channel read as the light its
+    /// neighbours say it has (on the stack: nothing allocated), for what
+    /// reads the image whole rather than fitting it channel by channel
+    /// (the paper's moments, the peak a start is sought from): a corner
+    /// stuck at full scale is otherwise the image's peak, a centre stuck at
+    /// zero a hole in the spot. Between two neighbours of a row or a column
+    /// the Gaussian gives √(S_a·S_b)·e^(s²/2σ_r²) of light above dark (the
+    /// geometric mean of both pairs when both exist); a channel without
+    /// such a pair takes the mean of its neighbours. Fits leave it out.
+    pub fn stand_in(
+        m: &SensorModel,
+        kinds: &[Censoring; NDET],
+        frame: &lightpose_core::Frame,
+    ) -> lightpose_core::Frame {
+        let mut f = *frame;
+        let cpv = m.counts_per_volt();
+        let (s, sigma) = (m.geometry.spacing.rad(), m.light.sigma_r.rad());
+        let curve = (0.5 * s * s / (sigma * sigma)).exp();
+        let light = |j: usize| (frame.counts[j] as f64 - m.offset_v[j] * cpv).max(0.0);
+        for k in 0..NDET {
+            if kinds[k] != Censoring::Excluded {
+                continue;
+            }
+            let (r, c) = ((k / COLS) as isize, (k % COLS) as isize);
+            let at = |dr: isize, dc: isize| {
+                let (rr, cc) = (r + dr, c + dc);
+                let j = rr * COLS as isize + cc;
+                ((0..ROWS as isize).contains(&rr) && (0..COLS as isize).contains(&cc))
+                    .then_some(j as usize)
+                    .filter(|&j| kinds[j] != Censoring::Excluded)
+            };
+            let (mut ln_sum, mut pairs) = (0.0, 0.0);
+            for [(a, b), (c2, d)] in [[(0, 1), (0, -1)], [(1, 0), (-1, 0)]] {
+                if let (Some(i), Some(j)) = (at(a, b), at(c2, d)) {
+                    if light(i) > 0.0 && light(j) > 0.0 {
+                        ln_sum += 0.5 * (light(i).ln() + light(j).ln()) + curve.ln();
+                        pairs += 1.0;
+                    }
+                }
+            }
+            let est = if pairs > 0.0 {
+                (ln_sum / pairs).exp()
+            } else {
+                let (mut sum, mut n) = (0.0, 0.0);
+                for (dr, dc) in [(0, 1), (0, -1), (1, 0), (-1, 0)] {
+                    if let Some(j) = at(dr, dc) {
+                        sum += light(j);
+                        n += 1.0;
+                    }
+                }
+                if n > 0.0 {
+                    sum / n
+                } else {
+                    0.0
+                }
+            };
+            let fs = m.full_scale();
+            f.counts[k] = (m.offset_v[k] * cpv + est).round().clamp(0.0, fs) as u16;
+        }
+        f
+    }
+
+    /// The channels a frame's classification left out, as a bit mask
+    /// (bit k for detector k).
+    pub fn excluded_mask(kinds: &[Censoring; NDET]) -> u32 {
+        kinds
+            .iter()
+            .enumerate()
+            .filter(|(_, k)| **k == Censoring::Excluded)
+            .fold(0, |m, (i, _)| m | 1 << i)
     }
 
     /// The value a filter should pull the prediction `pred` toward for a
@@ -67,6 +192,7 @@ impl Censoring {
             Censoring::Data => Some(obs),
             Censoring::Saturated => (pred < fs - 0.5).then_some(fs - 0.5),
             Censoring::Dark => (pred > obs.max(0.5)).then_some(obs.max(0.5)),
+            Censoring::Excluded => None,
         }
     }
 }
@@ -140,6 +266,7 @@ fn residuals(
             Censoring::Data => pred[k] - obs,
             Censoring::Saturated => (pred[k] - (fs - 0.5)).min(0.0),
             Censoring::Dark => (pred[k] - obs.max(0.5)).max(0.0),
+            Censoring::Excluded => 0.0,
         } * w[k];
         out[k] = r;
         chi2 += r * r;

@@ -478,6 +478,30 @@ impl Estimator for Tracker {
     }
 
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
+        let mut e = self.estimate_frame(frame);
+        // Every path classifies the counts alike (`Censoring::classify`).
+        let kinds = Censoring::classify(&self.model, &frame.counts);
+        e.excluded_channels = Censoring::excluded_mask(&kinds);
+        e
+    }
+
+    fn reset(&mut self) {
+        self.state = None;
+    }
+
+    /// K_D while it is estimated (`estimate_k_d`, or from the first DVL
+    /// reading with `estimate_k_d_with_velocity`).
+    fn water_k_d(&self) -> Option<f64> {
+        self.state
+            .as_ref()
+            .filter(|s| s.k_d_free)
+            .map(|s| state::k_d_of(&s.x))
+    }
+}
+
+impl Tracker {
+    /// One frame through the filter (see [`Estimator::estimate`]).
+    fn estimate_frame(&mut self, frame: &Frame) -> PoseEstimate {
         let readings = FrameReadings::check(frame, &self.cfg);
         // Issue 8: a temperature that is not water's is a bad frame, as in
         // the model estimator; the update used to correct such a frame as
@@ -563,18 +587,5 @@ impl Estimator for Tracker {
         e.readings = verdicts(uses);
         self.state = Some(s);
         e
-    }
-
-    fn reset(&mut self) {
-        self.state = None;
-    }
-
-    /// K_D while it is estimated (`estimate_k_d`, or from the first DVL
-    /// reading with `estimate_k_d_with_velocity`).
-    fn water_k_d(&self) -> Option<f64> {
-        self.state
-            .as_ref()
-            .filter(|s| s.k_d_free)
-            .map(|s| state::k_d_of(&s.x))
     }
 }

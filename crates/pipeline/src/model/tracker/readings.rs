@@ -25,6 +25,7 @@ use nalgebra::{SMatrix, SVector};
 use super::counts::commit;
 use super::state::{body_axes, body_axes_derivatives, k_d_of, Ms, State, KD, NS, VEL};
 use super::Tracker;
+use crate::model::solver::Censoring;
 use crate::settings::{Motion, TrackerConfig};
 
 /// A reading that passed the checks: its values and 1σ per component.
@@ -351,6 +352,9 @@ impl Tracker {
         }
         let m = &self.model;
         let p = self.paper.as_ref()?;
+        // The paper's moments read the whole image: a stuck channel, left
+        // out of the fits, is read as its neighbours here.
+        let frame = &Censoring::stand_in(m, &Censoring::classify(m, &frame.counts), frame);
         let x = p.est.range_of(frame)?;
         let cpv = m.counts_per_volt();
         let (peak, k) = (0..frame.counts.len())
