@@ -41,11 +41,13 @@ impl SweepKind {
 pub fn translation_poses() -> Vec<Pose> {
     let mut v = Vec::with_capacity(125);
     for i in 0..5 {
-        for j in 0..5 {
-            for k in 0..5 {
-                let x = 4.5 + i as f64;
-                let y = -0.6 + 0.3 * j as f64;
-                let z = 0.2 * k as f64;
+        for j in 0..5i32 {
+            for k in 0..5i32 {
+                // Tenths as integers, so that a truth label reads 0.3,
+                // not 0.29999999999999993 (n / 10.0 rounds as the literal).
+                let x = 4.5 + f64::from(i);
+                let y = f64::from(3 * j - 6) / 10.0;
+                let z = f64::from(2 * k) / 10.0;
                 v.push(Pose::new(x, y, z, Angle::ZERO, Angle::ZERO));
             }
         }
@@ -182,12 +184,12 @@ mod tests {
         assert_eq!(SweepPlan::new(SweepKind::All, 200).frames(), 61_600);
         let t = translation_poses();
         assert_eq!((t[0].x, t[0].y, t[0].z), (4.5, -0.6, 0.0));
-        let last = t[124];
-        assert!(
-            (last.x - 8.5).abs() < 1e-12
-                && (last.y - 0.6).abs() < 1e-12
-                && (last.z - 0.8).abs() < 1e-12
-        );
+        // Exactly MODEL.md's decimals, as the sweep's truth labels print.
+        let ys: Vec<f64> = t.iter().take(25).step_by(5).map(|p| p.y).collect();
+        assert_eq!(ys, [-0.6, -0.3, 0.0, 0.3, 0.6]);
+        let zs: Vec<f64> = t.iter().take(5).map(|p| p.z).collect();
+        assert_eq!(zs, [0.0, 0.2, 0.4, 0.6, 0.8]);
+        assert_eq!((t[124].x, t[124].y, t[124].z), (8.5, 0.6, 0.8));
         let o = orientation_poses();
         let zeros = o
             .iter()
