@@ -4,8 +4,9 @@
 
 use crate::guard;
 use anyhow::Context;
+use lightpose_core::FrameLog;
 use lightpose_core::Status;
-use lightpose_pipeline::{build_estimator, replay, Calibration};
+use lightpose_pipeline::{build_estimator, replay, Calibration, ReplaySummary};
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
@@ -62,6 +63,26 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         }
         anyhow::bail!("{}: no frame could be replayed: {why}", a.log.display());
     }
+    say_summary(&a, &s);
+    say_log(&a, log.as_ref());
+    if a.report {
+        match &s.report {
+            Some(r) => print!("{r}"),
+            None => eprintln!(
+                "lightpose: {}: no truth in the log, no error report",
+                a.log.display()
+            ),
+        }
+        if let Some(line) = s.readings_line() {
+            println!("readings: {line}");
+        }
+    }
+    Ok(())
+}
+
+/// The summary of a replay on stderr: poses by status, readings, stuck
+/// channels, the water learned, dropped readings, a cut.
+fn say_summary(a: &ReplayArgs, s: &ReplaySummary) {
     let statuses: Vec<String> = Status::ALL
         .iter()
         .zip(s.status)
@@ -103,6 +124,11 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     if let Some(cut) = s.cut {
         eprintln!("lightpose: {}: {cut}", a.log.display());
     }
+}
+
+/// What the log itself said on the way: other classes passed over, time
+/// jumps, lone glitches, gaps in seq.
+fn say_log(a: &ReplayArgs, log: &dyn FrameLog) {
     if let Some(first) = log.first_other() {
         let n = log.other_records();
         let what = if n == 1 {
@@ -131,25 +157,13 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
             order.glitches()
         );
     }
-    if s.seq_gaps.0 > 0 {
+    let gaps = log.seq_gaps();
+    if gaps.0 > 0 {
         eprintln!(
             "lightpose: {}: {} gaps in seq, {} frames lost",
             a.log.display(),
-            s.seq_gaps.0,
-            s.seq_gaps.1
+            gaps.0,
+            gaps.1
         );
     }
-    if a.report {
-        match &s.report {
-            Some(r) => print!("{r}"),
-            None => eprintln!(
-                "lightpose: {}: no truth in the log, no error report",
-                a.log.display()
-            ),
-        }
-        if let Some(line) = s.readings_line() {
-            println!("readings: {line}");
-        }
-    }
-    Ok(())
 }
