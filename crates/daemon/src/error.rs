@@ -29,6 +29,10 @@ pub enum DaemonError {
         #[source]
         source: lightpose_pipeline::BuildError,
     },
+    /// The backend's frames are of another ADC than the calibration's
+    /// light model.
+    #[error("backend {backend}: {msg}")]
+    AdcMismatch { backend: &'static str, msg: String },
     #[error("backend {kind}")]
     Backend {
         kind: &'static str,
@@ -77,6 +81,7 @@ impl DaemonError {
             | DaemonError::CalibrationRead { .. }
             | DaemonError::Calibration(_)
             | DaemonError::Estimator { .. }
+            | DaemonError::AdcMismatch { .. }
             | DaemonError::NotFreeRunning { .. } => true,
             DaemonError::Backend { source, .. } => source.refuses_config(),
             DaemonError::Publish(_)

@@ -44,6 +44,25 @@ pub fn build_estimator(cfg: &Config) -> Result<Box<dyn Estimator>, DaemonError> 
     })
 }
 
+/// The estimator can read the source's frames (the light model's ADC is
+/// the source's; see `lightpose_pipeline::reads_frames_of`).
+fn reads_frames(cfg: &Config, est: &dyn Estimator, adc_bits: u8) -> Result<(), DaemonError> {
+    let text = cfg
+        .calibration
+        .read()
+        .map_err(|source| DaemonError::CalibrationRead {
+            at: cfg.calibration_at.clone(),
+            source,
+        })?;
+    let cal = Calibration::parse(&text, &cfg.calibration.describe())?;
+    lightpose_pipeline::reads_frames_of(est, &cal, adc_bits).map_err(|msg| {
+        DaemonError::AdcMismatch {
+            backend: cfg.backend.kind(),
+            msg,
+        }
+    })
+}
+
 /// Check everything a start would read, without starting: the calibration
 /// (read, parsed, checked), the estimator built from it by name, and what
 /// the backend reads (scene, trajectory, a log's header; hal opens no
@@ -104,6 +123,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     let est_name = estimator.name();
     let stop = Stop::new();
     let source = open_source(cfg, &stop)?;
+    reads_frames(cfg, estimator.as_ref(), source.adc_bits())?;
     let source_desc = source.describe();
     let publisher = Arc::new(publisher);
     let stats = Arc::new(Stats::default());

@@ -151,3 +151,48 @@ fn a_missing_calibration_and_an_unknown_estimator_name_the_config_line() {
         "unknown estimator \"trackr\" (known: ",
     );
 }
+
+/// A replayed log of a 12-bit board against the 10-bit tank calibration:
+/// the tracker would call every frame `bad_frame` without saying why
+/// (bad-input audit: 41 of 41, STATUS `last_error` null, exit 0); the start
+/// refuses it in one line, exit 2. The paper's method reads any ADC.
+#[test]
+fn a_log_of_another_adc_than_the_light_models_is_refused_at_start() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (_, _, cal) = shipped();
+    let log = common::root().join("tests/data/dive-12bit.jsonl");
+    let config = |estimator: &str| {
+        let p = dir.path().join(format!("{estimator}.toml"));
+        let text = format!(
+            "rate_hz = 5.0\nestimator = \"{estimator}\"\ncalibration = \"{}\"\n[backend]\nkind = \"replay\"\nlog = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"127.0.0.1:9\"]\n",
+            cal.display(),
+            log.display()
+        );
+        std::fs::write(&p, text).expect("config");
+        p
+    };
+    let out = bin()
+        .arg("--config")
+        .arg(config("tracker"))
+        .output()
+        .expect("run");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    let refusal: Vec<&str> = err.lines().filter(|l| l.contains("ERROR")).collect();
+    assert_eq!(refusal.len(), 1, "{err}");
+    assert!(
+        refusal[0].contains("12-bit ADC") && refusal[0].contains("10-bit"),
+        "{err}"
+    );
+    let out = bin()
+        .arg("--config")
+        .arg(config("moments"))
+        .output()
+        .expect("run");
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

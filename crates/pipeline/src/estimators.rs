@@ -93,12 +93,49 @@ pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimato
     }
 }
 
+/// Whether `estimator`, built from `cal`, can read frames of an
+/// `adc_bits` ADC: the light model of the model-based ones is one ADC's
+/// (a frame of another is `bad_frame`, every one of them), the paper's
+/// method reads any. Checked where a source's resolution is known before
+/// its first frame (replay's log header, the daemon's backend), so that a
+/// 12-bit log against a 10-bit calibration is one line at the start, not
+/// a replay of nothing but `bad_frame`.
+pub fn reads_frames_of(
+    estimator: &dyn Estimator,
+    cal: &Calibration,
+    adc_bits: u8,
+) -> Result<(), String> {
+    match &cal.physical {
+        Some(p) if estimator.name() != "moments" && p.adc_bits != adc_bits => Err(format!(
+            "frames of a {adc_bits}-bit ADC, and the calibration's light model is of a {}-bit one: \
+             the {} estimator would call every frame bad_frame (calibrate from this board's \
+             sweeps, or use the moments estimator)",
+            p.adc_bits,
+            estimator.name()
+        )),
+        _ => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::calibration::file::tests::{sample, sample_physical};
     use crate::settings::EstimatorSettings;
     use lightpose_core::Angle;
+
+    #[test]
+    fn only_the_model_based_need_the_calibrations_adc() {
+        let mut cal = sample();
+        cal.physical = Some(sample_physical());
+        let bits = cal.scene.adc_bits;
+        for n in ["moments", "model", "tracker"] {
+            let e = build_estimator(n, &cal).unwrap();
+            assert!(reads_frames_of(e.as_ref(), &cal, bits).is_ok());
+            let other = reads_frames_of(e.as_ref(), &cal, 12);
+            assert_eq!(other.is_ok(), n == "moments", "{n}: {other:?}");
+        }
+    }
 
     #[test]
     fn every_name_builds_the_estimator_it_names() {

@@ -23,6 +23,6 @@ pub mod replay;
 pub mod settings;
 
 pub use calibration::{CalError, Calibration};
-pub use estimators::{build_estimator, BuildError};
+pub use estimators::{build_estimator, reads_frames_of, BuildError};
 pub use paper::MomentsEstimator;
 pub use replay::{replay, ErrorReport, ReplayError, ReplaySummary};

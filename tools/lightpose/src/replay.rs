@@ -6,7 +6,7 @@ use crate::guard;
 use anyhow::Context;
 use lightpose_core::FrameLog;
 use lightpose_core::Status;
-use lightpose_pipeline::{build_estimator, replay, Calibration, ReplaySummary};
+use lightpose_pipeline::{build_estimator, reads_frames_of, replay, Calibration, ReplaySummary};
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
@@ -38,6 +38,8 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     // Say which one "auto" chose, before any output.
     eprintln!("lightpose: estimator {} ({})", est.name(), a.estimator);
     let mut log = lightpose_logs::open(&a.log)?;
+    reads_frames_of(est.as_ref(), &cal, log.header().adc_bits)
+        .map_err(|m| anyhow::anyhow!("{}: {m}", a.log.display()))?;
     let file = File::create(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let mut out = BufWriter::new(file);
     let mut shown = 0u32;

@@ -536,3 +536,46 @@ fn a_stuck_channel_is_named_and_poses_come() {
         .count();
     assert!(ok >= 30, "{ok} ok poses: {}", r.err);
 }
+
+/// A 12-bit log against the 10-bit tank calibration: the model-based
+/// estimators are refused at once, naming both; the paper's method runs.
+#[test]
+fn a_log_of_another_adc_is_refused_for_the_light_model() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("poses.jsonl");
+    let log = root().join("tests/data/dive-12bit.jsonl");
+    let cal = cal();
+    for est in ["auto", "tracker", "model"] {
+        let args = [
+            "replay",
+            "--calibration",
+            s(&cal),
+            "--log",
+            s(&log),
+            "--out",
+            s(&out),
+            "--estimator",
+            est,
+        ];
+        let r = lightpose(&args, Duration::from_secs(20));
+        assert_eq!(r.code, Some(1), "{est}: {}", r.err);
+        let last = r.err.lines().last().unwrap_or_default();
+        assert!(
+            last.contains("12-bit ADC") && last.contains("10-bit"),
+            "{est}: {}",
+            r.err
+        );
+    }
+    let args = [
+        "replay",
+        "--calibration",
+        s(&cal),
+        "--log",
+        s(&log),
+        "--out",
+        s(&out),
+        "--estimator",
+        "moments",
+    ];
+    assert_eq!(lightpose(&args, Duration::from_secs(20)).code, Some(0));
+}
