@@ -25,9 +25,8 @@ use std::time::Instant;
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
 
-/// Load the calibration and build the configured estimator (at start and
-/// on SIGHUP).
-pub fn build_estimator(cfg: &Config) -> Result<Box<dyn Estimator>, DaemonError> {
+/// Read and check the configured calibration.
+fn load_calibration(cfg: &Config) -> Result<Calibration, DaemonError> {
     let text = cfg
         .calibration
         .read()
@@ -35,7 +34,13 @@ pub fn build_estimator(cfg: &Config) -> Result<Box<dyn Estimator>, DaemonError> 
             at: cfg.calibration_at.clone(),
             source,
         })?;
-    let cal = Calibration::parse(&text, &cfg.calibration.describe())?;
+    Ok(Calibration::parse(&text, &cfg.calibration.describe())?)
+}
+
+/// Load the calibration and build the configured estimator (at start and
+/// on SIGHUP).
+pub fn build_estimator(cfg: &Config) -> Result<Box<dyn Estimator>, DaemonError> {
+    let cal = load_calibration(cfg)?;
     lightpose_pipeline::build_estimator(&cfg.estimator, &cal).map_err(|source| {
         DaemonError::Estimator {
             at: cfg.estimator_at.clone(),
@@ -47,14 +52,7 @@ pub fn build_estimator(cfg: &Config) -> Result<Box<dyn Estimator>, DaemonError> 
 /// The estimator can read the source's frames (the light model's ADC is
 /// the source's; see `lightpose_pipeline::reads_frames_of`).
 fn reads_frames(cfg: &Config, est: &dyn Estimator, adc_bits: u8) -> Result<(), DaemonError> {
-    let text = cfg
-        .calibration
-        .read()
-        .map_err(|source| DaemonError::CalibrationRead {
-            at: cfg.calibration_at.clone(),
-            source,
-        })?;
-    let cal = Calibration::parse(&text, &cfg.calibration.describe())?;
+    let cal = load_calibration(cfg)?;
     lightpose_pipeline::reads_frames_of(est, &cal, adc_bits).map_err(|msg| {
         DaemonError::AdcMismatch {
             backend: cfg.backend.kind(),

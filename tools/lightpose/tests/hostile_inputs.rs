@@ -2,40 +2,16 @@
 //! it (issue 16): a trajectory that would write forever, a log with frames
 //! out of order and lines of other classes.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+mod common;
 
-fn root() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-}
+use common::root;
+use std::path::Path;
+use std::time::Duration;
 
-/// Run `lightpose args`, killed if it runs longer than `within` (then the
-/// test fails: a refusal must come at once).
+/// Run `lightpose args` within `within`: its exit code and stderr.
 fn lightpose(args: &[&str], within: Duration) -> (Option<i32>, String) {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let err_path = dir.path().join("stderr");
-    let err = std::fs::File::create(&err_path).expect("stderr file");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_lightpose"))
-        .args(args)
-        .stdout(Stdio::null())
-        .stderr(err)
-        .spawn()
-        .expect("runs lightpose");
-    let t0 = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().expect("wait") {
-            break s;
-        }
-        if t0.elapsed() > within {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("lightpose {args:?} still running after {within:?}");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let err = std::fs::read_to_string(&err_path).unwrap_or_default();
-    (status.code(), err)
+    let r = common::lightpose(args, within);
+    (r.code, r.err)
 }
 
 fn s(p: &Path) -> &str {

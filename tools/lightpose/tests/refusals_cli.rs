@@ -4,55 +4,14 @@
 //! its inputs (left byte for byte as it was), and a replay with nothing to
 //! replay; and replay's account of what it dropped, each thing said once.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+mod common;
 
-fn root() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-}
+use common::{lightpose, root, Run};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 temp path")
-}
-
-/// What a run printed and how it ended.
-struct Run {
-    code: Option<i32>,
-    out: String,
-    err: String,
-}
-
-/// Run `lightpose args`, killed if it runs longer than `within` (then the
-/// test fails: a refusal must come at once).
-fn lightpose(args: &[&str], within: Duration) -> Run {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let (out_path, err_path) = (dir.path().join("stdout"), dir.path().join("stderr"));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_lightpose"))
-        .args(args)
-        .env_remove("RUST_BACKTRACE")
-        .stdout(std::fs::File::create(&out_path).expect("stdout file"))
-        .stderr(std::fs::File::create(&err_path).expect("stderr file"))
-        .stdin(Stdio::null())
-        .spawn()
-        .expect("runs lightpose");
-    let t0 = Instant::now();
-    let status = loop {
-        if let Some(st) = child.try_wait().expect("wait") {
-            break st;
-        }
-        if t0.elapsed() > within {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("lightpose {args:?} still running after {within:?}");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    Run {
-        code: status.code(),
-        out: std::fs::read_to_string(&out_path).unwrap_or_default(),
-        err: std::fs::read_to_string(&err_path).unwrap_or_default(),
-    }
 }
 
 /// A refusal: exit 1, and stderr is one line holding each of `want`.
@@ -205,99 +164,88 @@ fn no_command_writes_over_its_own_input() {
     let linked = p("linked.jsonl");
     std::fs::hard_link(&log, &linked).expect("hard link");
 
-    let cases: Vec<(Vec<&str>, &PathBuf, &str)> = vec![
+    let (cal, log, linked) = (s(&cal), s(&log), s(&linked));
+    let (scene_s, traj_s, dotted) = (s(&scene), s(&traj), s(&dotted_scene));
+    let (sweep_s, dark_s) = (s(&sweep), s(&dark));
+    // Each: the command's words, the input it must leave alone (as a path
+    // string), and the pair of flags the refusal names.
+    let cases: [(&[&str], &str, &str); 8] = [
         (
-            vec![
-                "replay",
-                "--calibration",
-                s(&cal),
-                "--log",
-                s(&log),
-                "--out",
-                s(&log),
-            ],
-            &log,
+            &["replay", "--calibration", cal, "--log", log, "--out", log],
+            log,
             "(--log and --out)",
         ),
         (
-            vec![
+            &[
                 "replay",
                 "--calibration",
-                s(&cal),
+                cal,
                 "--log",
-                s(&log),
+                log,
                 "--out",
-                s(&linked),
+                linked,
             ],
-            &log,
+            log,
             "(--log and --out)",
         ),
         (
-            vec![
-                "replay",
-                "--calibration",
-                s(&cal),
-                "--log",
-                s(&log),
-                "--out",
-                s(&cal),
-            ],
-            &cal,
+            &["replay", "--calibration", cal, "--log", log, "--out", cal],
+            cal,
             "(--calibration and --out)",
         ),
         (
-            vec![
+            &[
                 "simulate",
                 "--scene",
-                s(&scene),
+                scene_s,
                 "--trajectory",
-                s(&traj),
+                traj_s,
                 "--out",
-                s(&dotted_scene),
+                dotted,
             ],
-            &scene,
+            scene_s,
             "(--scene and --out)",
         ),
         (
-            vec![
+            &[
                 "simulate",
                 "--scene",
-                s(&scene),
+                scene_s,
                 "--trajectory",
-                s(&traj),
+                traj_s,
                 "--out",
-                s(&traj),
+                traj_s,
             ],
-            &traj,
+            traj_s,
             "(--trajectory and --out)",
         ),
         (
-            vec!["sweep", "--scene", s(&scene), "--out", s(&scene)],
-            &scene,
+            &["sweep", "--scene", scene_s, "--out", scene_s],
+            scene_s,
             "(--scene and --out)",
         ),
         (
-            vec!["calibrate", "--sweep", s(&sweep), "--out", s(&sweep)],
-            &sweep,
+            &["calibrate", "--sweep", sweep_s, "--out", sweep_s],
+            sweep_s,
             "(--sweep and --out)",
         ),
         (
-            vec![
+            &[
                 "calibrate",
                 "--sweep",
-                s(&sweep),
+                sweep_s,
                 "--dark",
-                s(&dark),
+                dark_s,
                 "--out",
-                s(&dark),
+                dark_s,
             ],
-            &dark,
+            dark_s,
             "(--dark and --out)",
         ),
     ];
     for (a, input, want) in cases {
         let before = std::fs::read(input).expect("input");
-        refused(&a, &["input and output are the same file", want]);
+        refused(a, &["input and output are the same file", want]);
         assert_eq!(
             std::fs::read(input).expect("input"),
             before,
