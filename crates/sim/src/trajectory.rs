@@ -138,7 +138,9 @@ fn knot(l: &str, err: impl Fn(String) -> TrajectoryError) -> Result<Knot, Trajec
         return Err(err(format!("t = {:e} is not a time in seconds", v[0])));
     }
     if v[4].abs() >= 90.0 || v[5].abs() >= 180.0 {
-        return Err(err("pitch must be within ±90° and yaw within ±180°".into()));
+        return Err(err(
+            "pitch must be strictly between −90° and 90°, and yaw within ±180°".into(),
+        ));
     }
     Ok(Knot {
         t: v[0],

@@ -527,3 +527,41 @@ fn a_log_of_another_adc_is_refused_for_the_light_model() {
     ];
     assert_eq!(lightpose(&args, Duration::from_secs(20)).code, Some(0));
 }
+
+/// calibrate names its own options when they are no ADC's or no water's
+/// (a v_ref of 1e30 wrote a calibration with it, 0 said "no light"), and a
+/// sweep with no frames says so instead of an empty list.
+#[test]
+fn calibrate_names_its_options_and_an_empty_sweep() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let sweep = dir.path().join("header-only.jsonl");
+    let header = "{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":5}\n";
+    std::fs::write(&sweep, header).expect("write");
+    let out = dir.path().join("cal.toml");
+    let (sw, o) = (s(&sweep), s(&out));
+    refused(
+        &["calibrate", "--sweep", sw, "--out", o, "--v-ref", "1e30"],
+        &["--v-ref 1e30"],
+    );
+    refused(
+        &["calibrate", "--sweep", sw, "--out", o, "--v-ref", "0"],
+        &["--v-ref 0"],
+    );
+    refused(
+        &[
+            "calibrate",
+            "--sweep",
+            sw,
+            "--out",
+            o,
+            "--default-temp",
+            "NaN",
+        ],
+        &["--default-temp NaN", "water"],
+    );
+    refused(
+        &["calibrate", "--sweep", sw, "--out", o],
+        &["the sweep has no frames"],
+    );
+    assert!(!out.exists());
+}

@@ -208,6 +208,10 @@ impl Accs {
 impl Accs {
     /// What was skipped and why, for a refusal.
     fn skipped_text(&self) -> String {
+        if self.skipped.is_empty() {
+            // A sweep of a header alone, or of no frames at all.
+            return "none (the sweep has no frames)".into();
+        }
         self.skipped
             .iter()
             .map(|(k, v)| format!("{v} {k}"))
