@@ -196,3 +196,57 @@ fn a_log_of_another_adc_than_the_light_models_is_refused_at_start() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// A replayed log with one corrupt seq and one malformed reading: the
+/// frames after them go on, STATUS counts both and names the reading's
+/// line, and the log says what was skipped (it was counted, not logged).
+#[test]
+fn skips_a_source_counts_are_logged_and_in_status() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = std::fs::read_to_string(root().join("tests/data/dive.jsonl")).expect("log");
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    lines[5] = lines[5].replacen("\"seq\":4,", "\"seq\":500,", 1);
+    lines[9] = lines[9].replacen("\"counts\"", "\"depth\":{\"zz\":1},\"counts\"", 1);
+    let log = dir.path().join("skips.jsonl");
+    std::fs::write(&log, lines.join("\n") + "\n").expect("write");
+    let (sub, dest) = {
+        let s = std::net::UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let a = s.local_addr().expect("addr");
+        (s, a)
+    };
+    sub.set_read_timeout(Some(Duration::from_millis(200)))
+        .expect("timeout");
+    let cfg = dir.path().join("replay.toml");
+    let text = replay_config(&log, dest).replace("[outputs]", "[outputs]\nstatus_interval_s = 0.2");
+    std::fs::write(&cfg, text).expect("config");
+    let out = bin().arg("--config").arg(&cfg).output().expect("run");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("source skipped") && err.contains("1 glitches in seq or t"),
+        "{err}"
+    );
+    assert!(err.contains("1 malformed readings"), "{err}");
+    let mut last = None;
+    let mut buf = vec![0u8; 65536];
+    while let Ok(n) = sub.recv(&mut buf) {
+        let v: serde_json::Value = serde_json::from_slice(&buf[..n]).expect("json");
+        if v["class"] == "STATUS" {
+            last = Some(v);
+        }
+    }
+    let st = last.expect("a STATUS");
+    let h = &st["backend"]["health"];
+    assert_eq!(
+        (h["glitches"].as_u64(), h["bad_readings"].as_u64()),
+        (Some(1), Some(1)),
+        "{st}"
+    );
+    assert!(
+        h["last_bad_reading"]
+            .as_str()
+            .is_some_and(|m| m.contains("skips.jsonl:10")),
+        "{st}"
+    );
+    assert_eq!(st["frames"].as_u64(), Some(lines.len() as u64 - 1), "{st}");
+}

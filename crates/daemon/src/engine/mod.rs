@@ -23,7 +23,7 @@ use crate::inputs::Input;
 use crate::outputs::Output;
 use crate::stats::{BackendState, Stats, TempSource};
 use lightpose_core::{Estimator, Frame, PoseEstimate, ReadingUse};
-use lightpose_hal::{FrameSource, SourceError, Stop};
+use lightpose_hal::{FrameSource, SourceError, SourceHealth, Stop};
 use ratelog::RateLog;
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::mpsc::Receiver;
@@ -237,10 +237,52 @@ impl Engine {
         None
     }
 
+    /// The source's health into STATUS, and a line in the log when the
+    /// skips it counts (garbage or another board's lines on a serial port,
+    /// a replayed log's glitches and malformed readings) grew since the
+    /// last copy: counted and logged, at most once a second.
     fn copy_health(&self) {
-        if let Ok(mut h) = self.stats.source_health.lock() {
-            *h = Some(self.source.health());
+        let new = self.source.health();
+        let Ok(mut h) = self.stats.source_health.lock() else {
+            return;
+        };
+        let was = |f: fn(&SourceHealth) -> u64| h.as_ref().map_or(0, f);
+        let grew = [
+            (
+                "bad lines",
+                new.bad_lines.saturating_sub(was(|h| h.bad_lines)),
+            ),
+            (
+                "lines of another board",
+                new.wrong_board_lines
+                    .saturating_sub(was(|h| h.wrong_board_lines)),
+            ),
+            (
+                "glitches in seq or t",
+                new.glitches.saturating_sub(was(|h| h.glitches)),
+            ),
+            (
+                "malformed readings",
+                new.bad_readings.saturating_sub(was(|h| h.bad_readings)),
+            ),
+        ];
+        if grew.iter().any(|(_, n)| *n > 0) {
+            let what: Vec<String> = grew
+                .iter()
+                .filter(|(_, n)| *n > 0)
+                .map(|(w, n)| format!("{n} {w}"))
+                .collect();
+            let last = new
+                .last_bad_line
+                .as_deref()
+                .or(new.last_bad_reading.as_deref());
+            tracing::warn!(
+                last = last.unwrap_or("-"),
+                "source skipped {} since the last second (STATUS backend.health)",
+                what.join(", ")
+            );
         }
+        *h = Some(new);
     }
 
     /// The next frame from the source; a failure is counted and logged,
