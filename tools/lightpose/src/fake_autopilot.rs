@@ -11,6 +11,7 @@ use anyhow::{anyhow, Context};
 use lightpose_core::Angle;
 use lightpose_sim::{Scene, Trajectory};
 use lightpose_vehicle::mav::inbound::DepthSource;
+use lightpose_vehicle::mav::link::Sent;
 use lightpose_vehicle::mav::outbound::Encoder;
 use lightpose_vehicle::mav::scan::{Framing, Scanned, Scanner};
 use lightpose_vehicle::standin::{
@@ -274,11 +275,13 @@ impl Session {
         s.heading = s.heading + Angle::from_deg(self.gauss(self.noise[1]));
         s.depth_m += self.gauss(self.noise[2]);
         let ms = (self.start.elapsed().as_millis() & 0xFFFF_FFFF) as u32;
+        let mut sent = false;
         for m in autopilot_messages(&s, self.depth, ms) {
-            // udpin before the daemon spoke: nowhere to send yet.
-            let _ = link.send(self.enc.encode(&m)).await;
+            // udpin before the daemon spoke: nowhere to send yet, and the
+            // set is not counted as sent.
+            sent |= matches!(link.send(self.enc.encode(&m)).await, Ok(Sent::Yes));
         }
-        self.sent_sets += 1;
+        self.sent_sets += u64::from(sent);
     }
 
     fn take(&mut self, sc: &mut Scanner) {

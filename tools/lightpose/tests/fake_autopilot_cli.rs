@@ -122,3 +122,25 @@ fn the_stand_in_autopilot_sends_the_truth_and_judges_what_comes_back() {
         "{summary}"
     );
 }
+
+/// Listening (`udpin`) with no daemon to answer, it sends nothing and says
+/// so (it said "sent 11 sets" that went nowhere).
+#[test]
+fn with_no_peer_nothing_is_counted_as_sent() {
+    let port = UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let out = Command::new(env!("CARGO_BIN_EXE_lightpose"))
+        .args(["fake-autopilot", "--scene"])
+        .arg(root().join("config/scenes/tank.toml"))
+        .arg("--trajectory")
+        .arg(root().join("config/trajectories/dive.csv"))
+        .args(["--connect", &format!("udpin:127.0.0.1:{port}")])
+        .args(["--duration", "1"])
+        .output()
+        .expect("runs");
+    let said = String::from_utf8_lossy(&out.stdout) + String::from_utf8_lossy(&out.stderr);
+    assert!(said.contains("sent 0 sets of sensor messages"), "{said}");
+}

@@ -56,6 +56,10 @@ impl std::fmt::Display for Cut {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Cut::Line(l) => write!(f, "line {l}: last line cut short; the log ends there"),
+            Cut::Bytes { offset, dropped: 0 } => write!(
+                f,
+                "byte {offset}: recording never finished (no summary); it ends there, nothing after it"
+            ),
             Cut::Bytes { offset, dropped } => write!(
                 f,
                 "byte {offset}: recording never finished; it ends there, {dropped} bytes after it (an incomplete record) dropped"
@@ -136,6 +140,30 @@ impl<R> LogReader<R> {
 
 #[cfg(test)]
 mod tests {
+    /// A recording killed between chunks lost nothing: it says so, rather
+    /// than "0 bytes … (an incomplete record) dropped".
+    #[test]
+    fn a_cut_between_records_says_nothing_was_dropped() {
+        let whole = super::Cut::Bytes {
+            offset: 4096,
+            dropped: 0,
+        }
+        .to_string();
+        assert!(
+            whole.contains("nothing after it") && !whole.contains("dropped"),
+            "{whole}"
+        );
+        let part = super::Cut::Bytes {
+            offset: 4096,
+            dropped: 17,
+        }
+        .to_string();
+        assert!(
+            part.contains("17 bytes after it (an incomplete record) dropped"),
+            "{part}"
+        );
+    }
+
     use super::*;
 
     #[test]
