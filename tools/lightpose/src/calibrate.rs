@@ -47,23 +47,7 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
         a.sweeps.iter().map(|p| ("sweep", p.as_path())).collect();
     inputs.extend(a.dark.as_deref().map(|p| ("dark", p)));
     guard::not_an_input(&a.out, &inputs)?;
-    // The options are the user's: name them, rather than let the fit
-    // say it found no light (a v_ref of 0) or gave a NaN temperature.
-    if !(a.v_ref.is_finite() && a.v_ref > 0.0 && a.v_ref <= 100.0) {
-        anyhow::bail!(
-            "--v-ref {:?}: an ADC's reference is more than 0 and at most 100 V",
-            a.v_ref
-        );
-    }
-    let water = lightpose_core::light::WATER_TEMP_C;
-    if !water.contains(&a.default_temp) {
-        anyhow::bail!(
-            "--default-temp {}: not a water temperature ({}..{} °C)",
-            a.default_temp,
-            water.start(),
-            water.end()
-        );
-    }
+    check_options(&a)?;
     let mut opts = CalibrateOptions::new(a.sweeps);
     opts.dark = a.dark;
     opts.v_ref = a.v_ref;
@@ -153,6 +137,27 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
         eprintln!(
             "    noise: sigma_e {:.4} V, kappa {:.5} V",
             p.sigma_e_v, p.kappa_v
+        );
+    }
+    Ok(())
+}
+
+/// The options are the user's: name them, rather than let the fit say it
+/// found no light (a v_ref of 0) or gave a NaN temperature.
+fn check_options(a: &CalibrateArgs) -> anyhow::Result<()> {
+    if !(a.v_ref.is_finite() && a.v_ref > 0.0 && a.v_ref <= 100.0) {
+        anyhow::bail!(
+            "--v-ref {:?}: an ADC's reference is more than 0 and at most 100 V",
+            a.v_ref
+        );
+    }
+    let water = lightpose_core::light::WATER_TEMP_C;
+    if !water.contains(&a.default_temp) {
+        anyhow::bail!(
+            "--default-temp {}: not a water temperature ({}..{} °C)",
+            a.default_temp,
+            water.start(),
+            water.end()
         );
     }
     Ok(())

@@ -252,13 +252,14 @@ impl FrameSource for ReplaySource {
     }
 
     fn health(&self) -> SourceHealth {
+        let (bad_readings, last_bad_reading) = self.log.bad_readings();
         SourceHealth {
             skipped_frames: self.done.skipped + self.log.order().skipped(),
             time_jumps: self.jumps,
             glitches: self.done.glitches + self.log.order().glitches(),
             other_lines: self.done.other + self.log.other_records(),
-            bad_readings: self.done.bad_readings + self.log.bad_readings().0,
-            last_bad_reading: self.log.bad_readings().1.map(str::to_string),
+            bad_readings: self.done.bad_readings + bad_readings,
+            last_bad_reading: last_bad_reading.map(str::to_string),
             ..SourceHealth::default()
         }
     }

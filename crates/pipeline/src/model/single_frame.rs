@@ -54,6 +54,10 @@ pub(crate) struct FrameFit {
     pub fit: Option<LmResult>,
     /// Which coordinates the fit estimated (the others were given).
     pub free: [bool; 5],
+    /// What became of the frame's attitude reading, and the channels left
+    /// out as stuck (set by `fit_frame`, for the estimate's report).
+    pub attitude: ReadingUse,
+    pub excluded: u32,
 }
 
 impl FrameFit {
@@ -63,6 +67,8 @@ impl FrameFit {
             status,
             fit: None,
             free: [false; 5],
+            attitude: ReadingUse::Absent,
+            excluded: 0,
         }
     }
 }
@@ -126,16 +132,20 @@ impl ModelEstimator {
 
     /// Solve one frame; `warm` is a starting pose to try first.
     pub(crate) fn fit_frame(&self, frame: &Frame, warm: Option<PoseVec>) -> FrameFit {
-        let gt = match self.screen(frame) {
-            Ok(gt) => gt,
-            Err(status) => return FrameFit::failed(status),
-        };
         let k = self.constraints(frame);
-        let opts = self.solve_options(k.free, gt);
-        match self.best_fit(frame, warm, gt, &k, &opts) {
-            Some(r) => self.judge(frame, r, k.free),
-            None => FrameFit::failed(Status::Diverged),
-        }
+        let mut f = match self.screen(frame) {
+            Err(status) => FrameFit::failed(status),
+            Ok(gt) => {
+                let opts = self.solve_options(k.free, gt);
+                match self.best_fit(frame, warm, gt, &k, &opts) {
+                    Some(r) => self.judge(frame, r, k.free),
+                    None => FrameFit::failed(Status::Diverged),
+                }
+            }
+        };
+        f.attitude = k.attitude;
+        f.excluded = Censoring::excluded_mask(&Censoring::classify(&self.model, &frame.counts));
+        f
     }
 
     /// A frame the model can be fitted to gives its temperature gain g_T;
@@ -283,9 +293,9 @@ impl ModelEstimator {
                 FrameFit::failed(Status::Saturated)
             } else {
                 FrameFit {
-                    status: Status::Diverged,
                     fit: Some(r),
                     free,
+                    ..FrameFit::failed(Status::Diverged)
                 }
             }
         };
@@ -310,20 +320,18 @@ impl ModelEstimator {
             Status::Ok
         };
         FrameFit {
-            status,
             fit: Some(r),
             free,
+            ..FrameFit::failed(status)
         }
     }
 
     fn to_estimate(&self, frame: &Frame, f: &FrameFit) -> PoseEstimate {
         let mut e = PoseEstimate::empty(frame.seq, frame.t, f.status, Self::NAME);
-        let k = self.constraints(frame);
         // Depth and velocity are the tracker's: one frame's fit holds no
         // speed, and `settled` calls them ignored.
-        e.readings.attitude = k.attitude;
-        e.excluded_channels =
-            Censoring::excluded_mask(&Censoring::classify(&self.model, &frame.counts));
+        e.readings.attitude = f.attitude;
+        e.excluded_channels = f.excluded;
         let Some(r) = f.fit.as_ref() else {
             return e;
         };
@@ -335,7 +343,7 @@ impl ModelEstimator {
             let v = r.cov[(i, i)];
             let s = if f.free[i] {
                 v.sqrt()
-            } else if i >= 3 && k.attitude == ReadingUse::Used {
+            } else if i >= 3 && f.attitude == ReadingUse::Used {
                 // Held at the sensor's reading: its own σ (in the degrees
                 // it was given in).
                 let own = frame.attitude.and_then(|a| a.std);

@@ -45,7 +45,7 @@ mod water_check;
 
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{
-    Estimator, Frame, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev,
+    Estimator, Frame, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev, NDET,
 };
 
 pub use self::bank::WaterBank;
@@ -478,9 +478,9 @@ impl Estimator for Tracker {
     }
 
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
-        let mut e = self.estimate_frame(frame);
-        // Every path classifies the counts alike (`Censoring::classify`).
+        // Once per frame: the counts update and the report share it.
         let kinds = Censoring::classify(&self.model, &frame.counts);
+        let mut e = self.estimate_frame(frame, kinds);
         e.excluded_channels = Censoring::excluded_mask(&kinds);
         e
     }
@@ -500,8 +500,9 @@ impl Estimator for Tracker {
 }
 
 impl Tracker {
-    /// One frame through the filter (see [`Estimator::estimate`]).
-    fn estimate_frame(&mut self, frame: &Frame) -> PoseEstimate {
+    /// One frame through the filter (see [`Estimator::estimate`]), its
+    /// channels classified as `kinds`.
+    fn estimate_frame(&mut self, frame: &Frame, kinds: [Censoring; NDET]) -> PoseEstimate {
         let readings = FrameReadings::check(frame, &self.cfg);
         // Issue 8: a temperature that is not water's is a bad frame, as in
         // the model estimator; the update used to correct such a frame as
@@ -545,7 +546,6 @@ impl Tracker {
             return e;
         }
         let gt = gain_of(frame);
-        let kinds = Censoring::classify(&self.model, &frame.counts);
         let n_sat = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
         let inp = CountsInput {
             frame,
