@@ -221,3 +221,59 @@ fn a_stop_ends_a_long_serial_wait() {
     assert!(matches!(got, Err(SourceError::Stopped)), "{got:?}");
     assert!(t0.elapsed() < Duration::from_secs(2), "{:?}", t0.elapsed());
 }
+
+/// Audit: two boards with their cables swapped (b0's port carries board
+/// id 1's lines, b1's port id 0's) said only "timed out". The frame names
+/// the id seen and the id expected, and so does the health report, the
+/// lines still counted as another board's.
+#[test]
+fn swapped_cables_are_named_not_a_bare_timeout() {
+    let dir = tempfile::tempdir().unwrap();
+    let paths = [dir.path().join("lpadc0"), dir.path().join("lpadc1")];
+    let mut b0 = fake_board(&paths[0]);
+    let b1 = fake_board(&paths[1]);
+    let mut src = source(&paths, 300);
+    // b0's port gets board 1's lines (b1's port is not read: the frame
+    // fails at b0).
+    let ones: Vec<u8> = (1..=3).flat_map(|seq| line(1, seq, 100)).collect();
+    let w0 = later(&b0.master, Duration::from_millis(30), ones);
+    let e = src.next_frame().unwrap_err();
+    w0.join().unwrap();
+    assert!(matches!(e, SourceError::BadData { .. }), "{e}");
+    let said = e.to_string();
+    assert!(said.contains("board b0"), "{said}");
+    assert!(
+        said.contains("lines carry board id 1, expected 0")
+            && said.contains("board b1's id: cables swapped?"),
+        "{said}"
+    );
+    let h = src.health();
+    assert_eq!(h.wrong_board_lines, 3, "{h:?}");
+    assert_eq!(h.bad_lines, 0, "{h:?}");
+    let last = h.last_bad_line.unwrap_or_default();
+    let port0 = paths[0].display().to_string();
+    assert!(
+        last.starts_with(&format!("{port0}: lines carry board id 1, expected 0")),
+        "{last}"
+    );
+
+    // An id no board has is said as such.
+    let w0 = later(&b0.master, Duration::from_millis(30), line(9, 4, 100));
+    let e = src.next_frame().unwrap_err();
+    w0.join().unwrap();
+    assert!(
+        e.to_string()
+            .contains("lines carry board id 9, expected 0 (no board is configured with id 9"),
+        "{e}"
+    );
+
+    // The board's own line clears it: the next silence is a plain timeout.
+    // (b1's port is opened by this frame: its line comes after.)
+    b0.master.write_all(&line(0, 5, 100)).unwrap();
+    let w1 = later(&b1.master, Duration::from_millis(50), line(1, 5, 200));
+    let f = src.next_frame().unwrap();
+    w1.join().unwrap();
+    assert_eq!((f.counts[0], f.counts[16]), (100, 200));
+    let e = src.next_frame().unwrap_err();
+    assert!(matches!(e, SourceError::Timeout { .. }), "{e}");
+}

@@ -8,6 +8,11 @@
 //! A port that fails (USB unplugged: the read errors or hangs up) is closed
 //! and reopened by the next frame, so a board that comes back (same path,
 //! e.g. a udev symlink) is picked up without restarting the daemon.
+//!
+//! A port whose lines all carry another board's id (two boards' cables
+//! swapped, or a board flashed with the wrong id) does not just time out:
+//! its frame fails naming the id seen and the id expected, and the health
+//! report's last bad line says the same.
 
 pub mod protocol;
 
@@ -43,8 +48,19 @@ pub struct SerialCounters {
     pub superseded: u64,
     /// Times a port was (re)opened after the first.
     pub reopens: u64,
-    /// The most recent parse error, for the health report.
-    pub last_error: Option<LineError>,
+    /// The most recent bad line (one that did not parse, or another
+    /// board's), for the health report.
+    pub last_bad: Option<BadLine>,
+}
+
+/// What was wrong with a line thrown away, and on which port (an index
+/// into the bank's boards).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BadLine {
+    /// The line did not parse.
+    Parse { port: usize, error: LineError },
+    /// A good line carrying board id `seen`, not the port's.
+    WrongBoard { port: usize, seen: u8 },
 }
 
 struct Port {
@@ -55,6 +71,9 @@ struct Port {
     latest: Option<Sample>,
     /// `latest` arrived since the last frame used a line of this board.
     fresh: bool,
+    /// The board id of the last line of another board since this board's
+    /// own last line: what a timeout of this port says.
+    foreign: Option<u8>,
 }
 
 /// All serial boards of a frame.
@@ -81,6 +100,7 @@ impl SerialBank {
                     lines: LineAssembler::default(),
                     latest: None,
                     fresh: false,
+                    foreign: None,
                 })
                 .collect(),
             bits,
@@ -102,54 +122,44 @@ impl SerialBank {
         self.counters
     }
 
-    /// Read whatever `p` has (waiting at most `wait`) and parse it.
-    /// Returns Err only when the port failed; it is then closed.
+    /// Read whatever `p` (port number `port`) has, waiting at most `wait`,
+    /// and parse it. Returns Err only when the port failed; it is then
+    /// closed.
     fn pump(
         p: &mut Port,
+        port: usize,
         buf: &mut [u8],
         counters: &mut SerialCounters,
         wait: Duration,
     ) -> Result<(), SourceError> {
-        let place = || format!("board {} ({})", p.cfg.name, p.cfg.path);
-        let port = match p.port.as_mut() {
-            Some(port) => port,
-            None => {
-                return Err(SourceError::Unavailable {
-                    place: place(),
-                    msg: "port closed".into(),
-                })
-            }
+        let unavailable = |p: &Port, msg: String| SourceError::Unavailable {
+            place: p.place(),
+            msg,
+        };
+        let Some(dev) = p.port.as_mut() else {
+            return Err(unavailable(p, "port closed".into()));
         };
         // serialport waits up to its timeout for the first byte
-        if let Err(e) = port.set_timeout(wait.max(Duration::from_millis(1))) {
+        if let Err(e) = dev.set_timeout(wait.max(Duration::from_millis(1))) {
             p.port = None;
-            return Err(SourceError::Unavailable {
-                place: place(),
-                msg: e.to_string(),
-            });
+            return Err(unavailable(p, e.to_string()));
         }
-        let n = match port.read(buf) {
+        let n = match dev.read(buf) {
             Ok(0) => {
                 // end of file: the other end is gone
                 p.port = None;
-                return Err(SourceError::Unavailable {
-                    place: place(),
-                    msg: "device closed".into(),
-                });
+                return Err(unavailable(p, "device closed".into()));
             }
             Ok(n) => n,
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => return Ok(()),
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => return Ok(()),
             Err(e) => {
                 p.port = None;
-                return Err(SourceError::Unavailable {
-                    place: place(),
-                    msg: e.to_string(),
-                });
+                return Err(unavailable(p, e.to_string()));
             }
         };
         let id = p.cfg.id;
-        let (latest, fresh) = (&mut p.latest, &mut p.fresh);
+        let (latest, fresh, foreign) = (&mut p.latest, &mut p.fresh, &mut p.foreign);
         p.lines
             .push(&buf[..n], |line| match line.and_then(parse_line) {
                 Ok(s) if s.board == id => {
@@ -158,11 +168,19 @@ impl SerialBank {
                     }
                     *latest = Some(s);
                     *fresh = true;
+                    *foreign = None;
                 }
-                Ok(_) => counters.wrong_board += 1,
-                Err(e) => {
+                Ok(s) => {
+                    counters.wrong_board += 1;
+                    counters.last_bad = Some(BadLine::WrongBoard {
+                        port,
+                        seen: s.board,
+                    });
+                    *foreign = Some(s.board);
+                }
+                Err(error) => {
                     counters.bad_lines += 1;
-                    counters.last_error = Some(e);
+                    counters.last_bad = Some(BadLine::Parse { port, error });
                 }
             });
         Ok(())
@@ -176,7 +194,7 @@ impl SerialBank {
             .timeout(Duration::from_millis(10))
             .open()
             .map_err(|e| SourceError::Unavailable {
-                place: format!("board {} ({})", p.cfg.name, p.cfg.path),
+                place: p.place(),
                 msg: e.to_string(),
             })?;
         // Whatever the OS buffered while we were away is old.
@@ -190,7 +208,95 @@ impl SerialBank {
         p.lines.clear();
         p.latest = None;
         p.fresh = false;
+        p.foreign = None;
         Ok(())
+    }
+
+    /// Open board `b`'s port if need be, drain what is already there (so
+    /// that the newest line is used), then wait until `deadline` for a
+    /// line if none is fresh. Ok(false): no fresh line by then.
+    fn wait_fresh(&mut self, b: usize, deadline: Instant) -> Result<bool, SourceError> {
+        let Some(p) = self.ports.get_mut(b) else {
+            return Ok(false);
+        };
+        Self::open(p, &mut self.counters)?;
+        loop {
+            if self.stop.is_raised() {
+                return Err(SourceError::Stopped);
+            }
+            let now = Instant::now();
+            let wait = if p.fresh {
+                Duration::ZERO
+            } else if now >= deadline {
+                return Ok(false);
+            } else {
+                deadline - now
+            };
+            let pending = match p.port.as_ref().map(|port| port.bytes_to_read()) {
+                Some(Ok(n)) => n,
+                _ => 0,
+            };
+            if p.fresh && pending == 0 {
+                return Ok(true);
+            }
+            Self::pump(
+                p,
+                b,
+                &mut self.buf,
+                &mut self.counters,
+                wait.min(Duration::from_millis(100)),
+            )?;
+        }
+    }
+
+    /// Why board `b` has no line for the frame: only another board's
+    /// lines came on its port (said, with both ids), or none at all.
+    fn no_line(&self, b: usize) -> SourceError {
+        let Some(p) = self.ports.get(b) else {
+            return SourceError::Timeout {
+                place: format!("board #{b}"),
+            };
+        };
+        match p.foreign {
+            Some(seen) => SourceError::BadData {
+                place: p.place(),
+                msg: self.wrong_board(p, seen),
+            },
+            None => SourceError::Timeout { place: p.place() },
+        }
+    }
+
+    /// What lines of board id `seen` on `p`'s port mean.
+    fn wrong_board(&self, p: &Port, seen: u8) -> String {
+        let hint = match self.ports.iter().find(|q| q.cfg.id == seen) {
+            Some(q) => format!("board {}'s id: cables swapped?", q.cfg.name),
+            None => format!("no board is configured with id {seen}: a board's id set wrong?"),
+        };
+        format!(
+            "lines carry board id {seen}, expected {} ({hint})",
+            p.cfg.id
+        )
+    }
+
+    /// The health report's words for `bad`: the port's path, then why.
+    fn describe_bad(&self, bad: BadLine) -> Option<String> {
+        match bad {
+            BadLine::Parse { port, error } => {
+                let p = self.ports.get(port)?;
+                Some(format!("{}: {error}", p.cfg.path))
+            }
+            BadLine::WrongBoard { port, seen } => {
+                let p = self.ports.get(port)?;
+                Some(format!("{}: {}", p.cfg.path, self.wrong_board(p, seen)))
+            }
+        }
+    }
+}
+
+impl Port {
+    /// Where an error of this board happened, for messages.
+    fn place(&self) -> String {
+        format!("board {} ({})", self.cfg.name, self.cfg.path)
     }
 }
 
@@ -213,50 +319,22 @@ impl Bank for SerialBank {
 
     fn read(&mut self, wanted: &[u16], raw: &mut [RawBoard]) -> Result<(), SourceError> {
         let deadline = Instant::now() + self.timeout;
-        for (b, p) in self.ports.iter_mut().enumerate() {
+        for (b, r) in raw.iter_mut().enumerate().take(self.ports.len()) {
             let mask = wanted.get(b).copied().unwrap_or(0);
             if mask == 0 {
                 continue;
             }
-            Self::open(p, &mut self.counters)?;
-            // Drain what is already there, so that the newest line is used,
-            // then wait for a line if none is fresh.
-            loop {
-                if self.stop.is_raised() {
-                    return Err(SourceError::Stopped);
-                }
-                let now = Instant::now();
-                let wait = if p.fresh {
-                    Duration::ZERO
-                } else if now >= deadline {
-                    return Err(SourceError::Timeout {
-                        place: format!("board {} ({})", p.cfg.name, p.cfg.path),
-                    });
-                } else {
-                    deadline - now
-                };
-                let pending = match p.port.as_ref().map(|port| port.bytes_to_read()) {
-                    Some(Ok(n)) => n,
-                    _ => 0,
-                };
-                if p.fresh && pending == 0 {
-                    break;
-                }
-                Self::pump(
-                    p,
-                    &mut self.buf,
-                    &mut self.counters,
-                    wait.min(Duration::from_millis(100)),
-                )?;
+            if !self.wait_fresh(b, deadline)? {
+                return Err(self.no_line(b));
             }
-            let place = || format!("board {} ({})", p.cfg.name, p.cfg.path);
+            let p = &mut self.ports[b];
             p.fresh = false;
             let Some(s) = p.latest else {
-                return Err(SourceError::Timeout { place: place() });
+                return Err(self.no_line(b));
             };
             if s.bits != self.bits {
                 return Err(SourceError::BadData {
-                    place: place(),
+                    place: p.place(),
                     msg: format!(
                         "line seq {} says {} bits, configured {}",
                         s.seq, s.bits, self.bits
@@ -266,14 +344,14 @@ impl Bank for SerialBank {
             let highest = 15 - mask.leading_zeros() as u8;
             if highest >= s.n {
                 return Err(SourceError::BadData {
-                    place: place(),
+                    place: p.place(),
                     msg: format!(
                         "line seq {} has {} values, channel {highest} is mapped",
                         s.seq, s.n
                     ),
                 });
             }
-            raw[b][..s.n as usize].copy_from_slice(&s.values[..s.n as usize]);
+            r[..s.n as usize].copy_from_slice(&s.values[..s.n as usize]);
         }
         Ok(())
     }
@@ -282,8 +360,8 @@ impl Bank for SerialBank {
         h.bad_lines += self.counters.bad_lines;
         h.wrong_board_lines += self.counters.wrong_board;
         h.reopens += self.counters.reopens;
-        if let Some(e) = self.counters.last_error {
-            h.last_bad_line = Some(e.to_string());
+        if let Some(said) = self.counters.last_bad.and_then(|b| self.describe_bad(b)) {
+            h.last_bad_line = Some(said);
         }
     }
 }
