@@ -18,6 +18,7 @@
 //! dead bus) ends at once when the [`Stop`] is raised.
 
 mod ratelog;
+mod seq;
 
 use crate::inputs::Input;
 use crate::outputs::Output;
@@ -25,6 +26,7 @@ use crate::stats::{BackendState, Stats, TempSource};
 use lightpose_core::{Estimator, Frame, PoseEstimate, ReadingUse};
 use lightpose_hal::{FrameSource, SourceError, SourceHealth, Stop};
 use ratelog::RateLog;
+use seq::{SeqBooks, Step};
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::mpsc::Receiver;
 use std::sync::Arc;
@@ -76,13 +78,12 @@ pub struct Engine {
 struct Books {
     /// (arrival, seq) that due times are counted from.
     anchor: Option<(Instant, u64)>,
-    last_seq: Option<u64>,
-    /// Failures since the last good frame: a board's seq runs on through
-    /// them, and they are already counted as failed, not as lost.
-    failed_since_ok: u64,
+    /// Gaps in seq, failures between frames and lone glitches.
+    seq: SeqBooks,
     late_log: RateLog,
     fail_log: RateLog,
     lost_log: RateLog,
+    glitch_log: RateLog,
     health_at: Instant,
 }
 
@@ -169,11 +170,11 @@ impl Engine {
     pub fn run(mut self) -> EndReason {
         let mut books = Books {
             anchor: None,
-            last_seq: None,
-            failed_since_ok: 0,
+            seq: SeqBooks::default(),
             late_log: RateLog::new(),
             fail_log: RateLog::new(),
             lost_log: RateLog::new(),
+            glitch_log: RateLog::new(),
             health_at: Instant::now(),
         };
         self.stats.set_state(BackendState::Running);
@@ -316,7 +317,7 @@ impl Engine {
             }
             Err(e) => {
                 let n = stats.failed.fetch_add(1, Relaxed) + 1;
-                books.failed_since_ok += 1;
+                books.seq.failed();
                 stats.set_state(BackendState::Failing);
                 if let Some(k) = books.fail_log.tick(arrival) {
                     tracing::warn!(failed_total = n, since_last_line = k, "frame failed: {e}");
@@ -337,26 +338,44 @@ impl Engine {
     }
 
     /// Frames the source skipped (a gap in seq, failures not counted
-    /// again).
+    /// again), and taken back when the frame claiming them was a lone
+    /// glitch (see [`seq`]), as the log reader does.
     fn account_seq(&self, acq: &Acquired, books: &mut Books) {
         let seq = acq.frame.seq;
-        if let Some(prev) = books.last_seq {
-            let gap = seq
-                .saturating_sub(prev + 1)
-                .saturating_sub(books.failed_since_ok);
-            if gap > 0 {
-                let n = self.stats.lost.fetch_add(gap, Relaxed) + gap;
+        let lost = &self.stats.lost;
+        match books.seq.admit(seq) {
+            Step::InLine => {}
+            Step::Gap { from, lost: gap } => {
+                let n = lost.fetch_add(gap, Relaxed) + gap;
                 if let Some(k) = books.lost_log.tick(acq.arrival) {
                     tracing::warn!(
                         lost_total = n,
                         gaps_since_last_line = k,
-                        "seq jumped {prev} → {seq}: frames lost at the source"
+                        "seq jumped {from} → {seq}: frames lost at the source"
+                    );
+                }
+            }
+            Step::Glitch {
+                glitch,
+                taken_back,
+                lost: gap,
+            } => {
+                // Only this thread writes `lost`: what is taken back was
+                // added by the frame before.
+                let n = lost
+                    .load(Relaxed)
+                    .saturating_sub(taken_back)
+                    .saturating_add(gap);
+                lost.store(n, Relaxed);
+                if let Some(k) = books.glitch_log.tick(acq.arrival) {
+                    tracing::info!(
+                        lost_total = n,
+                        glitches_since_last_line = k,
+                        "seq {glitch} was a lone glitch (seq {seq} is in line with the frame before it): the {taken_back} frames its jump counted lost are taken back"
                     );
                 }
             }
         }
-        books.last_seq = Some(seq);
-        books.failed_since_ok = 0;
         self.stats.last_seq.store(seq, Relaxed);
     }
 
@@ -475,220 +494,4 @@ impl Engine {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use lightpose_core::{Angle, AttitudeReading, Status, NDET};
-    use std::sync::Mutex;
-
-    /// Frames every `period`, except that one frame comes `stall` late.
-    struct Stalling {
-        k: u64,
-        start: Option<Instant>,
-        period: Duration,
-        stall_at: u64,
-        stall: Duration,
-        fail_at: u64,
-    }
-
-    impl FrameSource for Stalling {
-        fn next_frame(&mut self) -> Result<Frame, SourceError> {
-            let k = self.k;
-            self.k += 1;
-            let start = *self.start.get_or_insert_with(Instant::now);
-            let mut due = start + self.period * k as u32;
-            if k >= self.stall_at {
-                due += self.stall;
-            }
-            if let Some(w) = due.checked_duration_since(Instant::now()) {
-                std::thread::sleep(w);
-            }
-            if k == self.fail_at {
-                return Err(SourceError::Timeout {
-                    place: "test".into(),
-                });
-            }
-            Ok(frame(k, k as f64 * self.period.as_secs_f64()))
-        }
-        fn adc_bits(&self) -> u8 {
-            10
-        }
-        fn describe(&self) -> String {
-            "stalling test source".into()
-        }
-        fn period(&self) -> Option<Duration> {
-            Some(self.period)
-        }
-    }
-
-    fn frame(seq: u64, t: f64) -> Frame {
-        Frame {
-            seq,
-            t,
-            adc_bits: 10,
-            counts: [100; NDET],
-            temp_c: None,
-            truth: None,
-            attitude: None,
-            depth: None,
-            velocity: None,
-        }
-    }
-
-    struct Nothing;
-    impl Estimator for Nothing {
-        fn name(&self) -> &'static str {
-            "nothing"
-        }
-        fn estimate(&mut self, f: &Frame) -> PoseEstimate {
-            PoseEstimate::empty(f.seq, f.t, Status::NoLight, "nothing")
-        }
-        fn reset(&mut self) {}
-    }
-
-    #[test]
-    fn a_stall_counts_once_as_late_and_a_failure_as_failed() {
-        let period = Duration::from_millis(20);
-        let stats = Arc::new(Stats::default());
-        let source = Stalling {
-            k: 0,
-            start: None,
-            period,
-            stall_at: 10,
-            stall: Duration::from_millis(200),
-            fail_at: 20,
-        };
-        // Deadlines at the source's own period.
-        let e = Engine::new(Box::new(source), Box::new(Nothing))
-            .stats(stats.clone())
-            // Generous: a loaded CI machine oversleeps by milliseconds.
-            .late_tolerance(2.0)
-            .fallback_temp_c(Some(12.0))
-            .max_frames(30);
-        assert_eq!(e.run(), EndReason::FrameLimit);
-        assert_eq!(stats.frames.load(Relaxed), 30);
-        assert_eq!(stats.late.load(Relaxed), 1, "the stalled frame, once");
-        assert_eq!(stats.failed.load(Relaxed), 1);
-        assert_eq!(
-            stats.lost.load(Relaxed),
-            0,
-            "the failed frame is not counted again"
-        );
-        assert_eq!(stats.temp(), (Some(12.0), TempSource::Fallback));
-        assert_eq!(stats.by_status[1].load(Relaxed), 30);
-    }
-
-    /// Numbered frames as fast as asked, `n` of them.
-    struct Counter(u64, u64);
-    impl FrameSource for Counter {
-        fn next_frame(&mut self) -> Result<Frame, SourceError> {
-            if self.0 == self.1 {
-                return Err(SourceError::Ended);
-            }
-            self.0 += 1;
-            Ok(frame(self.0 - 1, (self.0 - 1) as f64 * 0.1))
-        }
-        fn adc_bits(&self) -> u8 {
-            10
-        }
-        fn describe(&self) -> String {
-            "counter".into()
-        }
-    }
-
-    /// An input with a reading for even frames only.
-    struct EvenAttitude;
-    impl Input for EvenAttitude {
-        fn attach(&mut self, f: &mut Frame, _now: Instant) {
-            if f.seq.is_multiple_of(2) {
-                f.attitude = Some(AttitudeReading {
-                    pitch: Angle::from_deg(1.0),
-                    yaw: Angle::ZERO,
-                    std: None,
-                });
-            }
-        }
-    }
-
-    /// (seq, has attitude, temperature, estimate's seq) of each frame.
-    type Kept = Arc<Mutex<Vec<(u64, bool, Option<f64>, u64)>>>;
-
-    /// An output that keeps what it was given.
-    struct Keep(Kept, Arc<AtomicBool>);
-    impl Output for Keep {
-        fn emit(&mut self, a: &Acquired, est: &PoseEstimate) {
-            let f = &a.frame;
-            if let Ok(mut v) = self.0.lock() {
-                v.push((f.seq, f.attitude.is_some(), f.temp_c, est.seq));
-            }
-        }
-        fn finish(&mut self) {
-            self.1.store(true, Relaxed);
-        }
-    }
-    use std::sync::atomic::AtomicBool;
-
-    #[test]
-    fn inputs_attach_and_every_output_gets_each_frame_as_acquired() {
-        let stats = Arc::new(Stats::default());
-        let (a, b) = (
-            Arc::new(Mutex::new(Vec::new())),
-            Arc::new(Mutex::new(Vec::new())),
-        );
-        let (fa, fb) = (
-            Arc::new(AtomicBool::new(false)),
-            Arc::new(AtomicBool::new(false)),
-        );
-        let end = Engine::new(Box::new(Counter(0, 6)), Box::new(Nothing))
-            .stats(stats.clone())
-            .input(Box::new(EvenAttitude))
-            .output(Box::new(Keep(a.clone(), fa.clone())))
-            .output(Box::new(Keep(b.clone(), fb.clone())))
-            .fallback_temp_c(Some(15.0))
-            .run();
-        assert_eq!(end, EndReason::SourceEnded);
-        let got = a.lock().unwrap().clone();
-        assert_eq!(got, *b.lock().unwrap(), "both outputs, same frames");
-        let want: Vec<_> = (0..6).map(|s| (s, s % 2 == 0, None, s)).collect();
-        // The fallback temperature is the estimator's, not the frame's.
-        assert_eq!(got, want);
-        assert!(fa.load(Relaxed) && fb.load(Relaxed), "outputs finished");
-        assert_eq!(stats.frames_with_attitude.load(Relaxed), 3);
-        assert_eq!(stats.frames.load(Relaxed), 6);
-        assert_eq!(stats.state(), BackendState::Ended);
-    }
-
-    #[test]
-    fn a_raised_stop_ends_the_loop_and_a_dead_bus_pause() {
-        struct Dead;
-        impl FrameSource for Dead {
-            fn next_frame(&mut self) -> Result<Frame, SourceError> {
-                Err(SourceError::Unavailable {
-                    place: "test".into(),
-                    msg: "unplugged".into(),
-                })
-            }
-            fn adc_bits(&self) -> u8 {
-                10
-            }
-            fn describe(&self) -> String {
-                "dead".into()
-            }
-        }
-        let stop = Stop::new();
-        let stats = Arc::new(Stats::default());
-        // A long period: each failure pauses 100 ms unless stopped.
-        let e = Engine::new(Box::new(Dead), Box::new(Nothing))
-            .stats(stats.clone())
-            .stop(stop.clone())
-            .period(Some(Duration::from_secs(3600)));
-        let t = std::thread::spawn(move || e.run());
-        while stats.failed.load(Relaxed) < 2 {
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        let t0 = Instant::now();
-        stop.raise();
-        assert_eq!(t.join().unwrap(), EndReason::Stopped);
-        assert!(t0.elapsed() < Duration::from_secs(2), "{:?}", t0.elapsed());
-        assert_eq!(stats.state(), BackendState::Stopped);
-    }
-}
+mod tests;
