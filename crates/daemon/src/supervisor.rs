@@ -6,14 +6,15 @@
 
 use crate::config::Config;
 use crate::engine::EndReason;
-use crate::error::report;
+use crate::error::{report, DaemonError};
 use crate::notify::{notify, watchdog, NotifyState};
 use crate::outputs::StatusTap;
 use crate::status::{status_message, StatusCtx};
 use crate::wiring::{build_estimator, Running};
 use crate::Summary;
 use lightpose_core::Estimator;
-use lightpose_hal::Stop;
+use lightpose_hal::{Stop, ValidBackend};
+use lightpose_pipeline::Calibration;
 use std::future::Future;
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::{Duration, Instant};
@@ -77,16 +78,61 @@ impl Ticker {
     }
 }
 
-/// A new estimator for the frame thread, or why the running one is kept.
+/// The ADC of the running source's frames: a board's configured
+/// resolution, or, for the sources that open no device (a simulated
+/// scene, a replayed log's header), what the source says once opened
+/// again. (`Running` does not carry the source's `adc_bits`.)
+fn source_adc_bits(backend: &ValidBackend) -> Result<u8, String> {
+    match backend {
+        ValidBackend::Spi { common, .. }
+        | ValidBackend::Ads1115 { common, .. }
+        | ValidBackend::Ads7828 { common, .. }
+        | ValidBackend::Serial { common, .. } => Ok(common.bits),
+        ValidBackend::Sim(_) | ValidBackend::Replay(_) => {
+            lightpose_hal::open(backend, &Stop::new())
+                .map(|s| s.adc_bits())
+                .map_err(|e| report(&e))
+        }
+    }
+}
+
+/// The estimator of the calibration `cfg` names, refused as at start when
+/// its light model is of another ADC than the source's frames
+/// (`lightpose_pipeline::reads_frames_of`).
+fn reloaded(cfg: &Config, adc_bits: u8) -> Result<Box<dyn Estimator>, DaemonError> {
+    let estimator = build_estimator(cfg)?;
+    let text = cfg
+        .calibration
+        .read()
+        .map_err(|source| DaemonError::CalibrationRead {
+            at: cfg.calibration_at.clone(),
+            source,
+        })?;
+    let cal = Calibration::parse(&text, &cfg.calibration.describe())?;
+    lightpose_pipeline::reads_frames_of(estimator.as_ref(), &cal, adc_bits).map_err(|msg| {
+        DaemonError::AdcMismatch {
+            backend: cfg.backend.kind(),
+            msg,
+        }
+    })?;
+    Ok(estimator)
+}
+
+/// A new estimator for the frame thread, or why the running one is kept:
+/// a calibration that does not load, or whose light model is of another
+/// ADC than the frames (the start refuses both).
 fn reload(cfg: &Config, to_frames: &std::sync::mpsc::Sender<Box<dyn Estimator>>) {
-    match build_estimator(cfg) {
+    let file = cfg.calibration.describe();
+    let checked = source_adc_bits(&cfg.backend)
+        .map_err(|e| format!("cannot tell the ADC of the backend's frames: {e}"))
+        .and_then(|bits| reloaded(cfg, bits).map_err(|e| report(&e)));
+    match checked {
         Ok(e) => {
-            tracing::info!("reloading calibration {}", cfg.calibration.describe());
+            tracing::info!("reloading calibration {file}");
             let _ = to_frames.send(e);
         }
-        Err(e) => tracing::error!(
-            "reload refused, keeping the running calibration: {}",
-            report(&e)
+        Err(why) => tracing::error!(
+            "reload of calibration {file} refused, keeping the running calibration: {why}"
         ),
     }
 }
