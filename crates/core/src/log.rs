@@ -24,6 +24,10 @@ use readings::{parse_attitude, parse_depth, parse_velocity};
 
 pub const FORMAT: &str = "lightpose-intensity";
 pub const VERSION: u32 = 1;
+/// A header's frame rate: one frame in 1000 s to a megahertz (a scene's
+/// own limit). A recorded pace waits a period per frame, and 1e-19 Hz made
+/// that wait overflow the clock.
+pub const HEADER_RATE_HZ: std::ops::RangeInclusive<f64> = 1e-3..=1e6;
 
 #[derive(Debug, thiserror::Error)]
 pub enum LogError {
@@ -119,8 +123,14 @@ impl LogHeader {
             None => return Err("header has no integer adc_bits".into()),
         };
         let rate_hz = match m.remove("rate_hz").and_then(|v| v.as_f64()) {
-            Some(r) if r > 0.0 && r.is_finite() => r,
-            Some(r) => return Err(format!("header rate_hz = {r}: must be positive")),
+            Some(r) if HEADER_RATE_HZ.contains(&r) => r,
+            Some(r) => {
+                return Err(format!(
+                    "header rate_hz = {r}: must be in {}..={} Hz",
+                    HEADER_RATE_HZ.start(),
+                    HEADER_RATE_HZ.end()
+                ))
+            }
             None => return Err("header has no number rate_hz".into()),
         };
         Ok(LogHeader {
@@ -771,6 +781,9 @@ mod tests {
             ("{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":3,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":5}\n", "version 3"),
             ("{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":4,\"cols\":5,\"adc_bits\":10,\"rate_hz\":5}\n", "rows = 4"),
             ("{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":0,\"rate_hz\":5}\n", "adc_bits = 0"),
+            ("{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":1e-19}\n", "rate_hz = 0.0000000000000000001: must be in 0.001..=1000000 Hz"),
+            ("{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":0}\n", "rate_hz = 0: must be in 0.001..=1000000 Hz"),
+            ("{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":2e6}\n", "rate_hz = 2000000: must be in 0.001..=1000000 Hz"),
         ] {
             let e = LogReader::new(text.as_bytes(), "h.jsonl").err().expect(text);
             assert!(e.to_string().contains(want), "{e} lacks {want}");
