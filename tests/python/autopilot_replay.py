@@ -3,8 +3,10 @@ end-to-end MAVLink test (crates/daemon/tests/mavlink.rs).
 
 It reads the truth of a frame log (FORMATS.md: one JSON object per line,
 `truth` in the beam frame B), talks to a daemon listening on
-udpin:127.0.0.1:PORT and, every 20 ms, sends ATTITUDE, VFR_HUD and
-SCALED_PRESSURE2 computed from the truth at the log time the daemon is
+udpin:127.0.0.1:PORT and, every 20 ms, sends ATTITUDE, GLOBAL_POSITION_INT
+(relative_alt, the daemon's default depth), VFR_HUD (as ArduSub with an EKF
+origin at sea level) and SCALED_PRESSURE2 computed from the truth at the
+log time the daemon is
 capturing, plus a HEARTBEAT every second. The log time is read off the
 daemon's own messages: the least (arrival - usec) over its
 VISION_POSITION_ESTIMATEs (each arrives after its frame's capture, so the
@@ -95,6 +97,9 @@ def sensor_messages(tx, pose, args, ms):
     depth = args["d_b"] - z  # z = d_b - depth
     return [
         tx.attitude_encode(ms, 0.0, math.radians(pitch), math.radians(heading), 0.0, 0.0, 0.0),
+        tx.global_position_int_encode(
+            ms, 0, 0, 0, round(-depth * 1000), 0, 0, 0, round(heading % 360 * 100) % 36000
+        ),
         tx.vfr_hud_encode(0.0, 0.0, int(heading) % 360, 0, -depth, 0.0),
         tx.scaled_pressure2_encode(ms, 1013.25 + 98.1 * depth, 0.0, round(args["water"] * 100)),
     ]

@@ -52,11 +52,14 @@ fn within(
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SiteTable {
-    /// Compass heading of the beacon's optical axis, degrees.
+    /// Heading of the beacon's optical axis, degrees, in the autopilot's
+    /// yaw reference (true north when it applies the declination), not a
+    /// magnetic compass bearing.
     pub beacon_heading_deg: f64,
     /// Depth of the beacon below the surface, m.
     pub beacon_depth_m: f64,
-    /// The beacon's position [N, E, D] in the autopilot's local frame, m.
+    /// The beacon's position [N, E, D] in the autopilot's local frame, m
+    /// (default zero: positions relative to the beacon, D to its depth).
     #[serde(default)]
     pub beacon_ned_m: Option<[f64; 3]>,
 }
@@ -104,7 +107,7 @@ pub struct MavlinkTable {
     /// Take input only from this system (default: from any).
     pub autopilot_system_id: Option<u8>,
     pub attitude: Option<bool>,
-    /// `vfr_hud`, `global_position_int` or `none`.
+    /// `global_position_int` (default), `vfr_hud` or `none`.
     pub depth: Option<String>,
     pub temperature: Option<bool>,
     pub attitude_max_age_s: Option<f64>,
@@ -127,7 +130,7 @@ const M: &str = "mavlink";
 
 impl MavlinkTable {
     fn input(&self) -> Result<InputConfig, ConfigError> {
-        let depth = match self.depth.as_deref().unwrap_or("vfr_hud") {
+        let depth = match self.depth.as_deref().unwrap_or("global_position_int") {
             "vfr_hud" => DepthSource::VfrHud,
             "global_position_int" => DepthSource::GlobalPositionInt,
             "none" => DepthSource::Off,
@@ -135,7 +138,7 @@ impl MavlinkTable {
                 return Err(err(
                     M,
                     "depth",
-                    format!("\"{o}\": want vfr_hud, global_position_int or none"),
+                    format!("\"{o}\": want global_position_int, vfr_hud or none"),
                 ))
             }
         };
@@ -321,7 +324,7 @@ mod tests {
             beacon_depth_m = 3.0
             [mavlink]
             connection = "udpout:127.0.0.1:14550"
-            depth = "global_position_int"
+            depth = "vfr_hud"
             position_rate_hz = 5.0
             [dvl]
             address = "192.168.2.95:16171"
@@ -331,12 +334,37 @@ mod tests {
         let site = f.site.validate().unwrap();
         let (m, age) = f.mavlink.validate(site).unwrap();
         assert_eq!((m.system_id, m.component_id), (1, 197));
-        assert_eq!(m.input.depth, DepthSource::GlobalPositionInt);
+        assert_eq!(m.input.depth, DepthSource::VfrHud);
         assert_eq!(m.output.position_rate_hz, Some(5.0));
         assert_eq!(age.attitude, Duration::from_millis(250));
         let (d, vage) = f.dvl.validate().unwrap();
         assert_eq!(d.address, "192.168.2.95:16171");
         assert_eq!(vage, Duration::from_secs(1));
+    }
+
+    /// ArduSub's VFR_HUD.alt is the depth only with an EKF origin at sea
+    /// level; GLOBAL_POSITION_INT.relative_alt is the depth on ArduSub and
+    /// PX4 alike.
+    #[test]
+    fn depth_comes_from_global_position_int_unless_asked() {
+        let site = Site::new(Angle::ZERO, 3.0);
+        let m = MavlinkTable {
+            connection: "udpout:127.0.0.1:14550".into(),
+            ..Default::default()
+        };
+        let (s, _) = m.validate(site).unwrap();
+        assert_eq!(s.input.depth, DepthSource::GlobalPositionInt);
+        for (word, want) in [
+            ("vfr_hud", DepthSource::VfrHud),
+            ("global_position_int", DepthSource::GlobalPositionInt),
+            ("none", DepthSource::Off),
+        ] {
+            let m = MavlinkTable {
+                depth: Some(word.into()),
+                ..m.clone()
+            };
+            assert_eq!(m.validate(site).unwrap().0.input.depth, want);
+        }
     }
 
     #[test]

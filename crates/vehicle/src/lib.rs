@@ -10,7 +10,8 @@
 //!
 //! ```text
 //! tokio:  mav::task::run(settings, hub, shutdown)   dvl::client::run(settings, hub, shutdown)
-//!             │ ATTITUDE, VFR_HUD, SCALED_PRESSURE2        │ velocity reports
+//!             │ ATTITUDE, GLOBAL_POSITION_INT,             │ velocity reports
+//!             │ SCALED_PRESSURE2                           │
 //!             ▼                                            ▼
 //!         hub.readings ──── attach(&mut frame, now) ───▶ frame thread ── estimate
 //!         hub.outbox   ◀─── offer(&estimate, epoch) ────┘

@@ -38,7 +38,8 @@ impl SensorState {
     }
 }
 
-/// ATTITUDE, the depth message and SCALED_PRESSURE2 as ArduSub sends them.
+/// ATTITUDE, the depth message and SCALED_PRESSURE2 as ArduSub sends them
+/// (`VFR_HUD.alt` as with an EKF origin at sea level).
 pub fn autopilot_messages(
     s: &SensorState,
     depth: DepthSource,
@@ -194,20 +195,26 @@ mod tests {
         let pose = Pose::new(6.0, 0.3, -0.4, Angle::from_deg(5.0), Angle::from_deg(-12.0));
         let s = SensorState::of(&site, &pose, Some(9.5));
         let mut enc = Encoder::new(1, 1);
-        let mut sc = Scanner::new(Framing::Stream);
-        for m in autopilot_messages(&s, DepthSource::VfrHud, 1000) {
-            sc.push(enc.encode(&m));
+        for depth in [DepthSource::GlobalPositionInt, DepthSource::VfrHud] {
+            let mut sc = Scanner::new(Framing::Stream);
+            for m in autopilot_messages(&s, depth, 1000) {
+                sc.push(enc.encode(&m));
+            }
+            let cfg = InputConfig {
+                depth,
+                ..InputConfig::default()
+            };
+            let mut got = Vec::new();
+            while let Some(Scanned::Frame(f)) = sc.next_frame() {
+                got.push(interpret(&f, &cfg, &site).unwrap());
+            }
+            let [Input::Attitude(a), Input::Depth(d), Input::Temperature(t)] = got[..] else {
+                panic!("{got:?}")
+            };
+            assert!((a.yaw.deg() + 12.0).abs() < 1e-4 && (a.pitch.deg() - 5.0).abs() < 1e-5);
+            assert!((d.z + 0.4).abs() < 1e-6, "{depth:?}: {}", d.z);
+            assert_eq!(t, 9.5);
         }
-        let mut got = Vec::new();
-        while let Some(Scanned::Frame(f)) = sc.next_frame() {
-            got.push(interpret(&f, &InputConfig::default(), &site).unwrap());
-        }
-        let [Input::Attitude(a), Input::Depth(d), Input::Temperature(t)] = got[..] else {
-            panic!("{got:?}")
-        };
-        assert!((a.yaw.deg() + 12.0).abs() < 1e-4 && (a.pitch.deg() - 5.0).abs() < 1e-5);
-        assert!((d.z + 0.4).abs() < 1e-6);
-        assert_eq!(t, 9.5);
     }
 
     #[test]

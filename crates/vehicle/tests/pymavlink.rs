@@ -86,14 +86,14 @@ fn pymavlink_reads_what_we_send_and_we_read_what_it_sends() {
     let port = first["port"].as_u64().expect("port") as u16;
     let endpoint = format!("udpout:127.0.0.1:{port}").parse().unwrap();
 
-    // Two components on the same autopilot: depth from VFR_HUD (197) and
-    // from GLOBAL_POSITION_INT (198).
+    // Two components on the same autopilot: depth from GLOBAL_POSITION_INT
+    // (197, the default) and from VFR_HUD (198).
     let hub_a = Hub::new();
     let mut sa = MavlinkSettings::new(endpoint, site());
     sa.heartbeat_period = Duration::from_millis(100);
     let mut sb = sa.clone();
     sb.component_id = 198;
-    sb.input.depth = DepthSource::GlobalPositionInt;
+    sb.input.depth = DepthSource::VfrHud;
     let hub_b = Hub::new();
     let _a = spawn_mavlink(sa, hub_a.clone());
     let _b = spawn_mavlink(sb, hub_b.clone());
@@ -251,10 +251,10 @@ fn check_readings(hub_a: &Hub, hub_b: &Hub) {
         assert!(st.autopilot_heartbeat_age_s.is_some());
         assert_eq!(st.garbage_bytes, 0);
     }
-    // 2.5 m deep (VFR_HUD) and 2.6 m deep (GLOBAL_POSITION_INT) under a
-    // beacon 3 m deep: z = 0.5 and 0.4 m.
+    // 2.6 m deep (GLOBAL_POSITION_INT, mm) and 2.5 m deep (VFR_HUD) under
+    // a beacon 3 m deep: z = 0.4 and 0.5 m.
     let za = hub_a.readings.depth(now, age).unwrap().z;
     let zb = hub_b.readings.depth(now, age).unwrap().z;
-    assert!((za - 0.5).abs() < 1e-6, "{za}");
-    assert!((zb - 0.4).abs() < 1e-9, "{zb}");
+    assert!((za - 0.4).abs() < 1e-9, "{za}");
+    assert!((zb - 0.5).abs() < 1e-6, "{zb}");
 }

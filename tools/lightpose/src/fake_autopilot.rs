@@ -1,6 +1,6 @@
 //! `lightpose fake-autopilot`: stands in for the vehicle's autopilot on a
 //! desk. From a scene and a trajectory it sends what ArduSub would
-//! (ATTITUDE, VFR_HUD or GLOBAL_POSITION_INT, SCALED_PRESSURE2 at the frame
+//! (ATTITUDE, GLOBAL_POSITION_INT or VFR_HUD, SCALED_PRESSURE2 at the frame
 //! rate, HEARTBEAT every second) to the daemon's MAVLink endpoint, and
 //! prints what comes back (VISION_POSITION_ESTIMATE / SPEED_ESTIMATE)
 //! against the truth at each estimate's capture time, with running p95
@@ -37,7 +37,7 @@ pub struct FakeAutopilotArgs {
     /// serial:PATH:BAUD.
     #[arg(long, default_value = "udpin:127.0.0.1:14550")]
     connect: String,
-    /// Compass heading of the beacon's axis, as the daemon's [site].
+    /// Heading of the beacon's axis, as the daemon's [site].
     #[arg(long, default_value_t = 30.0)]
     beacon_heading_deg: f64,
     /// Depth of the beacon, as the daemon's [site].
@@ -46,7 +46,9 @@ pub struct FakeAutopilotArgs {
     /// Sets of messages per second (default: the scene's frame rate).
     #[arg(long)]
     rate: Option<f64>,
-    #[arg(long, default_value = "vfr_hud", value_parser = ["vfr_hud", "global_position_int"])]
+    /// The depth message, as the daemon's `[mavlink] depth` (default
+    /// global_position_int: relative_alt, mm, below the surface negative).
+    #[arg(long, default_value = "global_position_int", value_parser = ["global_position_int", "vfr_hud"])]
     depth_source: String,
     /// 1σ noise of pitch and heading (degrees, 0 to 180) and depth (m, 0
     /// to 1000); default: the scene's attitude and depth sensors, else
@@ -169,8 +171,8 @@ pub fn run(a: FakeAutopilotArgs) -> anyhow::Result<()> {
         repeat: a.repeat,
         temp_c: scene.temp_c,
         depth: match a.depth_source.as_str() {
-            "global_position_int" => DepthSource::GlobalPositionInt,
-            _ => DepthSource::VfrHud,
+            "vfr_hud" => DepthSource::VfrHud,
+            _ => DepthSource::GlobalPositionInt,
         },
         noise,
         rng: ChaCha8Rng::seed_from_u64(a.seed),
@@ -238,7 +240,11 @@ impl Session {
                 r = link.recv(scanner.spare()) => match r {
                     Ok(n) => {
                         scanner.commit(n);
-                        self.take(&mut scanner);
+                        // udpin: answer whoever sent a valid frame, not
+                        // whoever sent a datagram.
+                        if self.take(&mut scanner) {
+                            link.accept_sender();
+                        }
                     }
                     Err(e) if link.framing() == Framing::Stream => return Err(e).context("serial link"),
                     Err(_) => {} // nobody listening yet
@@ -284,9 +290,12 @@ impl Session {
         self.sent_sets += u64::from(sent);
     }
 
-    fn take(&mut self, sc: &mut Scanner) {
+    /// Judge what came; true if it held a valid frame.
+    fn take(&mut self, sc: &mut Scanner) -> bool {
+        let mut valid = false;
         while let Some(ev) = sc.next_frame() {
             let Scanned::Frame(f) = ev else { continue };
+            valid = true;
             match decode(&f) {
                 Some(Received::Position(p)) => {
                     let t = p.usec as f64 * 1e-6;
@@ -338,6 +347,7 @@ impl Session {
         if sc.framing() == Framing::Datagram {
             sc.end_of_datagram();
         }
+        valid
     }
 
     fn p95_line(&self) -> String {

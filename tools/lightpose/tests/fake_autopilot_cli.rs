@@ -10,6 +10,8 @@ use lightpose_vehicle::mav::inbound::{interpret, Input, InputConfig};
 use lightpose_vehicle::mav::outbound::{vision_position, Encoder, Outgoing, OutputConfig};
 use lightpose_vehicle::mav::scan::{Framing, Scanned, Scanner};
 use lightpose_vehicle::Site;
+use mavlink::dialects::ardupilotmega::{GLOBAL_POSITION_INT_DATA, VFR_HUD_DATA};
+use mavlink::MessageData;
 use std::net::UdpSocket;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
@@ -49,7 +51,10 @@ fn the_stand_in_autopilot_sends_the_truth_and_judges_what_comes_back() {
         .expect("lightpose runs");
 
     // What it sends: the dive (yaw 0, pitch 10° → 8.7°, z 0 → 0.22 m) in
-    // water at the scene's 20 °C, read as the daemon would.
+    // water at the scene's 20 °C, read as the daemon would. The depth goes
+    // as the daemon's default takes it: GLOBAL_POSITION_INT.relative_alt,
+    // mm, negative below the surface (2.78 to 3 m under a beacon 3 m
+    // deep), and no VFR_HUD.
     let site = Site::new(Angle::from_deg(30.0), 3.0);
     let mut sc = Scanner::new(Framing::Datagram);
     let mut buf = [0u8; 2048];
@@ -60,6 +65,15 @@ fn the_stand_in_autopilot_sends_the_truth_and_judges_what_comes_back() {
         tool = Some(from);
         sc.push(&buf[..n]);
         while let Some(Scanned::Frame(f)) = sc.next_frame() {
+            assert_ne!(f.msg_id, VFR_HUD_DATA::ID, "VFR_HUD by default");
+            if f.msg_id == GLOBAL_POSITION_INT_DATA::ID {
+                let m = GLOBAL_POSITION_INT_DATA::deser(f.version, f.payload).unwrap();
+                assert!(
+                    (-3000..=-2780).contains(&m.relative_alt),
+                    "relative_alt {} mm",
+                    m.relative_alt
+                );
+            }
             match interpret(&f, &InputConfig::default(), &site).unwrap() {
                 Input::Attitude(a) => {
                     assert!(a.yaw.deg().abs() < 1e-4, "yaw in B {}", a.yaw.deg());

@@ -24,6 +24,10 @@ use lightpose_core::PoseEstimate;
 /// a bounded queue, as the recorder does) nor allocate per frame.
 pub trait Output: Send {
     fn emit(&mut self, frame: &Acquired, est: &PoseEstimate);
+    /// The engine replaced its estimator (a calibration reload): the
+    /// estimates that follow are a new track. Called on the frame thread,
+    /// between two frames.
+    fn estimator_replaced(&mut self) {}
     /// The engine stops: flush what is queued. Called once, on the frame
     /// thread, before the engine returns.
     fn finish(&mut self) {}

@@ -106,9 +106,9 @@ pub struct Heard {
 
 /// A stand-in autopilot on `sock`, talking to `daemon` (its `udpin`
 /// address) or, when `None`, to whoever sends to it first (a daemon on
-/// `udpout`). Every 20 ms it sends ATTITUDE, VFR_HUD and SCALED_PRESSURE2
-/// of the truth at the log time the daemon is capturing, and an autopilot
-/// HEARTBEAT every second. The log's time is read off the daemon's own
+/// `udpout`). Every 20 ms it sends ATTITUDE, GLOBAL_POSITION_INT (the
+/// daemon's default depth) and SCALED_PRESSURE2 of the truth at the log
+/// time the daemon is capturing, and an autopilot HEARTBEAT every second. The log's time is read off the daemon's own
 /// messages: the least (arrival − usec) of its VISION_POSITION_ESTIMATEs
 /// (each arrives after its capture, so the least is the closest), before
 /// the first of them its first heartbeat (sent as it starts), and before
@@ -168,7 +168,7 @@ pub fn stand_in(
             let t = origin.map_or(0.0, |o| now.saturating_duration_since(o).as_secs_f64());
             let state = SensorState::of(&site, &truth_at(truth, t), Some(WATER_C));
             let ms = start.elapsed().as_millis() as u32;
-            for m in autopilot_messages(&state, DepthSource::VfrHud, ms) {
+            for m in autopilot_messages(&state, DepthSource::GlobalPositionInt, ms) {
                 let _ = sock.send_to(enc.encode(&m), to);
             }
         }

@@ -3,10 +3,10 @@
 //!
 //! - `ATTITUDE` → pitch, and yaw in B = heading − h − 180° (roll ignored:
 //!   the pose has none).
-//! - `VFR_HUD.alt` or `GLOBAL_POSITION_INT.relative_alt` (below the
-//!   surface negative) → z in B = d_b − depth. The depth sensor's lever arm
-//!   is not applied here: the estimator applies it in its measurement
-//!   model with its own attitude estimate.
+//! - `GLOBAL_POSITION_INT.relative_alt` (the default) or `VFR_HUD.alt`
+//!   (below the surface negative) → z in B = d_b − depth. The depth
+//!   sensor's lever arm is not applied here: the estimator applies it in
+//!   its measurement model with its own attitude estimate.
 //! - `SCALED_PRESSURE2.temperature` (c°C, the external pressure sensor's)
 //!   → water temperature.
 
@@ -24,9 +24,15 @@ use super::scan::RawFrame;
 /// Where the vehicle's depth comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DepthSource {
-    /// `VFR_HUD.alt` (m); ArduSub puts its depth sensor's altitude there.
+    /// `VFR_HUD.alt` (m). ArduSub sends `get_alt_msl()` there: the EKF
+    /// origin's altitude plus the EKF's height, and exactly 0 when it has
+    /// no depth sensor or no EKF origin. Right only with an origin at
+    /// altitude 0 (sea level); a reading of exactly 0 is refused
+    /// ([`Refusal::VfrHudZero`]).
     VfrHud,
-    /// `GLOBAL_POSITION_INT.relative_alt` (mm above home); needs a home.
+    /// `GLOBAL_POSITION_INT.relative_alt` (mm above home; ArduPilot falls
+    /// back to the barometer's depth against its surface pressure when no
+    /// home is set; PX4 the same field): −depth either way. The default.
     GlobalPositionInt,
     /// No depth from the autopilot.
     Off,
@@ -50,7 +56,7 @@ impl Default for InputConfig {
     fn default() -> Self {
         InputConfig {
             attitude: true,
-            depth: DepthSource::VfrHud,
+            depth: DepthSource::GlobalPositionInt,
             temperature: true,
             autopilot_system: None,
             depth_range_m: [-10.0, 1000.0],
@@ -72,10 +78,13 @@ pub enum Refusal {
     AngleOutOfRange,
     DepthOutOfRange,
     TemperatureOutOfRange,
+    /// `VFR_HUD.alt` exactly 0: what ArduSub sends with no depth sensor or
+    /// no EKF origin, not a depth.
+    VfrHudZero,
 }
 
 impl Refusal {
-    pub const ALL: [Refusal; 9] = [
+    pub const ALL: [Refusal; 10] = [
         Refusal::BadCrc,
         Refusal::UnknownMessage,
         Refusal::BadFlags,
@@ -85,6 +94,7 @@ impl Refusal {
         Refusal::AngleOutOfRange,
         Refusal::DepthOutOfRange,
         Refusal::TemperatureOutOfRange,
+        Refusal::VfrHudZero,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -98,6 +108,7 @@ impl Refusal {
             Refusal::AngleOutOfRange => "angle_out_of_range",
             Refusal::DepthOutOfRange => "depth_out_of_range",
             Refusal::TemperatureOutOfRange => "temperature_out_of_range",
+            Refusal::VfrHudZero => "vfr_hud_zero",
         }
     }
 
@@ -163,6 +174,9 @@ pub fn interpret(f: &RawFrame, cfg: &InputConfig, site: &Site) -> Result<Input, 
         ATTITUDE_DATA::ID if cfg.attitude => attitude(f, &decode(f)?, site),
         VFR_HUD_DATA::ID if cfg.depth == DepthSource::VfrHud => {
             let m: VFR_HUD_DATA = decode(f)?;
+            if m.alt == 0.0 {
+                return Err(refuse(Refusal::VfrHudZero, f, 0.0));
+            }
             depth(f, -(m.alt as f64), cfg, site)
         }
         GLOBAL_POSITION_INT_DATA::ID if cfg.depth == DepthSource::GlobalPositionInt => {
@@ -288,13 +302,13 @@ mod tests {
         let r = interpret(&frame(30, 1, &buf[..n]), &cfg, &site).unwrap_err();
         assert_eq!(r.reason, Refusal::AngleOutOfRange);
         let n = raw(
-            &VFR_HUD_DATA {
-                alt: -5000.0,
+            &GLOBAL_POSITION_INT_DATA {
+                relative_alt: -5_000_000,
                 ..Default::default()
             },
             &mut buf,
         );
-        let r = interpret(&frame(74, 1, &buf[..n]), &cfg, &site).unwrap_err();
+        let r = interpret(&frame(33, 1, &buf[..n]), &cfg, &site).unwrap_err();
         assert_eq!((r.reason, r.value), (Refusal::DepthOutOfRange, 5000.0));
         let n = raw(
             &SCALED_PRESSURE2_DATA {
@@ -324,18 +338,74 @@ mod tests {
             },
             &mut buf,
         );
-        let f = frame(33, 1, &buf[..n]);
+        let gpi = frame(33, 1, &buf[..n]);
+        // GLOBAL_POSITION_INT is the default: −2500 mm is 2.5 m deep.
         assert_eq!(
-            interpret(&f, &InputConfig::default(), &site),
-            Ok(Input::Unused)
+            interpret(&gpi, &InputConfig::default(), &site),
+            Ok(Input::Depth(DepthReading::new(0.5)))
         );
-        let cfg = InputConfig {
-            depth: DepthSource::GlobalPositionInt,
+        let vfr = InputConfig {
+            depth: DepthSource::VfrHud,
             ..InputConfig::default()
         };
+        assert_eq!(interpret(&gpi, &vfr, &site), Ok(Input::Unused));
+        let mut buf2 = [0u8; 255];
+        let n = raw(
+            &VFR_HUD_DATA {
+                alt: -2.6,
+                ..Default::default()
+            },
+            &mut buf2,
+        );
+        let hud = frame(74, 1, &buf2[..n]);
         assert_eq!(
-            interpret(&f, &cfg, &site),
-            Ok(Input::Depth(DepthReading::new(0.5)))
+            interpret(&hud, &InputConfig::default(), &site),
+            Ok(Input::Unused)
+        );
+        let Ok(Input::Depth(d)) = interpret(&hud, &vfr, &site) else {
+            panic!("VFR_HUD depth")
+        };
+        assert!((d.z - 0.4).abs() < 1e-6, "{}", d.z);
+    }
+
+    /// ArduSub's VFR_HUD.alt is exactly 0 without a depth sensor or an EKF
+    /// origin: no depth, and taking it would put the vehicle at the
+    /// beacon's depth. relative_alt 0 is the surface, a depth.
+    #[test]
+    fn a_vfr_hud_alt_of_exactly_zero_is_refused() {
+        let site = Site::new(Angle::ZERO, 3.0);
+        let vfr = InputConfig {
+            depth: DepthSource::VfrHud,
+            ..InputConfig::default()
+        };
+        let mut buf = [0u8; 255];
+        for alt in [0.0f32, -0.0] {
+            let n = raw(
+                &VFR_HUD_DATA {
+                    alt,
+                    ..Default::default()
+                },
+                &mut buf,
+            );
+            let r = interpret(&frame(74, 1, &buf[..n]), &vfr, &site).unwrap_err();
+            assert_eq!(r.reason, Refusal::VfrHudZero);
+            assert_eq!(r.reason.as_str(), "vfr_hud_zero");
+        }
+        let n = raw(
+            &VFR_HUD_DATA {
+                alt: -0.01,
+                ..Default::default()
+            },
+            &mut buf,
+        );
+        assert!(matches!(
+            interpret(&frame(74, 1, &buf[..n]), &vfr, &site),
+            Ok(Input::Depth(_))
+        ));
+        let n = raw(&GLOBAL_POSITION_INT_DATA::default(), &mut buf);
+        assert_eq!(
+            interpret(&frame(33, 1, &buf[..n]), &InputConfig::default(), &site),
+            Ok(Input::Depth(DepthReading::new(3.0)))
         );
     }
 }

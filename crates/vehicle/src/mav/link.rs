@@ -1,6 +1,7 @@
 //! The MAVLink transports, named as MAVLink tools name them:
 //! `udpout:HOST:PORT` (send to the autopilot's or router's port, hear its
-//! replies), `udpin:ADDR:PORT` (listen; reply to whoever spoke last) and
+//! replies), `udpin:ADDR:PORT` (listen; reply to the last sender of a valid
+//! MAVLink frame from the autopilot, see [`Link::accept_sender`]) and
 //! `serial:/dev/ttyX:BAUD`.
 //!
 //! Serial is our own: the port is opened and set up by `serialport`
@@ -120,7 +121,10 @@ enum Inner {
     UdpOut(UdpSocket),
     UdpIn {
         sock: UdpSocket,
+        /// Where frames go: set only by `accept_sender`.
         peer: Option<SocketAddr>,
+        /// The sender of the last datagram received, not yet vouched for.
+        sender: Option<SocketAddr>,
     },
     Serial(AsyncFd<TTYPort>),
 }
@@ -172,6 +176,7 @@ impl Link {
             Endpoint::UdpIn(addr) => Inner::UdpIn {
                 sock: UdpSocket::bind(addr).await.map_err(sock_err(ep))?,
                 peer: None,
+                sender: None,
             },
             Endpoint::Serial { path, baud } => Inner::Serial(open_serial(path, *baud).map_err(
                 |source| LinkError::Serial {
@@ -200,18 +205,31 @@ impl Link {
     }
 
     /// Whether a send has somewhere to go: always, but on `udpin` only
-    /// once a datagram has come in (the peer is whoever sent the last).
+    /// once a sender has been accepted.
     pub fn has_peer(&self) -> bool {
         !matches!(self.inner, Inner::UdpIn { peer: None, .. })
+    }
+
+    /// On `udpin`, make the sender of the datagram last received the peer
+    /// that frames go to (elsewhere nothing). The caller does so only when
+    /// that datagram held a valid MAVLink frame from the autopilot it
+    /// accepts: any host can send a datagram to a listening port, and
+    /// garbage or another system's frame must not redirect the poses.
+    pub fn accept_sender(&mut self) {
+        if let Inner::UdpIn { peer, sender, .. } = &mut self.inner {
+            if let Some(s) = sender.take() {
+                *peer = Some(s);
+            }
+        }
     }
 
     /// Receive a datagram or a burst of serial bytes. Cancel-safe.
     pub async fn recv(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         match &mut self.inner {
             Inner::UdpOut(s) => s.recv(buf).await,
-            Inner::UdpIn { sock, peer } => {
+            Inner::UdpIn { sock, sender, .. } => {
                 let (n, from) = sock.recv_from(buf).await?;
-                *peer = Some(from);
+                *sender = Some(from);
                 Ok(n)
             }
             Inner::Serial(fd) => loop {
@@ -237,7 +255,7 @@ impl Link {
     pub async fn send(&mut self, bytes: &[u8]) -> io::Result<Sent> {
         match &mut self.inner {
             Inner::UdpOut(s) => s.send(bytes).await.map(|_| Sent::Yes),
-            Inner::UdpIn { sock, peer } => match peer {
+            Inner::UdpIn { sock, peer, .. } => match peer {
                 Some(p) => sock.send_to(bytes, *p).await.map(|_| Sent::Yes),
                 None => Ok(Sent::NoPeer),
             },

@@ -214,14 +214,57 @@ impl PoseOutbox {
 /// that do not count their own restarts: a pose that is `initialising` or
 /// `diverged` after an `ok` one means the estimator started over, and the
 /// next `ok` pose opens a new epoch.
-#[derive(Debug, Clone, Default)]
+///
+/// The first epoch is taken from the wall clock ([`RestartCounter::new`],
+/// also the `Default`), not 0: the autopilot remembers the last
+/// `reset_counter` it saw, and a restarted daemon that began again at 0
+/// after an epoch-0 run would tell it nothing although the track, and the
+/// pose, started over.
+#[derive(Debug, Clone)]
 pub struct RestartCounter {
     epoch: u32,
     seen_ok: bool,
     restarting: bool,
 }
 
+impl Default for RestartCounter {
+    fn default() -> Self {
+        RestartCounter::new()
+    }
+}
+
+/// The first epoch of a process: the wall clock's whole seconds since
+/// 1970. Its low byte (the `reset_counter`) differs between two starts
+/// 1 to 255 s apart, which covers systemd's restart after a crash
+/// (`RestartSec=2`) and a restart by hand; starts further apart collide 1
+/// time in 256. A clock before 1970 gives 0.
+pub fn clock_epoch() -> u32 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs() as u32)
+}
+
 impl RestartCounter {
+    /// A counter whose first epoch is [`clock_epoch`].
+    pub fn new() -> Self {
+        RestartCounter::starting_at(clock_epoch())
+    }
+
+    /// A counter whose first epoch is `epoch` (tests, replays that must
+    /// give the same bytes every run).
+    pub fn starting_at(epoch: u32) -> Self {
+        RestartCounter {
+            epoch,
+            seen_ok: false,
+            restarting: false,
+        }
+    }
+
+    /// The epoch the next estimate would get, were it `ok` and no restart.
+    pub fn epoch(&self) -> u32 {
+        self.epoch
+    }
+
     /// Feed every estimate in order; returns the epoch to offer it with.
     pub fn observe(&mut self, est: &PoseEstimate) -> u32 {
         match est.status {
@@ -238,7 +281,10 @@ impl RestartCounter {
         self.epoch
     }
 
-    /// The estimator was reset by its owner (a new run, a jump in time).
+    /// The estimator was reset or replaced by its owner (a new run, a jump
+    /// in time, a calibration reload): the next `ok` pose opens a new
+    /// epoch, so the autopilot's EKF takes it as a reset rather than as an
+    /// outlier. (Before any `ok` pose there is nothing to reset.)
     pub fn reset(&mut self) {
         if self.seen_ok {
             self.restarting = true;
@@ -472,5 +518,50 @@ impl Encoder {
         self.seq = self.seq.wrapping_add(1);
         self.raw.serialize_message(h, msg);
         self.raw.raw_bytes()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn est(status: Status) -> PoseEstimate {
+        PoseEstimate::empty(0, 1.0, status, "test")
+    }
+
+    /// A daemon that starts again must not start at the `reset_counter` it
+    /// started at before (0, every time, once): the first epoch is the wall
+    /// clock's seconds.
+    #[test]
+    fn the_first_epoch_comes_from_the_wall_clock() {
+        let before = clock_epoch();
+        let mut c = RestartCounter::default();
+        let after = clock_epoch();
+        assert!(before > 1_600_000_000, "{before}");
+        assert!((before..=after).contains(&c.epoch()), "{}", c.epoch());
+        assert_eq!(c.observe(&est(Status::Ok)), c.epoch());
+        // Two starts 2 s apart (systemd's RestartSec) differ on the wire.
+        let (a, b) = (
+            RestartCounter::starting_at(before),
+            RestartCounter::starting_at(before + 2),
+        );
+        assert_ne!(a.epoch() as u8, b.epoch() as u8);
+    }
+
+    /// A calibration reload replaces the estimator: `reset` makes the next
+    /// `ok` pose a new epoch even when the new estimator is `ok` at once.
+    #[test]
+    fn a_reset_opens_a_new_epoch_at_the_next_ok_pose() {
+        let mut c = RestartCounter::starting_at(255);
+        c.reset(); // before any ok pose: nothing to reset
+        assert_eq!(c.observe(&est(Status::Ok)), 255);
+        assert_eq!(c.observe(&est(Status::Ok)), 255);
+        c.reset();
+        // reset_counter is the low byte: 255 → 0.
+        assert_eq!(c.observe(&est(Status::Ok)) as u8, 0);
+        assert_eq!(c.observe(&est(Status::Ok)), 256);
+        // An estimator that starts over by itself.
+        assert_eq!(c.observe(&est(Status::Initialising)), 256);
+        assert_eq!(c.observe(&est(Status::Ok)), 257);
     }
 }

@@ -52,6 +52,23 @@ impl MavlinkSettings {
     }
 }
 
+/// ArduPilot's visual odometry is unhealthy when no estimate came in the
+/// last 300 ms (`AP_VISUALODOM_TIMEOUT_MS`): a pre-arm failure ("VisOdom:
+/// not healthy") and gaps in what the EKF fuses. Below this rate the
+/// limit alone leaves no margin.
+pub const MIN_POSITION_RATE_HZ: f64 = 4.0;
+
+/// Why the position rate limit is too slow for the autopilot, if it is.
+pub fn slow_rate(out: &OutputConfig) -> Option<String> {
+    let r = out.position_rate_hz.filter(|r| *r < MIN_POSITION_RATE_HZ)?;
+    Some(format!(
+        "position_rate_hz = {r} sends a VISION_POSITION_ESTIMATE at most every {:.0} ms; \
+         ArduPilot calls visual odometry unhealthy after 300 ms without one \
+         (pre-arm \"VisOdom: not healthy\", gaps in the EKF): use {MIN_POSITION_RATE_HZ} Hz or more",
+        1000.0 / r
+    ))
+}
+
 /// How a session on one open link ended.
 enum Ended {
     Shutdown,
@@ -72,6 +89,9 @@ pub async fn run_with(
     mut first: Option<Link>,
     shutdown: impl Future<Output = ()>,
 ) {
+    if let Some(why) = slow_rate(&s.output) {
+        tracing::warn!("mavlink: {why}");
+    }
     let mut shutdown = std::pin::pin!(shutdown);
     let mut backoff = Backoff::new(Duration::from_millis(200), s.reopen_max);
     let mut tx = Sender::new(&s);
@@ -131,10 +151,12 @@ async fn serve(
             r = link.recv(scanner.spare()) => match r {
                 Ok(n) => {
                     scanner.commit(n);
-                    absorb(&mut scanner, s, hub);
+                    if absorb(&mut scanner, s, hub) {
+                        link.accept_sender();
+                    }
                     backoff.reset();
                     // On udpin the autopilot is known from its first
-                    // datagram: greet it now, not up to a period later.
+                    // valid frame: greet it now, not up to a period later.
                     if !had_peer && link.has_peer() {
                         beat.reset_immediately();
                     }
@@ -161,10 +183,13 @@ async fn serve(
     }
 }
 
-/// Turn everything the scanner holds into readings or counts.
-fn absorb(sc: &mut Scanner, s: &MavlinkSettings, hub: &Hub) {
+/// Turn everything the scanner holds into readings or counts. True when
+/// it held a CRC-valid frame from a system we take input from (on `udpin`,
+/// what makes its sender the peer).
+fn absorb(sc: &mut Scanner, s: &MavlinkSettings, hub: &Hub) -> bool {
     let c = &hub.mavlink;
     let now = Instant::now();
+    let mut from_autopilot = false;
     while let Some(ev) = sc.next_frame() {
         let f = match ev {
             Scanned::Frame(f) => f,
@@ -182,7 +207,11 @@ fn absorb(sc: &mut Scanner, s: &MavlinkSettings, hub: &Hub) {
             }
         };
         c.frames.fetch_add(1, Relaxed);
-        let input = match interpret(&f, &s.input, &s.site) {
+        let input = interpret(&f, &s.input, &s.site);
+        // A frame refused for its values (NaN, out of range) still comes
+        // from the autopilot; one from another system does not.
+        from_autopilot |= !matches!(&input, Err(r) if r.reason == Refusal::OtherSystem);
+        let input = match input {
             Ok(i) => i,
             Err(r) => {
                 c.refuse(&r);
@@ -210,6 +239,7 @@ fn absorb(sc: &mut Scanner, s: &MavlinkSettings, hub: &Hub) {
         sc.end_of_datagram();
     }
     c.garbage_bytes.fetch_add(sc.take_garbage(), Relaxed);
+    from_autopilot
 }
 
 /// The sending side: the encoder with its sequence numbers, the rate
@@ -296,5 +326,22 @@ impl Sender {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_position_rate_below_4_hz_is_warned_about() {
+        let at = |r| OutputConfig {
+            position_rate_hz: r,
+            ..OutputConfig::default()
+        };
+        let why = slow_rate(&at(Some(3.0))).expect("3 Hz is too slow");
+        assert!(why.contains("333 ms") && why.contains("300 ms"), "{why}");
+        assert_eq!(slow_rate(&at(Some(4.0))), None);
+        assert_eq!(slow_rate(&at(None)), None);
     }
 }
