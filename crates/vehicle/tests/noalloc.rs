@@ -2,7 +2,9 @@
 //! `PoseOutbox::offer`, must neither allocate nor lock: a counting global
 //! allocator, counting only on the frame thread, sees no allocation over
 //! thousands of frames while the MAVLink task takes the poses and sends
-//! them on another thread.
+//! them on another thread. And the MAVLink task itself, sending to a
+//! `udpout` peer that is down, allocates nothing per pose for the error
+//! each one draws.
 
 mod common;
 
@@ -12,33 +14,46 @@ use lightpose_vehicle::{Hub, MavlinkSettings, MaxAge, Offer, Site};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::net::UdpSocket;
-use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::time::{Duration, Instant};
 
 struct Counting;
 static ALLOCS: AtomicU64 = AtomicU64::new(0);
+/// Allocations on a task thread (one that set `IS_TASK`) while
+/// `COUNT_TASK` holds.
+static TASK_ALLOCS: AtomicU64 = AtomicU64::new(0);
+static COUNT_TASK: AtomicBool = AtomicBool::new(false);
 thread_local! {
     static COUNTING: Cell<bool> = const { Cell::new(false) };
+    static IS_TASK: Cell<bool> = const { Cell::new(false) };
 }
 
 fn counting() -> bool {
     COUNTING.try_with(|c| c.get()).unwrap_or(false)
 }
 
+fn task_counting() -> bool {
+    COUNT_TASK.load(Relaxed) && IS_TASK.try_with(|c| c.get()).unwrap_or(false)
+}
+
+fn count() {
+    if counting() {
+        ALLOCS.fetch_add(1, Relaxed);
+    } else if task_counting() {
+        TASK_ALLOCS.fetch_add(1, Relaxed);
+    }
+}
+
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        if counting() {
-            ALLOCS.fetch_add(1, Relaxed);
-        }
+        count();
         unsafe { System.alloc(l) }
     }
     unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
         unsafe { System.dealloc(p, l) }
     }
     unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        if counting() {
-            ALLOCS.fetch_add(1, Relaxed);
-        }
+        count();
         unsafe { System.realloc(p, l, n) }
     }
 }
@@ -103,4 +118,76 @@ fn attach_and_offer_do_not_allocate() {
     assert_eq!(ALLOCS.load(Relaxed), 0, "allocations on the frame thread");
     // Ten poses went out while it was counted.
     assert!(hub.mavlink.sent(0) >= 10);
+}
+
+/// Audit: every failed UDP receive or send was formatted into STATUS's
+/// `last_error`, and a `udpout` peer that is down (a closed port) answers
+/// about every pose with an ICMP "port unreachable", which the socket's
+/// next receive or send reports as ECONNREFUSED: an allocation per pose.
+/// The task runs here on a thread of its own, counted once it is warm.
+#[test]
+fn a_peer_that_is_down_costs_the_task_no_allocation() {
+    let port = {
+        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        s.local_addr().unwrap().port()
+    }; // closed again: nobody listens there
+    let hub = Hub::new();
+    let s = MavlinkSettings::new(
+        format!("udpout:127.0.0.1:{port}").parse().unwrap(),
+        Site::new(Angle::from_deg(30.0), 3.0),
+    );
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let h = hub.clone();
+    let task = std::thread::spawn(move || {
+        IS_TASK.with(|c| c.set(true));
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        rt.block_on(lightpose_vehicle::mav::task::run(s, h, async {
+            let _ = stopped.await;
+        }));
+    });
+    let errors = || {
+        let st = hub.mavlink.status(Instant::now());
+        (
+            st.send_errors + st.recv_errors,
+            hub.mavlink.sent(0) + st.send_errors,
+        )
+    };
+    // One pose at a time, each waited for until the task has tried it.
+    let pose = |k: u64| {
+        let tried = errors().1;
+        assert_eq!(hub.outbox.offer(&estimate(k, k as f64), 0), Offer::Queued);
+        let went = wait_until(Duration::from_secs(5), || errors().1 > tried);
+        assert!(went, "pose {k} tried within 5 s");
+    };
+    for k in 0..20 {
+        pose(k);
+    }
+    let (before, _) = errors();
+    assert!(before > 0, "a closed port refuses: {before} errors");
+    COUNT_TASK.store(true, Relaxed);
+    for k in 20..320 {
+        pose(k);
+    }
+    // The last pose's refusal, if it comes on the receive side.
+    std::thread::sleep(Duration::from_millis(20));
+    COUNT_TASK.store(false, Relaxed);
+    let (after, _) = errors();
+    let _ = stop.send(());
+    task.join().expect("task thread ends without panic");
+    assert!(
+        after - before >= 100,
+        "{} refusals over 300 poses",
+        after - before
+    );
+    assert_eq!(
+        TASK_ALLOCS.load(Relaxed),
+        0,
+        "allocations on the task thread"
+    );
+    let st = hub.mavlink.status(Instant::now());
+    let last = st.last_error.unwrap_or_default();
+    assert!(last.contains("Connection refused"), "{last}");
 }

@@ -43,7 +43,8 @@ pub struct FakeAutopilotArgs {
     /// Depth of the beacon, as the daemon's [site].
     #[arg(long, default_value_t = 3.0)]
     beacon_depth_m: f64,
-    /// Sets of messages per second (default: the scene's frame rate).
+    /// Sets of messages per second, 0.01 to 1000 (default: the scene's
+    /// frame rate).
     #[arg(long)]
     rate: Option<f64>,
     /// The depth message, as the daemon's `[mavlink] depth` (default
@@ -109,9 +110,28 @@ const MAX_DURATION_S: f64 = 365.0 * 86_400.0;
 const MAX_ANGLE_NOISE_DEG: f64 = 180.0;
 const MAX_DEPTH_NOISE_M: f64 = 1000.0;
 
-/// Refuse what would panic (a `Duration` of −1 s or NaN) or send nonsense
-/// (a negative or NaN 1σ), before any file is read or socket opened.
-fn check_numbers(a: &FakeAutopilotArgs) -> anyhow::Result<()> {
+/// The range of `--rate`, Hz: below, a set every 100 s is no autopilot
+/// (and 1e-20 Hz made a period no `Duration` holds: a panic); above, the
+/// tick is under a millisecond.
+const MIN_RATE_HZ: f64 = 0.01;
+const MAX_RATE_HZ: f64 = 1000.0;
+
+/// The rate, if within [`MIN_RATE_HZ`]..=[`MAX_RATE_HZ`].
+fn rate_ok(r: f64) -> bool {
+    r.is_finite() && (MIN_RATE_HZ..=MAX_RATE_HZ).contains(&r)
+}
+
+/// Refuse what would panic (a `Duration` of −1 s, NaN or 1e20 s) or send
+/// nonsense (a negative or NaN 1σ, a beacon 20 km deep), before any file
+/// is read or socket opened.
+fn check_numbers(a: &FakeAutopilotArgs) -> anyhow::Result<Site> {
+    if let Some(r) = a.rate {
+        if !rate_ok(r) {
+            return Err(anyhow!(
+                "--rate {r}: must be {MIN_RATE_HZ} to {MAX_RATE_HZ} Hz (leave it out for the scene's frame rate)"
+            ));
+        }
+    }
     if let Some(d) = a.duration {
         if !(d.is_finite() && d > 0.0 && d <= MAX_DURATION_S) {
             return Err(anyhow!(
@@ -135,23 +155,27 @@ fn check_numbers(a: &FakeAutopilotArgs) -> anyhow::Result<()> {
             }
         }
     }
-    Ok(())
-}
-
-pub fn run(a: FakeAutopilotArgs) -> anyhow::Result<()> {
-    check_numbers(&a)?;
-    let scene = Scene::load(&a.scene)?;
-    let traj = Trajectory::load(&a.trajectory)?;
-    let site = SiteTable {
+    // The beacon, as the daemon's [site] checks it, named as the option.
+    SiteTable {
         beacon_heading_deg: a.beacon_heading_deg,
         beacon_depth_m: a.beacon_depth_m,
         beacon_ned_m: None,
     }
-    .validate()?;
+    .validate()
+    .map_err(|e| anyhow!("--{}: {}", e.key.replace('_', "-"), e.msg))
+}
+
+pub fn run(a: FakeAutopilotArgs) -> anyhow::Result<()> {
+    let site = check_numbers(&a)?;
+    let scene = Scene::load(&a.scene)?;
+    let traj = Trajectory::load(&a.trajectory)?;
     let endpoint: Endpoint = a.connect.parse().map_err(|e| anyhow!("--connect: {e}"))?;
     let rate = a.rate.unwrap_or(scene.adc.rate_hz);
-    if !(rate.is_finite() && rate > 0.0 && rate <= 1000.0) {
-        return Err(anyhow!("--rate: {rate} is not within 0..1000 Hz"));
+    if !rate_ok(rate) {
+        return Err(anyhow!(
+            "{}: its frame rate {rate} Hz is not {MIN_RATE_HZ} to {MAX_RATE_HZ} Hz; give --rate",
+            a.scene.display()
+        ));
     }
     let att = scene
         .attitude
@@ -215,13 +239,16 @@ impl Session {
             self.noise[2]
         );
         let mut scanner = Scanner::new(link.framing());
-        let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / rate));
+        let period = Duration::try_from_secs_f64(1.0 / rate)
+            .map_err(|e| anyhow!("--rate {rate}: no period of 1/{rate} s: {e}"))?;
+        let mut tick = tokio::time::interval(period);
         let mut beat = tokio::time::interval(Duration::from_secs(1));
         let mut report = tokio::time::interval(Duration::from_secs(1));
-        let end = duration.map_or(
-            Duration::from_secs(u32::MAX as u64),
-            Duration::from_secs_f64,
-        );
+        let end = match duration {
+            None => Duration::from_secs(u32::MAX as u64),
+            Some(d) => Duration::try_from_secs_f64(d)
+                .map_err(|e| anyhow!("--duration {d}: not a duration: {e}"))?,
+        };
         let stop = tokio::time::sleep(end);
         tokio::pin!(stop);
         loop {

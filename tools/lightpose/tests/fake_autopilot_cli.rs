@@ -2,8 +2,12 @@
 //! daemon's place: what the stand-in sends must read (through the vehicle
 //! crate's reader) as the trajectory's attitude, depth and temperature, and
 //! the errors it prints for the estimates it gets back must be those of the
-//! estimates: zero for the truth, 1 m north for ones moved 1 m north.
+//! estimates: zero for the truth, 1 m north for ones moved 1 m north. And
+//! its numbers out of range are refused, not a panic.
 
+mod common;
+
+use common::{lightpose, root};
 use lightpose_core::Angle;
 use lightpose_sim::Trajectory;
 use lightpose_vehicle::mav::inbound::{interpret, Input, InputConfig};
@@ -13,13 +17,8 @@ use lightpose_vehicle::Site;
 use mavlink::dialects::ardupilotmega::{GLOBAL_POSITION_INT_DATA, VFR_HUD_DATA};
 use mavlink::MessageData;
 use std::net::UdpSocket;
-use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-fn root() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-}
 
 #[test]
 fn the_stand_in_autopilot_sends_the_truth_and_judges_what_comes_back() {
@@ -157,4 +156,58 @@ fn with_no_peer_nothing_is_counted_as_sent() {
         .expect("runs");
     let said = String::from_utf8_lossy(&out.stdout) + String::from_utf8_lossy(&out.stderr);
     assert!(said.contains("sent 0 sets of sensor messages"), "{said}");
+}
+
+/// Audit: `--rate 1e-20` passed the `rate > 0` check and panicked making
+/// its period (exit 101). Every number of fake-autopilot is refused out of
+/// its range at once, in one line naming the option and the bound (exit 1,
+/// as its other number checks), before any file is read or socket opened;
+/// the bounds themselves are taken.
+#[test]
+fn numbers_out_of_range_are_refused_with_their_bound() {
+    let (scene, traj) = (
+        root().join("config/scenes/tank.toml"),
+        root().join("config/trajectories/dive.csv"),
+    );
+    let base = [
+        "fake-autopilot",
+        "--scene",
+        scene.to_str().expect("utf-8 path"),
+        "--trajectory",
+        traj.to_str().expect("utf-8 path"),
+        "--connect",
+        "udpout:127.0.0.1:9",
+    ];
+    let rate = "--rate {}: must be 0.01 to 1000 Hz";
+    for (arg, want) in [
+        ("--rate=1e-20", rate.replace("{}", "0.00000000000000000001")),
+        ("--rate=0.001", rate.replace("{}", "0.001")),
+        ("--rate=1000.5", rate.replace("{}", "1000.5")),
+        ("--rate=0", rate.replace("{}", "0")),
+        ("--rate=-5", rate.replace("{}", "-5")),
+        ("--rate=NaN", rate.replace("{}", "NaN")),
+        ("--rate=inf", rate.replace("{}", "inf")),
+        (
+            "--beacon-depth-m=-1",
+            "--beacon-depth-m: -1 is not within 0..11000".into(),
+        ),
+        (
+            "--beacon-heading-deg=inf",
+            "--beacon-heading-deg: inf is not within -360..360".into(),
+        ),
+    ] {
+        let mut a = base.to_vec();
+        a.push(arg);
+        let r = lightpose(&a, Duration::from_secs(20));
+        assert_eq!(r.code, Some(1), "{arg}: {}", r.err);
+        assert_eq!(r.err.lines().count(), 1, "{arg}: {}", r.err);
+        assert!(r.err.starts_with("lightpose: "), "{arg}: {}", r.err);
+        assert!(r.err.contains(&want), "{arg}: {:?} lacks {want:?}", r.err);
+    }
+    for arg in ["--rate=0.01", "--rate=1000"] {
+        let mut a = base.to_vec();
+        a.extend([arg, "--duration", "0.2"]);
+        let r = lightpose(&a, Duration::from_secs(20));
+        assert_eq!(r.code, Some(0), "{arg}: {}", r.err);
+    }
 }

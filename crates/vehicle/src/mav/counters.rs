@@ -6,6 +6,7 @@
 use super::inbound::{Refusal, Refused};
 use super::outbound::Skip;
 use serde::Serialize;
+use std::io;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -90,12 +91,28 @@ pub fn message_name(id: u32) -> String {
     }
 }
 
+/// Which side of a UDP link failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum NetOp {
+    Recv,
+    Send,
+}
+
 /// The latest thing that went wrong, kept as data and worded only when
 /// STATUS asks (a flood of bad messages formats nothing).
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) enum LastError {
     Refused(Refused),
     Dropped(Refusal, Option<u32>),
+    /// A UDP receive or send that failed: the OS's error number (else the
+    /// kind), not its text. A `udpout` peer that is down fails about once
+    /// per pose (ECONNREFUSED), and that must not allocate.
+    Net {
+        op: NetOp,
+        kind: io::ErrorKind,
+        os: Option<i32>,
+    },
+    /// Opening or losing the link: rare, worded when it happens.
     Io(String),
 }
 
@@ -114,7 +131,24 @@ impl LastError {
                 id.map(message_name).unwrap_or_else(|| "frame".into()),
                 reason.as_str()
             ),
+            LastError::Net { op, kind, os } => {
+                let e = os.map_or_else(|| io::Error::from(*kind), io::Error::from_raw_os_error);
+                let op = match op {
+                    NetOp::Recv => "receive",
+                    NetOp::Send => "send",
+                };
+                format!("{op}: {e}")
+            }
             LastError::Io(s) => s.clone(),
+        }
+    }
+
+    /// A failed UDP receive or send, without wording it.
+    pub(crate) fn net(op: NetOp, e: &io::Error) -> Self {
+        LastError::Net {
+            op,
+            kind: e.kind(),
+            os: e.raw_os_error(),
         }
     }
 }
@@ -189,5 +223,38 @@ impl MavCounters {
                 .ok()
                 .and_then(|g| g.as_ref().map(LastError::line)),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A failed receive or send is kept as its error number and worded,
+    /// as the OS words it, only when STATUS asks.
+    #[test]
+    fn a_network_error_is_worded_when_status_asks() {
+        let c = MavCounters::default();
+        let refused = io::Error::from_raw_os_error(nix::libc::ECONNREFUSED);
+        let e = LastError::net(NetOp::Send, &refused);
+        assert_eq!(
+            e,
+            LastError::Net {
+                op: NetOp::Send,
+                kind: io::ErrorKind::ConnectionRefused,
+                os: Some(nix::libc::ECONNREFUSED),
+            }
+        );
+        c.set_error(e);
+        let line = c.status(Instant::now()).last_error.unwrap_or_default();
+        assert_eq!(line, format!("send: {refused}"));
+        // An error with no number keeps its kind.
+        let e = io::Error::new(io::ErrorKind::TimedOut, "slow");
+        c.set_error(LastError::net(NetOp::Recv, &e));
+        let line = c.status(Instant::now()).last_error.unwrap_or_default();
+        assert_eq!(
+            line,
+            format!("receive: {}", io::Error::from(io::ErrorKind::TimedOut))
+        );
     }
 }

@@ -219,7 +219,10 @@ fn attitude(f: &RawFrame, m: &ATTITUDE_DATA, site: &Site) -> Result<Input, Refus
     if pitch.abs() > PI / 2.0 + eps {
         return Err(refuse(Refusal::AngleOutOfRange, f, pitch));
     }
-    if roll.abs() > PI + eps || yaw.abs() > 2.0 * PI + eps {
+    if roll.abs() > PI + eps {
+        return Err(refuse(Refusal::AngleOutOfRange, f, roll));
+    }
+    if yaw.abs() > 2.0 * PI + eps {
         return Err(refuse(Refusal::AngleOutOfRange, f, yaw));
     }
     Ok(Input::Attitude(AttitudeReading::new(
@@ -325,6 +328,37 @@ mod tests {
         };
         let r = interpret(&frame(137, 2, &buf[..n]), &only_1, &site).unwrap_err();
         assert_eq!(r.reason, Refusal::OtherSystem);
+    }
+
+    /// Audit: a roll out of range was refused with the yaw's value, so
+    /// STATUS's `last_error` showed a number that was within range.
+    #[test]
+    fn an_angle_out_of_range_is_refused_with_its_own_value() {
+        let site = Site::new(Angle::ZERO, 3.0);
+        let cfg = InputConfig::default();
+        let mut buf = [0u8; 255];
+        for (roll, pitch, yaw, bad) in [
+            (4.0f32, 0.1f32, 0.5f32, 4.0f32),
+            (-4.0, 0.1, 0.5, -4.0),
+            (0.2, 0.1, 7.0, 7.0),
+            (0.2, -1.7, 0.5, -1.7),
+        ] {
+            let n = raw(
+                &ATTITUDE_DATA {
+                    roll,
+                    pitch,
+                    yaw,
+                    ..Default::default()
+                },
+                &mut buf,
+            );
+            let r = interpret(&frame(30, 1, &buf[..n]), &cfg, &site).unwrap_err();
+            assert_eq!(
+                (r.reason, r.value),
+                (Refusal::AngleOutOfRange, bad as f64),
+                "roll {roll} pitch {pitch} yaw {yaw}"
+            );
+        }
     }
 
     #[test]

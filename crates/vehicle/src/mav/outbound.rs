@@ -329,6 +329,47 @@ impl Skip {
     }
 }
 
+/// The names of `Outgoing::std`'s six, for log lines.
+const STD_NAMES: [&str; 6] = ["x", "y", "z", "pitch", "yaw", "surge"];
+
+/// Why `o` was skipped for `k`, in words, for the journal (worded only
+/// when a line is due). `speed`: the skip was VISION_SPEED_ESTIMATE's,
+/// which also needs the surge's std.
+pub fn skip_why(o: &Outgoing, k: Skip, speed: bool) -> String {
+    let stds = &o.std[..if speed { 6 } else { 5 }];
+    let named = |pick: fn(&Option<f64>) -> bool| {
+        let v: Vec<&str> = (stds.iter().zip(STD_NAMES))
+            .filter(|(s, _)| pick(s))
+            .map(|(_, n)| n)
+            .collect();
+        if v.is_empty() {
+            "the assumed one".to_string()
+        } else {
+            v.join(", ")
+        }
+    };
+    match k {
+        Skip::NoStd => format!(
+            "no std for {} (missing_std = \"skip\")",
+            named(|s| s.is_none())
+        ),
+        Skip::BadStd => format!(
+            "the std of {} is negative or not finite ({:?})",
+            named(|s| s.is_some_and(|v| !(v.is_finite() && v >= 0.0))),
+            stds
+        ),
+        Skip::BadTime => format!(
+            "capture time {} s does not fit MAVLink's usec (negative or too large)",
+            o.t
+        ),
+        Skip::NotFinite => format!(
+            "a value overflows a MAVLink float (x {} y {} z {} m, std {:?})",
+            o.pose.x, o.pose.y, o.pose.z, stds
+        ),
+        Skip::Decimated => "within the position rate limit".into(),
+    }
+}
+
 /// The content of VISION_POSITION_ESTIMATE, in NED.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VisionPosition {
@@ -546,6 +587,34 @@ mod tests {
             RestartCounter::starting_at(before + 2),
         );
         assert_ne!(a.epoch() as u8, b.epoch() as u8);
+    }
+
+    /// The journal's line for a skipped pose names what was wrong.
+    #[test]
+    fn a_skip_is_worded_with_its_cause() {
+        let mut o = Outgoing {
+            seq: 3,
+            t: 1.0,
+            pose: Pose::new(1.0, 2.0, 3.0, Angle::ZERO, Angle::ZERO),
+            surge: Some(0.2),
+            std: [Some(0.1), None, Some(0.1), Some(1.0), None, None],
+            epoch: 0,
+        };
+        let why = skip_why(&o, Skip::NoStd, false);
+        assert_eq!(why, "no std for y, yaw (missing_std = \"skip\")");
+        assert!(skip_why(&o, Skip::NoStd, true).contains("y, yaw, surge"));
+        o.std = [
+            Some(0.1),
+            Some(-1.0),
+            Some(0.1),
+            Some(1.0),
+            Some(f64::NAN),
+            None,
+        ];
+        let why = skip_why(&o, Skip::BadStd, false);
+        assert!(why.starts_with("the std of y, yaw is negative"), "{why}");
+        o.t = -2.0;
+        assert!(skip_why(&o, Skip::BadTime, false).contains("-2 s"));
     }
 
     /// A calibration reload replaces the estimator: `reset` makes the next

@@ -3,10 +3,12 @@
 //! heartbeat, and reopens the link (with a capped back-off) when it fails.
 //! It returns only when `shutdown` resolves.
 
-use super::counters::LastError;
+use super::counters::{LastError, NetOp};
 use super::inbound::{interpret, Input, InputConfig, Refusal};
 use super::link::{Endpoint, Link, Sent};
-use super::outbound::{heartbeat, vision_position, vision_speed, Encoder, OutputConfig, Skip};
+use super::outbound::{
+    heartbeat, skip_why, vision_position, vision_speed, Encoder, Outgoing, OutputConfig, Skip,
+};
 use super::scan::{Framing, Scanned, Scanner};
 use crate::backoff::Backoff;
 use crate::ned::Site;
@@ -165,7 +167,7 @@ async fn serve(
                 // UDP: an ICMP "port unreachable" from a peer not yet up.
                 Err(e) => {
                     hub.mavlink.recv_errors.fetch_add(1, Relaxed);
-                    hub.mavlink.set_error(LastError::Io(format!("{}: {e}", s.endpoint)));
+                    hub.mavlink.set_error(LastError::net(NetOp::Recv, &e));
                 }
             },
             _ = hub.outbox.offered() => {
@@ -242,13 +244,84 @@ fn absorb(sc: &mut Scanner, s: &MavlinkSettings, hub: &Hub) -> bool {
     from_autopilot
 }
 
+/// The journal's account of `ok` poses not sent (no std, a bad std or
+/// time, a value too big for MAVLink): STATUS counts them all, and the
+/// journal says the first of each reason at once, with the pose's seq and
+/// why, then at most one line per [`SkipLog::EVERY`] while more come.
+/// (Decimation is the configured rate limit, not a fault: not logged.)
+struct SkipLog {
+    /// VISION_SPEED_ESTIMATE's skips (else VISION_POSITION_ESTIMATE's).
+    speed: bool,
+    /// Per reason: when its last line went out, and its count then.
+    last: [Option<(Instant, u64)>; Skip::ALL.len()],
+}
+
+impl SkipLog {
+    const EVERY: Duration = Duration::from_secs(1);
+
+    fn new(speed: bool) -> Self {
+        SkipLog {
+            speed,
+            last: [None; Skip::ALL.len()],
+        }
+    }
+
+    /// Whether skip `k`, the `count`th of its reason, is to be logged at
+    /// `now`; if so, how many of that reason came since the last line.
+    fn due(&mut self, k: Skip, count: u64, now: Instant) -> Option<u64> {
+        let slot = self.last.get_mut(k.index())?;
+        let since = match *slot {
+            Some((t, _)) if now.saturating_duration_since(t) < Self::EVERY => return None,
+            Some((_, then)) => count.saturating_sub(then),
+            None => count,
+        };
+        *slot = Some((now, count));
+        Some(since)
+    }
+
+    /// Log skip `k` of pose `o`, the `count`th of its reason, if due.
+    fn note(&mut self, o: &Outgoing, k: Skip, count: u64) {
+        if k == Skip::Decimated {
+            return;
+        }
+        let Some(since) = self.due(k, count, Instant::now()) else {
+            return;
+        };
+        let message = if self.speed {
+            "VISION_SPEED_ESTIMATE"
+        } else {
+            "VISION_POSITION_ESTIMATE"
+        };
+        let (seq, why, reason) = (o.seq, skip_why(o, k, self.speed), k.as_str());
+        if count == since {
+            tracing::warn!(
+                seq,
+                reason,
+                count,
+                "mavlink: {message} not sent for pose {seq}: {why}; \
+                 more {reason} skips are logged at most once a second"
+            );
+        } else {
+            tracing::warn!(
+                seq,
+                reason,
+                count,
+                "mavlink: {message} not sent for pose {seq}: {why} \
+                 ({since} {reason} skips since the last line, {count} in all)"
+            );
+        }
+    }
+}
+
 /// The sending side: the encoder with its sequence numbers, the rate
-/// limit's memory and the outbox version last taken.
+/// limit's memory, the outbox version last taken and the skips' log.
 struct Sender {
     enc: Encoder,
     seen: u64,
     last_pos_t: Option<f64>,
     last_sent: Option<Instant>,
+    pos_skips: SkipLog,
+    speed_skips: SkipLog,
 }
 
 impl Sender {
@@ -258,6 +331,8 @@ impl Sender {
             seen: 0,
             last_pos_t: None,
             last_sent: None,
+            pos_skips: SkipLog::new(false),
+            speed_skips: SkipLog::new(true),
         }
     }
 
@@ -283,7 +358,8 @@ impl Sender {
         let msg = match vision_position(&o, &s.site, &s.output).and_then(|v| v.message()) {
             Ok(m) => m,
             Err(k) => {
-                c.skipped[k.index()].fetch_add(1, Relaxed);
+                let n = c.skipped[k.index()].fetch_add(1, Relaxed) + 1;
+                self.pos_skips.note(&o, k, n);
                 return Ok(());
             }
         };
@@ -294,7 +370,8 @@ impl Sender {
             match vision_speed(&o, &s.site, &s.output).and_then(|v| v.message()) {
                 Ok(m) => self.send(link, hub, &m, 1).await?,
                 Err(k) => {
-                    c.speed_skipped[k.index()].fetch_add(1, Relaxed);
+                    let n = c.speed_skipped[k.index()].fetch_add(1, Relaxed) + 1;
+                    self.speed_skips.note(&o, k, n);
                 }
             }
         }
@@ -322,7 +399,7 @@ impl Sender {
             Err(e) if framing == Framing::Stream => return Err(e),
             Err(e) => {
                 c.send_errors.fetch_add(1, Relaxed);
-                c.set_error(LastError::Io(format!("send: {e}")));
+                c.set_error(LastError::net(NetOp::Send, &e));
             }
         }
         Ok(())
@@ -343,5 +420,26 @@ mod tests {
         assert!(why.contains("333 ms") && why.contains("300 ms"), "{why}");
         assert_eq!(slow_rate(&at(Some(4.0))), None);
         assert_eq!(slow_rate(&at(None)), None);
+    }
+
+    /// The first skip of each reason is logged at once, then at most one
+    /// line per second of that reason while more come, each saying how
+    /// many came since the last.
+    #[test]
+    fn skips_are_logged_first_then_at_most_once_a_second() {
+        let mut log = SkipLog::new(false);
+        let t0 = Instant::now();
+        let ms = |n: u64| t0 + Duration::from_millis(n);
+        assert_eq!(log.due(Skip::NoStd, 1, ms(0)), Some(1));
+        for (k, at) in (2..=40).zip((25..).step_by(25)) {
+            assert_eq!(log.due(Skip::NoStd, k, ms(at)), None, "skip {k}");
+        }
+        // Another reason has its own first line.
+        assert_eq!(log.due(Skip::BadTime, 1, ms(500)), Some(1));
+        assert_eq!(log.due(Skip::NoStd, 41, ms(1000)), Some(40));
+        assert_eq!(log.due(Skip::NoStd, 42, ms(1999)), None);
+        // After a quiet spell the next one is said at once.
+        assert_eq!(log.due(Skip::NoStd, 43, ms(60_000)), Some(2));
+        assert_eq!(log.due(Skip::BadTime, 2, ms(60_000)), Some(1));
     }
 }

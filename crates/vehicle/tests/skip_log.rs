@@ -1,0 +1,128 @@
+//! An `ok` pose that cannot go to the autopilot (a std missing under the
+//! default `missing_std = "skip"`, a negative capture time) is said in the
+//! journal, not only counted for STATUS: the first of each reason at once,
+//! with the pose's seq and why, then at most a line a second while more
+//! come; a burst of skips is one line, not one per pose.
+
+mod common;
+
+use common::estimate;
+use lightpose_core::Angle;
+use lightpose_vehicle::{Hub, MavlinkSettings, Offer, Site};
+use std::io::{self, Write};
+use std::net::UdpSocket;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// The log lines written while `f` runs on this thread.
+fn logged(f: impl FnOnce()) -> String {
+    #[derive(Clone)]
+    struct Capture(Arc<Mutex<Vec<u8>>>);
+    impl Write for Capture {
+        fn write(&mut self, b: &[u8]) -> io::Result<usize> {
+            self.0.lock().unwrap().extend_from_slice(b);
+            Ok(b.len())
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+    let cap = Capture(Arc::default());
+    let out = cap.clone();
+    let sub = tracing_subscriber::fmt()
+        .with_ansi(false)
+        .with_max_level(tracing::Level::INFO)
+        .with_writer(move || out.clone())
+        .finish();
+    tracing::subscriber::with_default(sub, f);
+    let text = cap.0.lock().unwrap().clone();
+    String::from_utf8(text).unwrap()
+}
+
+/// The count of skips of `reason` in STATUS.
+fn skipped(hub: &Hub, reason: &str) -> u64 {
+    let st = hub.mavlink.status(Instant::now());
+    st.skipped
+        .iter()
+        .find(|(r, _)| *r == reason)
+        .map_or(0, |(_, n)| *n)
+}
+
+/// Offer `e` and wait (up to 5 s) until the task has skipped it.
+async fn skip_one(hub: &Hub, e: &lightpose_core::PoseEstimate, reason: &str) {
+    let before = skipped(hub, reason);
+    assert_eq!(hub.outbox.offer(e, 0), Offer::Queued);
+    let end = Instant::now() + Duration::from_secs(5);
+    while skipped(hub, reason) == before {
+        assert!(Instant::now() < end, "pose {} skipped within 5 s", e.seq);
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+}
+
+#[test]
+fn a_burst_of_skipped_poses_is_one_warning_per_reason() {
+    let sink = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let port = sink.local_addr().unwrap().port();
+    let hub = Hub::new();
+    let s = MavlinkSettings::new(
+        format!("udpout:127.0.0.1:{port}").parse().unwrap(),
+        Site::new(Angle::from_deg(30.0), 3.0),
+    );
+    let burst = 50;
+    let mut took = Duration::ZERO;
+    let log = logged(|| {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(async {
+            let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+            let task = lightpose_vehicle::mav::task::run(s, hub.clone(), async {
+                let _ = stopped.await;
+            });
+            let feed = async {
+                let t0 = Instant::now();
+                for k in 0..burst {
+                    let mut e = estimate(7 + k, 1.0 + k as f64 * 0.1);
+                    e.std.yaw = None;
+                    skip_one(&hub, &e, "no_std").await;
+                }
+                took = t0.elapsed();
+                skip_one(&hub, &estimate(500, -2.0), "bad_time").await;
+                let _ = stop.send(());
+            };
+            tokio::join!(task, feed);
+        });
+    });
+    assert_eq!(skipped(&hub, "no_std"), burst);
+    let warns: Vec<&str> = log.lines().filter(|l| l.contains(" WARN ")).collect();
+    let no_std: Vec<&&str> = warns
+        .iter()
+        .filter(|l| l.contains("reason=\"no_std\""))
+        .collect();
+    // One line for the burst (one more per whole second it took, on a
+    // machine slow enough to stretch it).
+    let most = 1 + took.as_secs() as usize;
+    assert!(
+        (1..=most).contains(&no_std.len()),
+        "{} no_std lines for {burst} skips in {took:?}:\n{log}",
+        no_std.len()
+    );
+    let first = no_std[0];
+    assert!(
+        first.contains("VISION_POSITION_ESTIMATE not sent for pose 7:")
+            && first.contains("no std for yaw")
+            && first.contains("missing_std"),
+        "{first}"
+    );
+    let bad_time: Vec<&&str> = warns
+        .iter()
+        .filter(|l| l.contains("reason=\"bad_time\""))
+        .collect();
+    assert_eq!(bad_time.len(), 1, "{log}");
+    assert!(
+        bad_time[0].contains("pose 500") && bad_time[0].contains("capture time -2 s"),
+        "{}",
+        bad_time[0]
+    );
+}
