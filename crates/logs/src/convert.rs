@@ -14,9 +14,10 @@
 
 use crate::write::{McapOptions, McapWriter, WriteError};
 use crate::{Format, LogFile};
+use lightpose_core::textfile::{read_line_bounded, LineRead, MAX_LINE_BYTES};
 use lightpose_core::{Cut, FrameLog, LogError};
 use std::fs::File;
-use std::io::{self, BufRead, BufReader, BufWriter, Write};
+use std::io::{self, BufReader, BufWriter, Write};
 use std::path::Path;
 
 #[derive(Debug, thiserror::Error)]
@@ -42,7 +43,8 @@ pub enum ConvertError {
 pub struct ConvertSummary {
     pub frames: u64,
     pub poses: u64,
-    /// Frames (lines, messages, chunks) refused and skipped.
+    /// Frames (lines, messages, chunks) and POSE lines (longer than
+    /// core's bound) refused and skipped.
     pub skipped: u64,
     /// Where the input was cut short, if it was.
     pub cut: Option<Cut>,
@@ -58,14 +60,18 @@ enum Out {
     Mcap(Box<McapWriter<BufWriter<File>>>),
 }
 
-/// POSE lines read in step with the frames (JSONL → MCAP).
+/// POSE lines read in step with the frames (JSONL → MCAP), each bounded
+/// as core bounds a log's lines.
 struct PoseFeed {
     src: BufReader<File>,
     file: String,
     line_no: usize,
+    buf: Vec<u8>,
     /// A line read ahead: its seq and text.
-    next: Option<(u64, String)>,
+    next: Option<(u64, Vec<u8>)>,
     ended: bool,
+    /// Lines refused unread (too long), not yet handed to the caller.
+    refused: Vec<LogError>,
 }
 
 #[derive(serde::Deserialize)]
@@ -85,8 +91,10 @@ impl PoseFeed {
             src: BufReader::new(f),
             file,
             line_no: 0,
+            buf: Vec::new(),
             next: None,
             ended: false,
+            refused: Vec::new(),
         })
     }
 
@@ -101,26 +109,38 @@ impl PoseFeed {
     /// Read ahead to the next POSE line.
     fn fill(&mut self) -> Result<(), ConvertError> {
         while self.next.is_none() && !self.ended {
-            let mut text = String::new();
-            let n = self
-                .src
-                .read_line(&mut text)
-                .map_err(|err| ConvertError::File {
-                    file: self.file.clone(),
-                    err,
-                })?;
-            if n == 0 {
-                self.ended = true;
-                break;
+            let read = read_line_bounded(&mut self.src, &mut self.buf, MAX_LINE_BYTES);
+            let read = read.map_err(|err| ConvertError::File {
+                file: self.file.clone(),
+                err,
+            })?;
+            match read {
+                LineRead::Eof => {
+                    self.ended = true;
+                    break;
+                }
+                LineRead::TooLong => {
+                    // As core refuses a log's line: counted, skipped.
+                    self.line_no += 1;
+                    self.refused.push(LogError::Line {
+                        name: self.file.clone(),
+                        line: self.line_no,
+                        msg: format!(
+                            "line longer than {MAX_LINE_BYTES} bytes: refused unread (a POSE line is under 1 kB)"
+                        ),
+                    });
+                    continue;
+                }
+                LineRead::Line => self.line_no += 1,
             }
-            self.line_no += 1;
+            let text = std::str::from_utf8(&self.buf).map_err(|_| self.bad("not valid UTF-8"))?;
             if text.trim().is_empty() {
                 continue;
             }
             let p: PoseSeq = serde_json::from_str(text.trim())
                 .map_err(|e| self.bad(format!("not valid JSON: {e}")))?;
             match (p.class.as_deref(), p.seq) {
-                (Some("POSE"), Some(seq)) => self.next = Some((seq, text)),
+                (Some("POSE"), Some(seq)) => self.next = Some((seq, std::mem::take(&mut self.buf))),
                 (Some("POSE"), None) => return Err(self.bad("POSE has no integer seq")),
                 _ => {} // other classes beside POSE: not poses
             }
@@ -139,7 +159,7 @@ impl PoseFeed {
             self.fill()?;
             match &self.next {
                 Some((s, text)) if seq.is_none_or(|limit| *s <= limit) => {
-                    out.write_pose_line(text.as_bytes())
+                    out.write_pose_line(text)
                         .map_err(|e| self.bad(e.to_string()))?;
                     self.next = None;
                     n += 1;
@@ -275,13 +295,26 @@ pub fn convert(
         }
         s.frames += 1;
         s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::AfterFrame(f.seq))?;
+        s.skipped += refused_poses(&mut poses, &mut on_skip);
     }
     s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::End)?;
+    s.skipped += refused_poses(&mut poses, &mut on_skip);
     finish(out, poses)?;
     s.cut = log.cut();
     s.other = log.other_records();
     s.seq_gaps = log.seq_gaps();
     Ok(s)
+}
+
+/// The POSE lines refused since the last call, each handed to `on_skip`;
+/// how many.
+fn refused_poses(poses: &mut Poses, on_skip: &mut impl FnMut(&LogError)) -> u64 {
+    let Poses::Feed(feed) = poses else { return 0 };
+    let n = feed.refused.len() as u64;
+    for e in feed.refused.drain(..) {
+        on_skip(&e);
+    }
+    n
 }
 
 /// When POSE lines are moved, relative to a frame.

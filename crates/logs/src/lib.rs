@@ -43,7 +43,7 @@ pub use lines::RECORD_LIMIT;
 pub use read::McapReader;
 pub use sink::{create, LogSink};
 pub use tap::LineTap;
-pub use write::{McapOptions, McapWriter, WriteError};
+pub use write::{mcap_end, McapOptions, McapWriter, WriteError, MCAP_END_BYTES};
 
 use lightpose_core::{Frame, LogHeader, LogReader};
 use std::fs::File;

@@ -2,7 +2,13 @@
 //! can carry a log's lines as they are: parsing a FRAME and writing it
 //! again does not always give the same text (core keeps angles in radians,
 //! and degrees → radians → degrees may move the last digit).
+//!
+//! Lines are taken in pieces of at most core's bound and one byte
+//! ([`MAX_LINE_BYTES`] + 1): a line that long is refused by core's
+//! `read_line_bounded`, which reads the rest of it piece by piece and
+//! throws it away, so that a 200 MB line is never held whole here either.
 
+use lightpose_core::textfile::MAX_LINE_BYTES;
 use std::io::{self, BufRead, Read};
 
 pub struct LineTap<R> {
@@ -41,7 +47,9 @@ impl<R: BufRead> BufRead for LineTap<R> {
         if self.pos >= self.line.len() {
             self.line.clear();
             self.pos = 0;
-            self.src.read_until(b'\n', &mut self.line)?;
+            (&mut self.src)
+                .take(MAX_LINE_BYTES as u64 + 1)
+                .read_until(b'\n', &mut self.line)?;
         }
         Ok(&self.line[self.pos..])
     }

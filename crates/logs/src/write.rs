@@ -75,6 +75,26 @@ pub struct McapWriter<W: Write> {
     poses: u64,
 }
 
+/// Bytes of [`mcap_end`].
+pub const MCAP_END_BYTES: usize = 50;
+
+/// What completes an MCAP whose writing stopped (a full disk) once it is
+/// cut back to the end of a whole record of its data section: a Data End
+/// (CRC 0: not computed) and a Footer without a summary section (offsets
+/// 0), then the closing magic. The summary is optional in MCAP: with these
+/// the file is complete for every reader, which reads it from the start.
+pub fn mcap_end() -> [u8; MCAP_END_BYTES] {
+    let mut b = [0u8; MCAP_END_BYTES];
+    b[0] = mcap::records::op::DATA_END;
+    b[1..9].copy_from_slice(&4u64.to_le_bytes());
+    // b[9..13]: data_section_crc 0.
+    b[13] = mcap::records::op::FOOTER;
+    b[14..22].copy_from_slice(&20u64.to_le_bytes());
+    // b[22..42]: summary_start, summary_offset_start, summary_crc, all 0.
+    b[42..].copy_from_slice(mcap::MAGIC);
+    b
+}
+
 /// The HEADER line that a JSONL log of `header` starts with (no newline).
 pub(crate) fn header_line(header: &LogHeader) -> io::Result<String> {
     let mut w = LogWriter::new(Vec::new(), header)?;
