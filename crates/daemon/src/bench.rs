@@ -318,6 +318,9 @@ pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
             .recording
             .as_ref()
             .map_or(crate::config::recording::DEFAULT_FLUSH, |r| r.flush),
+        // Old files are deleted by the soak itself.
+        keep_free_bytes: None,
+        max_total_bytes: None,
     };
     let header = lightpose_core::LogHeader::new(rig.adc_bits, rig.rate_hz);
     let recorder = Recorder::start(&rec_cfg, header).map_err(DaemonError::Recorder)?;

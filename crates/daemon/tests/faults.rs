@@ -679,7 +679,8 @@ fn full_disk_mid_line_loses_no_acknowledged_frame() {
     // with RLIMIT_FSIZE at 48 KiB (SIGXFSZ ignored), so every log file hits
     // "File too large" part-way through a line, as a filling disk does: the
     // recorder must report the error, resume in a new file after its retry
-    // delay, and count as written exactly the lines that read back whole.
+    // delay, count as written exactly the lines that read back whole, and
+    // cut the half-written line back off each file.
     let (scene, traj, cal) = shipped();
     let dir = tempfile::tempdir().expect("tempdir");
     let rec = dir.path().join("rec");
@@ -771,7 +772,7 @@ dir = "{}"
     let failed = fin["recording"]["failed"].as_u64().expect("failed");
     assert!(failed > 100, "refused frames counted: {fin}");
     let (seqs, cut) = read_logs(&rec);
-    assert!(cut, "the limit cut a line in two");
+    assert!(!cut, "a line the limit cut in two was left in its file");
     assert_eq!(
         seqs.len() as u64,
         acked,

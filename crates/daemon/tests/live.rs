@@ -199,3 +199,101 @@ fn a_client_that_never_reads_costs_the_frame_thread_nothing() {
     assert!(summary.frames > 5000, "{summary:?}");
     assert_eq!((summary.failed, summary.lost), (0, 0));
 }
+
+/// The live view alone (no daemon), bound on a free port, and a client of
+/// it over a real socket that subscribed to every channel.
+async fn live_with_client() -> (
+    lightposed::outputs::live::Live,
+    tokio_tungstenite::WebSocketStream<tokio::net::TcpStream>,
+) {
+    let (_sub, addr) = subscriber();
+    let fx = format!("[foxglove]\nlisten = \"127.0.0.1:{}\"\n", free_tcp_port());
+    let cfg = Config::parse(&sim_config(100.0, &[addr], "", &fx), "live.toml", None).unwrap();
+    let header = lightpose_core::LogHeader::new(10, 100.0);
+    let live = lightposed::outputs::live::start(cfg.foxglove.as_ref().unwrap(), &header)
+        .await
+        .expect("live view");
+    let tcp = tokio::net::TcpStream::connect(live.hub.listen)
+        .await
+        .unwrap();
+    let (mut ws, _) = tokio_tungstenite::client_async(request(live.hub.listen), tcp)
+        .await
+        .unwrap();
+    for _ in 0..2 {
+        ws.next().await.expect("serverInfo, advertise").unwrap();
+    }
+    (live, ws)
+}
+
+/// A frame or estimate without a log time (t < 0: a replayed log whose
+/// epoch is not its start) has no message: counted in STATUS
+/// (`foxglove.skipped`), no longer dropped silently; the others are shown.
+#[test]
+fn frames_without_log_time_are_counted_not_shown() {
+    use lightpose_core::{Frame, PoseEstimate, Status, NDET};
+    use lightposed::outputs::Output;
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let (seqs, live) = rt.block_on(async {
+        let (mut live, mut ws) = live_with_client().await;
+        ws.send(Ws::text(subscribe_all())).await.unwrap();
+        while !live.hub.wanted() {
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+        for s in 0..10u64 {
+            let t = if s == 4 { -1.0 } else { s as f64 * 0.01 };
+            let frame = Frame::new(s, t, 10, [100; NDET]);
+            let est = PoseEstimate::empty(s, t, Status::NoLight, "test");
+            let acquired = lightposed::engine::Acquired {
+                frame,
+                arrival: Instant::now(),
+                wall_unix: 1.7e9,
+            };
+            live.output.emit(&acquired, &est);
+        }
+        Output::finish(&mut live.output); // the encoder thread is done
+        let mut seqs = Vec::new();
+        // Subscription 1 is channel 1, /lightpose/frame.
+        while let Ok(Some(Ok(Ws::Binary(b)))) =
+            tokio::time::timeout(Duration::from_millis(500), ws.next()).await
+        {
+            if b[1..5] == 1u32.to_le_bytes() {
+                let v: Value = serde_json::from_slice(&b[13..]).unwrap();
+                seqs.push(v["seq"].as_u64().unwrap());
+            }
+        }
+        (seqs, live)
+    });
+    assert_eq!(seqs, [0, 1, 2, 3, 5, 6, 7, 8, 9]);
+    let r = live.hub.report();
+    assert_eq!(r["skipped"], 2, "frame 4 and its estimate: {r}");
+    assert_eq!(r["handoff_dropped"], 0, "{r}");
+    live.server.abort();
+}
+
+/// channelId 2³² + 1 is no channel: refused with a warning, nothing
+/// subscribed (cut to a 32-bit usize, as on armv7, it was channel 1).
+#[test]
+fn a_channel_id_beyond_32_bits_is_refused() {
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let (live, mut ws) = live_with_client().await;
+        let wide = r#"{"op":"subscribe","subscriptions":[{"id":1,"channelId":4294967297}]}"#;
+        ws.send(Ws::text(wide)).await.unwrap();
+        let reply = tokio::time::timeout(Duration::from_secs(5), ws.next())
+            .await
+            .expect("a reply")
+            .expect("open")
+            .unwrap();
+        let v: Value = serde_json::from_str(reply.to_text().unwrap()).unwrap();
+        assert_eq!(v["op"], "status", "{v}");
+        assert!(
+            v["message"]
+                .as_str()
+                .unwrap()
+                .contains("no channel [4294967297]"),
+            "{v}"
+        );
+        assert!(!live.hub.wanted(), "subscribed to a channel that is not");
+        live.server.abort();
+    });
+}

@@ -3,7 +3,10 @@
 //! counting allocator, counting on the frame thread only (the recorder
 //! and encoder threads allocate per chunk and per message, off the hot
 //! path), shows that the frame thread's allocations do not grow with the
-//! number of frames.
+//! number of frames. Beside it, on real sockets: the UDP publisher
+//! meeting a destination where nobody listens, and the live view's hub
+//! framing messages for several subscribed clients, allocate nothing per
+//! datagram or message once warm.
 
 use futures_util::{SinkExt, StreamExt};
 use lightpose_hal::Stop;
@@ -17,36 +20,44 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::net::UdpSocket;
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::sync::atomic::Ordering::Relaxed;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
 use tokio_tungstenite::tungstenite::Message as Ws;
 
 struct Counting;
-static ALLOCS: AtomicU64 = AtomicU64::new(0);
 thread_local! {
+    // Per thread: the tests of this file run side by side.
     static COUNT_HERE: Cell<bool> = const { Cell::new(false) };
+    static ALLOCS: Cell<u64> = const { Cell::new(0) };
 }
 
-fn counting() -> bool {
-    COUNT_HERE.try_with(Cell::get).unwrap_or(false)
+fn count() {
+    if COUNT_HERE.try_with(Cell::get).unwrap_or(false) {
+        let _ = ALLOCS.try_with(|a| a.set(a.get() + 1));
+    }
+}
+
+/// This thread's allocations while `f` runs.
+fn allocs_in<T>(f: impl FnOnce() -> T) -> (T, u64) {
+    let before = ALLOCS.with(Cell::get);
+    COUNT_HERE.with(|c| c.set(true));
+    let out = f();
+    COUNT_HERE.with(|c| c.set(false));
+    (out, ALLOCS.with(Cell::get) - before)
 }
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        if counting() {
-            ALLOCS.fetch_add(1, Relaxed);
-        }
+        count();
         unsafe { System.alloc(l) }
     }
     unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
         unsafe { System.dealloc(p, l) }
     }
     unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        if counting() {
-            ALLOCS.fetch_add(1, Relaxed);
-        }
+        count();
         unsafe { System.realloc(p, l, n) }
     }
 }
@@ -115,11 +126,7 @@ fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
     .output(Box::new(PoseDatagrams::new(publisher)))
     .output(Box::new(recorder))
     .output(Box::new(live.output));
-    ALLOCS.store(0, Relaxed);
-    COUNT_HERE.with(|c| c.set(true));
-    engine.run();
-    COUNT_HERE.with(|c| c.set(false));
-    let n = ALLOCS.load(Relaxed);
+    let (_, n) = allocs_in(|| engine.run());
     live.server.abort();
     live.hub.close();
     assert_eq!(
@@ -134,11 +141,9 @@ fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
 fn handing_frames_to_the_recorder_and_the_live_view_does_not_allocate() {
     // The counter counts this thread's allocations (else the test would
     // prove nothing).
-    COUNT_HERE.with(|c| c.set(true));
-    let v = std::hint::black_box(Vec::<u8>::with_capacity(64));
-    COUNT_HERE.with(|c| c.set(false));
+    let (v, n) = allocs_in(|| std::hint::black_box(Vec::<u8>::with_capacity(64)));
     drop(v);
-    assert_eq!(ALLOCS.swap(0, Relaxed), 1);
+    assert_eq!(n, 1);
     let rt = tokio::runtime::Runtime::new().expect("runtime");
     let few = allocations(50, &rt);
     let many = allocations(400, &rt);
@@ -146,5 +151,85 @@ fn handing_frames_to_the_recorder_and_the_live_view_does_not_allocate() {
     assert!(
         many <= few + 2,
         "{few} allocations for 50 frames, {many} for 400"
+    );
+}
+
+/// A destination where nobody listens refuses about every other datagram
+/// (ECONNREFUSED): each refusal is counted and kept as the last error
+/// without formatting it again (it was formatted twice per refusal).
+#[test]
+fn refused_datagrams_do_not_allocate() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let gone = UdpSocket::bind("127.0.0.1:0").expect("sink");
+    let cfg = config(&gone, dir.path());
+    drop(gone); // nobody listens there now
+    let publisher = Publisher::open(&cfg.outputs).expect("publisher");
+    let send = |n: u32| {
+        for _ in 0..n {
+            publisher.send(br#"{"class":"POSE"}"#);
+            std::thread::sleep(Duration::from_micros(300));
+        }
+    };
+    let errors = || publisher.destinations()[0].stats.errors.load(Relaxed);
+    let ((), few) = allocs_in(|| send(50));
+    let e0 = errors();
+    let ((), many) = allocs_in(|| send(500));
+    let refused = errors() - e0;
+    eprintln!("refused sends: {few} allocations for 50 sends, {many} for 500 ({refused} refused)");
+    assert!(refused >= 100, "{refused} of 500 sends refused");
+    assert!(many <= 2, "{many} allocations for {refused} refused sends");
+}
+
+/// Three clients subscribed to every channel over real sockets: framing a
+/// message for each of them does not allocate once warm (it was one
+/// allocation per message per client).
+#[test]
+fn framing_for_subscribed_clients_does_not_allocate_per_message() {
+    use lightpose_logs::{Channel, Message};
+    let rt = tokio::runtime::Runtime::new().expect("runtime");
+    let sink = UdpSocket::bind("127.0.0.1:0").expect("sink");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cfg = config(&sink, dir.path());
+    let header = lightpose_core::LogHeader::new(10, 50.0);
+    let fx = cfg.foxglove.as_ref().expect("foxglove");
+    let live = rt.block_on(live::start(fx, &header)).expect("live view");
+    for _ in 0..3 {
+        rt.spawn(reader(live.hub.listen));
+    }
+    let subscribed = || {
+        let r = live.hub.report();
+        let list = r["client_list"].as_array().cloned().unwrap_or_default();
+        list.len() == 3 && list.iter().all(|c| c["subscriptions"] == 7)
+    };
+    let t0 = Instant::now();
+    while !subscribed() && t0.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(subscribed(), "three clients subscribed to every channel");
+    let data = [b'7'; 300];
+    let publish = |n: u32| {
+        for i in 0..n {
+            live.hub.publish(&Message {
+                channel: Channel::ALL[i as usize % 7],
+                sequence: i,
+                log_time: u64::from(i),
+                data: &data,
+            });
+            if i % 16 == 0 {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        }
+    };
+    publish(500); // warm: blocks, the clients' queues
+    let ((), few) = allocs_in(|| publish(200));
+    let ((), many) = allocs_in(|| publish(2000));
+    let r = live.hub.report();
+    live.server.abort();
+    live.hub.close();
+    eprintln!("hub: {few} allocations for 200 messages to 3 clients, {many} for 2000; {r}");
+    assert!(r["sent"].as_u64() > Some(3000), "{r}");
+    assert!(
+        many <= few + 8,
+        "{few} allocations for 200 messages, {many} for 2000"
     );
 }

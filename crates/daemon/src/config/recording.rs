@@ -4,9 +4,11 @@
 //!
 //! Ranges: `rotate_mb` 0.01..=1048576 MiB (10 kB to 1 TiB);
 //! `rotate_minutes` 0.1..=525600 (six seconds to a year); `queue`
-//! 1..=1000000 frames; `flush_s` (0, 3600].
+//! 1..=1000000 frames; `flush_s` (0, 3600]; `keep_free_mb` 0..=1048576
+//! MiB; `max_total_mb` 1..=16777216 MiB, with `rotate_mb` at most that.
 
 use super::locate::{positive_to, within, Ctx};
+use super::places::{self, Places};
 use super::ConfigError;
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -27,6 +29,12 @@ pub struct Recording {
     /// chunk closed; both: the file synced): a power loss loses at most
     /// this much.
     pub flush: Duration,
+    /// `keep_free_mb`: free space to keep on the disk, pruning the oldest
+    /// recordings for it; `None`: the recorder's own guard, no pruning.
+    pub keep_free_bytes: Option<u64>,
+    /// `max_total_mb`: the recordings in `dir` are kept under this, the
+    /// oldest pruned first.
+    pub max_total_bytes: Option<u64>,
 }
 
 /// The container of a recording.
@@ -53,16 +61,26 @@ pub(super) struct RawRecording {
     queue: Option<Spanned<i64>>,
     format: Option<Spanned<RecFormat>>,
     flush_s: Option<Spanned<f64>>,
+    keep_free_mb: Option<Spanned<f64>>,
+    max_total_mb: Option<Spanned<f64>>,
 }
 
 /// `None` when the table is absent or not enabled.
 pub(super) fn validate(
     ctx: &Ctx,
-    raw: Option<&RawRecording>,
+    raw: Option<&Spanned<RawRecording>>,
+    at: &mut Places,
 ) -> Result<Option<Recording>, ConfigError> {
-    let Some(r) = raw.filter(|r| r.enabled.unwrap_or(true)) else {
+    let Some(table) = raw.filter(|r| r.get_ref().enabled.unwrap_or(true)) else {
         return Ok(None);
     };
+    let r = table.get_ref();
+    // Whether the directory can be (a file is not one): `wiring::check`.
+    let line = r
+        .dir
+        .as_ref()
+        .map_or(table.span().start, |d| d.span().start);
+    at.set(places::RECORDING_DIR, ctx.line(line));
     let dir = match &r.dir {
         Some(d) if !d.get_ref().trim().is_empty() => ctx.path(d.get_ref()),
         Some(d) => return Err(ctx.err(d.span(), "recording.dir", "empty path")),
@@ -98,6 +116,7 @@ pub(super) fn validate(
         Some(v) => Duration::from_secs_f64(positive_to(ctx, v, "recording.flush_s", 3600.0, " s")?),
         None => DEFAULT_FLUSH,
     };
+    let (keep_free_bytes, max_total_bytes) = limits(ctx, r, rotate_bytes)?;
     Ok(Some(Recording {
         dir,
         rotate_bytes,
@@ -105,5 +124,46 @@ pub(super) fn validate(
         queue,
         format: r.format.as_ref().map_or(RecFormat::Jsonl, |f| *f.get_ref()),
         flush,
+        keep_free_bytes,
+        max_total_bytes,
     }))
+}
+
+/// `keep_free_mb` and `max_total_mb`, in bytes; the latter needs rotation
+/// by size up to it (the open file is never pruned).
+fn limits(
+    ctx: &Ctx,
+    r: &RawRecording,
+    rotate_bytes: Option<u64>,
+) -> Result<(Option<u64>, Option<u64>), ConfigError> {
+    let mib = |mb: f64| (mb * 1024.0 * 1024.0) as u64;
+    let keep_free_bytes = match &r.keep_free_mb {
+        Some(v) => Some(mib(within(
+            ctx,
+            v,
+            "recording.keep_free_mb",
+            (0.0, 1_048_576.0),
+            " MiB",
+        )?)),
+        None => None,
+    };
+    let max_total_bytes = match &r.max_total_mb {
+        Some(v) => {
+            let max = mib(within(
+                ctx,
+                v,
+                "recording.max_total_mb",
+                (1.0, 16_777_216.0),
+                " MiB",
+            )?);
+            // The open file is never pruned: rotation must bound it.
+            if rotate_bytes.is_none_or(|b| b > max) {
+                let msg = "needs rotate_mb, at most max_total_mb (the open file is never pruned)";
+                return Err(ctx.err(v.span(), "recording.max_total_mb", msg));
+            }
+            Some(max)
+        }
+        None => None,
+    };
+    Ok((keep_free_bytes, max_total_bytes))
 }

@@ -10,43 +10,117 @@
 //! timer closes them; a power loss or kill -9 loses the open chunk only,
 //! and the file reads (and `lightpose convert` recovers it) up to its last
 //! complete chunk.
+//!
+//! A file whose writing failed (a full disk) is not left as the error cut
+//! it: it is cut back to its last whole point (JSONL: its last complete
+//! line; MCAP: its last sync, a chunk's end) and, in MCAP, completed there
+//! with a Data End and a Footer, so every reader takes it whole; a file
+//! left without a frame is removed.
 
 use crate::config::RecFormat;
 use lightpose_core::{Frame, LogHeader, LogWriter, PoseEstimate};
+use lightpose_logs::foxglove::Stamp;
 use lightpose_logs::{LogSink, McapOptions, McapWriter, WriteError};
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
+use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::Arc;
 
-/// The file under a sink, counting what reaches it.
+/// Creates a recording's file (which must not exist yet); tests put one
+/// under it that fails as a full disk does.
+pub type Opener = fn(&Path) -> io::Result<File>;
+
+/// The opener of the daemon: a new file, never one that exists.
+pub fn create_new(path: &Path) -> io::Result<File> {
+    File::options().write(true).create_new(true).open(path)
+}
+
+/// The file under a sink, counting what reaches it and whether a write
+/// failed (then the bytes that reached the file are no longer known to
+/// end where a record ends).
 struct Counted {
     file: File,
     bytes: Arc<AtomicU64>,
+    failed: Arc<AtomicBool>,
 }
 
 impl Write for Counted {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        let n = self.file.write(buf)?;
-        self.bytes.fetch_add(n as u64, Relaxed);
-        Ok(n)
+        match self.file.write(buf) {
+            Ok(n) => {
+                self.bytes.fetch_add(n as u64, Relaxed);
+                Ok(n)
+            }
+            Err(e) => {
+                if e.kind() != io::ErrorKind::Interrupted {
+                    self.failed.store(true, Relaxed);
+                }
+                Err(e)
+            }
+        }
     }
     fn flush(&mut self) -> io::Result<()> {
         self.file.flush()
     }
 }
 
+/// Why a frame was not written.
+#[derive(Debug)]
+pub enum RecError {
+    /// The frame cannot be held in this format (MCAP: t has no log time):
+    /// that frame only is passed over, the file goes on.
+    Skip(WriteError),
+    /// The disk refused: the file is ended.
+    Disk(String),
+}
+
+/// Why `f` and `est` cannot be recorded in `format`, if they cannot: an
+/// MCAP log time is the frame's t, which must be ≥ 0 (a replayed log whose
+/// epoch is not its start, say).
+pub fn unencodable(format: RecFormat, f: &Frame, est: &PoseEstimate) -> Option<WriteError> {
+    if format != RecFormat::Mcap {
+        return None;
+    }
+    let time = |what, seq, t| {
+        Stamp::of(t)
+            .is_none()
+            .then_some(WriteError::Time { what, seq, t })
+    };
+    time("frame", f.seq, f.t).or_else(|| time("pose", est.seq, est.t))
+}
+
+/// How a file ended.
+#[derive(Debug, Default, PartialEq)]
+pub struct Closed {
+    /// Frames the file keeps.
+    pub kept: u64,
+    /// Frames written to it but cut off after its last whole point.
+    pub lost: u64,
+    /// It kept no frame and was removed.
+    pub removed: bool,
+    /// Why it could not be completed (it is cut back, and sealed in MCAP).
+    pub error: Option<String>,
+}
+
 /// An open recording.
 pub struct RecFile {
     pub path: PathBuf,
+    format: RecFormat,
     sink: Box<dyn LogSink + Send>,
-    /// The same file, to sync it (the sink owns the first handle).
+    /// The same file, to sync it, and to cut it back if writing fails (the
+    /// sink owns the first handle).
     sync: File,
     bytes: Arc<AtomicU64>,
+    failed: Arc<AtomicBool>,
     /// Frames written, and frames known to be on the disk (synced).
     frames: u64,
     synced: u64,
+    /// The file's length at its last whole point (JSONL: after a line;
+    /// MCAP: after a sync, at a chunk's end), and the frames up to it.
+    good_len: u64,
+    good_frames: u64,
     #[cfg(test)]
     sink_fd: std::os::fd::RawFd,
 }
@@ -59,32 +133,59 @@ pub fn extension(format: RecFormat) -> &'static str {
     }
 }
 
+/// Cut `file` back to `len`, a whole point, and seal an MCAP there; synced.
+fn cut_back(file: &File, format: RecFormat, len: u64) -> io::Result<()> {
+    file.set_len(len)?;
+    if format == RecFormat::Mcap {
+        if let Err(e) = file.write_all_at(&lightpose_logs::mcap_end(), len) {
+            // Readable up to `len` still: no half-written end.
+            let _ = file.set_len(len);
+            return Err(e);
+        }
+    }
+    file.sync_all()
+}
+
 /// One line naming the file.
 fn named(path: &Path, e: impl std::fmt::Display) -> String {
     format!("{}: {e}", path.display())
 }
 
 impl RecFile {
-    /// Create `path` (which must not exist) and write its header; MCAP
-    /// chunks close at `chunk_bytes` (and on the recorder's timer).
+    /// Create `path` (which must not exist) with `open` and write its
+    /// header; MCAP chunks close at `chunk_bytes` (and on the recorder's
+    /// timer). A file that could not be started is removed.
     pub fn create(
         path: PathBuf,
         format: RecFormat,
         header: &LogHeader,
         chunk_bytes: u64,
+        open: Opener,
     ) -> Result<RecFile, String> {
-        let file = File::options()
-            .write(true)
-            .create_new(true)
-            .open(&path)
-            .map_err(|e| named(&path, e))?;
+        let file = open(&path).map_err(|e| named(&path, e))?;
+        let started = RecFile::start(path.clone(), format, header, chunk_bytes, file);
+        if started.is_err() {
+            let _ = std::fs::remove_file(&path);
+        }
+        started
+    }
+
+    fn start(
+        path: PathBuf,
+        format: RecFormat,
+        header: &LogHeader,
+        chunk_bytes: u64,
+        file: File,
+    ) -> Result<RecFile, String> {
         let sync = file.try_clone().map_err(|e| named(&path, e))?;
         #[cfg(test)]
         let sink_fd = std::os::fd::AsRawFd::as_raw_fd(&file);
         let bytes = Arc::new(AtomicU64::new(0));
+        let failed = Arc::new(AtomicBool::new(false));
         let counted = Counted {
             file,
             bytes: bytes.clone(),
+            failed: failed.clone(),
         };
         let sink: Box<dyn LogSink + Send> = match format {
             RecFormat::Jsonl => {
@@ -101,20 +202,29 @@ impl RecFile {
                 Box::new(McapWriter::new(w, header, &opts).map_err(|e| named(&path, e))?)
             }
         };
+        // JSONL: the header line is on the file.
+        let good_len = bytes.load(Relaxed);
         Ok(RecFile {
             path,
+            format,
             sink,
             sync,
             bytes,
+            failed,
             frames: 0,
             synced: 0,
+            good_len,
+            good_frames: 0,
             #[cfg(test)]
             sink_fd,
         })
     }
 
     /// A frame and its estimate (JSONL keeps the frame only).
-    pub fn write(&mut self, f: &Frame, est: &PoseEstimate, wall: f64) -> Result<(), String> {
+    pub fn write(&mut self, f: &Frame, est: &PoseEstimate, wall: f64) -> Result<(), RecError> {
+        if let Some(e) = unencodable(self.format, f, est) {
+            return Err(RecError::Skip(e));
+        }
         self.sink
             .write_frame(f)
             .and_then(|()| {
@@ -124,8 +234,13 @@ impl RecFile {
                     Ok(())
                 }
             })
-            .map_err(|e| self.err(e))?;
+            .map_err(|e| RecError::Disk(self.err(e)))?;
         self.frames += 1;
+        if self.format == RecFormat::Jsonl {
+            // Each line in one write: the file ends with it.
+            self.good_len = self.bytes();
+            self.good_frames = self.frames;
+        }
         Ok(())
     }
 
@@ -140,15 +255,59 @@ impl RecFile {
         self.sink.flush().map_err(|e| self.err(e))?;
         self.sync.sync_data().map_err(|e| named(&self.path, e))?;
         self.synced = self.frames;
+        self.good_len = self.bytes();
+        self.good_frames = self.frames;
         Ok(())
     }
 
-    /// Complete the file (MCAP: its summary and footer) and sync it.
-    pub fn close(self) -> Result<(), String> {
-        let path = self.path;
-        let report = |e: WriteError| named(&path, crate::error::report(&e));
-        self.sink.finish().map_err(report)?;
-        self.sync.sync_all().map_err(|e| named(&path, e))
+    /// Complete the file (MCAP: its summary and footer) and sync it. When
+    /// it cannot be (a write failed, now or before), it is cut back to its
+    /// last whole point and, in MCAP, sealed there; a file without a frame
+    /// is removed.
+    pub fn close(self) -> Closed {
+        let RecFile {
+            path,
+            format,
+            sink,
+            sync,
+            failed,
+            frames,
+            good_len,
+            good_frames,
+            ..
+        } = self;
+        let mut error = None;
+        if frames > 0 && !failed.load(Relaxed) {
+            let report = |e: WriteError| named(&path, crate::error::report(&e));
+            let done = sink.finish().map_err(report);
+            match done.and_then(|()| sync.sync_all().map_err(|e| named(&path, e))) {
+                Ok(()) => {
+                    return Closed {
+                        kept: frames,
+                        ..Closed::default()
+                    }
+                }
+                Err(e) => error = Some(e),
+            }
+        } else {
+            // Whatever its drop still writes is cut off below.
+            drop(sink);
+        }
+        let mut closed = Closed {
+            kept: good_frames,
+            lost: frames - good_frames,
+            removed: good_frames == 0,
+            error,
+        };
+        let cut = if closed.removed {
+            std::fs::remove_file(&path).map_err(|e| named(&path, e))
+        } else {
+            cut_back(&sync, format, good_len).map_err(|e| named(&path, e))
+        };
+        if let Err(e) = cut {
+            closed.error.get_or_insert(e);
+        }
+        closed
     }
 
     pub fn bytes(&self) -> u64 {

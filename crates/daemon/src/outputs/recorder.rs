@@ -4,24 +4,29 @@
 //! frame and its estimate over a bounded queue whose slots are allocated
 //! once. Every `flush_s` the open file is pushed to the disk (MCAP: its
 //! chunk closed) and synced; files rotate by size or age. A disk that
-//! refuses is reported (STATUS, log) and retried; frames that could not be
+//! refuses is reported (STATUS, log) and retried less and less often
+//! ([`worker`]); a nearly full disk is not written to, and old recordings
+//! may be pruned to make room ([`space`]); frames that could not be
 //! recorded are counted, never hidden.
 
-use super::recfile::{extension, RecFile};
+mod space;
+#[cfg(test)]
+mod tests;
+mod worker;
+
+pub use space::MIN_FREE;
+
 use super::{Output, StatusTap};
 use crate::config::{RecFormat, Recording};
 use crate::engine::Acquired;
 use lightpose_core::{Frame, LogHeader, PoseEstimate};
 use std::io;
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering::Relaxed};
-use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
-
-/// How long to wait before trying a refusing disk again.
-const RETRY: Duration = Duration::from_secs(2);
+use worker::Worker;
 
 /// How long a stop waits for the disk to take the frames still queued: a
 /// disk that hangs (a dead network share, a full pipe) must not hold the
@@ -69,6 +74,16 @@ pub struct RecStats {
     pub failed: AtomicU64,
     /// Frames that found the queue full (disk too slow).
     pub dropped: AtomicU64,
+    /// Frames the format cannot hold (MCAP: t < 0), passed over one by one.
+    pub skipped: AtomicU64,
+    /// STATUS objects that found their queue full (MCAP).
+    pub status_dropped: AtomicU64,
+    /// Times recording went into `error`, and attempts that failed again
+    /// while in it (each after a longer wait).
+    pub outages: AtomicU64,
+    pub retries: AtomicU64,
+    /// Old recordings deleted to make room (`keep_free_mb`, `max_total_mb`).
+    pub pruned: AtomicU64,
     pub files: AtomicU64,
     pub bytes: AtomicU64,
     /// Frames known to be on the disk: written before the last flush
@@ -105,14 +120,6 @@ struct Item {
 
 /// STATUS objects that may wait for the recorder (MCAP records them).
 const STATUS_QUEUE: usize = 4;
-
-/// Chunk size of an MCAP recording: chunks close when this full or on the
-/// `flush_s` timer, whichever comes first.
-const CHUNK_BYTES: u64 = 64 << 10;
-
-/// How long the recorder thread sleeps at most when no frame comes (a
-/// STATUS may be waiting).
-const IDLE: Duration = Duration::from_millis(250);
 
 /// The frame path's end of the recorder.
 pub struct Recorder {
@@ -179,9 +186,12 @@ impl Recorder {
     }
 
     /// Where the supervisor hands each STATUS (recorded in MCAP only; a
-    /// full queue drops it).
+    /// full queue drops it, counted).
     pub fn status_tap(&self) -> Box<dyn StatusTap> {
-        Box::new(self.status_tx.clone())
+        Box::new(StatusFeed {
+            tx: self.status_tx.clone(),
+            stats: self.stats.clone(),
+        })
     }
 
     /// Close the queue and wait until every queued frame is on disk, at
@@ -220,9 +230,28 @@ impl Recorder {
     }
 }
 
-impl StatusTap for SyncSender<Vec<u8>> {
+/// STATUS on its way to the recorder thread.
+struct StatusFeed {
+    tx: SyncSender<Vec<u8>>,
+    stats: Arc<RecStats>,
+}
+
+impl StatusTap for StatusFeed {
     fn status(&self, json: &[u8]) {
-        let _ = self.try_send(json.to_vec());
+        // JSON Lines keeps no STATUS: nothing to queue.
+        if self.stats.format != RecFormat::Mcap {
+            return;
+        }
+        // Disconnected: the recorder thread ended (the daemon stops).
+        if let Err(TrySendError::Full(_)) = self.tx.try_send(json.to_vec()) {
+            let n = self.stats.status_dropped.fetch_add(1, Relaxed) + 1;
+            if n == 1 || n.is_multiple_of(100) {
+                tracing::warn!(
+                    status_dropped = n,
+                    "recording: the recorder thread is behind (a slow disk): STATUS not recorded"
+                );
+            }
+        }
     }
 }
 
@@ -242,201 +271,6 @@ impl Output for Recorder {
 impl Drop for Recorder {
     fn drop(&mut self) {
         self.finish();
-    }
-}
-
-struct Worker {
-    cfg: Recording,
-    header: LogHeader,
-    stats: Arc<RecStats>,
-    file: Option<RecFile>,
-    opened: Instant,
-    retry_at: Option<Instant>,
-    /// When the open file is next pushed to the disk (set by the first
-    /// write after a flush).
-    flush_at: Option<Instant>,
-    seq_in_run: u32,
-    /// t of the last frame written: STATUS is recorded at it.
-    last_t: Option<f64>,
-}
-
-impl Worker {
-    fn new(cfg: &Recording, header: LogHeader, stats: Arc<RecStats>) -> Worker {
-        Worker {
-            cfg: cfg.clone(),
-            header,
-            stats,
-            file: None,
-            opened: Instant::now(),
-            retry_at: None,
-            flush_at: None,
-            seq_in_run: 0,
-            last_t: None,
-        }
-    }
-
-    fn run(mut self, rx: Receiver<Item>, status_rx: Receiver<Vec<u8>>) {
-        loop {
-            let now = Instant::now();
-            let wait = self
-                .flush_at
-                .map_or(IDLE, |t| t.saturating_duration_since(now).min(IDLE));
-            match rx.recv_timeout(wait) {
-                Ok(item) => {
-                    self.stats.queued.fetch_sub(1, Relaxed);
-                    if self.stats.abandoned.load(Relaxed) {
-                        break;
-                    }
-                    self.write(&item);
-                }
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => break,
-            }
-            while let Ok(s) = status_rx.try_recv() {
-                self.status(&s);
-            }
-            if self.flush_at.is_some_and(|t| Instant::now() >= t) {
-                self.flush();
-            }
-        }
-        self.close();
-        // A refusing disk stays visible in the last STATUS.
-        if self.stats.state() != RecState::Error {
-            self.stats.set_state(RecState::Closed);
-        }
-    }
-
-    fn fail(&mut self, what: String) {
-        if self.stats.state() != RecState::Error {
-            tracing::error!(
-                "recording: {what}; publishing goes on, retrying every {}s",
-                RETRY.as_secs()
-            );
-        }
-        if let Ok(mut e) = self.stats.error.lock() {
-            *e = Some(what);
-        }
-        self.stats.set_state(RecState::Error);
-        self.file = None;
-        self.flush_at = None;
-        self.retry_at = Some(Instant::now() + RETRY);
-    }
-
-    fn due_for_rotation(&self) -> bool {
-        let Some(f) = &self.file else { return false };
-        self.cfg.rotate_bytes.is_some_and(|b| f.bytes() >= b)
-            || self
-                .cfg
-                .rotate_after
-                .is_some_and(|a| self.opened.elapsed() >= a)
-    }
-
-    fn write(&mut self, item: &Item) {
-        if self.due_for_rotation() {
-            self.close();
-        }
-        if self.file.is_none() {
-            if self.retry_at.is_some_and(|t| Instant::now() < t) {
-                self.stats.failed.fetch_add(1, Relaxed);
-                return;
-            }
-            if let Err(e) = self.open(item.frame.adc_bits) {
-                self.fail(e);
-                self.stats.failed.fetch_add(1, Relaxed);
-                return;
-            }
-        }
-        let Some(f) = self.file.as_mut() else {
-            return;
-        };
-        match f.write(&item.frame, &item.est, item.wall_unix) {
-            Ok(()) => {
-                self.stats.frames.fetch_add(1, Relaxed);
-                self.stats.bytes.store(f.bytes(), Relaxed);
-                self.last_t = Some(item.frame.t);
-                if self.flush_at.is_none() {
-                    self.flush_at = Some(Instant::now() + self.cfg.flush);
-                }
-            }
-            Err(e) => {
-                self.stats.failed.fetch_add(1, Relaxed);
-                self.fail(e);
-            }
-        }
-    }
-
-    /// A STATUS into the open file, at the last frame's t.
-    fn status(&mut self, json: &[u8]) {
-        let (Some(f), Some(t)) = (self.file.as_mut(), self.last_t) else {
-            return;
-        };
-        if let Err(e) = f.status(t, json) {
-            self.fail(e);
-        }
-    }
-
-    /// Push the open file to the disk (the flush_s timer).
-    fn flush(&mut self) {
-        self.flush_at = None;
-        let Some(f) = self.file.as_mut() else { return };
-        match f.flush() {
-            Ok(()) => {
-                self.stats.bytes.store(f.bytes(), Relaxed);
-                let synced = self.stats.frames.load(Relaxed) - f.unsynced();
-                self.stats.synced.store(synced, Relaxed);
-            }
-            Err(e) => self.fail(e),
-        }
-    }
-
-    fn open(&mut self, adc_bits: u8) -> Result<(), String> {
-        std::fs::create_dir_all(&self.cfg.dir)
-            .map_err(|e| format!("{}: {e}", self.cfg.dir.display()))?;
-        self.seq_in_run += 1;
-        let path: PathBuf = self.cfg.dir.join(format!(
-            "lightposed-{}-{:04}.{}",
-            utc_stamp(SystemTime::now()),
-            self.seq_in_run,
-            extension(self.cfg.format)
-        ));
-        let mut header = self.header.clone();
-        header.adc_bits = adc_bits;
-        header.extra.insert("started".into(), unix_now().into());
-        let file = RecFile::create(path, self.cfg.format, &header, CHUNK_BYTES)?;
-        let was_error = self.stats.state() == RecState::Error;
-        let shown = file.path.display().to_string();
-        self.file = Some(file);
-        self.opened = Instant::now();
-        self.retry_at = None;
-        self.stats.files.fetch_add(1, Relaxed);
-        if was_error {
-            tracing::info!("recording resumed in {shown}");
-        } else {
-            tracing::info!("recording to {shown}");
-        }
-        if let Ok(mut c) = self.stats.current.lock() {
-            *c = Some(shown);
-        }
-        if let Ok(mut e) = self.stats.error.lock() {
-            *e = None;
-        }
-        self.stats.set_state(RecState::Recording);
-        Ok(())
-    }
-
-    /// Complete the open file (MCAP: summary and footer) and sync it, so
-    /// that a power cut after a clean stop or a rotation loses nothing.
-    fn close(&mut self) {
-        self.flush_at = None;
-        if let Some(f) = self.file.take() {
-            match f.close() {
-                Ok(()) => {
-                    let frames = self.stats.frames.load(Relaxed);
-                    self.stats.synced.store(frames, Relaxed);
-                }
-                Err(e) => tracing::warn!("recording: closing failed: {e}"),
-            }
-        }
     }
 }
 
@@ -467,224 +301,4 @@ pub fn utc_stamp(t: SystemTime) -> String {
         (rem % 3600) / 60,
         rem % 60
     )
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use lightpose_core::{LogReader, Status, NDET};
-    use std::fs::File;
-
-    fn frame(seq: u64) -> Frame {
-        Frame {
-            seq,
-            t: seq as f64 * 0.01,
-            adc_bits: 10,
-            counts: [seq as u16 % 1000; NDET],
-            temp_c: Some(20.0),
-            truth: None,
-            attitude: None,
-            depth: None,
-            velocity: None,
-        }
-    }
-
-    fn est(seq: u64) -> PoseEstimate {
-        PoseEstimate::empty(seq, seq as f64 * 0.01, Status::NoLight, "test")
-    }
-
-    fn cfg(dir: PathBuf, rotate_bytes: Option<u64>, queue: usize) -> Recording {
-        Recording {
-            dir,
-            rotate_bytes,
-            rotate_after: None,
-            queue,
-            format: crate::config::RecFormat::Jsonl,
-            flush: Duration::from_secs(2),
-        }
-    }
-
-    #[test]
-    fn stamp_of_known_instants() {
-        assert_eq!(utc_stamp(SystemTime::UNIX_EPOCH), "19700101T000000Z");
-        let t = SystemTime::UNIX_EPOCH + Duration::from_secs(1_709_210_096); // 2024-02-29 12:34:56
-        assert_eq!(utc_stamp(t), "20240229T123456Z");
-    }
-
-    #[test]
-    fn rotates_by_size_and_every_file_reads_back_whole() {
-        let dir = tempfile::tempdir().unwrap();
-        let cfg = cfg(dir.path().to_path_buf(), Some(2000), 1024);
-        let mut r = Recorder::start(&cfg, LogHeader::new(10, 100.0)).unwrap();
-        for s in 0..100 {
-            r.record(&frame(s), &est(s), 1.7e9);
-        }
-        r.finish();
-        assert_eq!(r.stats.frames.load(Relaxed), 100);
-        let mut files: Vec<_> = std::fs::read_dir(dir.path())
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .collect();
-        files.sort();
-        assert!(files.len() > 3, "rotated into {} files", files.len());
-        let mut seqs = Vec::new();
-        for f in &files {
-            let mut rd = LogReader::open(f).unwrap();
-            for fr in rd.by_ref() {
-                seqs.push(fr.unwrap().seq);
-            }
-            assert_eq!(rd.truncated_at(), None);
-        }
-        assert_eq!(seqs, (0..100).collect::<Vec<_>>());
-        assert_eq!(r.stats.state(), RecState::Closed);
-    }
-
-    #[test]
-    fn refusing_disk_is_reported_not_fatal() {
-        let dir = tempfile::tempdir().unwrap();
-        let blocker = dir.path().join("file");
-        std::fs::write(&blocker, b"x").unwrap();
-        // A directory under a file: ENOTDIR.
-        let cfg = cfg(blocker.join("sub"), None, 16);
-        let mut r = Recorder::start(&cfg, LogHeader::new(10, 5.0)).unwrap();
-        r.record(&frame(0), &est(0), 1.7e9);
-        r.record(&frame(1), &est(1), 1.7e9);
-        let t0 = Instant::now();
-        while r.stats.failed.load(Relaxed) < 2 && t0.elapsed() < Duration::from_secs(2) {
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        assert_eq!(r.stats.state(), RecState::Error);
-        assert_eq!(r.stats.failed.load(Relaxed), 2);
-        assert!(r
-            .stats
-            .error
-            .lock()
-            .unwrap()
-            .as_deref()
-            .unwrap_or("")
-            .contains("sub"));
-        r.finish();
-    }
-
-    #[test]
-    fn full_disk_mid_file_is_reported() {
-        // /dev/full refuses every write with ENOSPC: put it under an open
-        // log (dup2 onto the sink's descriptor), as a disk that fills up
-        // during a dive. JSON Lines meets it at the next line, MCAP at the
-        // next flush (its chunk is held in memory until then).
-        use crate::config::RecFormat;
-        use std::os::fd::AsRawFd;
-        let full = File::options().write(true).open("/dev/full").unwrap();
-        for format in [RecFormat::Jsonl, RecFormat::Mcap] {
-            let dir = tempfile::tempdir().unwrap();
-            let stats = Arc::new(RecStats::default());
-            let mut c = cfg(dir.path().to_path_buf(), None, 1);
-            c.format = format;
-            let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone());
-            let item = |seq| Item {
-                frame: frame(seq),
-                est: est(seq),
-                wall_unix: 1.7e9,
-            };
-            w.write(&item(0));
-            assert_eq!(stats.state(), RecState::Recording);
-            let fd = w.file.as_ref().unwrap().sink_fd();
-            nix::unistd::dup2(full.as_raw_fd(), fd).unwrap();
-            w.write(&item(1));
-            w.flush();
-            assert_eq!(stats.state(), RecState::Error, "{format:?}");
-            let err = stats.error.lock().unwrap().clone().unwrap_or_default();
-            assert!(err.contains("No space left"), "{format:?}: {err}");
-            assert!(err.contains(dir.path().to_str().unwrap()), "{err}");
-            // Within the retry delay further frames are counted as not
-            // recorded.
-            w.write(&item(2));
-            let failed = stats.failed.load(Relaxed);
-            match format {
-                RecFormat::Jsonl => assert_eq!((failed, stats.frames.load(Relaxed)), (2, 1)),
-                RecFormat::Mcap => assert_eq!((failed, stats.frames.load(Relaxed)), (1, 2)),
-            }
-        }
-    }
-
-    /// Issue 16: once recording resumes, STATUS no longer shows the error.
-    #[test]
-    fn the_error_is_cleared_when_recording_resumes() {
-        let dir = tempfile::tempdir().unwrap();
-        let blocker = dir.path().join("rec");
-        std::fs::write(&blocker, b"x").unwrap();
-        let stats = Arc::new(RecStats::default());
-        let mut w = Worker::new(
-            &cfg(blocker.clone(), None, 16),
-            LogHeader::new(10, 5.0),
-            stats.clone(),
-        );
-        let item = |seq| Item {
-            frame: frame(seq),
-            est: est(seq),
-            wall_unix: 1.7e9,
-        };
-        w.write(&item(0));
-        assert_eq!(stats.state(), RecState::Error);
-        assert!(stats.error.lock().unwrap().is_some());
-        std::fs::remove_file(&blocker).unwrap();
-        w.retry_at = None; // as after the retry delay
-        w.write(&item(1));
-        assert_eq!(stats.state(), RecState::Recording);
-        assert_eq!(*stats.error.lock().unwrap(), None, "old error still shown");
-    }
-
-    /// Issue 16: a disk that takes nothing more (here a FIFO nobody reads,
-    /// put under the open log) does not hold the stop: finish gives up
-    /// after its bound and counts what was left as not recorded.
-    #[test]
-    fn finish_does_not_wait_for_a_stuck_disk() {
-        use std::os::fd::AsRawFd;
-        let dir = tempfile::tempdir().unwrap();
-        let fifo = dir.path().join("stuck");
-        let made = std::process::Command::new("mkfifo")
-            .arg(&fifo)
-            .status()
-            .unwrap();
-        assert!(made.success(), "mkfifo");
-        // Read and write: opening does not wait for a reader, writes block
-        // once the pipe's 64 KiB are full.
-        let stuck = File::options().read(true).write(true).open(&fifo).unwrap();
-        let stats = Arc::new(RecStats::default());
-        let rec = dir.path().join("rec");
-        let mut w = Worker::new(
-            &cfg(rec, None, 4096),
-            LogHeader::new(10, 5.0),
-            stats.clone(),
-        );
-        w.write(&Item {
-            frame: frame(0),
-            est: est(0),
-            wall_unix: 1.7e9,
-        });
-        let fd = w.file.as_ref().unwrap().sink_fd();
-        nix::unistd::dup2(stuck.as_raw_fd(), fd).unwrap();
-        let mut r = Recorder::spawn(w, 4096).unwrap();
-        for s in 1..2000 {
-            r.record(&frame(s), &est(s), 1.7e9);
-        }
-        let t0 = Instant::now();
-        r.finish_within(Duration::from_millis(300));
-        let took = t0.elapsed();
-        assert!(took < Duration::from_secs(2), "{took:?}");
-        assert_eq!(stats.state(), RecState::Error);
-        let err = stats.error.lock().unwrap().clone().unwrap_or_default();
-        assert!(err.contains("not recorded"), "{err}");
-        let recorded = stats.frames.load(Relaxed);
-        let failed = stats.failed.load(Relaxed);
-        assert!(
-            failed > 0 && recorded + failed >= 1999,
-            "{recorded} + {failed}"
-        );
-        // Let the writer go: drain the FIFO.
-        let mut rd = File::open(&fifo).unwrap();
-        std::thread::spawn(move || {
-            let _ = std::io::copy(&mut rd, &mut std::io::sink());
-        });
-    }
 }

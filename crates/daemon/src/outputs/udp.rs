@@ -22,9 +22,10 @@ use crate::engine::Acquired;
 use crate::stats::DestStats;
 use lightpose_core::PoseEstimate;
 use socket2::SockRef;
+use std::io;
 use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 #[derive(Debug, thiserror::Error)]
 pub enum PublishError {
@@ -49,7 +50,13 @@ pub struct Destination {
     sock: UdpSocket,
     /// A unicast socket connected to `addr` (see the module).
     connected: AtomicBool,
+    /// The cause of `stats.last_error`: a refusal like the last one (every
+    /// other datagram while nobody listens) is not formatted again.
+    last_cause: Mutex<Option<Cause>>,
 }
+
+/// What tells two send errors apart without formatting them.
+type Cause = (io::ErrorKind, Option<i32>);
 
 impl Destination {
     fn open(addr: SocketAddr, multicast: bool) -> Result<Destination, PublishError> {
@@ -72,7 +79,23 @@ impl Destination {
             stats: DestStats::default(),
             sock,
             connected: AtomicBool::new(connected),
+            last_cause: Mutex::new(None),
         })
+    }
+
+    /// Keep `e` as the last error, formatted only when its cause changed.
+    fn note_error(&self, e: &io::Error) {
+        let cause = Some((e.kind(), e.raw_os_error()));
+        let Ok(mut last) = self.last_cause.lock() else {
+            return;
+        };
+        if *last == cause {
+            return;
+        }
+        *last = cause;
+        if let Ok(mut g) = self.stats.last_error.lock() {
+            *g = Some(e.to_string());
+        }
     }
 
     fn send(&self, msg: &[u8]) -> std::io::Result<usize> {
@@ -128,7 +151,9 @@ impl Publisher {
     }
 
     /// Send one datagram to every destination; returns how many took it.
-    /// Never allocates unless a destination fails (the error text).
+    /// Never allocates unless a destination fails with another error than
+    /// its last one (the error text) or for its first and every 1000th
+    /// error (the log line).
     pub fn send(&self, msg: &[u8]) -> usize {
         let mut ok = 0;
         for d in &self.dests {
@@ -144,11 +169,7 @@ impl Publisher {
                     if n == 1 || n.is_multiple_of(1000) {
                         tracing::warn!(destination = %d.addr, errors = n, "send failed: {e}");
                     }
-                    if let Ok(mut g) = d.stats.last_error.lock() {
-                        if g.as_deref() != Some(&e.to_string()) {
-                            *g = Some(e.to_string());
-                        }
-                    }
+                    d.note_error(&e);
                 }
             }
         }

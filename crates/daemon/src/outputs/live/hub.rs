@@ -4,10 +4,17 @@
 //! client subscribed to its channel. A full queue (a slow or dead client)
 //! drops the message for that client only, counted: nobody upstream ever
 //! waits for a client.
+//!
+//! Framing does not allocate once warm: each client's copy of a message
+//! (its subscription id differs) is a slice of a shared block
+//! ([`Blocks`]), and a block is used again once every message in it was
+//! written to its client.
 
+use bytes::{BufMut, Bytes, BytesMut};
 use lightpose_logs::foxglove::Stamp;
 use lightpose_logs::{Channel, Message};
 use serde_json::{json, Value};
+use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
@@ -17,13 +24,65 @@ use tokio::sync::mpsc::Sender;
 /// Opcode of a binary `messageData` frame (server → client).
 pub const MESSAGE_DATA: u8 = 0x01;
 
+/// Bytes of a block of framed messages, and blocks kept for use again.
+const BLOCK: usize = 64 << 10;
+const SPARE: usize = 16;
+
+/// The blocks that framed messages are cut from. The open block is split
+/// at each message (the message a `Bytes` sharing it, no allocation); a
+/// block whose messages are all written and dropped is taken back whole
+/// (`try_reclaim`), so a new one is allocated only while more messages
+/// wait in the clients' queues than the blocks kept hold.
+struct Blocks {
+    open: BytesMut,
+    spare: VecDeque<BytesMut>,
+}
+
+impl Blocks {
+    fn new() -> Blocks {
+        Blocks {
+            open: BytesMut::new(),
+            spare: VecDeque::with_capacity(SPARE + 1),
+        }
+    }
+
+    /// `m` framed for subscription `sub`.
+    fn frame(&mut self, sub: u32, m: &Message) -> Bytes {
+        self.room(13 + m.data.len());
+        self.open.put_u8(MESSAGE_DATA);
+        self.open.put_u32_le(sub);
+        self.open.put_u64_le(m.log_time);
+        self.open.extend_from_slice(m.data);
+        self.open.split().freeze()
+    }
+
+    /// Room for `n` bytes in the open block: itself taken back, or a
+    /// spare one, or a new one.
+    fn room(&mut self, n: usize) {
+        if self.open.try_reclaim(n) {
+            return;
+        }
+        let reused = self.spare.iter_mut().position(|b| b.try_reclaim(n));
+        let next = match reused.and_then(|i| self.spare.remove(i)) {
+            Some(b) => b,
+            None => BytesMut::with_capacity(BLOCK.max(n)),
+        };
+        let full = std::mem::replace(&mut self.open, next);
+        if self.spare.len() >= SPARE {
+            // Its memory goes with its last message.
+            self.spare.pop_front();
+        }
+        self.spare.push_back(full);
+    }
+}
+
 /// One connected client.
 pub struct Client {
     pub id: u64,
     pub addr: SocketAddr,
     /// Its subscription id for each channel (by [`Channel::index`]).
     subs: Mutex<[Option<u32>; 7]>,
-    tx: Sender<Vec<u8>>,
+    tx: Sender<Bytes>,
     pub sent: AtomicU64,
     pub dropped: AtomicU64,
 }
@@ -82,9 +141,12 @@ pub struct Hub {
     sent_gone: AtomicU64,
     /// Frames the encoder thread could not take (its queue full).
     pub handoff_dropped: AtomicU64,
+    /// Frames and estimates without a log time (t < 0): no message.
+    pub skipped: AtomicU64,
     /// t of the last frame (f64 bits): STATUS goes out at it.
     last_t: AtomicU64,
     status_seq: AtomicU32,
+    blocks: Mutex<Blocks>,
 }
 
 impl Hub {
@@ -100,8 +162,10 @@ impl Hub {
             dropped_gone: AtomicU64::new(0),
             sent_gone: AtomicU64::new(0),
             handoff_dropped: AtomicU64::new(0),
+            skipped: AtomicU64::new(0),
             last_t: AtomicU64::new(0f64.to_bits()),
             status_seq: AtomicU32::new(0),
+            blocks: Mutex::new(Blocks::new()),
         }
     }
 
@@ -117,7 +181,7 @@ impl Hub {
 
     /// A new client with a queue of `queue` messages; `None` when
     /// `max` clients are already served.
-    pub fn join(&self, addr: SocketAddr, tx: Sender<Vec<u8>>, max: usize) -> Option<Arc<Client>> {
+    pub fn join(&self, addr: SocketAddr, tx: Sender<Bytes>, max: usize) -> Option<Arc<Client>> {
         let mut clients = self.clients.lock().ok()?;
         if clients.len() >= max {
             self.refused.fetch_add(1, Relaxed);
@@ -172,16 +236,14 @@ impl Hub {
         let Ok(clients) = self.clients.lock() else {
             return;
         };
+        let Ok(mut blocks) = self.blocks.lock() else {
+            return;
+        };
         for c in clients.iter() {
             let Some(sub) = c.subscription(m.channel) else {
                 continue;
             };
-            let mut frame = Vec::with_capacity(13 + m.data.len());
-            frame.push(MESSAGE_DATA);
-            frame.extend_from_slice(&sub.to_le_bytes());
-            frame.extend_from_slice(&m.log_time.to_le_bytes());
-            frame.extend_from_slice(m.data);
-            match c.tx.try_send(frame) {
+            match c.tx.try_send(blocks.frame(sub, m)) {
                 Ok(()) => {}
                 Err(TrySendError::Full(_)) => {
                     c.dropped.fetch_add(1, Relaxed);
@@ -238,6 +300,7 @@ impl Hub {
             "sent": sent,
             "dropped": dropped,
             "handoff_dropped": self.handoff_dropped.load(Relaxed),
+            "skipped": self.skipped.load(Relaxed),
             "client_list": list,
         })
     }

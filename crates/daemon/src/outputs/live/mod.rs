@@ -7,11 +7,14 @@
 //! 1. the frame thread ([`LiveView::emit`]) copies the frame and its
 //!    estimate into a bounded queue whose slots are allocated once, and
 //!    only when some client subscribed to something; a full queue drops
-//!    the frame (counted, `handoff_dropped`);
+//!    the frame (counted, `handoff_dropped`, as is a frame handed to an
+//!    encoder thread that is gone);
 //! 2. the encoder thread formats the messages (lightpose-logs' `Encoder`,
 //!    the same bytes as a recording) and hands each to the [`hub::Hub`],
 //!    which puts it into the bounded queue of every subscribed client,
-//!    dropping (and counting) it for a client whose queue is full;
+//!    dropping (and counting) it for a client whose queue is full; a frame
+//!    or estimate without a log time (t < 0) has no message (counted,
+//!    `skipped`);
 //! 3. one task per client on the daemon's runtime writes its queue to its
 //!    socket ([`server`]).
 
@@ -23,7 +26,7 @@ use crate::config::Foxglove;
 use crate::engine::Acquired;
 use hub::Hub;
 use lightpose_core::{Frame, LogHeader, PoseEstimate};
-use lightpose_logs::{Encoder, Message};
+use lightpose_logs::{Encoder, Message, WriteError};
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::Arc;
@@ -75,8 +78,21 @@ fn encode(rx: Receiver<Item>, mut enc: Encoder, hub: &Hub) {
         hub.note_frame_t(item.frame.t);
         // A frame or estimate without a log time (t < 0) has no message:
         // the recording refuses it the same way.
-        let _ = enc.frame(&item.frame, &mut publish);
-        let _ = enc.pose(&item.est, Some(item.wall_unix), &mut publish);
+        if let Err(e) = enc.frame(&item.frame, &mut publish) {
+            skipped(hub, &e);
+        }
+        if let Err(e) = enc.pose(&item.est, Some(item.wall_unix), &mut publish) {
+            skipped(hub, &e);
+        }
+    }
+}
+
+/// A frame or estimate that has no message: counted, logged at the first
+/// and every 1000th.
+fn skipped(hub: &Hub, e: &WriteError) {
+    let n = hub.skipped.fetch_add(1, Relaxed) + 1;
+    if n == 1 || n.is_multiple_of(1000) {
+        tracing::warn!(skipped = n, "live view: {e}: not shown");
     }
 }
 
@@ -92,8 +108,24 @@ impl Output for LiveView {
             est: *est,
             wall_unix: frame.wall_unix,
         };
-        if let Err(TrySendError::Full(_)) = tx.try_send(item) {
-            self.hub.handoff_dropped.fetch_add(1, Relaxed);
+        let gone = match tx.try_send(item) {
+            Ok(()) => return,
+            Err(TrySendError::Full(_)) => false,
+            Err(TrySendError::Disconnected(_)) => true,
+        };
+        let n = self.hub.handoff_dropped.fetch_add(1, Relaxed) + 1;
+        if n == 1 || n.is_multiple_of(1000) {
+            if gone {
+                tracing::error!(
+                    handoff_dropped = n,
+                    "live view: the encoder thread is gone: frame not shown"
+                );
+            } else {
+                tracing::warn!(
+                    handoff_dropped = n,
+                    "live view: the encoder thread is behind: frame not shown"
+                );
+            }
         }
     }
 

@@ -29,7 +29,7 @@ use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::handshake::server::{ErrorResponse, Request, Response};
 use tokio_tungstenite::tungstenite::http::{HeaderValue, StatusCode};
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
-use tokio_tungstenite::tungstenite::Message as Ws;
+use tokio_tungstenite::tungstenite::{Bytes, Message as Ws};
 use tokio_tungstenite::WebSocketStream;
 
 /// Subprotocols served, best first: both name protocol v1 with channels
@@ -158,6 +158,14 @@ struct Subscription {
     channel_id: u64,
 }
 
+/// The index of channel `id` (advertised from 1): `None` for 0 and for
+/// an id beyond `usize`, which must not wrap (on 32-bit ARM 2³² + 1 would
+/// be channel 1).
+fn channel_index(id: u64) -> Option<usize> {
+    let i = usize::try_from(id.checked_sub(1)?).ok()?;
+    (i < Channel::ALL.len()).then_some(i)
+}
+
 /// A warning `status` message for the client.
 fn warning(msg: &str) -> Ws {
     Ws::text(json!({"op": "status", "level": 1, "message": msg}).to_string())
@@ -170,8 +178,8 @@ fn request(hub: &Hub, c: &Client, text: &str) -> Option<Ws> {
             let unknown: Vec<u64> = subscriptions
                 .iter()
                 .filter(|s| {
-                    let index = s.channel_id.checked_sub(1).map(|i| i as usize);
-                    !index.is_some_and(|i| i < Channel::ALL.len() && c.subscribe(hub, s.id, i))
+                    let index = channel_index(s.channel_id);
+                    !index.is_some_and(|i| c.subscribe(hub, s.id, i))
                 })
                 .map(|s| s.channel_id)
                 .collect();
@@ -192,9 +200,9 @@ fn request(hub: &Hub, c: &Client, text: &str) -> Option<Ws> {
 /// Write `first` and whatever else is queued (up to [`BATCH`]), then flush.
 async fn write_batch(
     ws: &mut WebSocketStream<TcpStream>,
-    rx: &mut mpsc::Receiver<Vec<u8>>,
+    rx: &mut mpsc::Receiver<Bytes>,
     c: &Client,
-    first: Vec<u8>,
+    first: Bytes,
 ) -> Result<(), String> {
     let mut n = 1;
     let write = async {
@@ -250,7 +258,7 @@ async fn client(stream: TcpStream, addr: SocketAddr, hub: Arc<Hub>, limits: Limi
 /// hub ends; why it ended.
 async fn session_loop(
     ws: &mut WebSocketStream<TcpStream>,
-    rx: &mut mpsc::Receiver<Vec<u8>>,
+    rx: &mut mpsc::Receiver<Bytes>,
     hub: &Hub,
     c: &Client,
 ) -> String {
@@ -321,6 +329,19 @@ mod tests {
         assert!(hub.wanted());
         assert!(request(&hub, &c, r#"{"op":"unsubscribe","subscriptionIds":[5]}"#).is_none());
         assert!(!hub.wanted());
+        // 2³² + 1: channel 1 once cut to 32 bits (armv7's usize).
+        let wide = r#"{"op":"subscribe","subscriptions":[{"id":1,"channelId":4294967297}]}"#;
+        let reply = request(&hub, &c, wide).expect("a warning");
+        assert!(
+            reply.to_text().unwrap().contains("no channel [4294967297]"),
+            "{reply}"
+        );
+        assert!(!hub.wanted(), "subscribed to a channel that does not exist");
+        assert_eq!(channel_index(1), Some(0));
+        assert_eq!(channel_index(7), Some(6));
+        for bad in [0, 8, 1 << 32, (1 << 32) + 1, u64::MAX] {
+            assert_eq!(channel_index(bad), None, "{bad}");
+        }
         let reply = request(&hub, &c, r#"{"op":"advertise","channels":[]}"#).unwrap();
         assert!(
             reply.to_text().unwrap().contains("not understood"),

@@ -1,0 +1,163 @@
+//! Room on the recording's disk: free space (`statvfs`, what the daemon's
+//! user may still write) is checked before a file starts and every
+//! [`EVERY`] while one is open. Below the free space to keep, no file is
+//! started and the open one is completed while it still can be, so a
+//! full disk never leaves a recording cut nor empty files behind. With
+//! `keep_free_mb` or `max_total_mb` the oldest recordings in the directory
+//! (this daemon's names, `lightposed-*.jsonl` / `.mcap`) are deleted first
+//! to make room; the open file never is.
+
+use super::RecStats;
+use crate::config::Recording;
+use std::io;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::time::Duration;
+
+/// Free space kept when `keep_free_mb` is not given (nothing is pruned
+/// then): far more than a few seconds of recording, an MCAP chunk and a
+/// summary.
+pub const MIN_FREE: u64 = 32 << 20;
+
+/// How often the room is checked while a file is open.
+pub const EVERY: Duration = Duration::from_secs(2);
+
+const MIB: f64 = 1024.0 * 1024.0;
+
+pub(crate) struct Space {
+    dir: PathBuf,
+    /// Bytes to keep free: below, nothing is written (0: no check).
+    pub(crate) keep_free: u64,
+    /// Delete the oldest recordings to keep `keep_free` free.
+    prune_free: bool,
+    /// The recordings' total kept under this, oldest deleted first.
+    max_total: Option<u64>,
+    /// A recording could not be deleted (said once, not every check).
+    stuck: AtomicBool,
+}
+
+/// A recording in the directory.
+struct Old {
+    path: PathBuf,
+    size: u64,
+}
+
+impl Space {
+    pub(crate) fn new(cfg: &Recording) -> Space {
+        Space {
+            dir: cfg.dir.clone(),
+            keep_free: cfg.keep_free_bytes.unwrap_or(MIN_FREE),
+            prune_free: cfg.keep_free_bytes.is_some_and(|b| b > 0),
+            max_total: cfg.max_total_bytes,
+            stuck: AtomicBool::new(false),
+        }
+    }
+
+    /// Prune as configured (never `current`), then whether a file may be
+    /// written: why not, when it may not.
+    pub(crate) fn make_room(&self, current: Option<&Path>, stats: &RecStats) -> Result<(), String> {
+        if let Some(max) = self.max_total {
+            let all = recordings(&self.dir);
+            let mut total: u64 = all.iter().map(|o| o.size).sum();
+            for old in all.iter().filter(|o| Some(o.path.as_path()) != current) {
+                if total <= max {
+                    break;
+                }
+                if self.prune(old, "max_total_mb", stats) {
+                    total -= old.size;
+                }
+            }
+        }
+        if self.keep_free == 0 {
+            return Ok(());
+        }
+        // Unknown: the disk says so itself when it is full.
+        let Ok(mut free) = free_bytes(&self.dir) else {
+            return Ok(());
+        };
+        if free < self.keep_free && self.prune_free {
+            for old in recordings(&self.dir) {
+                if free >= self.keep_free {
+                    break;
+                }
+                if Some(old.path.as_path()) != current && self.prune(&old, "keep_free_mb", stats) {
+                    free = free_bytes(&self.dir).unwrap_or(free.saturating_add(old.size));
+                }
+            }
+        }
+        if free >= self.keep_free {
+            return Ok(());
+        }
+        Err(format!(
+            "{}: {:.1} MiB free, less than the {:.1} MiB kept free (recording.keep_free_mb): no recording until there is room",
+            self.dir.display(),
+            free as f64 / MIB,
+            self.keep_free as f64 / MIB
+        ))
+    }
+}
+
+impl Space {
+    /// Delete `old` (for `key`); whether it went.
+    fn prune(&self, old: &Old, key: &str, stats: &RecStats) -> bool {
+        match std::fs::remove_file(&old.path) {
+            Ok(()) => {
+                stats.pruned.fetch_add(1, Relaxed);
+                tracing::info!(
+                    "recording: deleted {} ({:.1} MiB) for {key}",
+                    old.path.display(),
+                    old.size as f64 / MIB
+                );
+                true
+            }
+            Err(e) => {
+                let what = format!(
+                    "recording: cannot delete {} for {key}: {e}",
+                    old.path.display()
+                );
+                if self.stuck.swap(true, Relaxed) {
+                    tracing::debug!("{what}");
+                } else {
+                    tracing::warn!("{what}");
+                }
+                false
+            }
+        }
+    }
+}
+
+/// Bytes the daemon's user may still write on the filesystem of `dir`.
+pub fn free_bytes(dir: &Path) -> io::Result<u64> {
+    let s = nix::sys::statvfs::statvfs(dir).map_err(io::Error::from)?;
+    // 32-bit types on 32-bit ARM, 64-bit here.
+    #[allow(clippy::useless_conversion)]
+    let (blocks, size) = (
+        u64::from(s.blocks_available()),
+        u64::from(s.fragment_size()),
+    );
+    Ok(blocks.saturating_mul(size))
+}
+
+/// This daemon's recordings in `dir`, oldest first: by name, which starts
+/// with the UTC time the file was opened at.
+fn recordings(dir: &Path) -> Vec<Old> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut found: Vec<(String, Old)> = entries
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().into_string().ok()?;
+            let ours = name.starts_with("lightposed-")
+                && (name.ends_with(".jsonl") || name.ends_with(".mcap"));
+            let meta = e.metadata().ok().filter(|m| ours && m.is_file())?;
+            let old = Old {
+                path: e.path(),
+                size: meta.len(),
+            };
+            Some((name, old))
+        })
+        .collect();
+    found.sort_by(|a, b| a.0.cmp(&b.0));
+    found.into_iter().map(|(_, o)| o).collect()
+}

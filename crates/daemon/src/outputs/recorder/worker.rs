@@ -1,0 +1,339 @@
+//! The recorder thread: frames and STATUS into the open file, the file
+//! pushed to the disk on its timer, rotated, and a refusing disk retried
+//! with a wait that doubles at each failed attempt (2 s up to 60 s). Going
+//! into `error` and coming back out are each logged once, not each
+//! attempt; a file opened while in error must reach the disk (its first
+//! sync) before recording counts as resumed.
+
+use super::space::{Space, EVERY};
+use super::{Item, RecState, RecStats};
+use crate::config::Recording;
+use crate::outputs::recfile::{self, extension, Closed, Opener, RecError, RecFile};
+use lightpose_core::LogHeader;
+use lightpose_logs::WriteError;
+use std::path::PathBuf;
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::Arc;
+use std::time::{Duration, Instant, SystemTime};
+
+/// The first wait before trying a refusing disk again, and the longest.
+pub(super) const RETRY_FIRST: Duration = Duration::from_secs(2);
+pub(super) const RETRY_MAX: Duration = Duration::from_secs(60);
+
+/// Chunk size of an MCAP recording: chunks close when this full or on the
+/// `flush_s` timer, whichever comes first.
+const CHUNK_BYTES: u64 = 64 << 10;
+
+/// How long the recorder thread sleeps at most when no frame comes (a
+/// STATUS may be waiting, the disk's room is checked).
+const IDLE: Duration = Duration::from_millis(250);
+
+pub(super) struct Worker {
+    cfg: Recording,
+    header: LogHeader,
+    pub(super) stats: Arc<RecStats>,
+    pub(super) file: Option<RecFile>,
+    opened: Instant,
+    pub(super) retry_at: Option<Instant>,
+    /// The wait after the next failure while in error.
+    pub(super) backoff: Duration,
+    /// The open file was opened while in error and has not reached the
+    /// disk yet: recording has not resumed.
+    probation: bool,
+    /// When the open file is next pushed to the disk (set by the first
+    /// write after a flush).
+    flush_at: Option<Instant>,
+    pub(super) space: Space,
+    /// When the disk's room is next checked (while a file is open).
+    space_at: Option<Instant>,
+    seq_in_run: u32,
+    /// t of the last frame written: STATUS is recorded at it.
+    last_t: Option<f64>,
+    pub(super) open_file: Opener,
+}
+
+impl Worker {
+    pub(super) fn new(cfg: &Recording, header: LogHeader, stats: Arc<RecStats>) -> Worker {
+        Worker {
+            cfg: cfg.clone(),
+            header,
+            stats,
+            file: None,
+            opened: Instant::now(),
+            retry_at: None,
+            backoff: RETRY_FIRST,
+            probation: false,
+            flush_at: None,
+            space: Space::new(cfg),
+            space_at: None,
+            seq_in_run: 0,
+            last_t: None,
+            open_file: recfile::create_new,
+        }
+    }
+
+    pub(super) fn run(mut self, rx: Receiver<Item>, status_rx: Receiver<Vec<u8>>) {
+        loop {
+            let now = Instant::now();
+            let wait = self
+                .flush_at
+                .map_or(IDLE, |t| t.saturating_duration_since(now).min(IDLE));
+            match rx.recv_timeout(wait) {
+                Ok(item) => {
+                    self.stats.queued.fetch_sub(1, Relaxed);
+                    if self.stats.abandoned.load(Relaxed) {
+                        break;
+                    }
+                    self.write(&item);
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+            while let Ok(s) = status_rx.try_recv() {
+                self.status(&s);
+            }
+            let now = Instant::now();
+            if self.flush_at.is_some_and(|t| now >= t) {
+                self.flush();
+            }
+            if self.file.is_some() && self.space_at.is_some_and(|t| now >= t) {
+                self.check_space();
+            }
+        }
+        self.close();
+        // A refusing disk stays visible in the last STATUS.
+        if self.stats.state() != RecState::Error {
+            self.stats.set_state(RecState::Closed);
+        }
+    }
+
+    /// Recording failed (`what`): the open file is ended (cut back to its
+    /// last whole point), and the next attempt waits, longer each time.
+    pub(super) fn fail(&mut self, what: String) {
+        let first = self.stats.state() != RecState::Error;
+        self.end_file(!first);
+        self.probation = false;
+        if first {
+            self.backoff = RETRY_FIRST;
+            self.stats.outages.fetch_add(1, Relaxed);
+            tracing::error!(
+                "recording: {what}; publishing goes on, retrying in {} s, then less often (at most every {} s)",
+                RETRY_FIRST.as_secs(),
+                RETRY_MAX.as_secs()
+            );
+        } else {
+            self.stats.retries.fetch_add(1, Relaxed);
+            self.backoff = (self.backoff * 2).min(RETRY_MAX);
+            tracing::debug!(
+                "recording: still failing: {what}; next try in {:?}",
+                self.backoff
+            );
+        }
+        if let Ok(mut e) = self.stats.error.lock() {
+            *e = Some(what);
+        }
+        self.stats.set_state(RecState::Error);
+        self.retry_at = Some(Instant::now() + self.backoff);
+    }
+
+    fn due_for_rotation(&self) -> bool {
+        let Some(f) = &self.file else { return false };
+        self.cfg.rotate_bytes.is_some_and(|b| f.bytes() >= b)
+            || self
+                .cfg
+                .rotate_after
+                .is_some_and(|a| self.opened.elapsed() >= a)
+    }
+
+    pub(super) fn write(&mut self, item: &Item) {
+        if let Some(e) = recfile::unencodable(self.cfg.format, &item.frame, &item.est) {
+            self.skip(&e);
+            return;
+        }
+        if self.due_for_rotation() {
+            self.close();
+        }
+        if self.file.is_none() {
+            if self.retry_at.is_some_and(|t| Instant::now() < t) {
+                self.stats.failed.fetch_add(1, Relaxed);
+                return;
+            }
+            if let Err(e) = self.open(item.frame.adc_bits) {
+                self.fail(e);
+                self.stats.failed.fetch_add(1, Relaxed);
+                return;
+            }
+        }
+        let Some(f) = self.file.as_mut() else {
+            return;
+        };
+        match f.write(&item.frame, &item.est, item.wall_unix) {
+            Ok(()) => {
+                self.stats.frames.fetch_add(1, Relaxed);
+                self.stats.bytes.store(f.bytes(), Relaxed);
+                self.last_t = Some(item.frame.t);
+                if self.flush_at.is_none() {
+                    self.flush_at = Some(Instant::now() + self.cfg.flush);
+                }
+            }
+            Err(RecError::Skip(e)) => self.skip(&e),
+            Err(RecError::Disk(e)) => {
+                self.stats.failed.fetch_add(1, Relaxed);
+                self.fail(e);
+            }
+        }
+    }
+
+    /// A frame the format cannot hold: counted and passed over, the file
+    /// goes on; logged at the first and every 1000th.
+    fn skip(&self, e: &WriteError) {
+        let n = self.stats.skipped.fetch_add(1, Relaxed) + 1;
+        if n == 1 || n.is_multiple_of(1000) {
+            tracing::warn!(skipped = n, "recording: {e}: frame not recorded");
+        }
+    }
+
+    /// A STATUS into the open file, at the last frame's t.
+    fn status(&mut self, json: &[u8]) {
+        let (Some(f), Some(t)) = (self.file.as_mut(), self.last_t) else {
+            return;
+        };
+        if let Err(e) = f.status(t, json) {
+            self.fail(e);
+        }
+    }
+
+    /// Push the open file to the disk (the flush_s timer).
+    pub(super) fn flush(&mut self) {
+        self.flush_at = None;
+        let Some(f) = self.file.as_mut() else { return };
+        match f.flush() {
+            Ok(()) => {
+                self.stats.bytes.store(f.bytes(), Relaxed);
+                let synced = self.stats.frames.load(Relaxed) - f.unsynced();
+                self.stats.synced.store(synced, Relaxed);
+                if self.probation {
+                    self.resumed();
+                }
+            }
+            Err(e) => self.fail(e),
+        }
+    }
+
+    /// Prune as configured and, when the disk is still nearly full,
+    /// complete the open file while it can be and stop until there is room.
+    pub(super) fn check_space(&mut self) {
+        self.space_at = Some(Instant::now() + EVERY);
+        let current = self.file.as_ref().map(|f| f.path.clone());
+        if let Err(why) = self.space.make_room(current.as_deref(), &self.stats) {
+            self.end_file(false);
+            self.fail(why);
+        }
+    }
+
+    fn open(&mut self, adc_bits: u8) -> Result<(), String> {
+        std::fs::create_dir_all(&self.cfg.dir)
+            .map_err(|e| format!("{}: {e}", self.cfg.dir.display()))?;
+        self.space.make_room(None, &self.stats)?;
+        self.seq_in_run += 1;
+        let path: PathBuf = self.cfg.dir.join(format!(
+            "lightposed-{}-{:04}.{}",
+            super::utc_stamp(SystemTime::now()),
+            self.seq_in_run,
+            extension(self.cfg.format)
+        ));
+        let mut header = self.header.clone();
+        header.adc_bits = adc_bits;
+        header
+            .extra
+            .insert("started".into(), super::unix_now().into());
+        let file = RecFile::create(path, self.cfg.format, &header, CHUNK_BYTES, self.open_file)?;
+        let shown = file.path.display().to_string();
+        self.file = Some(file);
+        self.opened = Instant::now();
+        self.space_at = Some(self.opened + EVERY);
+        self.retry_at = None;
+        self.stats.files.fetch_add(1, Relaxed);
+        if let Ok(mut c) = self.stats.current.lock() {
+            *c = Some(shown.clone());
+        }
+        if self.stats.state() == RecState::Error {
+            // Resumed once this file reaches the disk.
+            self.probation = true;
+            tracing::debug!("recording: trying {shown}");
+        } else {
+            tracing::info!("recording to {shown}");
+            self.stats.set_state(RecState::Recording);
+        }
+        Ok(())
+    }
+
+    /// The disk took a file opened while in error: recording resumed.
+    fn resumed(&mut self) {
+        self.probation = false;
+        self.backoff = RETRY_FIRST;
+        if let Ok(mut e) = self.stats.error.lock() {
+            *e = None;
+        }
+        self.stats.set_state(RecState::Recording);
+        let shown = self.stats.current.lock().ok().and_then(|c| c.clone());
+        tracing::info!(
+            retries = self.stats.retries.load(Relaxed),
+            "recording resumed in {}",
+            shown.unwrap_or_default()
+        );
+    }
+
+    /// Complete the open file (MCAP: summary and footer) and sync it, so
+    /// that a power cut after a clean stop or a rotation loses nothing.
+    pub(super) fn close(&mut self) {
+        let completed = self.end_file(false);
+        if completed && self.probation {
+            self.resumed();
+        }
+    }
+
+    /// End the open file, whole if it can be (see [`RecFile::close`]);
+    /// whether it was. Frames cut off it move from `frames` to `failed`.
+    /// `quiet`: while retrying, a file that did not take is not logged.
+    fn end_file(&mut self, quiet: bool) -> bool {
+        self.flush_at = None;
+        let Some(f) = self.file.take() else {
+            return false;
+        };
+        let shown = f.path.display().to_string();
+        let c = f.close();
+        if c.lost > 0 {
+            self.stats.frames.fetch_sub(c.lost, Relaxed);
+            self.stats.failed.fetch_add(c.lost, Relaxed);
+        }
+        let frames = self.stats.frames.load(Relaxed);
+        self.stats.synced.store(frames, Relaxed);
+        let completed = c.error.is_none() && !c.removed;
+        if !completed {
+            report_end(&shown, &c, quiet);
+        }
+        completed
+    }
+}
+
+/// One line on a file that could not be completed.
+fn report_end(shown: &str, c: &Closed, quiet: bool) {
+    let what = match (&c.error, c.removed) {
+        (_, true) => format!("{shown} removed: no frame reached the disk"),
+        (Some(e), false) => format!(
+            "{e}; {shown} cut back to its last whole point: {} frames kept, {} lost",
+            c.kept, c.lost
+        ),
+        (None, false) => format!(
+            "{shown} cut back to its last whole point: {} frames kept, {} lost",
+            c.kept, c.lost
+        ),
+    };
+    match (quiet, c.removed) {
+        (true, _) => tracing::debug!("recording: {what}"),
+        (false, true) => tracing::info!("recording: {what}"),
+        (false, false) => tracing::warn!("recording: {what}"),
+    }
+}
