@@ -67,6 +67,24 @@ pub enum DaemonError {
     Recorder(#[source] std::io::Error),
     #[error("cannot start the acquisition thread")]
     Thread(#[source] std::io::Error),
+    /// `inner`, said at the config's line that asked for it (a bind, a
+    /// socket, a link): `FILE:LINE: inner`.
+    #[error("{at}")]
+    Located {
+        at: KeyAt,
+        #[source]
+        inner: Box<DaemonError>,
+    },
+}
+
+impl DaemonError {
+    /// This error said at `at`.
+    pub fn at(self, at: KeyAt) -> DaemonError {
+        DaemonError::Located {
+            at,
+            inner: Box::new(self),
+        }
+    }
 }
 
 impl DaemonError {
@@ -84,6 +102,7 @@ impl DaemonError {
             | DaemonError::AdcMismatch { .. }
             | DaemonError::NotFreeRunning { .. } => true,
             DaemonError::Backend { source, .. } => source.refuses_config(),
+            DaemonError::Located { inner, .. } => inner.refuses_config(),
             DaemonError::Publish(_)
             | DaemonError::AttitudeBind { .. }
             | DaemonError::FoxgloveListen { .. }

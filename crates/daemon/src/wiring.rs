@@ -3,23 +3,26 @@
 //! the outputs and the frame thread. Everything the supervisor then
 //! watches is in [`Running`].
 
-use crate::config::Config;
+use crate::config::{machine, places, Config};
 use crate::engine::{EndReason, Engine};
-use crate::error::DaemonError;
+use crate::error::{report, DaemonError};
 use crate::inputs::attitude::{self, AttitudeCell, LatestAttitude};
 use crate::inputs::vehicle::VehicleReadings;
 use crate::notify::{notify, NotifyState};
 use crate::outputs::live::{self, hub::Hub};
 use crate::outputs::mavlink::ToAutopilot;
 use crate::outputs::recorder::{RecStats, Recorder};
-use crate::outputs::udp::{PoseDatagrams, Publisher};
+use crate::outputs::udp::{PoseDatagrams, PublishError, Publisher};
 use crate::outputs::StatusTap;
 use crate::stats::Stats;
 use crate::status::version_message;
 use crate::vehicle::VehicleLink;
 use lightpose_core::{Estimator, LogHeader};
-use lightpose_hal::{FrameSource, Stop};
+use lightpose_hal::{FrameSource, HalError, Stop};
 use lightpose_pipeline::Calibration;
+use lightpose_vehicle::mav::link::LinkError;
+use lightpose_vehicle::Endpoint;
+use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Instant;
 use tokio::sync::oneshot;
@@ -37,11 +40,14 @@ fn load_calibration(cfg: &Config) -> Result<Calibration, DaemonError> {
     Ok(Calibration::parse(&text, &cfg.calibration.describe())?)
 }
 
-/// Load the calibration and build the configured estimator (at start and
-/// on SIGHUP).
+/// Load the calibration and build the configured estimator.
 pub fn build_estimator(cfg: &Config) -> Result<Box<dyn Estimator>, DaemonError> {
     let cal = load_calibration(cfg)?;
-    lightpose_pipeline::build_estimator(&cfg.estimator, &cal).map_err(|source| {
+    estimator_of(cfg, &cal)
+}
+
+fn estimator_of(cfg: &Config, cal: &Calibration) -> Result<Box<dyn Estimator>, DaemonError> {
+    lightpose_pipeline::build_estimator(&cfg.estimator, cal).map_err(|source| {
         DaemonError::Estimator {
             at: cfg.estimator_at.clone(),
             source,
@@ -49,11 +55,25 @@ pub fn build_estimator(cfg: &Config) -> Result<Box<dyn Estimator>, DaemonError> 
     })
 }
 
+/// The configured estimator for frames of an `adc_bits` ADC (on SIGHUP;
+/// a start builds it before opening the source and checks it after):
+/// refused when the calibration's light model is of another ADC.
+pub fn build_estimator_for(cfg: &Config, adc_bits: u8) -> Result<Box<dyn Estimator>, DaemonError> {
+    let cal = load_calibration(cfg)?;
+    let est = estimator_of(cfg, &cal)?;
+    reads_frames(cfg, est.as_ref(), &cal, adc_bits)?;
+    Ok(est)
+}
+
 /// The estimator can read the source's frames (the light model's ADC is
 /// the source's; see `lightpose_pipeline::reads_frames_of`).
-fn reads_frames(cfg: &Config, est: &dyn Estimator, adc_bits: u8) -> Result<(), DaemonError> {
-    let cal = load_calibration(cfg)?;
-    lightpose_pipeline::reads_frames_of(est, &cal, adc_bits).map_err(|msg| {
+fn reads_frames(
+    cfg: &Config,
+    est: &dyn Estimator,
+    cal: &Calibration,
+    adc_bits: u8,
+) -> Result<(), DaemonError> {
+    lightpose_pipeline::reads_frames_of(est, cal, adc_bits).map_err(|msg| {
         DaemonError::AdcMismatch {
             backend: cfg.backend.kind(),
             msg,
@@ -62,25 +82,145 @@ fn reads_frames(cfg: &Config, est: &dyn Estimator, adc_bits: u8) -> Result<(), D
 }
 
 /// Check everything a start would read, without starting: the calibration
-/// (read, parsed, checked), the estimator built from it by name, and what
-/// the backend reads (scene, trajectory, a log's header; hal opens no
-/// device). `--check-config` runs this; a start fails on the same things
-/// with the same errors.
+/// (read, parsed, checked), the estimator built from it by name, what the
+/// backend reads (scene, trajectory, a log's header; hal opens no
+/// device), the recording directory (a file is none; nothing is created)
+/// and every address the daemon binds (bound and let go; the multicast
+/// interface set on a throwaway socket). `--check-config` runs this, and
+/// so does the binary before a start: a start fails on the same things
+/// with the same errors. Each names the config's `FILE:LINE`.
 pub fn check(cfg: &Config) -> Result<(), DaemonError> {
     build_estimator(cfg)?;
-    lightpose_hal::check(&cfg.backend).map_err(|source| DaemonError::Backend {
-        kind: cfg.backend.kind(),
-        source,
-    })
+    lightpose_hal::check(&cfg.backend).map_err(|e| backend_error(cfg, e))?;
+    if let Some(r) = &cfg.recording {
+        machine::recording_dir(&r.dir, &cfg.places.of(places::RECORDING_DIR))?;
+    }
+    check_binds(cfg)
+}
+
+/// Bind what a start binds, each held until the last is done (as a start
+/// holds them all), then let go. A port in use fails as at a start (exit
+/// 1: it may be free later), and while the daemon runs, its own ports are
+/// in use: the message asks whether it is.
+fn check_binds(cfg: &Config) -> Result<(), DaemonError> {
+    check_sending(cfg)?;
+    let mut udp = Vec::new();
+    if let Some(a) = &cfg.attitude {
+        udp.push(machine::try_udp(a.listen).map_err(|e| attitude_bind(cfg, a.listen, e))?);
+    }
+    if let Some(ep @ Endpoint::UdpIn(a)) = mavlink_endpoint(cfg) {
+        let bound = machine::try_udp(*a).map_err(|source| LinkError::Socket {
+            endpoint: ep.to_string(),
+            source,
+        });
+        udp.push(bound.map_err(|e| mavlink_at(cfg, DaemonError::Mavlink(e)))?);
+    }
+    let tcp = match &cfg.foxglove {
+        Some(f) => Some(machine::try_tcp(f.listen).map_err(|e| foxglove_bind(cfg, f.listen, e))?),
+        None => None,
+    };
+    drop((udp, tcp));
+    Ok(())
+}
+
+/// The sockets the publisher opens: one of each destination's family
+/// (IPv6 may be off on this machine), and the multicast interface, which
+/// must be an address of this machine.
+fn check_sending(cfg: &Config) -> Result<(), DaemonError> {
+    let o = &cfg.outputs;
+    let unicast = o.destinations.iter().enumerate();
+    let dests = unicast.map(|(i, d)| (places::destination(i), *d));
+    let group = o
+        .multicast
+        .as_ref()
+        .map(|m| (places::MULTICAST_GROUP.to_string(), m.group));
+    let (mut v4, mut v6) = (false, false);
+    for (key, addr) in dests.chain(group) {
+        let seen = if addr.is_ipv4() { &mut v4 } else { &mut v6 };
+        if std::mem::replace(seen, true) {
+            continue;
+        }
+        machine::try_sender(addr).map_err(|source| {
+            DaemonError::Publish(PublishError::Socket { addr, source }).at(cfg.places.of(&key))
+        })?;
+    }
+    let interface = o.multicast.as_ref().map(|m| m.interface);
+    if let Some(ip) = interface.filter(|i| !i.is_unspecified()) {
+        machine::try_multicast_interface(ip).map_err(|e| {
+            DaemonError::Publish(PublishError::Multicast {
+                what: "interface",
+                source: machine::interface_refusal(ip, e),
+            })
+            .at(cfg.places.of(places::MULTICAST_INTERFACE))
+        })?;
+    }
+    Ok(())
+}
+
+/// hal's refusal of a file the backend reads (a scene, a trajectory, a
+/// replayed log) at the config's key that names it; any other as hal's.
+fn backend_error(cfg: &Config, source: HalError) -> DaemonError {
+    let key = match &source {
+        HalError::Scene(_) => places::SCENE,
+        HalError::Trajectory(_) => places::TRAJECTORY,
+        HalError::Log(_) => places::LOG,
+        _ => {
+            return DaemonError::Backend {
+                kind: cfg.backend.kind(),
+                source,
+            }
+        }
+    };
+    DaemonError::Config(cfg.places.of(key).refuse(key, report(&source)))
+}
+
+/// The attitude input's bind failure, at `attitude.listen`'s line.
+fn attitude_bind(cfg: &Config, addr: SocketAddr, e: std::io::Error) -> DaemonError {
+    DaemonError::AttitudeBind {
+        addr,
+        source: machine::bind_refusal(addr, e),
+    }
+    .at(cfg.places.of(places::ATTITUDE_LISTEN))
+}
+
+/// The live view's failure to listen, at `foxglove.listen`'s line.
+fn foxglove_bind(cfg: &Config, addr: SocketAddr, e: std::io::Error) -> DaemonError {
+    DaemonError::FoxgloveListen {
+        addr,
+        source: machine::bind_refusal(addr, e),
+    }
+    .at(cfg.places.of(places::FOXGLOVE_LISTEN))
+}
+
+fn mavlink_endpoint(cfg: &Config) -> Option<&Endpoint> {
+    let m = cfg.vehicle.as_ref().and_then(|v| v.mavlink.as_ref());
+    m.map(|m| &m.endpoint)
+}
+
+/// A MAVLink link that could not be opened, at `mavlink.connection`'s
+/// line; any other error as it is.
+fn mavlink_at(cfg: &Config, e: DaemonError) -> DaemonError {
+    let DaemonError::Mavlink(link) = e else {
+        return e;
+    };
+    let udpin = match mavlink_endpoint(cfg) {
+        Some(Endpoint::UdpIn(a)) => Some(*a),
+        _ => None,
+    };
+    let link = match (link, udpin) {
+        (LinkError::Socket { endpoint, source }, Some(a)) => LinkError::Socket {
+            endpoint,
+            source: machine::bind_refusal(a, source),
+        },
+        (link, _) => link,
+    };
+    DaemonError::Mavlink(link).at(cfg.places.of(places::MAVLINK))
 }
 
 /// Open the configured frame source, whatever it is, through hal; its
 /// waits end when `stop` is raised.
 pub fn open_source(cfg: &Config, stop: &Stop) -> Result<Box<dyn FrameSource>, DaemonError> {
-    lightpose_hal::open(&cfg.backend, stop).map_err(|source| DaemonError::Backend {
-        kind: cfg.backend.kind(),
-        source,
-    })
+    lightpose_hal::open(&cfg.backend, stop).map_err(|e| backend_error(cfg, e))
 }
 
 /// A daemon whose frame thread runs, and what the supervisor needs of it.
@@ -102,6 +242,8 @@ pub struct Running {
     /// thread.
     pub vehicle: Option<VehicleLink>,
     pub source: String,
+    /// The ADC of the source's frames (a reloaded calibration must match).
+    pub adc_bits: u8,
     pub estimator: &'static str,
     /// Raised to stop the frame thread (and end its source's waits).
     pub stop: Stop,
@@ -117,11 +259,14 @@ pub struct Running {
 /// and tell systemd the daemon is ready.
 pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, DaemonError> {
     let started = Instant::now();
-    let estimator = build_estimator(cfg)?;
+    // The calibration before any device: a refused one exits 2 (no restart).
+    let cal = load_calibration(cfg)?;
+    let estimator = estimator_of(cfg, &cal)?;
     let est_name = estimator.name();
     let stop = Stop::new();
     let source = open_source(cfg, &stop)?;
-    reads_frames(cfg, estimator.as_ref(), source.adc_bits())?;
+    let adc_bits = source.adc_bits();
+    reads_frames(cfg, estimator.as_ref(), &cal, adc_bits)?;
     let source_desc = source.describe();
     let publisher = Arc::new(publisher);
     let stats = Arc::new(Stats::default());
@@ -129,10 +274,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         Some((cell, task)) => (Some(cell), Some(task)),
         None => (None, None),
     };
-    let vehicle = match &cfg.vehicle {
-        Some(v) => Some(crate::vehicle::start(v).await?),
-        None => None,
-    };
+    let vehicle = start_vehicle(cfg).await?;
     let header = log_header(cfg, source.as_ref(), &source_desc);
     let recorder = match &cfg.recording {
         Some(r) => Some(Recorder::start(r, header.clone()).map_err(DaemonError::Recorder)?),
@@ -141,16 +283,14 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     let rec_stats = recorder.as_ref().map(|r| r.stats.clone());
     let mut status_taps: Vec<Box<dyn StatusTap>> = Vec::new();
     status_taps.extend(recorder.as_ref().map(Recorder::status_tap));
-    let live =
-        match &cfg.foxglove {
-            Some(f) => Some(live::start(f, &header).await.map_err(|source| {
-                DaemonError::FoxgloveListen {
-                    addr: f.listen,
-                    source,
-                }
-            })?),
-            None => None,
-        };
+    let live = match &cfg.foxglove {
+        Some(f) => Some(
+            live::start(f, &header)
+                .await
+                .map_err(|e| foxglove_bind(cfg, f.listen, e))?,
+        ),
+        None => None,
+    };
 
     let (reload_tx, reload_rx) = std::sync::mpsc::channel::<Box<dyn Estimator>>();
     let mut engine = Engine::new(source, estimator)
@@ -206,6 +346,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         live_server,
         vehicle,
         source: source_desc,
+        adc_bits,
         estimator: est_name,
         stop,
         reload: reload_tx,
@@ -232,6 +373,16 @@ fn plug_vehicle(mut engine: Engine, cfg: &Config, vehicle: Option<&VehicleLink>)
     engine
 }
 
+/// The MAVLink and DVL tasks, if configured; a link that cannot be opened
+/// is said at `mavlink.connection`'s line.
+async fn start_vehicle(cfg: &Config) -> Result<Option<VehicleLink>, DaemonError> {
+    let Some(v) = &cfg.vehicle else {
+        return Ok(None);
+    };
+    let link = crate::vehicle::start(v).await;
+    link.map(Some).map_err(|e| mavlink_at(cfg, e))
+}
+
 /// The attitude input's socket and task, if configured.
 async fn start_attitude(
     cfg: &Config,
@@ -241,10 +392,7 @@ async fn start_attitude(
     };
     let sock = tokio::net::UdpSocket::bind(a.listen)
         .await
-        .map_err(|source| DaemonError::AttitudeBind {
-            addr: a.listen,
-            source,
-        })?;
+        .map_err(|e| attitude_bind(cfg, a.listen, e))?;
     let cell = Arc::new(AttitudeCell::default());
     tracing::info!("attitude input on {}", a.listen);
     let task = tokio::spawn(attitude::listen(sock, a.clone(), cell.clone()));

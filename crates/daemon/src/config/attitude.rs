@@ -9,6 +9,7 @@
 //! beacon would make the two inputs disagree about yaw.
 
 use super::locate::{positive_to, socket_addr, within, AddrUse, Ctx};
+use super::places::{self, Places};
 use super::ConfigError;
 use serde::Deserialize;
 use std::net::{Ipv4Addr, SocketAddr};
@@ -37,12 +38,20 @@ pub(super) struct RawAttitude {
 /// `[site]` (`site_heading_deg`) unless the table gives its own.
 pub(super) fn validate(
     ctx: &Ctx,
-    raw: Option<&RawAttitude>,
+    raw: Option<&Spanned<RawAttitude>>,
     site_heading_deg: Option<f64>,
+    at: &mut Places,
 ) -> Result<Option<AttitudeInput>, ConfigError> {
-    let Some(a) = raw.filter(|a| a.enabled.unwrap_or(false)) else {
+    let Some(table) = raw.filter(|a| a.get_ref().enabled.unwrap_or(false)) else {
         return Ok(None);
     };
+    let a = table.get_ref();
+    // Whether it can be bound shows only on this machine: `wiring::check`.
+    let line = a
+        .listen
+        .as_ref()
+        .map_or(table.span().start, |l| l.span().start);
+    at.set(places::ATTITUDE_LISTEN, ctx.line(line));
     let listen = match &a.listen {
         Some(l) => socket_addr(ctx, l, "attitude.listen", AddrUse::Listen)?,
         None => SocketAddr::from((Ipv4Addr::LOCALHOST, 17151)),

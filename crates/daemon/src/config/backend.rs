@@ -7,6 +7,7 @@
 //! key of the table, become `file:line: backend.KEY: msg`.
 
 use super::locate::Ctx;
+use super::places::{self, Places};
 use super::{embedded, ConfigError};
 use lightpose_core::textfile::TextSource;
 use lightpose_hal::{BackendConfig, Env, HalError, ValidBackend};
@@ -44,12 +45,22 @@ pub(super) fn validate(
     ctx: &Ctx,
     raw: Option<&Spanned<toml::Table>>,
     rate_hz: f64,
+    at: &mut Places,
 ) -> Result<ValidBackend, ConfigError> {
     let Some(b) = raw else {
         return Err(ctx.whole("[backend]: missing (kind = \"sim\", \"replay\" or a board)"));
     };
     let (start, table) = (b.span().start, b.get_ref());
     check_kind(ctx, table, start)?;
+    // The files hal reads: their refusals (no such file, a bad line) are
+    // said at these keys (`wiring::check`).
+    for (key, name) in [
+        (places::SCENE, "scene"),
+        (places::TRAJECTORY, "trajectory"),
+        (places::LOG, "log"),
+    ] {
+        at.set(key, ctx.line_of_key(start, name));
+    }
     let cfg: BackendConfig = deserialize(ctx, table, start)?;
     let env = DaemonEnv { ctx, rate_hz };
     cfg.validate(&env).map_err(|e| hal_error(ctx, start, &e))

@@ -3,6 +3,7 @@
 //! is there; loopback unless `allow_remote = true`.
 
 use super::locate::{socket_addr, AddrUse, Ctx};
+use super::places::{self, Places};
 use super::ConfigError;
 use serde::Deserialize;
 use std::net::{Ipv4Addr, SocketAddr};
@@ -36,11 +37,19 @@ pub const DEFAULT_LISTEN: SocketAddr =
 /// `None` when the table is absent or not enabled.
 pub(super) fn validate(
     ctx: &Ctx,
-    raw: Option<&RawFoxglove>,
+    raw: Option<&Spanned<RawFoxglove>>,
+    at: &mut Places,
 ) -> Result<Option<Foxglove>, ConfigError> {
-    let Some(r) = raw.filter(|r| r.enabled.unwrap_or(true)) else {
+    let Some(table) = raw.filter(|r| r.get_ref().enabled.unwrap_or(true)) else {
         return Ok(None);
     };
+    let r = table.get_ref();
+    // Whether it can be bound shows only on this machine: `wiring::check`.
+    let line = r
+        .listen
+        .as_ref()
+        .map_or(table.span().start, |l| l.span().start);
+    at.set(places::FOXGLOVE_LISTEN, ctx.line(line));
     let listen = match &r.listen {
         Some(l) => {
             let a = socket_addr(ctx, l, "foxglove.listen", AddrUse::Listen)?;

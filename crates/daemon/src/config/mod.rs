@@ -7,17 +7,27 @@
 //! One validator per table, each in its own file: [`top`] (the top-level
 //! keys), [`backend`] (handed to lightpose-hal), [`temperature`],
 //! [`outputs`], [`recording`], [`attitude`], [`logging`], [`foxglove`],
-//! [`vehicle`] (`[site]`, `[mavlink]`, `[dvl]`);
+//! [`vehicle`] (`[site]`, `[mavlink]`, `[dvl]`); [`across`] what involves
+//! two tables (two inputs on one port);
 //! [`locate`] turns spans into lines and [`embedded`] resolves
 //! `embedded:NAME`.
+//!
+//! What the file names outside itself (a scene, the recording directory,
+//! an address to bind) is judged only against this machine, at
+//! `--check-config` and before a start ([`machine`], `wiring::check`);
+//! [`places`] keeps where those keys are written, so that such a refusal
+//! names its line too.
 
+mod across;
 pub mod attitude;
 pub mod backend;
 pub mod embedded;
 pub mod foxglove;
 mod locate;
 pub mod logging;
+pub mod machine;
 pub mod outputs;
+pub mod places;
 pub mod recording;
 pub mod temperature;
 pub mod top;
@@ -27,10 +37,11 @@ pub use attitude::AttitudeInput;
 pub use foxglove::Foxglove;
 pub use logging::{LogFormat, Logging};
 pub use outputs::{Multicast, Outputs};
+pub use places::Places;
 pub use recording::{RecFormat, Recording};
 pub use vehicle::VehicleConfig;
 
-use lightpose_core::textfile::{read_text, TextError, TextSource};
+use lightpose_core::textfile::{excerpt, one_line, read_text, TextError, TextSource};
 use lightpose_hal::ValidBackend;
 use locate::Ctx;
 use serde::Deserialize;
@@ -69,6 +80,9 @@ pub struct Config {
     pub site: Option<lightpose_vehicle::Site>,
     /// The autopilot and DVL links (`[mavlink]`, `[dvl]`), if configured.
     pub vehicle: Option<VehicleConfig>,
+    /// Where the keys that name files, directories and addresses are
+    /// written (keys in [`places`]).
+    pub places: Places,
 }
 
 /// Where a key is written, shown `FILE:LINE` (`FILE` alone for a key left
@@ -77,6 +91,26 @@ pub struct Config {
 pub struct KeyAt {
     pub file: String,
     pub line: Option<usize>,
+}
+
+impl KeyAt {
+    /// A refusal of `key`, written here: `FILE:LINE: key: msg` (`FILE:
+    /// key: msg` without a line), one bounded line.
+    pub fn refuse(&self, key: &str, msg: impl Into<String>) -> ConfigError {
+        let (key, msg) = (excerpt(key, 80), one_line(&msg.into()));
+        match self.line {
+            Some(line) => ConfigError::At {
+                file: self.file.clone(),
+                line,
+                key,
+                msg,
+            },
+            None => ConfigError::Whole {
+                file: self.file.clone(),
+                msg: format!("{key}: {msg}"),
+            },
+        }
+    }
 }
 
 impl std::fmt::Display for KeyAt {
@@ -116,10 +150,10 @@ struct Raw {
     backend: Option<Spanned<toml::Table>>,
     temperature: Option<temperature::RawTemperature>,
     outputs: Option<outputs::RawOutputs>,
-    recording: Option<recording::RawRecording>,
-    attitude: Option<attitude::RawAttitude>,
+    recording: Option<Spanned<recording::RawRecording>>,
+    attitude: Option<Spanned<attitude::RawAttitude>>,
     logging: Option<logging::RawLogging>,
-    foxglove: Option<foxglove::RawFoxglove>,
+    foxglove: Option<Spanned<foxglove::RawFoxglove>>,
     site: Option<Spanned<toml::Table>>,
     mavlink: Option<Spanned<toml::Table>>,
     dvl: Option<Spanned<toml::Table>>,
@@ -151,21 +185,24 @@ impl Config {
             base_dir,
         };
         let raw: Raw = toml::from_str(src).map_err(|e| ctx.toml_error(&e))?;
+        let mut at = Places::new(file);
         let top = top::validate(&ctx, &raw)?;
-        let backend = backend::validate(&ctx, raw.backend.as_ref(), top.rate_hz)?;
+        let backend = backend::validate(&ctx, raw.backend.as_ref(), top.rate_hz, &mut at)?;
         let fallback_temp_c = temperature::validate(&ctx, raw.temperature.as_ref())?;
-        let outputs = outputs::validate(&ctx, raw.outputs.as_ref())?;
-        let recording = recording::validate(&ctx, raw.recording.as_ref())?;
+        let outputs = outputs::validate(&ctx, raw.outputs.as_ref(), &mut at)?;
+        let recording = recording::validate(&ctx, raw.recording.as_ref(), &mut at)?;
         let site = vehicle::site(&ctx, raw.site.as_ref())?;
-        let attitude = attitude::validate(&ctx, raw.attitude.as_ref(), site.map(|s| s.1))?;
+        let heading = site.map(|s| s.1);
+        let attitude = attitude::validate(&ctx, raw.attitude.as_ref(), heading, &mut at)?;
         let site = site.map(|s| s.0);
         let logging = logging::validate(&ctx, raw.logging.as_ref())?;
-        let foxglove = foxglove::validate(&ctx, raw.foxglove.as_ref())?;
+        let foxglove = foxglove::validate(&ctx, raw.foxglove.as_ref(), &mut at)?;
         let tables = vehicle::RawVehicle {
             mavlink: raw.mavlink.as_ref(),
             dvl: raw.dvl.as_ref(),
         };
-        let vehicle = vehicle::validate(&ctx, &tables, site)?;
+        let vehicle = vehicle::validate(&ctx, &tables, site, &mut at)?;
+        across::validate(&outputs, attitude.as_ref(), vehicle.as_ref(), &at)?;
         if outputs.destinations.is_empty() && outputs.multicast.is_none() {
             tracing::warn!("{file}: no outputs.destinations and no multicast: poses go nowhere");
         }
@@ -192,6 +229,7 @@ impl Config {
             foxglove,
             site,
             vehicle,
+            places: at,
         })
     }
 }

@@ -10,6 +10,7 @@
 
 use super::backend::key_of;
 use super::locate::Ctx;
+use super::places::{self, Places};
 use super::ConfigError;
 use lightpose_vehicle::{DvlSettings, Endpoint, MavlinkSettings, MaxAge, Site};
 use lightpose_vehicle::{DvlTable, MavlinkTable, SiteTable};
@@ -52,6 +53,7 @@ pub(super) fn validate(
     ctx: &Ctx,
     raw: &RawVehicle,
     site: Option<Site>,
+    at: &mut Places,
 ) -> Result<Option<VehicleConfig>, ConfigError> {
     let mut max_age = MaxAge::default();
     let mavlink = match raw.mavlink {
@@ -69,6 +71,11 @@ pub(super) fn validate(
                 .validate(site)
                 .map_err(|e| vehicle_error(ctx, t.span().start, &e))?;
             no_port_0(ctx, t.span().start, &s.endpoint)?;
+            // A udpin address is bound: `wiring::check` tries it.
+            at.set(
+                places::MAVLINK,
+                ctx.line_of_key(t.span().start, "connection"),
+            );
             max_age = age;
             Some(s)
         }
