@@ -2,13 +2,15 @@
 //! the config, set up logging and signals, call `lightposed::run`, and map
 //! the outcome to an exit code (0 clean, 1 runtime failure, 2 refused
 //! config — at `--check-config` and at a start alike, so that systemd's
-//! `RestartPreventExitStatus=2` does not restart what cannot start). A
-//! failure is said once: on stderr before logging is set up, as one log
-//! line after.
+//! `RestartPreventExitStatus=2` does not restart what cannot start; a
+//! frame thread that panicked is a runtime failure, 1, which systemd's
+//! `Restart=on-failure` restarts). A failure is said once: on stderr before
+//! logging is set up, as one log line after.
 
 use anyhow::Context;
 use clap::Parser;
 use lightposed::config::LogFormat;
+use lightposed::engine::EndReason;
 use lightposed::error::report;
 use lightposed::{Config, DaemonError, Publisher};
 use std::io::IsTerminal;
@@ -78,7 +80,9 @@ fn colour(journald: bool, terminal: bool) -> bool {
     terminal && !journald && !no_color
 }
 
-async fn serve(cfg: Config) -> anyhow::Result<lightposed::Summary> {
+/// Run the daemon until a signal or its source's end; why the frame thread
+/// ended.
+async fn serve(cfg: Config) -> anyhow::Result<EndReason> {
     use tokio::signal::unix::{signal, SignalKind};
     let publisher = Publisher::open(&cfg.outputs).map_err(DaemonError::from)?;
     let mut term = signal(SignalKind::terminate()).context("SIGTERM handler")?;
@@ -97,7 +101,19 @@ async fn serve(cfg: Config) -> anyhow::Result<lightposed::Summary> {
             _ = int.recv() => tracing::info!("SIGINT"),
         }
     };
-    Ok(lightposed::run_with_reload(cfg, publisher, shutdown, reload_rx).await?)
+    let running = lightposed::wiring::start(&cfg, publisher).await?;
+    let supervised = lightposed::supervisor::supervise_to_end(&cfg, running, shutdown, reload_rx);
+    Ok(supervised.await.1)
+}
+
+/// The exit code of a run that ended: 1 for a failure (the supervisor has
+/// said it, in one ERROR line), else 0.
+fn ended(end: &EndReason) -> ExitCode {
+    if end.is_failure() {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    }
 }
 
 /// The one line a failure leaves on stderr, and its exit code.
@@ -203,7 +219,7 @@ fn main() -> ExitCode {
     // A thread that did not stop (a hung device) must not hold the exit.
     rt.shutdown_timeout(Duration::from_millis(500));
     match served {
-        Ok(_) => ExitCode::SUCCESS,
+        Ok(end) => ended(&end),
         Err(e) => {
             // Logging is set up: the one line goes there, not twice.
             tracing::error!("{}", report(e.as_ref()));
@@ -217,7 +233,21 @@ fn main() -> ExitCode {
 
 #[cfg(test)]
 mod tests {
-    use super::frames_refused;
+    use super::{ended, frames_refused, EndReason};
+    use std::process::ExitCode;
+
+    /// Audit: a panicked frame thread exited 0, so systemd never restarted
+    /// the daemon; 2 would not do either (refused config, not restarted).
+    #[test]
+    fn a_panicked_frame_thread_exits_1() {
+        assert_eq!(
+            ended(&EndReason::Panicked("boom".into())),
+            ExitCode::from(1)
+        );
+        for r in [EndReason::Stopped, EndReason::SourceEnded] {
+            assert_eq!(ended(&r), ExitCode::SUCCESS, "{r:?}");
+        }
+    }
 
     #[test]
     fn frames_must_be_measured_and_more_than_none() {

@@ -2,19 +2,19 @@
 //! shutdown, the end of the frame thread or a calibration reload, sends
 //! STATUS at its interval and pings the systemd watchdog while the frame
 //! thread is alive; at the end it stops the frame thread, sends a last
-//! STATUS and sums the run up.
+//! STATUS and sums the run up. A frame thread that panicked is a failure
+//! ([`EndReason::Panicked`]: one ERROR line, a non-zero exit), not a stop.
 
 use crate::config::Config;
 use crate::engine::EndReason;
-use crate::error::{report, DaemonError};
+use crate::error::report;
 use crate::notify::{notify, watchdog, NotifyState};
 use crate::outputs::StatusTap;
 use crate::status::{status_message, StatusCtx};
-use crate::wiring::{build_estimator, Running};
+use crate::wiring::Running;
 use crate::Summary;
-use lightpose_core::Estimator;
-use lightpose_hal::{Stop, ValidBackend};
-use lightpose_pipeline::Calibration;
+use lightpose_hal::Stop;
+use std::any::Any;
 use std::future::Future;
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::{Duration, Instant};
@@ -30,6 +30,8 @@ struct Ticker {
     prev_at: Instant,
     /// Outputs that also take each STATUS.
     taps: Vec<Box<dyn StatusTap>>,
+    /// The frame thread's stop, whose waits beat while they wait.
+    alive: Stop,
 }
 
 impl Ticker {
@@ -55,9 +57,17 @@ impl Ticker {
             notify(&[NotifyState::Status(&line)]);
         }
         if let Some(w) = self.watchdog {
-            // Ping only while the frame thread is alive and not stuck.
+            // Ping only while the frame thread is alive and not stuck: it
+            // beats once a frame, and while it waits as configured (a
+            // frame due later, a board given `timeout_ms` to answer) its
+            // waits beat the stop at least once a second. A read that
+            // never returns beats neither.
             let beat = Duration::from_nanos(ctx.stats.heartbeat_ns.load(Relaxed));
-            let silent = ctx.started.elapsed().saturating_sub(beat);
+            let silent = ctx
+                .started
+                .elapsed()
+                .saturating_sub(beat)
+                .min(self.alive.since_beat());
             if silent < w {
                 notify(&[NotifyState::Watchdog]);
             } else {
@@ -78,61 +88,19 @@ impl Ticker {
     }
 }
 
-/// The ADC of the running source's frames: a board's configured
-/// resolution, or, for the sources that open no device (a simulated
-/// scene, a replayed log's header), what the source says once opened
-/// again. (`Running` does not carry the source's `adc_bits`.)
-fn source_adc_bits(backend: &ValidBackend) -> Result<u8, String> {
-    match backend {
-        ValidBackend::Spi { common, .. }
-        | ValidBackend::Ads1115 { common, .. }
-        | ValidBackend::Ads7828 { common, .. }
-        | ValidBackend::Serial { common, .. } => Ok(common.bits),
-        ValidBackend::Sim(_) | ValidBackend::Replay(_) => {
-            lightpose_hal::open(backend, &Stop::new())
-                .map(|s| s.adc_bits())
-                .map_err(|e| report(&e))
-        }
-    }
-}
-
-/// The estimator of the calibration `cfg` names, refused as at start when
-/// its light model is of another ADC than the source's frames
-/// (`lightpose_pipeline::reads_frames_of`).
-fn reloaded(cfg: &Config, adc_bits: u8) -> Result<Box<dyn Estimator>, DaemonError> {
-    let estimator = build_estimator(cfg)?;
-    let text = cfg
-        .calibration
-        .read()
-        .map_err(|source| DaemonError::CalibrationRead {
-            at: cfg.calibration_at.clone(),
-            source,
-        })?;
-    let cal = Calibration::parse(&text, &cfg.calibration.describe())?;
-    lightpose_pipeline::reads_frames_of(estimator.as_ref(), &cal, adc_bits).map_err(|msg| {
-        DaemonError::AdcMismatch {
-            backend: cfg.backend.kind(),
-            msg,
-        }
-    })?;
-    Ok(estimator)
-}
-
 /// A new estimator for the frame thread, or why the running one is kept:
 /// a calibration that does not load, or whose light model is of another
 /// ADC than the frames (the start refuses both).
-fn reload(cfg: &Config, to_frames: &std::sync::mpsc::Sender<Box<dyn Estimator>>) {
+fn reload(cfg: &Config, d: &Running) {
     let file = cfg.calibration.describe();
-    let checked = source_adc_bits(&cfg.backend)
-        .map_err(|e| format!("cannot tell the ADC of the backend's frames: {e}"))
-        .and_then(|bits| reloaded(cfg, bits).map_err(|e| report(&e)));
-    match checked {
+    match crate::wiring::build_estimator_for(cfg, d.adc_bits) {
         Ok(e) => {
             tracing::info!("reloading calibration {file}");
-            let _ = to_frames.send(e);
+            let _ = d.reload.send(e);
         }
         Err(why) => tracing::error!(
-            "reload of calibration {file} refused, keeping the running calibration: {why}"
+            "reload of calibration {file} refused, keeping the running calibration: {}",
+            report(&why)
         ),
     }
 }
@@ -141,10 +109,21 @@ fn reload(cfg: &Config, to_frames: &std::sync::mpsc::Sender<Box<dyn Estimator>>)
 /// message on `reloads` reloads the calibration.
 pub async fn supervise(
     cfg: &Config,
+    d: Running,
+    shutdown: impl Future<Output = ()>,
+    reloads: Receiver<()>,
+) -> Summary {
+    supervise_to_end(cfg, d, shutdown, reloads).await.0
+}
+
+/// As [`supervise`], and why the frame thread ended: the binary exits
+/// non-zero when that is a failure ([`EndReason::is_failure`]).
+pub async fn supervise_to_end(
+    cfg: &Config,
     mut d: Running,
     shutdown: impl Future<Output = ()>,
     mut reloads: Receiver<()>,
-) -> Summary {
+) -> (Summary, EndReason) {
     let watchdog = watchdog();
     let interval = cfg.outputs.status_interval;
     // STATUS at its interval; the watchdog at half its timeout if shorter.
@@ -158,6 +137,7 @@ pub async fn supervise(
         prev_frames: 0,
         prev_at: Instant::now(),
         taps: std::mem::take(&mut d.status_taps),
+        alive: d.stop.clone(),
     };
     // The hub outlives the tasks it is taken from (the last STATUS reads it).
     let vehicle_hub = d.vehicle.as_ref().map(|v| v.hub.clone());
@@ -180,12 +160,13 @@ pub async fn supervise(
             _ = &mut shutdown => {
                 tracing::info!("shutdown requested");
                 notify(&[NotifyState::Stopping]);
-                break None;
+                break Seen::Shutdown;
             }
-            r = &mut d.done => break r.ok(),
+            // A thread that panicked drops its end of `done` unsent.
+            r = &mut d.done => break r.map_or(Seen::Vanished, Seen::Ended),
             msg = reloads.recv(), if reload_open => match msg {
                 None => reload_open = false,
-                Some(()) => reload(cfg, &d.reload),
+                Some(()) => reload(cfg, &d),
             },
             _ = tick.tick() => ticker.tick(&ctx),
         }
@@ -205,7 +186,18 @@ pub async fn supervise(
     }
     // A last STATUS so that subscribers see the final counts and state.
     ticker.send_status(&ctx, 0.0);
-    summary(&ctx, reason)
+    (summary(&ctx, &reason), reason)
+}
+
+/// What the supervisor saw of the frame thread's end before joining it.
+#[derive(Debug)]
+enum Seen {
+    /// A shutdown was asked for first.
+    Shutdown,
+    /// The thread ended by itself, saying why.
+    Ended(EndReason),
+    /// The thread ended without saying why: it panicked.
+    Vanished,
 }
 
 /// How long a stop waits for the frame thread: its waits end on the stop
@@ -219,7 +211,7 @@ const JOIN_BOUND: Duration = Duration::from_secs(4);
 async fn stop(
     stop: &Stop,
     frames: Option<std::thread::JoinHandle<EndReason>>,
-    ended: Option<EndReason>,
+    seen: Seen,
 ) -> EndReason {
     stop.raise();
     let joined = match frames {
@@ -237,14 +229,37 @@ async fn stop(
         }
         None => None,
     };
-    match (ended, joined) {
-        (Some(r), _) => r,
-        (None, Some(Ok(r))) => r,
-        _ => EndReason::Stopped,
+    outcome(seen, joined)
+}
+
+/// Why the frame thread ended, from what the supervisor saw and what
+/// joining it gave (`None`: not joined). A panic, seen either way, is a
+/// failure, not a stop.
+fn outcome(seen: Seen, joined: Option<std::thread::Result<EndReason>>) -> EndReason {
+    match (seen, joined) {
+        (_, Some(Err(payload))) => EndReason::Panicked(panic_message(payload.as_ref())),
+        (Seen::Ended(r), _) => r,
+        (Seen::Vanished, _) => EndReason::Panicked(String::new()),
+        (Seen::Shutdown, Some(Ok(r))) => r,
+        (Seen::Shutdown, None) => EndReason::Stopped,
     }
 }
 
-fn summary(ctx: &StatusCtx, reason: EndReason) -> Summary {
+/// The text a panic was raised with, if it had one.
+fn panic_message(payload: &(dyn Any + Send)) -> String {
+    match (
+        payload.downcast_ref::<&str>(),
+        payload.downcast_ref::<String>(),
+    ) {
+        (Some(s), _) => (*s).to_string(),
+        (None, Some(s)) => s.clone(),
+        (None, None) => String::new(),
+    }
+}
+
+/// The run summed up, and its last line: the counts, or, for a failure,
+/// one ERROR line that says it and the counts.
+fn summary(ctx: &StatusCtx, reason: &EndReason) -> Summary {
     let s = ctx.stats;
     let summary = Summary {
         frames: s.frames.load(Relaxed),
@@ -252,8 +267,21 @@ fn summary(ctx: &StatusCtx, reason: EndReason) -> Summary {
         failed: s.failed.load(Relaxed),
         lost: s.lost.load(Relaxed),
         recorded: ctx.rec.map_or(0, |r| r.frames.load(Relaxed)),
-        source_ended: reason == EndReason::SourceEnded,
+        source_ended: *reason == EndReason::SourceEnded,
     };
+    if let EndReason::Panicked(msg) = reason {
+        let msg = if msg.is_empty() { "no message" } else { msg };
+        tracing::error!(
+            "the frame thread panicked ({}): {} frames, {} late, {} failed, {} lost, {} recorded; exiting with a failure",
+            lightpose_core::textfile::excerpt(msg, 500),
+            summary.frames,
+            summary.late,
+            summary.failed,
+            summary.lost,
+            summary.recorded
+        );
+        return summary;
+    }
     tracing::info!(
         "stopped ({:?}): {} frames, {} late, {} failed, {} lost, {} recorded",
         reason,
@@ -264,4 +292,63 @@ fn summary(ctx: &StatusCtx, reason: EndReason) -> Summary {
         summary.recorded
     );
     summary
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn panicked(payload: Box<dyn Any + Send>) -> Option<std::thread::Result<EndReason>> {
+        Some(Err(payload))
+    }
+
+    /// Audit: a panic on the frame thread was taken for a stop ("stopped",
+    /// exit 0), and systemd's Restart=on-failure never restarted it.
+    #[test]
+    fn a_panic_is_a_failure_however_it_is_seen() {
+        let boom = || panicked(Box::new("index out of bounds"));
+        let want = EndReason::Panicked("index out of bounds".into());
+        assert_eq!(outcome(Seen::Vanished, boom()), want);
+        assert_eq!(outcome(Seen::Shutdown, boom()), want, "while stopping");
+        let formatted = panicked(Box::new(format!("seq {}", 7)));
+        assert_eq!(
+            outcome(Seen::Vanished, formatted),
+            EndReason::Panicked("seq 7".into())
+        );
+        // Gone without a word and not joined (or a payload of no text).
+        assert_eq!(
+            outcome(Seen::Vanished, None),
+            EndReason::Panicked(String::new())
+        );
+        assert_eq!(
+            outcome(Seen::Vanished, panicked(Box::new(42u8))),
+            EndReason::Panicked(String::new())
+        );
+        assert!(want.is_failure());
+    }
+
+    #[test]
+    fn an_ordinary_end_is_what_the_thread_said() {
+        let ended = |r: EndReason| Some(Ok(r));
+        assert_eq!(
+            outcome(
+                Seen::Ended(EndReason::SourceEnded),
+                ended(EndReason::SourceEnded)
+            ),
+            EndReason::SourceEnded
+        );
+        assert_eq!(
+            outcome(Seen::Shutdown, ended(EndReason::Stopped)),
+            EndReason::Stopped
+        );
+        // A thread that did not stop within the bound: the shutdown stands.
+        assert_eq!(outcome(Seen::Shutdown, None), EndReason::Stopped);
+        for r in [
+            EndReason::Stopped,
+            EndReason::SourceEnded,
+            EndReason::FrameLimit,
+        ] {
+            assert!(!r.is_failure(), "{r:?}");
+        }
+    }
 }

@@ -6,7 +6,8 @@
 
 use lightpose_core::DepthReading;
 use lightpose_core::{Angle, AttitudeReading};
-use lightpose_hal::{Pace, Stop, ValidBackend};
+use lightpose_core::{Estimator, Frame, PoseEstimate, Status};
+use lightpose_hal::{FrameSource, Pace, SourceError, Stop, ValidBackend};
 use lightpose_vehicle::{Hub, MaxAge};
 use lightposed::config::Config;
 use lightposed::engine::Engine;
@@ -19,8 +20,11 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::net::UdpSocket;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
+
+/// The tests of this file count every thread's allocations: one at a time.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
 struct Counting;
 static ALLOCS: AtomicU64 = AtomicU64::new(0);
@@ -128,6 +132,7 @@ fn allocations(frames: u64, sink: &UdpSocket, estimator: &str, scene: &str, vehi
 
 #[test]
 fn hot_path_does_not_allocate_per_frame() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let sink = UdpSocket::bind("127.0.0.1:0").expect("sink");
     // Every estimator path the daemon runs: the paper's, and the tracker
     // without and with the attitude sensor's readings in the frames.
@@ -155,4 +160,58 @@ fn hot_path_does_not_allocate_per_frame() {
             "{estimator} on {scene}: {few} allocations for 50 frames, {many} for 400"
         );
     }
+}
+
+/// A board that never answers: `n` timeouts, then the end.
+struct Silent(u64);
+impl FrameSource for Silent {
+    fn next_frame(&mut self) -> Result<Frame, SourceError> {
+        if self.0 == 0 {
+            return Err(SourceError::Ended);
+        }
+        self.0 -= 1;
+        // An empty place, so that the error itself allocates nothing.
+        Err(SourceError::Timeout {
+            place: String::new(),
+        })
+    }
+    fn adc_bits(&self) -> u8 {
+        10
+    }
+    fn describe(&self) -> String {
+        "silent".into()
+    }
+}
+
+struct Nothing;
+impl Estimator for Nothing {
+    fn name(&self) -> &'static str {
+        "nothing"
+    }
+    fn estimate(&mut self, f: &Frame) -> PoseEstimate {
+        PoseEstimate::empty(f.seq, f.t, Status::NoLight, "nothing")
+    }
+    fn reset(&mut self) {}
+}
+
+/// Audit: while a source keeps failing the same way (a silent serial
+/// board), the engine formatted the error into STATUS's `last_error` on
+/// every frame. It is written when the failure changes.
+#[test]
+fn a_source_that_keeps_failing_does_not_allocate_per_frame() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
+    let allocations = |frames: u64| {
+        let engine = Engine::new(Box::new(Silent(frames)), Box::new(Nothing));
+        ALLOCS.store(0, Relaxed);
+        COUNTING.store(true, Relaxed);
+        engine.run();
+        COUNTING.store(false, Relaxed);
+        ALLOCS.load(Relaxed)
+    };
+    let few = allocations(50);
+    let many = (0..3).map(|_| allocations(2000)).min().unwrap_or(u64::MAX);
+    assert!(
+        many <= few + 2,
+        "{few} allocations for 50 failed frames, {many} for 2000"
+    );
 }

@@ -79,6 +79,10 @@ pub struct SourceHealth {
     pub bad_lines: u64,
     /// Serial lines from a board id not expected on that port.
     pub wrong_board_lines: u64,
+    /// Serial lines a board sent that no frame used: a newer line of the
+    /// same board came first (the board streams faster than frames are
+    /// taken; not an error, but bandwidth spent for nothing).
+    pub superseded_lines: u64,
     /// The last bad line's error.
     pub last_bad_line: Option<String>,
     /// Devices reopened after a failure.

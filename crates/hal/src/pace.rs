@@ -5,21 +5,46 @@
 //! source goes through [`Stop`], so that a stop (SIGTERM in the daemon) is
 //! never held up by a frame that is not due yet: the waiting thread is woken
 //! at once, not at the end of its sleep.
+//!
+//! A [`Stop`] also carries the waiting thread's sign of life: every wait
+//! on it beats at least once a [`BEAT`] (and a source's own waits, such as
+//! a serial port's, beat as they go), so that a thread that is alive and
+//! waiting as configured — a frame due in 10 s, a board given a minute to
+//! answer — is told apart from one stuck in a read that never returns.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
+/// The longest a wait on a [`Stop`] goes without a beat.
+pub const BEAT: Duration = Duration::from_secs(1);
+
 /// A request to stop, shared by whoever asks (clones share one flag) and
-/// the thread that waits.
+/// the thread that waits; and that thread's heartbeat.
 #[derive(Debug, Clone, Default)]
 pub struct Stop(Arc<StopInner>);
 
-#[derive(Debug, Default)]
+#[derive(Debug)]
 struct StopInner {
     raised: AtomicBool,
     lock: Mutex<()>,
     wake: Condvar,
+    /// Base of `beat_ns`.
+    epoch: Instant,
+    /// Nanoseconds from `epoch` to the last beat.
+    beat_ns: AtomicU64,
+}
+
+impl Default for StopInner {
+    fn default() -> Self {
+        StopInner {
+            raised: AtomicBool::new(false),
+            lock: Mutex::new(()),
+            wake: Condvar::new(),
+            epoch: Instant::now(),
+            beat_ns: AtomicU64::new(0),
+        }
+    }
 }
 
 impl Stop {
@@ -41,11 +66,26 @@ impl Stop {
         self.0.raised.load(Ordering::Relaxed)
     }
 
+    /// Say that the waiting thread is alive (no allocation, no lock).
+    #[inline]
+    pub fn beat(&self) {
+        let ns = self.0.epoch.elapsed().as_nanos().min(u64::MAX as u128) as u64;
+        self.0.beat_ns.fetch_max(ns, Ordering::Relaxed);
+    }
+
+    /// How long since the last beat (since the stop was made, before any).
+    pub fn since_beat(&self) -> Duration {
+        let at = Duration::from_nanos(self.0.beat_ns.load(Ordering::Relaxed));
+        self.0.epoch.elapsed().saturating_sub(at)
+    }
+
     /// Sleep until `deadline` unless a stop comes first; true when the
-    /// deadline was reached, false when stopped.
+    /// deadline was reached, false when stopped. Beats at least once a
+    /// [`BEAT`] meanwhile.
     pub fn sleep_until(&self, deadline: Instant) -> bool {
         let mut g = self.0.lock.lock().unwrap_or_else(|p| p.into_inner());
         loop {
+            self.beat();
             if self.0.raised.load(Ordering::SeqCst) {
                 return false;
             }
@@ -53,7 +93,7 @@ impl Stop {
             if now >= deadline {
                 return true;
             }
-            g = match self.0.wake.wait_timeout(g, deadline - now) {
+            g = match self.0.wake.wait_timeout(g, (deadline - now).min(BEAT)) {
                 Ok((g, _)) => g,
                 Err(p) => p.into_inner().0,
             };
@@ -175,5 +215,39 @@ mod tests {
         assert!(stop.is_raised());
         assert!(!stop.sleep(Duration::from_secs(10)), "stopped: no sleep");
         assert!(Stop::new().sleep(Duration::from_millis(1)), "slept whole");
+    }
+
+    /// Audit: a frame due in 10 s left the frame thread silent for 10 s,
+    /// and the daemon withheld the watchdog. A wait on the stop beats at
+    /// least once a second; a thread stuck elsewhere does not.
+    #[test]
+    fn a_long_wait_beats_and_a_stuck_thread_does_not() {
+        let stop = Stop::new();
+        let mut p = Pacer::from_rate(Some(0.1)).stoppable(stop.clone()); // 10 s
+        p.wait();
+        let waiter = {
+            let stop = stop.clone();
+            thread::spawn(move || {
+                p.wait();
+                stop.is_raised()
+            })
+        };
+        let t0 = Instant::now();
+        let mut worst = Duration::ZERO;
+        while t0.elapsed() < Duration::from_millis(2500) {
+            worst = worst.max(stop.since_beat());
+            thread::sleep(Duration::from_millis(20));
+        }
+        stop.raise();
+        assert!(waiter.join().unwrap(), "the wait ended on the stop");
+        assert!(worst < BEAT + Duration::from_millis(300), "{worst:?}");
+
+        // Nothing waits on this one: its silence grows.
+        let idle = Stop::new();
+        idle.beat();
+        thread::sleep(Duration::from_millis(60));
+        assert!(idle.since_beat() >= Duration::from_millis(50));
+        idle.beat();
+        assert!(idle.since_beat() < Duration::from_millis(50));
     }
 }

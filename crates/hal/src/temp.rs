@@ -46,6 +46,30 @@ pub enum TempError {
     OutOfRange { t_c: f64, min_c: f64, max_c: f64 },
 }
 
+impl TempError {
+    /// The file the error is about, for those that have one.
+    fn path(&self) -> Option<&str> {
+        match self {
+            TempError::Io { path, .. }
+            | TempError::Crc { path }
+            | TempError::Format { path, .. }
+            | TempError::PowerOn { path }
+            | TempError::Blank { path }
+            | TempError::NotWater { path, .. } => Some(path),
+            TempError::NoDevice { root } => Some(root),
+            TempError::Stale { .. }
+            | TempError::ThermistorRail { .. }
+            | TempError::OutOfRange { .. } => None,
+        }
+    }
+
+    /// The same failure as `other`, its values aside (an age, a reading):
+    /// the same kind at the same place. Compares without allocating.
+    pub fn same_failure(&self, other: &TempError) -> bool {
+        std::mem::discriminant(self) == std::mem::discriminant(other) && self.path() == other.path()
+    }
+}
+
 /// Parse the contents of a `w1_slave` file into °C:
 ///
 /// ```text
@@ -199,17 +223,23 @@ impl Ds18b20Watcher {
 
     /// The latest fresh value, or why there is none.
     pub fn latest(&self) -> Result<f64, TempError> {
+        self.with_latest(|r| r.map_err(TempError::clone))
+    }
+
+    /// `f` of the latest fresh value, or of why there is none: the error
+    /// lent, not cloned (per frame, a clone would allocate its path).
+    pub fn with_latest<R>(&self, f: impl FnOnce(Result<f64, &TempError>) -> R) -> R {
         let s = match self.shared.lock() {
             Ok(s) => s,
             Err(p) => p.into_inner(),
         };
         match (s.last, &s.error) {
-            (Some((v, at)), None) if at.elapsed() <= self.max_age => Ok(v),
-            (_, Some(e)) => Err(e.clone()),
-            (Some((_, at)), None) => Err(TempError::Stale {
+            (Some((v, at)), None) if at.elapsed() <= self.max_age => f(Ok(v)),
+            (_, Some(e)) => f(Err(e)),
+            (Some((_, at)), None) => f(Err(&TempError::Stale {
                 age_s: at.elapsed().as_secs_f64(),
-            }),
-            (None, None) => Err(TempError::Stale { age_s: 0.0 }),
+            })),
+            (None, None) => f(Err(&TempError::Stale { age_s: 0.0 })),
         }
     }
 
@@ -308,6 +338,8 @@ pub struct TempReader {
     kind: TempKind,
     fallback: f64,
     health: TempHealth,
+    /// The failure whose text `health.last_error` holds.
+    last_failure: Option<TempError>,
 }
 
 impl TempReader {
@@ -325,6 +357,7 @@ impl TempReader {
                 source,
                 ..TempHealth::default()
             },
+            last_failure: None,
         }
     }
 
@@ -337,34 +370,35 @@ impl TempReader {
     }
 
     /// The temperature to stamp on a frame whose raw board values are `raw`.
-    /// Allocates only when the source changes from working to failing.
+    /// Allocates only when the failure changes (in kind or place): a
+    /// sensor that keeps failing the same way costs no allocation a frame.
     pub fn for_frame(&mut self, raw: &[RawBoard]) -> Option<f64> {
-        let r = match &self.kind {
-            TempKind::None => return None,
-            TempKind::Fixed(v) => return Some(*v),
-            TempKind::Ds18b20(w) => w.latest(),
-            TempKind::Thermistor(t) => match raw.get(t.board) {
-                Some(b) => t.celsius(b[t.channel as usize]),
-                None => Err(TempError::ThermistorRail { counts: 0 }),
-            },
-        };
-        match r {
+        let TempReader {
+            kind,
+            fallback,
+            health,
+            last_failure,
+        } = self;
+        let mut took = |r: Result<f64, &TempError>| match r {
             Ok(v) => {
-                self.health.fallback_active = false;
-                Some(v)
+                health.fallback_active = false;
+                v
             }
             Err(e) => {
-                if !self.health.fallback_active {
-                    tracing::warn!(
-                        "temperature source {} failed, using {} °C: {e}",
-                        self.health.source,
-                        self.fallback
-                    );
-                    self.health.last_error = Some(e.to_string());
-                }
-                self.health.fallback_active = true;
-                self.health.fallbacks += 1;
-                Some(self.fallback)
+                failed(health, last_failure, *fallback, e);
+                *fallback
+            }
+        };
+        match kind {
+            TempKind::None => None,
+            TempKind::Fixed(v) => Some(*v),
+            TempKind::Ds18b20(w) => Some(w.with_latest(took)),
+            TempKind::Thermistor(t) => {
+                let r = match raw.get(t.board) {
+                    Some(b) => t.celsius(b[t.channel as usize]),
+                    None => Err(TempError::ThermistorRail { counts: 0 }),
+                };
+                Some(took(r.as_ref().copied()))
             }
         }
     }
@@ -372,6 +406,24 @@ impl TempReader {
     pub fn health(&self) -> &TempHealth {
         &self.health
     }
+}
+
+/// A frame got the fallback because of `e`: counted; said (a log line,
+/// the health's text) when the source starts failing or fails otherwise.
+fn failed(health: &mut TempHealth, last: &mut Option<TempError>, fallback: f64, e: &TempError) {
+    let otherwise = !last.as_ref().is_some_and(|l| l.same_failure(e));
+    if !health.fallback_active || otherwise {
+        tracing::warn!(
+            "temperature source {} failed, using {fallback} °C: {e}",
+            health.source
+        );
+    }
+    if otherwise {
+        health.last_error = Some(e.to_string());
+        *last = Some(e.clone());
+    }
+    health.fallback_active = true;
+    health.fallbacks += 1;
 }
 
 /// Write a fake `w1_slave` (tests and examples).

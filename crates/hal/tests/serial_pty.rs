@@ -133,6 +133,9 @@ fn serial_boards_on_ptys() {
     assert_eq!(h.bad_lines, 3, "garbage, checksum, overlong: {h:?}");
     assert_eq!(h.wrong_board_lines, 1);
     assert!(h.last_bad_line.is_some());
+    // Audit: b0's line seq 4 was never used (seq 5 came before the frame
+    // took it); the reader counted it but the health report did not say.
+    assert_eq!(h.superseded_lines, 1, "{h:?}");
 
     // 4. A line is used once: without a new line the next frame times out.
     // b1's line waits unused for the next good frame
@@ -220,6 +223,47 @@ fn a_stop_ends_a_long_serial_wait() {
         .expect("the read ended on the stop");
     assert!(matches!(got, Err(SourceError::Stopped)), "{got:?}");
     assert!(t0.elapsed() < Duration::from_secs(2), "{:?}", t0.elapsed());
+}
+
+/// Audit: a board given a long `timeout_ms` left the frame thread silent
+/// for as long, and the daemon withheld the watchdog from a thread that
+/// was only waiting as configured. The wait beats its stop as it goes.
+#[test]
+fn a_long_serial_wait_beats_its_stop() {
+    use lightpose_hal::Stop;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("silent");
+    let _board = fake_board(&path);
+    let stop = Stop::new();
+    let bank = SerialBank::new(
+        vec![SerialBoard {
+            name: "b0".into(),
+            id: 0,
+            path: path.display().to_string(),
+            baud: 115_200,
+            channels: 16,
+        }],
+        10,
+        Duration::from_secs(60),
+    )
+    .stoppable(stop.clone());
+    let mut src = BoardSource::new(
+        bank,
+        ChannelMap::sequential(16),
+        TempReader::new(TempKind::None, 0.0),
+        Pacer::new(None),
+    );
+    let reader = thread::spawn(move || src.next_frame().map(|f| f.seq));
+    let t0 = std::time::Instant::now();
+    let mut worst = Duration::ZERO;
+    while t0.elapsed() < Duration::from_millis(1500) {
+        thread::sleep(Duration::from_millis(20));
+        worst = worst.max(stop.since_beat());
+    }
+    stop.raise();
+    let got = reader.join().expect("reader");
+    assert!(matches!(got, Err(SourceError::Stopped)), "{got:?}");
+    assert!(worst < Duration::from_millis(500), "silent for {worst:?}");
 }
 
 /// Audit: two boards with their cables swapped (b0's port carries board

@@ -17,12 +17,14 @@
 //! counters are atomics. Every wait (the source's pacing, the pause after a
 //! dead bus) ends at once when the [`Stop`] is raised.
 
+mod failure;
 mod ratelog;
 mod seq;
 
 use crate::inputs::Input;
 use crate::outputs::Output;
 use crate::stats::{BackendState, Stats, TempSource};
+use failure::LastFailure;
 use lightpose_core::{Estimator, Frame, PoseEstimate, ReadingUse};
 use lightpose_hal::{FrameSource, SourceError, SourceHealth, Stop};
 use ratelog::RateLog;
@@ -41,6 +43,17 @@ pub enum EndReason {
     SourceEnded,
     /// The frame budget of a benchmark was spent.
     FrameLimit,
+    /// The frame thread panicked (with this message, if it had one): said
+    /// by the supervisor, which finds the thread gone without a reason.
+    /// A failure: the daemon exits non-zero, and systemd restarts it.
+    Panicked(String),
+}
+
+impl EndReason {
+    /// Whether the run failed (rather than stopped or ran out).
+    pub fn is_failure(&self) -> bool {
+        matches!(self, EndReason::Panicked(_))
+    }
 }
 
 /// One frame on its way through the engine.
@@ -84,6 +97,9 @@ struct Books {
     fail_log: RateLog,
     lost_log: RateLog,
     glitch_log: RateLog,
+    /// The last failure's kind and place: STATUS's `last_error` is
+    /// written when they change, not on every failed frame.
+    failure: LastFailure,
     health_at: Instant,
 }
 
@@ -175,6 +191,7 @@ impl Engine {
             fail_log: RateLog::new(),
             lost_log: RateLog::new(),
             glitch_log: RateLog::new(),
+            failure: LastFailure::default(),
             health_at: Instant::now(),
         };
         self.stats.set_state(BackendState::Running);
@@ -206,10 +223,13 @@ impl Engine {
         reason
     }
 
+    /// A sign of life for the watchdog, in the stats and on the stop
+    /// (whose waits in the source beat it too).
     fn beat(&self) {
         self.stats
             .heartbeat_ns
             .store(self.epoch.elapsed().as_nanos() as u64, Relaxed);
+        self.stop.beat();
     }
 
     /// Stop, frame budget, calibration reload, heartbeat and (once a
@@ -227,6 +247,8 @@ impl Engine {
         if let Some(e) = self.reload.as_ref().and_then(|rx| rx.try_recv().ok()) {
             tracing::info!("calibration reloaded: estimator {} replaced", e.name());
             self.estimator = e;
+            // A new track: the autopilot is told (MAVLink reset_counter).
+            self.outputs.iter_mut().for_each(|o| o.estimator_replaced());
             self.stats.calibration_reloads.fetch_add(1, Relaxed);
         }
         self.beat();
@@ -241,37 +263,38 @@ impl Engine {
     /// The source's health into STATUS, and a line in the log when the
     /// skips it counts (garbage or another board's lines on a serial port,
     /// a replayed log's glitches and malformed readings) grew since the
-    /// last copy: counted and logged, at most once a second.
+    /// last copy: counted and logged, at most once a second. Lines a board
+    /// sent faster than frames take them (superseded) are no fault: said
+    /// once when first seen, then only counted (and named in the line the
+    /// faults make).
     fn copy_health(&self) {
         let new = self.source.health();
         let Ok(mut h) = self.stats.source_health.lock() else {
             return;
         };
         let was = |f: fn(&SourceHealth) -> u64| h.as_ref().map_or(0, f);
+        let more = |f: fn(&SourceHealth) -> u64| f(&new).saturating_sub(was(f));
+        // (what, how many more, whether that alone is worth a line)
         let grew = [
-            (
-                "bad lines",
-                new.bad_lines.saturating_sub(was(|h| h.bad_lines)),
-            ),
+            ("bad lines", more(|h| h.bad_lines), true),
             (
                 "lines of another board",
-                new.wrong_board_lines
-                    .saturating_sub(was(|h| h.wrong_board_lines)),
+                more(|h| h.wrong_board_lines),
+                true,
             ),
+            ("glitches in seq or t", more(|h| h.glitches), true),
+            ("malformed readings", more(|h| h.bad_readings), true),
             (
-                "glitches in seq or t",
-                new.glitches.saturating_sub(was(|h| h.glitches)),
-            ),
-            (
-                "malformed readings",
-                new.bad_readings.saturating_sub(was(|h| h.bad_readings)),
+                "lines superseded by a newer one of their board",
+                more(|h| h.superseded_lines),
+                false,
             ),
         ];
-        if grew.iter().any(|(_, n)| *n > 0) {
+        if grew.iter().any(|&(_, n, alone)| alone && n > 0) {
             let what: Vec<String> = grew
                 .iter()
-                .filter(|(_, n)| *n > 0)
-                .map(|(w, n)| format!("{n} {w}"))
+                .filter(|(_, n, _)| *n > 0)
+                .map(|(w, n, _)| format!("{n} {w}"))
                 .collect();
             let last = new
                 .last_bad_line
@@ -281,6 +304,12 @@ impl Engine {
                 last = last.unwrap_or("-"),
                 "source skipped {} since the last second (STATUS backend.health)",
                 what.join(", ")
+            );
+        }
+        if was(|h| h.superseded_lines) == 0 && new.superseded_lines > 0 {
+            tracing::info!(
+                superseded_lines = new.superseded_lines,
+                "serial board(s) send lines faster than frames take them: each frame takes a board's newest line, the others are counted (backend.health.superseded_lines) and not logged again"
             );
         }
         *h = Some(new);
@@ -319,11 +348,19 @@ impl Engine {
                 let n = stats.failed.fetch_add(1, Relaxed) + 1;
                 books.seq.failed();
                 stats.set_state(BackendState::Failing);
+                let new = books.failure.changed(&e);
                 if let Some(k) = books.fail_log.tick(arrival) {
-                    tracing::warn!(failed_total = n, since_last_line = k, "frame failed: {e}");
+                    tracing::warn!(
+                        failed_total = n,
+                        since_last_line = k,
+                        same_error = books.failure.count,
+                        "frame failed: {e}"
+                    );
                 }
-                if let Ok(mut g) = stats.last_error.lock() {
-                    *g = Some(e.to_string());
+                if new {
+                    if let Ok(mut g) = stats.last_error.lock() {
+                        *g = Some(e.to_string());
+                    }
                 }
                 if matches!(e, SourceError::Unavailable { .. }) {
                     let pause = self
@@ -346,7 +383,10 @@ impl Engine {
         match books.seq.admit(seq) {
             Step::InLine => {}
             Step::Gap { from, lost: gap } => {
-                let n = lost.fetch_add(gap, Relaxed) + gap;
+                // Only this thread writes `lost`; saturating, as a seq
+                // near u64::MAX can claim nearly 2^64 frames.
+                let n = lost.load(Relaxed).saturating_add(gap);
+                lost.store(n, Relaxed);
                 if let Some(k) = books.lost_log.tick(acq.arrival) {
                     tracing::warn!(
                         lost_total = n,
@@ -473,9 +513,15 @@ impl Engine {
         let Some(p) = self.period else { return };
         let seq = acq.frame.seq;
         let (a_at, a_seq) = *books.anchor.get_or_insert((acq.arrival, seq));
-        let slots = seq.saturating_sub(a_seq).min(u32::MAX as u64) as u32;
-        let due = a_at + p * slots;
-        if done > due + p.mul_f64(self.late_tolerance) {
+        let Some((due, late_after)) =
+            deadline(a_at, seq.saturating_sub(a_seq), p, self.late_tolerance)
+        else {
+            // A due time beyond the clock (a huge period or seq gap): not
+            // judged; the frames after are judged from this one.
+            books.anchor = Some((acq.arrival, seq));
+            return;
+        };
+        if done > late_after {
             let n = stats.late.fetch_add(1, Relaxed) + 1;
             if let Some(k) = books.late_log.tick(done) {
                 tracing::warn!(
@@ -491,6 +537,19 @@ impl Engine {
             books.anchor = Some((acq.arrival, seq));
         }
     }
+}
+
+/// When the frame `slots` periods `p` after `anchor` is due, and when it
+/// is late; `None` when either is beyond the clock's range.
+fn deadline(
+    anchor: Instant,
+    slots: u64,
+    p: Duration,
+    tolerance: f64,
+) -> Option<(Instant, Instant)> {
+    let due = anchor.checked_add(p.checked_mul(u32::try_from(slots).ok()?)?)?;
+    let slack = Duration::try_from_secs_f64(p.as_secs_f64() * tolerance).ok()?;
+    Some((due, due.checked_add(slack)?))
 }
 
 #[cfg(test)]

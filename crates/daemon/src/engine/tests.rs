@@ -252,3 +252,127 @@ fn a_lone_seq_glitch_loses_nothing_and_a_gap_still_counts() {
     assert_eq!(lost(vec![0, 1, 2, 3, 500, 9, 10]), (4, 10));
     assert_eq!(lost(vec![0, 1, 2, 6, 7]), (3, 7));
 }
+
+/// Audit: `lost` was added to unchecked: two claims of nearly 2^64 frames
+/// (a seq stepping back, then to u64::MAX again) panicked in debug and
+/// wrapped in release. It saturates.
+#[test]
+fn lost_frames_saturate_at_u64_max() {
+    let stats = Arc::new(Stats::default());
+    let seqs = vec![0, u64::MAX, 0, u64::MAX];
+    let end = Engine::new(Box::new(Seqs(seqs, 0)), Box::new(Nothing))
+        .stats(stats.clone())
+        .run();
+    assert_eq!(end, EndReason::SourceEnded);
+    assert_eq!(stats.lost.load(Relaxed), u64::MAX);
+    assert_eq!(stats.frames.load(Relaxed), 4);
+}
+
+/// Audit: the due time `anchor + period × slots` and its tolerance were
+/// unchecked, and panicked ("overflow when adding duration to instant")
+/// with a huge period or seq gap. Such frames are not judged late.
+#[test]
+fn a_due_time_beyond_the_clock_is_not_judged() {
+    for (period, seqs) in [
+        (Duration::from_secs(u64::MAX / 4), vec![0, 1, 2, 3]),
+        (Duration::MAX, vec![0, 1]),
+        (Duration::from_secs(3600), vec![0, 1 << 40, (1 << 40) + 1]),
+    ] {
+        let stats = Arc::new(Stats::default());
+        let end = Engine::new(Box::new(Seqs(seqs.clone(), 0)), Box::new(Nothing))
+            .stats(stats.clone())
+            .period(Some(period))
+            .run();
+        assert_eq!(end, EndReason::SourceEnded, "{period:?}");
+        assert_eq!(stats.frames.load(Relaxed), seqs.len() as u64);
+        assert_eq!(stats.late.load(Relaxed), 0, "{period:?} {seqs:?}");
+    }
+    let now = Instant::now();
+    let p = Duration::from_millis(20);
+    assert_eq!(
+        deadline(now, 3, p, 0.5),
+        Some((now + 3 * p, now + 3 * p + p / 2))
+    );
+    assert_eq!(deadline(now, u64::from(u32::MAX) + 1, p, 0.5), None);
+    assert_eq!(deadline(now, 1, p, f64::INFINITY), None);
+}
+
+/// Fails every frame, the same way.
+struct Silent(u64);
+impl FrameSource for Silent {
+    fn next_frame(&mut self) -> Result<Frame, SourceError> {
+        if self.0 == 0 {
+            return Err(SourceError::Ended);
+        }
+        self.0 -= 1;
+        Err(if self.0 % 100 == 50 {
+            SourceError::BadData {
+                place: "board b".into(),
+                msg: "odd".into(),
+            }
+        } else {
+            SourceError::Timeout {
+                place: "board a".into(),
+            }
+        })
+    }
+    fn adc_bits(&self) -> u8 {
+        10
+    }
+    fn describe(&self) -> String {
+        "silent".into()
+    }
+}
+
+/// Audit: STATUS's `last_error` was formatted anew on every failed frame.
+/// It is written when the failure changes in kind or place, and says the
+/// latest one.
+#[test]
+fn the_last_error_is_written_when_it_changes() {
+    let stats = Arc::new(Stats::default());
+    let end = Engine::new(Box::new(Silent(120)), Box::new(Nothing))
+        .stats(stats.clone())
+        .run();
+    assert_eq!(end, EndReason::SourceEnded);
+    assert_eq!(stats.failed.load(Relaxed), 120);
+    let last = stats.last_error.lock().unwrap().clone();
+    // Frame 70 (of 120, counting down to 50) was the odd one out; the
+    // timeouts after it are said again.
+    assert_eq!(last.as_deref(), Some("board a: timed out waiting for data"));
+}
+
+/// An output that counts estimator replacements, noting the frames it had
+/// seen when each came.
+struct Replaced(Arc<Mutex<Vec<u64>>>, u64);
+impl Output for Replaced {
+    fn emit(&mut self, _: &Acquired, _: &PoseEstimate) {
+        self.1 += 1;
+    }
+    fn estimator_replaced(&mut self) {
+        if let Ok(mut v) = self.0.lock() {
+            v.push(self.1);
+        }
+    }
+}
+
+#[test]
+fn a_reload_tells_every_output_once_between_frames() {
+    let (tx, rx) = std::sync::mpsc::channel::<Box<dyn Estimator>>();
+    tx.send(Box::new(Nothing)).unwrap();
+    let (a, b) = (
+        Arc::new(Mutex::new(Vec::new())),
+        Arc::new(Mutex::new(Vec::new())),
+    );
+    let stats = Arc::new(Stats::default());
+    let end = Engine::new(Box::new(Counter(0, 4)), Box::new(Nothing))
+        .stats(stats.clone())
+        .reload(rx)
+        .output(Box::new(Replaced(a.clone(), 0)))
+        .output(Box::new(Replaced(b.clone(), 0)))
+        .run();
+    assert_eq!(end, EndReason::SourceEnded);
+    assert_eq!(stats.calibration_reloads.load(Relaxed), 1);
+    let (a, b) = (a.lock().unwrap().clone(), b.lock().unwrap().clone());
+    assert_eq!(a.len(), 1, "{a:?}");
+    assert_eq!(a, b, "both outputs, at the same frame");
+}

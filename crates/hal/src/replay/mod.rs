@@ -114,6 +114,9 @@ impl ReplaySource {
     /// be read any more is bad data (named at its place), tried again at
     /// most once a second.
     fn restart(&mut self) -> Result<(), SourceError> {
+        let Some(offset) = self.next_seq_offset() else {
+            return Err(self.refuse_loop());
+        };
         if let Some(at) = self.reopen_failed {
             if !self.stop.sleep_until(at + Duration::from_secs(1)) {
                 return Err(SourceError::Stopped);
@@ -133,9 +136,9 @@ impl ReplaySource {
         self.done.other += self.log.other_records();
         self.done.bad_readings += self.log.bad_readings().0;
         self.log = log;
-        if let (Some((s0, t0)), Some((sl, tl))) = (self.first_of_pass, self.last_out) {
+        if let (Some((_, t0)), Some((_, tl))) = (self.first_of_pass, self.last_out) {
             // Next pass starts one frame after this one ended, in seq and t.
-            self.seq_offset = (sl + 1).saturating_sub(s0);
+            self.seq_offset = offset;
             self.t_offset = tl + self.period_s() - t0;
         }
         self.first_of_pass = None;
@@ -143,13 +146,46 @@ impl ReplaySource {
         Ok(())
     }
 
+    /// The seq offset of the next pass: it starts one frame after this
+    /// one ended. `None` when its frames' seq would pass `u64::MAX` (a
+    /// pass as long as this one, in seq, must fit after it).
+    fn next_seq_offset(&self) -> Option<u64> {
+        let (Some((s0, _)), Some((sl, _))) = (self.first_of_pass, self.last_out) else {
+            return Some(self.seq_offset);
+        };
+        // seq increases within a pass (core's FrameOrder): sl ≥ s0 + offset.
+        let span = sl.saturating_sub(self.seq_offset).saturating_sub(s0);
+        let offset = sl.checked_add(1)?.saturating_sub(s0);
+        sl.checked_add(1)?.checked_add(span)?;
+        Some(offset)
+    }
+
+    /// No next pass: its seq would wrap past `u64::MAX` (and a daemon
+    /// would count 2^64 frames lost). Said once; the replay ends there.
+    fn refuse_loop(&mut self) -> SourceError {
+        let last = self.last_out.map_or(0, |(s, _)| s);
+        tracing::error!(
+            "replay: {}: not looping: pass {} would number its frames past seq {} (the last seq was {last}); the replay ends",
+            self.path.display(),
+            self.passes + 1,
+            u64::MAX
+        );
+        self.looping = false;
+        SourceError::Ended
+    }
+
     /// Shift `f` into the current pass and, at recorded pace, wait for its
-    /// time (or a stop); a jump of `t` is counted and not waited for.
-    fn release(&mut self, mut f: Frame) -> Frame {
+    /// time (or a stop); a jump of `t` is counted and not waited for. A
+    /// seq that the shift would take past `u64::MAX` (the log grew between
+    /// passes) ends the replay, as [`ReplaySource::refuse_loop`] says.
+    fn release(&mut self, mut f: Frame) -> Result<Frame, SourceError> {
+        let Some(seq) = f.seq.checked_add(self.seq_offset) else {
+            return Err(self.refuse_loop());
+        };
         if self.first_of_pass.is_none() {
             self.first_of_pass = Some((f.seq, f.t));
         }
-        f.seq += self.seq_offset;
+        f.seq = seq;
         f.t += self.t_offset;
         self.last_out = Some((f.seq, f.t));
         if let Some(dt) = self.log.order().last_jump() {
@@ -163,18 +199,21 @@ impl ReplaySource {
                 );
             }
             if let Some(last) = self.last_due {
-                self.anchor = Some((last + Duration::from_secs_f64(self.period_s()), f.t));
+                // A period beyond the clock's range: due at once.
+                let next = self.period().and_then(|p| last.checked_add(p));
+                self.anchor = Some((next.unwrap_or(last), f.t));
             }
         }
         if self.pace == Pace::Realtime {
             let (i0, t0) = *self.anchor.get_or_insert((Instant::now(), f.t));
             // t increases (core's FrameOrder) and jumps re-anchor: the
             // clamp only keeps the sum inside the clock's range.
-            let due = i0 + Duration::from_secs_f64((f.t - t0).clamp(0.0, 1e9));
+            let after = Duration::try_from_secs_f64((f.t - t0).clamp(0.0, 1e9));
+            let due = after.ok().and_then(|d| i0.checked_add(d)).unwrap_or(i0);
             self.last_due = Some(due);
             self.stop.sleep_until(due);
         }
-        f
+        Ok(f)
     }
 
     /// Say once where the first line of another class was.
@@ -200,7 +239,7 @@ impl FrameSource for ReplaySource {
             };
             self.note_other();
             match next {
-                Some(Ok(f)) => return Ok(self.release(f)),
+                Some(Ok(f)) => return self.release(f),
                 Some(Err(e)) => {
                     return Err(SourceError::BadData {
                         place: "replay".into(),
@@ -446,7 +485,7 @@ mod tests {
                 seq,
                 t,
                 adc_bits: 10,
-                counts: [seq as u16; NDET],
+                counts: [(seq % 1000) as u16; NDET],
                 temp_c: None,
                 truth: None,
                 attitude: None,
@@ -513,6 +552,68 @@ mod tests {
             "{errs:?}"
         );
         assert!(s.health().skipped_frames >= 1);
+    }
+
+    /// Audit: a looping replay of a log whose last seq is `u64::MAX`
+    /// overflowed `seq` (a panic in debug; in release a wrap, and 2^64
+    /// frames counted lost). The loop is refused, once, and the replay
+    /// ends; a log that fits a few passes loops until the next would not.
+    #[test]
+    fn a_loop_whose_seq_would_pass_u64_max_ends_instead() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("top.jsonl");
+        write_frames(
+            &p,
+            10.0,
+            &[(u64::MAX - 2, 0.0), (u64::MAX - 1, 0.1), (u64::MAX, 0.2)],
+        );
+        let mut s = open(p, Pace::Fast, true).unwrap();
+        let seqs: Vec<u64> = (0..3).map(|_| s.next_frame().unwrap().seq).collect();
+        assert_eq!(seqs, vec![u64::MAX - 2, u64::MAX - 1, u64::MAX]);
+        assert!(matches!(s.next_frame(), Err(SourceError::Ended)));
+        assert!(
+            matches!(s.next_frame(), Err(SourceError::Ended)),
+            "stays ended"
+        );
+
+        let p = d.path().join("wide.jsonl");
+        write_frames(&p, 10.0, &[(0, 0.0), (1, 0.1), (1 << 62, 0.2)]);
+        let mut s = open(p, Pace::Fast, true).unwrap();
+        let mut seqs = Vec::new();
+        while let Ok(f) = s.next_frame() {
+            seqs.push(f.seq);
+        }
+        // Passes end at 2^62, 2^63 + 1 and 3·2^62 + 2; a fourth would
+        // end past u64::MAX.
+        assert_eq!(seqs.len(), 9, "{seqs:?}");
+        assert!(seqs.windows(2).all(|w| w[0] < w[1]), "{seqs:?}");
+        assert_eq!(seqs[8], 3 * (1 << 62) + 2);
+    }
+
+    /// Audit: at a jump of `t` the next due time added a period made from
+    /// the log's rate with `Duration::from_secs_f64`, which panics on a
+    /// period beyond `Duration`'s range. Such a frame is due at once.
+    #[test]
+    fn a_jump_with_a_period_beyond_the_clock_does_not_panic() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("jump.jsonl");
+        write_frames(&p, 50.0, &[(0, 0.0), (1, 0.02), (2, 60.02), (3, 60.04)]);
+        let plan = ReplayPlan {
+            log: p,
+            pace: Pace::Realtime,
+            looping: false,
+            max_gap_s: 1.0,
+        };
+        let mut s = ReplaySource::open(&plan, &Stop::new()).unwrap();
+        // What a header's rate no longer may be: a period of 1e300 s.
+        s.rate_hz = 1e-300;
+        let t0 = Instant::now();
+        let mut seqs = Vec::new();
+        while let Ok(f) = s.next_frame() {
+            seqs.push(f.seq);
+        }
+        assert_eq!(seqs, vec![0, 1, 2, 3]);
+        assert!(t0.elapsed() < Duration::from_secs(2), "{:?}", t0.elapsed());
     }
 
     /// Issue 16: a log whose header went bad between passes is said to be

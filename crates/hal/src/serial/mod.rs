@@ -112,7 +112,8 @@ impl SerialBank {
     }
 
     /// End a wait for a line (at most 100 ms later) when `stop` is raised,
-    /// with [`SourceError::Stopped`], whatever the timeout.
+    /// with [`SourceError::Stopped`], whatever the timeout; the wait beats
+    /// `stop` as it goes ([`Stop::beat`]).
     pub fn stoppable(mut self, stop: Stop) -> Self {
         self.stop = stop;
         self
@@ -224,6 +225,9 @@ impl SerialBank {
             if self.stop.is_raised() {
                 return Err(SourceError::Stopped);
             }
+            // Alive and waiting as configured (`timeout_ms` may be a
+            // minute): a sign of life every slice of at most 100 ms.
+            self.stop.beat();
             let now = Instant::now();
             let wait = if p.fresh {
                 Duration::ZERO
@@ -359,6 +363,7 @@ impl Bank for SerialBank {
     fn health(&self, h: &mut SourceHealth) {
         h.bad_lines += self.counters.bad_lines;
         h.wrong_board_lines += self.counters.wrong_board;
+        h.superseded_lines += self.counters.superseded;
         h.reopens += self.counters.reopens;
         if let Some(said) = self.counters.last_bad.and_then(|b| self.describe_bad(b)) {
             h.last_bad_line = Some(said);
