@@ -30,8 +30,10 @@ struct Args {
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Validate a config file and everything it names that a start would
-    /// read (calibration, estimator, scene, trajectory, log header; no
-    /// device is opened) and exit (0 valid, 2 refused).
+    /// read (calibration, estimator, scene, trajectory, log header, the
+    /// recording dir) or bind (every listen address, briefly; no device is
+    /// opened) and exit (0 valid, 2 refused, 1 an address this machine
+    /// cannot bind now).
     #[arg(long, value_name = "FILE", conflicts_with_all = ["config", "bench", "soak"])]
     check_config: Option<PathBuf>,
     /// Run the simulator backend as fast as it goes and print throughput,
