@@ -117,7 +117,7 @@ fn i2c_source<C: I2cAdc>(
             chip,
         })
         .collect();
-    let bank = I2cBank::new(buses, slots, NoDelay::default()).expect("layout");
+    let bank = I2cBank::new(buses, slots, NoDelay).expect("layout");
     BoardSource::new(
         bank,
         ChannelMap::sequential(C::CHANNELS),
@@ -126,14 +126,12 @@ fn i2c_source<C: I2cAdc>(
     )
 }
 
-/// A delay that only adds up the time it was asked to wait (the ADS1115's
-/// conversion time is part of its frame time).
+/// A delay that does not wait (the conversion times are added to the
+/// table from the data rate).
 #[derive(Default)]
-struct NoDelay(u64);
+struct NoDelay;
 impl embedded_hal::delay::DelayNs for NoDelay {
-    fn delay_ns(&mut self, ns: u32) {
-        self.0 += ns as u64;
-    }
+    fn delay_ns(&mut self, _ns: u32) {}
 }
 
 /// I²C bytes and clocks of one transaction pattern, computed from the
@@ -225,14 +223,16 @@ fn print_table() {
         400e3,
         clocks as f64 / 400e3,
     );
-    // ADS1115: bus traffic plus 25 sequential conversions at 860 SPS
+    // ADS1115: bus traffic plus the conversions at 860 SPS. The bank
+    // starts the same slot on all 7 chips and waits once, so 25 channels
+    // (4 a chip) take 4 conversion times.
     let dr = DataRate::from_sps(860).expect("860");
     let mut bus = CountBus(I2cCount {
         bytes: 0,
         segments: 0,
     });
-    let a = Ads1115::new(0x48, Fsr::V4_096, dr);
-    let mut d = NoDelay::default();
+    let mut a = Ads1115::new(0x48, Fsr::V4_096, dr);
+    let mut d = NoDelay;
     for k in 0..NDET {
         a.read_channel(&mut bus, &mut d, (k % 4) as u8)
             .expect("count bus");
@@ -244,7 +244,7 @@ fn print_table() {
         "ADS1115 x7 (+860 SPS)",
         bus.0.bytes,
         3.4e6,
-        bus_s + d.0 as f64 * 1e-9,
+        bus_s + 4.0 * dr.conversion_ns() as f64 * 1e-9,
     );
     // serial: two 16-value 10-bit boards at 115200 8N1 (10 bit times/byte)
     let mut l = Vec::new();

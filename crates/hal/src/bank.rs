@@ -43,7 +43,13 @@ fn bus_error<E: core::fmt::Debug>(
 ) -> SourceError {
     match e {
         DriverError::NotReady { .. } => SourceError::Timeout { place: place() },
-        e => SourceError::Bus {
+        // A channel the chip lacks is a wrong map, not a bus fault: a retry
+        // cannot help.
+        e @ DriverError::NoChannel { .. } => SourceError::BadData {
+            place: place(),
+            msg: e.to_string(),
+        },
+        e @ DriverError::Bus(_) => SourceError::Bus {
             place: place(),
             msg: e.to_string(),
         },
@@ -101,18 +107,43 @@ impl<S: SpiDevice + Send> Bank for SpiBank<S> {
     }
 }
 
-/// An ADC chip on a shared I²C bus.
+/// An ADC chip on a shared I²C bus, read in two steps so that chips which
+/// convert on their own once started (ADS1115) overlap their conversions:
+/// the bank starts the same slot (the n-th wanted channel) on every chip,
+/// waits once, then collects them all.
 pub trait I2cAdc: Send {
     const CHANNELS: u8;
     const BITS: u8;
     const NAME: &'static str;
     fn address(&self) -> u8;
-    fn read<I: I2c, D: DelayNs>(
-        &self,
+    /// Start converting `ch`. A chip that converts while it is read
+    /// (ADS7828) does the whole conversion here: `Some(counts)`. A chip
+    /// that converts on its own (ADS1115) returns `None` at once, and its
+    /// counts come from [`I2cAdc::collect`] after [`I2cAdc::conversion_ns`].
+    fn start<I: I2c, D: DelayNs>(
+        &mut self,
         bus: &mut I,
         delay: &mut D,
         ch: u8,
-    ) -> Result<u16, DriverError<I::Error>>;
+    ) -> Result<Option<u16>, DriverError<I::Error>>;
+    /// How long a conversion `start` left running takes.
+    fn conversion_ns(&self) -> u32 {
+        0
+    }
+    /// The counts of the conversion `start` left running. Only called after
+    /// a `start` that returned `None`.
+    fn collect<I: I2c, D: DelayNs>(
+        &mut self,
+        _bus: &mut I,
+        _delay: &mut D,
+    ) -> Result<u16, DriverError<I::Error>> {
+        Err(DriverError::NotReady { polls: 0 })
+    }
+    /// Set the chip up before its first frame; returns how long it then
+    /// needs to settle (the bank waits once, for the slowest chip).
+    fn warm_up<I: I2c>(&mut self, _bus: &mut I) -> Result<u32, DriverError<I::Error>> {
+        Ok(0)
+    }
 }
 
 impl I2cAdc for Ads7828 {
@@ -122,13 +153,18 @@ impl I2cAdc for Ads7828 {
     fn address(&self) -> u8 {
         Ads7828::address(self)
     }
-    fn read<I: I2c, D: DelayNs>(
-        &self,
+    fn start<I: I2c, D: DelayNs>(
+        &mut self,
         bus: &mut I,
         _: &mut D,
         ch: u8,
-    ) -> Result<u16, DriverError<I::Error>> {
-        self.read_channel(bus, ch)
+    ) -> Result<Option<u16>, DriverError<I::Error>> {
+        self.read_channel(bus, ch).map(Some)
+    }
+    /// The internal reference is off at power-up: turn it on and let it
+    /// settle before the first frame.
+    fn warm_up<I: I2c>(&mut self, bus: &mut I) -> Result<u32, DriverError<I::Error>> {
+        self.power_up_reference(bus)
     }
 }
 
@@ -139,13 +175,23 @@ impl I2cAdc for Ads1115 {
     fn address(&self) -> u8 {
         Ads1115::address(self)
     }
-    fn read<I: I2c, D: DelayNs>(
-        &self,
+    fn start<I: I2c, D: DelayNs>(
+        &mut self,
         bus: &mut I,
         delay: &mut D,
         ch: u8,
+    ) -> Result<Option<u16>, DriverError<I::Error>> {
+        Ads1115::start(self, bus, delay, ch).map(|()| None)
+    }
+    fn conversion_ns(&self) -> u32 {
+        self.data_rate().conversion_ns()
+    }
+    fn collect<I: I2c, D: DelayNs>(
+        &mut self,
+        bus: &mut I,
+        delay: &mut D,
     ) -> Result<u16, DriverError<I::Error>> {
-        self.read_channel(bus, delay, ch)
+        self.finish(bus, delay)
     }
 }
 
@@ -158,10 +204,36 @@ pub struct I2cSlot<C> {
 
 /// I²C ADCs of one kind on one or more buses (four ADS1115 per bus is 16
 /// channels, so 25 detectors need two buses).
+///
+/// A frame is read in rounds: round n starts the n-th wanted channel of
+/// every chip, waits once for the longest conversion left running, then
+/// collects. Seven ADS1115 with 25 channels take 4 conversion times, not
+/// 25; chips that convert while read (ADS7828) simply go slot by slot.
 pub struct I2cBank<I, C, D> {
     buses: Vec<(String, I)>,
     chips: Vec<I2cSlot<C>>,
     delay: D,
+    /// Per chip, the channel this round left converting, to collect (kept
+    /// here so that a frame allocates nothing).
+    pending: Vec<Option<u8>>,
+}
+
+/// The `n`-th channel set in `mask`.
+fn nth_channel(mask: u16, n: usize) -> Option<u8> {
+    channels_of(mask).nth(n)
+}
+
+fn i2c_chip<C: I2cAdc>(slot: &I2cSlot<C>, bus_name: &str) -> String {
+    format!(
+        "board {} ({} 0x{:02X} on {bus_name})",
+        slot.name,
+        C::NAME,
+        slot.chip.address()
+    )
+}
+
+fn i2c_place<C: I2cAdc>(slot: &I2cSlot<C>, bus_name: &str, ch: u8) -> String {
+    format!("{} channel {ch}", i2c_chip(slot, bus_name))
 }
 
 impl<I: I2c + Send, C: I2cAdc, D: DelayNs + Send> I2cBank<I, C, D> {
@@ -172,12 +244,69 @@ impl<I: I2c + Send, C: I2cAdc, D: DelayNs + Send> I2cBank<I, C, D> {
         }
         Ok(I2cBank {
             buses,
+            pending: vec![None; chips.len()],
             chips,
             delay,
         })
     }
     pub fn into_buses(self) -> Vec<(String, I)> {
         self.buses
+    }
+
+    /// Set every chip up before the first frame (the ADS7828's internal
+    /// reference is turned on) and wait once for the slowest to settle.
+    pub fn warm_up(&mut self) -> Result<(), SourceError> {
+        let mut settle = 0;
+        for slot in self.chips.iter_mut() {
+            let (bus_name, bus) = &mut self.buses[slot.bus];
+            let ns = slot
+                .chip
+                .warm_up(bus)
+                .map_err(|e| bus_error(|| format!("{} warm-up", i2c_chip(slot, bus_name)), e))?;
+            settle = settle.max(ns);
+        }
+        if settle > 0 {
+            self.delay.delay_ns(settle);
+        }
+        Ok(())
+    }
+
+    /// Round `n`: start the `n`-th wanted channel of every chip, wait once,
+    /// collect what is left running.
+    fn round(&mut self, n: usize, wanted: &[u16], raw: &mut [RawBoard]) -> Result<(), SourceError> {
+        let mut wait_ns = 0;
+        for (b, slot) in self.chips.iter_mut().enumerate() {
+            self.pending[b] = None;
+            let Some(ch) = nth_channel(wanted.get(b).copied().unwrap_or(0), n) else {
+                continue;
+            };
+            let (bus_name, bus) = &mut self.buses[slot.bus];
+            let started = slot
+                .chip
+                .start(bus, &mut self.delay, ch)
+                .map_err(|e| bus_error(|| i2c_place(slot, bus_name, ch), e))?;
+            match started {
+                Some(v) => raw[b][ch as usize] = v,
+                None => {
+                    self.pending[b] = Some(ch);
+                    wait_ns = wait_ns.max(slot.chip.conversion_ns());
+                }
+            }
+        }
+        if wait_ns > 0 {
+            self.delay.delay_ns(wait_ns);
+        }
+        for (b, slot) in self.chips.iter_mut().enumerate() {
+            let Some(ch) = self.pending[b] else {
+                continue;
+            };
+            let (bus_name, bus) = &mut self.buses[slot.bus];
+            raw[b][ch as usize] = slot
+                .chip
+                .collect(bus, &mut self.delay)
+                .map_err(|e| bus_error(|| i2c_place(slot, bus_name, ch), e))?;
+        }
+        Ok(())
     }
 }
 
@@ -203,24 +332,14 @@ impl<I: I2c + Send, C: I2cAdc, D: DelayNs + Send> Bank for I2cBank<I, C, D> {
         )
     }
     fn read(&mut self, wanted: &[u16], raw: &mut [RawBoard]) -> Result<(), SourceError> {
-        for (b, slot) in self.chips.iter().enumerate() {
-            let mask = wanted.get(b).copied().unwrap_or(0);
-            let (bus_name, bus) = &mut self.buses[slot.bus];
-            for ch in channels_of(mask) {
-                raw[b][ch as usize] = slot.chip.read(bus, &mut self.delay, ch).map_err(|e| {
-                    bus_error(
-                        || {
-                            format!(
-                                "board {} ({} 0x{:02X} on {bus_name}) channel {ch}",
-                                slot.name,
-                                C::NAME,
-                                slot.chip.address()
-                            )
-                        },
-                        e,
-                    )
-                })?;
-            }
+        let rounds = wanted
+            .iter()
+            .take(self.chips.len())
+            .map(|m| m.count_ones() as usize)
+            .max()
+            .unwrap_or(0);
+        for n in 0..rounds {
+            self.round(n, wanted, raw)?;
         }
         Ok(())
     }
@@ -289,12 +408,21 @@ impl<B: Bank> BoardSource<B> {
 impl<B: Bank> FrameSource for BoardSource<B> {
     fn next_frame(&mut self) -> Result<Frame, SourceError> {
         self.pacer.wait();
-        let t = self.start.elapsed().as_secs_f64();
         // A failed read still uses up its sequence number, so that the log
         // shows the lost frame as a gap.
         let seq = self.seq;
         self.seq += 1;
+        // The frame's time is the middle of its read: the channels are
+        // sampled one after another (or round by round) between its start
+        // and its end, so the middle is the least wrong single time for all
+        // of them, off by at most half the read (docs/hardware.md, "A
+        // frame's time and its sampling skew"). Stamped before the read, a
+        // slow bank (ADS1115 at a low data rate) put every frame up to a
+        // whole read early.
+        let begun = self.start.elapsed();
         self.bank.read(&self.wanted, &mut self.raw)?;
+        let ended = self.start.elapsed();
+        let t = (begun + (ended.saturating_sub(begun)) / 2).as_secs_f64();
         let mut counts = [0u16; NDET];
         self.map.apply(&self.raw, &mut counts);
         Ok(Frame {
@@ -322,5 +450,86 @@ impl<B: Bank> FrameSource for BoardSource<B> {
         };
         self.bank.health(&mut h);
         h
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chanmap::ChannelMap;
+    use crate::temp::TempKind;
+
+    /// One board whose read takes `read` (a sleep).
+    struct SlowBank {
+        read: Duration,
+    }
+
+    impl Bank for SlowBank {
+        fn boards(&self) -> Vec<BoardSpec> {
+            vec![BoardSpec {
+                name: "slow".into(),
+                channels: 16,
+            }]
+        }
+        fn bits(&self) -> u8 {
+            12
+        }
+        fn describe(&self) -> String {
+            "slow".into()
+        }
+        fn read(&mut self, _: &[u16], _: &mut [RawBoard]) -> Result<(), SourceError> {
+            std::thread::sleep(self.read);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_frame_is_stamped_at_the_middle_of_its_read() {
+        let read = Duration::from_millis(60);
+        let t0 = Instant::now();
+        let mut src = BoardSource::new(
+            SlowBank { read },
+            ChannelMap::sequential(16),
+            TempReader::new(TempKind::None, 0.0),
+            Pacer::new(None),
+        );
+        let made = Instant::now();
+        let called = Instant::now();
+        let f = src.next_frame().unwrap();
+        let returned = Instant::now();
+        // The read starts after `called` and ends before `returned`, and
+        // lasts at least `read`: its middle is at least read / 2 after
+        // `called` and before `returned`. The source's clock started
+        // between t0 and `made`.
+        let half = read.as_secs_f64() / 2.0;
+        let lo = (called - made).as_secs_f64() + half;
+        let hi = (returned - t0).as_secs_f64() - half;
+        assert!(
+            f.t >= lo - 1e-6 && f.t <= hi + 1e-6,
+            "{lo} <= {} <= {hi}",
+            f.t
+        );
+    }
+
+    #[test]
+    fn a_channel_the_chip_lacks_is_bad_data_not_a_bus_error() {
+        let e = bus_error(
+            || "board u0 channel 9".into(),
+            DriverError::<embedded_hal::i2c::ErrorKind>::NoChannel { ch: 9, max: 8 },
+        );
+        assert!(
+            matches!(&e, SourceError::BadData { place, msg } if place == "board u0 channel 9" && msg.contains("no channel 9")),
+            "{e:?}"
+        );
+        let e = bus_error(
+            || "x".into(),
+            DriverError::Bus(embedded_hal::i2c::ErrorKind::Other),
+        );
+        assert!(matches!(e, SourceError::Bus { .. }), "{e:?}");
+        let e = bus_error(
+            || "x".into(),
+            DriverError::<embedded_hal::i2c::ErrorKind>::NotReady { polls: 3 },
+        );
+        assert!(matches!(e, SourceError::Timeout { .. }), "{e:?}");
     }
 }

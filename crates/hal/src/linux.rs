@@ -42,9 +42,17 @@ fn i2c_source<C: crate::bank::I2cAdc + 'static>(
             chip: make(p.address),
         })
         .collect();
-    let bank = I2cBank::new(open_buses(buses)?, slots, StdDelay).map_err(|msg| HalError::Open {
+    let mut bank =
+        I2cBank::new(open_buses(buses)?, slots, StdDelay).map_err(|msg| HalError::Open {
+            place: "i2c".into(),
+            msg,
+        })?;
+    // The ADS7828's internal reference is off at power-up: one discarded
+    // conversion with PD = 11 per chip turns it on, then one wait for it to
+    // settle (drivers::ads7828::REF_SETTLE_NS).
+    bank.warm_up().map_err(|e| HalError::Open {
         place: "i2c".into(),
-        msg,
+        msg: e.to_string(),
     })?;
     Ok(Box::new(BoardSource::new(
         bank,

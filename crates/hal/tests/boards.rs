@@ -3,14 +3,14 @@
 
 use embedded_hal::i2c::ErrorKind;
 use embedded_hal::spi::{ErrorType, Operation, SpiDevice};
-use embedded_hal_mock::eh1::delay::NoopDelay;
+use embedded_hal_mock::eh1::delay::{CheckedDelay, NoopDelay, Transaction as DelayT};
 use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as I2cT};
 use embedded_hal_mock::eh1::spi::{Mock as SpiMock, Transaction as SpiT};
 use lightpose_core::NDET;
 use lightpose_hal::bank::{BoardSource, I2cBank, I2cSlot, SpiBank};
 use lightpose_hal::chanmap::{BoardSpec, ChannelMap, MapEntry};
-use lightpose_hal::drivers::ads1115::{Ads1115, DataRate, Fsr};
-use lightpose_hal::drivers::ads7828::{command, Ads7828, PowerMode};
+use lightpose_hal::drivers::ads1115::{config_word, Ads1115, DataRate, Fsr};
+use lightpose_hal::drivers::ads7828::{self, command, Ads7828, PowerMode};
 use lightpose_hal::drivers::mcp3x08::{Mcp3x08, McpKind};
 use lightpose_hal::pace::Pacer;
 use lightpose_hal::temp::{TempKind, TempReader};
@@ -158,9 +158,14 @@ fn spi_frame_applies_the_map_and_recovers_after_a_mid_frame_bus_error() {
 fn ads7828_frame_over_one_bus_with_bus_error_mid_frame() {
     // four chips on one bus, detector k on chip k / 8 (0x48 + k/8), channel k % 8
     let map = ChannelMap::sequential(8);
+    // The bank reads in rounds: channel n of every chip, then n + 1.
+    let order: Vec<usize> = (0..8)
+        .flat_map(|ch| (0..4).map(move |chip| chip * 8 + ch))
+        .filter(|&k| k < NDET)
+        .collect();
     let script = |fail_k: Option<usize>| {
         let mut ex = Vec::new();
-        for k in 0..NDET {
+        for &k in &order {
             let t = I2cT::write_read(
                 0x48 + (k / 8) as u8,
                 vec![command((k % 8) as u8, PowerMode::InternalRef)],
@@ -212,6 +217,19 @@ fn ads7828_frame_over_one_bus_with_bus_error_mid_frame() {
     }
 }
 
+/// One ADS1115 conversion as the bank does it: the start, and later its
+/// poll (done) and result.
+fn ads1115_start(addr: u8, ch: u8, dr: DataRate) -> I2cT {
+    let cfg = config_word(ch, Fsr::V4_096, dr).to_be_bytes();
+    I2cT::write(addr, vec![0x01, cfg[0], cfg[1]])
+}
+fn ads1115_collect(addr: u8, code: i16) -> Vec<I2cT> {
+    vec![
+        I2cT::write_read(addr, vec![0x01], vec![0x85, 0x83]),
+        I2cT::write_read(addr, vec![0x00], code.to_be_bytes().to_vec()),
+    ]
+}
+
 #[test]
 fn ads1115_frame_across_two_buses_with_a_thermistor_channel() {
     // 7 chips: 4 on bus A, 3 on bus B; detector k on chip k / 4, channel k % 4.
@@ -219,34 +237,34 @@ fn ads1115_frame_across_two_buses_with_a_thermistor_channel() {
     let map = ChannelMap::sequential(4);
     let dr = DataRate::from_sps(860).unwrap();
     let chip = |i: usize| Ads1115::new(0x48 + (i % 4) as u8, Fsr::V4_096, dr);
-    let read = |i: usize, ch: u8, code: i16| {
-        let cfg = lightpose_hal::drivers::ads1115::config_word(ch, Fsr::V4_096, dr).to_be_bytes();
-        let addr = 0x48 + (i % 4) as u8;
-        vec![
-            I2cT::write(addr, vec![0x01, cfg[0], cfg[1]]),
-            I2cT::write_read(addr, vec![0x01], vec![cfg[0], cfg[1]]),
-            I2cT::write_read(addr, vec![0x00], code.to_be_bytes().to_vec()),
-        ]
-    };
-    let (mut a, mut b) = (Vec::new(), Vec::new());
-    for i in 0..7 {
-        for ch in 0..4u8 {
-            let k = i * 4 + ch as usize;
-            let code = if k < NDET {
-                // detector 3 reads slightly negative: clamped to 0
-                if k == 3 {
-                    -5
-                } else {
-                    value_of(k) as i16 * 8
-                }
-            } else if ch == 1 {
-                16384 // thermistor at half of 4.096 V
+    let code = |i: usize, ch: u8| {
+        let k = i * 4 + ch as usize;
+        if k < NDET {
+            // detector 3 reads slightly negative: clamped to 0
+            if k == 3 {
+                -5
             } else {
-                continue;
-            };
-            let ex = if i < 4 { &mut a } else { &mut b };
-            ex.extend(read(i, ch, code));
+                value_of(k) as i16 * 8
+            }
+        } else {
+            16384 // thermistor at half of 4.096 V
         }
+    };
+    // Round n starts channel n on every chip that wants one (chip 6: 0, 1),
+    // waits once, then collects them in the same order.
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    let mut waits = Vec::new();
+    for ch in 0..4u8 {
+        let chips: Vec<usize> = (0..7).filter(|&i| i < 6 || ch < 2).collect();
+        for &i in &chips {
+            let ex = if i < 4 { &mut a } else { &mut b };
+            ex.push(ads1115_start(0x48 + (i % 4) as u8, ch, dr));
+        }
+        for &i in &chips {
+            let ex = if i < 4 { &mut a } else { &mut b };
+            ex.extend(ads1115_collect(0x48 + (i % 4) as u8, code(i, ch)));
+        }
+        waits.push(DelayT::delay_ns(dr.conversion_ns()));
     }
     let buses = vec![
         ("/dev/i2c-1".to_string(), I2cMock::new(&a)),
@@ -259,7 +277,8 @@ fn ads1115_frame_across_two_buses_with_a_thermistor_channel() {
             chip: chip(i),
         })
         .collect();
-    let bank = I2cBank::new(buses, slots, NoopDelay::new()).unwrap();
+    let mut delay = CheckedDelay::new(&waits);
+    let bank = I2cBank::new(buses, slots, delay.clone()).unwrap();
     let x = 16384.0 / 32767.0 * 4.096 / 3.3;
     let therm = lightpose_hal::temp::Thermistor {
         board: 6,
@@ -286,12 +305,119 @@ fn ads1115_frame_across_two_buses_with_a_thermistor_channel() {
     assert_eq!(f.adc_bits, 15);
     assert_eq!(f.counts[3], 0);
     assert_eq!(f.counts[24], value_of(24) * 8);
+    assert_eq!(f.counts[13], value_of(13) * 8);
     let t = f.temp_c.unwrap();
     assert!((t - 25.0).abs() < 1e-6, "{t}");
     assert!(!src.health().temp.unwrap().fallback_active);
     for (_, mut b) in src.into_bank().into_buses() {
         b.done();
     }
+    // 4 waits of one conversion for 26 conversions on 7 chips
+    delay.done();
+}
+
+/// A frame given up mid-round leaves other chips converting: on the next
+/// frame each of them is polled until idle before its new start (a start
+/// while busy is ignored by the chip but its MUX is taken).
+#[test]
+fn ads1115_chips_left_converting_by_a_failed_frame_are_waited_for() {
+    let dr = DataRate::from_sps(860).unwrap();
+    let idle = || I2cT::write_read(0x48, vec![0x01], vec![0x85, 0x83]);
+    let mut ex = vec![
+        // frame 1, round 0: both started, the first chip's poll fails
+        ads1115_start(0x48, 0, dr),
+        ads1115_start(0x49, 0, dr),
+        I2cT::write_read(0x48, vec![0x01], vec![0, 0]).with_error(ErrorKind::Other),
+        // frame 2, round 0: each chip waited for first
+        idle(),
+        ads1115_start(0x48, 0, dr),
+        I2cT::write_read(0x49, vec![0x01], vec![0x05, 0x83]), // still busy
+        I2cT::write_read(0x49, vec![0x01], vec![0x85, 0x83]),
+        ads1115_start(0x49, 0, dr),
+    ];
+    ex.extend(ads1115_collect(0x48, 100));
+    ex.extend(ads1115_collect(0x49, 200));
+    for ch in 1..4u8 {
+        ex.push(ads1115_start(0x48, ch, dr));
+        ex.push(ads1115_start(0x49, ch, dr));
+        ex.extend(ads1115_collect(0x48, 100 + ch as i16));
+        ex.extend(ads1115_collect(0x49, 200 + ch as i16));
+    }
+    let slots = (0..2)
+        .map(|i| I2cSlot {
+            name: format!("a{i}"),
+            bus: 0,
+            chip: Ads1115::new(0x48 + i as u8, Fsr::V4_096, dr),
+        })
+        .collect();
+    let bank = I2cBank::new(
+        vec![("/dev/i2c-1".into(), I2cMock::new(&ex))],
+        slots,
+        NoopDelay::new(),
+    )
+    .unwrap();
+    let mut src = BoardSource::new(
+        bank,
+        ChannelMap::sequential(4),
+        TempReader::new(TempKind::None, 0.0),
+        Pacer::new(None),
+    );
+    let e = src.next_frame().unwrap_err().to_string();
+    assert!(
+        e.contains("board a0 (ADS1115 0x48 on /dev/i2c-1) channel 0"),
+        "{e}"
+    );
+    let f = src.next_frame().unwrap();
+    assert_eq!(&f.counts[..8], &[100, 101, 102, 103, 200, 201, 202, 203]);
+    for (_, mut b) in src.into_bank().into_buses() {
+        b.done();
+    }
+}
+
+#[test]
+fn ads7828_internal_reference_is_turned_on_once_before_the_first_frame() {
+    let ex = [
+        I2cT::write_read(0x48, vec![0x8C], vec![0x00, 0x00]),
+        I2cT::write_read(0x49, vec![0x8C], vec![0x00, 0x00]),
+    ];
+    let slots = (0..2)
+        .map(|i| I2cSlot {
+            name: format!("b{i}"),
+            bus: 0,
+            chip: Ads7828::new(0x48 + i as u8, PowerMode::InternalRef),
+        })
+        .collect();
+    // one wait for both chips
+    let mut delay = CheckedDelay::new(&[DelayT::delay_ns(ads7828::REF_SETTLE_NS)]);
+    let mut bank = I2cBank::new(
+        vec![("/dev/i2c-1".into(), I2cMock::new(&ex))],
+        slots,
+        delay.clone(),
+    )
+    .unwrap();
+    bank.warm_up().unwrap();
+    for (_, mut b) in bank.into_buses() {
+        b.done();
+    }
+    delay.done();
+    // An external reference needs neither a command nor a wait.
+    let slots = vec![I2cSlot {
+        name: "b0".into(),
+        bus: 0,
+        chip: Ads7828::new(0x48, PowerMode::ExternalRef),
+    }];
+    let mut delay = CheckedDelay::new(&[]);
+    let mut bank = I2cBank::new(
+        vec![("/dev/i2c-1".into(), I2cMock::new(&[]))],
+        slots,
+        delay.clone(),
+    )
+    .unwrap();
+    bank.warm_up().unwrap();
+    for (_, mut b) in bank.into_buses() {
+        b.done();
+    }
+    delay.done();
 }
 
 #[test]

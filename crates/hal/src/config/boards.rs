@@ -6,8 +6,8 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
-use super::temp::{temp_plan, TempConfig, TempPlan};
-use super::{err, positive_to, rate, unique_names, Env, ValidBackend};
+use super::temp::{temp_plan, DividerSupply, TempConfig, TempPlan};
+use super::{err, positive_to, rate, unique_names, within, Env, ValidBackend};
 use crate::chanmap::{BoardSpec, ChannelMap, MapEntry, MAX_CH};
 use crate::drivers::ads1115::{self, DataRate, Fsr};
 use crate::drivers::ads7828::{self, PowerMode};
@@ -53,6 +53,10 @@ pub struct SpiConfig {
     /// ADC reference (for a thermistor channel).
     #[serde(default = "v5")]
     pub v_ref: f64,
+    /// The chips' supply, 2.7..=5.5 V: sets their SCLK limit. Absent: the
+    /// 2.7 V limit, safe at any supply.
+    #[serde(default)]
+    pub vdd_v: Option<f64>,
     pub chips: Vec<SpiChipConfig>,
     pub map: Vec<MapEntry>,
     #[serde(default)]
@@ -65,7 +69,8 @@ pub struct SpiChipConfig {
     pub name: String,
     /// e.g. `/dev/spidev0.0`
     pub device: String,
-    /// Defaults to the chip's maximum at 5 V.
+    /// Defaults to the chip's limit at the table's `vdd_v` (without it, at
+    /// 2.7 V).
     #[serde(default)]
     pub max_speed_hz: Option<u32>,
 }
@@ -91,6 +96,14 @@ pub struct Ads1115Config {
     /// 8, 16, 32, 64, 128, 250, 475 or 860.
     #[serde(default = "dr_default")]
     pub data_rate_sps: u16,
+    /// The chips' supply, 2.0..=5.5 V: a full scale above it is refused
+    /// (the inputs only reach VDD). Absent: not checked.
+    #[serde(default)]
+    pub vdd_v: Option<f64>,
+    /// SCL of the buses (the slowest), for the frame-time check only (the
+    /// kernel sets it, e.g. dtparam=i2c_arm_baudrate). Absent: 100 kHz.
+    #[serde(default)]
+    pub i2c_clock_hz: Option<u32>,
     pub chips: Vec<I2cChipConfig>,
     pub map: Vec<MapEntry>,
     #[serde(default)]
@@ -161,6 +174,16 @@ impl Common {
     pub fn pacer(&self, stop: &Stop) -> Pacer {
         Pacer::from_rate(self.rate_hz).stoppable(stop.clone())
     }
+    /// Per board, the channels a frame reads: the map's and a thermistor's.
+    pub fn wanted(&self) -> Vec<u16> {
+        let mut w = self.map.wanted(self.boards.len());
+        if let TempPlan::Thermistor { params, .. } = &self.temp {
+            if let Some(m) = w.get_mut(params.board) {
+                *m |= 1 << params.channel;
+            }
+        }
+        w
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -185,12 +208,14 @@ struct Shared<'a> {
     temp: &'a TempConfig,
     bits: u8,
     v_ref: f64,
+    /// What a thermistor divider's supply defaults to.
+    supply: DividerSupply,
 }
 
 fn common(s: Shared, boards: Vec<BoardSpec>, env: &dyn Env) -> Result<Common, HalError> {
     let rate_hz = rate(s.rate_hz, env)?;
     let map = ChannelMap::new(s.map, &boards)?;
-    let temp = temp_plan(s.temp, &boards, &map, s.bits, s.v_ref)?;
+    let temp = temp_plan(s.temp, &boards, &map, s.bits, s.v_ref, &s.supply)?;
     Ok(Common {
         rate_hz,
         boards,
@@ -203,6 +228,10 @@ fn common(s: Shared, boards: Vec<BoardSpec>, env: &dyn Env) -> Result<Common, Ha
 /// `kind = "mcp3008"` / `"mcp3208"`.
 pub(super) fn spi(c: &SpiConfig, kind: McpKind, env: &dyn Env) -> Result<ValidBackend, HalError> {
     unique_names("chips", c.chips.iter().map(|c| c.name.as_str()))?;
+    let vdd = c
+        .vdd_v
+        .map(|v| within("vdd_v", v, 2.7, 5.5, " V"))
+        .transpose()?;
     let mut devices: Vec<&str> = Vec::new();
     let mut chips = Vec::new();
     for ch in &c.chips {
@@ -213,17 +242,7 @@ pub(super) fn spi(c: &SpiConfig, kind: McpKind, env: &dyn Env) -> Result<ValidBa
             ));
         }
         devices.push(&ch.device);
-        let hz = ch.max_speed_hz.unwrap_or(kind.max_clock_hz());
-        if hz == 0 || hz > kind.max_clock_hz() {
-            return Err(err(
-                format!("chips.{}.max_speed_hz", ch.name),
-                format!(
-                    "{hz} is not in 1..={} for {}",
-                    kind.max_clock_hz(),
-                    kind.name()
-                ),
-            ));
-        }
+        let hz = spi_clock(ch, kind, vdd)?;
         chips.push(SpiChipPlan {
             name: ch.name.clone(),
             device: ch.device.clone(),
@@ -243,12 +262,35 @@ pub(super) fn spi(c: &SpiConfig, kind: McpKind, env: &dyn Env) -> Result<ValidBa
         temp: &c.temperature,
         bits: kind.bits(),
         v_ref: positive_to("v_ref", c.v_ref, MAX_V, " V")?,
+        supply: DividerSupply::IsRef,
     };
     Ok(ValidBackend::Spi {
         kind,
         chips,
         common: common(shared, boards, env)?,
     })
+}
+
+/// A chip's SCLK: as given or the limit at the supply, at most that limit
+/// ([`McpKind::clock_limit_hz`]).
+fn spi_clock(ch: &SpiChipConfig, kind: McpKind, vdd: Option<f64>) -> Result<u32, HalError> {
+    let limit = kind.clock_limit_hz(vdd);
+    let hz = ch.max_speed_hz.unwrap_or(limit);
+    if (1..=limit).contains(&hz) {
+        return Ok(hz);
+    }
+    let (name, hi) = (kind.name(), kind.max_clock_hz());
+    let why = match vdd {
+        _ if hz == 0 => format!("0 is not in 1..={limit}"),
+        Some(v) => format!(
+            "{hz} is above {limit}, the {name}'s limit at vdd_v = {v} V (on the line from {} at 2.7 V to {hi} at 5 V)",
+            kind.low_supply_clock_hz()
+        ),
+        None => format!(
+            "{hz} is above {limit}, the {name}'s limit at 2.7 V; declare the chips' supply as vdd_v to allow more (up to {hi} at 5 V)"
+        ),
+    };
+    Err(err(format!("chips.{}.max_speed_hz", ch.name), why))
 }
 
 /// `kind = "ads1115"`.
@@ -271,6 +313,17 @@ pub(super) fn ads1115(c: &Ads1115Config, env: &dyn Env) -> Result<ValidBackend, 
             ),
         )
     })?;
+    ads1115_supply(c.vdd_v, fsr)?;
+    let scl = match c.i2c_clock_hz {
+        Some(hz) if (10_000..=ads1115::MAX_CLOCK_HZ).contains(&hz) => Some(hz),
+        Some(hz) => {
+            return Err(err(
+                "i2c_clock_hz",
+                format!("{hz} is not in 10000..={}", ads1115::MAX_CLOCK_HZ),
+            ))
+        }
+        None => None,
+    };
     let (buses, chips) = i2c_layout(&c.chips, ads1115::ADDR_MIN, ads1115::ADDR_MAX)?;
     let boards = i2c_boards(&chips, ads1115::CHANNELS);
     let shared = Shared {
@@ -279,14 +332,77 @@ pub(super) fn ads1115(c: &Ads1115Config, env: &dyn Env) -> Result<ValidBackend, 
         temp: &c.temperature,
         bits: ads1115::BITS,
         v_ref: fsr.volts(),
+        supply: DividerSupply::Required(format!(
+            "an ADS1115's reference is its PGA full scale (fsr_v = {} V), inside the chip and not the divider's supply; give the voltage the divider hangs off (e.g. 3.3)",
+            fsr.volts()
+        )),
     };
+    let common = common(shared, boards, env)?;
+    ads1115_frame_fits(&common, data_rate, scl)?;
     Ok(ValidBackend::Ads1115 {
         fsr,
         data_rate,
         buses,
         chips,
-        common: common(shared, boards, env)?,
+        common,
     })
+}
+
+/// With the supply declared, a full scale above it is refused: the inputs
+/// are measured only up to VDD, so the top counts (and saturation) never
+/// come.
+fn ads1115_supply(vdd_v: Option<f64>, fsr: Fsr) -> Result<(), HalError> {
+    let Some(v) = vdd_v else { return Ok(()) };
+    let vdd = within("vdd_v", v, 2.0, 5.5, " V")?;
+    if fsr.volts() <= vdd {
+        return Ok(());
+    }
+    let top = (vdd / fsr.volts() * 32767.0).round();
+    let fits = [6.144, 4.096, 2.048, 1.024, 0.512, 0.256]
+        .into_iter()
+        .find(|&f| f <= vdd)
+        .unwrap_or(0.256);
+    Err(err(
+        "fsr_v",
+        format!(
+            "{} V is above vdd_v = {vdd} V: the inputs are measured only up to VDD, so counts stop near {top} of 32767 and saturation is never seen; use fsr_v = {fits} or lower",
+            fsr.volts()
+        ),
+    ))
+}
+
+/// The frame must be read well within its period: the ADS1115 converts
+/// for 1.1/DR a channel (the bank overlaps one channel of every chip) and
+/// every channel costs bus time. Above 80 % of the period the pacer would
+/// slip behind and the frames' rate be a lie.
+fn ads1115_frame_fits(common: &Common, dr: DataRate, scl: Option<u32>) -> Result<(), HalError> {
+    let Some(rate) = common.rate_hz else {
+        return Ok(());
+    };
+    let wanted = common.wanted();
+    let rounds = wanted.iter().map(|m| m.count_ones()).max().unwrap_or(0);
+    let channels: u32 = wanted.iter().map(|m| m.count_ones()).sum();
+    let hz = scl.unwrap_or(100_000);
+    let secs = ads1115::frame_read_ns(rounds, channels, dr, hz) as f64 * 1e-9;
+    if rate * secs <= 0.8 {
+        return Ok(());
+    }
+    let assumed = if scl.is_some() {
+        ""
+    } else {
+        ", assumed: no i2c_clock_hz"
+    };
+    Err(err(
+        "rate_hz",
+        format!(
+            "{rate} Hz with data_rate_sps = {}: reading a frame takes {:.1} ms ({rounds} conversions of 1.1/DR in turn, {channels} channels' I2C transfers at {} kHz{assumed}), over 80 % of the {:.1} ms period; at most {:.2} Hz fits, or raise data_rate_sps",
+            dr.sps(),
+            secs * 1e3,
+            hz as f64 / 1e3,
+            1e3 / rate,
+            0.8 / secs
+        ),
+    ))
 }
 
 /// `kind = "ads7828"`.
@@ -308,12 +424,19 @@ pub(super) fn ads7828(c: &Ads7828Config, env: &dyn Env) -> Result<ValidBackend, 
     };
     let (buses, chips) = i2c_layout(&c.chips, ads7828::ADDR_MIN, ads7828::ADDR_MAX)?;
     let boards = i2c_boards(&chips, ads7828::CHANNELS);
+    let supply = match power {
+        PowerMode::InternalRef => DividerSupply::Required(
+            "with internal_ref = true the reference is the chip's own 2.5 V, the divider's supply only if it hangs off REFOUT (then give 2.5); give the voltage the divider hangs off".into(),
+        ),
+        _ => DividerSupply::IsRef,
+    };
     let shared = Shared {
         rate_hz: c.rate_hz,
         map: &c.map,
         temp: &c.temperature,
         bits: 12,
         v_ref,
+        supply,
     };
     Ok(ValidBackend::Ads7828 {
         power,
@@ -359,6 +482,7 @@ pub(super) fn serial(c: &SerialConfig, env: &dyn Env) -> Result<ValidBackend, Ha
         temp: &c.temperature,
         bits: c.adc_bits,
         v_ref: positive_to("v_ref", c.v_ref, MAX_V, " V")?,
+        supply: DividerSupply::IsRef,
     };
     Ok(ValidBackend::Serial {
         boards,

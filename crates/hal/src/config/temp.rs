@@ -71,7 +71,10 @@ pub enum TempConfig {
         r_fixed_ohm: f64,
         #[serde(default = "low")]
         position: ThermistorPosition,
-        /// Divider supply; defaults to the ADC reference (ratiometric).
+        /// Divider supply. Defaults to the ADC reference only where that
+        /// is the divider's supply (MCP3x08, ADS7828 with an external
+        /// reference, serial); required for ADS1115 and for ADS7828 on its
+        /// internal reference (docs/hardware.md).
         #[serde(default)]
         v_supply: Option<f64>,
         #[serde(default = "sh_a")]
@@ -85,6 +88,17 @@ pub enum TempConfig {
         #[serde(default = "max_c")]
         max_c: f64,
     },
+}
+
+/// What a thermistor's `temperature.v_supply` may default to.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) enum DividerSupply {
+    /// Ratiometric: the ADC's reference is the board voltage the divider
+    /// hangs off, so `v_ref` is the default.
+    IsRef,
+    /// The ADC's reference exists nowhere on the board (a PGA full scale,
+    /// an internal reference): `v_supply` must be given; the text says why.
+    Required(String),
 }
 
 /// A validated temperature source, not yet started.
@@ -146,12 +160,28 @@ fn water(key: &str, v: f64) -> Result<f64, HalError> {
     within(key, v, -5.0, 45.0, " °C")
 }
 
+/// The thermistor divider's supply: as given, or the ADC's reference where
+/// that is the divider's supply. Counts are volts over `v_ref`, the divider
+/// gives a fraction of its supply: with the wrong supply every reading is
+/// scaled by the ratio of the two (a 3.3 V divider read as 4.096 V: 24 %).
+fn divider_supply(given: Option<f64>, v_ref: f64, supply: &DividerSupply) -> Result<f64, HalError> {
+    let v = match (given, supply) {
+        (Some(v), _) => v,
+        (None, DividerSupply::IsRef) => v_ref,
+        (None, DividerSupply::Required(why)) => {
+            return Err(err("temperature.v_supply", format!("required: {why}")))
+        }
+    };
+    positive_to("temperature.v_supply", v, MAX_V, " V")
+}
+
 pub(super) fn temp_plan(
     t: &TempConfig,
     boards: &[BoardSpec],
     map: &ChannelMap,
     bits: u8,
     v_ref: f64,
+    supply: &DividerSupply,
 ) -> Result<TempPlan, HalError> {
     Ok(match t {
         TempConfig::None => TempPlan::None,
@@ -216,12 +246,7 @@ pub(super) fn temp_plan(
                     c: finite("temperature.c", *c)?,
                     r_fixed_ohm: positive_to("temperature.r_fixed_ohm", *r_fixed_ohm, 1e9, " Ω")?,
                     position: *position,
-                    v_supply: positive_to(
-                        "temperature.v_supply",
-                        v_supply.unwrap_or(v_ref),
-                        MAX_V,
-                        " V",
-                    )?,
+                    v_supply: divider_supply(*v_supply, v_ref, supply)?,
                     v_ref,
                     bits,
                     min_c: *min_c,

@@ -106,6 +106,24 @@ pub fn code_to_counts(code: i16) -> u16 {
     code.max(0) as u16
 }
 
+/// I²C clocks one channel costs: the start (address, pointer, 2 config
+/// bytes), one status poll and the result read (each address + pointer,
+/// repeated START, address + 2 bytes): 14 bytes of 9 clocks, plus about 2
+/// clocks for each of the 5 START / repeated START / STOP conditions.
+pub const BUS_CLOCKS_PER_CHANNEL: u64 = 14 * 9 + 5 * 2;
+
+/// How long a frame of these chips takes to read, in ns: `rounds`
+/// conversions one after another (the bank starts the same slot on every
+/// chip, so a frame takes as many conversions as the busiest chip has
+/// channels) at the driver's 1.1/DR each, plus `channels` channels' bus
+/// transfers at `scl_hz`, one at a time.
+pub fn frame_read_ns(rounds: u32, channels: u32, dr: DataRate, scl_hz: u32) -> u64 {
+    let convert = rounds as u64 * dr.conversion_ns() as u64;
+    let bus =
+        (channels as u64 * BUS_CLOCKS_PER_CHANNEL * 1_000_000_000).div_ceil(scl_hz.max(1) as u64);
+    convert + bus
+}
+
 /// One ADS1115 at `address`.
 #[derive(Debug, Clone, Copy)]
 pub struct Ads1115 {
@@ -114,6 +132,12 @@ pub struct Ads1115 {
     dr: DataRate,
     /// Extra status polls after the nominal conversion time before giving up.
     pub max_polls: u32,
+    /// A conversion may still be running: it was started and never seen
+    /// done (a `NotReady`, or a frame given up between start and result).
+    /// While the chip converts it ignores a start (OS = 1) but takes the
+    /// new MUX, so a start now could give the old channel's result under
+    /// the new channel; the next [`Ads1115::start`] first waits for OS = 1.
+    busy: bool,
 }
 
 impl Ads1115 {
@@ -123,6 +147,7 @@ impl Ads1115 {
             fsr,
             dr,
             max_polls: 4,
+            busy: false,
         }
     }
     pub fn address(&self) -> u8 {
@@ -131,15 +156,55 @@ impl Ads1115 {
     pub fn fsr(&self) -> Fsr {
         self.fsr
     }
+    pub fn data_rate(&self) -> DataRate {
+        self.dr
+    }
+    /// Whether a conversion may still be running (see [`Ads1115::start`]).
+    pub fn busy(&self) -> bool {
+        self.busy
+    }
 
-    /// Start a single-shot conversion of `ch`.
-    pub fn start<I: I2c>(&self, bus: &mut I, ch: u8) -> Result<(), DriverError<I::Error>> {
+    /// Start a single-shot conversion of `ch` and return at once; the
+    /// result comes from [`Ads1115::finish`] after `conversion_ns`. If an
+    /// earlier conversion was never seen to end, poll until the chip is
+    /// idle first (bounded: `NotReady` if it stays busy).
+    pub fn start<I: I2c, D: DelayNs>(
+        &mut self,
+        bus: &mut I,
+        delay: &mut D,
+        ch: u8,
+    ) -> Result<(), DriverError<I::Error>> {
         if ch >= CHANNELS {
             return Err(DriverError::NoChannel { ch, max: CHANNELS });
         }
+        if self.busy {
+            self.wait_idle(bus, delay)?;
+        }
         let [hi, lo] = config_word(ch, self.fsr, self.dr).to_be_bytes();
+        // Marked first: a write that failed may still have reached the chip.
+        self.busy = true;
         bus.write(self.address, &[REG_CONFIG, hi, lo])
             .map_err(DriverError::Bus)
+    }
+
+    /// Poll until a conversion left running ends: about a conversion time
+    /// and a half at most (a tenth of one between polls), longer than a
+    /// conversion started just before can still take.
+    fn wait_idle<I: I2c, D: DelayNs>(
+        &mut self,
+        bus: &mut I,
+        delay: &mut D,
+    ) -> Result<(), DriverError<I::Error>> {
+        let mut polls = 0;
+        while !self.ready(bus)? {
+            polls += 1;
+            if polls > 10 + self.max_polls {
+                return Err(DriverError::NotReady { polls });
+            }
+            delay.delay_ns(self.dr.conversion_ns() / 10);
+        }
+        self.busy = false;
+        Ok(())
     }
 
     /// Whether the conversion started last is done (OS reads back 1).
@@ -158,15 +223,13 @@ impl Ads1115 {
         Ok(i16::from_be_bytes(rx))
     }
 
-    /// Start, wait one conversion time, poll until done, read: 15-bit counts.
-    pub fn read_channel<I: I2c, D: DelayNs>(
-        &self,
+    /// After a start and its conversion time: poll until done, read,
+    /// 15-bit counts. `NotReady` leaves the chip marked busy.
+    pub fn finish<I: I2c, D: DelayNs>(
+        &mut self,
         bus: &mut I,
         delay: &mut D,
-        ch: u8,
     ) -> Result<u16, DriverError<I::Error>> {
-        self.start(bus, ch)?;
-        delay.delay_ns(self.dr.conversion_ns());
         let mut polls = 0;
         while !self.ready(bus)? {
             polls += 1;
@@ -176,7 +239,20 @@ impl Ads1115 {
             // a tenth of a conversion: the chip is late only by its clock error
             delay.delay_ns(self.dr.conversion_ns() / 10);
         }
+        self.busy = false;
         Ok(code_to_counts(self.result(bus)?))
+    }
+
+    /// Start, wait one conversion time, poll until done, read: 15-bit counts.
+    pub fn read_channel<I: I2c, D: DelayNs>(
+        &mut self,
+        bus: &mut I,
+        delay: &mut D,
+        ch: u8,
+    ) -> Result<u16, DriverError<I::Error>> {
+        self.start(bus, delay, ch)?;
+        delay.delay_ns(self.dr.conversion_ns());
+        self.finish(bus, delay)
     }
 }
 
@@ -221,7 +297,7 @@ mod tests {
             T::write_read(0x4A, vec![0x00], vec![0x7F, 0xFF]),
         ];
         let mut bus = Mock::new(&ex);
-        let adc = Ads1115::new(0x4A, Fsr::V4_096, dr);
+        let mut adc = Ads1115::new(0x4A, Fsr::V4_096, dr);
         let mut d = NoopDelay::new();
         assert_eq!(adc.read_channel(&mut bus, &mut d, 2).unwrap(), 0x1234);
         assert_eq!(adc.read_channel(&mut bus, &mut d, 1).unwrap(), 0);
@@ -244,6 +320,80 @@ mod tests {
         bus.done();
     }
 
+    /// After a NotReady the conversion may still run: the next start polls
+    /// OS until idle before it writes the new MUX (a start while busy would
+    /// be ignored and the result be the old channel's).
+    #[test]
+    fn after_not_ready_the_next_start_waits_for_the_old_conversion() {
+        let dr = DataRate::from_sps(860).unwrap();
+        let busy = vec![0x43, 0xE3];
+        let idle = vec![0xC3, 0xE3];
+        let ex = [
+            // channel 0: never done within max_polls = 1
+            T::write(0x48, vec![0x01, 0xC3, 0xE3]),
+            T::write_read(0x48, vec![0x01], busy.clone()),
+            T::write_read(0x48, vec![0x01], busy.clone()),
+            // channel 1: first the old conversion is waited out
+            T::write_read(0x48, vec![0x01], busy.clone()),
+            T::write_read(0x48, vec![0x01], idle.clone()),
+            T::write(0x48, vec![0x01, 0xD3, 0xE3]),
+            T::write_read(0x48, vec![0x01], idle.clone()),
+            T::write_read(0x48, vec![0x00], vec![0x01, 0x00]),
+            // and then a start goes straight out again
+            T::write(0x48, vec![0x01, 0xE3, 0xE3]),
+        ];
+        let mut bus = Mock::new(&ex);
+        let mut adc = Ads1115::new(0x48, Fsr::V4_096, dr);
+        adc.max_polls = 1;
+        let mut d = NoopDelay::new();
+        assert_eq!(
+            adc.read_channel(&mut bus, &mut d, 0),
+            Err(DriverError::NotReady { polls: 2 })
+        );
+        assert!(adc.busy());
+        assert_eq!(adc.read_channel(&mut bus, &mut d, 1), Ok(0x100));
+        assert!(!adc.busy());
+        adc.start(&mut bus, &mut d, 2).unwrap();
+        assert!(adc.busy(), "started, not yet seen done");
+        bus.done();
+    }
+
+    #[test]
+    fn a_chip_that_stays_busy_is_not_started_again() {
+        let dr = DataRate::from_sps(860).unwrap();
+        let mut adc = Ads1115::new(0x48, Fsr::V4_096, dr);
+        adc.max_polls = 0;
+        let mut ex = vec![
+            T::write(0x48, vec![0x01, 0xC3, 0xE3]),
+            T::write_read(0x48, vec![0x01], vec![0x43, 0xE3]),
+        ];
+        // the idle wait: 10 + max_polls polls after the first, no start
+        for _ in 0..11 {
+            ex.push(T::write_read(0x48, vec![0x01], vec![0x43, 0xE3]));
+        }
+        let mut bus = Mock::new(&ex);
+        let mut d = NoopDelay::new();
+        assert!(adc.read_channel(&mut bus, &mut d, 0).is_err());
+        assert_eq!(
+            adc.start(&mut bus, &mut d, 1),
+            Err(DriverError::NotReady { polls: 11 })
+        );
+        assert!(adc.busy());
+        bus.done();
+    }
+
+    #[test]
+    fn frame_read_time_counts_conversions_and_bus_clocks() {
+        let dr = DataRate::from_sps(128).unwrap();
+        assert_eq!(dr.conversion_ns(), 8_593_750);
+        // 25 channels at 100 kHz: 136 clocks each = 34 ms of bus
+        assert_eq!(frame_read_ns(0, 25, dr, 100_000), 34_000_000);
+        // one after another (the old driver): 215 ms of conversions
+        assert_eq!(frame_read_ns(25, 25, dr, 100_000), 248_843_750);
+        // 7 chips started together, 4 rounds
+        assert_eq!(frame_read_ns(4, 25, dr, 100_000), 68_375_000);
+    }
+
     #[test]
     fn bus_error_on_result_read() {
         let dr = DataRate::from_sps(860).unwrap();
@@ -253,11 +403,12 @@ mod tests {
             T::write_read(0x48, vec![0x00], vec![0, 0]).with_error(ErrorKind::Other),
         ];
         let mut bus = Mock::new(&ex);
-        let adc = Ads1115::new(0x48, Fsr::V4_096, dr);
+        let mut adc = Ads1115::new(0x48, Fsr::V4_096, dr);
         let r = adc.read_channel(&mut bus, &mut NoopDelay::new(), 0);
         assert_eq!(r, Err(DriverError::Bus(ErrorKind::Other)));
+        assert!(!adc.busy(), "OS read 1: the conversion is over");
         assert!(matches!(
-            adc.start(&mut bus, 4),
+            adc.start(&mut bus, &mut NoopDelay::new(), 4),
             Err(DriverError::NoChannel { ch: 4, max: 4 })
         ));
         bus.done();

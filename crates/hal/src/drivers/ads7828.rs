@@ -16,6 +16,16 @@ pub const ADDR_MAX: u8 = 0x4B;
 /// Datasheet maximum SCL in high-speed mode.
 pub const MAX_CLOCK_HZ: u32 = 3_400_000;
 pub const CHANNELS: u8 = 8;
+/// How long the internal reference is given to settle after it is turned
+/// on, before the first conversion that counts. The datasheet (SBAS181C,
+/// "Reading with reference on/off") says the reference is off at power-up,
+/// turns on at the STOP (or repeated START) after a command byte with
+/// PD1 = 1, and must settle to reach 12-bit accuracy; it gives the time only
+/// as a typical plot (Internal VREF vs Turn-On Time), which depends on the
+/// REFIN/REFOUT capacitor and whose numbers were not at hand here. 10 ms is
+/// a conservative choice, to be checked against that plot for the
+/// capacitor fitted (a large one settles slower).
+pub const REF_SETTLE_NS: u32 = 10_000_000;
 
 /// Power-down selection PD1 PD0 (datasheet table 2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -52,6 +62,19 @@ impl Ads7828 {
     }
     pub fn address(&self) -> u8 {
         self.address
+    }
+
+    /// Turn the internal reference on: one conversion of channel 0 with
+    /// PD = 11, its result discarded; the reference starts at that
+    /// transaction's STOP and needs [`REF_SETTLE_NS`] before a conversion
+    /// counts (the caller waits, once for all chips). Returns that time, or
+    /// 0 without a bus transaction when the chip uses an external reference.
+    pub fn power_up_reference<I: I2c>(&self, bus: &mut I) -> Result<u32, DriverError<I::Error>> {
+        if self.pd != PowerMode::InternalRef {
+            return Ok(0);
+        }
+        self.read_channel(bus, 0)?;
+        Ok(REF_SETTLE_NS)
     }
 
     /// One single-ended conversion of `ch`; the top 4 bits the chip sends are
@@ -99,6 +122,19 @@ mod tests {
         assert_eq!(adc.read_channel(&mut bus, 0).unwrap(), 0xABC);
         assert_eq!(adc.read_channel(&mut bus, 7).unwrap(), 4095);
         assert_eq!(adc.read_channel(&mut bus, 2).unwrap(), 0);
+        bus.done();
+    }
+
+    #[test]
+    fn internal_reference_is_turned_on_by_a_discarded_conversion() {
+        // PD = 11 in the command (0x8C), the result thrown away
+        let ex = [T::write_read(0x4A, vec![0x8C], vec![0x0F, 0xFF])];
+        let mut bus = Mock::new(&ex);
+        let adc = Ads7828::new(0x4A, PowerMode::InternalRef);
+        assert_eq!(adc.power_up_reference(&mut bus), Ok(REF_SETTLE_NS));
+        // an external reference needs nothing
+        let ext = Ads7828::new(0x4B, PowerMode::ExternalRef);
+        assert_eq!(ext.power_up_reference(&mut bus), Ok(0));
         bus.done();
     }
 

@@ -25,12 +25,33 @@ impl McpKind {
         }
     }
     /// Largest SCLK the datasheet allows at VDD = 5 V (MCP3008: 3.6 MHz,
-    /// MCP3208: 2 MHz); at 2.7 V both are lower (1.35 MHz / 1 MHz).
+    /// MCP3208: 2 MHz); at 2.7 V both are lower ([`McpKind::low_supply_clock_hz`]).
     pub const fn max_clock_hz(self) -> u32 {
         match self {
             McpKind::Mcp3008 => 3_600_000,
             McpKind::Mcp3208 => 2_000_000,
         }
+    }
+    /// Largest SCLK at VDD = 2.7 V, the lowest supply (MCP3008: 1.35 MHz,
+    /// MCP3208: 1 MHz): safe at any supply.
+    pub const fn low_supply_clock_hz(self) -> u32 {
+        match self {
+            McpKind::Mcp3008 => 1_350_000,
+            McpKind::Mcp3208 => 1_000_000,
+        }
+    }
+    /// Largest SCLK at supply `vdd_v`. The datasheets give the limit at
+    /// 2.7 V and at 5 V only; between them it is taken on the straight line
+    /// through those two figures (an interpolation of ours, not a datasheet
+    /// figure), at and above 5 V the 5 V figure. Without a known supply:
+    /// the 2.7 V figure, right at any supply.
+    pub fn clock_limit_hz(self, vdd_v: Option<f64>) -> u32 {
+        let (lo, hi) = (self.low_supply_clock_hz(), self.max_clock_hz());
+        let Some(v) = vdd_v.filter(|v| v.is_finite()) else {
+            return lo;
+        };
+        let x = ((v - 2.7) / (5.0 - 2.7)).clamp(0.0, 1.0);
+        (lo as f64 + x * (hi - lo) as f64).floor() as u32
     }
     pub const fn name(self) -> &'static str {
         match self {
@@ -152,6 +173,21 @@ mod tests {
         assert_eq!(adc.read_channel(1).unwrap(), 0xABC);
         assert_eq!(adc.read_channel(7).unwrap(), 4095);
         adc.release().done();
+    }
+
+    #[test]
+    fn clock_limit_follows_the_supply() {
+        let k = McpKind::Mcp3008;
+        assert_eq!(k.clock_limit_hz(None), 1_350_000);
+        assert_eq!(k.clock_limit_hz(Some(2.7)), 1_350_000);
+        assert_eq!(k.clock_limit_hz(Some(5.0)), 3_600_000);
+        assert_eq!(k.clock_limit_hz(Some(5.5)), 3_600_000);
+        // 3.3 V: 1.35 + (0.6 / 2.3) · 2.25 MHz
+        assert_eq!(k.clock_limit_hz(Some(3.3)), 1_936_956);
+        let k = McpKind::Mcp3208;
+        assert_eq!(k.clock_limit_hz(None), 1_000_000);
+        assert_eq!(k.clock_limit_hz(Some(3.85)), 1_500_000);
+        assert_eq!(k.clock_limit_hz(Some(5.0)), 2_000_000);
     }
 
     #[test]
