@@ -7,7 +7,7 @@
 use lightpose_core::DepthReading;
 use lightpose_core::{Angle, AttitudeReading};
 use lightpose_core::{Estimator, Frame, PoseEstimate, Status};
-use lightpose_hal::{FrameSource, Pace, SourceError, Stop, ValidBackend};
+use lightpose_hal::{FrameSource, Pace, SourceError, Stop, Text, ValidBackend};
 use lightpose_vehicle::{Hub, MaxAge};
 use lightposed::config::Config;
 use lightposed::engine::Engine;
@@ -170,9 +170,9 @@ impl FrameSource for Silent {
             return Err(SourceError::Ended);
         }
         self.0 -= 1;
-        // An empty place, so that the error itself allocates nothing.
+        // A static place, so that the error itself allocates nothing.
         Err(SourceError::Timeout {
-            place: String::new(),
+            place: Text::from_static("board a"),
         })
     }
     fn adc_bits(&self) -> u8 {

@@ -17,6 +17,7 @@ use crate::chanmap::{BoardSpec, ChannelMap, RawBoard, MAX_CH};
 use crate::drivers::{ads1115::Ads1115, ads7828::Ads7828, mcp3x08::Mcp3x08, DriverError};
 use crate::pace::Pacer;
 use crate::temp::TempReader;
+use crate::text::{Recent, Text};
 use crate::{FrameSource, SourceError, SourceHealth};
 
 /// A set of boards read together for each frame.
@@ -37,33 +38,76 @@ fn channels_of(mask: u16) -> impl Iterator<Item = u8> {
     (0..MAX_CH as u8).filter(move |c| mask & (1 << c) != 0)
 }
 
+/// The error of a chip's failure at `place`. Allocates nothing while the
+/// failure repeats: the place is a clone, a bus error's words are built by
+/// `recent` only when they change (formatting the bus's own error may
+/// still allocate: an `io::Error`'s Debug builds its OS message).
 fn bus_error<E: core::fmt::Debug>(
-    place: impl FnOnce() -> String,
+    place: &Text,
     e: DriverError<E>,
+    recent: &mut Recent,
 ) -> SourceError {
+    let place = place.clone();
     match e {
-        DriverError::NotReady { .. } => SourceError::Timeout { place: place() },
+        DriverError::NotReady { .. } => SourceError::Timeout { place },
         // A channel the chip lacks is a wrong map, not a bus fault: a retry
         // cannot help.
         e @ DriverError::NoChannel { .. } => SourceError::BadData {
-            place: place(),
-            msg: e.to_string(),
+            place,
+            msg: Text::format(format_args!("{e}")),
         },
         e @ DriverError::Bus(_) => SourceError::Bus {
-            place: place(),
-            msg: e.to_string(),
+            place,
+            msg: recent.text(format_args!("{e}")),
         },
+    }
+}
+
+/// Where each channel of a chip is, for its errors: "`chip` channel n",
+/// built once when the bank is made, so that a failure clones one.
+struct ChipPlaces {
+    chip: Text,
+    channels: Vec<Text>,
+}
+
+impl ChipPlaces {
+    fn new(chip: String, channels: u8) -> Self {
+        ChipPlaces {
+            channels: (0..channels)
+                .map(|ch| Text::from(format!("{chip} channel {ch}")))
+                .collect(),
+            chip: Text::from(chip),
+        }
+    }
+
+    /// The place of channel `ch`; one the chip lacks (a map the config
+    /// should have refused) is formatted on the spot.
+    fn channel(&self, ch: u8) -> Text {
+        match self.channels.get(ch as usize) {
+            Some(p) => p.clone(),
+            None => Text::format(format_args!("{} channel {ch}", self.chip)),
+        }
     }
 }
 
 /// MCP3008/MCP3208 chips, each on its own chip select.
 pub struct SpiBank<S> {
     chips: Vec<(String, Mcp3x08<S>)>,
+    places: Vec<ChipPlaces>,
+    recent: Recent,
 }
 
 impl<S: SpiDevice + Send> SpiBank<S> {
     pub fn new(chips: Vec<(String, Mcp3x08<S>)>) -> Self {
-        SpiBank { chips }
+        let places = chips
+            .iter()
+            .map(|(name, c)| ChipPlaces::new(format!("board {name} ({})", c.kind().name()), 8))
+            .collect();
+        SpiBank {
+            chips,
+            places,
+            recent: Recent::default(),
+        }
     }
     /// Give the chips back (tests check their mocks).
     pub fn into_chips(self) -> Vec<(String, Mcp3x08<S>)> {
@@ -92,15 +136,12 @@ impl<S: SpiDevice + Send> Bank for SpiBank<S> {
         format!("{} x{} on SPI", kind, self.chips.len())
     }
     fn read(&mut self, wanted: &[u16], raw: &mut [RawBoard]) -> Result<(), SourceError> {
-        for (b, (name, chip)) in self.chips.iter_mut().enumerate() {
+        for (b, ((_, chip), places)) in self.chips.iter_mut().zip(&self.places).enumerate() {
             let mask = wanted.get(b).copied().unwrap_or(0);
             for ch in channels_of(mask) {
-                raw[b][ch as usize] = chip.read_channel(ch).map_err(|e| {
-                    bus_error(
-                        || format!("board {name} ({}) channel {ch}", chip.kind().name()),
-                        e,
-                    )
-                })?;
+                raw[b][ch as usize] = chip
+                    .read_channel(ch)
+                    .map_err(|e| bus_error(&places.channel(ch), e, &mut self.recent))?;
             }
         }
         Ok(())
@@ -216,6 +257,10 @@ pub struct I2cBank<I, C, D> {
     /// Per chip, the channel this round left converting, to collect (kept
     /// here so that a frame allocates nothing).
     pending: Vec<Option<u8>>,
+    /// Per chip, where its errors happen (a failing frame allocates
+    /// nothing either).
+    places: Vec<ChipPlaces>,
+    recent: Recent,
 }
 
 /// The `n`-th channel set in `mask`.
@@ -232,21 +277,23 @@ fn i2c_chip<C: I2cAdc>(slot: &I2cSlot<C>, bus_name: &str) -> String {
     )
 }
 
-fn i2c_place<C: I2cAdc>(slot: &I2cSlot<C>, bus_name: &str, ch: u8) -> String {
-    format!("{} channel {ch}", i2c_chip(slot, bus_name))
-}
-
 impl<I: I2c + Send, C: I2cAdc, D: DelayNs + Send> I2cBank<I, C, D> {
     /// `chips[i].bus` indexes `buses`; an index out of range is refused.
     pub fn new(buses: Vec<(String, I)>, chips: Vec<I2cSlot<C>>, delay: D) -> Result<Self, String> {
         if let Some(s) = chips.iter().find(|s| s.bus >= buses.len()) {
             return Err(format!("board {}: no bus {}", s.name, s.bus));
         }
+        let places = chips
+            .iter()
+            .map(|s| ChipPlaces::new(i2c_chip(s, &buses[s.bus].0), C::CHANNELS))
+            .collect();
         Ok(I2cBank {
             buses,
             pending: vec![None; chips.len()],
             chips,
             delay,
+            places,
+            recent: Recent::default(),
         })
     }
     pub fn into_buses(self) -> Vec<(String, I)> {
@@ -257,12 +304,13 @@ impl<I: I2c + Send, C: I2cAdc, D: DelayNs + Send> I2cBank<I, C, D> {
     /// reference is turned on) and wait once for the slowest to settle.
     pub fn warm_up(&mut self) -> Result<(), SourceError> {
         let mut settle = 0;
-        for slot in self.chips.iter_mut() {
-            let (bus_name, bus) = &mut self.buses[slot.bus];
-            let ns = slot
-                .chip
-                .warm_up(bus)
-                .map_err(|e| bus_error(|| format!("{} warm-up", i2c_chip(slot, bus_name)), e))?;
+        for (slot, places) in self.chips.iter_mut().zip(&self.places) {
+            let (_, bus) = &mut self.buses[slot.bus];
+            // Once, at open: the place is built only if it fails.
+            let ns = slot.chip.warm_up(bus).map_err(|e| {
+                let place = Text::format(format_args!("{} warm-up", places.chip));
+                bus_error(&place, e, &mut self.recent)
+            })?;
             settle = settle.max(ns);
         }
         if settle > 0 {
@@ -280,11 +328,11 @@ impl<I: I2c + Send, C: I2cAdc, D: DelayNs + Send> I2cBank<I, C, D> {
             let Some(ch) = nth_channel(wanted.get(b).copied().unwrap_or(0), n) else {
                 continue;
             };
-            let (bus_name, bus) = &mut self.buses[slot.bus];
+            let (_, bus) = &mut self.buses[slot.bus];
             let started = slot
                 .chip
                 .start(bus, &mut self.delay, ch)
-                .map_err(|e| bus_error(|| i2c_place(slot, bus_name, ch), e))?;
+                .map_err(|e| bus_error(&self.places[b].channel(ch), e, &mut self.recent))?;
             match started {
                 Some(v) => raw[b][ch as usize] = v,
                 None => {
@@ -300,11 +348,11 @@ impl<I: I2c + Send, C: I2cAdc, D: DelayNs + Send> I2cBank<I, C, D> {
             let Some(ch) = self.pending[b] else {
                 continue;
             };
-            let (bus_name, bus) = &mut self.buses[slot.bus];
+            let (_, bus) = &mut self.buses[slot.bus];
             raw[b][ch as usize] = slot
                 .chip
                 .collect(bus, &mut self.delay)
-                .map_err(|e| bus_error(|| i2c_place(slot, bus_name, ch), e))?;
+                .map_err(|e| bus_error(&self.places[b].channel(ch), e, &mut self.recent))?;
         }
         Ok(())
     }
@@ -513,22 +561,26 @@ mod tests {
 
     #[test]
     fn a_channel_the_chip_lacks_is_bad_data_not_a_bus_error() {
+        let r = &mut Recent::default();
         let e = bus_error(
-            || "board u0 channel 9".into(),
+            &"board u0 channel 9".into(),
             DriverError::<embedded_hal::i2c::ErrorKind>::NoChannel { ch: 9, max: 8 },
+            r,
         );
         assert!(
             matches!(&e, SourceError::BadData { place, msg } if place == "board u0 channel 9" && msg.contains("no channel 9")),
             "{e:?}"
         );
         let e = bus_error(
-            || "x".into(),
+            &"x".into(),
             DriverError::Bus(embedded_hal::i2c::ErrorKind::Other),
+            r,
         );
         assert!(matches!(e, SourceError::Bus { .. }), "{e:?}");
         let e = bus_error(
-            || "x".into(),
+            &"x".into(),
             DriverError::<embedded_hal::i2c::ErrorKind>::NotReady { polls: 3 },
+            r,
         );
         assert!(matches!(e, SourceError::Timeout { .. }), "{e:?}");
     }

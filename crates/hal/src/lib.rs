@@ -17,6 +17,7 @@
 //! - [`bank`]: boards read together into one frame, paced ([`pace`]);
 //! - [`linux`]: the real spidev / i2c-dev buses those boards sit on;
 //! - [`temp`]: fixed, DS18B20 and thermistor temperature with fallback;
+//! - [`text`]: the words of a [`SourceError`], cheap to clone and build;
 //! - [`sim`]: the simulator as a source, with injectable faults;
 //! - [`replay`]: a recorded log (JSON Lines or MCAP, read through
 //!   lightpose-logs) as a source.
@@ -42,26 +43,33 @@ pub mod serial;
 #[cfg(feature = "sim")]
 pub mod sim;
 pub mod temp;
+pub mod text;
 
 pub use bank::{Bank, BoardSource};
 pub use chanmap::{ChannelMap, MapEntry, MapError};
 pub use config::{BackendConfig, Env, Pace, PlainEnv, TempConfig, ValidBackend};
 pub use pace::Stop;
 pub use temp::TempHealth;
+pub use text::{Recent, Text};
 
 /// Why a source could not give a frame. The daemon counts and logs these and
 /// keeps going; `Ended` means there will be no more frames (a log or a
 /// non-looping simulation ran out).
+///
+/// Its words are [`Text`], so that a source failing on every frame does
+/// not allocate per frame: a board's place is built once, at open, and
+/// cloned; a message is static, short (inline), or built only when it
+/// changes ([`Recent`]).
 #[derive(Debug, thiserror::Error)]
 pub enum SourceError {
     #[error("{place}: bus error: {msg}")]
-    Bus { place: String, msg: String },
+    Bus { place: Text, msg: Text },
     #[error("{place}: timed out waiting for data")]
-    Timeout { place: String },
+    Timeout { place: Text },
     #[error("{place}: device unavailable: {msg}")]
-    Unavailable { place: String, msg: String },
+    Unavailable { place: Text, msg: Text },
     #[error("{place}: bad data: {msg}")]
-    BadData { place: String, msg: String },
+    BadData { place: Text, msg: Text },
     #[error("source ended")]
     Ended,
     /// A wait ended because the source's [`Stop`] was raised.

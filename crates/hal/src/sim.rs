@@ -20,6 +20,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::config::{Faults, Pace, SimPlan};
 use crate::pace::{Pacer, Stop};
+use crate::text::Text;
 use crate::{FrameSource, HalError, SourceError, SourceHealth};
 
 /// The simulator as a frame source.
@@ -162,9 +163,12 @@ impl FrameSource for SimSource {
             if self.hit(be, bp, seq) {
                 self.injected += 1;
                 let k = (seq % NDET as u64) as usize;
+                // Kept inline (no allocation) up to frame 10^15.
                 return Err(SourceError::Bus {
-                    place: format!("sim board channel {k} (injected, frame {seq})"),
-                    msg: "injected fault".into(),
+                    place: Text::format(format_args!(
+                        "sim board channel {k} (injected, frame {seq})"
+                    )),
+                    msg: Text::from_static("injected fault"),
                 });
             }
             let mut f = self.sim.frame_moving(seq, t, &self.traj.kinematics(tt));

@@ -140,6 +140,22 @@ fn an_ads1115_frame_must_be_read_within_its_period() {
         "{e}"
     );
     assert!(e.contains("at most 19.76 Hz"), "{e}");
+    // At the chip's fastest data rate the remedy is the bus, then chips.
+    assert!(
+        e.ends_with("or raise i2c_clock_hz (400 kHz fast mode)"),
+        "{e}"
+    );
+    assert!(t("rate_hz = 5.0\ndata_rate_sps = 32")
+        .unwrap_err()
+        .ends_with("or raise data_rate_sps"));
+    let fast = i2c_table(
+        "ads1115",
+        7,
+        4,
+        "rate_hz = 200.0\ndata_rate_sps = 860\ni2c_clock_hz = 400000",
+    );
+    let e = validate(&fast).unwrap_err();
+    assert!(e.ends_with("or spread the channels over more chips"), "{e}");
     let e = t("i2c_clock_hz = 5000000").unwrap_err();
     assert!(
         e.contains("i2c_clock_hz: 5000000 is not in 10000..=3400000"),

@@ -40,7 +40,7 @@ fn place_of(e: &SourceError) -> &str {
         SourceError::Bus { place, .. }
         | SourceError::Timeout { place }
         | SourceError::Unavailable { place, .. }
-        | SourceError::BadData { place, .. } => place,
+        | SourceError::BadData { place, .. } => place.as_str(),
         SourceError::Ended | SourceError::Stopped => "",
     }
 }

@@ -392,10 +392,18 @@ fn ads1115_frame_fits(common: &Common, dr: DataRate, scl: Option<u32>) -> Result
     } else {
         ", assumed: no i2c_clock_hz"
     };
+    // What else would shorten the read: a faster chip, else a faster bus.
+    let remedy = if dr.sps() < 860 {
+        "or raise data_rate_sps"
+    } else if hz < 400_000 {
+        "or raise i2c_clock_hz (400 kHz fast mode)"
+    } else {
+        "or spread the channels over more chips"
+    };
     Err(err(
         "rate_hz",
         format!(
-            "{rate} Hz with data_rate_sps = {}: reading a frame takes {:.1} ms ({rounds} conversions of 1.1/DR in turn, {channels} channels' I2C transfers at {} kHz{assumed}), over 80 % of the {:.1} ms period; at most {:.2} Hz fits, or raise data_rate_sps",
+            "{rate} Hz with data_rate_sps = {}: reading a frame takes {:.1} ms ({rounds} conversions of 1.1/DR in turn, {channels} channels' I2C transfers at {} kHz{assumed}), over 80 % of the {:.1} ms period; at most {:.2} Hz fits, {remedy}",
             dr.sps(),
             secs * 1e3,
             hz as f64 / 1e3,

@@ -28,6 +28,7 @@ fn open_log(path: &std::path::Path, max_gap_s: f64) -> Result<Box<dyn FrameLog +
         lightpose_logs::LogFile::open(path)?.with_max_gap_s(max_gap_s),
     ))
 }
+use crate::text::Text;
 use crate::{FrameSource, SourceError, SourceHealth};
 
 /// Counters of the passes before the current one.
@@ -125,8 +126,8 @@ impl ReplaySource {
         let log = open_log(&self.path, self.max_gap_s).map_err(|e| {
             self.reopen_failed = Some(Instant::now());
             SourceError::BadData {
-                place: "replay".into(),
-                msg: format!("cannot start pass {}: {e}", self.passes + 1),
+                place: Text::from_static("replay"),
+                msg: Text::format(format_args!("cannot start pass {}: {e}", self.passes + 1)),
             }
         })?;
         self.reopen_failed = None;
@@ -241,10 +242,13 @@ impl FrameSource for ReplaySource {
             match next {
                 Some(Ok(f)) => return self.release(f),
                 Some(Err(e)) => {
+                    // The reader's error was built for this line (its
+                    // number, its fault); its words are kept inline when
+                    // short.
                     return Err(SourceError::BadData {
-                        place: "replay".into(),
-                        msg: e.to_string(),
-                    })
+                        place: Text::from_static("replay"),
+                        msg: Text::format(format_args!("{e}")),
+                    });
                 }
                 None => {
                     if let Some(cut) = self.log.cut() {

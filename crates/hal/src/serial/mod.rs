@@ -14,8 +14,11 @@
 //! its frame fails naming the id seen and the id expected, and the health
 //! report's last bad line says the same.
 
+mod device;
 pub mod protocol;
 
+use std::fmt;
+use std::io::Read;
 use std::time::{Duration, Instant};
 
 use serialport::SerialPort;
@@ -23,7 +26,9 @@ use serialport::SerialPort;
 use crate::bank::Bank;
 use crate::chanmap::{BoardSpec, RawBoard};
 use crate::pace::Stop;
+use crate::text::{Recent, Text};
 use crate::{SourceError, SourceHealth};
+use device::Device;
 use protocol::{parse_line, LineAssembler, LineError, Sample};
 
 /// One configured serial board.
@@ -65,7 +70,9 @@ pub enum BadLine {
 
 struct Port {
     cfg: SerialBoard,
-    port: Option<Box<dyn SerialPort>>,
+    /// Where an error of this board happened, for messages: built once.
+    place: Text,
+    port: Option<Device>,
     opened_once: bool,
     lines: LineAssembler,
     latest: Option<Sample>,
@@ -84,6 +91,9 @@ pub struct SerialBank {
     counters: SerialCounters,
     buf: [u8; 512],
     stop: Stop,
+    /// The words of a failure that repeats (a port that cannot be opened,
+    /// lines of another board), built only when they change.
+    recent: Recent,
 }
 
 impl SerialBank {
@@ -94,6 +104,7 @@ impl SerialBank {
             ports: boards
                 .into_iter()
                 .map(|cfg| Port {
+                    place: Text::from(format!("board {} ({})", cfg.name, cfg.path)),
                     cfg,
                     port: None,
                     opened_once: false,
@@ -108,6 +119,7 @@ impl SerialBank {
             counters: SerialCounters::default(),
             buf: [0; 512],
             stop: Stop::new(),
+            recent: Recent::default(),
         }
     }
 
@@ -131,32 +143,37 @@ impl SerialBank {
         port: usize,
         buf: &mut [u8],
         counters: &mut SerialCounters,
+        recent: &mut Recent,
         wait: Duration,
     ) -> Result<(), SourceError> {
-        let unavailable = |p: &Port, msg: String| SourceError::Unavailable {
+        let unavailable = |p: &Port, msg: Text| SourceError::Unavailable {
             place: p.place(),
             msg,
         };
         let Some(dev) = p.port.as_mut() else {
-            return Err(unavailable(p, "port closed".into()));
+            return Err(unavailable(p, Text::from_static("port closed")));
         };
-        // serialport waits up to its timeout for the first byte
+        if !device::readable(dev, wait) {
+            return Ok(());
+        }
+        // serialport waits up to its timeout for the first byte (where
+        // `readable` did not wait already)
         if let Err(e) = dev.set_timeout(wait.max(Duration::from_millis(1))) {
             p.port = None;
-            return Err(unavailable(p, e.to_string()));
+            return Err(unavailable(p, recent.text(format_args!("{e}"))));
         }
         let n = match dev.read(buf) {
             Ok(0) => {
                 // end of file: the other end is gone
                 p.port = None;
-                return Err(unavailable(p, "device closed".into()));
+                return Err(unavailable(p, Text::from_static("device closed")));
             }
             Ok(n) => n,
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => return Ok(()),
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => return Ok(()),
             Err(e) => {
                 p.port = None;
-                return Err(unavailable(p, e.to_string()));
+                return Err(unavailable(p, recent.text(format_args!("{e}"))));
             }
         };
         let id = p.cfg.id;
@@ -187,17 +204,23 @@ impl SerialBank {
         Ok(())
     }
 
-    fn open(p: &mut Port, counters: &mut SerialCounters) -> Result<(), SourceError> {
+    /// Open `p`'s port if it is not open. A port that cannot be opened
+    /// costs serialport a few allocations each try (the path, the error's
+    /// description); its words here are built once while they repeat.
+    fn open(
+        p: &mut Port,
+        counters: &mut SerialCounters,
+        recent: &mut Recent,
+    ) -> Result<(), SourceError> {
         if p.port.is_some() {
             return Ok(());
         }
-        let port = serialport::new(p.cfg.path.as_str(), p.cfg.baud)
-            .timeout(Duration::from_millis(10))
-            .open()
-            .map_err(|e| SourceError::Unavailable {
-                place: p.place(),
-                msg: e.to_string(),
-            })?;
+        let builder =
+            serialport::new(p.cfg.path.as_str(), p.cfg.baud).timeout(Duration::from_millis(10));
+        let port = device::open(builder).map_err(|e| SourceError::Unavailable {
+            place: p.place(),
+            msg: recent.text(format_args!("{e}")),
+        })?;
         // Whatever the OS buffered while we were away is old.
         let _ = port.clear(serialport::ClearBuffer::Input);
         if p.opened_once {
@@ -220,7 +243,7 @@ impl SerialBank {
         let Some(p) = self.ports.get_mut(b) else {
             return Ok(false);
         };
-        Self::open(p, &mut self.counters)?;
+        Self::open(p, &mut self.counters, &mut self.recent)?;
         loop {
             if self.stop.is_raised() {
                 return Err(SourceError::Stopped);
@@ -248,6 +271,7 @@ impl SerialBank {
                 b,
                 &mut self.buf,
                 &mut self.counters,
+                &mut self.recent,
                 wait.min(Duration::from_millis(100)),
             )?;
         }
@@ -255,31 +279,22 @@ impl SerialBank {
 
     /// Why board `b` has no line for the frame: only another board's
     /// lines came on its port (said, with both ids), or none at all.
-    fn no_line(&self, b: usize) -> SourceError {
+    fn no_line(&mut self, b: usize) -> SourceError {
         let Some(p) = self.ports.get(b) else {
             return SourceError::Timeout {
-                place: format!("board #{b}"),
+                place: Text::format(format_args!("board #{b}")),
             };
         };
         match p.foreign {
-            Some(seen) => SourceError::BadData {
-                place: p.place(),
-                msg: self.wrong_board(p, seen),
-            },
+            Some(seen) => {
+                let said = wrong_board(&self.ports, p, seen);
+                SourceError::BadData {
+                    place: p.place(),
+                    msg: self.recent.text(format_args!("{said}")),
+                }
+            }
             None => SourceError::Timeout { place: p.place() },
         }
-    }
-
-    /// What lines of board id `seen` on `p`'s port mean.
-    fn wrong_board(&self, p: &Port, seen: u8) -> String {
-        let hint = match self.ports.iter().find(|q| q.cfg.id == seen) {
-            Some(q) => format!("board {}'s id: cables swapped?", q.cfg.name),
-            None => format!("no board is configured with id {seen}: a board's id set wrong?"),
-        };
-        format!(
-            "lines carry board id {seen}, expected {} ({hint})",
-            p.cfg.id
-        )
     }
 
     /// The health report's words for `bad`: the port's path, then why.
@@ -291,16 +306,51 @@ impl SerialBank {
             }
             BadLine::WrongBoard { port, seen } => {
                 let p = self.ports.get(port)?;
-                Some(format!("{}: {}", p.cfg.path, self.wrong_board(p, seen)))
+                let said = wrong_board(&self.ports, p, seen);
+                Some(format!("{}: {said}", p.cfg.path))
             }
+        }
+    }
+}
+
+/// What lines of board id `seen` on a port expecting `expected` mean;
+/// `owner` is the board configured with `seen`, if any. Said as it is
+/// printed, without building a string of its own.
+struct WrongBoard<'a> {
+    seen: u8,
+    expected: u8,
+    owner: Option<&'a str>,
+}
+
+fn wrong_board<'a>(ports: &'a [Port], p: &Port, seen: u8) -> WrongBoard<'a> {
+    WrongBoard {
+        seen,
+        expected: p.cfg.id,
+        owner: ports
+            .iter()
+            .find(|q| q.cfg.id == seen)
+            .map(|q| q.cfg.name.as_str()),
+    }
+}
+
+impl fmt::Display for WrongBoard<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (seen, expected) = (self.seen, self.expected);
+        write!(f, "lines carry board id {seen}, expected {expected} (")?;
+        match self.owner {
+            Some(name) => write!(f, "board {name}'s id: cables swapped?)"),
+            None => write!(
+                f,
+                "no board is configured with id {seen}: a board's id set wrong?)"
+            ),
         }
     }
 }
 
 impl Port {
     /// Where an error of this board happened, for messages.
-    fn place(&self) -> String {
-        format!("board {} ({})", self.cfg.name, self.cfg.path)
+    fn place(&self) -> Text {
+        self.place.clone()
     }
 }
 
@@ -336,23 +386,26 @@ impl Bank for SerialBank {
             let Some(s) = p.latest else {
                 return Err(self.no_line(b));
             };
+            // Both kept inline: no allocation, though the seq differs on
+            // every frame (the second, for a line of 10 or more values,
+            // below seq 10^9).
             if s.bits != self.bits {
                 return Err(SourceError::BadData {
                     place: p.place(),
-                    msg: format!(
+                    msg: Text::format(format_args!(
                         "line seq {} says {} bits, configured {}",
                         s.seq, s.bits, self.bits
-                    ),
+                    )),
                 });
             }
             let highest = 15 - mask.leading_zeros() as u8;
             if highest >= s.n {
                 return Err(SourceError::BadData {
                     place: p.place(),
-                    msg: format!(
+                    msg: Text::format(format_args!(
                         "line seq {} has {} values, channel {highest} is mapped",
                         s.seq, s.n
-                    ),
+                    )),
                 });
             }
             r[..s.n as usize].copy_from_slice(&s.values[..s.n as usize]);

@@ -1,0 +1,226 @@
+//! A board that keeps failing costs no allocation a frame, once warmed up:
+//! a serial board that is silent (every frame times out), one whose port
+//! carries another board's lines, and an I²C chip that NAKs. The error's
+//! place is built once, at open, and cloned; its message is static, kept
+//! inline, or built once while it repeats. A counting global allocator
+//! shows it (its own test binary: the count is the whole process's).
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::fs::File;
+use std::io::Write;
+use std::os::fd::OwnedFd;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
+use std::sync::Mutex;
+use std::time::Duration;
+
+use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
+use embedded_hal_mock::eh1::delay::NoopDelay;
+use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as I2cT};
+use lightpose_hal::bank::{BoardSource, I2cBank, I2cSlot};
+use lightpose_hal::chanmap::ChannelMap;
+use lightpose_hal::drivers::ads7828::{command, Ads7828, PowerMode};
+use lightpose_hal::pace::Pacer;
+use lightpose_hal::serial::protocol::format_line;
+use lightpose_hal::serial::{SerialBank, SerialBoard};
+use lightpose_hal::temp::{TempKind, TempReader};
+use lightpose_hal::{FrameSource, SourceError};
+use nix::pty::openpty;
+use nix::sys::termios::{cfmakeraw, tcgetattr, tcsetattr, SetArg};
+
+struct Counting;
+static ALLOCS: AtomicU64 = AtomicU64::new(0);
+static COUNTING: AtomicBool = AtomicBool::new(false);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        if COUNTING.load(Relaxed) {
+            ALLOCS.fetch_add(1, Relaxed);
+        }
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        if COUNTING.load(Relaxed) {
+            ALLOCS.fetch_add(1, Relaxed);
+        }
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static A: Counting = Counting;
+
+/// The tests of this file count every thread's allocations: one at a time.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+
+/// Failed frames counted; more than this many allocations for them is
+/// allocating per frame.
+const FRAMES: u32 = 1000;
+const AT_MOST: u64 = 50;
+
+/// Allocations made by `frames` calls of `frame`.
+fn allocations(frames: u32, mut frame: impl FnMut()) -> u64 {
+    ALLOCS.store(0, Relaxed);
+    COUNTING.store(true, Relaxed);
+    for _ in 0..frames {
+        frame();
+    }
+    COUNTING.store(false, Relaxed);
+    ALLOCS.load(Relaxed)
+}
+
+/// A board's end of a pty pair, reached through `link` (as udev would
+/// name it), and the port's end kept open so that the pty lives.
+struct FakeBoard {
+    master: File,
+    _slave: OwnedFd,
+}
+
+fn fake_board(link: &Path) -> FakeBoard {
+    let pty = openpty(None, None).expect("openpty");
+    let mut t = tcgetattr(&pty.slave).expect("tcgetattr");
+    cfmakeraw(&mut t);
+    tcsetattr(&pty.slave, SetArg::TCSANOW, &t).expect("tcsetattr");
+    let name = nix::unistd::ttyname(&pty.slave).expect("ttyname");
+    std::os::unix::fs::symlink(name, link).expect("symlink");
+    FakeBoard {
+        master: File::from(pty.master),
+        _slave: pty.slave,
+    }
+}
+
+/// A source of one serial board with id 0 on `path`, waiting 2 ms a frame.
+fn serial_source(path: &Path) -> BoardSource<SerialBank> {
+    let board = SerialBoard {
+        name: "b0".into(),
+        id: 0,
+        path: path.display().to_string(),
+        baud: 115_200,
+        channels: 16,
+    };
+    let bank = SerialBank::new(vec![board], 10, Duration::from_millis(2));
+    BoardSource::new(
+        bank,
+        ChannelMap::sequential(16),
+        TempReader::new(TempKind::None, 0.0),
+        Pacer::new(None),
+    )
+}
+
+/// Audit: every failed frame built its error's place with `format!`, and
+/// serialport's read timeout built an `io::Error` (about six allocations)
+/// on every wait for a board that never speaks.
+#[test]
+fn a_silent_serial_board_does_not_allocate_per_frame() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("lpadc0");
+    let _board = fake_board(&path);
+    let mut src = serial_source(&path);
+    // Warm-up: the first frame opens the port.
+    for _ in 0..3 {
+        let e = src.next_frame().expect_err("silent");
+        assert!(matches!(e, SourceError::Timeout { .. }), "{e}");
+    }
+    let e = src.next_frame().expect_err("silent");
+    assert_eq!(
+        e.to_string(),
+        format!("board b0 ({}): timed out waiting for data", path.display())
+    );
+    let n = allocations(FRAMES, || {
+        let e = src.next_frame().expect_err("silent");
+        assert!(matches!(e, SourceError::Timeout { .. }), "{e}");
+    });
+    eprintln!("silent serial board: {n} allocations for {FRAMES} failed frames");
+    assert!(n <= AT_MOST, "{n} allocations for {FRAMES} failed frames");
+}
+
+/// A port carrying only another board's lines (cables swapped): its
+/// message, too long to be kept inline, is built once while it repeats.
+#[test]
+fn a_port_of_another_board_does_not_allocate_per_frame() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("lpadc0");
+    let mut board = fake_board(&path);
+    let mut src = serial_source(&path);
+    let mut foreign = Vec::new();
+    format_line(7, 1, 10, &[5; 16], &mut foreign);
+    let mut frame = || {
+        board.master.write_all(&foreign).expect("write");
+        src.next_frame().expect_err("another board's lines")
+    };
+    for _ in 0..3 {
+        frame();
+    }
+    let said = "lines carry board id 7, expected 0 (no board is configured with id 7: a board's id set wrong?)";
+    let e = frame();
+    assert_eq!(
+        e.to_string(),
+        format!("board b0 ({}): bad data: {said}", path.display())
+    );
+    let n = allocations(FRAMES / 4, || {
+        let e = frame();
+        assert!(matches!(e, SourceError::BadData { .. }), "{e}");
+    });
+    eprintln!(
+        "port of another board: {n} allocations for {} failed frames",
+        FRAMES / 4
+    );
+    assert!(
+        n <= AT_MOST / 4,
+        "{n} allocations for {} failed frames",
+        FRAMES / 4
+    );
+}
+
+/// Four ADS7828 on a bus whose first chip NAKs its address on every frame
+/// (scripted with embedded-hal-mock: the script is built before counting,
+/// and the mock allocates nothing per transaction).
+#[test]
+fn an_i2c_chip_that_naks_does_not_allocate_per_frame() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
+    let warm_up = 3;
+    let nak = I2cT::write_read(0x48, vec![command(0, PowerMode::InternalRef)], vec![0, 0])
+        .with_error(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address));
+    let script = vec![nak; (warm_up + 1 + FRAMES) as usize];
+    let slots = (0..4)
+        .map(|i| I2cSlot {
+            name: format!("adc{i}"),
+            bus: 0,
+            chip: Ads7828::new(0x48 + i as u8, PowerMode::InternalRef),
+        })
+        .collect();
+    // A bus name long enough that the places are shared, not inline.
+    let bus = "/dev/i2c-1 (the photodiode array's bus)";
+    let buses = vec![(bus.to_string(), I2cMock::new(&script))];
+    let bank = I2cBank::new(buses, slots, NoopDelay::new()).expect("bank");
+    let mut src = BoardSource::new(
+        bank,
+        ChannelMap::sequential(8),
+        TempReader::new(TempKind::None, 0.0),
+        Pacer::new(None),
+    );
+    for _ in 0..warm_up {
+        src.next_frame().expect_err("NAK");
+    }
+    let e = src.next_frame().expect_err("NAK");
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "board adc0 (ADS7828 0x48 on {bus}) channel 0: bus error: bus: NoAcknowledge(Address)"
+        )
+    );
+    let n = allocations(FRAMES, || {
+        let e = src.next_frame().expect_err("NAK");
+        assert!(matches!(e, SourceError::Bus { .. }), "{e}");
+    });
+    eprintln!("I2C chip that NAKs: {n} allocations for {FRAMES} failed frames");
+    assert!(n <= AT_MOST, "{n} allocations for {FRAMES} failed frames");
+    for (_, mut b) in src.into_bank().into_buses() {
+        b.done();
+    }
+}
