@@ -352,6 +352,7 @@ pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
     }
     let _ = worker.join();
     let wall = t0.elapsed().as_secs_f64();
+    let rss_end = rss_kib();
     disk_peak = disk_peak.max(prune(&dir, 2));
     let n = stats.frames.load(Relaxed);
     let end = stats.latency.snapshot();
@@ -377,8 +378,9 @@ pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
         last,
         max_s: stats.latency.max().unwrap_or(f64::NAN),
         rss_early_kib: rss_early,
-        rss_end_kib: rss_kib(),
-        peak_rss_kib: peak_rss_kib(),
+        rss_end_kib: rss_end,
+        // The kernel updates VmHWM lazily: it can read below a VmRSS seen.
+        peak_rss_kib: peak_rss_kib().max(rss_early).max(rss_end),
         recorded: rec_stats.frames.load(Relaxed),
         rec_dropped: rec_stats.dropped.load(Relaxed),
         rec_failed: rec_stats.failed.load(Relaxed),

@@ -156,12 +156,15 @@ fn log_start(cfg: &Config) {
     let multicast = o.multicast.as_ref().map_or(String::new(), |m| {
         format!(" + multicast {} ttl {}", m.group, m.ttl)
     });
+    let to = match (dests.is_empty(), multicast.is_empty()) {
+        (true, true) => "publishing nowhere".to_string(),
+        (true, false) => format!("publishing to{multicast}"),
+        _ => format!("publishing to {}{multicast}", dests.join(", ")),
+    };
     tracing::info!(
-        "lightposed {} ({}): publishing to {}{}; {}",
+        "lightposed {} ({}): {to}; {}",
         env!("CARGO_PKG_VERSION"),
         cfg.origin,
-        dests.join(", "),
-        multicast,
         lightposed::outputs::udp::listen_hint(o)
     );
 }

@@ -323,15 +323,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     }
 
     publisher.send(&version_message(cfg, &source_desc, est_name));
-    let (done_tx, done) = oneshot::channel::<EndReason>();
-    let frames = std::thread::Builder::new()
-        .name("lightposed-frames".into())
-        .spawn(move || {
-            let r = engine.run();
-            let _ = done_tx.send(r.clone());
-            r
-        })
-        .map_err(DaemonError::Thread)?;
+    let (frames, done) = spawn_frames(engine)?;
     notify(&[NotifyState::Ready]);
     tracing::info!("running: {source_desc}; estimator {est_name}");
     Ok(Running {
@@ -353,6 +345,26 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         frames: Some(frames),
         done,
     })
+}
+
+/// The frame thread, running `engine`; the receiver says when it ended by
+/// itself (dropped unsent: it panicked).
+type FrameThread = (
+    std::thread::JoinHandle<EndReason>,
+    oneshot::Receiver<EndReason>,
+);
+
+fn spawn_frames(engine: Engine) -> Result<FrameThread, DaemonError> {
+    let (done_tx, done) = oneshot::channel::<EndReason>();
+    let frames = std::thread::Builder::new()
+        .name("lightposed-frames".into())
+        .spawn(move || {
+            let r = engine.run();
+            let _ = done_tx.send(r.clone());
+            r
+        })
+        .map_err(DaemonError::Thread)?;
+    Ok((frames, done))
 }
 
 /// The vehicle link's ends on the frame thread: its readings before the

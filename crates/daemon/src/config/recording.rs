@@ -157,8 +157,16 @@ fn limits(
                 " MiB",
             )?);
             // The open file is never pruned: rotation must bound it.
-            if rotate_bytes.is_none_or(|b| b > max) {
-                let msg = "needs rotate_mb, at most max_total_mb (the open file is never pruned)";
+            let msg = match rotate_bytes {
+                None => Some("needs rotate_mb (the open file is never pruned)".to_string()),
+                Some(b) if b > max => Some(format!(
+                    "{} MiB is less than rotate_mb = {} MiB: the open file is never pruned, so rotation must keep it within this",
+                    v.get_ref(),
+                    b as f64 / (1024.0 * 1024.0)
+                )),
+                _ => None,
+            };
+            if let Some(msg) = msg {
                 return Err(ctx.err(v.span(), "recording.max_total_mb", msg));
             }
             Some(max)

@@ -256,7 +256,10 @@ fn the_limits_are_read_and_checked() {
     let e = parse("rotate_mb = 200\nmax_total_mb = 100\n")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("needs rotate_mb, at most"), "{e}");
+    assert!(
+        e.contains("recording.max_total_mb: 100 MiB is less than rotate_mb = 200 MiB"),
+        "{e}"
+    );
     let e = parse("keep_free_mb = -1\n").unwrap_err().to_string();
     assert!(e.contains("recording.keep_free_mb: -1 is not in"), "{e}");
 }
