@@ -1,6 +1,8 @@
 //! A board that keeps failing costs no allocation a frame, once warmed up:
 //! a serial board that is silent (every frame times out), one whose port
-//! carries another board's lines, and an I²C chip that NAKs. The error's
+//! carries another board's lines, an I²C chip that NAKs, and a DS18B20
+//! whose reads fail (the frame gets the fallback, the failure's text is
+//! kept once, not cloned from the watcher on every frame). The error's
 //! place is built once, at open, and cloned; its message is static, kept
 //! inline, or built once while it repeats. A counting global allocator
 //! shows it (its own test binary: the count is the whole process's).
@@ -12,7 +14,7 @@ use std::os::fd::OwnedFd;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::Mutex;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
 use embedded_hal_mock::eh1::delay::NoopDelay;
@@ -23,7 +25,7 @@ use lightpose_hal::drivers::ads7828::{command, Ads7828, PowerMode};
 use lightpose_hal::pace::Pacer;
 use lightpose_hal::serial::protocol::format_line;
 use lightpose_hal::serial::{SerialBank, SerialBoard};
-use lightpose_hal::temp::{TempKind, TempReader};
+use lightpose_hal::temp::{write_fake_w1, Ds18b20, Ds18b20Watcher, TempKind, TempReader};
 use lightpose_hal::{FrameSource, SourceError};
 use nix::pty::openpty;
 use nix::sys::termios::{cfmakeraw, tcgetattr, tcsetattr, SetArg};
@@ -223,4 +225,49 @@ fn an_i2c_chip_that_naks_does_not_allocate_per_frame() {
     for (_, mut b) in src.into_bank().into_buses() {
         b.done();
     }
+}
+
+const BADCRC: &str = "72 01 4b 46 7f ff 0e 10 57 : crc=12 NO\n72 01 4b 46 7f ff 0e 10 57 t=23125\n";
+
+/// Audit: `Ds18b20Watcher::latest` cloned the error (its path, a String)
+/// for every frame while the sensor kept failing.
+#[test]
+fn a_failing_ds18b20_does_not_allocate_per_frame() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
+    let dir = tempfile::tempdir().expect("tempdir");
+    write_fake_w1(dir.path(), "28-aa", BADCRC).expect("fake sensor");
+    // Read once, then not for an hour: its thread allocates nothing more.
+    let w = Ds18b20Watcher::spawn(
+        Ds18b20 {
+            root: dir.path().to_path_buf(),
+            device: None,
+        },
+        Duration::from_secs(3600),
+        Duration::from_secs(5),
+    );
+    let t0 = Instant::now();
+    while w.reads() < 1 {
+        assert!(t0.elapsed() < Duration::from_secs(5), "never read");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let mut r = TempReader::new(TempKind::Ds18b20(w), 19.5);
+    let mut frames = |n: u32| {
+        ALLOCS.store(0, Relaxed);
+        COUNTING.store(true, Relaxed);
+        for _ in 0..n {
+            assert_eq!(r.for_frame(&[]), Some(19.5));
+        }
+        COUNTING.store(false, Relaxed);
+        ALLOCS.load(Relaxed)
+    };
+    let first = frames(1);
+    assert!(first > 0, "the failure's text is kept once");
+    let more = frames(1000);
+    assert_eq!(more, 0, "1000 frames of the same failure");
+    let h = r.health();
+    assert!(h.fallback_active && h.fallbacks == 1001, "{h:?}");
+    assert!(
+        h.last_error.as_deref().is_some_and(|e| e.contains("CRC")),
+        "{h:?}"
+    );
 }
