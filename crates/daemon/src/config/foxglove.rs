@@ -115,6 +115,9 @@ mod tests {
         let e = parse("[foxglove]\nclient_queue = 0\n").unwrap_err();
         assert_eq!(e, "t.toml:7: foxglove.client_queue: 0 is not in 1..=100000");
         let e = parse("[foxglove]\nport = 1\n").unwrap_err();
-        assert!(e.starts_with("t.toml:7: port: unknown field `port`"), "{e}");
+        assert!(
+            e.starts_with("t.toml:7: foxglove.port: unknown field `port`"),
+            "{e}"
+        );
     }
 }

@@ -89,7 +89,11 @@ pub(super) fn key_on_line(src: &str, offset: usize) -> String {
     let line = src[start..].lines().next().unwrap_or("");
     match line.split_once('=') {
         Some((k, _)) if !k.trim().is_empty() && !k.trim_start().starts_with('[') => {
-            k.trim().trim_matches('"').to_string()
+            let key = k.trim().trim_matches('"');
+            match enclosing_table(&src[..start]) {
+                Some(table) => format!("{table}.{key}"),
+                None => key.to_string(),
+            }
         }
         _ => {
             let t = line.trim();
@@ -100,6 +104,20 @@ pub(super) fn key_on_line(src: &str, offset: usize) -> String {
             }
         }
     }
+}
+
+/// The table a key line belongs to: the last `[table]` (or `[[table]]`)
+/// header in `before`, without brackets or a trailing comment; `None` at
+/// the top level. So that a refusal names `outputs.destinaton`, not a bare
+/// `destinaton` the reader has to place.
+fn enclosing_table(before: &str) -> Option<String> {
+    before.lines().rev().find_map(|l| {
+        let t = l.trim();
+        let t = t.split_once('#').map_or(t, |(h, _)| h).trim();
+        let name = t.strip_prefix('[')?.strip_suffix(']')?;
+        let name = name.trim_matches(|c| c == '[' || c == ']').trim();
+        (!name.is_empty()).then(|| name.to_string())
+    })
 }
 
 /// Line of `key = ...` inside the table that starts at `table_start`, or

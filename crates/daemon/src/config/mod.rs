@@ -495,6 +495,10 @@ destinations = ["127.0.0.1:9999"]
         assert_eq!(line_of_offset(s, 0), 1);
         assert_eq!(line_of_offset(s, 6), 2);
         assert_eq!(line_of_key_in_table(s, 6, "b"), 3);
-        assert_eq!(key_on_line(s, 14), "b");
+        assert_eq!(key_on_line(s, 14), "t.b");
+        assert_eq!(key_on_line(s, 0), "a");
+        // An array of tables, a header with a comment.
+        let s = "[[x]] # boards\nc = 3\n";
+        assert_eq!(key_on_line(s, 15), "x.c");
     }
 }
