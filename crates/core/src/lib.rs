@@ -14,6 +14,7 @@ pub mod geometry;
 pub mod light;
 pub mod log;
 pub mod pose;
+pub mod ratelog;
 pub mod textfile;
 pub mod textpos;
 

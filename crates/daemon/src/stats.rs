@@ -218,9 +218,6 @@ pub struct Stats {
     /// The channels left out of the last frame (bit mask).
     pub excluded_now: AtomicU64,
     pub latency: Histogram,
-    /// Monotonic nanoseconds since start of the acquisition thread's last
-    /// loop: the watchdog pings only while this moves.
-    pub heartbeat_ns: AtomicU64,
     /// Last error of the source, for STATUS.
     pub last_error: Mutex<Option<String>>,
     pub calibration_reloads: AtomicU64,

@@ -58,16 +58,11 @@ impl Ticker {
         }
         if let Some(w) = self.watchdog {
             // Ping only while the frame thread is alive and not stuck: it
-            // beats once a frame, and while it waits as configured (a
-            // frame due later, a board given `timeout_ms` to answer) its
-            // waits beat the stop at least once a second. A read that
-            // never returns beats neither.
-            let beat = Duration::from_nanos(ctx.stats.heartbeat_ns.load(Relaxed));
-            let silent = ctx
-                .started
-                .elapsed()
-                .saturating_sub(beat)
-                .min(self.alive.since_beat());
+            // beats its stop once a frame, and while it waits as configured
+            // (a frame due later, a board given `timeout_ms` to answer) its
+            // waits beat it at least once a second. A read that
+            // never returns does not beat.
+            let silent = self.alive.since_beat();
             if silent < w {
                 notify(&[NotifyState::Watchdog]);
             } else {

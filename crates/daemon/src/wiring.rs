@@ -299,7 +299,6 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         .reload(reload_rx)
         .late_tolerance(cfg.late_tolerance)
         .fallback_temp_c(cfg.fallback_temp_c)
-        .epoch(started)
         // The POSE first, so that it leaves as soon as it can.
         .output(Box::new(PoseDatagrams::new(publisher.clone())));
     engine = plug_vehicle(engine, cfg, vehicle.as_ref());

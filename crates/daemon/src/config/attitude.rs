@@ -47,11 +47,10 @@ pub(super) fn validate(
     };
     let a = table.get_ref();
     // Whether it can be bound shows only on this machine: `wiring::check`.
-    let line = a
-        .listen
-        .as_ref()
-        .map_or(table.span().start, |l| l.span().start);
-    at.set(places::ATTITUDE_LISTEN, ctx.line(line));
+    at.set(
+        places::ATTITUDE_LISTEN,
+        ctx.line_of_value(table, a.listen.as_ref()),
+    );
     let listen = match &a.listen {
         Some(l) => socket_addr(ctx, l, "attitude.listen", AddrUse::Listen)?,
         None => SocketAddr::from((Ipv4Addr::LOCALHOST, 17151)),

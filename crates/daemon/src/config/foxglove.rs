@@ -45,11 +45,10 @@ pub(super) fn validate(
     };
     let r = table.get_ref();
     // Whether it can be bound shows only on this machine: `wiring::check`.
-    let line = r
-        .listen
-        .as_ref()
-        .map_or(table.span().start, |l| l.span().start);
-    at.set(places::FOXGLOVE_LISTEN, ctx.line(line));
+    at.set(
+        places::FOXGLOVE_LISTEN,
+        ctx.line_of_value(table, r.listen.as_ref()),
+    );
     let listen = match &r.listen {
         Some(l) => {
             let a = socket_addr(ctx, l, "foxglove.listen", AddrUse::Listen)?;

@@ -31,6 +31,12 @@ impl Ctx<'_> {
         line_of_offset(self.src, offset)
     }
 
+    /// The line of an optional key's value, else of its table (a default
+    /// is said at the table that took it): where a place is recorded.
+    pub fn line_of_value<T, V>(&self, table: &Spanned<T>, value: Option<&Spanned<V>>) -> usize {
+        self.line(value.map_or(table.span().start, |v| v.span().start))
+    }
+
     /// An error at `line`.
     pub fn at(&self, line: usize, key: &str, msg: impl Into<String>) -> ConfigError {
         ConfigError::At {

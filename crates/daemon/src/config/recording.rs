@@ -76,11 +76,10 @@ pub(super) fn validate(
     };
     let r = table.get_ref();
     // Whether the directory can be (a file is not one): `wiring::check`.
-    let line = r
-        .dir
-        .as_ref()
-        .map_or(table.span().start, |d| d.span().start);
-    at.set(places::RECORDING_DIR, ctx.line(line));
+    at.set(
+        places::RECORDING_DIR,
+        ctx.line_of_value(table, r.dir.as_ref()),
+    );
     let dir = match &r.dir {
         Some(d) if !d.get_ref().trim().is_empty() => ctx.path(d.get_ref()),
         Some(d) => return Err(ctx.err(d.span(), "recording.dir", "empty path")),

@@ -18,16 +18,15 @@
 //! dead bus) ends at once when the [`Stop`] is raised.
 
 mod failure;
-mod ratelog;
 mod seq;
 
 use crate::inputs::Input;
 use crate::outputs::Output;
 use crate::stats::{BackendState, Stats, TempSource};
 use failure::LastFailure;
+use lightpose_core::ratelog::RateLog;
 use lightpose_core::{Estimator, Frame, PoseEstimate, ReadingUse};
 use lightpose_hal::{FrameSource, SourceError, SourceHealth, Stop};
-use ratelog::RateLog;
 use seq::{SeqBooks, Step};
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::mpsc::Receiver;
@@ -83,8 +82,6 @@ pub struct Engine {
     late_tolerance: f64,
     fallback_temp_c: Option<f64>,
     max_frames: Option<u64>,
-    /// Base for the heartbeat the watchdog looks at.
-    epoch: Instant,
 }
 
 /// What the loop keeps from one frame to the next.
@@ -130,7 +127,6 @@ impl Engine {
             late_tolerance: 0.5,
             fallback_temp_c: None,
             max_frames: None,
-            epoch: Instant::now(),
         }
     }
 
@@ -176,11 +172,6 @@ impl Engine {
         self.max_frames = Some(n);
         self
     }
-    /// Base of the heartbeat (the daemon's start).
-    pub fn epoch(mut self, epoch: Instant) -> Self {
-        self.epoch = epoch;
-        self
-    }
 
     /// Run until stopped, the source ends, or `max_frames` frames.
     pub fn run(mut self) -> EndReason {
@@ -223,12 +214,9 @@ impl Engine {
         reason
     }
 
-    /// A sign of life for the watchdog, in the stats and on the stop
-    /// (whose waits in the source beat it too).
+    /// A sign of life for the watchdog, on the stop (whose waits in the
+    /// source beat it too).
     fn beat(&self) {
-        self.stats
-            .heartbeat_ns
-            .store(self.epoch.elapsed().as_nanos() as u64, Relaxed);
         self.stop.beat();
     }
 

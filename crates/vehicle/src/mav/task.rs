@@ -13,6 +13,7 @@ use super::scan::{Framing, Scanned, Scanner};
 use crate::backoff::Backoff;
 use crate::ned::Site;
 use crate::Hub;
+use lightpose_core::ratelog::RateLog;
 use mavlink::dialects::ardupilotmega::MavMessage;
 use std::future::Future;
 use std::io;
@@ -247,36 +248,27 @@ fn absorb(sc: &mut Scanner, s: &MavlinkSettings, hub: &Hub) -> bool {
 /// The journal's account of `ok` poses not sent (no std, a bad std or
 /// time, a value too big for MAVLink): STATUS counts them all, and the
 /// journal says the first of each reason at once, with the pose's seq and
-/// why, then at most one line per [`SkipLog::EVERY`] while more come.
+/// why, then at most one line a second while more come.
 /// (Decimation is the configured rate limit, not a fault: not logged.)
 struct SkipLog {
     /// VISION_SPEED_ESTIMATE's skips (else VISION_POSITION_ESTIMATE's).
     speed: bool,
-    /// Per reason: when its last line went out, and its count then.
-    last: [Option<(Instant, u64)>; Skip::ALL.len()],
+    /// Per reason, core's rule: the first at once, then a line a second.
+    logs: [RateLog; Skip::ALL.len()],
 }
 
 impl SkipLog {
-    const EVERY: Duration = Duration::from_secs(1);
-
     fn new(speed: bool) -> Self {
         SkipLog {
             speed,
-            last: [None; Skip::ALL.len()],
+            logs: [RateLog::new(); Skip::ALL.len()],
         }
     }
 
-    /// Whether skip `k`, the `count`th of its reason, is to be logged at
-    /// `now`; if so, how many of that reason came since the last line.
-    fn due(&mut self, k: Skip, count: u64, now: Instant) -> Option<u64> {
-        let slot = self.last.get_mut(k.index())?;
-        let since = match *slot {
-            Some((t, _)) if now.saturating_duration_since(t) < Self::EVERY => return None,
-            Some((_, then)) => count.saturating_sub(then),
-            None => count,
-        };
-        *slot = Some((now, count));
-        Some(since)
+    /// Whether a skip `k` at `now` is to be logged; if so, how many of
+    /// that reason came since the last line (this one included).
+    fn due(&mut self, k: Skip, now: Instant) -> Option<u64> {
+        self.logs.get_mut(k.index())?.tick(now)
     }
 
     /// Log skip `k` of pose `o`, the `count`th of its reason, if due.
@@ -284,7 +276,7 @@ impl SkipLog {
         if k == Skip::Decimated {
             return;
         }
-        let Some(since) = self.due(k, count, Instant::now()) else {
+        let Some(since) = self.due(k, Instant::now()) else {
             return;
         };
         let message = if self.speed {
@@ -430,16 +422,16 @@ mod tests {
         let mut log = SkipLog::new(false);
         let t0 = Instant::now();
         let ms = |n: u64| t0 + Duration::from_millis(n);
-        assert_eq!(log.due(Skip::NoStd, 1, ms(0)), Some(1));
+        assert_eq!(log.due(Skip::NoStd, ms(0)), Some(1));
         for (k, at) in (2..=40).zip((25..).step_by(25)) {
-            assert_eq!(log.due(Skip::NoStd, k, ms(at)), None, "skip {k}");
+            assert_eq!(log.due(Skip::NoStd, ms(at)), None, "skip {k}");
         }
         // Another reason has its own first line.
-        assert_eq!(log.due(Skip::BadTime, 1, ms(500)), Some(1));
-        assert_eq!(log.due(Skip::NoStd, 41, ms(1000)), Some(40));
-        assert_eq!(log.due(Skip::NoStd, 42, ms(1999)), None);
+        assert_eq!(log.due(Skip::BadTime, ms(500)), Some(1));
+        assert_eq!(log.due(Skip::NoStd, ms(1000)), Some(40));
+        assert_eq!(log.due(Skip::NoStd, ms(1999)), None);
         // After a quiet spell the next one is said at once.
-        assert_eq!(log.due(Skip::NoStd, 43, ms(60_000)), Some(2));
-        assert_eq!(log.due(Skip::BadTime, 2, ms(60_000)), Some(1));
+        assert_eq!(log.due(Skip::NoStd, ms(60_000)), Some(2));
+        assert_eq!(log.due(Skip::BadTime, ms(60_000)), Some(1));
     }
 }

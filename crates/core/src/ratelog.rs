@@ -1,17 +1,19 @@
-//! Logging of events that can come every frame (late, failed, lost frames):
-//! visible, not flooding.
+//! Logging of events that can come every frame (late, failed or lost
+//! frames in the daemon, poses the MAVLink sender skips): visible, not
+//! flooding. One rule for every crate that logs such events.
 
 use std::time::{Duration, Instant};
 
 /// Logs the first event of a kind, then at most one line a second with the
 /// count since.
-pub(super) struct RateLog {
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RateLog {
     last: Option<Instant>,
     suppressed: u64,
 }
 
 impl RateLog {
-    pub fn new() -> Self {
+    pub const fn new() -> Self {
         RateLog {
             last: None,
             suppressed: 0,
