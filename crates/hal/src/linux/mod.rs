@@ -1,23 +1,27 @@
-//! The real buses: Linux spidev and i2c-dev through `linux-embedded-hal`,
-//! compiled only with feature `linux` so that simulator builds and tests
-//! need no device files.
+//! The real buses: Linux spidev and i2c-dev, compiled only with feature
+//! `linux` so that simulator builds and tests need no device files. The
+//! embedded-hal implementations are our own ([`spi`], [`i2c`]), directly
+//! over the `spidev` and `i2cdev` crates, because linux-embedded-hal 0.4
+//! allocates a `Vec` in every transaction, i.e. on every frame.
 
-use linux_embedded_hal::spidev::{SpiModeFlags, SpidevOptions};
-use linux_embedded_hal::{I2cdev, SpidevDevice};
+pub mod i2c;
+pub mod spi;
 
-use crate::bank::{BoardSource, I2cBank, I2cSlot, SpiBank, StdDelay};
+use crate::bank::{BoardSource, I2cAdc, I2cBank, I2cSlot, SpiBank, StdDelay};
 use crate::config::{Common, I2cChipPlan, ValidBackend};
 use crate::drivers::ads1115::Ads1115;
 use crate::drivers::ads7828::Ads7828;
 use crate::drivers::mcp3x08::Mcp3x08;
 use crate::pace::Stop;
 use crate::{FrameSource, HalError};
+use i2c::LinuxI2c;
+use spi::LinuxSpi;
 
-fn open_buses(buses: &[String]) -> Result<Vec<(String, I2cdev)>, HalError> {
+fn open_buses(buses: &[String]) -> Result<Vec<(String, LinuxI2c)>, HalError> {
     buses
         .iter()
         .map(|b| {
-            I2cdev::new(b)
+            LinuxI2c::open(b)
                 .map(|d| (b.clone(), d))
                 .map_err(|e| HalError::Open {
                     place: b.clone(),
@@ -27,7 +31,28 @@ fn open_buses(buses: &[String]) -> Result<Vec<(String, I2cdev)>, HalError> {
         .collect()
 }
 
-fn i2c_source<C: crate::bank::I2cAdc + 'static>(
+/// Refuse, at open, a chip whose address a kernel driver has claimed
+/// ([`LinuxI2c::check_address`]); its place as the bank names it.
+fn check_addresses<C: I2cAdc>(buses: &[String], chips: &[I2cChipPlan]) -> Result<(), HalError> {
+    for p in chips {
+        // A bus index out of range is I2cBank::new's to refuse.
+        let Some(bus) = buses.get(p.bus) else {
+            continue;
+        };
+        LinuxI2c::check_address(bus, p.address).map_err(|e| HalError::Open {
+            place: format!(
+                "board {} ({} 0x{:02X} on {bus})",
+                p.name,
+                C::NAME,
+                p.address
+            ),
+            msg: e.to_string(),
+        })?;
+    }
+    Ok(())
+}
+
+fn i2c_source<C: I2cAdc + 'static>(
     buses: &[String],
     chips: &[I2cChipPlan],
     make: impl Fn(u8) -> C,
@@ -42,11 +67,12 @@ fn i2c_source<C: crate::bank::I2cAdc + 'static>(
             chip: make(p.address),
         })
         .collect();
-    let mut bank =
-        I2cBank::new(open_buses(buses)?, slots, StdDelay).map_err(|msg| HalError::Open {
-            place: "i2c".into(),
-            msg,
-        })?;
+    let opened = open_buses(buses)?;
+    check_addresses::<C>(buses, chips)?;
+    let mut bank = I2cBank::new(opened, slots, StdDelay).map_err(|msg| HalError::Open {
+        place: "i2c".into(),
+        msg,
+    })?;
     // The ADS7828's internal reference is off at power-up: one discarded
     // conversion with PD = 11 per chip turns it on, then one wait for it to
     // settle (drivers::ads7828::REF_SETTLE_NS).
@@ -73,16 +99,11 @@ pub fn open(v: &ValidBackend, stop: &Stop) -> Result<Box<dyn FrameSource>, HalEr
             let mut devs = Vec::with_capacity(chips.len());
             for c in chips {
                 let place = format!("board {} ({})", c.name, c.device);
-                let mut d = SpidevDevice::open(&c.device).map_err(|e| HalError::Open {
+                let mut d = LinuxSpi::open(&c.device).map_err(|e| HalError::Open {
                     place: place.clone(),
                     msg: e.to_string(),
                 })?;
-                let opts = SpidevOptions::new()
-                    .bits_per_word(8)
-                    .max_speed_hz(c.max_speed_hz)
-                    .mode(SpiModeFlags::SPI_MODE_0)
-                    .build();
-                d.0.configure(&opts).map_err(|e| HalError::Open {
+                d.configure(c.max_speed_hz).map_err(|e| HalError::Open {
                     place,
                     msg: e.to_string(),
                 })?;
