@@ -17,18 +17,9 @@ use std::time::{Duration, Instant};
 
 const V: [f64; 3] = [0.3, 0.05, -0.02];
 
+/// A report of `V`, sent 10 ms after its time of validity.
 fn report(valid: bool) -> String {
-    format!(
-        concat!(
-            r#"{{"time": 99.8, "vx": {}, "vy": {}, "vz": {}, "fom": 0.002, "#,
-            r#""covariance": [[1e-4, 0.0, 0.0], [0.0, 4e-4, 0.0], [0.0, 0.0, 9e-4]], "#,
-            r#""altitude": 1.8, "transducers": [{{"id": 0, "velocity": 0.1, "distance": 2.0, "rssi": -30.0, "nsd": -90.0, "beam_valid": true}}], "#,
-            r#""velocity_valid": {}, "status": 0, "tracking_mode": "bottom", "format": "json_v3.2", "type": "velocity", "#,
-            r#""time_of_validity": 1638191471563017, "time_of_transmission": 1638191471573017}}"#,
-            "\n"
-        ),
-        V[0], V[1], V[2], valid
-    )
+    lightpose_testkit::dvl::report(V, valid, 10_000)
 }
 
 /// Good reports at 10 Hz for `d`.

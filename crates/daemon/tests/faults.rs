@@ -13,12 +13,11 @@ use common::run::run_until;
 use common::{read_logs, shipped, subscriber};
 
 use lightpose_hal::serial::protocol::format_line;
+use lightpose_testkit::pty::Pty;
 use lightposed::Config;
 use serde_json::Value;
-use std::fs::File;
 use std::io::Write;
 use std::net::{SocketAddr, UdpSocket};
-use std::os::fd::OwnedFd;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
@@ -115,32 +114,12 @@ fn run_in_process(
 
 // ---- serial boards on pseudo-terminals ----------------------------------
 
-/// One fake board: a pty pair whose slave is reached through `link`, as a
-/// udev symlink would give it. The slave fd is held so that the pty lives
-/// until the board is unplugged.
-struct Pty {
-    master: File,
-    _slave: OwnedFd,
-}
-
+/// One fake board: a pty whose port is reached through `link`, as a udev
+/// symlink would give it, living until the board is unplugged. Its writes
+/// are non-blocking: a board whose port nobody reads (the daemon is busy
+/// failing on the other one) must not stall the streamer.
 fn plug(link: &Path) -> Pty {
-    use nix::fcntl::{fcntl, FcntlArg, OFlag};
-    use nix::sys::termios::{cfmakeraw, tcgetattr, tcsetattr, SetArg};
-    let pty = nix::pty::openpty(None, None).expect("openpty");
-    let mut t = tcgetattr(&pty.slave).expect("tcgetattr");
-    cfmakeraw(&mut t);
-    tcsetattr(&pty.slave, SetArg::TCSANOW, &t).expect("tcsetattr");
-    // Non-blocking writes: a board whose port nobody reads (the daemon is
-    // busy failing on the other one) must not stall the streamer.
-    use std::os::fd::AsRawFd;
-    fcntl(pty.master.as_raw_fd(), FcntlArg::F_SETFL(OFlag::O_NONBLOCK)).expect("O_NONBLOCK");
-    let name = nix::unistd::ttyname(&pty.slave).expect("ttyname");
-    let _ = std::fs::remove_file(link);
-    std::os::unix::fs::symlink(name, link).expect("symlink");
-    Pty {
-        master: File::from(pty.master),
-        _slave: pty.slave,
-    }
+    Pty::plug(link).nonblocking()
 }
 
 /// Two 16-channel boards streaming `$LPADC` lines at about 250 Hz each

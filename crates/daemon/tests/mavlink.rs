@@ -8,11 +8,12 @@
 
 mod common;
 
-use common::run::{collect, of_class, python, run_in_process};
+use common::run::{collect, of_class, run_in_process};
 use common::subscriber;
 use common::vehicle::{free_port, judge, mavlink_config, stand_in, write_bare_log};
 use common::vehicle::{BEACON_DEPTH_M, HEADING_DEG, WATER_C};
 use lightpose_core::LogReader;
+use lightpose_testkit::python::python;
 use lightpose_vehicle::mav::outbound::Encoder;
 use lightposed::Config;
 use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA};

@@ -8,10 +8,11 @@
 
 mod common;
 use common::run::{
-    collect, collect_raw, files_in, of_class, python, replay_config, run_in_process, run_python,
-    signal, sim_config, spawn_daemon, wait_exit,
+    collect, collect_raw, files_in, of_class, replay_config, run_in_process, signal, sim_config,
+    spawn_daemon, wait_exit,
 };
 use common::{root, subscriber};
+use lightpose_testkit::python::{python, run_python};
 
 use lightpose_core::Cut;
 use lightpose_logs::{convert, McapOptions};

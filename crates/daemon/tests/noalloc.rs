@@ -8,6 +8,7 @@ use lightpose_core::DepthReading;
 use lightpose_core::{Angle, AttitudeReading};
 use lightpose_core::{Estimator, Frame, PoseEstimate, Status};
 use lightpose_hal::{FrameSource, Pace, SourceError, Stop, Text, ValidBackend};
+use lightpose_testkit::alloc::Counting;
 use lightpose_vehicle::{Hub, MaxAge};
 use lightposed::config::Config;
 use lightposed::engine::Engine;
@@ -16,40 +17,16 @@ use lightposed::inputs::vehicle::VehicleReadings;
 use lightposed::outputs::mavlink::ToAutopilot;
 use lightposed::outputs::udp::PoseDatagrams;
 use lightposed::Publisher;
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::net::UdpSocket;
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// The tests of this file count every thread's allocations: one at a time.
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
-struct Counting;
-static ALLOCS: AtomicU64 = AtomicU64::new(0);
-static COUNTING: AtomicBool = AtomicBool::new(false);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        if COUNTING.load(Relaxed) {
-            ALLOCS.fetch_add(1, Relaxed);
-        }
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        if COUNTING.load(Relaxed) {
-            ALLOCS.fetch_add(1, Relaxed);
-        }
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
 #[global_allocator]
-static A: Counting = Counting;
+static A: Counting = Counting::new();
 
 /// The vehicle's readings, fresh for an hour, in a hub.
 fn vehicle_hub() -> std::sync::Arc<Hub> {
@@ -123,11 +100,7 @@ fn allocations(frames: u64, sink: &UdpSocket, estimator: &str, scene: &str, vehi
             }))
             .output(Box::new(ToAutopilot::new(hub)));
     }
-    ALLOCS.store(0, Relaxed);
-    COUNTING.store(true, Relaxed);
-    engine.run();
-    COUNTING.store(false, Relaxed);
-    ALLOCS.load(Relaxed)
+    A.everywhere(|| engine.run()).1
 }
 
 #[test]
@@ -202,11 +175,7 @@ fn a_source_that_keeps_failing_does_not_allocate_per_frame() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let allocations = |frames: u64| {
         let engine = Engine::new(Box::new(Silent(frames)), Box::new(Nothing));
-        ALLOCS.store(0, Relaxed);
-        COUNTING.store(true, Relaxed);
-        engine.run();
-        COUNTING.store(false, Relaxed);
-        ALLOCS.load(Relaxed)
+        A.everywhere(|| engine.run()).1
     };
     let few = allocations(50);
     let many = (0..3).map(|_| allocations(2000)).min().unwrap_or(u64::MAX);

@@ -10,14 +10,13 @@
 
 use futures_util::{SinkExt, StreamExt};
 use lightpose_hal::Stop;
+use lightpose_testkit::alloc::Counting;
 use lightposed::config::Config;
 use lightposed::engine::Engine;
 use lightposed::outputs::live;
 use lightposed::outputs::recorder::Recorder;
 use lightposed::outputs::udp::PoseDatagrams;
 use lightposed::Publisher;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::net::UdpSocket;
 use std::path::Path;
 use std::sync::atomic::Ordering::Relaxed;
@@ -26,44 +25,9 @@ use std::time::{Duration, Instant};
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
 use tokio_tungstenite::tungstenite::Message as Ws;
 
-struct Counting;
-thread_local! {
-    // Per thread: the tests of this file run side by side.
-    static COUNT_HERE: Cell<bool> = const { Cell::new(false) };
-    static ALLOCS: Cell<u64> = const { Cell::new(0) };
-}
-
-fn count() {
-    if COUNT_HERE.try_with(Cell::get).unwrap_or(false) {
-        let _ = ALLOCS.try_with(|a| a.set(a.get() + 1));
-    }
-}
-
-/// This thread's allocations while `f` runs.
-fn allocs_in<T>(f: impl FnOnce() -> T) -> (T, u64) {
-    let before = ALLOCS.with(Cell::get);
-    COUNT_HERE.with(|c| c.set(true));
-    let out = f();
-    COUNT_HERE.with(|c| c.set(false));
-    (out, ALLOCS.with(Cell::get) - before)
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        count();
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        count();
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
+// Counted per thread (`A.this_thread`): the tests of this file run side by side.
 #[global_allocator]
-static A: Counting = Counting;
+static A: Counting = Counting::new();
 
 fn config(sink: &UdpSocket, rec: &Path) -> Config {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
@@ -126,7 +90,7 @@ fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
     .output(Box::new(PoseDatagrams::new(publisher)))
     .output(Box::new(recorder))
     .output(Box::new(live.output));
-    let (_, n) = allocs_in(|| engine.run());
+    let (_, n) = A.this_thread(|| engine.run());
     live.server.abort();
     live.hub.close();
     assert_eq!(
@@ -141,7 +105,7 @@ fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
 fn handing_frames_to_the_recorder_and_the_live_view_does_not_allocate() {
     // The counter counts this thread's allocations (else the test would
     // prove nothing).
-    let (v, n) = allocs_in(|| std::hint::black_box(Vec::<u8>::with_capacity(64)));
+    let (v, n) = A.this_thread(|| std::hint::black_box(Vec::<u8>::with_capacity(64)));
     drop(v);
     assert_eq!(n, 1);
     let rt = tokio::runtime::Runtime::new().expect("runtime");
@@ -171,9 +135,9 @@ fn refused_datagrams_do_not_allocate() {
         }
     };
     let errors = || publisher.destinations()[0].stats.errors.load(Relaxed);
-    let ((), few) = allocs_in(|| send(50));
+    let ((), few) = A.this_thread(|| send(50));
     let e0 = errors();
-    let ((), many) = allocs_in(|| send(500));
+    let ((), many) = A.this_thread(|| send(500));
     let refused = errors() - e0;
     eprintln!("refused sends: {few} allocations for 50 sends, {many} for 500 ({refused} refused)");
     assert!(refused >= 100, "{refused} of 500 sends refused");
@@ -221,8 +185,8 @@ fn framing_for_subscribed_clients_does_not_allocate_per_message() {
         }
     };
     publish(500); // warm: blocks, the clients' queues
-    let ((), few) = allocs_in(|| publish(200));
-    let ((), many) = allocs_in(|| publish(2000));
+    let ((), few) = A.this_thread(|| publish(200));
+    let ((), many) = A.this_thread(|| publish(2000));
     let r = live.hub.report();
     live.server.abort();
     live.hub.close();

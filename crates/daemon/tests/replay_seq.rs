@@ -3,7 +3,8 @@
 
 mod common;
 use common::run::{of_class, replay_config, run_to_end};
-use common::{root, subscriber};
+use common::subscriber;
+use lightpose_testkit::data::dive_with_a_corrupt_seq;
 use lightposed::Config;
 use std::time::Duration;
 
@@ -13,16 +14,11 @@ use std::time::Duration;
 #[test]
 fn a_lone_corrupt_seq_in_a_replay_loses_no_frame() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let text = std::fs::read_to_string(root().join("tests/data/dive.jsonl")).expect("log");
-    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
-    assert!(lines[5].contains("\"seq\":4,"), "{}", lines[5]);
-    lines[5] = lines[5].replacen("\"seq\":4,", "\"seq\":500,", 1);
-    let log = dir.path().join("glitch.jsonl");
-    std::fs::write(&log, lines.join("\n") + "\n").expect("write");
+    let (log, frames) = dive_with_a_corrupt_seq(dir.path());
     let (sub, dest) = subscriber();
     let cfg = Config::parse(&replay_config(&log, dest), "t.toml", None).expect("valid");
     let (summary, msgs) = run_to_end(cfg, Duration::from_secs(20), &sub);
-    let frames = lines.len() as u64 - 1;
+    let frames = frames as u64;
     assert!(summary.source_ended, "{summary:?}");
     assert_eq!((summary.frames, summary.lost), (frames, 0), "{summary:?}");
     let st = of_class(&msgs, "STATUS");

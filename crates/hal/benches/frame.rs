@@ -3,9 +3,6 @@
 //! the CPU cost of assembling a frame from fake buses, with a check that the
 //! frame path allocates nothing.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
-
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use embedded_hal::i2c::{self, I2c, Operation as I2cOp};
 use embedded_hal::spi::{self, Operation as SpiOp, SpiDevice};
@@ -19,21 +16,11 @@ use lightpose_hal::pace::Pacer;
 use lightpose_hal::serial::protocol::{format_line, parse_line, LineAssembler};
 use lightpose_hal::temp::{TempKind, TempReader};
 use lightpose_hal::FrameSource;
+use lightpose_testkit::alloc::Counting;
 
 /// Counts allocations, to check the frame path makes none.
-struct CountingAlloc;
-static ALLOCS: AtomicU64 = AtomicU64::new(0);
-unsafe impl GlobalAlloc for CountingAlloc {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::Relaxed);
-        System.alloc(l)
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        System.dealloc(p, l)
-    }
-}
 #[global_allocator]
-static A: CountingAlloc = CountingAlloc;
+static A: Counting = Counting::new();
 
 /// Bytes a fake bus saw.
 #[derive(Default, Clone, Copy)]
@@ -263,11 +250,12 @@ fn print_table() {
 
 fn allocations_per_frame(src: &mut dyn FrameSource, frames: u64) -> u64 {
     src.next_frame().ok();
-    let before = ALLOCS.load(Ordering::Relaxed);
-    for _ in 0..frames {
-        black_box(src.next_frame().ok());
-    }
-    ALLOCS.load(Ordering::Relaxed) - before
+    let ((), n) = A.everywhere(|| {
+        for _ in 0..frames {
+            black_box(src.next_frame().ok());
+        }
+    });
+    n
 }
 
 fn bench(c: &mut Criterion) {

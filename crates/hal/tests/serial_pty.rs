@@ -6,8 +6,7 @@
 
 use std::fs::File;
 use std::io::Write;
-use std::os::fd::OwnedFd;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::thread;
 use std::time::Duration;
 
@@ -19,29 +18,7 @@ use lightpose_hal::serial::protocol::format_line;
 use lightpose_hal::serial::{SerialBank, SerialBoard};
 use lightpose_hal::temp::{TempKind, TempReader};
 use lightpose_hal::{FrameSource, SourceError};
-use nix::pty::openpty;
-use nix::sys::termios::{cfmakeraw, tcgetattr, tcsetattr, SetArg};
-
-/// One fake board: the master side and the slave fd kept open (so that the
-/// pty lives until the test says otherwise).
-struct FakeBoard {
-    master: File,
-    _slave: OwnedFd,
-}
-
-fn fake_board(link: &Path) -> FakeBoard {
-    let pty = openpty(None, None).expect("openpty");
-    let mut t = tcgetattr(&pty.slave).expect("tcgetattr");
-    cfmakeraw(&mut t);
-    tcsetattr(&pty.slave, SetArg::TCSANOW, &t).expect("tcsetattr");
-    let name = nix::unistd::ttyname(&pty.slave).expect("ttyname");
-    let _ = std::fs::remove_file(link);
-    std::os::unix::fs::symlink(name, link).expect("symlink");
-    FakeBoard {
-        master: File::from(pty.master),
-        _slave: pty.slave,
-    }
-}
+use lightpose_testkit::pty::Pty;
 
 fn line(board: u8, seq: u32, base: u16) -> Vec<u8> {
     let values: Vec<u16> = (0..16).map(|c| base + c).collect();
@@ -86,8 +63,8 @@ fn source(paths: &[PathBuf], timeout_ms: u64) -> BoardSource<SerialBank> {
 fn serial_boards_on_ptys() {
     let dir = tempfile::tempdir().unwrap();
     let paths = [dir.path().join("lpadc0"), dir.path().join("lpadc1")];
-    let mut b0 = fake_board(&paths[0]);
-    let mut b1 = fake_board(&paths[1]);
+    let mut b0 = Pty::plug(&paths[0]);
+    let mut b1 = Pty::plug(&paths[1]);
     let mut src = source(&paths, 300);
 
     // 1. Nothing sent yet: board b0 times out, named.
@@ -155,7 +132,7 @@ fn serial_boards_on_ptys() {
     assert!(matches!(e, SourceError::Unavailable { .. }), "{e}");
 
     // 7. Replugged at the same path: reopened and reading again.
-    let b0 = fake_board(&paths[0]);
+    let b0 = Pty::plug(&paths[0]);
     let w0 = later(&b0.master, Duration::from_millis(50), line(0, 1, 700));
     let f = src.next_frame().unwrap();
     w0.join().unwrap();
@@ -168,8 +145,8 @@ fn serial_boards_on_ptys() {
 fn wrong_resolution_and_short_lines_are_bad_data() {
     let dir = tempfile::tempdir().unwrap();
     let paths = [dir.path().join("a"), dir.path().join("b")];
-    let b0 = fake_board(&paths[0]);
-    let b1 = fake_board(&paths[1]);
+    let b0 = Pty::plug(&paths[0]);
+    let b1 = Pty::plug(&paths[1]);
     let mut src = source(&paths, 300);
     // 12-bit line where 10 bits are configured
     let mut l12 = Vec::new();
@@ -195,7 +172,7 @@ fn a_stop_ends_a_long_serial_wait() {
     use lightpose_hal::{BackendConfig, PlainEnv, Stop};
     let dir = tempfile::tempdir().unwrap();
     let links = [dir.path().join("silent0"), dir.path().join("silent1")];
-    let _boards = [fake_board(&links[0]), fake_board(&links[1])];
+    let _boards = [Pty::plug(&links[0]), Pty::plug(&links[1])];
     let map: String = (0..25)
         .map(|k| {
             let (r, c, b, ch) = (k / 5, k % 5, k / 16, k % 16);
@@ -233,7 +210,7 @@ fn a_long_serial_wait_beats_its_stop() {
     use lightpose_hal::Stop;
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("silent");
-    let _board = fake_board(&path);
+    let _board = Pty::plug(&path);
     let stop = Stop::new();
     let bank = SerialBank::new(
         vec![SerialBoard {
@@ -274,8 +251,8 @@ fn a_long_serial_wait_beats_its_stop() {
 fn swapped_cables_are_named_not_a_bare_timeout() {
     let dir = tempfile::tempdir().unwrap();
     let paths = [dir.path().join("lpadc0"), dir.path().join("lpadc1")];
-    let mut b0 = fake_board(&paths[0]);
-    let b1 = fake_board(&paths[1]);
+    let mut b0 = Pty::plug(&paths[0]);
+    let b1 = Pty::plug(&paths[1]);
     let mut src = source(&paths, 300);
     // b0's port gets board 1's lines (b1's port is not read: the frame
     // fails at b0).

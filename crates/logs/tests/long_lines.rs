@@ -10,49 +10,12 @@ use common::data;
 
 use lightpose_core::textfile::MAX_LINE_BYTES;
 use lightpose_logs::{convert, FrameLog, LogFile, McapOptions};
-use std::alloc::{GlobalAlloc, Layout, System};
+use lightpose_testkit::alloc::Counting;
 use std::io::Write;
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
-
-struct Peak;
-static IN_USE: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
-
-fn grew(by: usize) {
-    let now = IN_USE.fetch_add(by, Relaxed) + by;
-    PEAK.fetch_max(now, Relaxed);
-}
-
-unsafe impl GlobalAlloc for Peak {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        grew(l.size());
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        IN_USE.fetch_sub(l.size(), Relaxed);
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        if n >= l.size() {
-            grew(n - l.size());
-        } else {
-            IN_USE.fetch_sub(l.size() - n, Relaxed);
-        }
-        unsafe { System.realloc(p, l, n) }
-    }
-}
 
 #[global_allocator]
-static A: Peak = Peak;
-
-/// Heap in use at most while `f` runs, above what was in use before.
-fn peak_of<T>(f: impl FnOnce() -> T) -> (T, usize) {
-    let before = IN_USE.load(Relaxed);
-    PEAK.store(before, Relaxed);
-    let out = f();
-    (out, PEAK.load(Relaxed).saturating_sub(before))
-}
+static A: Counting = Counting::new();
 
 /// `src` with a line of `len` bytes (and its newline) after its `after`th.
 fn with_long_line(src: &Path, dst: &Path, after: usize, len: usize) {
@@ -84,7 +47,7 @@ fn a_line_of_24_mb_is_refused_without_being_held() {
     with_long_line(&data("dive.jsonl"), &log, 3, LONG);
 
     // Read through LogFile (the line tap under core's reader).
-    let ((frames, refused), peak) = peak_of(|| {
+    let ((frames, refused), peak) = A.peak_of(|| {
         let mut f = LogFile::open(&log).unwrap();
         let (mut frames, mut refused) = (0, Vec::new());
         while let Some(r) = f.next_frame() {
@@ -105,7 +68,7 @@ fn a_line_of_24_mb_is_refused_without_being_held() {
     with_long_line(&data("dive.poses.jsonl"), &poses, 7, LONG);
     let out = dir.path().join("long.mcap");
     let mut skipped = Vec::new();
-    let (s, peak) = peak_of(|| {
+    let (s, peak) = A.peak_of(|| {
         convert(&log, &out, Some(&poses), &McapOptions::default(), |e| {
             skipped.push(e.to_string())
         })

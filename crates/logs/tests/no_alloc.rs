@@ -9,43 +9,14 @@
 
 use lightpose_core::{Angle, Frame, LogHeader, Pose, PoseEstimate, Status, Truth, NDET};
 use lightpose_logs::{McapOptions, McapWriter};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
+use lightpose_testkit::alloc::Counting;
 use std::io::{self, Write};
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::Arc;
 
-struct Counting;
-
-thread_local! {
-    // Per thread: the tests run side by side.
-    static ALLOCS: Cell<u64> = const { Cell::new(0) };
-}
-
-fn count() {
-    ALLOCS.with(|c| c.set(c.get() + 1));
-}
-
-fn allocs() -> u64 {
-    ALLOCS.with(Cell::get)
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        count();
-        System.alloc(l)
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        System.dealloc(p, l)
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        count();
-        System.realloc(p, l, n)
-    }
-}
-
+// Counted per thread (`A.this_thread`): the tests run side by side.
 #[global_allocator]
-static A: Counting = Counting;
+static A: Counting = Counting::new();
 
 /// A sink that only counts what reaches it.
 #[derive(Default, Clone)]
@@ -104,11 +75,12 @@ fn formatting_a_frame_and_a_pose_allocates_nothing() {
     for seq in 0..50 {
         run(seq);
     }
-    let before = allocs();
-    for seq in 50..2000 {
-        run(seq);
-    }
-    assert_eq!(allocs() - before, 0);
+    let ((), allocs) = A.this_thread(|| {
+        for seq in 50..2000 {
+            run(seq);
+        }
+    });
+    assert_eq!(allocs, 0);
 }
 
 /// The whole writer at the recorder's chunk size: allocations come with
@@ -130,14 +102,14 @@ fn the_writer_allocates_per_chunk_not_per_frame() {
     let n = 5000u64;
     let start = sink.0.load(Relaxed);
     let (mut chunks, mut last) = (0u64, start);
-    let before = allocs();
-    for seq in 300..300 + n {
-        write(&mut w, seq);
-        let now = sink.0.load(Relaxed);
-        chunks += u64::from(now > last);
-        last = now;
-    }
-    let allocs = allocs() - before;
+    let ((), allocs) = A.this_thread(|| {
+        for seq in 300..300 + n {
+            write(&mut w, seq);
+            let now = sink.0.load(Relaxed);
+            chunks += u64::from(now > last);
+            last = now;
+        }
+    });
     let bytes = sink.0.load(Relaxed) - start;
     eprintln!(
         "{n} frames and poses, 64 KiB chunks: {chunks} chunks, {allocs} allocations \

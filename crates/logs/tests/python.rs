@@ -8,38 +8,16 @@
 
 mod common;
 
-use common::{frame, header, pose, record, root};
+use common::{frame, header, pose, record};
 use lightpose_core::LogWriter;
 use lightpose_logs::{convert, McapOptions, McapReader};
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn python() -> PathBuf {
-    let out = Command::new(root().join("tools/pyenv.sh"))
-        .output()
-        .expect("tools/pyenv.sh runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr).trim()
-    );
-    PathBuf::from(String::from_utf8_lossy(&out.stdout).trim())
-}
+use lightpose_testkit::python::{python, run_python};
+use std::path::Path;
 
 /// Run the check script; its one line of output.
 fn check(py: &Path, args: &[&Path]) -> String {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/mcap_check.py");
-    let out = Command::new(py)
-        .arg(script)
-        .args(args)
-        .output()
-        .expect("python runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr).trim()
-    );
-    String::from_utf8_lossy(&out.stdout).trim().to_string()
+    run_python(py, &script, args)
 }
 
 #[test]

@@ -4,42 +4,13 @@
 
 use lightpose_core::{Estimator, Frame};
 use lightpose_pipeline::{Calibration, MomentsEstimator};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
+use lightpose_testkit::alloc::Counting;
 use std::path::Path;
 
-struct Counting;
-
-thread_local! {
-    /// Allocations by this thread: the test harness allocates on threads
-    /// of its own (printing results) while a test runs.
-    static ALLOCS: Cell<u64> = const { Cell::new(0) };
-}
-
-fn count() {
-    let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-}
-
-fn allocs() -> u64 {
-    ALLOCS.with(Cell::get)
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        count();
-        System.alloc(l)
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        System.dealloc(p, l)
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        count();
-        System.realloc(p, l, n)
-    }
-}
-
+// Counted per thread (`A.this_thread`): the test harness allocates on
+// threads of its own (printing results) while a test runs.
 #[global_allocator]
-static A: Counting = Counting;
+static A: Counting = Counting::new();
 
 /// The shipped tank calibration and the frames of the regression logs
 /// `names` (tests/data), read before any counting starts.
@@ -64,19 +35,13 @@ fn estimating_a_log_allocates_nothing() {
     let (cal, frames) = calibration_and_frames(&["dive", "hard"]);
     let mut est = MomentsEstimator::new(&cal);
     let mut statuses = 0u64;
-    let before = allocs();
-    for f in &frames {
-        statuses += est.estimate(f).status as u64;
-    }
-    let after = allocs();
+    let ((), n) = A.this_thread(|| {
+        for f in &frames {
+            statuses += est.estimate(f).status as u64;
+        }
+    });
     assert!(statuses > 0);
-    assert_eq!(
-        after - before,
-        0,
-        "{} allocations over {} frames",
-        after - before,
-        frames.len()
-    );
+    assert_eq!(n, 0, "{n} allocations over {} frames", frames.len());
 }
 
 /// The tracker, with the vehicle's own sensors (good and refused readings)
@@ -93,19 +58,13 @@ fn tracking_with_and_without_own_sensors_allocates_nothing() {
     for cal in [&cal, &wide] {
         let mut est = lightpose_pipeline::build_estimator("tracker", cal).expect("tracker");
         let mut used = 0u64;
-        let before = allocs();
-        for f in &frames {
-            let e = est.estimate(f);
-            used += u64::from(e.readings.depth == lightpose_core::ReadingUse::Used);
-        }
-        let after = allocs();
-        assert_eq!(
-            after - before,
-            0,
-            "{} allocations over {} frames",
-            after - before,
-            frames.len()
-        );
+        let ((), n) = A.this_thread(|| {
+            for f in &frames {
+                let e = est.estimate(f);
+                used += u64::from(e.readings.depth == lightpose_core::ReadingUse::Used);
+            }
+        });
+        assert_eq!(n, 0, "{n} allocations over {} frames", frames.len());
         assert!(used >= 38);
     }
 }

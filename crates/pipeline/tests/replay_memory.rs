@@ -7,41 +7,12 @@
 use lightpose_core::LogReader;
 use lightpose_pipeline::replay::AxisError;
 use lightpose_pipeline::{build_estimator, replay, Calibration};
-use std::alloc::{GlobalAlloc, Layout, System};
+use lightpose_testkit::alloc::Counting;
 use std::io::{BufReader, Read, Write};
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
-
-struct Tracking;
-static LIVE: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
-
-fn grew(n: usize) {
-    let now = LIVE.fetch_add(n, Relaxed) + n;
-    PEAK.fetch_max(now, Relaxed);
-}
-
-unsafe impl GlobalAlloc for Tracking {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        grew(l.size());
-        System.alloc(l)
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        LIVE.fetch_sub(l.size(), Relaxed);
-        System.dealloc(p, l)
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        if n >= l.size() {
-            grew(n - l.size());
-        } else {
-            LIVE.fetch_sub(l.size() - n, Relaxed);
-        }
-        System.realloc(p, l, n)
-    }
-}
 
 #[global_allocator]
-static A: Tracking = Tracking;
+static A: Counting = Counting::new();
 
 /// The frames of a short log repeated `times` times with seq and t running
 /// on: a long log made on the fly, never held in memory.
@@ -114,13 +85,12 @@ fn a_long_replay_with_truth_holds_a_bounded_heap_and_reports_alike() {
         };
         let mut log = LogReader::new(BufReader::new(src), "repeat.jsonl").expect("header");
         let mut est = build_estimator("moments", &cal).expect("estimator");
-        let base = LIVE.load(Relaxed);
-        PEAK.store(base, Relaxed);
-        let s = replay(est.as_mut(), &mut log, &mut out, |e| {
-            panic!("no bad line: {e}")
+        A.peak_of(|| {
+            replay(est.as_mut(), &mut log, &mut out, |e| {
+                panic!("no bad line: {e}")
+            })
+            .expect("replay")
         })
-        .expect("replay");
-        (s, PEAK.load(Relaxed) - base)
     };
     let (long, held) = replay_into(&mut std::io::sink());
     assert_eq!(long.frames, total as u64);

@@ -14,18 +14,9 @@ use std::io::Write;
 use std::net::{TcpListener, TcpStream};
 use std::time::{Duration, Instant};
 
+/// A report sent 50 ms after its time of validity.
 fn report(vx: f64, vy: f64, vz: f64, valid: bool) -> String {
-    format!(
-        concat!(
-            r#"{{"time": 99.8, "vx": {}, "vy": {}, "vz": {}, "fom": 0.002, "#,
-            r#""covariance": [[1e-4, 0.0, 0.0], [0.0, 4e-4, 0.0], [0.0, 0.0, 9e-4]], "#,
-            r#""altitude": 1.8, "transducers": [{{"id": 0, "velocity": 0.1, "distance": 2.0, "rssi": -30.0, "nsd": -90.0, "beam_valid": true}}], "#,
-            r#""velocity_valid": {}, "status": 0, "tracking_mode": "bottom", "format": "json_v3.2", "type": "velocity", "#,
-            r#""time_of_validity": 1638191471563017, "time_of_transmission": 1638191471613017}}"#,
-            "\n"
-        ),
-        vx, vy, vz, valid
-    )
+    lightpose_testkit::dvl::report([vx, vy, vz], valid, 50_000)
 }
 
 fn accept(l: &TcpListener) -> TcpStream {

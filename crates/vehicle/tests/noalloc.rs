@@ -10,56 +10,13 @@ mod common;
 
 use common::{estimate, spawn_mavlink, wait_until};
 use lightpose_core::{Angle, AttitudeReading, DepthReading, Frame, VelocityReading, NDET};
+use lightpose_testkit::alloc::Counting;
 use lightpose_vehicle::{Hub, MavlinkSettings, MaxAge, Offer, Site};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::net::UdpSocket;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::time::{Duration, Instant};
 
-struct Counting;
-static ALLOCS: AtomicU64 = AtomicU64::new(0);
-/// Allocations on a task thread (one that set `IS_TASK`) while
-/// `COUNT_TASK` holds.
-static TASK_ALLOCS: AtomicU64 = AtomicU64::new(0);
-static COUNT_TASK: AtomicBool = AtomicBool::new(false);
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-    static IS_TASK: Cell<bool> = const { Cell::new(false) };
-}
-
-fn counting() -> bool {
-    COUNTING.try_with(|c| c.get()).unwrap_or(false)
-}
-
-fn task_counting() -> bool {
-    COUNT_TASK.load(Relaxed) && IS_TASK.try_with(|c| c.get()).unwrap_or(false)
-}
-
-fn count() {
-    if counting() {
-        ALLOCS.fetch_add(1, Relaxed);
-    } else if task_counting() {
-        TASK_ALLOCS.fetch_add(1, Relaxed);
-    }
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        count();
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        count();
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
 #[global_allocator]
-static A: Counting = Counting;
+static A: Counting = Counting::new();
 
 #[test]
 fn attach_and_offer_do_not_allocate() {
@@ -95,27 +52,28 @@ fn attach_and_offer_do_not_allocate() {
     for k in 0..200 {
         frame(k);
     }
-    COUNTING.with(|c| c.set(true));
-    let mut sent = hub.mavlink.sent(0);
-    for k in 200..10_200 {
-        frame(k);
-        if k % 1000 == 999 {
-            // Wait for the task to send this pose, so that the two sides
-            // do run together while the frame thread is counted: a burst
-            // alone ends in milliseconds, and on a loaded machine the task
-            // may not run in them at all (the test failed so, once in
-            // some hundred runs). Polling an atomic and sleeping do not
-            // allocate; the pose is 10 s of capture time past the last,
-            // so no rate limit holds it back.
-            let more = wait_until(Duration::from_secs(5), || hub.mavlink.sent(0) > sent);
-            assert!(more, "pose {k} sent within 5 s");
-            sent = hub.mavlink.sent(0);
-        } else if k % 100 == 0 {
-            std::thread::yield_now();
+    // Counted on this thread, the frame thread, only.
+    let ((), allocs) = A.this_thread(|| {
+        let mut sent = hub.mavlink.sent(0);
+        for k in 200..10_200 {
+            frame(k);
+            if k % 1000 == 999 {
+                // Wait for the task to send this pose, so that the two sides
+                // do run together while the frame thread is counted: a burst
+                // alone ends in milliseconds, and on a loaded machine the task
+                // may not run in them at all (the test failed so, once in
+                // some hundred runs). Polling an atomic and sleeping do not
+                // allocate; the pose is 10 s of capture time past the last,
+                // so no rate limit holds it back.
+                let more = wait_until(Duration::from_secs(5), || hub.mavlink.sent(0) > sent);
+                assert!(more, "pose {k} sent within 5 s");
+                sent = hub.mavlink.sent(0);
+            } else if k % 100 == 0 {
+                std::thread::yield_now();
+            }
         }
-    }
-    COUNTING.with(|c| c.set(false));
-    assert_eq!(ALLOCS.load(Relaxed), 0, "allocations on the frame thread");
+    });
+    assert_eq!(allocs, 0, "allocations on the frame thread");
     // Ten poses went out while it was counted.
     assert!(hub.mavlink.sent(0) >= 10);
 }
@@ -139,7 +97,7 @@ fn a_peer_that_is_down_costs_the_task_no_allocation() {
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
     let h = hub.clone();
     let task = std::thread::spawn(move || {
-        IS_TASK.with(|c| c.set(true));
+        A.watch_this_thread();
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()
@@ -167,13 +125,14 @@ fn a_peer_that_is_down_costs_the_task_no_allocation() {
     }
     let (before, _) = errors();
     assert!(before > 0, "a closed port refuses: {before} errors");
-    COUNT_TASK.store(true, Relaxed);
-    for k in 20..320 {
-        pose(k);
-    }
-    // The last pose's refusal, if it comes on the receive side.
-    std::thread::sleep(Duration::from_millis(20));
-    COUNT_TASK.store(false, Relaxed);
+    // Counted on the task's thread only.
+    let ((), task_allocs) = A.watched(|| {
+        for k in 20..320 {
+            pose(k);
+        }
+        // The last pose's refusal, if it comes on the receive side.
+        std::thread::sleep(Duration::from_millis(20));
+    });
     let (after, _) = errors();
     let _ = stop.send(());
     task.join().expect("task thread ends without panic");
@@ -182,11 +141,7 @@ fn a_peer_that_is_down_costs_the_task_no_allocation() {
         "{} refusals over 300 poses",
         after - before
     );
-    assert_eq!(
-        TASK_ALLOCS.load(Relaxed),
-        0,
-        "allocations on the task thread"
-    );
+    assert_eq!(task_allocs, 0, "allocations on the task thread");
     let st = hub.mavlink.status(Instant::now());
     let last = st.last_error.unwrap_or_default();
     assert!(last.contains("Connection refused"), "{last}");

@@ -5,8 +5,9 @@
 
 mod common;
 
-use common::{estimate, python, spawn_mavlink, wait_until};
+use common::{estimate, spawn_mavlink, wait_until};
 use lightpose_core::Angle;
+use lightpose_testkit::python::python;
 use lightpose_vehicle::mav::inbound::DepthSource;
 use lightpose_vehicle::{Hub, MavlinkSettings, NedVec, Site};
 use serde_json::Value;

@@ -8,37 +8,15 @@ mod common;
 
 use common::{estimate, spawn_mavlink, wait_until};
 use lightpose_core::Angle;
+use lightpose_testkit::pty::Pty;
 use lightpose_vehicle::mav::inbound::Refusal;
 use lightpose_vehicle::mav::scan::{Framing, Scanned, Scanner};
 use lightpose_vehicle::{Hub, MavlinkSettings, Site};
 use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA};
 use mavlink::{MAVLinkV2MessageRaw, MavHeader};
-use nix::pty::openpty;
-use nix::sys::termios::{cfmakeraw, tcgetattr, tcsetattr, SetArg};
 use std::fs::File;
 use std::io::{Read, Write};
-use std::os::fd::OwnedFd;
-use std::path::Path;
 use std::time::{Duration, Instant};
-
-struct Autopilot {
-    master: File,
-    _slave: OwnedFd,
-}
-
-fn plug(link: &Path) -> Autopilot {
-    let pty = openpty(None, None).expect("openpty");
-    let mut t = tcgetattr(&pty.slave).expect("tcgetattr");
-    cfmakeraw(&mut t);
-    tcsetattr(&pty.slave, SetArg::TCSANOW, &t).expect("tcsetattr");
-    let name = nix::unistd::ttyname(&pty.slave).expect("ttyname");
-    let _ = std::fs::remove_file(link);
-    std::os::unix::fs::symlink(name, link).expect("symlink");
-    Autopilot {
-        master: File::from(pty.master),
-        _slave: pty.slave,
-    }
-}
 
 fn attitude_frame(pitch: f32, seq: u8) -> Vec<u8> {
     let mut raw = MAVLinkV2MessageRaw::new();
@@ -81,7 +59,7 @@ fn read_until(master: &mut File, ids: &[u32], timeout: Duration) -> bool {
 fn mavlink_over_a_serial_port_both_ways_and_through_an_unplug() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("ttyAUTOPILOT");
-    let mut ap = plug(&link);
+    let mut ap = Pty::plug(&link);
     let hub = Hub::new();
     let mut s = MavlinkSettings::new(
         format!("serial:{}:115200", link.display()).parse().unwrap(),
@@ -135,7 +113,7 @@ fn mavlink_over_a_serial_port_both_ways_and_through_an_unplug() {
     assert!(wait_until(Duration::from_secs(5), || {
         hub.mavlink.status(Instant::now()).link_failures >= 2
     }));
-    let mut ap = plug(&link);
+    let mut ap = Pty::plug(&link);
     assert!(wait_until(Duration::from_secs(5), || {
         hub.mavlink.status(Instant::now()).link_opens >= 2
     }));

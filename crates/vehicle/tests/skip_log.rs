@@ -8,36 +8,10 @@ mod common;
 
 use common::estimate;
 use lightpose_core::Angle;
+use lightpose_testkit::logs::logged;
 use lightpose_vehicle::{Hub, MavlinkSettings, Offer, Site};
-use std::io::{self, Write};
 use std::net::UdpSocket;
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-
-/// The log lines written while `f` runs on this thread.
-fn logged(f: impl FnOnce()) -> String {
-    #[derive(Clone)]
-    struct Capture(Arc<Mutex<Vec<u8>>>);
-    impl Write for Capture {
-        fn write(&mut self, b: &[u8]) -> io::Result<usize> {
-            self.0.lock().unwrap().extend_from_slice(b);
-            Ok(b.len())
-        }
-        fn flush(&mut self) -> io::Result<()> {
-            Ok(())
-        }
-    }
-    let cap = Capture(Arc::default());
-    let out = cap.clone();
-    let sub = tracing_subscriber::fmt()
-        .with_ansi(false)
-        .with_max_level(tracing::Level::INFO)
-        .with_writer(move || out.clone())
-        .finish();
-    tracing::subscriber::with_default(sub, f);
-    let text = cap.0.lock().unwrap().clone();
-    String::from_utf8(text).unwrap()
-}
 
 /// The count of skips of `reason` in STATUS.
 fn skipped(hub: &Hub, reason: &str) -> u64 {

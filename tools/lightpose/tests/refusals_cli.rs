@@ -7,6 +7,7 @@
 mod common;
 
 use common::{lightpose, root, Run};
+use lightpose_testkit::data::dive_with_a_corrupt_seq;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -407,13 +408,7 @@ fn replay_says_each_thing_once_and_names_the_first_bad_reading() {
 #[test]
 fn one_corrupt_seq_costs_no_frame_after_it() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let text = std::fs::read_to_string(root().join("tests/data/dive.jsonl")).expect("log");
-    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
-    // Line 6 is frame seq 4: make it 500.
-    assert!(lines[5].contains("\"seq\":4,"), "{}", lines[5]);
-    lines[5] = lines[5].replacen("\"seq\":4,", "\"seq\":500,", 1);
-    let log = dir.path().join("glitch.jsonl");
-    std::fs::write(&log, lines.join("\n") + "\n").expect("write");
+    let (log, frames) = dive_with_a_corrupt_seq(dir.path());
     let out = dir.path().join("poses.jsonl");
     let r = lightpose(
         &[
@@ -432,7 +427,7 @@ fn one_corrupt_seq_costs_no_frame_after_it() {
         .expect("poses")
         .lines()
         .count();
-    assert_eq!(poses, lines.len() - 1, "{}", r.err);
+    assert_eq!(poses, frames, "{}", r.err);
     assert!(r.err.contains("1 lone frame(s) out of line"), "{}", r.err);
     // The corrupt frame's own seq (4) is missing from the line: one lost.
     assert!(r.err.contains("1 gaps in seq, 1 frames lost"), "{}", r.err);

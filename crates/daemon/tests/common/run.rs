@@ -1,5 +1,5 @@
 //! Running a daemon for a test: in-process on its own thread, or the real
-//! binary; collecting its datagrams; the Python of tools/pyenv.sh.
+//! binary; collecting its datagrams.
 
 use super::{root, shipped};
 use lightposed::{Config, Publisher};
@@ -149,37 +149,6 @@ pub fn wait_exit(child: &mut Child, within: Duration) -> std::process::ExitStatu
         }
         std::thread::sleep(Duration::from_millis(10));
     }
-}
-
-/// The Python of tools/pyenv.sh (the pinned venv); its one line of
-/// failure fails the test, never a skip.
-pub fn python() -> PathBuf {
-    let out = Command::new(root().join("tools/pyenv.sh"))
-        .output()
-        .expect("tools/pyenv.sh runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr).trim()
-    );
-    PathBuf::from(String::from_utf8_lossy(&out.stdout).trim())
-}
-
-/// Run a Python script with `args`; its stdout (it must succeed, else its
-/// stderr fails the test).
-pub fn run_python(py: &Path, script: &Path, args: &[&std::ffi::OsStr]) -> String {
-    let out = Command::new(py)
-        .arg(script)
-        .args(args)
-        .output()
-        .expect("python runs");
-    assert!(
-        out.status.success(),
-        "{}: {}",
-        script.display(),
-        String::from_utf8_lossy(&out.stderr).trim()
-    );
-    String::from_utf8_lossy(&out.stdout).trim().to_string()
 }
 
 /// The files of `dir` in name order (recordings are named by time and

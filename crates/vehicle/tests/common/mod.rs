@@ -1,26 +1,12 @@
-//! What the integration tests share: the project's Python (tools/pyenv.sh),
-//! the vehicle's tasks running on a runtime of their own (so that a test
-//! body can play the frame thread), and an `ok` estimate.
+//! What the integration tests share: the vehicle's tasks running on a
+//! runtime of their own (so that a test body can play the frame thread),
+//! and an `ok` estimate.
 #![allow(dead_code)]
 
 use lightpose_core::{PoseEstimate, Status, StdDev};
 use lightpose_vehicle::{DvlSettings, Hub, MavlinkSettings};
-use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-
-/// The venv python with pymavlink, or a panic with pyenv.sh's own line.
-pub fn python() -> PathBuf {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let out = std::process::Command::new("bash")
-        .arg(root.join("tools/pyenv.sh"))
-        .output()
-        .expect("bash runs");
-    if !out.status.success() {
-        panic!("{}", String::from_utf8_lossy(&out.stderr).trim());
-    }
-    PathBuf::from(String::from_utf8_lossy(&out.stdout).trim().to_string())
-}
 
 /// A task running on its own runtime thread until dropped.
 pub struct Running {

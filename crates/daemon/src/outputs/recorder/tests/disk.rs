@@ -9,12 +9,13 @@ use super::{cfg, est, frame};
 use super::{Item, RecState, RecStats};
 use crate::config::{RecFormat, Recording};
 use lightpose_core::LogHeader;
+use lightpose_testkit::logs::logged;
 use std::fs::File;
-use std::io::{self, Write};
+use std::io;
 use std::os::fd::AsRawFd;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering::Relaxed;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// A new file whose writes all fail as on a full disk: it exists, as a
 /// file created on a full filesystem does (an inode is still free).
@@ -49,31 +50,6 @@ fn files_in(dir: &Path) -> Vec<PathBuf> {
         .collect();
     v.sort();
     v
-}
-
-/// The log lines written while `f` runs on this thread.
-fn logged(f: impl FnOnce()) -> String {
-    #[derive(Clone)]
-    struct Capture(Arc<Mutex<Vec<u8>>>);
-    impl Write for Capture {
-        fn write(&mut self, b: &[u8]) -> io::Result<usize> {
-            self.0.lock().unwrap().extend_from_slice(b);
-            Ok(b.len())
-        }
-        fn flush(&mut self) -> io::Result<()> {
-            Ok(())
-        }
-    }
-    let cap = Capture(Arc::default());
-    let out = cap.clone();
-    let sub = tracing_subscriber::fmt()
-        .with_ansi(false)
-        .with_max_level(tracing::Level::INFO)
-        .with_writer(move || out.clone())
-        .finish();
-    tracing::subscriber::with_default(sub, f);
-    let text = cap.0.lock().unwrap().clone();
-    String::from_utf8(text).unwrap()
 }
 
 /// A full disk (each new file refuses its first write): no empty file is
