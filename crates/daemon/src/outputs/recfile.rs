@@ -152,17 +152,17 @@ fn named(path: &Path, e: impl std::fmt::Display) -> String {
 }
 
 impl RecFile {
-    /// Create `path` (which must not exist) with `open` and write its
-    /// header; MCAP chunks close at `chunk_bytes` (and on the recorder's
-    /// timer). A file that could not be started is removed.
+    /// Start a recording in `file`, just created at `path` (by an
+    /// [`Opener`]: a new file): its header written; MCAP chunks close at
+    /// `chunk_bytes` (and on the recorder's timer). A file that could not
+    /// be started is removed.
     pub fn create(
         path: PathBuf,
+        file: File,
         format: RecFormat,
         header: &LogHeader,
         chunk_bytes: u64,
-        open: Opener,
     ) -> Result<RecFile, String> {
-        let file = open(&path).map_err(|e| named(&path, e))?;
         let started = RecFile::start(path.clone(), format, header, chunk_bytes, file);
         if started.is_err() {
             let _ = std::fs::remove_file(&path);

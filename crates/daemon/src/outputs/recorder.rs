@@ -6,9 +6,11 @@
 //! chunk closed) and synced; files rotate by size or age. A disk that
 //! refuses is reported (STATUS, log) and retried less and less often
 //! ([`worker`]); a nearly full disk is not written to, and old recordings
-//! may be pruned to make room ([`space`]); frames that could not be
+//! may be pruned to make room ([`space`]), oldest first by the counter in
+//! their names ([`names`]), not by the wall clock; frames that could not be
 //! recorded are counted, never hidden.
 
+mod names;
 mod space;
 #[cfg(test)]
 mod tests;

@@ -215,11 +215,10 @@ impl PoseOutbox {
 /// `diverged` after an `ok` one means the estimator started over, and the
 /// next `ok` pose opens a new epoch.
 ///
-/// The first epoch is taken from the wall clock ([`RestartCounter::new`],
-/// also the `Default`), not 0: the autopilot remembers the last
-/// `reset_counter` it saw, and a restarted daemon that began again at 0
-/// after an epoch-0 run would tell it nothing although the track, and the
-/// pose, started over.
+/// The first epoch is drawn at random ([`RestartCounter::new`], also the
+/// `Default`), not 0: the autopilot remembers the last `reset_counter` it
+/// saw, and a restarted daemon that began again at 0 after an epoch-0 run
+/// would tell it nothing although the track, and the pose, started over.
 #[derive(Debug, Clone)]
 pub struct RestartCounter {
     epoch: u32,
@@ -233,21 +232,31 @@ impl Default for RestartCounter {
     }
 }
 
-/// The first epoch of a process: the wall clock's whole seconds since
-/// 1970. Its low byte (the `reset_counter`) differs between two starts
-/// 1 to 255 s apart, which covers systemd's restart after a crash
-/// (`RestartSec=2`) and a restart by hand; starts further apart collide 1
-/// time in 256. A clock before 1970 gives 0.
-pub fn clock_epoch() -> u32 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs() as u32)
+/// The first epoch of a process, from the OS's entropy: its low byte (the
+/// `reset_counter`) differs between any two starts 255 times in 256. Not
+/// from the wall clock: a vehicle computer without an RTC boots at the
+/// same saved time again and again (fake-hwclock, no network underwater),
+/// so its seconds repeat across reboots of the companion alone, which the
+/// autopilot would not see as a restart. Should the OS refuse, the clock's
+/// nanoseconds and the process id stand in.
+pub fn first_epoch() -> u32 {
+    use rand::RngCore;
+    let mut b = [0u8; 4];
+    match rand::rngs::OsRng.try_fill_bytes(&mut b) {
+        Ok(()) => u32::from_le_bytes(b),
+        Err(_) => {
+            let nanos = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.subsec_nanos());
+            nanos ^ std::process::id().rotate_left(16)
+        }
+    }
 }
 
 impl RestartCounter {
-    /// A counter whose first epoch is [`clock_epoch`].
+    /// A counter whose first epoch is [`first_epoch`].
     pub fn new() -> Self {
-        RestartCounter::starting_at(clock_epoch())
+        RestartCounter::starting_at(first_epoch())
     }
 
     /// A counter whose first epoch is `epoch` (tests, replays that must
@@ -571,22 +580,22 @@ mod tests {
     }
 
     /// A daemon that starts again must not start at the `reset_counter` it
-    /// started at before (0, every time, once): the first epoch is the wall
-    /// clock's seconds.
+    /// started at before (0 every time, or the seconds of a clock that
+    /// boots at the same saved time): two counters made in the same second
+    /// differ on the wire. Each pair collides 1 time in 256, so 7 or more
+    /// collisions in 64 pairs come about once in 10^8 runs; a clock's
+    /// seconds would collide in nearly all.
     #[test]
-    fn the_first_epoch_comes_from_the_wall_clock() {
-        let before = clock_epoch();
-        let mut c = RestartCounter::default();
-        let after = clock_epoch();
-        assert!(before > 1_600_000_000, "{before}");
-        assert!((before..=after).contains(&c.epoch()), "{}", c.epoch());
+    fn the_first_epoch_does_not_come_from_the_clock() {
+        let differ = (0..64)
+            .filter(|_| {
+                let (a, b) = (RestartCounter::new(), RestartCounter::default());
+                a.epoch() as u8 != b.epoch() as u8
+            })
+            .count();
+        assert!(differ >= 58, "{differ} of 64 pairs differ");
+        let mut c = RestartCounter::new();
         assert_eq!(c.observe(&est(Status::Ok)), c.epoch());
-        // Two starts 2 s apart (systemd's RestartSec) differ on the wire.
-        let (a, b) = (
-            RestartCounter::starting_at(before),
-            RestartCounter::starting_at(before + 2),
-        );
-        assert_ne!(a.epoch() as u8, b.epoch() as u8);
     }
 
     /// The journal's line for a skipped pose names what was wrong.

@@ -5,8 +5,10 @@
 //! full disk never leaves a recording cut nor empty files behind. With
 //! `keep_free_mb` or `max_total_mb` the oldest recordings in the directory
 //! (this daemon's names, `lightposed-*.jsonl` / `.mcap`) are deleted first
-//! to make room; the open file never is.
+//! to make room, oldest by the counter in their names, not by their time
+//! (the wall clock may step back: [`super::names`]); the open file never is.
 
+use super::names::{self, Rank};
 use super::RecStats;
 use crate::config::Recording;
 use std::io;
@@ -138,24 +140,22 @@ pub fn free_bytes(dir: &Path) -> io::Result<u64> {
     Ok(blocks.saturating_mul(size))
 }
 
-/// This daemon's recordings in `dir`, oldest first: by name, which starts
-/// with the UTC time the file was opened at.
+/// This daemon's recordings in `dir`, oldest first: by their counter
+/// (after those of the old naming, which had none), see [`Rank`].
 fn recordings(dir: &Path) -> Vec<Old> {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return Vec::new();
     };
-    let mut found: Vec<(String, Old)> = entries
+    let mut found: Vec<(Rank, Old)> = entries
         .flatten()
         .filter_map(|e| {
-            let name = e.file_name().into_string().ok()?;
-            let ours = name.starts_with("lightposed-")
-                && (name.ends_with(".jsonl") || name.ends_with(".mcap"));
-            let meta = e.metadata().ok().filter(|m| ours && m.is_file())?;
+            let rank = names::rank(e.file_name().to_str()?)?;
+            let meta = e.metadata().ok().filter(|m| m.is_file())?;
             let old = Old {
                 path: e.path(),
                 size: meta.len(),
             };
-            Some((name, old))
+            Some((rank, old))
         })
         .collect();
     found.sort_by(|a, b| a.0.cmp(&b.0));

@@ -1,7 +1,9 @@
 //! The recorder's tests: rotation, a refusing or stuck disk, frames the
-//! format cannot hold, STATUS behind a slow disk ([`disk`]: a full disk).
+//! format cannot hold, STATUS behind a slow disk ([`disk`]: a full disk;
+//! [`names`]: the recordings' names and the order of pruning).
 
 mod disk;
+mod names;
 
 use super::worker::Worker;
 use super::*;

@@ -5,13 +5,13 @@
 //! attempt; a file opened while in error must reach the disk (its first
 //! sync) before recording counts as resumed.
 
+use super::names;
 use super::space::{Space, EVERY};
 use super::{Item, RecState, RecStats};
 use crate::config::Recording;
 use crate::outputs::recfile::{self, extension, Closed, Opener, RecError, RecFile};
 use lightpose_core::LogHeader;
 use lightpose_logs::WriteError;
-use std::path::PathBuf;
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::sync::Arc;
@@ -47,7 +47,9 @@ pub(super) struct Worker {
     pub(super) space: Space,
     /// When the disk's room is next checked (while a file is open).
     space_at: Option<Instant>,
-    seq_in_run: u32,
+    /// The counter of the last file this run opened (the next one takes
+    /// the higher of it and the directory's highest, + 1).
+    counter: u64,
     /// t of the last frame written: STATUS is recorded at it.
     last_t: Option<f64>,
     pub(super) open_file: Opener,
@@ -67,7 +69,7 @@ impl Worker {
             flush_at: None,
             space: Space::new(cfg),
             space_at: None,
-            seq_in_run: 0,
+            counter: 0,
             last_t: None,
             open_file: recfile::create_new,
         }
@@ -235,20 +237,24 @@ impl Worker {
     fn open(&mut self, adc_bits: u8) -> Result<(), String> {
         std::fs::create_dir_all(&self.cfg.dir)
             .map_err(|e| format!("{}: {e}", self.cfg.dir.display()))?;
+        // Before pruning, which may delete the highest.
+        let highest = names::highest(&self.cfg.dir)
+            .map_err(|e| format!("{}: {e}", self.cfg.dir.display()))?;
         self.space.make_room(None, &self.stats)?;
-        self.seq_in_run += 1;
-        let path: PathBuf = self.cfg.dir.join(format!(
-            "lightposed-{}-{:04}.{}",
-            super::utc_stamp(SystemTime::now()),
-            self.seq_in_run,
-            extension(self.cfg.format)
-        ));
+        let (counter, path, file) = names::create(
+            &self.cfg.dir,
+            highest.max(self.counter).saturating_add(1),
+            &super::utc_stamp(SystemTime::now()),
+            extension(self.cfg.format),
+            self.open_file,
+        )?;
+        self.counter = counter;
         let mut header = self.header.clone();
         header.adc_bits = adc_bits;
         header
             .extra
             .insert("started".into(), super::unix_now().into());
-        let file = RecFile::create(path, self.cfg.format, &header, CHUNK_BYTES, self.open_file)?;
+        let file = RecFile::create(path, file, self.cfg.format, &header, CHUNK_BYTES)?;
         let shown = file.path.display().to_string();
         self.file = Some(file);
         self.opened = Instant::now();
