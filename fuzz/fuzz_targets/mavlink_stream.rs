@@ -33,9 +33,10 @@ fuzz_target!(|data: &[u8]| {
             let Scanned::Frame(f) = found else { continue };
             assert!(f.payload.len() <= 255);
             match interpret(&f, &cfg, &site) {
-                Ok(Input::Attitude(r)) => {
+                Ok(Input::Attitude(r, w)) => {
                     assert!(r.pitch.deg().abs() <= 90.1, "{r:?}");
                     assert!(r.yaw.deg().is_finite(), "{r:?}");
+                    assert!(w.is_none_or(|w| w.pitch.is_finite() && w.yaw.is_finite()), "{w:?}");
                 }
                 Ok(Input::Depth(d)) => assert!(d.z.is_finite(), "{d:?}"),
                 Ok(Input::Temperature(c)) => assert!((-5.0..=50.0).contains(&c)),

@@ -75,14 +75,39 @@ impl BackendState {
     }
 }
 
-/// Latency histogram: 1 µs buckets to 20 ms, then one overflow bucket.
-/// Fixed size so that recording a sample is an index and an increment.
+/// Latency histogram: 1 µs buckets to 20 ms, 1 ms buckets to 2 s (latency
+/// counts from a board frame's capture, half a slow read before it
+/// arrives: tens of ms), then one overflow bucket. Fixed size so that
+/// recording a sample is an index and an increment.
 pub struct Histogram {
     buckets: Box<[AtomicU64]>,
     max_ns: AtomicU64,
 }
 
-const BUCKETS: usize = 20_000;
+/// The 1 µs buckets (to 20 ms).
+const FINE: usize = 20_000;
+/// The overflow bucket's index, after the 1 ms buckets from 20 ms to 2 s.
+const BUCKETS: usize = FINE + 1_980;
+
+/// The bucket of a sample.
+#[inline]
+fn bucket_of(d: Duration) -> usize {
+    let us = d.as_micros();
+    if us < FINE as u128 {
+        return us as usize;
+    }
+    let ms = (d.as_millis() - (FINE / 1000) as u128).min((BUCKETS - FINE) as u128);
+    FINE + ms as usize
+}
+
+/// The upper edge of bucket `i` < `BUCKETS`, in seconds.
+fn upper_edge(i: usize) -> f64 {
+    if i < FINE {
+        (i + 1) as f64 * 1e-6
+    } else {
+        (FINE / 1000 + (i - FINE) + 1) as f64 * 1e-3
+    }
+}
 
 impl Default for Histogram {
     fn default() -> Self {
@@ -96,8 +121,7 @@ impl Default for Histogram {
 impl Histogram {
     #[inline]
     pub fn record(&self, d: Duration) {
-        let us = d.as_micros().min(BUCKETS as u128) as usize;
-        self.buckets[us].fetch_add(1, Relaxed);
+        self.buckets[bucket_of(d)].fetch_add(1, Relaxed);
         self.max_ns
             .fetch_max(d.as_nanos().min(u64::MAX as u128) as u64, Relaxed);
     }
@@ -106,25 +130,26 @@ impl Histogram {
         self.buckets.iter().map(|b| b.load(Relaxed)).sum()
     }
 
-    /// Upper edge of the bucket holding quantile `q` (0..1), in seconds;
-    /// `None` before any sample.
+    /// Upper edge of the bucket holding quantile `q` (0..1), in seconds,
+    /// never above the largest sample; `None` before any sample.
     pub fn quantile(&self, q: f64) -> Option<f64> {
         let n = self.count();
         if n == 0 {
             return None;
         }
+        let max = self.max_ns.load(Relaxed) as f64 * 1e-9;
         let rank = ((q.clamp(0.0, 1.0) * n as f64).ceil() as u64).max(1);
         let mut acc = 0;
         for (i, b) in self.buckets.iter().enumerate() {
             acc += b.load(Relaxed);
             if acc >= rank {
                 if i == BUCKETS {
-                    return Some(self.max_ns.load(Relaxed) as f64 * 1e-9);
+                    return Some(max);
                 }
-                return Some((i + 1) as f64 * 1e-6);
+                return Some(upper_edge(i).min(max));
             }
         }
-        Some(self.max_ns.load(Relaxed) as f64 * 1e-9)
+        Some(max)
     }
 
     pub fn max(&self) -> Option<f64> {
@@ -139,8 +164,8 @@ impl Histogram {
     }
 }
 
-/// Bucket counts of a [`Histogram`] at one moment (1 µs buckets, the last
-/// one holding everything from 20 ms up).
+/// Bucket counts of a [`Histogram`] at one moment (its buckets, the last
+/// one holding everything from 2 s up).
 #[derive(Debug, Clone, PartialEq)]
 pub struct HistSnapshot(Vec<u64>);
 
@@ -160,8 +185,8 @@ impl HistSnapshot {
         )
     }
 
-    /// Upper edge of the bucket holding quantile `q`, in seconds (20 ms
-    /// for the overflow bucket: the snapshot has no max); `None` if empty.
+    /// Upper edge of the bucket holding quantile `q`, in seconds (2 s for
+    /// the overflow bucket: the snapshot has no max); `None` if empty.
     pub fn quantile(&self, q: f64) -> Option<f64> {
         let n = self.count();
         if n == 0 {
@@ -172,10 +197,10 @@ impl HistSnapshot {
         for (i, b) in self.0.iter().enumerate() {
             acc += b;
             if acc >= rank {
-                return Some((i.min(BUCKETS - 1) + 1) as f64 * 1e-6);
+                return Some(upper_edge(i.min(BUCKETS - 1)));
             }
         }
-        Some(BUCKETS as f64 * 1e-6)
+        Some(upper_edge(BUCKETS - 1))
     }
 }
 
@@ -280,6 +305,28 @@ mod tests {
         assert!((p99 - 100e-6).abs() < 1e-9, "{p99}");
         h.record(Duration::from_secs(1));
         assert_eq!(h.quantile(1.0), Some(1.0));
+        h.record(Duration::from_secs(5));
+        assert_eq!(h.quantile(1.0), Some(5.0));
+    }
+
+    /// Latency from a board frame's capture is tens of ms (half an
+    /// ADS1115 read): above 20 ms the buckets are 1 ms, not one overflow
+    /// whose quantiles all read as the max.
+    #[test]
+    fn quantiles_above_20_ms_are_to_the_millisecond() {
+        let h = Histogram::default();
+        for ms in [34, 34, 34, 85, 3000] {
+            h.record(Duration::from_micros(ms * 1000 + 400));
+        }
+        let q = |p: f64| h.quantile(p).unwrap();
+        assert!((q(0.5) - 0.035).abs() < 1e-12, "{}", q(0.5));
+        assert!((q(0.8) - 0.086).abs() < 1e-12, "{}", q(0.8));
+        assert!((q(1.0) - 3.0004).abs() < 1e-12, "{}", q(1.0));
+        assert_eq!(bucket_of(Duration::from_micros(19_999)), FINE - 1);
+        assert_eq!(bucket_of(Duration::from_millis(20)), FINE);
+        assert_eq!(bucket_of(Duration::from_millis(1999)), BUCKETS - 1);
+        assert_eq!(bucket_of(Duration::from_secs(2)), BUCKETS);
+        assert_eq!(bucket_of(Duration::MAX), BUCKETS);
     }
 
     #[test]

@@ -6,8 +6,9 @@
 //! client is served meanwhile.
 
 mod common;
-use common::run::{collect, collect_raw, python, run_python, run_until, sim_config};
+use common::run::{collect, collect_raw, run_until, sim_config};
 use common::{free_tcp_port, root, subscriber};
+use lightpose_testkit::python::{python, run_python};
 
 use futures_util::{SinkExt, StreamExt};
 use lightposed::Config;
@@ -246,6 +247,7 @@ fn frames_without_log_time_are_counted_not_shown() {
             let acquired = lightposed::engine::Acquired {
                 frame,
                 arrival: Instant::now(),
+                capture: Instant::now(),
                 wall_unix: 1.7e9,
             };
             live.output.emit(&acquired, &est);

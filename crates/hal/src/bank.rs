@@ -1,6 +1,7 @@
 //! Board-backed frame sources: a [`Bank`] of ADC boards read together, and
 //! [`BoardSource`], which turns one bank read into one frame through the
 //! channel map, with its sequence number, time, temperature and pacing.
+//! Its frames' `t` is the machine's monotonic clock ([`crate::clock`]).
 //!
 //! Resolution: a bank is one kind of chip (the config's `kind`), so all
 //! boards of a frame share one resolution and the frame's `adc_bits` is the
@@ -8,12 +9,13 @@
 //! serial boards as configured and checked on every line). No rescaling,
 //! so counts stay exactly what the ADC gave, as the calibration expects.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use embedded_hal::{delay::DelayNs, i2c::I2c, spi::SpiDevice};
 use lightpose_core::{Frame, NDET};
 
 use crate::chanmap::{BoardSpec, ChannelMap, RawBoard, MAX_CH};
+use crate::clock::monotonic_s;
 use crate::drivers::{ads1115::Ads1115, ads7828::Ads7828, mcp3x08::Mcp3x08, DriverError};
 use crate::pace::Pacer;
 use crate::temp::TempReader;
@@ -411,7 +413,6 @@ pub struct BoardSource<B> {
     raw: Vec<RawBoard>,
     temp: TempReader,
     pacer: Pacer,
-    start: Instant,
     seq: u64,
     bits: u8,
     describe: String,
@@ -439,7 +440,6 @@ impl<B: Bank> BoardSource<B> {
             raw: vec![[0; MAX_CH]; n],
             temp,
             pacer,
-            start: Instant::now(),
             seq: 0,
             describe,
         }
@@ -466,11 +466,13 @@ impl<B: Bank> FrameSource for BoardSource<B> {
         // of them, off by at most half the read (docs/hardware.md, "A
         // frame's time and its sampling skew"). Stamped before the read, a
         // slow bank (ADS1115 at a low data rate) put every frame up to a
-        // whole read early.
-        let begun = self.start.elapsed();
+        // whole read early. On the monotonic clock (seconds since boot),
+        // not since the source was made: `t` is MAVLink's `usec`, which
+        // must not start over when the daemon restarts (crate::clock).
+        let begun = monotonic_s();
         self.bank.read(&self.wanted, &mut self.raw)?;
-        let ended = self.start.elapsed();
-        let t = (begun + (ended.saturating_sub(begun)) / 2).as_secs_f64();
+        let ended = monotonic_s();
+        let t = begun + (ended - begun).max(0.0) / 2.0;
         let mut counts = [0u16; NDET];
         self.map.apply(&self.raw, &mut counts);
         Ok(Frame {
@@ -490,6 +492,9 @@ impl<B: Bank> FrameSource for BoardSource<B> {
     }
     fn describe(&self) -> String {
         self.describe.clone()
+    }
+    fn t_is_monotonic(&self) -> bool {
+        true
     }
     fn health(&self) -> SourceHealth {
         let mut h = SourceHealth {
@@ -531,32 +536,59 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_frame_is_stamped_at_the_middle_of_its_read() {
-        let read = Duration::from_millis(60);
-        let t0 = Instant::now();
-        let mut src = BoardSource::new(
+    /// CLOCK_MONOTONIC read here, not through the code under test.
+    fn since_boot() -> f64 {
+        let ts = nix::time::clock_gettime(nix::time::ClockId::CLOCK_MONOTONIC).unwrap();
+        ts.tv_sec() as f64 + ts.tv_nsec() as f64 * 1e-9
+    }
+
+    fn slow_source(read: Duration) -> BoardSource<SlowBank> {
+        BoardSource::new(
             SlowBank { read },
             ChannelMap::sequential(16),
             TempReader::new(TempKind::None, 0.0),
             Pacer::new(None),
-        );
-        let made = Instant::now();
-        let called = Instant::now();
+        )
+    }
+
+    /// The middle of the read, on CLOCK_MONOTONIC (seconds since boot).
+    #[test]
+    fn a_frame_is_stamped_at_the_middle_of_its_read() {
+        let read = Duration::from_millis(60);
+        let mut src = slow_source(read);
+        assert!(src.t_is_monotonic());
+        let called = since_boot();
         let f = src.next_frame().unwrap();
-        let returned = Instant::now();
+        let returned = since_boot();
         // The read starts after `called` and ends before `returned`, and
         // lasts at least `read`: its middle is at least read / 2 after
-        // `called` and before `returned`. The source's clock started
-        // between t0 and `made`.
+        // `called` and read / 2 before `returned`.
         let half = read.as_secs_f64() / 2.0;
-        let lo = (called - made).as_secs_f64() + half;
-        let hi = (returned - t0).as_secs_f64() - half;
+        let (lo, hi) = (called + half, returned - half);
         assert!(
             f.t >= lo - 1e-6 && f.t <= hi + 1e-6,
             "{lo} <= {} <= {hi}",
             f.t
         );
+    }
+
+    /// Audit: `t` counted from when the source was made, so every daemon
+    /// restart started MAVLink's `usec` at 0 again. Two sources made 50 ms
+    /// apart now stamp one timeline.
+    #[test]
+    fn sources_made_apart_stamp_one_timeline() {
+        let read = Duration::from_millis(5);
+        let mut a = slow_source(read);
+        let fa = a.next_frame().unwrap();
+        std::thread::sleep(Duration::from_millis(50));
+        let mut b = slow_source(read);
+        let fb = b.next_frame().unwrap();
+        let now = since_boot();
+        assert!(fb.t - fa.t >= 0.050, "{} then {}", fa.t, fb.t);
+        assert!(fb.t <= now && now - fb.t < 10.0, "{} at {now}", fb.t);
+        // And the first source goes on on the same timeline.
+        let fa2 = a.next_frame().unwrap();
+        assert!(fa2.t > fb.t, "{} after {}", fa2.t, fb.t);
     }
 
     #[test]

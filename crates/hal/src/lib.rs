@@ -14,7 +14,8 @@
 //!   over embedded-hal 1.0;
 //! - [`serial`]: the `$LPADC` line protocol of microcontroller boards;
 //! - [`chanmap`]: which board channel feeds which detector;
-//! - [`bank`]: boards read together into one frame, paced ([`pace`]);
+//! - [`bank`]: boards read together into one frame, paced ([`pace`]),
+//!   stamped on the machine's monotonic clock ([`clock`]);
 //! - [`linux`]: the real spidev / i2c-dev buses those boards sit on;
 //! - [`temp`]: fixed, DS18B20 and thermistor temperature with fallback;
 //! - [`text`]: the words of a [`SourceError`], cheap to clone and build;
@@ -33,6 +34,7 @@ use lightpose_core::Frame;
 
 pub mod bank;
 pub mod chanmap;
+pub mod clock;
 pub mod config;
 pub mod drivers;
 #[cfg(feature = "linux")]
@@ -138,6 +140,13 @@ pub trait FrameSource: Send {
     /// lines, reopens, injected faults).
     fn health(&self) -> SourceHealth {
         SourceHealth::default()
+    }
+    /// Whether its frames' `t` is [`clock::monotonic_s`] at capture (live
+    /// boards), so that a reader of that clock at arrival knows how long
+    /// ago the frame was captured. Not so (the default) for simulated or
+    /// recorded time, whose capture is taken to be its arrival.
+    fn t_is_monotonic(&self) -> bool {
+        false
     }
 }
 

@@ -13,7 +13,7 @@
 //!             │ ATTITUDE, GLOBAL_POSITION_INT,             │ velocity reports
 //!             │ SCALED_PRESSURE2                           │
 //!             ▼                                            ▼
-//!         hub.readings ──── attach(&mut frame, now) ───▶ frame thread ── estimate
+//!         hub.readings ── attach(&mut frame, capture) ─▶ frame thread ── estimate
 //!         hub.outbox   ◀─── offer(&estimate, epoch) ────┘
 //!             │ VISION_POSITION_ESTIMATE, VISION_SPEED_ESTIMATE, HEARTBEAT
 //! ```
@@ -38,7 +38,7 @@ pub use mav::link::{Endpoint, Link};
 pub use mav::outbound::{MissingStd, Offer, OutputConfig, PoseOutbox, RestartCounter};
 pub use mav::task::MavlinkSettings;
 pub use ned::{NedPose, NedVec, Site};
-pub use readings::{Attached, MaxAge, Readings};
+pub use readings::{Attached, AttitudeRates, MaxAge, Readings};
 
 use serde::Serialize;
 use std::sync::Arc;

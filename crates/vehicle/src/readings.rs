@@ -1,17 +1,84 @@
 //! The vehicle's latest readings (attitude, depth, water temperature, DVL
 //! velocity), each with the moment it was taken, as the receivers left
-//! them; the frame thread attaches to each frame those that are fresh.
+//! them; the frame thread attaches to each frame those that are fresh at
+//! the frame's capture.
 //!
 //! Readings are already in the frames of MODEL.md when stored (pitch and
-//! yaw in B, z in B, velocity in V), so attaching is a copy. Neither
-//! storing nor attaching allocates or takes a lock (see `latest`).
+//! yaw in B, z in B, velocity in V). An attitude stored with its rates
+//! ([`AttitudeRates`], from ATTITUDE's body rates) is carried from the
+//! moment it was taken to the frame's capture; the others are copied as
+//! they are (docs/vehicle.md, "Time"). Neither storing nor attaching
+//! allocates or takes a lock (see `latest`).
 
 use crate::latest::{opt, word, Latest};
+use crate::ned::wrap_pi;
 use lightpose_core::{Angle, AttitudeReading, AttitudeStd, BodyVec, DepthReading, Frame};
 use lightpose_core::{AttitudeReading as Att, VelocityReading};
 use serde::Serialize;
+use std::f64::consts::FRAC_PI_2;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::{Duration, Instant};
+
+/// How fast pitch and yaw in B change (rad/s): the Euler angle rates of
+/// the attitude, not the gyro's body rates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttitudeRates {
+    pub pitch: f64,
+    pub yaw: f64,
+}
+
+/// Body rates above a gyro's range (2000 °/s) are no rates.
+const MAX_BODY_RATE: f64 = 2000.0 * std::f64::consts::PI / 180.0;
+/// Within about 6° of pointing straight up or down yaw is ill-defined and
+/// its rate (÷ cos θ) unbounded: no rates there.
+const MIN_COS_PITCH: f64 = 0.1;
+/// The longest a rate is trusted to hold (either way): an attitude is
+/// carried at most this far, so a long `max_age` does not turn a rate into
+/// a large made-up turn.
+const MAX_CARRY_S: f64 = 0.5;
+
+impl AttitudeRates {
+    /// Pitch and yaw rates from the body rates q (pitch) and r (yaw) of an
+    /// FRD body at roll φ and pitch θ (radians, rad/s): θ̇ = q cos φ − r sin φ
+    /// and ψ̇ = (q sin φ + r cos φ) / cos θ, the Z-Y-X Euler kinematics of
+    /// ArduPilot's ATTITUDE. Yaw in B is the heading less a constant
+    /// (`Site::yaw_b`) and pitch in B is the pitch, so these are B's rates
+    /// too. `None` for rates not finite, beyond a gyro's range, or near
+    /// θ = ±90° (see [`MIN_COS_PITCH`]).
+    pub fn from_body(roll: f64, pitch: f64, q: f64, r: f64) -> Option<AttitudeRates> {
+        let ok = |w: f64| w.is_finite() && w.abs() <= MAX_BODY_RATE;
+        if !(ok(q) && ok(r) && roll.is_finite() && pitch.is_finite()) {
+            return None;
+        }
+        let (sr, cr) = roll.sin_cos();
+        let cp = pitch.cos();
+        if cp.abs() < MIN_COS_PITCH {
+            return None;
+        }
+        Some(AttitudeRates {
+            pitch: q * cr - r * sr,
+            yaw: (q * sr + r * cr) / cp,
+        })
+    }
+}
+
+/// `a` carried from `taken` to `at` at `rates`, over at most
+/// [`MAX_CARRY_S`] either way (a reading newer than the capture is carried
+/// back). Yaw is wrapped into (−180°, 180°], pitch kept within ±90°.
+fn carried(a: Att, rates: Option<AttitudeRates>, taken: Instant, at: Instant) -> Att {
+    let Some(w) = rates else { return a };
+    let dt = if at >= taken {
+        (at - taken).as_secs_f64()
+    } else {
+        -(taken - at).as_secs_f64()
+    };
+    let dt = dt.clamp(-MAX_CARRY_S, MAX_CARRY_S);
+    Att {
+        pitch: Angle::from_rad((a.pitch.rad() + w.pitch * dt).clamp(-FRAC_PI_2, FRAC_PI_2)),
+        yaw: wrap_pi(Angle::from_rad(a.yaw.rad() + w.yaw * dt)),
+        std: a.std,
+    }
+}
 
 /// How old each reading may be and still go with a frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -56,7 +123,8 @@ struct Use {
 /// taken, in nanoseconds since `epoch`.
 pub struct Readings {
     epoch: Instant,
-    attitude: Latest<5>,
+    /// taken, pitch, yaw, their std, their rates (rad/s; NaN: none).
+    attitude: Latest<7>,
     depth: Latest<3>,
     temperature: Latest<2>,
     velocity: Latest<7>,
@@ -70,8 +138,12 @@ const VEL: usize = 3;
 
 impl Default for Readings {
     fn default() -> Self {
+        // An hour back: a reading taken before the hub was made (a DVL's
+        // time of validity at start) keeps its moment rather than being
+        // moved up to the epoch, which would carry an attitude wrongly.
+        let now = Instant::now();
         Readings {
-            epoch: Instant::now(),
+            epoch: now.checked_sub(Duration::from_secs(3600)).unwrap_or(now),
             attitude: Latest::default(),
             depth: Latest::default(),
             temperature: Latest::default(),
@@ -108,27 +180,40 @@ impl Readings {
         at.saturating_duration_since(self.epoch).as_nanos() as u64
     }
 
-    /// `Some(words)` if the cell holds a reading taken no longer than
-    /// `max_age` before `now`; counts a stale one.
+    /// `Some((taken, words))` if the cell holds a reading taken no longer
+    /// than `max_age` before `at` (one taken after `at` is fresh); counts a
+    /// stale one.
     #[inline]
     fn fresh<const N: usize>(
         &self,
         cell: &Latest<N>,
         k: usize,
-        now: Instant,
+        at: Instant,
         max_age: Duration,
-    ) -> Option<[u64; N]> {
+    ) -> Option<(Instant, [u64; N])> {
         let (_, w) = cell.load()?;
         let taken = self.epoch + Duration::from_nanos(w[0]);
-        if now.saturating_duration_since(taken) <= max_age {
-            Some(w)
+        if at.saturating_duration_since(taken) <= max_age {
+            Some((taken, w))
         } else {
             self.uses[k].stale.fetch_add(1, Relaxed);
             None
         }
     }
 
+    /// An attitude without rates: attached as it is.
     pub fn store_attitude(&self, at: Instant, r: &AttitudeReading) {
+        self.store_attitude_with_rates(at, r, None);
+    }
+
+    /// An attitude and, if known, how fast it changes: attached carried to
+    /// the frame's capture.
+    pub fn store_attitude_with_rates(
+        &self,
+        at: Instant,
+        r: &AttitudeReading,
+        rates: Option<AttitudeRates>,
+    ) {
         let s = r.std.map(|s| (s.pitch.rad(), s.yaw.rad()));
         self.attitude.store([
             self.stamp(at),
@@ -136,6 +221,8 @@ impl Readings {
             r.yaw.rad().to_bits(),
             word(s.map(|s| s.0)),
             word(s.map(|s| s.1)),
+            word(rates.map(|w| w.pitch)),
+            word(rates.map(|w| w.yaw)),
         ]);
     }
 
@@ -162,9 +249,10 @@ impl Readings {
         ]);
     }
 
-    /// The latest attitude if fresh at `now`.
-    pub fn attitude(&self, now: Instant, max_age: Duration) -> Option<AttitudeReading> {
-        let w = self.fresh(&self.attitude, ATT, now, max_age)?;
+    /// The latest attitude if fresh at `at`, carried to `at` by its rates
+    /// when it has them.
+    pub fn attitude(&self, at: Instant, max_age: Duration) -> Option<AttitudeReading> {
+        let (taken, w) = self.fresh(&self.attitude, ATT, at, max_age)?;
         let std = match (opt(w[3]), opt(w[4])) {
             (Some(p), Some(y)) => Some(AttitudeStd {
                 pitch: Angle::from_rad(p),
@@ -172,31 +260,36 @@ impl Readings {
             }),
             _ => None,
         };
-        Some(Att {
+        let rates = match (opt(w[5]), opt(w[6])) {
+            (Some(pitch), Some(yaw)) => Some(AttitudeRates { pitch, yaw }),
+            _ => None,
+        };
+        let a = Att {
             pitch: Angle::from_rad(f64::from_bits(w[1])),
             yaw: Angle::from_rad(f64::from_bits(w[2])),
             std,
-        })
+        };
+        Some(carried(a, rates, taken, at))
     }
 
-    /// The latest depth reading (z in B) if fresh at `now`.
-    pub fn depth(&self, now: Instant, max_age: Duration) -> Option<DepthReading> {
-        let w = self.fresh(&self.depth, DEPTH, now, max_age)?;
+    /// The latest depth reading (z in B) if fresh at `at`.
+    pub fn depth(&self, at: Instant, max_age: Duration) -> Option<DepthReading> {
+        let (_, w) = self.fresh(&self.depth, DEPTH, at, max_age)?;
         Some(DepthReading {
             z: f64::from_bits(w[1]),
             std: opt(w[2]),
         })
     }
 
-    /// The latest water temperature (°C) if fresh at `now`.
-    pub fn temperature(&self, now: Instant, max_age: Duration) -> Option<f64> {
-        let w = self.fresh(&self.temperature, TEMP, now, max_age)?;
+    /// The latest water temperature (°C) if fresh at `at`.
+    pub fn temperature(&self, at: Instant, max_age: Duration) -> Option<f64> {
+        let (_, w) = self.fresh(&self.temperature, TEMP, at, max_age)?;
         Some(f64::from_bits(w[1]))
     }
 
-    /// The latest DVL velocity (V, FRD) if fresh at `now`.
-    pub fn velocity(&self, now: Instant, max_age: Duration) -> Option<VelocityReading> {
-        let w = self.fresh(&self.velocity, VEL, now, max_age)?;
+    /// The latest DVL velocity (V, FRD) if fresh at `at`.
+    pub fn velocity(&self, at: Instant, max_age: Duration) -> Option<VelocityReading> {
+        let (_, w) = self.fresh(&self.velocity, VEL, at, max_age)?;
         let std = match (opt(w[4]), opt(w[5]), opt(w[6])) {
             (Some(a), Some(b), Some(c)) => Some(BodyVec([a, b, c])),
             _ => None,
@@ -211,25 +304,27 @@ impl Readings {
         })
     }
 
-    /// Give `frame` every reading that is fresh at `now` and that the frame
-    /// does not carry already (a recording's or the simulator's own
-    /// readings win). For the frame thread: no allocation, no lock.
-    pub fn attach(&self, frame: &mut Frame, now: Instant, max_age: &MaxAge) -> Attached {
+    /// Give `frame` every reading that is fresh at `capture` (the instant
+    /// the frame was sampled) and that the frame does not carry already (a
+    /// recording's or the simulator's own readings win); an attitude with
+    /// rates is carried to `capture`. For the frame thread: no allocation,
+    /// no lock.
+    pub fn attach(&self, frame: &mut Frame, capture: Instant, max_age: &MaxAge) -> Attached {
         let mut a = Attached::default();
         if frame.attitude.is_none() {
-            frame.attitude = self.attitude(now, max_age.attitude);
+            frame.attitude = self.attitude(capture, max_age.attitude);
             a.attitude = frame.attitude.is_some();
         }
         if frame.depth.is_none() {
-            frame.depth = self.depth(now, max_age.depth);
+            frame.depth = self.depth(capture, max_age.depth);
             a.depth = frame.depth.is_some();
         }
         if frame.temp_c.is_none() {
-            frame.temp_c = self.temperature(now, max_age.temperature);
+            frame.temp_c = self.temperature(capture, max_age.temperature);
             a.temperature = frame.temp_c.is_some();
         }
         if frame.velocity.is_none() {
-            frame.velocity = self.velocity(now, max_age.velocity);
+            frame.velocity = self.velocity(capture, max_age.velocity);
             a.velocity = frame.velocity.is_some();
         }
         for (k, got) in [a.attitude, a.depth, a.temperature, a.velocity]
@@ -318,6 +413,152 @@ mod tests {
         assert_eq!((st.attitude.attached, st.attitude.stale), (1, 1));
         assert_eq!(st.attitude.stored, 1);
         assert!((st.depth.age_s.unwrap() - 0.6).abs() < 1e-9);
+    }
+
+    fn deg(d: f64) -> Angle {
+        Angle::from_deg(d)
+    }
+
+    fn rates(pitch_dps: f64, yaw_dps: f64) -> Option<AttitudeRates> {
+        Some(AttitudeRates {
+            pitch: pitch_dps.to_radians(),
+            yaw: yaw_dps.to_radians(),
+        })
+    }
+
+    /// The attitude `r` gives a frame captured at `at` (pitch, yaw in °).
+    fn attached(r: &Readings, at: Instant, max_age: &MaxAge) -> Option<(f64, f64)> {
+        let mut f = Frame::new(0, 0.0, 10, [0; NDET]);
+        r.attach(&mut f, at, max_age);
+        f.attitude.map(|a| (a.pitch.deg(), a.yaw.deg()))
+    }
+
+    fn near(got: Option<(f64, f64)>, want: (f64, f64)) -> bool {
+        got.is_some_and(|g| (g.0 - want.0).abs() < 1e-9 && (g.1 - want.1).abs() < 1e-9)
+    }
+
+    /// Audit: an attitude went on a frame as it was when taken, 70–200 ms
+    /// before the frame's capture: at 30 °/s, 2–6° of yaw. With ATTITUDE's
+    /// rates it is carried to the capture, forward or back.
+    #[test]
+    fn an_attitude_is_carried_to_the_capture_by_its_rates() {
+        let r = Readings::default();
+        let t0 = Instant::now();
+        let ages = MaxAge::default();
+        let a = AttitudeReading::new(deg(2.0), deg(10.0));
+        r.store_attitude_with_rates(t0, &a, rates(-4.0, 30.0));
+        // Captured 150 ms after the reading was taken (its arrival later
+        // still does not matter).
+        let capture = t0 + Duration::from_millis(150);
+        let got = attached(&r, capture, &ages);
+        assert!(near(got, (2.0 - 0.6, 10.0 + 4.5)), "{got:?}");
+        // A reading taken 40 ms after the capture is carried back.
+        r.store_attitude_with_rates(capture + Duration::from_millis(40), &a, rates(-4.0, 30.0));
+        let got = attached(&r, capture, &ages);
+        assert!(near(got, (2.0 + 0.16, 10.0 - 1.2)), "{got:?}");
+        // Without rates (the UDP input, a message without them): as taken.
+        r.store_attitude(t0, &a);
+        assert!(near(attached(&r, capture, &ages), (2.0, 10.0)));
+    }
+
+    /// Yaw carried across ±180° comes out wrapped into (−180°, 180°].
+    #[test]
+    fn a_carried_yaw_wraps_across_180() {
+        let r = Readings::default();
+        let t0 = Instant::now();
+        let ages = MaxAge::default();
+        let at = t0 + Duration::from_millis(150);
+        r.store_attitude_with_rates(
+            t0,
+            &AttitudeReading::new(deg(0.0), deg(178.0)),
+            rates(0.0, 30.0),
+        );
+        let got = attached(&r, at, &ages);
+        assert!(near(got, (0.0, -177.5)), "{got:?}");
+        r.store_attitude_with_rates(
+            t0,
+            &AttitudeReading::new(deg(0.0), deg(-179.0)),
+            rates(0.0, -30.0),
+        );
+        let got = attached(&r, at, &ages);
+        assert!(near(got, (0.0, 176.5)), "{got:?}");
+        // Carried back from after the capture, the other way across.
+        let later = at + Duration::from_millis(100);
+        r.store_attitude_with_rates(
+            later,
+            &AttitudeReading::new(deg(0.0), deg(-179.0)),
+            rates(0.0, 30.0),
+        );
+        let got = attached(&r, at, &ages);
+        assert!(near(got, (0.0, 178.0)), "{got:?}");
+        // Pitch stops at ±90°.
+        r.store_attitude_with_rates(
+            t0,
+            &AttitudeReading::new(deg(89.0), deg(0.0)),
+            rates(30.0, 0.0),
+        );
+        assert!(near(attached(&r, at, &ages), (90.0, 0.0)));
+    }
+
+    /// Freshness is judged at the capture: a reading taken after it is
+    /// fresh, one older than the limit at it is stale (rates or not), and
+    /// a long limit does not let a rate run on for seconds.
+    #[test]
+    fn age_is_measured_at_the_capture_and_carrying_is_bounded() {
+        let r = Readings::default();
+        let t0 = Instant::now();
+        let ages = MaxAge::default();
+        let a = AttitudeReading::new(deg(0.0), deg(0.0));
+        r.store_attitude_with_rates(t0, &a, rates(0.0, 30.0));
+        // 250 ms is still fresh; 251 ms is stale and counted, whatever the
+        // rates could have carried it to.
+        assert!(near(
+            attached(&r, t0 + Duration::from_millis(250), &ages),
+            (0.0, 7.5)
+        ));
+        assert_eq!(attached(&r, t0 + Duration::from_millis(251), &ages), None);
+        assert_eq!(r.status(t0).attitude.stale, 1);
+        // Captured a second before the reading was taken: fresh, carried
+        // back by 0.5 s at most.
+        let got = attached(&r, t0 - Duration::from_secs(1), &ages);
+        assert!(near(got, (0.0, -15.0)), "{got:?}");
+        // A 10 s limit: a reading 2 s old is carried 0.5 s, not 2 s.
+        let long = MaxAge {
+            attitude: Duration::from_secs(10),
+            ..ages
+        };
+        let got = attached(&r, t0 + Duration::from_secs(2), &long);
+        assert!(near(got, (0.0, 15.0)), "{got:?}");
+        // Depth is judged at the capture too, and not carried.
+        r.store_depth(t0, &DepthReading::new(0.4));
+        let mut f = Frame::new(0, 0.0, 10, [0; NDET]);
+        r.attach(&mut f, t0 - Duration::from_millis(100), &ages);
+        assert_eq!(f.depth.map(|d| d.z), Some(0.4));
+    }
+
+    #[test]
+    fn euler_rates_from_body_rates() {
+        let (q, rr) = (0.2, 0.5);
+        let close = |w: Option<AttitudeRates>, p: f64, y: f64| {
+            w.is_some_and(|w| (w.pitch - p).abs() < 1e-12 && (w.yaw - y).abs() < 1e-12)
+        };
+        // Level: q is the pitch rate, r the yaw rate.
+        assert!(close(AttitudeRates::from_body(0.0, 0.0, q, rr), q, rr));
+        // Rolled 90° right: the body's pitch axis points down, so q turns
+        // the heading and r lowers the nose.
+        let w = AttitudeRates::from_body(FRAC_PI_2, 0.0, q, rr);
+        assert!(close(w, -rr, q), "{w:?}");
+        // Nose up 60°: a yaw about the body's axis turns the heading twice
+        // as fast.
+        let w = AttitudeRates::from_body(0.0, 60f64.to_radians(), q, rr);
+        assert!(close(w, q, 2.0 * rr), "{w:?}");
+        // Near straight up, not finite, or beyond a gyro: none.
+        assert_eq!(
+            AttitudeRates::from_body(0.0, 85f64.to_radians(), q, rr),
+            None
+        );
+        assert_eq!(AttitudeRates::from_body(0.0, 0.0, f64::NAN, rr), None);
+        assert_eq!(AttitudeRates::from_body(0.0, 0.0, q, 40.0), None);
     }
 
     #[test]

@@ -208,7 +208,7 @@ mod tests {
             while let Some(Scanned::Frame(f)) = sc.next_frame() {
                 got.push(interpret(&f, &cfg, &site).unwrap());
             }
-            let [Input::Attitude(a), Input::Depth(d), Input::Temperature(t)] = got[..] else {
+            let [Input::Attitude(a, _), Input::Depth(d), Input::Temperature(t)] = got[..] else {
                 panic!("{got:?}")
             };
             assert!((a.yaw.deg() + 12.0).abs() < 1e-4 && (a.pitch.deg() - 5.0).abs() < 1e-5);

@@ -74,7 +74,7 @@ fn the_stand_in_autopilot_sends_the_truth_and_judges_what_comes_back() {
                 );
             }
             match interpret(&f, &InputConfig::default(), &site).unwrap() {
-                Input::Attitude(a) => {
+                Input::Attitude(a, _) => {
                     assert!(a.yaw.deg().abs() < 1e-4, "yaw in B {}", a.yaw.deg());
                     assert!(
                         (8.6..=10.01).contains(&a.pitch.deg()),

@@ -59,10 +59,33 @@ impl EndReason {
 #[derive(Debug, Clone, Copy)]
 pub struct Acquired {
     pub frame: Frame,
-    /// When the source gave it: latency and deadlines count from here.
+    /// When the source gave it: deadlines count from here.
     pub arrival: Instant,
-    /// The wall clock then (Unix seconds): the POSE's `time`.
+    /// When it was sampled (the middle of a board's read), on the same
+    /// clock: readings are attached as of here, and latency counts from
+    /// here. The arrival for a source whose `t` is not the monotonic clock
+    /// (simulated, recorded: no better is known).
+    pub capture: Instant,
+    /// The wall clock at the capture (Unix seconds): the POSE's `time`.
     pub wall_unix: f64,
+}
+
+/// The longest a frame is taken to have been captured before it arrived:
+/// longer is no read of a board, but a `t` gone wrong, and the capture is
+/// then put this far back rather than anywhere.
+const MAX_CAPTURE_LAG: Duration = Duration::from_secs(1);
+
+/// How long before its arrival a frame with monotonic `t` was captured,
+/// from the monotonic clock `mono_s` read at its arrival; within
+/// `[0, MAX_CAPTURE_LAG]` (a `t` ahead of the clock, or not finite, is
+/// taken as captured on arrival).
+fn capture_lag(t: f64, mono_s: f64) -> Duration {
+    let lag = mono_s - t;
+    if lag.is_finite() && lag > 0.0 {
+        Duration::from_secs_f64(lag.min(MAX_CAPTURE_LAG.as_secs_f64()))
+    } else {
+        Duration::ZERO
+    }
 }
 
 /// The frame loop and what it needs. Built with [`Engine::new`] and the
@@ -309,6 +332,7 @@ impl Engine {
     fn acquire(&mut self, books: &mut Books) -> Got {
         let got = self.source.next_frame();
         let arrival = Instant::now();
+        let mono_s = lightpose_hal::clock::monotonic_s();
         let wall_unix = SystemTime::now()
             .duration_since(SystemTime::UNIX_EPOCH)
             .map_or(0.0, |d| d.as_secs_f64());
@@ -319,10 +343,19 @@ impl Engine {
                 if stats.state() != BackendState::Running {
                     stats.set_state(BackendState::Running);
                 }
+                // A board's `t` is the middle of its read: the readings and
+                // the latency belong to that instant, not to the end of
+                // the read (up to half a slow read later).
+                let lag = if self.source.t_is_monotonic() {
+                    capture_lag(frame.t, mono_s)
+                } else {
+                    Duration::ZERO
+                };
                 Got::Frame(Acquired {
                     frame,
                     arrival,
-                    wall_unix,
+                    capture: arrival.checked_sub(lag).unwrap_or(arrival),
+                    wall_unix: wall_unix - lag.as_secs_f64(),
                 })
             }
             // A wait the supervisor's stop ended: not a failure.
@@ -407,10 +440,10 @@ impl Engine {
         self.stats.last_seq.store(seq, Relaxed);
     }
 
-    /// Every input's fresh reading onto the frame.
+    /// Every input's reading that is fresh at the frame's capture onto it.
     fn attach_inputs(&mut self, acq: &mut Acquired) {
         for i in &mut self.inputs {
-            i.attach(&mut acq.frame, acq.arrival);
+            i.attach(&mut acq.frame, acq.capture);
         }
         // What the recording will read back as, so that a replay of it
         // gives these poses bit for bit.
@@ -445,12 +478,16 @@ impl Engine {
         est
     }
 
-    /// Latency, counts, and the deadline: with a period, frame `seq` is
-    /// due at `anchor + (seq − anchor_seq) × period`, so that the frame
-    /// after a dropped or failed one is judged by its own slot.
+    /// Latency (capture to done: what the autopilot's `VISO_DELAY_MS`
+    /// must cover, less the link), counts, and the deadline: with a
+    /// period, frame `seq` is due at `anchor + (seq − anchor_seq) ×
+    /// period`, so that the frame after a dropped or failed one is judged
+    /// by its own slot.
     fn account_done(&self, acq: &Acquired, est: &PoseEstimate, done: Instant, books: &mut Books) {
         let stats = &self.stats;
-        stats.latency.record(done - acq.arrival);
+        stats
+            .latency
+            .record(done.saturating_duration_since(acq.capture));
         let si = est.status.index();
         stats.by_status[si].fetch_add(1, Relaxed);
         stats.last_status.store(si as u8, Relaxed);

@@ -376,3 +376,171 @@ fn a_reload_tells_every_output_once_between_frames() {
     assert_eq!(a.len(), 1, "{a:?}");
     assert_eq!(a, b, "both outputs, at the same frame");
 }
+
+/// One frame whose `t` is on the monotonic clock and `lag` behind it as it
+/// is handed over (captured `lag` before its arrival); as it does, it
+/// stores an attitude taken `age` before that into `hub` with a yaw rate
+/// of 30 °/s, yaw −179°.
+struct Lagging {
+    hub: Arc<lightpose_vehicle::Hub>,
+    lag: f64,
+    age: Duration,
+    done: bool,
+}
+
+impl FrameSource for Lagging {
+    fn next_frame(&mut self) -> Result<Frame, SourceError> {
+        if std::mem::replace(&mut self.done, true) {
+            return Err(SourceError::Ended);
+        }
+        let taken = Instant::now() - self.age;
+        let t = lightpose_hal::clock::monotonic_s() - self.lag;
+        self.hub.readings.store_attitude_with_rates(
+            taken,
+            &AttitudeReading::new(Angle::ZERO, Angle::from_deg(-179.0)),
+            Some(lightpose_vehicle::AttitudeRates {
+                pitch: 0.0,
+                yaw: 30f64.to_radians(),
+            }),
+        );
+        Ok(frame(0, t))
+    }
+    fn adc_bits(&self) -> u8 {
+        10
+    }
+    fn describe(&self) -> String {
+        "lagging".into()
+    }
+    fn t_is_monotonic(&self) -> bool {
+        true
+    }
+}
+
+/// (attitude's yaw in degrees, arrival − capture in seconds) per frame.
+type Seen = Arc<Mutex<Vec<(Option<f64>, f64)>>>;
+struct Watch(Seen);
+impl Output for Watch {
+    fn emit(&mut self, a: &Acquired, _: &PoseEstimate) {
+        let yaw = a.frame.attitude.map(|r| r.yaw.deg());
+        if let Ok(mut v) = self.0.lock() {
+            v.push((yaw, (a.arrival - a.capture).as_secs_f64()));
+        }
+    }
+}
+
+/// What a `Lagging` source's frame was given.
+fn lagging(lag: f64, age: Duration) -> (Option<f64>, f64) {
+    let hub = lightpose_vehicle::Hub::new();
+    let seen: Seen = Arc::default();
+    let src = Lagging {
+        hub: hub.clone(),
+        lag,
+        age,
+        done: false,
+    };
+    let input = crate::inputs::vehicle::VehicleReadings {
+        hub,
+        max_age: lightpose_vehicle::MaxAge::default(),
+    };
+    let end = Engine::new(Box::new(src), Box::new(Nothing))
+        .input(Box::new(input))
+        .output(Box::new(Watch(seen.clone())))
+        .run();
+    assert_eq!(end, EndReason::SourceEnded);
+    let v = seen.lock().unwrap().clone();
+    assert_eq!(v.len(), 1);
+    v[0]
+}
+
+/// Audit: readings were attached at the frame's arrival, though the frame
+/// was captured up to half a slow read before, and ATTITUDE's rates were
+/// dropped. A frame captured 150 ms before it arrived gets the attitude
+/// as of its capture: one taken 100 ms before the arrival (50 ms after
+/// the capture) carried back 50 ms at 30 °/s, across −180°.
+#[test]
+fn readings_are_attached_as_of_the_frame_capture() {
+    let (yaw, lag) = lagging(0.150, Duration::from_millis(100));
+    assert!(
+        (lag - 0.150).abs() < 0.005,
+        "captured {lag} s before arrival"
+    );
+    // −179° − 1.5° = −180.5° ≡ 179.5°
+    let yaw = yaw.expect("an attitude");
+    assert!((yaw - 179.5).abs() < 0.05, "yaw {yaw}");
+    // Taken 350 ms before the arrival: 200 ms before the capture, within
+    // the 250 ms limit there (stale at the arrival), carried forward 0.2 s.
+    let (yaw, _) = lagging(0.150, Duration::from_millis(350));
+    let yaw = yaw.expect("fresh at the capture");
+    assert!((yaw - (-173.0)).abs() < 0.05, "yaw {yaw}");
+    // 300 ms before the capture: stale, rates or not.
+    assert_eq!(lagging(0.150, Duration::from_millis(450)).0, None);
+}
+
+#[test]
+fn a_capture_lag_out_of_reason_is_bounded() {
+    assert_eq!(capture_lag(99.85, 100.0), Duration::from_secs_f64(0.15));
+    // t ahead of the clock, or not a number: captured on arrival.
+    assert_eq!(capture_lag(100.5, 100.0), Duration::ZERO);
+    assert_eq!(capture_lag(f64::NAN, 100.0), Duration::ZERO);
+    // A t of another epoch (0 at start) read as monotonic: a second back.
+    assert_eq!(capture_lag(0.0, 1e5), MAX_CAPTURE_LAG);
+    assert_eq!(capture_lag(f64::NEG_INFINITY, 1e5), Duration::ZERO);
+}
+
+/// A bank whose read sleeps `read`.
+struct SlowBank(Duration);
+impl lightpose_hal::Bank for SlowBank {
+    fn boards(&self) -> Vec<lightpose_hal::chanmap::BoardSpec> {
+        vec![lightpose_hal::chanmap::BoardSpec {
+            name: "slow".into(),
+            channels: 16,
+        }]
+    }
+    fn bits(&self) -> u8 {
+        12
+    }
+    fn describe(&self) -> String {
+        "slow".into()
+    }
+    fn read(
+        &mut self,
+        _: &[u16],
+        _: &mut [lightpose_hal::chanmap::RawBoard],
+    ) -> Result<(), SourceError> {
+        std::thread::sleep(self.0);
+        Ok(())
+    }
+}
+
+/// Audit: STATUS latency counted from the frame's arrival and left out
+/// half the read, though README sizes ArduSub's VISO_DELAY_MS from it. A
+/// board frame read in 100 ms is captured in its middle: its latency is
+/// at least 50 ms.
+#[test]
+fn latency_counts_from_the_capture_and_includes_half_the_read() {
+    use lightpose_hal::{pace::Pacer, temp::TempKind, temp::TempReader};
+    let read = Duration::from_millis(100);
+    let src = lightpose_hal::BoardSource::new(
+        SlowBank(read),
+        lightpose_hal::ChannelMap::sequential(16),
+        TempReader::new(TempKind::None, 0.0),
+        Pacer::new(None),
+    );
+    let stats = Arc::new(Stats::default());
+    let seen: Seen = Arc::default();
+    let end = Engine::new(Box::new(src), Box::new(Nothing))
+        .stats(stats.clone())
+        .output(Box::new(Watch(seen.clone())))
+        .max_frames(3)
+        .run();
+    assert_eq!(end, EndReason::FrameLimit);
+    let p50 = stats.latency.quantile(0.5).expect("latency");
+    // Half the read, not more than that and a loaded machine's delays.
+    assert!((0.050..0.5).contains(&p50), "latency p50 {p50} s");
+    for (_, lag) in seen.lock().unwrap().iter() {
+        assert!(
+            (0.050..0.5).contains(lag),
+            "captured {lag} s before arrival"
+        );
+    }
+}

@@ -82,12 +82,13 @@ impl AttitudeCell {
         self.received.fetch_add(1, Relaxed);
     }
 
-    /// The latest reading if it is younger than `max_age` at `now`.
+    /// The latest reading if it is younger than `max_age` at `at` (one
+    /// received after `at` is fresh).
     #[inline]
-    pub fn fresh(&self, now: Instant, max_age: Duration) -> Option<AttitudeReading> {
+    pub fn fresh(&self, at: Instant, max_age: Duration) -> Option<AttitudeReading> {
         let g = self.latest.lock().ok()?;
-        let (at, r) = (*g)?;
-        (now.saturating_duration_since(at) <= max_age).then_some(r)
+        let (taken, r) = (*g)?;
+        (at.saturating_duration_since(taken) <= max_age).then_some(r)
     }
 
     /// Age of the latest reading, for STATUS.
@@ -106,11 +107,13 @@ pub struct LatestAttitude {
 
 impl Input for LatestAttitude {
     #[inline]
-    fn attach(&mut self, frame: &mut Frame, now: Instant) {
+    fn attach(&mut self, frame: &mut Frame, capture: Instant) {
         // Frames with their own reading (a replayed log) keep it; those
         // that carry one are counted by the engine (STATUS frames_with).
+        // No rates come with it: attached as received, if fresh at the
+        // capture.
         if frame.attitude.is_none() {
-            frame.attitude = self.cell.fresh(now, self.max_age);
+            frame.attitude = self.cell.fresh(capture, self.max_age);
         }
     }
 }

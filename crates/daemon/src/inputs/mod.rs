@@ -20,7 +20,9 @@ use std::time::Instant;
 /// attaches (and what it leaves off as stale) it counts itself, in atomics
 /// that STATUS reads.
 pub trait Input: Send {
-    /// Attach this input's reading to `frame` if one is fresh at `now`
-    /// (the frame's arrival) and the frame has none of its own.
-    fn attach(&mut self, frame: &mut Frame, now: Instant);
+    /// Attach this input's reading to `frame` if one is fresh at `capture`
+    /// (when the frame was sampled: the middle of a board's read, before
+    /// it arrived) and the frame has none of its own. A reading taken
+    /// after the capture (during the read) is fresh.
+    fn attach(&mut self, frame: &mut Frame, capture: Instant);
 }

@@ -19,10 +19,11 @@ pub struct VehicleReadings {
 
 impl Input for VehicleReadings {
     #[inline]
-    fn attach(&mut self, frame: &mut Frame, now: Instant) {
+    fn attach(&mut self, frame: &mut Frame, capture: Instant) {
         // A frame's own readings (a replayed log, the simulator's sensors)
-        // win: attach fills only what the frame lacks. Lock-free, no
+        // win: attach fills only what the frame lacks, as of its capture
+        // (an attitude carried there by its rates). Lock-free, no
         // allocation.
-        self.hub.readings.attach(frame, now, &self.max_age);
+        self.hub.readings.attach(frame, capture, &self.max_age);
     }
 }

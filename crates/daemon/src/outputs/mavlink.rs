@@ -73,6 +73,7 @@ mod tests {
         let acq = Acquired {
             frame: Frame::new(0, 0.0, 12, [0; NDET]),
             arrival: Instant::now(),
+            capture: Instant::now(),
             wall_unix: 0.0,
         };
         let mut seen = 0;

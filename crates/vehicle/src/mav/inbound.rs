@@ -1,8 +1,10 @@
 //! What the autopilot's messages say about the vehicle, in the frames of
 //! MODEL.md, and why a message is refused.
 //!
-//! - `ATTITUDE` → pitch, and yaw in B = heading − h − 180° (roll ignored:
-//!   the pose has none).
+//! - `ATTITUDE` → pitch, and yaw in B = heading − h − 180° (roll is not
+//!   part of the pose), with their rates from the body rates (the roll
+//!   enters those), so that the frame thread can carry the attitude to a
+//!   frame's capture.
 //! - `GLOBAL_POSITION_INT.relative_alt` (the default) or `VFR_HUD.alt`
 //!   (below the surface negative) → z in B = d_b − depth. The depth
 //!   sensor's lever arm is not applied here: the estimator applies it in
@@ -11,6 +13,7 @@
 //!   → water temperature.
 
 use crate::ned::Site;
+use crate::readings::AttitudeRates;
 use lightpose_core::{Angle, AttitudeReading, DepthReading};
 use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavType, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
@@ -130,7 +133,9 @@ pub struct Refused {
 /// A message that was used.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Input {
-    Attitude(AttitudeReading),
+    /// The attitude in B and its rates, when the message's body rates give
+    /// them.
+    Attitude(AttitudeReading, Option<AttitudeRates>),
     Depth(DepthReading),
     Temperature(f64),
     /// A HEARTBEAT from an autopilot (not from a GCS or a companion).
@@ -143,7 +148,7 @@ impl Input {
     /// The counter a used message goes to.
     pub fn kind(&self) -> Option<usize> {
         match self {
-            Input::Attitude(_) => Some(0),
+            Input::Attitude(..) => Some(0),
             Input::Depth(_) => Some(1),
             Input::Temperature(_) => Some(2),
             Input::AutopilotHeartbeat => Some(3),
@@ -225,10 +230,13 @@ fn attitude(f: &RawFrame, m: &ATTITUDE_DATA, site: &Site) -> Result<Input, Refus
     if yaw.abs() > 2.0 * PI + eps {
         return Err(refuse(Refusal::AngleOutOfRange, f, yaw));
     }
-    Ok(Input::Attitude(AttitudeReading::new(
-        Angle::from_rad(pitch),
-        site.yaw_b(Angle::from_rad(yaw)),
-    )))
+    // The rates are a bonus: a message without usable ones (not finite,
+    // near θ = ±90°) still gives its attitude, attached as it is.
+    let rates = AttitudeRates::from_body(roll, pitch, m.pitchspeed as f64, m.yawspeed as f64);
+    Ok(Input::Attitude(
+        AttitudeReading::new(Angle::from_rad(pitch), site.yaw_b(Angle::from_rad(yaw))),
+        rates,
+    ))
 }
 
 fn depth(f: &RawFrame, depth_m: f64, cfg: &InputConfig, site: &Site) -> Result<Input, Refused> {
@@ -273,12 +281,59 @@ mod tests {
         };
         let n = raw(&m, &mut buf);
         let got = interpret(&frame(30, 1, &buf[..n]), &InputConfig::default(), &site);
-        let Ok(Input::Attitude(a)) = got else {
+        let Ok(Input::Attitude(a, w)) = got else {
             panic!("{got:?}")
         };
         // −160° − 30° − 180° = −370° ≡ −10°
         assert!((a.yaw.deg() + 10.0).abs() < 1e-4, "{}", a.yaw.deg());
         assert!((a.pitch.rad() - 0.1).abs() < 1e-7);
+        // Still: zero rates, not none.
+        assert_eq!(
+            w,
+            Some(AttitudeRates {
+                pitch: 0.0,
+                yaw: 0.0
+            })
+        );
+    }
+
+    /// Audit: ATTITUDE's body rates were dropped, so nothing could carry a
+    /// heading to a frame's capture. They become B's pitch and yaw rates
+    /// (the heading's rate: yaw in B is the heading less a constant).
+    #[test]
+    fn attitude_rates_come_from_the_body_rates() {
+        let site = Site::new(Angle::from_deg(30.0), 3.0);
+        let mut buf = [0u8; 255];
+        let rolled = 20f32.to_radians();
+        let m = ATTITUDE_DATA {
+            roll: rolled,
+            pitch: 0.1,
+            yaw: 1.0,
+            rollspeed: 0.7,
+            pitchspeed: 0.2,
+            yawspeed: 0.5,
+            ..Default::default()
+        };
+        let n = raw(&m, &mut buf);
+        let got = interpret(&frame(30, 1, &buf[..n]), &InputConfig::default(), &site);
+        let Ok(Input::Attitude(_, Some(w))) = got else {
+            panic!("{got:?}")
+        };
+        let (sr, cr) = (rolled as f64).sin_cos();
+        let want_pitch = 0.2f32 as f64 * cr - 0.5f32 as f64 * sr;
+        let want_yaw = (0.2f32 as f64 * sr + 0.5f32 as f64 * cr) / (0.1f32 as f64).cos();
+        assert!((w.pitch - want_pitch).abs() < 1e-9, "{w:?}");
+        assert!((w.yaw - want_yaw).abs() < 1e-9, "{w:?}");
+        // A NaN rate costs the rates, not the attitude.
+        let n = raw(
+            &ATTITUDE_DATA {
+                yawspeed: f32::NAN,
+                ..m
+            },
+            &mut buf,
+        );
+        let got = interpret(&frame(30, 1, &buf[..n]), &InputConfig::default(), &site);
+        assert!(matches!(got, Ok(Input::Attitude(_, None))), "{got:?}");
     }
 
     #[test]

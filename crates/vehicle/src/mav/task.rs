@@ -222,7 +222,7 @@ fn absorb(sc: &mut Scanner, s: &MavlinkSettings, hub: &Hub) -> bool {
             }
         };
         match input {
-            Input::Attitude(a) => hub.readings.store_attitude(now, &a),
+            Input::Attitude(a, rates) => hub.readings.store_attitude_with_rates(now, &a, rates),
             Input::Depth(d) => hub.readings.store_depth(now, &d),
             Input::Temperature(t) => hub.readings.store_temperature(now, t),
             Input::AutopilotHeartbeat => {
