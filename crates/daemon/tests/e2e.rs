@@ -4,7 +4,7 @@
 //! runs a few seconds at most (high frame rates).
 
 mod common;
-use common::run::{run_in_process, run_to_end, signal, spawn_daemon, wait_exit};
+use common::run::{run_in_process, run_to_end, signal, spawn_daemon, wait_exit, Systemd};
 use common::{read_logs, root, shipped, subscriber};
 
 use lightpose_core::LogReader;
@@ -645,40 +645,22 @@ destinations = ["{addr}"]
 
 #[test]
 fn tells_systemd_ready_status_and_watchdog() {
-    use std::os::unix::net::UnixDatagram;
     let dir = tempfile::tempdir().expect("tempdir");
-    let sock_path = dir.path().join("notify.sock");
-    let notify = UnixDatagram::bind(&sock_path).expect("bind notify socket");
-    notify
-        .set_read_timeout(Some(Duration::from_millis(200)))
-        .expect("timeout");
+    let systemd = Systemd::new(dir.path());
     let (sub, addr) = subscriber();
     let text = sim_config(50.0, &[addr], "", "");
     let cfg = dir.path().join("c.toml");
     std::fs::write(&cfg, text).expect("write");
-    // systemd sets WATCHDOG_PID to the service's pid: a shell that execs
-    // the daemon knows it beforehand.
-    let mut child = Command::new("sh")
-        .arg("-c")
-        .arg(format!(
-            "WATCHDOG_PID=$$ exec '{}' --config '{}'",
-            env!("CARGO_BIN_EXE_lightposed"),
-            cfg.display()
-        ))
-        .env("NOTIFY_SOCKET", &sock_path)
-        .env("WATCHDOG_USEC", "1000000")
+    let mut child = systemd
+        .command(&cfg, 1_000_000)
         .stderr(Stdio::null())
         .spawn()
         .expect("spawn");
-    let mut got = String::new();
-    let mut buf = [0u8; 4096];
-    let t0 = Instant::now();
-    while t0.elapsed() < Duration::from_millis(2500) {
-        if let Ok(n) = notify.recv(&mut buf) {
-            got.push_str(&String::from_utf8_lossy(&buf[..n]));
-            got.push('\n');
-        }
-    }
+    let got: String = systemd
+        .listen(Duration::from_millis(2500))
+        .into_iter()
+        .map(|(_, said)| said + "\n")
+        .collect();
     signal(&child, nix::sys::signal::Signal::SIGTERM);
     let st = wait_exit(&mut child, Duration::from_secs(5));
     drop(sub);

@@ -567,15 +567,12 @@ fn temperature_sensor_vanishes_and_returns() {
 
 // ---- SIGKILL mid-recording: the acknowledged frames ----------------------
 
-#[test]
-fn kill_9_loses_no_acknowledged_frame() {
-    // e2e.rs checks that the log is whole to its last line after kill -9;
-    // here: every frame the recorder had reported as written (STATUS
-    // recording.frames) before the kill reads back, across rotations.
+/// The real binary (stderr discarded) on the shipped simulation at 500 Hz,
+/// sending to `sub` with STATUS every second and recording into `rec`
+/// (`recording_extra`: more lines of `[recording]`); its config file is
+/// written into `dir`.
+fn recording_daemon(dir: &Path, sub: SocketAddr, rec: &Path, recording_extra: &str) -> Command {
     let (scene, traj, cal) = shipped();
-    let dir = tempfile::tempdir().expect("tempdir");
-    let rec = dir.path().join("rec");
-    let (sock, addr) = subscriber();
     let text = format!(
         r#"rate_hz = 500.0
 estimator = "moments"
@@ -585,23 +582,32 @@ kind = "sim"
 scene = "{}"
 trajectory = "{}"
 [outputs]
-destinations = ["{addr}"]
+destinations = ["{sub}"]
 status_interval_s = 1.0
 [recording]
 dir = "{}"
-rotate_mb = 0.1
-"#,
+{recording_extra}"#,
         cal.display(),
         scene.display(),
         traj.display(),
         rec.display()
     );
-    let cfg_path = dir.path().join("lightposed.toml");
+    let cfg_path = dir.join("lightposed.toml");
     std::fs::write(&cfg_path, text).expect("write config");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_lightposed"))
-        .arg("--config")
-        .arg(&cfg_path)
-        .stderr(Stdio::null())
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lightposed"));
+    cmd.arg("--config").arg(&cfg_path).stderr(Stdio::null());
+    cmd
+}
+
+#[test]
+fn kill_9_loses_no_acknowledged_frame() {
+    // e2e.rs checks that the log is whole to its last line after kill -9;
+    // here: every frame the recorder had reported as written (STATUS
+    // recording.frames) before the kill reads back, across rotations.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rec = dir.path().join("rec");
+    let (sock, addr) = subscriber();
+    let mut child = recording_daemon(dir.path(), addr, &rec, "rotate_mb = 0.1\n")
         .spawn()
         .expect("spawn lightposed");
     let mut inbox = Inbox::new(sock);
@@ -660,33 +666,10 @@ fn full_disk_mid_line_loses_no_acknowledged_frame() {
     // recorder must report the error, resume in a new file after its retry
     // delay, count as written exactly the lines that read back whole, and
     // cut the half-written line back off each file.
-    let (scene, traj, cal) = shipped();
     let dir = tempfile::tempdir().expect("tempdir");
     let rec = dir.path().join("rec");
     let (sock, addr) = subscriber();
-    let text = format!(
-        r#"rate_hz = 500.0
-estimator = "moments"
-calibration = "{}"
-[backend]
-kind = "sim"
-scene = "{}"
-trajectory = "{}"
-[outputs]
-destinations = ["{addr}"]
-status_interval_s = 1.0
-[recording]
-dir = "{}"
-"#,
-        cal.display(),
-        scene.display(),
-        traj.display(),
-        rec.display()
-    );
-    let cfg_path = dir.path().join("lightposed.toml");
-    std::fs::write(&cfg_path, text).expect("write config");
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lightposed"));
-    cmd.arg("--config").arg(&cfg_path).stderr(Stdio::null());
+    let mut cmd = recording_daemon(dir.path(), addr, &rec, "");
     // SAFETY: between fork and exec only async-signal-safe system calls
     // (setrlimit, sigaction), no allocation.
     unsafe {

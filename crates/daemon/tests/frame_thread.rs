@@ -3,12 +3,12 @@
 //! frame due in 10 s) keeps the systemd watchdog fed.
 
 mod common;
-use common::run::{signal, sim_config, wait_exit};
+use common::run::{signal, sim_config, wait_exit, Systemd};
 use common::subscriber;
 
 use lightposed::engine::EndReason;
 use lightposed::{Config, Publisher};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 /// Audit: a panic on the frame thread dropped its `done` unsent, which the
@@ -53,40 +53,24 @@ fn a_panicked_frame_thread_is_a_failure_not_a_stop() {
 /// The pacing wait beats: WATCHDOG=1 keeps coming.
 #[test]
 fn a_slow_source_keeps_the_watchdog_fed() {
-    use std::os::unix::net::UnixDatagram;
     let dir = tempfile::tempdir().expect("tempdir");
-    let sock_path = dir.path().join("notify.sock");
-    let notify = UnixDatagram::bind(&sock_path).expect("bind notify socket");
-    notify
-        .set_read_timeout(Some(Duration::from_millis(100)))
-        .expect("timeout");
+    let systemd = Systemd::new(dir.path());
     let (_sub, addr) = subscriber();
     let cfg = dir.path().join("slow.toml");
     std::fs::write(&cfg, sim_config(0.1, &[addr], "", "")).expect("write");
     let log = dir.path().join("stderr.log");
-    let mut child = Command::new("sh")
-        .arg("-c")
-        .arg(format!(
-            "WATCHDOG_PID=$$ exec '{}' --config '{}'",
-            env!("CARGO_BIN_EXE_lightposed"),
-            cfg.display()
-        ))
-        .env("NOTIFY_SOCKET", &sock_path)
-        .env("WATCHDOG_USEC", "1500000")
+    let mut child = systemd
+        .command(&cfg, 1_500_000)
         .env("RUST_LOG", "info")
         .stderr(Stdio::from(std::fs::File::create(&log).expect("log")))
         .spawn()
         .expect("spawn");
-    let t0 = Instant::now();
-    let mut pings = Vec::new();
-    let mut buf = [0u8; 4096];
-    while t0.elapsed() < Duration::from_millis(4500) {
-        if let Ok(n) = notify.recv(&mut buf) {
-            if String::from_utf8_lossy(&buf[..n]).contains("WATCHDOG=1") {
-                pings.push(t0.elapsed());
-            }
-        }
-    }
+    let pings: Vec<Duration> = systemd
+        .listen(Duration::from_millis(4500))
+        .into_iter()
+        .filter(|(_, said)| said.contains("WATCHDOG=1"))
+        .map(|(t, _)| t)
+        .collect();
     signal(&child, nix::sys::signal::Signal::SIGTERM);
     let st = wait_exit(&mut child, Duration::from_secs(5));
     let said = std::fs::read_to_string(&log).unwrap_or_default();

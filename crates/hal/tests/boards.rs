@@ -1,6 +1,9 @@
 //! Whole frames from scripted buses: the channel map, the board order, a bus
 //! error in the middle of a frame and the retry on the next frame.
 
+mod common;
+
+use common::{ads7828s, bare_source};
 use embedded_hal::i2c::ErrorKind;
 use embedded_hal::spi::{ErrorType, Operation, SpiDevice};
 use embedded_hal_mock::eh1::delay::{CheckedDelay, NoopDelay, Transaction as DelayT};
@@ -185,20 +188,9 @@ fn ads7828_frame_over_one_bus_with_bus_error_mid_frame() {
     ex.extend(script(Some(13)));
     ex.extend(script(None));
     let bus = I2cMock::new(&ex);
-    let slots = (0..4)
-        .map(|i| I2cSlot {
-            name: format!("adc{i}"),
-            bus: 0,
-            chip: Ads7828::new(0x48 + i as u8, PowerMode::InternalRef),
-        })
-        .collect();
+    let slots = ads7828s("adc", 4);
     let bank = I2cBank::new(vec![("/dev/i2c-1".into(), bus)], slots, NoopDelay::new()).unwrap();
-    let mut src = BoardSource::new(
-        bank,
-        map,
-        TempReader::new(TempKind::None, 0.0),
-        Pacer::new(None),
-    );
+    let mut src = bare_source(bank, map);
     let f = src.next_frame().unwrap();
     assert_eq!(f.adc_bits, 12);
     assert_eq!(f.temp_c, None);
@@ -356,12 +348,7 @@ fn ads1115_chips_left_converting_by_a_failed_frame_are_waited_for() {
         NoopDelay::new(),
     )
     .unwrap();
-    let mut src = BoardSource::new(
-        bank,
-        ChannelMap::sequential(4),
-        TempReader::new(TempKind::None, 0.0),
-        Pacer::new(None),
-    );
+    let mut src = bare_source(bank, ChannelMap::sequential(4));
     let e = src.next_frame().unwrap_err().to_string();
     assert!(
         e.contains("board a0 (ADS1115 0x48 on /dev/i2c-1) channel 0"),
@@ -380,35 +367,27 @@ fn ads7828_internal_reference_is_turned_on_once_before_the_first_frame() {
         I2cT::write_read(0x48, vec![0x8C], vec![0x00, 0x00]),
         I2cT::write_read(0x49, vec![0x8C], vec![0x00, 0x00]),
     ];
-    let slots = (0..2)
-        .map(|i| I2cSlot {
-            name: format!("b{i}"),
-            bus: 0,
-            chip: Ads7828::new(0x48 + i as u8, PowerMode::InternalRef),
-        })
-        .collect();
     // one wait for both chips
-    let mut delay = CheckedDelay::new(&[DelayT::delay_ns(ads7828::REF_SETTLE_NS)]);
-    let mut bank = I2cBank::new(
-        vec![("/dev/i2c-1".into(), I2cMock::new(&ex))],
-        slots,
-        delay.clone(),
-    )
-    .unwrap();
-    bank.warm_up().unwrap();
-    for (_, mut b) in bank.into_buses() {
-        b.done();
-    }
-    delay.done();
+    warm_up_as_scripted(
+        ads7828s("b", 2),
+        &ex,
+        &[DelayT::delay_ns(ads7828::REF_SETTLE_NS)],
+    );
     // An external reference needs neither a command nor a wait.
     let slots = vec![I2cSlot {
         name: "b0".into(),
         bus: 0,
         chip: Ads7828::new(0x48, PowerMode::ExternalRef),
     }];
-    let mut delay = CheckedDelay::new(&[]);
+    warm_up_as_scripted(slots, &[], &[]);
+}
+
+/// Warms up a bank of `slots` on one bus: it makes exactly the `script`'s
+/// transactions and the `waits`.
+fn warm_up_as_scripted(slots: Vec<I2cSlot<Ads7828>>, script: &[I2cT], waits: &[DelayT]) {
+    let mut delay = CheckedDelay::new(waits);
     let mut bank = I2cBank::new(
-        vec![("/dev/i2c-1".into(), I2cMock::new(&[]))],
+        vec![("/dev/i2c-1".into(), I2cMock::new(script))],
         slots,
         delay.clone(),
     )

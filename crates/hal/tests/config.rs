@@ -1,6 +1,9 @@
 //! The config as the daemon's file gives it: TOML into [`BackendConfig`],
 //! validation errors that name the key, and `open`.
 
+mod common;
+
+use common::{map_tables, validate};
 use lightpose_hal::config::{TempPlan, ValidBackend};
 use lightpose_hal::{BackendConfig, FrameSource, HalError, PlainEnv, Stop};
 
@@ -10,17 +13,7 @@ fn parse(text: &str) -> Result<BackendConfig, String> {
 
 /// A full MCP3008 map: 4 chips, detector k on chip k / 8, channel k % 8.
 fn mcp_map() -> String {
-    let mut s = String::new();
-    for k in 0..25 {
-        s += &format!(
-            "[[map]]\nr = {}\nc = {}\nboard = \"u{}\"\nchannel = {}\n",
-            k / 5,
-            k % 5,
-            k / 8,
-            k % 8
-        );
-    }
-    s
+    map_tables("u", 8)
 }
 
 const MCP_HEAD: &str = r#"
@@ -33,10 +26,6 @@ chips = [
   { name = "u3", device = "/dev/spidev1.1" },
 ]
 "#;
-
-fn validate(text: &str) -> Result<ValidBackend, String> {
-    parse(text)?.validate(&PlainEnv).map_err(|e| e.to_string())
-}
 
 /// Validate and open, as a program does.
 fn open_source(cfg: &BackendConfig) -> Result<Box<dyn FrameSource>, HalError> {

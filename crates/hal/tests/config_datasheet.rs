@@ -4,15 +4,11 @@
 //! MCP3x08's clock against its supply. Every example in config/examples
 //! still validates.
 
+mod common;
+
+use common::{map_tables, validate};
 use lightpose_hal::config::{TempPlan, ValidBackend};
 use lightpose_hal::{BackendConfig, PlainEnv};
-
-fn validate(text: &str) -> Result<ValidBackend, String> {
-    toml::from_str::<BackendConfig>(text)
-        .map_err(|e| e.to_string())?
-        .validate(&PlainEnv)
-        .map_err(|e| e.to_string())
-}
 
 /// `n` I²C chips (four per bus), detector k on chip k / per, channel k % per.
 fn i2c_table(kind: &str, n: usize, per: usize, extra: &str) -> String {
@@ -25,20 +21,10 @@ fn i2c_table(kind: &str, n: usize, per: usize, extra: &str) -> String {
             )
         })
         .collect();
-    let map: String = (0..25)
-        .map(|k| {
-            format!(
-                "[[map]]\nr = {}\nc = {}\nboard = \"a{}\"\nchannel = {}\n",
-                k / 5,
-                k % 5,
-                k / per,
-                k % per
-            )
-        })
-        .collect();
     format!(
-        "kind = \"{kind}\"\n{extra}\nchips = [{}]\n{map}",
-        chips.join(", ")
+        "kind = \"{kind}\"\n{extra}\nchips = [{}]\n{}",
+        chips.join(", "),
+        map_tables("a", per)
     )
 }
 

@@ -7,53 +7,27 @@
 //! inline, or built once while it repeats. A counting global allocator
 //! shows it (its own test binary: the count is the whole process's).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::fs::File;
+mod common;
+
 use std::io::Write;
-use std::os::fd::OwnedFd;
-use std::path::Path;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
+use common::{ads7828s, bare_source, serial_source};
 use embedded_hal::i2c::{ErrorKind, NoAcknowledgeSource};
 use embedded_hal_mock::eh1::delay::NoopDelay;
 use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as I2cT};
-use lightpose_hal::bank::{BoardSource, I2cBank, I2cSlot};
+use lightpose_hal::bank::I2cBank;
 use lightpose_hal::chanmap::ChannelMap;
-use lightpose_hal::drivers::ads7828::{command, Ads7828, PowerMode};
-use lightpose_hal::pace::Pacer;
+use lightpose_hal::drivers::ads7828::{command, PowerMode};
 use lightpose_hal::serial::protocol::format_line;
-use lightpose_hal::serial::{SerialBank, SerialBoard};
 use lightpose_hal::temp::{write_fake_w1, Ds18b20, Ds18b20Watcher, TempKind, TempReader};
 use lightpose_hal::{FrameSource, SourceError};
-use nix::pty::openpty;
-use nix::sys::termios::{cfmakeraw, tcgetattr, tcsetattr, SetArg};
-
-struct Counting;
-static ALLOCS: AtomicU64 = AtomicU64::new(0);
-static COUNTING: AtomicBool = AtomicBool::new(false);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        if COUNTING.load(Relaxed) {
-            ALLOCS.fetch_add(1, Relaxed);
-        }
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        if COUNTING.load(Relaxed) {
-            ALLOCS.fetch_add(1, Relaxed);
-        }
-        unsafe { System.realloc(p, l, n) }
-    }
-}
+use lightpose_testkit::alloc::Counting;
+use lightpose_testkit::pty::Pty;
 
 #[global_allocator]
-static A: Counting = Counting;
+static A: Counting = Counting::new();
 
 /// The tests of this file count every thread's allocations: one at a time.
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
@@ -63,53 +37,14 @@ static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 const FRAMES: u32 = 1000;
 const AT_MOST: u64 = 50;
 
-/// Allocations made by `frames` calls of `frame`.
+/// Allocations (every thread's) made by `frames` calls of `frame`.
 fn allocations(frames: u32, mut frame: impl FnMut()) -> u64 {
-    ALLOCS.store(0, Relaxed);
-    COUNTING.store(true, Relaxed);
-    for _ in 0..frames {
-        frame();
-    }
-    COUNTING.store(false, Relaxed);
-    ALLOCS.load(Relaxed)
-}
-
-/// A board's end of a pty pair, reached through `link` (as udev would
-/// name it), and the port's end kept open so that the pty lives.
-struct FakeBoard {
-    master: File,
-    _slave: OwnedFd,
-}
-
-fn fake_board(link: &Path) -> FakeBoard {
-    let pty = openpty(None, None).expect("openpty");
-    let mut t = tcgetattr(&pty.slave).expect("tcgetattr");
-    cfmakeraw(&mut t);
-    tcsetattr(&pty.slave, SetArg::TCSANOW, &t).expect("tcsetattr");
-    let name = nix::unistd::ttyname(&pty.slave).expect("ttyname");
-    std::os::unix::fs::symlink(name, link).expect("symlink");
-    FakeBoard {
-        master: File::from(pty.master),
-        _slave: pty.slave,
-    }
-}
-
-/// A source of one serial board with id 0 on `path`, waiting 2 ms a frame.
-fn serial_source(path: &Path) -> BoardSource<SerialBank> {
-    let board = SerialBoard {
-        name: "b0".into(),
-        id: 0,
-        path: path.display().to_string(),
-        baud: 115_200,
-        channels: 16,
-    };
-    let bank = SerialBank::new(vec![board], 10, Duration::from_millis(2));
-    BoardSource::new(
-        bank,
-        ChannelMap::sequential(16),
-        TempReader::new(TempKind::None, 0.0),
-        Pacer::new(None),
-    )
+    A.everywhere(|| {
+        for _ in 0..frames {
+            frame();
+        }
+    })
+    .1
 }
 
 /// Audit: every failed frame built its error's place with `format!`, and
@@ -120,8 +55,8 @@ fn a_silent_serial_board_does_not_allocate_per_frame() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("lpadc0");
-    let _board = fake_board(&path);
-    let mut src = serial_source(&path);
+    let _board = Pty::plug(&path);
+    let mut src = serial_source(std::slice::from_ref(&path), 2);
     // Warm-up: the first frame opens the port.
     for _ in 0..3 {
         let e = src.next_frame().expect_err("silent");
@@ -147,8 +82,8 @@ fn a_port_of_another_board_does_not_allocate_per_frame() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("lpadc0");
-    let mut board = fake_board(&path);
-    let mut src = serial_source(&path);
+    let mut board = Pty::plug(&path);
+    let mut src = serial_source(std::slice::from_ref(&path), 2);
     let mut foreign = Vec::new();
     format_line(7, 1, 10, &[5; 16], &mut foreign);
     let mut frame = || {
@@ -189,23 +124,12 @@ fn an_i2c_chip_that_naks_does_not_allocate_per_frame() {
     let nak = I2cT::write_read(0x48, vec![command(0, PowerMode::InternalRef)], vec![0, 0])
         .with_error(ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address));
     let script = vec![nak; (warm_up + 1 + FRAMES) as usize];
-    let slots = (0..4)
-        .map(|i| I2cSlot {
-            name: format!("adc{i}"),
-            bus: 0,
-            chip: Ads7828::new(0x48 + i as u8, PowerMode::InternalRef),
-        })
-        .collect();
+    let slots = ads7828s("adc", 4);
     // A bus name long enough that the places are shared, not inline.
     let bus = "/dev/i2c-1 (the photodiode array's bus)";
     let buses = vec![(bus.to_string(), I2cMock::new(&script))];
     let bank = I2cBank::new(buses, slots, NoopDelay::new()).expect("bank");
-    let mut src = BoardSource::new(
-        bank,
-        ChannelMap::sequential(8),
-        TempReader::new(TempKind::None, 0.0),
-        Pacer::new(None),
-    );
+    let mut src = bare_source(bank, ChannelMap::sequential(8));
     for _ in 0..warm_up {
         src.next_frame().expect_err("NAK");
     }
@@ -251,15 +175,7 @@ fn a_failing_ds18b20_does_not_allocate_per_frame() {
         std::thread::sleep(Duration::from_millis(5));
     }
     let mut r = TempReader::new(TempKind::Ds18b20(w), 19.5);
-    let mut frames = |n: u32| {
-        ALLOCS.store(0, Relaxed);
-        COUNTING.store(true, Relaxed);
-        for _ in 0..n {
-            assert_eq!(r.for_frame(&[]), Some(19.5));
-        }
-        COUNTING.store(false, Relaxed);
-        ALLOCS.load(Relaxed)
-    };
+    let mut frames = |n: u32| allocations(n, || assert_eq!(r.for_frame(&[]), Some(19.5)));
     let first = frames(1);
     assert!(first > 0, "the failure's text is kept once");
     let more = frames(1000);

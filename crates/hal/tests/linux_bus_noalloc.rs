@@ -7,11 +7,12 @@
 //! shows that none of it allocates: a transaction is per frame.
 #![cfg(feature = "linux")]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
+mod common;
+
 use std::fmt::{self, Write as _};
 use std::mem::{align_of, size_of};
 
+use common::{map_tables, validate};
 use embedded_hal::i2c::{self, Error as _, I2c, NoAcknowledgeSource};
 use embedded_hal::spi::{self, Error as _, Operation as SpiOp, SpiDevice};
 use lightpose_hal::drivers::ads7828::{Ads7828, PowerMode};
@@ -19,55 +20,12 @@ use lightpose_hal::drivers::mcp3x08::{Mcp3x08, McpKind};
 use lightpose_hal::drivers::DriverError;
 use lightpose_hal::linux::i2c::{messages, I2cError, LinuxI2c, MAX_MESSAGES};
 use lightpose_hal::linux::spi::{transfers, LinuxSpi, SpiError, MAX_TRANSFERS};
-use lightpose_hal::{BackendConfig, PlainEnv, Stop};
+use lightpose_hal::Stop;
+use lightpose_testkit::alloc::Counting;
 use nix::errno::Errno;
 
-// --- a per-thread counting allocator ---------------------------------------
-
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-    static ALLOCS: Cell<u64> = const { Cell::new(0) };
-}
-
-fn count() {
-    // try_with: an allocation while the thread's locals are torn down is
-    // not ours to count.
-    let _ = COUNTING.try_with(|on| {
-        if on.get() {
-            let _ = ALLOCS.try_with(|n| n.set(n.get() + 1));
-        }
-    });
-}
-
-struct Counting;
-
-// SAFETY: every call is passed on to the system allocator unchanged; the
-// count touches only const-initialised thread locals (no allocation).
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        count();
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        count();
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
 #[global_allocator]
-static A: Counting = Counting;
-
-/// `f`'s result and how many allocations this thread made in it.
-fn allocations<R>(f: impl FnOnce() -> R) -> (R, u64) {
-    ALLOCS.with(|n| n.set(0));
-    COUNTING.with(|on| on.set(true));
-    let r = f();
-    COUNTING.with(|on| on.set(false));
-    (r, ALLOCS.with(Cell::get))
-}
+static A: Counting = Counting::new();
 
 /// Formats into a fixed buffer: shows that an error's words cost nothing.
 struct Stack {
@@ -174,9 +132,9 @@ fn errno_words(errno: Errno, hint: &str) -> String {
 
 #[test]
 fn the_counter_counts_this_threads_allocations() {
-    let (v, n) = allocations(|| Vec::<u8>::with_capacity(16));
+    let (v, n) = A.this_thread(|| Vec::<u8>::with_capacity(16));
     assert_eq!((v.capacity(), n), (16, 1));
-    let (_, n) = allocations(|| std::thread::spawn(|| vec![0u8; 16]).join());
+    let (_, n) = A.this_thread(|| std::thread::spawn(|| vec![0u8; 16]).join());
     assert!(n >= 1, "spawning allocates on this thread");
 }
 
@@ -206,7 +164,7 @@ fn spi_operations_map_to_transfers_without_allocating() {
         SpiOp::TransferInPlace(&mut in_place),
         SpiOp::DelayNs(1500),
     ];
-    let (t, n) = allocations(|| transfers(&mut ops));
+    let (t, n) = A.this_thread(|| transfers(&mut ops));
     assert_eq!(n, 0, "allocations building the transfers");
     let t = t.unwrap();
     let got = as_kernel::<_, KernelSpiTransfer>(t.as_slice());
@@ -251,7 +209,7 @@ fn spi_delays_round_up_and_split_at_the_kernels_limit() {
 fn too_many_spi_transfers_is_an_error_not_a_panic() {
     let w = [0u8; 1];
     let mut ops: [SpiOp<'_, u8>; MAX_TRANSFERS + 1] = std::array::from_fn(|_| SpiOp::Write(&w));
-    let (r, n) = allocations(|| transfers(&mut ops).err());
+    let (r, n) = A.this_thread(|| transfers(&mut ops).err());
     assert_eq!(n, 0);
     assert_eq!(r, Some(SpiError::TooManyTransfers { needed: 9 }));
     // A delay of u32::MAX ns is 66 transfers of 65.535 ms.
@@ -283,7 +241,7 @@ fn spi_on_a_regular_file_fails_with_enotty_and_allocates_nothing() {
     assert_eq!(e.raw_os_error(), Some(errno as i32));
     let mut adc = Mcp3x08::new(dev, McpKind::Mcp3008);
     let mut words = Stack::new();
-    let (r, n) = allocations(|| {
+    let (r, n) = A.this_thread(|| {
         let mut last = None;
         for _ in 0..100 {
             last = adc.read_channel(3).err();
@@ -329,7 +287,7 @@ fn i2c_operations_map_to_messages_without_allocating() {
         i2c::Operation::Read(&mut r1),
         i2c::Operation::Read(&mut r2),
     ];
-    let (m, n) = allocations(|| messages(0x48, &mut ops));
+    let (m, n) = A.this_thread(|| messages(0x48, &mut ops));
     assert_eq!(n, 0, "allocations building the messages");
     let m = m.unwrap();
     let got = as_kernel::<_, KernelI2cMsg>(m.as_slice());
@@ -355,7 +313,7 @@ fn too_many_or_too_long_i2c_messages_are_errors_not_panics() {
     let w = [0u8; 1];
     let mut ops: [i2c::Operation<'_>; MAX_MESSAGES + 1] =
         std::array::from_fn(|_| i2c::Operation::Write(&w));
-    let (r, n) = allocations(|| messages(0x48, &mut ops).err());
+    let (r, n) = A.this_thread(|| messages(0x48, &mut ops).err());
     assert_eq!(n, 0);
     let e = r.unwrap();
     assert_eq!(e, I2cError::TooManyMessages { needed: 9 });
@@ -399,7 +357,7 @@ fn i2c_on_a_regular_file_fails_with_enotty_and_allocates_nothing() {
     let mut bus = LinuxI2c::open_unchecked(file.path()).unwrap();
     let adc = Ads7828::new(0x4A, PowerMode::InternalRef);
     let mut words = Stack::new();
-    let (r, n) = allocations(|| {
+    let (r, n) = A.this_thread(|| {
         let mut last = None;
         for _ in 0..100 {
             last = adc.read_channel(&mut bus, 5).err();
@@ -474,24 +432,8 @@ fn i2c_errnos_give_embedded_hal_kinds() {
 
 // --- opening, through the one `open` -----------------------------------------
 
-fn map(board: &str, per_board: usize) -> String {
-    (0..25)
-        .map(|k| {
-            format!(
-                "[[map]]\nr = {}\nc = {}\nboard = \"{board}{}\"\nchannel = {}\n",
-                k / 5,
-                k % 5,
-                k / per_board,
-                k % per_board
-            )
-        })
-        .collect()
-}
-
 fn open_error(toml_text: &str) -> String {
-    let cfg: BackendConfig = toml::from_str(toml_text).unwrap();
-    let valid = cfg.validate(&PlainEnv).unwrap();
-    lightpose_hal::open(&valid, &Stop::new())
+    lightpose_hal::open(&validate(toml_text).unwrap(), &Stop::new())
         .err()
         .unwrap()
         .to_string()
@@ -512,7 +454,10 @@ fn a_file_that_is_no_bus_is_refused_at_open_naming_its_place() {
             )
         })
         .collect();
-    let spi = format!("kind = \"mcp3008\"\nchips = [{chips}]\n{}", map("u", 8));
+    let spi = format!(
+        "kind = \"mcp3008\"\nchips = [{chips}]\n{}",
+        map_tables("u", 8)
+    );
     let e = open_error(&spi);
     let p = files[0].path().display().to_string();
     // The words of spidev's io::Error, as before.
@@ -527,7 +472,10 @@ fn a_file_that_is_no_bus_is_refused_at_open_naming_its_place() {
             )
         })
         .collect();
-    let i2c = format!("kind = \"ads7828\"\nchips = [{chips}]\n{}", map("b", 8));
+    let i2c = format!(
+        "kind = \"ads7828\"\nchips = [{chips}]\n{}",
+        map_tables("b", 8)
+    );
     // The bus is the place, and i2cdev's words, as before.
     assert_eq!(open_error(&i2c), format!("{p}: {errno}"));
 }

@@ -4,19 +4,18 @@
 //! so that "unplug and replug" is: close the master, make a new pair, move
 //! the link.
 
+mod common;
+
 use std::fs::File;
 use std::io::Write;
-use std::path::PathBuf;
 use std::thread;
 use std::time::Duration;
 
+use common::{bare_source, serial_boards, serial_source};
 use lightpose_core::NDET;
-use lightpose_hal::bank::BoardSource;
 use lightpose_hal::chanmap::ChannelMap;
-use lightpose_hal::pace::Pacer;
 use lightpose_hal::serial::protocol::format_line;
-use lightpose_hal::serial::{SerialBank, SerialBoard};
-use lightpose_hal::temp::{TempKind, TempReader};
+use lightpose_hal::serial::SerialBank;
 use lightpose_hal::{FrameSource, SourceError};
 use lightpose_testkit::pty::Pty;
 
@@ -38,34 +37,13 @@ fn later(master: &File, delay: Duration, bytes: Vec<u8>) -> thread::JoinHandle<(
     })
 }
 
-fn source(paths: &[PathBuf], timeout_ms: u64) -> BoardSource<SerialBank> {
-    let boards = paths
-        .iter()
-        .enumerate()
-        .map(|(i, p)| SerialBoard {
-            name: format!("b{i}"),
-            id: i as u8,
-            path: p.display().to_string(),
-            baud: 115_200,
-            channels: 16,
-        })
-        .collect();
-    let bank = SerialBank::new(boards, 10, Duration::from_millis(timeout_ms));
-    BoardSource::new(
-        bank,
-        ChannelMap::sequential(16),
-        TempReader::new(TempKind::None, 0.0),
-        Pacer::new(None),
-    )
-}
-
 #[test]
 fn serial_boards_on_ptys() {
     let dir = tempfile::tempdir().unwrap();
     let paths = [dir.path().join("lpadc0"), dir.path().join("lpadc1")];
     let mut b0 = Pty::plug(&paths[0]);
     let mut b1 = Pty::plug(&paths[1]);
-    let mut src = source(&paths, 300);
+    let mut src = serial_source(&paths, 300);
 
     // 1. Nothing sent yet: board b0 times out, named.
     let e = src.next_frame().unwrap_err();
@@ -147,7 +125,7 @@ fn wrong_resolution_and_short_lines_are_bad_data() {
     let paths = [dir.path().join("a"), dir.path().join("b")];
     let b0 = Pty::plug(&paths[0]);
     let b1 = Pty::plug(&paths[1]);
-    let mut src = source(&paths, 300);
+    let mut src = serial_source(&paths, 300);
     // 12-bit line where 10 bits are configured
     let mut l12 = Vec::new();
     format_line(0, 1, 12, &[1; 16], &mut l12);
@@ -212,24 +190,9 @@ fn a_long_serial_wait_beats_its_stop() {
     let path = dir.path().join("silent");
     let _board = Pty::plug(&path);
     let stop = Stop::new();
-    let bank = SerialBank::new(
-        vec![SerialBoard {
-            name: "b0".into(),
-            id: 0,
-            path: path.display().to_string(),
-            baud: 115_200,
-            channels: 16,
-        }],
-        10,
-        Duration::from_secs(60),
-    )
-    .stoppable(stop.clone());
-    let mut src = BoardSource::new(
-        bank,
-        ChannelMap::sequential(16),
-        TempReader::new(TempKind::None, 0.0),
-        Pacer::new(None),
-    );
+    let bank = SerialBank::new(serial_boards(&[path]), 10, Duration::from_secs(60))
+        .stoppable(stop.clone());
+    let mut src = bare_source(bank, ChannelMap::sequential(16));
     let reader = thread::spawn(move || src.next_frame().map(|f| f.seq));
     let t0 = std::time::Instant::now();
     let mut worst = Duration::ZERO;
@@ -253,7 +216,7 @@ fn swapped_cables_are_named_not_a_bare_timeout() {
     let paths = [dir.path().join("lpadc0"), dir.path().join("lpadc1")];
     let mut b0 = Pty::plug(&paths[0]);
     let b1 = Pty::plug(&paths[1]);
-    let mut src = source(&paths, 300);
+    let mut src = serial_source(&paths, 300);
     // b0's port gets board 1's lines (b1's port is not read: the frame
     // fails at b0).
     let ones: Vec<u8> = (1..=3).flat_map(|seq| line(1, seq, 100)).collect();

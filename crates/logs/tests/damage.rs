@@ -178,8 +178,17 @@ fn a_zero_filled_tail_is_a_cut() {
     );
 }
 
-#[test]
-fn a_chunk_that_fails_its_crc_costs_its_own_frames() {
+/// A recording of 40 frames in chunks of about 2 KiB, and its middle
+/// chunk: where it starts and ends, the frames before it and in it.
+struct MiddleChunk {
+    bytes: Vec<u8>,
+    start: usize,
+    end: usize,
+    before: usize,
+    frames: usize,
+}
+
+fn middle_chunk() -> MiddleChunk {
     let bytes = record(40, 2 << 10);
     let chunks = records(&bytes)
         .into_iter()
@@ -188,7 +197,25 @@ fn a_chunk_that_fails_its_crc_costs_its_own_frames() {
     let counts = chunk_frames(&bytes);
     let k = chunks.len() / 2;
     let (_, start, end) = chunks[k];
-    let mut damaged = bytes.clone();
+    MiddleChunk {
+        bytes,
+        start,
+        end,
+        before: counts[..k].iter().map(|c| c.1).sum(),
+        frames: counts[k].1,
+    }
+}
+
+#[test]
+fn a_chunk_that_fails_its_crc_costs_its_own_frames() {
+    let MiddleChunk {
+        bytes,
+        start,
+        end,
+        frames: in_it,
+        ..
+    } = middle_chunk();
+    let mut damaged = bytes;
     damaged[end - 20] ^= 0x55; // inside its records
     let (frames, errors, cut) = read(&damaged, "crc.mcap").unwrap();
     assert_eq!(cut, None);
@@ -199,24 +226,21 @@ fn a_chunk_that_fails_its_crc_costs_its_own_frames() {
         e.starts_with(&format!("crc.mcap: byte {start}: chunk CRC")),
         "{e}"
     );
-    assert_eq!(frames.len(), 40 - counts[k].1);
+    assert_eq!(frames.len(), 40 - in_it);
 }
 
 #[test]
 fn garbage_in_the_middle_ends_the_log_with_one_line() {
-    let bytes = record(40, 2 << 10);
-    let chunks = records(&bytes)
-        .into_iter()
-        .filter(|r| r.0 == op::CHUNK)
-        .collect::<Vec<_>>();
-    let counts = chunk_frames(&bytes);
-    let k = chunks.len() / 2;
-    let (_, start, _) = chunks[k];
-    let mut damaged = bytes.clone();
+    let MiddleChunk {
+        bytes,
+        start,
+        before,
+        ..
+    } = middle_chunk();
+    let mut damaged = bytes;
     damaged[start..start + 9]
         .copy_from_slice(&[0x42, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0x7f]);
     let (frames, errors, _) = read(&damaged, "g.mcap").unwrap();
-    let before: usize = counts[..k].iter().map(|c| c.1).sum();
     assert_eq!(frames.len(), before);
     assert_eq!(errors.len(), 1, "{errors:?}");
     assert!(!errors[0].skippable());
@@ -244,12 +268,7 @@ fn what_is_not_a_lightpose_mcap_is_named() {
     let ch = w
         .add_channel(0, "/other", "json", &BTreeMap::new())
         .unwrap();
-    let h = mcap::records::MessageHeader {
-        channel_id: ch,
-        sequence: 0,
-        log_time: 0,
-        publish_time: 0,
-    };
+    let h = at_time_zero(ch);
     w.write_to_known_channel(&h, b"{}").unwrap();
     w.finish().unwrap();
     let other = w.into_inner().into_inner();
@@ -259,6 +278,16 @@ fn what_is_not_a_lightpose_mcap_is_named() {
         e.to_string().contains("no lightpose-header metadata"),
         "{e}"
     );
+}
+
+/// A message on channel `ch`, sequence and times 0.
+fn at_time_zero(ch: u16) -> mcap::records::MessageHeader {
+    mcap::records::MessageHeader {
+        channel_id: ch,
+        sequence: 0,
+        log_time: 0,
+        publish_time: 0,
+    }
 }
 
 /// An MCAP with lightpose's header whose frame channel has `schema` and
@@ -280,12 +309,7 @@ fn with_frame_channel(schema: (&str, &str), encoding: &str, message: &[u8]) -> V
     let ch = w
         .add_channel(sid, "/lightpose/frame", encoding, &BTreeMap::new())
         .unwrap();
-    let h = mcap::records::MessageHeader {
-        channel_id: ch,
-        sequence: 0,
-        log_time: 0,
-        publish_time: 0,
-    };
+    let h = at_time_zero(ch);
     w.write_to_known_channel(&h, message).unwrap();
     let line = b"{\"class\":\"FRAME\",\"seq\":1,\"t\":0.2,\"counts\":[1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16,17,18,19,20,21,22,23,24,25]}";
     w.write_to_known_channel(&h, line).unwrap();

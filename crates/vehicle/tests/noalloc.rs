@@ -8,10 +8,10 @@
 
 mod common;
 
-use common::{estimate, spawn_mavlink, wait_until};
+use common::{estimate, spawn_mavlink, udpout, wait_until};
 use lightpose_core::{Angle, AttitudeReading, DepthReading, Frame, VelocityReading, NDET};
 use lightpose_testkit::alloc::Counting;
-use lightpose_vehicle::{Hub, MavlinkSettings, MaxAge, Offer, Site};
+use lightpose_vehicle::{Hub, MaxAge, Offer};
 use std::net::UdpSocket;
 use std::time::{Duration, Instant};
 
@@ -23,11 +23,7 @@ fn attach_and_offer_do_not_allocate() {
     let sink = UdpSocket::bind("127.0.0.1:0").unwrap();
     let port = sink.local_addr().unwrap().port();
     let hub = Hub::new();
-    let s = MavlinkSettings::new(
-        format!("udpout:127.0.0.1:{port}").parse().unwrap(),
-        Site::new(Angle::from_deg(30.0), 3.0),
-    );
-    let _running = spawn_mavlink(s, hub.clone());
+    let _running = spawn_mavlink(udpout(port), hub.clone());
     let now = Instant::now();
     hub.readings.store_attitude(
         now,
@@ -90,10 +86,7 @@ fn a_peer_that_is_down_costs_the_task_no_allocation() {
         s.local_addr().unwrap().port()
     }; // closed again: nobody listens there
     let hub = Hub::new();
-    let s = MavlinkSettings::new(
-        format!("udpout:127.0.0.1:{port}").parse().unwrap(),
-        Site::new(Angle::from_deg(30.0), 3.0),
-    );
+    let s = udpout(port);
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
     let h = hub.clone();
     let task = std::thread::spawn(move || {

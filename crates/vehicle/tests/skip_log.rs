@@ -6,10 +6,9 @@
 
 mod common;
 
-use common::estimate;
-use lightpose_core::Angle;
+use common::{estimate, udpout};
 use lightpose_testkit::logs::logged;
-use lightpose_vehicle::{Hub, MavlinkSettings, Offer, Site};
+use lightpose_vehicle::{Hub, Offer};
 use std::net::UdpSocket;
 use std::time::{Duration, Instant};
 
@@ -38,10 +37,7 @@ fn a_burst_of_skipped_poses_is_one_warning_per_reason() {
     let sink = UdpSocket::bind("127.0.0.1:0").unwrap();
     let port = sink.local_addr().unwrap().port();
     let hub = Hub::new();
-    let s = MavlinkSettings::new(
-        format!("udpout:127.0.0.1:{port}").parse().unwrap(),
-        Site::new(Angle::from_deg(30.0), 3.0),
-    );
+    let s = udpout(port);
     let burst = 50;
     let mut took = Duration::ZERO;
     let log = logged(|| {

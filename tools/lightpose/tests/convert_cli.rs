@@ -2,23 +2,15 @@
 //! with its POSE lines, a recording cut short recovered with what was
 //! dropped named, and bad input refused in one line.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn root() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-}
+use common::{root, run, s, sweep};
+use std::path::Path;
 
+/// `lightpose convert args`: (success, stderr).
 fn lightpose(args: &[&Path]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_lightpose"))
-        .arg("convert")
-        .args(args)
-        .output()
-        .expect("runs lightpose");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    let (ok, _, err) = run(&[&[Path::new("convert")], args].concat());
+    (ok, err)
 }
 
 #[test]
@@ -111,17 +103,6 @@ fn bad_input_is_one_line() {
     );
 }
 
-fn run(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_lightpose"))
-        .args(args)
-        .output()
-        .expect("runs lightpose");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
 /// Replay and calibration read MCAP as they read JSONL: the same POSE
 /// lines byte for byte, the same calibration.
 #[test]
@@ -138,14 +119,14 @@ fn replay_and_calibrate_read_mcap_alike() {
             .display()
             .to_string();
         let mcap = d(&format!("{name}.mcap"));
-        let (ok, err) = run(&["convert", "--in", &log, "--out", &mcap, "--chunk-kib", "4"]);
+        let (ok, _, err) = run(&["convert", "--in", &log, "--out", &mcap, "--chunk-kib", "4"]);
         assert!(ok, "{err}");
         let mut outs = Vec::new();
         for (input, out) in [
             (&log, d(&format!("{name}.j.poses"))),
             (&mcap, d(&format!("{name}.m.poses"))),
         ] {
-            let (ok, err) = run(&[
+            let (ok, _, err) = run(&[
                 "replay",
                 "--calibration",
                 &cal,
@@ -160,36 +141,17 @@ fn replay_and_calibrate_read_mcap_alike() {
         assert!(!outs[0].is_empty());
         assert_eq!(outs[0], outs[1], "{name}: replay from MCAP differs");
     }
-    let scene = root().join("config/scenes/tank.toml").display().to_string();
+    let (sweep, dark) = sweep(dir.path(), &root().join("config/scenes/tank.toml"));
+    let (sweep, dark) = (s(&sweep).to_string(), s(&dark).to_string());
     let mut cals = Vec::new();
     for ext in ["jsonl", "mcap"] {
-        let (sweep, dark) = (d("sweep.jsonl"), d("dark.jsonl"));
-        if ext == "jsonl" {
-            for (kind, n, out) in [("all", "8", &sweep), ("dark", "200", &dark)] {
-                let args = [
-                    "sweep",
-                    "--scene",
-                    &scene,
-                    "--kind",
-                    kind,
-                    "--samples",
-                    n,
-                    "--seed",
-                    "5",
-                    "--out",
-                    out,
-                ];
-                let (ok, err) = run(&args);
-                assert!(ok, "{err}");
-            }
-        }
         let (sw, dk) = (d(&format!("s.{ext}")), d(&format!("k.{ext}")));
         for (from, to) in [(&sweep, &sw), (&dark, &dk)] {
-            let (ok, err) = run(&["convert", "--in", from, "--out", to]);
+            let (ok, _, err) = run(&["convert", "--in", from, "--out", to]);
             assert!(ok, "{err}");
         }
         let out = d(&format!("cal.{ext}.toml"));
-        let (ok, err) = run(&[
+        let (ok, _, err) = run(&[
             "calibrate",
             "--sweep",
             &sw,

@@ -2,54 +2,11 @@
 //! binary: calibrate writes (or warns about) the light model, replay names
 //! the estimator "auto" chose, and `bench` produces its trade table.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn root() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-}
+use common::{root, run as lightpose, s, sweep};
+use std::path::Path;
 
-fn lightpose(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_lightpose"))
-        .args(args)
-        .output()
-        .expect("runs lightpose");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
-}
-
-/// A small sweep of `scene` into `dir`, as (sweep, dark) paths.
-fn sweep(dir: &Path, scene: &Path) -> (PathBuf, PathBuf) {
-    let sw = dir.join("sweep.jsonl");
-    let dk = dir.join("dark.jsonl");
-    for (kind, n, out) in [("all", "8", &sw), ("dark", "200", &dk)] {
-        let (ok, _, err) = lightpose(&[
-            "sweep",
-            "--scene",
-            s(scene),
-            "--kind",
-            kind,
-            "--samples",
-            n,
-            "--seed",
-            "5",
-            "--out",
-            s(out),
-        ]);
-        assert!(ok, "{err}");
-    }
-    (sw, dk)
-}
-
-/// `lightpose calibrate` on a (sweep, dark) pair into `out`, plus `extra`
-/// arguments; as [`lightpose`] returns.
 /// `lightpose simulate` of `scene` along `traj` with `seed` into `out`.
 fn simulate(scene: &Path, traj: &Path, seed: &str, out: &Path) {
     let (ok, _, err) = lightpose(&[
@@ -66,6 +23,8 @@ fn simulate(scene: &Path, traj: &Path, seed: &str, out: &Path) {
     assert!(ok, "{err}");
 }
 
+/// `lightpose calibrate` on a (sweep, dark) pair into `out`, plus `extra`
+/// arguments; as [`lightpose`] returns.
 fn calibrate(sw: &Path, dk: &Path, out: &Path, extra: &[&str]) -> (bool, String, String) {
     let mut args = vec![
         "calibrate",

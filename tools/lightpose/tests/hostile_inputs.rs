@@ -4,18 +4,13 @@
 
 mod common;
 
-use common::root;
-use std::path::Path;
+use common::{replay, root, s};
 use std::time::Duration;
 
 /// Run `lightpose args` within `within`: its exit code and stderr.
 fn lightpose(args: &[&str], within: Duration) -> (Option<i32>, String) {
     let r = common::lightpose(args, within);
     (r.code, r.err)
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
 }
 
 #[test]
@@ -89,22 +84,9 @@ fn replay_names_frames_out_of_order_and_lines_of_other_classes() {
     bad.extend_from_slice(&lines[3..]);
     let log = dir.path().join("bad.jsonl");
     std::fs::write(&log, bad.join("\n") + "\n").expect("write");
-    let cal = root().join("config/calibration/tank.toml");
     let out = dir.path().join("poses.jsonl");
-    let (code, err) = lightpose(
-        &[
-            "replay",
-            "--calibration",
-            s(&cal),
-            "--log",
-            s(&log),
-            "--out",
-            s(&out),
-            "--estimator",
-            "moments",
-        ],
-        Duration::from_secs(30),
-    );
+    let r = replay(&log, &out, &["--estimator", "moments"]);
+    let (code, err) = (r.code, r.err);
     assert_eq!(code, Some(0), "{err}");
     assert!(
         err.contains("skipped") && err.contains("bad.jsonl:4: seq 1 repeats"),

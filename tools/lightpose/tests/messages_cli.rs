@@ -3,29 +3,13 @@
 //! unknown estimator twice and a missing case file three times), and the
 //! names `bench` and `montecarlo` take for the paper's cases.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn root() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
-}
+use common::{root, run_in as lightpose_in};
+use std::path::Path;
 
 fn config(p: &str) -> String {
     root().join("config").join(p).display().to_string()
-}
-
-/// Run `lightpose args` in `dir`: (success, stdout, stderr).
-fn lightpose_in(dir: &Path, args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_lightpose"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("runs lightpose");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
 }
 
 /// A refusal: exit non-zero, stderr one line holding `once` exactly once.

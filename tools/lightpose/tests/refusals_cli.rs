@@ -6,14 +6,10 @@
 
 mod common;
 
-use common::{lightpose, root, Run};
+use common::{lightpose, replay, root, s, Run};
 use lightpose_testkit::data::dive_with_a_corrupt_seq;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
-}
 
 /// A refusal: exit 1, and stderr is one line holding each of `want`.
 fn refused(args: &[&str], want: &[&str]) -> String {
@@ -286,22 +282,6 @@ fn sweep_refuses_a_sample_count_past_the_frame_bound() {
     assert!(r.err.contains("3 frames (dark sweep)"), "{}", r.err);
 }
 
-/// A replay of `log` with the tank's calibration.
-fn replay(log: &Path, out: &Path, extra: &[&str]) -> Run {
-    let c = cal();
-    let mut a = vec![
-        "replay",
-        "--calibration",
-        s(&c),
-        "--log",
-        s(log),
-        "--out",
-        s(out),
-    ];
-    a.extend_from_slice(extra);
-    lightpose(&a, Duration::from_secs(30))
-}
-
 /// Item 5: a replay that could replay nothing fails, naming the log and
 /// why.
 #[test]
@@ -410,18 +390,7 @@ fn one_corrupt_seq_costs_no_frame_after_it() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (log, frames) = dive_with_a_corrupt_seq(dir.path());
     let out = dir.path().join("poses.jsonl");
-    let r = lightpose(
-        &[
-            "replay",
-            "--calibration",
-            s(&cal()),
-            "--log",
-            s(&log),
-            "--out",
-            s(&out),
-        ],
-        Duration::from_secs(30),
-    );
+    let r = replay(&log, &out, &[]);
     assert_eq!(r.code, Some(0), "{}", r.err);
     let poses = std::fs::read_to_string(&out)
         .expect("poses")
@@ -453,17 +422,7 @@ fn a_stuck_channel_is_named_and_poses_come() {
     let log = dir.path().join("stuck.jsonl");
     std::fs::write(&log, stuck.join("\n") + "\n").expect("write");
     let out = dir.path().join("poses.jsonl");
-    let cal = cal();
-    let args = [
-        "replay",
-        "--calibration",
-        s(&cal),
-        "--log",
-        s(&log),
-        "--out",
-        s(&out),
-    ];
-    let r = lightpose(&args, Duration::from_secs(30));
+    let r = replay(&log, &out, &[]);
     assert_eq!(r.code, Some(0), "{}", r.err);
     assert!(r.err.contains("left out as stuck"), "{}", r.err);
     assert!(

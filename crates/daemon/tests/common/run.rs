@@ -161,3 +161,55 @@ pub fn files_in(dir: &Path) -> Vec<PathBuf> {
     v.sort();
     v
 }
+
+/// systemd's side of a `Type=notify` service with a watchdog: the notify
+/// socket the daemon is given, and the daemon started as systemd starts it.
+pub struct Systemd {
+    socket: std::os::unix::net::UnixDatagram,
+    path: PathBuf,
+}
+
+impl Systemd {
+    /// A notify socket in `dir`.
+    pub fn new(dir: &Path) -> Systemd {
+        let path = dir.join("notify.sock");
+        let socket = std::os::unix::net::UnixDatagram::bind(&path).expect("bind notify socket");
+        socket
+            .set_read_timeout(Some(Duration::from_millis(100)))
+            .expect("timeout");
+        Systemd { socket, path }
+    }
+
+    /// The real binary with the config file `cfg`, told this socket and a
+    /// watchdog of `watchdog_usec`. systemd sets WATCHDOG_PID to the
+    /// service's pid: a shell that execs the daemon knows it beforehand.
+    pub fn command(&self, cfg: &Path, watchdog_usec: u64) -> Command {
+        let mut c = Command::new("sh");
+        c.arg("-c")
+            .arg(format!(
+                "WATCHDOG_PID=$$ exec '{}' --config '{}'",
+                env!("CARGO_BIN_EXE_lightposed"),
+                cfg.display()
+            ))
+            .env("NOTIFY_SOCKET", &self.path)
+            .env("WATCHDOG_USEC", watchdog_usec.to_string());
+        c
+    }
+
+    /// What the daemon says on the socket for `d` from now: each datagram
+    /// with when it came.
+    pub fn listen(&self, d: Duration) -> Vec<(Duration, String)> {
+        let mut got = Vec::new();
+        let mut buf = [0u8; 4096];
+        let t0 = Instant::now();
+        while t0.elapsed() < d {
+            if let Ok(n) = self.socket.recv(&mut buf) {
+                got.push((
+                    t0.elapsed(),
+                    String::from_utf8_lossy(&buf[..n]).into_owned(),
+                ));
+            }
+        }
+        got
+    }
+}

@@ -1,10 +1,10 @@
 //! What the integration tests share: the vehicle's tasks running on a
 //! runtime of their own (so that a test body can play the frame thread),
-//! and an `ok` estimate.
+//! `udpout` settings and an `ok` estimate.
 #![allow(dead_code)]
 
-use lightpose_core::{PoseEstimate, Status, StdDev};
-use lightpose_vehicle::{DvlSettings, Hub, MavlinkSettings};
+use lightpose_core::{Angle, PoseEstimate, Status, StdDev};
+use lightpose_vehicle::{DvlSettings, Hub, MavlinkSettings, Site};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -60,6 +60,15 @@ pub fn spawn_dvl(s: DvlSettings, hub: Arc<Hub>) -> Running {
         })
         .await
     })
+}
+
+/// MAVLink settings that send (`udpout`) to 127.0.0.1:`port`, on a site
+/// whose axis heads 30° with the beacon 3 m deep.
+pub fn udpout(port: u16) -> MavlinkSettings {
+    MavlinkSettings::new(
+        format!("udpout:127.0.0.1:{port}").parse().unwrap(),
+        Site::new(Angle::from_deg(30.0), 3.0),
+    )
 }
 
 /// Poll `cond` every 5 ms until it holds or `timeout` passes.
