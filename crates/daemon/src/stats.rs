@@ -1,7 +1,11 @@
 //! Counters shared between the acquisition thread (which writes them without
 //! locks or allocation, once per frame) and the async side (which reads them
 //! for STATUS once a second), and a fixed latency histogram so that p50/p99
-//! frame-to-datagram latency is known in flight, not only in benchmarks.
+//! frame-to-datagram latency is known in flight, not only in benchmarks:
+//! over the whole run, and over the last minute ([`recent`]).
+
+mod recent;
+pub use recent::{Recent, RECENT};
 
 use lightpose_core::{ReadingUse, Status, NDET};
 use std::sync::atomic::{AtomicU64, AtomicU8, Ordering::Relaxed};
@@ -82,6 +86,11 @@ impl BackendState {
 pub struct Histogram {
     buckets: Box<[AtomicU64]>,
     max_ns: AtomicU64,
+    /// The largest sample since the last [`Histogram::recent`].
+    recent_max_ns: AtomicU64,
+    /// The STATUS side's slots of recent samples (the frame thread never
+    /// locks it).
+    window: Mutex<recent::Window>,
 }
 
 /// The 1 µs buckets (to 20 ms).
@@ -114,6 +123,8 @@ impl Default for Histogram {
         Histogram {
             buckets: (0..=BUCKETS).map(|_| AtomicU64::new(0)).collect(),
             max_ns: AtomicU64::new(0),
+            recent_max_ns: AtomicU64::new(0),
+            window: Mutex::new(recent::Window::new()),
         }
     }
 }
@@ -122,8 +133,9 @@ impl Histogram {
     #[inline]
     pub fn record(&self, d: Duration) {
         self.buckets[bucket_of(d)].fetch_add(1, Relaxed);
-        self.max_ns
-            .fetch_max(d.as_nanos().min(u64::MAX as u128) as u64, Relaxed);
+        let ns = d.as_nanos().min(u64::MAX as u128) as u64;
+        self.max_ns.fetch_max(ns, Relaxed);
+        self.recent_max_ns.fetch_max(ns, Relaxed);
     }
 
     pub fn count(&self) -> u64 {

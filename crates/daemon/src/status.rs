@@ -6,7 +6,7 @@ use crate::inputs::attitude::{AttitudeCell, Reason};
 use crate::outputs::live::hub::Hub;
 use crate::outputs::recorder::RecStats;
 use crate::outputs::udp::Publisher;
-use crate::stats::{Stats, TempSource};
+use crate::stats::{Histogram, Stats, TempSource};
 use lightpose_core::{ReadingUse, Refusal, Status, COLS, NDET, READINGS};
 use lightpose_hal::SourceHealth;
 use serde_json::{json, Value};
@@ -75,11 +75,7 @@ pub fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> Value {
         "lost": s.lost.load(Relaxed),
         "last_seq": s.last_seq.load(Relaxed),
         "fps": fps,
-        "latency": {
-            "p50": opt(s.latency.quantile(0.5)),
-            "p99": opt(s.latency.quantile(0.99)),
-            "max": opt(s.latency.max()),
-        },
+        "latency": latency(&s.latency),
         "estimator": estimator(c),
         "temperature": temperature(c, health.as_ref()),
         "recording": recording(c.rec),
@@ -89,6 +85,24 @@ pub fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> Value {
         "outputs": outputs(c.publisher),
         "foxglove": c.live.map_or_else(|| json!({"enabled": false}), Hub::report),
         "vehicle": vehicle(c),
+    })
+}
+
+/// Latency over the whole run, and over the last minute (`recent`: the
+/// whole run's quantiles hide a slowdown that began after days).
+fn latency(h: &Histogram) -> Value {
+    let r = h.recent();
+    json!({
+        "p50": opt(h.quantile(0.5)),
+        "p99": opt(h.quantile(0.99)),
+        "max": opt(h.max()),
+        "recent": {
+            "p50": opt(r.p50),
+            "p99": opt(r.p99),
+            "max": opt(r.max),
+            "count": r.count,
+            "window_s": r.window_s,
+        },
     })
 }
 

@@ -4,7 +4,10 @@
 //! so the two containers cannot drift apart); poses are POSE objects as the
 //! daemon publishes them. Buffers are reused: once warm, a frame costs no
 //! allocation here, and the `mcap` crate allocates only per chunk (message
-//! indexes are off for that reason: see [`McapOptions`]).
+//! indexes are off for that reason: see [`McapOptions`]). It still keeps
+//! one chunk index (about 104 B) per chunk in memory until [`McapWriter::finish`]:
+//! a writer that runs for days must start new files (the daemon rotates
+//! MCAP by default for this).
 //!
 //! The file is written append-only (the `mcap` writer never seeks back):
 //! every prefix of it is what a power loss at that moment leaves, and the

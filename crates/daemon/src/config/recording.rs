@@ -6,6 +6,12 @@
 //! `rotate_minutes` 0.1..=525600 (six seconds to a year); `queue`
 //! 1..=1000000 frames; `flush_s` (0, 3600]; `keep_free_mb` 0..=1048576
 //! MiB; `max_total_mb` 1..=16777216 MiB, with `rotate_mb` at most that.
+//!
+//! MCAP with neither rotation key rotates by [`Recording::rotation`]'s
+//! default: every [`MCAP_ROTATE_AFTER`] or [`MCAP_MAX_CHUNKS`] chunks,
+//! whichever comes first; a configured rotation replaces it. JSONL has no
+//! default: its writer keeps nothing per line, so an endless file costs
+//! disk, not memory.
 
 use super::locate::{positive_to, within, Ctx};
 use super::places::{self, Places};
@@ -18,7 +24,8 @@ use toml::Spanned;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Recording {
     pub dir: PathBuf,
-    /// Start a new file when the current one reaches this size.
+    /// Start a new file when the current one reaches this size (MCAP with
+    /// neither this nor `rotate_after`: see [`Recording::rotation`]).
     pub rotate_bytes: Option<u64>,
     /// Start a new file when the current one is this old.
     pub rotate_after: Option<Duration>,
@@ -30,7 +37,8 @@ pub struct Recording {
     /// this much.
     pub flush: Duration,
     /// `keep_free_mb`: free space to keep on the disk, pruning the oldest
-    /// recordings for it; `None`: the recorder's own guard, no pruning.
+    /// recordings for it; `None`: the recorder's own guard (scaled to the
+    /// filesystem, `outputs::recorder::default_floor`), no pruning.
     pub keep_free_bytes: Option<u64>,
     /// `max_total_mb`: the recordings in `dir` are kept under this, the
     /// oldest pruned first.
@@ -50,6 +58,48 @@ pub enum RecFormat {
 
 /// `flush_s` when not given.
 pub const DEFAULT_FLUSH: Duration = Duration::from_secs(2);
+
+/// An MCAP recording without `rotate_mb` / `rotate_minutes` starts a new
+/// file this often. The `mcap` writer keeps a chunk index (≈ 104 B) in
+/// memory per chunk until the file closes, and the open file is never
+/// pruned: without rotation the daemon grows for as long as it runs. An
+/// hour (≈ 35 MB at 5 Hz, 1800 chunks at `flush_s` = 2) is what the
+/// shipped configurations use, and a unit pruning can free.
+pub const MCAP_ROTATE_AFTER: Duration = Duration::from_secs(3600);
+
+/// …and at most this many chunks per file, so that the index stays under
+/// 1 MiB (8192 × 104 B ≈ 0.85 MB) whatever the rate and `flush_s`: at
+/// 1 kHz (full 64 KiB chunks) that is a file of about 512 MiB.
+pub const MCAP_MAX_CHUNKS: u64 = 8192;
+
+/// When a recording starts a new file: at `bytes`, at the age `after` or
+/// at `chunks` MCAP chunks, whichever comes first (`None`: no such limit).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rotation {
+    pub bytes: Option<u64>,
+    pub after: Option<Duration>,
+    pub chunks: Option<u64>,
+}
+
+impl Recording {
+    /// The rotation configured or, for MCAP with none, the default one
+    /// ([`MCAP_ROTATE_AFTER`], [`MCAP_MAX_CHUNKS`]).
+    pub fn rotation(&self) -> Rotation {
+        let configured = self.rotate_bytes.is_some() || self.rotate_after.is_some();
+        if configured || self.format != RecFormat::Mcap {
+            return Rotation {
+                bytes: self.rotate_bytes,
+                after: self.rotate_after,
+                chunks: None,
+            };
+        }
+        Rotation {
+            bytes: None,
+            after: Some(MCAP_ROTATE_AFTER),
+            chunks: Some(MCAP_MAX_CHUNKS),
+        }
+    }
+}
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -121,6 +121,10 @@ pub struct RecFile {
     /// MCAP: after a sync, at a chunk's end), and the frames up to it.
     good_len: u64,
     good_frames: u64,
+    /// MCAP: the chunk size, and the flushes so far (each closes a chunk):
+    /// what [`RecFile::chunks`] counts from.
+    chunk_bytes: u64,
+    flushes: u64,
     #[cfg(test)]
     sink_fd: std::os::fd::RawFd,
 }
@@ -215,6 +219,8 @@ impl RecFile {
             synced: 0,
             good_len,
             good_frames: 0,
+            chunk_bytes: chunk_bytes.max(1),
+            flushes: 0,
             #[cfg(test)]
             sink_fd,
         })
@@ -254,6 +260,7 @@ impl RecFile {
     pub fn flush(&mut self) -> Result<(), String> {
         self.sink.flush().map_err(|e| self.err(e))?;
         self.sync.sync_data().map_err(|e| named(&self.path, e))?;
+        self.flushes += 1;
         self.synced = self.frames;
         self.good_len = self.bytes();
         self.good_frames = self.frames;
@@ -313,6 +320,16 @@ impl RecFile {
     pub fn bytes(&self) -> u64 {
         self.bytes.load(Relaxed)
     }
+    /// MCAP chunks written so far, at most (JSONL: 0): each flush closes
+    /// one, and a chunk closed full holds more than `chunk_bytes`. The
+    /// `mcap` writer keeps an index entry per chunk until the file closes.
+    pub fn chunks(&self) -> u64 {
+        match self.format {
+            RecFormat::Jsonl => 0,
+            RecFormat::Mcap => self.flushes + self.bytes() / self.chunk_bytes,
+        }
+    }
+
     /// Frames written since the last sync.
     pub fn unsynced(&self) -> u64 {
         self.frames - self.synced

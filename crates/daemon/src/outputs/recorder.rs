@@ -3,12 +3,13 @@
 //! full or read-only disk never delays a POSE. The frame thread hands each
 //! frame and its estimate over a bounded queue whose slots are allocated
 //! once. Every `flush_s` the open file is pushed to the disk (MCAP: its
-//! chunk closed) and synced; files rotate by size or age. A disk that
-//! refuses is reported (STATUS, log) and retried less and less often
-//! ([`worker`]); a nearly full disk is not written to, and old recordings
-//! may be pruned to make room ([`space`]), oldest first by the counter in
-//! their names ([`names`]), not by the wall clock; frames that could not be
-//! recorded are counted, never hidden.
+//! chunk closed) and synced; files rotate by size or age (MCAP also by
+//! default: `Recording::rotation`). A disk that refuses is reported
+//! (STATUS, log) and retried less and less often ([`worker`]); a nearly
+//! full disk is not written to, and old recordings may be pruned to make
+//! room ([`space`]), oldest first by the counter in their names
+//! ([`names`]), not by the wall clock; frames that could not be recorded
+//! are counted, never hidden.
 
 mod names;
 mod space;
@@ -16,7 +17,7 @@ mod space;
 mod tests;
 mod worker;
 
-pub use space::MIN_FREE;
+pub use space::{default_floor, MIN_FREE};
 
 use super::{Output, StatusTap};
 use crate::config::{RecFormat, Recording};

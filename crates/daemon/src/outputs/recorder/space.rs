@@ -1,8 +1,9 @@
 //! Room on the recording's disk: free space (`statvfs`, what the daemon's
 //! user may still write) is checked before a file starts and every
-//! [`EVERY`] while one is open. Below the free space to keep, no file is
-//! started and the open one is completed while it still can be, so a
-//! full disk never leaves a recording cut nor empty files behind. With
+//! [`EVERY`] while one is open. Below the free space to keep
+//! (`keep_free_mb`, else [`default_floor`] of the filesystem's size), no
+//! file is started and the open one is completed while it still can be, so
+//! a full disk never leaves a recording cut nor empty files behind. With
 //! `keep_free_mb` or `max_total_mb` the oldest recordings in the directory
 //! (this daemon's names, `lightposed-*.jsonl` / `.mcap`) are deleted first
 //! to make room, oldest by the counter in their names, not by their time
@@ -16,10 +17,22 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::time::Duration;
 
-/// Free space kept when `keep_free_mb` is not given (nothing is pruned
-/// then): far more than a few seconds of recording, an MCAP chunk and a
-/// summary.
+/// The least free space kept when `keep_free_mb` is not given: far more
+/// than a few seconds of recording, an MCAP chunk and a summary.
 pub const MIN_FREE: u64 = 32 << 20;
+
+/// The most kept free then: room enough for the system's own writes.
+pub const MAX_FLOOR: u64 = 1 << 30;
+
+/// Free space kept when `keep_free_mb` is not given (recording pauses
+/// there; nothing is pruned unasked): 2 % of the filesystem, within
+/// [`MIN_FREE`]..=[`MAX_FLOOR`]. A fixed 32 MiB on a vehicle's SD-card root
+/// (8–64 GB, shared with journald, BlueOS and docker) left the system
+/// nothing: 2 % is 160 MiB of 8 GB, 640 MiB of 32 GB; past 50 GB the 1 GiB
+/// cap, as a big disk's system needs no more.
+pub fn default_floor(fs_bytes: u64) -> u64 {
+    (fs_bytes / 50).clamp(MIN_FREE, MAX_FLOOR)
+}
 
 /// How often the room is checked while a file is open.
 pub const EVERY: Duration = Duration::from_secs(2);
@@ -28,8 +41,9 @@ const MIB: f64 = 1024.0 * 1024.0;
 
 pub(crate) struct Space {
     dir: PathBuf,
-    /// Bytes to keep free: below, nothing is written (0: no check).
-    pub(crate) keep_free: u64,
+    /// Bytes to keep free: below, nothing is written (0: no check);
+    /// `None`: [`default_floor`] of the filesystem.
+    pub(crate) keep_free: Option<u64>,
     /// Delete the oldest recordings to keep `keep_free` free.
     prune_free: bool,
     /// The recordings' total kept under this, oldest deleted first.
@@ -48,7 +62,7 @@ impl Space {
     pub(crate) fn new(cfg: &Recording) -> Space {
         Space {
             dir: cfg.dir.clone(),
-            keep_free: cfg.keep_free_bytes.unwrap_or(MIN_FREE),
+            keep_free: cfg.keep_free_bytes,
             prune_free: cfg.keep_free_bytes.is_some_and(|b| b > 0),
             max_total: cfg.max_total_bytes,
             stuck: AtomicBool::new(false),
@@ -70,16 +84,16 @@ impl Space {
                 }
             }
         }
-        if self.keep_free == 0 {
+        if self.keep_free == Some(0) {
             return Ok(());
         }
         // Unknown: the disk says so itself when it is full.
-        let Ok(mut free) = free_bytes(&self.dir) else {
+        let Ok((mut free, keep)) = self.room() else {
             return Ok(());
         };
-        if free < self.keep_free && self.prune_free {
+        if free < keep && self.prune_free {
             for old in recordings(&self.dir) {
-                if free >= self.keep_free {
+                if free >= keep {
                     break;
                 }
                 if Some(old.path.as_path()) != current && self.prune(&old, "keep_free_mb", stats) {
@@ -87,15 +101,25 @@ impl Space {
                 }
             }
         }
-        if free >= self.keep_free {
+        if free >= keep {
             return Ok(());
         }
+        let key = match self.keep_free {
+            Some(_) => "recording.keep_free_mb",
+            None => "recording.keep_free_mb unset: 2 % of the disk, 32 MiB..1 GiB",
+        };
         Err(format!(
-            "{}: {:.1} MiB free, less than the {:.1} MiB kept free (recording.keep_free_mb): no recording until there is room",
+            "{}: {:.1} MiB free, less than the {:.1} MiB kept free ({key}): no recording until there is room",
             self.dir.display(),
             free as f64 / MIB,
-            self.keep_free as f64 / MIB
+            keep as f64 / MIB
         ))
+    }
+
+    /// Bytes free on the disk now, and bytes to keep free there.
+    pub(crate) fn room(&self) -> io::Result<(u64, u64)> {
+        let (free, size) = free_and_size(&self.dir)?;
+        Ok((free, self.keep_free.unwrap_or_else(|| default_floor(size))))
     }
 }
 
@@ -130,14 +154,21 @@ impl Space {
 
 /// Bytes the daemon's user may still write on the filesystem of `dir`.
 pub fn free_bytes(dir: &Path) -> io::Result<u64> {
+    free_and_size(dir).map(|(free, _)| free)
+}
+
+/// Bytes the daemon's user may still write on the filesystem of `dir`, and
+/// the filesystem's size.
+fn free_and_size(dir: &Path) -> io::Result<(u64, u64)> {
     let s = nix::sys::statvfs::statvfs(dir).map_err(io::Error::from)?;
     // 32-bit types on 32-bit ARM, 64-bit here.
     #[allow(clippy::useless_conversion)]
-    let (blocks, size) = (
+    let (avail, blocks, unit) = (
         u64::from(s.blocks_available()),
+        u64::from(s.blocks()),
         u64::from(s.fragment_size()),
     );
-    Ok(blocks.saturating_mul(size))
+    Ok((avail.saturating_mul(unit), blocks.saturating_mul(unit)))
 }
 
 /// This daemon's recordings in `dir`, oldest first: by their counter

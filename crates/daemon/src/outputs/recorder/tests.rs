@@ -321,3 +321,77 @@ fn status_behind_a_stuck_disk_is_counted() {
     });
     r.finish_within(Duration::from_millis(300));
 }
+
+/// An MCAP recording without rotation keys rotates by default (an hour,
+/// or 8192 chunks: the `mcap` writer keeps an index entry per chunk until
+/// the file closes); a configured rotation replaces the default, and JSONL
+/// has none. Shortened here, each file reads back whole.
+#[test]
+fn mcap_without_rotation_rotates_by_default() {
+    use crate::config::recording::{Rotation, MCAP_MAX_CHUNKS, MCAP_ROTATE_AFTER};
+    let base = "rate_hz = 50.0\ncalibration = \"cal.toml\"\n[backend]\nkind = \"replay\"\nlog = \"x.jsonl\"\npace = \"fast\"\n[outputs]\ndestinations = [\"127.0.0.1:9999\"]\n[recording]\ndir = \"/tmp/r\"\n";
+    let rotation = |extra: &str| {
+        let c = crate::config::Config::parse(&format!("{base}{extra}"), "t.toml", None);
+        c.unwrap().recording.unwrap().rotation()
+    };
+    let default = Rotation {
+        bytes: None,
+        after: Some(Duration::from_secs(3600)),
+        chunks: Some(8192),
+    };
+    assert_eq!(
+        (MCAP_ROTATE_AFTER, MCAP_MAX_CHUNKS),
+        (default.after.unwrap(), 8192)
+    );
+    assert_eq!(rotation("format = \"mcap\"\n"), default);
+    let ten = Some(Duration::from_secs(600));
+    let configured = rotation("format = \"mcap\"\nrotate_minutes = 10\n");
+    assert_eq!((configured.after, configured.chunks), (ten, None));
+    let jsonl = rotation("");
+    assert_eq!((jsonl.bytes, jsonl.after, jsonl.chunks), (None, None, None));
+
+    let dir = tempfile::tempdir().unwrap();
+    let mut c = cfg(dir.path().to_path_buf(), None, 16);
+    c.format = RecFormat::Mcap;
+    let stats = Arc::new(RecStats::default());
+    let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone());
+    assert_eq!(w.rotation, default);
+    let item = |seq| Item {
+        frame: frame(seq),
+        est: est(seq),
+        wall_unix: 1.7e9,
+    };
+    // By chunks: one per flush here.
+    w.rotation.chunks = Some(3);
+    for s in 0..10 {
+        w.write(&item(s));
+        w.flush();
+    }
+    assert_eq!(stats.files.load(Relaxed), 4, "3 + 3 + 3 + 1 frames");
+    // By age (from a new file).
+    w.close();
+    w.rotation = Rotation {
+        chunks: None,
+        after: Some(Duration::from_millis(50)),
+        ..default
+    };
+    w.write(&item(10));
+    std::thread::sleep(Duration::from_millis(60));
+    w.write(&item(11));
+    w.close();
+    assert_eq!(stats.files.load(Relaxed), 6);
+    let mut seqs = Vec::new();
+    let mut paths: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    paths.sort();
+    for p in &paths {
+        let mut log = lightpose_logs::LogFile::open(p).unwrap();
+        while let Some(f) = lightpose_logs::FrameLog::next_frame(&mut log) {
+            seqs.push(f.unwrap().seq);
+        }
+        assert_eq!(lightpose_logs::FrameLog::cut(&log), None, "{p:?} whole");
+    }
+    assert_eq!(seqs, (0..12).collect::<Vec<u64>>());
+}

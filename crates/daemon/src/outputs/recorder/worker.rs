@@ -8,6 +8,7 @@
 use super::names;
 use super::space::{Space, EVERY};
 use super::{Item, RecState, RecStats};
+use crate::config::recording::Rotation;
 use crate::config::Recording;
 use crate::outputs::recfile::{self, extension, Closed, Opener, RecError, RecFile};
 use lightpose_core::LogHeader;
@@ -31,6 +32,8 @@ const IDLE: Duration = Duration::from_millis(250);
 
 pub(super) struct Worker {
     cfg: Recording,
+    /// When a new file starts: `cfg`'s, or MCAP's default (tests shorten it).
+    pub(super) rotation: Rotation,
     header: LogHeader,
     pub(super) stats: Arc<RecStats>,
     pub(super) file: Option<RecFile>,
@@ -59,6 +62,7 @@ impl Worker {
     pub(super) fn new(cfg: &Recording, header: LogHeader, stats: Arc<RecStats>) -> Worker {
         Worker {
             cfg: cfg.clone(),
+            rotation: cfg.rotation(),
             header,
             stats,
             file: None,
@@ -141,11 +145,10 @@ impl Worker {
 
     fn due_for_rotation(&self) -> bool {
         let Some(f) = &self.file else { return false };
-        self.cfg.rotate_bytes.is_some_and(|b| f.bytes() >= b)
-            || self
-                .cfg
-                .rotate_after
-                .is_some_and(|a| self.opened.elapsed() >= a)
+        let r = &self.rotation;
+        r.bytes.is_some_and(|b| f.bytes() >= b)
+            || r.after.is_some_and(|a| self.opened.elapsed() >= a)
+            || r.chunks.is_some_and(|c| f.chunks() >= c)
     }
 
     pub(super) fn write(&mut self, item: &Item) {

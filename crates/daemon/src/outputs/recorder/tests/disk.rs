@@ -3,7 +3,7 @@
 //! write with ENOSPC; a free-space guard set above the disk's free space;
 //! old recordings pruned for `max_total_mb` and `keep_free_mb`.
 
-use super::super::space::free_bytes;
+use super::super::space::{default_floor, free_bytes, Space, MAX_FLOOR, MIN_FREE};
 use super::super::worker::{Worker, RETRY_FIRST, RETRY_MAX};
 use super::{cfg, est, frame};
 use super::{Item, RecState, RecStats};
@@ -153,7 +153,7 @@ fn a_nearly_full_disk_is_not_written_to() {
     let mut c = cfg(dir.path().to_path_buf(), None, 16);
     c.format = RecFormat::Mcap;
     let (mut w, stats) = worker(&c);
-    w.space.keep_free = u64::MAX;
+    w.space.keep_free = Some(u64::MAX);
     w.write(&item(0));
     assert_eq!(stats.state(), RecState::Error);
     let err = stats.error.lock().unwrap().clone().unwrap_or_default();
@@ -165,7 +165,7 @@ fn a_nearly_full_disk_is_not_written_to() {
     for s in 0..5 {
         w.write(&item(s));
     }
-    w.space.keep_free = free_bytes(dir.path()).unwrap().saturating_add(1 << 40);
+    w.space.keep_free = Some(free_bytes(dir.path()).unwrap().saturating_add(1 << 40));
     w.check_space();
     assert_eq!(stats.state(), RecState::Error);
     assert_eq!(stats.synced.load(Relaxed), 5);
@@ -174,6 +174,31 @@ fn a_nearly_full_disk_is_not_written_to() {
     let bytes = std::fs::read(&files[0]).unwrap();
     let footer = mcap::read::footer(&bytes).unwrap();
     assert!(footer.summary_start > 0, "completed with its summary");
+}
+
+/// Without `keep_free_mb` the free space kept scales with the filesystem:
+/// 2 % of it, at least 32 MiB, at most 1 GiB (it was 32 MiB on any disk,
+/// which left an SD card's system nothing); nothing is pruned for it.
+#[test]
+fn the_default_floor_scales_with_the_disk() {
+    const GB: u64 = 1_000_000_000;
+    assert_eq!((MIN_FREE, MAX_FLOOR), (32 << 20, 1 << 30));
+    assert_eq!(default_floor(0), MIN_FREE);
+    assert_eq!(default_floor(GB), MIN_FREE, "a small disk keeps 32 MiB");
+    assert_eq!(default_floor(8 * GB), 160 * GB / 1000);
+    assert_eq!(default_floor(32 * GB), 640 * GB / 1000);
+    assert_eq!(default_floor(4000 * GB), MAX_FLOOR, "capped");
+    let dir = tempfile::tempdir().unwrap();
+    let c = cfg(dir.path().to_path_buf(), None, 16);
+    let (free, keep) = Space::new(&c).room().unwrap();
+    let size = nix::sys::statvfs::statvfs(dir.path()).unwrap();
+    #[allow(clippy::useless_conversion)]
+    let size = u64::from(size.blocks()) * u64::from(size.fragment_size());
+    assert_eq!(keep, default_floor(size));
+    assert!(free > 0);
+    let mut c = c;
+    c.keep_free_bytes = Some(5 << 20);
+    assert_eq!(Space::new(&c).room().unwrap().1, 5 << 20, "configured wins");
 }
 
 /// `max_total_mb` deletes the oldest recordings (by name) until the total
