@@ -16,7 +16,9 @@ use lightposed::{Config, DaemonError, Publisher};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
+use tracing_appender::non_blocking::{ErrorCounter, NonBlockingBuilder, WorkerGuard};
 
 #[derive(Parser)]
 #[command(
@@ -58,19 +60,101 @@ fn load(path: Option<&PathBuf>) -> Result<Config, lightposed::ConfigError> {
     }
 }
 
-fn init_logging(cfg: &Config) {
+/// Log lines that may wait for the writer thread: far more than the daemon
+/// says in a burst (its repeated warnings are thinned), and the queue's
+/// slots are allocated up front (~32 bytes each).
+const LOG_QUEUE: usize = 8192;
+
+/// Logging set up; the writer thread flushes what is queued when this is
+/// dropped (at the end of `main`), waiting at most ~1 s for a stalled
+/// stderr.
+struct Logging {
+    _flush: WorkerGuard,
+    lost: LostWatch,
+}
+
+/// Log lines go to stderr from a thread of their own: a journald that
+/// stalls (its socket buffer full) must not block the frame thread until
+/// the watchdog kills the daemon. While the queue is full, lines are
+/// dropped and counted ([`LostWatch`]).
+fn init_logging(cfg: &Config) -> Logging {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(&cfg.logging.level));
     // Under systemd the journal stamps and colours lines itself.
     let journald = std::env::var_os("JOURNAL_STREAM").is_some();
+    let (writer, flush) = NonBlockingBuilder::default()
+        .lossy(true)
+        .buffered_lines_limit(LOG_QUEUE)
+        .thread_name("lightposed-log")
+        .finish(std::io::stderr());
+    let lost = LostWatch {
+        counter: writer.error_counter(),
+        state: Arc::default(),
+    };
     let b = tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr)
+        .with_writer(writer)
         .with_ansi(colour(journald, std::io::stderr().is_terminal()));
     match (cfg.logging.format, journald) {
         (LogFormat::Json, _) => b.json().init(),
         (LogFormat::Plain, true) => b.without_time().with_target(false).init(),
         (LogFormat::Plain, false) => b.with_target(false).init(),
+    }
+    Logging {
+        _flush: flush,
+        lost,
+    }
+}
+
+/// Log lines lost to a stalled stderr, said once per stall: when the
+/// count has stopped growing (said while stderr is stalled, it would be
+/// lost too), and at exit.
+#[derive(Default)]
+struct LostLines {
+    said: usize,
+    seen: usize,
+}
+
+impl LostLines {
+    /// How often the count is looked at.
+    const EVERY: Duration = Duration::from_secs(5);
+
+    /// The count `n` now: the lines to report, if it is time to.
+    fn note(&mut self, n: usize, at_exit: bool) -> Option<usize> {
+        let settled = at_exit || n == self.seen;
+        self.seen = n;
+        if n <= self.said || !settled {
+            return None;
+        }
+        let lost = n - self.said;
+        self.said = n;
+        Some(lost)
+    }
+}
+
+/// The count of lines the writer dropped, and what was said of it.
+#[derive(Clone)]
+struct LostWatch {
+    counter: ErrorCounter,
+    state: Arc<Mutex<LostLines>>,
+}
+
+impl LostWatch {
+    fn report(&self, at_exit: bool) {
+        let n = self.counter.dropped_lines();
+        let Some(lost) = self.state.lock().ok().and_then(|mut s| s.note(n, at_exit)) else {
+            return;
+        };
+        tracing::warn!(lost, total = n, "stderr was stalled: log lines lost");
+    }
+
+    /// Look every [`LostLines::EVERY`] until the runtime ends.
+    async fn watch(self) {
+        let mut every = tokio::time::interval(LostLines::EVERY);
+        loop {
+            every.tick().await;
+            self.report(false);
+        }
     }
 }
 
@@ -208,7 +292,7 @@ fn main() -> ExitCode {
     if let Err(e) = lightposed::wiring::check(&cfg) {
         return fail(&e, e.exit_code());
     }
-    init_logging(&cfg);
+    let logging = init_logging(&cfg);
     log_start(&cfg);
     let rt = match tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -220,9 +304,11 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    rt.spawn(logging.lost.clone().watch());
     let served = rt.block_on(serve(cfg));
     // A thread that did not stop (a hung device) must not hold the exit.
     rt.shutdown_timeout(Duration::from_millis(500));
+    logging.lost.report(true);
     match served {
         Ok(end) => ended(&end),
         Err(e) => {
@@ -238,7 +324,7 @@ fn main() -> ExitCode {
 
 #[cfg(test)]
 mod tests {
-    use super::{ended, frames_refused, EndReason};
+    use super::{ended, frames_refused, EndReason, LostLines};
     use std::process::ExitCode;
 
     /// Audit: a panicked frame thread exited 0, so systemd never restarted
@@ -260,5 +346,20 @@ mod tests {
         assert_eq!(frames_refused(Some(10), true), None);
         assert!(frames_refused(Some(10), false).is_some_and(|w| w.contains("--bench")));
         assert!(frames_refused(Some(0), true).is_some_and(|w| w.starts_with("--frames 0")));
+    }
+
+    /// Lost log lines are said once the stall is over (the count unchanged
+    /// between two looks), once per stall, and at exit whatever the count.
+    #[test]
+    fn lost_log_lines_are_said_once_a_stall_ends() {
+        let mut l = LostLines::default();
+        assert_eq!(l.note(0, false), None, "nothing lost");
+        assert_eq!(l.note(0, false), None);
+        assert_eq!(l.note(40, false), None, "stalled: said later");
+        assert_eq!(l.note(90, false), None, "still stalled");
+        assert_eq!(l.note(90, false), Some(90), "the stall is over");
+        assert_eq!(l.note(90, false), None, "said once");
+        assert_eq!(l.note(95, false), None);
+        assert_eq!(l.note(99, true), Some(9), "at exit, what was not said");
     }
 }

@@ -299,3 +299,74 @@ fn a_channel_id_beyond_32_bits_is_refused() {
         live.server.abort();
     });
 }
+
+/// The live server alone with short ping and silence times (the daemon's
+/// are 15 s and 45 s), on a free port.
+async fn live_with_short_silence() -> (
+    std::sync::Arc<lightposed::outputs::live::hub::Hub>,
+    tokio::task::JoinHandle<()>,
+) {
+    use lightposed::outputs::live::{hub::Hub, server};
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let hub = std::sync::Arc::new(Hub::new(listener.local_addr().unwrap()));
+    let limits = server::Limits {
+        client_queue: 16,
+        max_clients: 2,
+        ping: Duration::from_millis(100),
+        silence: Duration::from_millis(400),
+    };
+    let task = tokio::spawn(server::serve(listener, hub.clone(), limits));
+    (hub, task)
+}
+
+/// Soak audit: a client that subscribed to nothing is never written to, so
+/// one whose laptop was unplugged stayed forever and `max_clients` such
+/// ghosts locked everyone out. The server pings; a client that answers
+/// nothing (here: one that never reads again, so never answers) is
+/// dropped and counted `timed_out`, its place free again, while an idle
+/// client that answers the pings (tungstenite does, as Foxglove and
+/// browsers do) is kept.
+#[test]
+fn a_client_that_answers_no_ping_is_dropped_and_one_that_does_is_kept() {
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let (hub, server) = live_with_short_silence().await;
+        let addr = hub.listen;
+        let connect = || async move {
+            let tcp = tokio::net::TcpStream::connect(addr).await.unwrap();
+            let (mut ws, _) = tokio_tungstenite::client_async(request(addr), tcp)
+                .await
+                .expect("handshake");
+            for _ in 0..2 {
+                ws.next().await.expect("serverInfo, advertise").unwrap();
+            }
+            ws
+        };
+        // Reads nothing from here on: no pong ever goes back.
+        let ghost = connect().await;
+        // Reads all along (a pong goes back for each ping), sends nothing.
+        let mut alive = connect().await;
+        let (mut pings, end) = (0, Instant::now() + Duration::from_millis(1500));
+        while Instant::now() < end {
+            match tokio::time::timeout(Duration::from_millis(50), alive.next()).await {
+                Ok(Some(Ok(Ws::Ping(_)))) => pings += 1,
+                Ok(Some(Ok(_))) | Err(_) => {}
+                Ok(other) => panic!("the answering client was dropped: {other:?}"),
+            }
+        }
+        let r = hub.report();
+        assert!(pings >= 5, "pings every 100 ms: {pings} in 1.5 s");
+        assert_eq!(r["timed_out"], 1, "{r}");
+        assert_eq!(r["clients"], 1, "{r}");
+        assert_ne!(
+            r["client_list"][0]["addr"],
+            ghost.get_ref().local_addr().unwrap().to_string(),
+            "{r}"
+        );
+        // The ghost's place is free: a third client is served (max 2).
+        let mut third = connect().await;
+        third.send(Ws::text(subscribe_all())).await.unwrap();
+        assert_eq!(hub.report()["refused"], 0);
+        server.abort();
+    });
+}

@@ -102,3 +102,106 @@ fn restart_prevent_exit_status_is_the_refused_config_code() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// Seconds of a systemd time span as this unit writes them: `60`, `60s`,
+/// `1min`.
+fn seconds(v: &str) -> f64 {
+    let (n, unit) = v
+        .find(|c: char| c.is_ascii_alphabetic())
+        .map_or((v, ""), |i| v.split_at(i));
+    let n: f64 = n
+        .trim()
+        .parse()
+        .unwrap_or_else(|_| panic!("a time span: {v}"));
+    match unit {
+        "" | "s" | "sec" => n,
+        "min" | "m" => n * 60.0,
+        _ => panic!("a time span in seconds or minutes: {v}"),
+    }
+}
+
+/// The one value of `key`, which the unit must set.
+fn one(text: &str, key: &str) -> String {
+    let v = values(text, key);
+    assert_eq!(v.len(), 1, "{key}: {v:?}");
+    v[0].clone()
+}
+
+/// The delay before the `k`-th automatic restart (from 1), as systemd
+/// (>= 254, service_restart_usec_next) computes it from RestartSec,
+/// RestartSteps and RestartMaxDelaySec.
+fn delay(k: u32, sec: f64, steps: u32, max: f64) -> f64 {
+    match k {
+        _ if k <= 1 => sec,
+        _ if k > steps => max,
+        _ => sec * (max / sec).powf(f64::from(k - 1) / f64::from(steps)),
+    }
+}
+
+/// Soak audit: a start that fails at once (a MAVLink udpin port taken,
+/// exit 1) restarted every 2 s, ~43 000 times a day, never reaching the
+/// start limit. The delay now grows to a cap, while the first restarts
+/// stay as quick as before.
+#[test]
+fn restarts_back_off_from_restart_sec_to_a_cap() {
+    let u = unit();
+    assert_eq!(one(&u, "Restart"), "on-failure");
+    let sec = seconds(&one(&u, "RestartSec"));
+    let steps: u32 = one(&u, "RestartSteps").parse().expect("RestartSteps");
+    let max = seconds(&one(&u, "RestartMaxDelaySec"));
+    assert_eq!(sec, 2.0, "the first restart comes as soon as before");
+    assert!(steps >= 1, "RestartSteps=0 turns the back-off off");
+    assert!((30.0..=300.0).contains(&max), "RestartMaxDelaySec={max}");
+    let first3: f64 = (1..=3).map(|k| delay(k, sec, steps, max)).sum();
+    assert!(
+        first3 <= 15.0,
+        "a passing fault waits {first3} s for 3 tries"
+    );
+    // A start that fails at once, for a day.
+    let (mut t, mut k) = (0.0, 0);
+    while t < 86_400.0 {
+        k += 1;
+        t += delay(k, sec, steps, max);
+    }
+    assert!(k <= 2_000, "{k} restarts a day");
+    assert!(
+        u.contains("systemd >= 254") && u.contains("Unknown key"),
+        "the unit says which systemd reads the back-off keys"
+    );
+}
+
+/// `systemd-analyze verify` (where installed; it needs no running
+/// systemd) with ExecStart the binary just built: the unit loads, and the
+/// only keys it does not know are the back-off ones (systemd < 254).
+#[test]
+fn systemd_analyze_verify_knows_every_key() {
+    let probe = Command::new("systemd-analyze").arg("--version").output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        eprintln!("no systemd-analyze here: not verified");
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let exec = format!("ExecStart={}", env!("CARGO_BIN_EXE_lightposed"));
+    let text: Vec<String> = unit()
+        .lines()
+        .map(|l| match l.starts_with("ExecStart=") {
+            true => exec.clone(),
+            false => l.to_string(),
+        })
+        .collect();
+    let path = dir.path().join("lightposed.service");
+    std::fs::write(&path, text.join("\n") + "\n").expect("unit copy");
+    let out = Command::new("systemd-analyze")
+        .arg("verify")
+        .arg(&path)
+        .output()
+        .expect("systemd-analyze");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    for l in err.lines().filter(|l| l.contains("Unknown key")) {
+        assert!(
+            l.contains("'RestartSteps'") || l.contains("'RestartMaxDelaySec'"),
+            "{l}"
+        );
+    }
+}

@@ -163,6 +163,8 @@ pub async fn start(cfg: &Foxglove, header: &LogHeader) -> std::io::Result<Live> 
     let limits = server::Limits {
         client_queue: cfg.client_queue,
         max_clients: cfg.max_clients,
+        ping: server::PING,
+        silence: server::SILENCE,
     };
     let server = tokio::spawn(server::serve(listener, hub.clone(), limits));
     tracing::info!("foxglove live view on ws://{listen}");

@@ -12,7 +12,12 @@
 //! requests and writes what the hub queued for it. A write that does not
 //! finish within [`STALL`] (a client that stopped reading, a cable pulled)
 //! ends that client; meanwhile its queue fills and the hub drops and
-//! counts its messages.
+//! counts its messages. A client that subscribed to nothing is never
+//! written to, so the server pings every client ([`PING`]; browsers and
+//! Foxglove answer by themselves) and ends one from which nothing at all
+//! has come for [`SILENCE`] (counted, `timed_out`): else a laptop
+//! unplugged from the tether would hold its place among `max_clients`
+//! until a restart.
 
 use super::hub::{Client, Hub};
 use futures_util::{SinkExt, StreamExt};
@@ -26,6 +31,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
+use tokio::time::{Instant, MissedTickBehavior};
 use tokio_tungstenite::tungstenite::handshake::server::{ErrorResponse, Request, Response};
 use tokio_tungstenite::tungstenite::http::{HeaderValue, StatusCode};
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
@@ -38,6 +44,11 @@ pub const SUBPROTOCOLS: [&str; 2] = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 
 /// A write that takes longer ends the client.
 pub const STALL: Duration = Duration::from_secs(10);
+/// A WebSocket Ping to every client this often.
+pub const PING: Duration = Duration::from_secs(15);
+/// A client from which nothing (a pong, a request) came for this long is
+/// gone: three pings unanswered.
+pub const SILENCE: Duration = Duration::from_secs(45);
 /// A handshake that takes longer ends the connection.
 const HANDSHAKE: Duration = Duration::from_secs(5);
 /// Queued messages written before one flush.
@@ -51,6 +62,23 @@ const REQUEST_LIMIT: usize = 64 << 10;
 pub struct Limits {
     pub client_queue: usize,
     pub max_clients: usize,
+    /// [`PING`] and [`SILENCE`]; shorter in tests.
+    pub ping: Duration,
+    pub silence: Duration,
+}
+
+/// Why a session ended.
+enum End {
+    /// Nothing came from the client for this long (no pong either).
+    Silent(Duration),
+    /// It closed, an error, a stalled write, the daemon stopping.
+    Other(String),
+}
+
+impl From<String> for End {
+    fn from(why: String) -> End {
+        End::Other(why)
+    }
 }
 
 /// Accept clients on `listener` until the task is aborted.
@@ -244,51 +272,92 @@ async fn client(stream: TcpStream, addr: SocketAddr, hub: Arc<Hub>, limits: Limi
         return;
     };
     tracing::info!("foxglove: {addr} connected");
-    let why = session_loop(&mut ws, &mut rx, &hub, &c).await;
+    let end = session_loop(&mut ws, &mut rx, &hub, &c, &limits).await;
     hub.leave(c.id);
     let _ = tokio::time::timeout(Duration::from_secs(1), ws.close(None)).await;
-    tracing::info!(
-        "foxglove: {addr} gone ({why}); {} messages sent, {} dropped",
-        c.sent.load(Relaxed),
-        c.dropped.load(Relaxed)
-    );
+    let (sent, dropped) = (c.sent.load(Relaxed), c.dropped.load(Relaxed));
+    match end {
+        End::Silent(d) => {
+            hub.timed_out.fetch_add(1, Relaxed);
+            tracing::warn!(
+                "foxglove: {addr} dropped: nothing from it for {d:.0?} (pings unanswered: \
+                 a cable pulled?); {sent} messages sent, {dropped} dropped"
+            );
+        }
+        End::Other(why) => {
+            tracing::info!("foxglove: {addr} gone ({why}); {sent} messages sent, {dropped} dropped")
+        }
+    }
 }
 
-/// Greet, then serve requests and queued messages until the client or the
-/// hub ends; why it ended.
+/// On each ping tick: the end of a client silent for `silence`, else a
+/// Ping sent (bounded like any write).
+async fn ping(
+    ws: &mut WebSocketStream<TcpStream>,
+    heard: Instant,
+    silence: Duration,
+) -> Result<(), End> {
+    let quiet = heard.elapsed();
+    if quiet >= silence {
+        return Err(End::Silent(quiet));
+    }
+    match tokio::time::timeout(STALL, ws.send(Ws::Ping(Bytes::new()))).await {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(e.to_string().into()),
+        Err(_) => Err(format!("not reading: a ping took more than {STALL:?}").into()),
+    }
+}
+
+/// Greet, then serve requests, queued messages and pings until the client
+/// or the hub ends; why it ended.
 async fn session_loop(
     ws: &mut WebSocketStream<TcpStream>,
     rx: &mut mpsc::Receiver<Bytes>,
     hub: &Hub,
     c: &Client,
-) -> String {
+    limits: &Limits,
+) -> End {
     for text in greeting(&hub.session) {
         if let Err(e) = ws.send(Ws::text(text)).await {
-            return e.to_string();
+            return e.to_string().into();
         }
     }
+    let mut heard = Instant::now();
+    let mut ticks = tokio::time::interval_at(heard + limits.ping, limits.ping);
+    // After a long stall, one ping, not a burst of them.
+    ticks.set_missed_tick_behavior(MissedTickBehavior::Delay);
     loop {
         tokio::select! {
-            msg = ws.next() => match msg {
-                Some(Ok(Ws::Text(t))) => {
-                    if let Some(reply) = request(hub, c, t.as_str()) {
-                        if let Err(e) = ws.send(reply).await {
-                            return e.to_string();
+            msg = ws.next() => {
+                if let Some(Ok(_)) = &msg {
+                    heard = Instant::now(); // a pong or anything else
+                }
+                match msg {
+                    Some(Ok(Ws::Text(t))) => {
+                        if let Some(reply) = request(hub, c, t.as_str()) {
+                            if let Err(e) = ws.send(reply).await {
+                                return e.to_string().into();
+                            }
                         }
                     }
+                    Some(Ok(Ws::Close(_))) | None => return "closed".to_string().into(),
+                    Some(Ok(_)) => {} // pongs; pings are answered by tungstenite
+                    Some(Err(e)) => return e.to_string().into(),
                 }
-                Some(Ok(Ws::Close(_))) | None => return "closed".into(),
-                Some(Ok(_)) => {} // pings are answered by tungstenite
-                Some(Err(e)) => return e.to_string(),
-            },
+            }
             out = rx.recv() => match out {
                 Some(first) => {
                     if let Err(e) = write_batch(ws, rx, c, first).await {
-                        return e;
+                        return e.into();
                     }
                 }
-                None => return "the daemon stops".into(),
+                None => return "the daemon stops".to_string().into(),
             },
+            _ = ticks.tick() => {
+                if let Err(end) = ping(ws, heard, limits.silence).await {
+                    return end;
+                }
+            }
         }
     }
 }
