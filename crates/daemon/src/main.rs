@@ -60,6 +60,31 @@ fn load(path: Option<&PathBuf>) -> Result<Config, lightposed::ConfigError> {
     }
 }
 
+impl Logging {
+    /// Flush what is queued, for at most [`FLUSH_WAIT`]. The guard's drop
+    /// waits 100 ms for room in a full queue and then prints to stdout,
+    /// which under systemd is the same stalled journal stream: it could
+    /// block the exit until the watchdog aborts the daemon. So it is
+    /// dropped on a thread of its own, and not waited for past the limit.
+    fn finish(self) {
+        let Logging { flush: guard, .. } = self;
+        let (done, flushed) = std::sync::mpsc::channel();
+        let spawned = std::thread::Builder::new()
+            .name("lightposed-flush".into())
+            .spawn(move || {
+                drop(guard);
+                let _ = done.send(());
+            });
+        if spawned.is_ok() {
+            let _ = flushed.recv_timeout(FLUSH_WAIT);
+        }
+    }
+}
+
+/// The longest the exit waits for queued log lines to reach a stalled
+/// stderr: the writer's own ~1 s, and a margin.
+const FLUSH_WAIT: Duration = Duration::from_millis(1500);
+
 /// Log lines that may wait for the writer thread: far more than the daemon
 /// says in a burst (its repeated warnings are thinned), and the queue's
 /// slots are allocated up front (~32 bytes each).
@@ -69,7 +94,7 @@ const LOG_QUEUE: usize = 8192;
 /// dropped (at the end of `main`), waiting at most ~1 s for a stalled
 /// stderr.
 struct Logging {
-    _flush: WorkerGuard,
+    flush: WorkerGuard,
     lost: LostWatch,
 }
 
@@ -100,10 +125,7 @@ fn init_logging(cfg: &Config) -> Logging {
         (LogFormat::Plain, true) => b.without_time().with_target(false).init(),
         (LogFormat::Plain, false) => b.with_target(false).init(),
     }
-    Logging {
-        _flush: flush,
-        lost,
-    }
+    Logging { flush, lost }
 }
 
 /// Log lines lost to a stalled stderr, said once per stall: when the
@@ -309,7 +331,7 @@ fn main() -> ExitCode {
     // A thread that did not stop (a hung device) must not hold the exit.
     rt.shutdown_timeout(Duration::from_millis(500));
     logging.lost.report(true);
-    match served {
+    let code = match served {
         Ok(end) => ended(&end),
         Err(e) => {
             // Logging is set up: the one line goes there, not twice.
@@ -319,7 +341,9 @@ fn main() -> ExitCode {
                 .map_or(1, DaemonError::exit_code);
             ExitCode::from(code)
         }
-    }
+    };
+    logging.finish();
+    code
 }
 
 #[cfg(test)]

@@ -151,7 +151,9 @@ fn restarts_back_off_from_restart_sec_to_a_cap() {
     let max = seconds(&one(&u, "RestartMaxDelaySec"));
     assert_eq!(sec, 2.0, "the first restart comes as soon as before");
     assert!(steps >= 1, "RestartSteps=0 turns the back-off off");
-    assert!((30.0..=300.0).contains(&max), "RestartMaxDelaySec={max}");
+    // Capped low: systemd never resets the count during a run, so after a
+    // few rare failures every restart waits the cap without a pose.
+    assert!((10.0..=30.0).contains(&max), "RestartMaxDelaySec={max}");
     let first3: f64 = (1..=3).map(|k| delay(k, sec, steps, max)).sum();
     assert!(
         first3 <= 15.0,
@@ -163,7 +165,7 @@ fn restarts_back_off_from_restart_sec_to_a_cap() {
         k += 1;
         t += delay(k, sec, steps, max);
     }
-    assert!(k <= 2_000, "{k} restarts a day");
+    assert!(k <= 5_000, "{k} restarts a day (43 200 every 2 s)");
     assert!(
         u.contains("systemd >= 254") && u.contains("Unknown key"),
         "the unit says which systemd reads the back-off keys"

@@ -34,6 +34,13 @@ pub trait Bank: Send {
     fn read(&mut self, wanted: &[u16], raw: &mut [RawBoard]) -> Result<(), SourceError>;
     /// Add this bank's counters (skipped lines, reopens) to `h`.
     fn health(&self, _h: &mut SourceHealth) {}
+    /// When the last read's values were sampled
+    /// ([`crate::clock::monotonic_s`]), if the bank knows better than the
+    /// middle of its read: a serial board's line was sampled before it was
+    /// read, and the read mostly waits for it.
+    fn sampled_at(&self) -> Option<f64> {
+        None
+    }
 }
 
 fn channels_of(mask: u16) -> impl Iterator<Item = u8> {
@@ -406,6 +413,12 @@ impl DelayNs for StdDelay {
 }
 
 /// A [`FrameSource`] over a [`Bank`]: one bank read per frame.
+/// How long before the end of its read a bank's own sampling time may be
+/// and still be taken: a serial line older than this is not what the
+/// board's stream promises (docs/serial-protocol.md: at least the frame
+/// rate), and the middle of the read is used.
+const MAX_SAMPLED_BEFORE_S: f64 = 1.0;
+
 pub struct BoardSource<B> {
     bank: B,
     map: ChannelMap,
@@ -414,6 +427,8 @@ pub struct BoardSource<B> {
     temp: TempReader,
     pacer: Pacer,
     seq: u64,
+    /// The last frame's `t`, which the next must pass.
+    last_t: f64,
     bits: u8,
     describe: String,
 }
@@ -441,6 +456,7 @@ impl<B: Bank> BoardSource<B> {
             temp,
             pacer,
             seq: 0,
+            last_t: f64::NEG_INFINITY,
             describe,
         }
     }
@@ -472,7 +488,18 @@ impl<B: Bank> FrameSource for BoardSource<B> {
         let begun = monotonic_s();
         self.bank.read(&self.wanted, &mut self.raw)?;
         let ended = monotonic_s();
-        let t = begun + (ended - begun).max(0.0) / 2.0;
+        let mid = begun + (ended - begun).max(0.0) / 2.0;
+        // A serial board's own sampling time where it is one (its line can
+        // have waited in the buffer before the read began, not longer than
+        // the lines' timeout allows), else the middle of the read; and
+        // never back in time: a reader must see `t` increase.
+        let t = self
+            .bank
+            .sampled_at()
+            .filter(|s| s.is_finite() && *s <= ended && ended - *s <= MAX_SAMPLED_BEFORE_S)
+            .unwrap_or(mid)
+            .max(self.last_t + 1e-6);
+        self.last_t = t;
         let mut counts = [0u16; NDET];
         self.map.apply(&self.raw, &mut counts);
         Ok(Frame {

@@ -49,7 +49,8 @@ mod tests {
         std::thread::sleep(std::time::Duration::from_millis(20));
         let (b, di) = (monotonic_s(), i0.elapsed().as_secs_f64());
         assert!(a > 0.0 && b > a, "{a} {b}");
-        // The two clocks tick together (same clock on Linux).
-        assert!((b - a - di).abs() < 2e-3, "{} vs {di}", b - a);
+        // The two clocks tick together (same clock on Linux); the bound
+        // is the scheduler's, between two reads on a loaded CI machine.
+        assert!((b - a - di).abs() < 20e-3, "{} vs {di}", b - a);
     }
 }

@@ -261,3 +261,43 @@ fn swapped_cables_are_named_not_a_bare_timeout() {
     let e = src.next_frame().unwrap_err();
     assert!(matches!(e, SourceError::Timeout { .. }), "{e}");
 }
+
+/// A serial frame's `t` is when its lines were sampled (read, less their
+/// time on the wire), not the middle of a read that mostly waited for them:
+/// a line that comes 300 ms into a frame's wait is stamped about 300 ms in,
+/// where the middle of the read would say 150 ms. And `t` increases.
+#[test]
+fn a_serial_frame_is_stamped_when_its_line_came() {
+    let dir = tempfile::tempdir().unwrap();
+    let paths = [dir.path().join("lpadc0"), dir.path().join("lpadc1")];
+    let b0 = Pty::plug(&paths[0]);
+    let b1 = Pty::plug(&paths[1]);
+    let mut src = serial_source(&paths, 2000);
+    // Ports open as a frame first needs them, flushing what came before:
+    // one frame opens both (b1's line comes after b0's has opened it).
+    let w0 = later(&b0.master, Duration::from_millis(100), line(0, 0, 100));
+    let w1 = later(&b1.master, Duration::from_millis(250), line(1, 0, 200));
+    src.next_frame().unwrap();
+    w0.join().unwrap();
+    w1.join().unwrap();
+    let mut last_t = f64::NEG_INFINITY;
+    for seq in 1..4 {
+        let begun = lightpose_hal::clock::monotonic_s();
+        let w0 = later(&b0.master, Duration::from_millis(300), line(0, seq, 100));
+        let w1 = later(&b1.master, Duration::from_millis(300), line(1, seq, 200));
+        let f = src.next_frame().unwrap();
+        let ended = lightpose_hal::clock::monotonic_s();
+        w0.join().unwrap();
+        w1.join().unwrap();
+        let into = f.t - begun;
+        // 300 ms and the scheduler's slack; the wire time of a 90-byte
+        // line at 115200 baud (8 ms) comes off.
+        assert!(
+            (0.28..=ended - begun).contains(&into),
+            "t {into} s into a {} s read",
+            ended - begun
+        );
+        assert!(f.t > last_t);
+        last_t = f.t;
+    }
+}

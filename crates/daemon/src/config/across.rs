@@ -2,9 +2,12 @@
 //! one UDP port (each alone binds, but a start binds both, and the second
 //! would fail as "in use"), and a destination that is one of the daemon's
 //! own inputs (its POSE datagrams would come back as refused readings).
+//! And one warning: an autopilot fed from a source that runs faster than
+//! time.
 
 use super::places::{self, Places};
 use super::{AttitudeInput, ConfigError, Outputs, VehicleConfig};
+use lightpose_hal::{Pace, ValidBackend};
 use lightpose_vehicle::Endpoint;
 use std::net::SocketAddr;
 
@@ -60,6 +63,31 @@ pub(super) fn validate(
         }
     }
     Ok(())
+}
+
+/// A simulator or replay at `pace = "fast"` with `[mavlink]`: the
+/// autopilot would get poses whose `usec` (the frame's `t`) runs many times
+/// faster than its own clock, which its time-alignment takes for a lagging
+/// source, and live readings of the autopilot's (attitude, depth) put on
+/// frames from another time. Allowed (a bench with a simulated autopilot
+/// may want it), said once at start.
+pub(super) fn fast_source_to_autopilot(
+    backend: &ValidBackend,
+    vehicle: Option<&VehicleConfig>,
+) -> Option<String> {
+    let pace = match backend {
+        ValidBackend::Sim(p) => p.pace,
+        ValidBackend::Replay(p) => p.pace,
+        _ => return None,
+    };
+    let mavlink = vehicle.and_then(|v| v.mavlink.as_ref())?;
+    (pace == Pace::Fast).then(|| {
+        format!(
+            "backend {} at pace \"fast\" with [mavlink] {}: the autopilot gets poses faster than real time (usec runs ahead of its clock) and its live attitude and depth go on frames from another time; use pace = \"realtime\" to feed an autopilot",
+            backend.kind(),
+            mavlink.endpoint
+        )
+    })
 }
 
 /// Whether `x`, bound, takes `y`'s place: the unspecified address takes

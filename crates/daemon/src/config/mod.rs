@@ -203,6 +203,9 @@ impl Config {
         };
         let vehicle = vehicle::validate(&ctx, &tables, site, &mut at)?;
         across::validate(&outputs, attitude.as_ref(), vehicle.as_ref(), &at)?;
+        if let Some(why) = across::fast_source_to_autopilot(&backend, vehicle.as_ref()) {
+            tracing::warn!("{file}: {why}");
+        }
         if outputs.destinations.is_empty() && outputs.multicast.is_none() {
             tracing::warn!("{file}: no outputs.destinations and no multicast: poses go nowhere");
         }
@@ -259,6 +262,30 @@ destinations = ["127.0.0.1:9999"]
 
     fn parse(s: &str) -> Result<Config, ConfigError> {
         Config::parse(s, "t.toml", Some(Path::new("/etc/lp")))
+    }
+
+    #[test]
+    fn a_fast_source_feeding_an_autopilot_is_warned_about() {
+        let mav = "[site]\nbeacon_heading_deg = 30.0\nbeacon_depth_m = 3.0\n[mavlink]\nconnection = \"udpout:127.0.0.1:14550\"\n";
+        let fast = lightpose_testkit::logs::logged(|| {
+            parse(&format!("{MIN}{mav}")).expect("valid: a bench may want it");
+        });
+        assert!(
+            fast.contains("t.toml: backend replay at pace \"fast\" with [mavlink] udpout:127.0.0.1:14550: the autopilot gets poses faster than real time"),
+            "{fast}"
+        );
+        let realtime = lightpose_testkit::logs::logged(|| {
+            let text = format!("{MIN}{mav}").replace("pace = \"fast\"", "pace = \"realtime\"");
+            parse(&text).expect("valid");
+        });
+        assert!(!realtime.contains("faster than real time"), "{realtime}");
+        let no_autopilot = lightpose_testkit::logs::logged(|| {
+            parse(MIN).expect("valid");
+        });
+        assert!(
+            !no_autopilot.contains("faster than real time"),
+            "{no_autopilot}"
+        );
     }
 
     #[test]

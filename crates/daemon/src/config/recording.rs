@@ -83,20 +83,20 @@ pub struct Rotation {
 
 impl Recording {
     /// The rotation configured or, for MCAP with none, the default one
-    /// ([`MCAP_ROTATE_AFTER`], [`MCAP_MAX_CHUNKS`]).
+    /// ([`MCAP_ROTATE_AFTER`]). MCAP always keeps the chunk bound
+    /// ([`MCAP_MAX_CHUNKS`]): a configured day-long file at 1 kHz would
+    /// hold ~260 k chunk index entries (27 MB) in memory.
     pub fn rotation(&self) -> Rotation {
         let configured = self.rotate_bytes.is_some() || self.rotate_after.is_some();
-        if configured || self.format != RecFormat::Mcap {
-            return Rotation {
-                bytes: self.rotate_bytes,
-                after: self.rotate_after,
-                chunks: None,
-            };
-        }
+        let mcap = self.format == RecFormat::Mcap;
         Rotation {
-            bytes: None,
-            after: Some(MCAP_ROTATE_AFTER),
-            chunks: Some(MCAP_MAX_CHUNKS),
+            bytes: self.rotate_bytes,
+            after: if configured || !mcap {
+                self.rotate_after
+            } else {
+                Some(MCAP_ROTATE_AFTER)
+            },
+            chunks: mcap.then_some(MCAP_MAX_CHUNKS),
         }
     }
 }

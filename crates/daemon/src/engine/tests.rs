@@ -460,18 +460,21 @@ fn lagging(lag: f64, age: Duration) -> (Option<f64>, f64) {
 #[test]
 fn readings_are_attached_as_of_the_frame_capture() {
     let (yaw, lag) = lagging(0.150, Duration::from_millis(100));
+    // At least 150 ms; more if the thread was preempted between the
+    // frame's stamp and its arrival (a loaded CI machine).
     assert!(
-        (lag - 0.150).abs() < 0.005,
+        (0.150..0.250).contains(&lag),
         "captured {lag} s before arrival"
     );
-    // −179° − 1.5° = −180.5° ≡ 179.5°
+    // −179° − 1.5° = −180.5° ≡ 179.5° (±0.3°: 10 ms of preemption at
+    // 30 °/s)
     let yaw = yaw.expect("an attitude");
-    assert!((yaw - 179.5).abs() < 0.05, "yaw {yaw}");
+    assert!((yaw - 179.5).abs() < 0.3, "yaw {yaw}");
     // Taken 350 ms before the arrival: 200 ms before the capture, within
     // the 250 ms limit there (stale at the arrival), carried forward 0.2 s.
     let (yaw, _) = lagging(0.150, Duration::from_millis(350));
     let yaw = yaw.expect("fresh at the capture");
-    assert!((yaw - (-173.0)).abs() < 0.05, "yaw {yaw}");
+    assert!((yaw - (-173.0)).abs() < 0.3, "yaw {yaw}");
     // 300 ms before the capture: stale, rates or not.
     assert_eq!(lagging(0.150, Duration::from_millis(450)).0, None);
 }

@@ -76,6 +76,9 @@ struct Port {
     opened_once: bool,
     lines: LineAssembler,
     latest: Option<Sample>,
+    /// When `latest` was sampled, as near as the port tells
+    /// ([`crate::clock::monotonic_s`]): read, less its time on the wire.
+    latest_at: f64,
     /// `latest` arrived since the last frame used a line of this board.
     fresh: bool,
     /// The board id of the last line of another board since this board's
@@ -90,6 +93,8 @@ pub struct SerialBank {
     timeout: Duration,
     counters: SerialCounters,
     buf: [u8; 512],
+    /// The mean sampling time of the lines the last read used.
+    sampled_at: Option<f64>,
     stop: Stop,
     /// The words of a failure that repeats (a port that cannot be opened,
     /// lines of another board), built only when they change.
@@ -110,6 +115,7 @@ impl SerialBank {
                     opened_once: false,
                     lines: LineAssembler::default(),
                     latest: None,
+                    latest_at: 0.0,
                     fresh: false,
                     foreign: None,
                 })
@@ -118,6 +124,7 @@ impl SerialBank {
             timeout,
             counters: SerialCounters::default(),
             buf: [0; 512],
+            sampled_at: None,
             stop: Stop::new(),
             recent: Recent::default(),
         }
@@ -176,19 +183,29 @@ impl SerialBank {
                 return Err(unavailable(p, recent.text(format_args!("{e}"))));
             }
         };
+        // A line is stamped when read, less its bytes' time on the wire
+        // (10 bits a byte at 8N1): the board sampled, then sent it. Lines
+        // that waited in the kernel's buffer (while the frame thread was
+        // busy or pacing) are stamped late by that wait, at most about a
+        // line period for the newest (docs/hardware.md).
+        let read_s = crate::clock::monotonic_s();
+        let s_per_byte = 10.0 / f64::from(p.cfg.baud.max(1));
         let id = p.cfg.id;
-        let (latest, fresh, foreign) = (&mut p.latest, &mut p.fresh, &mut p.foreign);
-        p.lines
-            .push(&buf[..n], |line| match line.and_then(parse_line) {
-                Ok(s) if s.board == id => {
+        let (latest, latest_at) = (&mut p.latest, &mut p.latest_at);
+        let (fresh, foreign) = (&mut p.fresh, &mut p.foreign);
+        p.lines.push(&buf[..n], |line| {
+            match line.and_then(|l| Ok((l.len(), parse_line(l)?))) {
+                Ok((len, s)) if s.board == id => {
                     if *fresh {
                         counters.superseded += 1;
                     }
+                    // + "\r\n"
+                    *latest_at = read_s - (len + 2) as f64 * s_per_byte;
                     *latest = Some(s);
                     *fresh = true;
                     *foreign = None;
                 }
-                Ok(s) => {
+                Ok((_, s)) => {
                     counters.wrong_board += 1;
                     counters.last_bad = Some(BadLine::WrongBoard {
                         port,
@@ -200,7 +217,8 @@ impl SerialBank {
                     counters.bad_lines += 1;
                     counters.last_bad = Some(BadLine::Parse { port, error });
                 }
-            });
+            }
+        });
         Ok(())
     }
 
@@ -373,6 +391,8 @@ impl Bank for SerialBank {
 
     fn read(&mut self, wanted: &[u16], raw: &mut [RawBoard]) -> Result<(), SourceError> {
         let deadline = Instant::now() + self.timeout;
+        self.sampled_at = None;
+        let (mut sum, mut used) = (0.0, 0u32);
         for (b, r) in raw.iter_mut().enumerate().take(self.ports.len()) {
             let mask = wanted.get(b).copied().unwrap_or(0);
             if mask == 0 {
@@ -409,8 +429,15 @@ impl Bank for SerialBank {
                 });
             }
             r[..s.n as usize].copy_from_slice(&s.values[..s.n as usize]);
+            sum += p.latest_at;
+            used += 1;
         }
+        self.sampled_at = (used > 0).then(|| sum / f64::from(used));
         Ok(())
+    }
+
+    fn sampled_at(&self) -> Option<f64> {
+        self.sampled_at
     }
 
     fn health(&self, h: &mut SourceHealth) {

@@ -17,6 +17,10 @@ const PREFIX: &str = "lightposed-";
 /// The counter's digits at least.
 pub(super) const WIDTH: usize = 6;
 
+/// The highest counter taken as one: a name with a larger number (made by
+/// hand) is unnumbered, so that the next counter can never run out.
+const MAX_COUNTER: u64 = 999_999_999_999_999;
+
 /// How many taken names a new file passes over before giving up: names
 /// are only taken by a file that appears between the directory's listing
 /// and the creation (another process), so one is already rare.
@@ -45,7 +49,8 @@ pub(super) fn rank(name: &str) -> Option<Rank> {
         .bytes()
         .all(|b| b.is_ascii_digit())
         .then(|| digits.parse::<u64>().ok())
-        .flatten();
+        .flatten()
+        .filter(|&n| n <= MAX_COUNTER);
     Some(match counter {
         Some(n) => Rank::Numbered(n, name.to_owned()),
         None => Rank::Unnumbered(name.to_owned()),

@@ -28,7 +28,7 @@ pub const MAX_FLOOR: u64 = 1 << 30;
 /// there; nothing is pruned unasked): 2 % of the filesystem, within
 /// [`MIN_FREE`]..=[`MAX_FLOOR`]. A fixed 32 MiB on a vehicle's SD-card root
 /// (8–64 GB, shared with journald, BlueOS and docker) left the system
-/// nothing: 2 % is 160 MiB of 8 GB, 640 MiB of 32 GB; past 50 GB the 1 GiB
+/// nothing: 2 % is 160 MB of 8 GB, 640 MB of 32 GB; past 50 GB the 1 GiB
 /// cap, as a big disk's system needs no more.
 pub fn default_floor(fs_bytes: u64) -> u64 {
     (fs_bytes / 50).clamp(MIN_FREE, MAX_FLOOR)

@@ -11,6 +11,7 @@ use super::{Item, RecState, RecStats};
 use crate::config::recording::Rotation;
 use crate::config::Recording;
 use crate::outputs::recfile::{self, extension, Closed, Opener, RecError, RecFile};
+use lightpose_core::ratelog::RateLog;
 use lightpose_core::LogHeader;
 use lightpose_logs::WriteError;
 use std::sync::atomic::Ordering::Relaxed;
@@ -56,6 +57,9 @@ pub(super) struct Worker {
     /// t of the last frame written: STATUS is recorded at it.
     last_t: Option<f64>,
     pub(super) open_file: Opener,
+    /// Frames the format cannot hold: core's rule, the first at once,
+    /// then less and less often while they go on (a whole replayed log).
+    skip_log: RateLog,
 }
 
 impl Worker {
@@ -76,6 +80,7 @@ impl Worker {
             counter: 0,
             last_t: None,
             open_file: recfile::create_new,
+            skip_log: RateLog::new(),
         }
     }
 
@@ -191,11 +196,15 @@ impl Worker {
     }
 
     /// A frame the format cannot hold: counted and passed over, the file
-    /// goes on; logged at the first and every 1000th.
-    fn skip(&self, e: &WriteError) {
+    /// goes on; logged at the first, then less and less often.
+    fn skip(&mut self, e: &WriteError) {
         let n = self.stats.skipped.fetch_add(1, Relaxed) + 1;
-        if n == 1 || n.is_multiple_of(1000) {
-            tracing::warn!(skipped = n, "recording: {e}: frame not recorded");
+        if let Some(k) = self.skip_log.tick(Instant::now()) {
+            tracing::warn!(
+                skipped = n,
+                since_last_line = k,
+                "recording: {e}: frame not recorded"
+            );
         }
     }
 

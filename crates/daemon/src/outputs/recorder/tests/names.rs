@@ -164,6 +164,13 @@ fn the_counter_goes_past_six_digits_as_a_number() {
         .iter()
         .all(|n| n.starts_with("lightposed-100000")));
     assert!(names::rank(old) < names::rank("lightposed-1000000-19700101T000000Z.jsonl"));
+    // A number no counter reaches (made by hand) is no counter: the next
+    // would have nowhere to go past u64::MAX.
+    let huge = "lightposed-18446744073709551615-20260101T000000Z.mcap";
+    assert!(matches!(
+        names::rank(huge),
+        Some(names::Rank::Unnumbered(_))
+    ));
     assert!(
         names::rank("lightposed-20991231T235959Z-0001.mcap")
             < names::rank("lightposed-000001-19700101T000000Z.mcap")
