@@ -1,38 +1,214 @@
 //! Logging of events that can come every frame (late, failed or lost
-//! frames in the daemon, poses the MAVLink sender skips): visible, not
-//! flooding. One rule for every crate that logs such events.
+//! frames in the daemon, poses the MAVLink sender skips, send errors):
+//! visible, not flooding, for weeks. One rule for every crate that logs
+//! such events.
+//!
+//! The first event of a condition is logged at once (with its detail);
+//! while the condition lasts, the lines come less and less often (after
+//! [`STEPS`]: 1 s, 10 s, 1 min, then every 10 min), each saying how many
+//! events came since the line before it; after [`QUIET`] without one, the
+//! condition is over and the next event is again logged at once.
 
 use std::time::{Duration, Instant};
 
-/// Logs the first event of a kind, then at most one line a second with the
-/// count since.
+/// The least time from one line to the next while a condition lasts: the
+/// second line 1 s after the first, the third 10 s after that, then 1 min,
+/// then every 10 min. A burst (a stall, a host loaded for a few seconds)
+/// is told within seconds with its count; a condition that lasts (a board
+/// a little slower than `rate_hz`, a destination down for a week) comes
+/// down to a line every 10 min: 148 lines the first day, 144 a day after
+/// (a line a second was 86 400), and a look at the journal still finds a
+/// line at most 10 min old while it goes on.
+pub const STEPS: [Duration; 4] = [
+    Duration::from_secs(1),
+    Duration::from_secs(10),
+    Duration::from_secs(60),
+    Duration::from_secs(600),
+];
+
+/// How long without an event ends a condition (the next event is logged
+/// at once, and the steps start again at 1 s): the longest step. A
+/// shorter quiet time (say the step in force, 1 s after the first line)
+/// would let a condition that comes back a little slower than it (a late
+/// frame every 2 s) start anew each time and log every event forever; with
+/// the longest step the worst is one line per 10 min.
+pub const QUIET: Duration = STEPS[STEPS.len() - 1];
+
+/// A rate-limited log of one kind of event: [`RateLog::tick`] at each
+/// event says whether to write a line now and how many events it stands
+/// for. No allocation, no lock: per frame on the frame thread.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RateLog {
+    /// When the last line was written.
+    said: Option<Instant>,
+    /// When the last event came.
     last: Option<Instant>,
-    suppressed: u64,
+    /// Index in [`STEPS`] of the wait from the last line to the next.
+    step: u8,
+    /// Events since the last line, this one's included once it is said.
+    unsaid: u64,
 }
 
 impl RateLog {
     pub const fn new() -> Self {
         RateLog {
+            said: None,
             last: None,
-            suppressed: 0,
+            step: 0,
+            unsaid: 0,
         }
     }
 
-    /// `Some(n)` when a line should be written now, n = events folded in.
+    /// An event at `now`: `Some(n)` when a line should be written now, n =
+    /// the events since the last line, this one included (so the n of all
+    /// lines add up to the events counted, less those not said yet).
     pub fn tick(&mut self, now: Instant) -> Option<u64> {
-        match self.last {
-            Some(t) if now.duration_since(t) < Duration::from_secs(1) => {
-                self.suppressed += 1;
-                None
+        self.unsaid = self.unsaid.saturating_add(1);
+        let since = |t: Option<Instant>| t.map(|t| now.saturating_duration_since(t));
+        let quiet = since(self.last).is_none_or(|d| d >= QUIET);
+        self.last = Some(now);
+        if quiet {
+            // A new condition: said at once, then the steps from 1 s.
+            self.step = 0;
+        } else if since(self.said).is_some_and(|d| d < STEPS[usize::from(self.step)]) {
+            return None;
+        } else {
+            self.step = (self.step + 1).min(STEPS.len() as u8 - 1);
+        }
+        self.said = Some(now);
+        Some(std::mem::take(&mut self.unsaid))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Lines (time since `t0`, count) of events at `t0` + each offset.
+    fn lines(
+        log: &mut RateLog,
+        t0: Instant,
+        at: impl Iterator<Item = Duration>,
+    ) -> Vec<(Duration, u64)> {
+        at.filter_map(|d| log.tick(t0 + d).map(|n| (d, n)))
+            .collect()
+    }
+
+    /// The audit's case: an event every 10 ms for 2 hours of simulated
+    /// time (720 000 events) is 15 lines, not 7 200: at 0, 1 s, 11 s,
+    /// 71 s, then every 10 min; their counts and what is not said yet add
+    /// up to every event.
+    #[test]
+    fn a_lasting_condition_is_logged_less_and_less_often() {
+        let t0 = Instant::now();
+        let mut log = RateLog::new();
+        let n = 2 * 3600 * 100;
+        let got = lines(&mut log, t0, (0..n).map(|k| Duration::from_millis(10 * k)));
+        let at: Vec<u64> = got.iter().map(|(d, _)| d.as_secs()).collect();
+        let mut want = vec![0, 1, 11, 71];
+        want.extend((0..11).map(|k| 671 + 600 * k));
+        assert_eq!(at, want);
+        assert_eq!(got[0].1, 1, "the first event is said at once, alone");
+        assert_eq!(got[1].1, 100, "the second second's line: the 100 since");
+        assert_eq!(got[4].1, 60_000, "10 min of events in one line");
+        let said: u64 = got.iter().map(|(_, k)| k).sum();
+        assert_eq!(said + log.unsaid, n);
+    }
+
+    /// Once a condition has been quiet for `QUIET`, the next event is
+    /// logged at once, with the events not said before it, and the steps
+    /// start again at 1 s.
+    #[test]
+    fn after_a_quiet_gap_the_next_event_is_logged_at_once() {
+        let t0 = Instant::now();
+        let mut log = RateLog::new();
+        // 5 minutes of events every 10 ms: the last line at 71 s, the
+        // next not before 671 s.
+        let first = lines(
+            &mut log,
+            t0,
+            (0..30_000).map(|k| Duration::from_millis(10 * k)),
+        );
+        assert_eq!(first.len(), 4);
+        let unsaid = log.unsaid;
+        assert_eq!(unsaid, 30_000 - 7_101);
+        // Quiet for 10 min, then a burst: said at once, then 1 s later.
+        let restart = Duration::from_millis(299_990) + QUIET;
+        let again = lines(
+            &mut log,
+            t0,
+            (0..200).map(|k| restart + Duration::from_millis(10 * k)),
+        );
+        assert_eq!(again, [(restart, unsaid + 1), (restart + STEPS[0], 100)]);
+    }
+
+    /// A gap shorter than `QUIET` does not start the steps again: a
+    /// condition that comes back every 2 s (a board a little slow) still
+    /// comes down to a line every 10 min.
+    #[test]
+    fn a_condition_that_comes_back_before_quiet_is_one_condition() {
+        let t0 = Instant::now();
+        let mut log = RateLog::new();
+        let got = lines(&mut log, t0, (0..3600).map(|k| Duration::from_secs(2 * k)));
+        let at: Vec<u64> = got.iter().map(|(d, _)| d.as_secs()).collect();
+        let mut want = vec![0, 2, 12, 72];
+        want.extend((0..11).map(|k| 672 + 600 * k));
+        assert_eq!(at, want);
+        // Sparser than `QUIET`: each event is a condition of its own.
+        let mut log = RateLog::new();
+        let got = lines(&mut log, t0, (0..10).map(|k| QUIET * k));
+        assert!(got.iter().all(|&(_, n)| n == 1) && got.len() == 10);
+    }
+
+    /// An event stamped before the last one (another thread's clock read)
+    /// is neither a quiet gap nor a panic.
+    #[test]
+    fn an_earlier_instant_is_taken_as_now() {
+        let t0 = Instant::now();
+        let mut log = RateLog::new();
+        let late = t0 + Duration::from_secs(5);
+        assert_eq!(log.tick(late), Some(1));
+        assert_eq!(log.tick(t0), None);
+        assert_eq!(log.tick(late + STEPS[0]), Some(2));
+    }
+
+    proptest! {
+        /// Whatever the gaps: the first event and the first after a quiet
+        /// gap are said at once; within one condition a line comes exactly
+        /// when the step (1 s, 10 s, 1 min, then 10 min) since the last
+        /// one has passed; and the counts
+        /// said plus those pending are every event.
+        #[test]
+        fn lines_are_spaced_by_the_steps_and_count_every_event(
+            gaps_ms in prop::collection::vec(0u64..1_000_000, 1..400)
+        ) {
+            let t0 = Instant::now();
+            let mut log = RateLog::new();
+            let (mut now, mut last) = (t0, None::<Instant>);
+            let (mut said, mut lines_in_condition) = (0u64, 0usize);
+            let mut line_at = t0;
+            for (k, g) in gaps_ms.iter().enumerate() {
+                now += Duration::from_millis(*g);
+                let fresh = k == 0 || last.is_some_and(|l| now - l >= QUIET);
+                last = Some(now);
+                let got = log.tick(now);
+                if fresh {
+                    prop_assert!(got.is_some(), "event {} after a quiet gap not said", k);
+                    lines_in_condition = 0;
+                } else {
+                    let step = STEPS[(lines_in_condition - 1).min(STEPS.len() - 1)];
+                    let due = now - line_at >= step;
+                    prop_assert_eq!(got.is_some(), due, "event {}, {:?} after the last line", k, now - line_at);
+                }
+                if let Some(n) = got {
+                    prop_assert!(n >= 1);
+                    said += n;
+                    lines_in_condition += 1;
+                    line_at = now;
+                }
             }
-            _ => {
-                self.last = Some(now);
-                let n = self.suppressed + 1;
-                self.suppressed = 0;
-                Some(n)
-            }
+            prop_assert_eq!(said + log.unsaid, gaps_ms.len() as u64);
         }
     }
 }

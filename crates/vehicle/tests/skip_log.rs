@@ -1,8 +1,8 @@
 //! An `ok` pose that cannot go to the autopilot (a std missing under the
 //! default `missing_std = "skip"`, a negative capture time) is said in the
 //! journal, not only counted for STATUS: the first of each reason at once,
-//! with the pose's seq and why, then at most a line a second while more
-//! come; a burst of skips is one line, not one per pose.
+//! with the pose's seq and why, then after 1 s, 10 s, 1 min and every 10
+//! min while more come; a burst of skips is one line, not one per pose.
 
 mod common;
 

@@ -18,6 +18,7 @@
 //! dead bus) ends at once when the [`Stop`] is raised.
 
 mod failure;
+mod health;
 mod seq;
 
 use crate::inputs::Input;
@@ -26,7 +27,7 @@ use crate::stats::{BackendState, Stats, TempSource};
 use failure::LastFailure;
 use lightpose_core::ratelog::RateLog;
 use lightpose_core::{Estimator, Frame, PoseEstimate, ReadingUse};
-use lightpose_hal::{FrameSource, SourceError, SourceHealth, Stop};
+use lightpose_hal::{FrameSource, SourceError, Stop};
 use seq::{SeqBooks, Step};
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::mpsc::Receiver;
@@ -121,6 +122,8 @@ struct Books {
     /// written when they change, not on every failed frame.
     failure: LastFailure,
     health_at: Instant,
+    /// What the log was told of the source's skips.
+    health_log: health::HealthLog,
 }
 
 /// What one attempt to acquire gave. The frame by value, on the stack:
@@ -207,6 +210,7 @@ impl Engine {
             glitch_log: RateLog::new(),
             failure: LastFailure::default(),
             health_at: Instant::now(),
+            health_log: health::HealthLog::default(),
         };
         self.stats.set_state(BackendState::Running);
         let reason = loop {
@@ -229,8 +233,9 @@ impl Engine {
         for o in &mut self.outputs {
             o.finish();
         }
-        // The last STATUS shows the source's counters as they ended.
-        self.copy_health();
+        // The last STATUS shows the source's counters as they ended, and
+        // the log is told what it was not yet.
+        self.copy_health(&mut books, true);
         if reason != EndReason::SourceEnded {
             self.stats.set_state(BackendState::Stopped);
         }
@@ -266,58 +271,26 @@ impl Engine {
         if books.health_at.elapsed() >= Duration::from_secs(1) {
             // Once a second, not per frame: the copy allocates.
             books.health_at = Instant::now();
-            self.copy_health();
+            self.copy_health(books, false);
         }
         None
     }
 
     /// The source's health into STATUS, and a line in the log when the
     /// skips it counts (garbage or another board's lines on a serial port,
-    /// a replayed log's glitches and malformed readings) grew since the
-    /// last copy: counted and logged, at most once a second. Lines a board
-    /// sent faster than frames take them (superseded) are no fault: said
-    /// once when first seen, then only counted (and named in the line the
-    /// faults make).
-    fn copy_health(&self) {
+    /// a replayed log's glitches and malformed readings) grew: see
+    /// [`health`]. Lines a board sent faster than frames take them
+    /// (superseded) are no fault: said once when first seen, then only
+    /// counted.
+    fn copy_health(&self, books: &mut Books, at_exit: bool) {
         let new = self.source.health();
         let Ok(mut h) = self.stats.source_health.lock() else {
             return;
         };
-        let was = |f: fn(&SourceHealth) -> u64| h.as_ref().map_or(0, f);
-        let more = |f: fn(&SourceHealth) -> u64| f(&new).saturating_sub(was(f));
-        // (what, how many more, whether that alone is worth a line)
-        let grew = [
-            ("bad lines", more(|h| h.bad_lines), true),
-            (
-                "lines of another board",
-                more(|h| h.wrong_board_lines),
-                true,
-            ),
-            ("glitches in seq or t", more(|h| h.glitches), true),
-            ("malformed readings", more(|h| h.bad_readings), true),
-            (
-                "lines superseded by a newer one of their board",
-                more(|h| h.superseded_lines),
-                false,
-            ),
-        ];
-        if grew.iter().any(|&(_, n, alone)| alone && n > 0) {
-            let what: Vec<String> = grew
-                .iter()
-                .filter(|(_, n, _)| *n > 0)
-                .map(|(w, n, _)| format!("{n} {w}"))
-                .collect();
-            let last = new
-                .last_bad_line
-                .as_deref()
-                .or(new.last_bad_reading.as_deref());
-            tracing::warn!(
-                last = last.unwrap_or("-"),
-                "source skipped {} since the last second (STATUS backend.health)",
-                what.join(", ")
-            );
-        }
-        if was(|h| h.superseded_lines) == 0 && new.superseded_lines > 0 {
+        books
+            .health_log
+            .note(h.as_ref(), &new, Instant::now(), at_exit);
+        if h.as_ref().map_or(0, |h| h.superseded_lines) == 0 && new.superseded_lines > 0 {
             tracing::info!(
                 superseded_lines = new.superseded_lines,
                 "serial board(s) send lines faster than frames take them: each frame takes a board's newest line, the others are counted (backend.health.superseded_lines) and not logged again"

@@ -22,6 +22,7 @@ pub use space::{default_floor, MIN_FREE};
 use super::{Output, StatusTap};
 use crate::config::{RecFormat, Recording};
 use crate::engine::Acquired;
+use lightpose_core::ratelog::RateLog;
 use lightpose_core::{Frame, LogHeader, PoseEstimate};
 use std::io;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering::Relaxed};
@@ -130,6 +131,9 @@ pub struct Recorder {
     status_tx: SyncSender<Vec<u8>>,
     join: Option<JoinHandle<()>>,
     pub stats: Arc<RecStats>,
+    /// Frames the full queue refused: core's rule, the first at once,
+    /// then less and less often while the disk stays slow.
+    drop_log: RateLog,
 }
 
 impl Recorder {
@@ -157,12 +161,13 @@ impl Recorder {
             status_tx,
             join: Some(join),
             stats,
+            drop_log: RateLog::new(),
         })
     }
 
     /// Hand a frame and its estimate to the recorder without waiting.
     #[inline]
-    pub fn record(&self, frame: &Frame, est: &PoseEstimate, wall_unix: f64) {
+    pub fn record(&mut self, frame: &Frame, est: &PoseEstimate, wall_unix: f64) {
         let Some(tx) = &self.tx else { return };
         let item = Item {
             frame: *frame,
@@ -175,9 +180,10 @@ impl Recorder {
             }
             Err(TrySendError::Full(_)) => {
                 let n = self.stats.dropped.fetch_add(1, Relaxed) + 1;
-                if n == 1 || n.is_multiple_of(1000) {
+                if let Some(k) = self.drop_log.tick(Instant::now()) {
                     tracing::warn!(
                         dropped = n,
+                        since_last_line = k,
                         "recording queue full: the disk is too slow, frame not recorded"
                     );
                 }
@@ -194,6 +200,7 @@ impl Recorder {
         Box::new(StatusFeed {
             tx: self.status_tx.clone(),
             stats: self.stats.clone(),
+            log: Mutex::default(),
         })
     }
 
@@ -237,6 +244,9 @@ impl Recorder {
 struct StatusFeed {
     tx: SyncSender<Vec<u8>>,
     stats: Arc<RecStats>,
+    /// STATUS the recorder thread had no room for (the async side, once
+    /// per STATUS: a lock is no cost here).
+    log: Mutex<RateLog>,
 }
 
 impl StatusTap for StatusFeed {
@@ -247,10 +257,12 @@ impl StatusTap for StatusFeed {
         }
         // Disconnected: the recorder thread ended (the daemon stops).
         if let Err(TrySendError::Full(_)) = self.tx.try_send(json.to_vec()) {
+            let mut log = self.log.lock().unwrap_or_else(|p| p.into_inner());
             let n = self.stats.status_dropped.fetch_add(1, Relaxed) + 1;
-            if n == 1 || n.is_multiple_of(100) {
+            if let Some(k) = log.tick(Instant::now()) {
                 tracing::warn!(
                     status_dropped = n,
+                    since_last_line = k,
                     "recording: the recorder thread is behind (a slow disk): STATUS not recorded"
                 );
             }

@@ -20,12 +20,14 @@ use super::Output;
 use crate::config::Outputs;
 use crate::engine::Acquired;
 use crate::stats::DestStats;
+use lightpose_core::ratelog::RateLog;
 use lightpose_core::PoseEstimate;
 use socket2::SockRef;
 use std::io;
 use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 #[derive(Debug, thiserror::Error)]
 pub enum PublishError {
@@ -50,9 +52,20 @@ pub struct Destination {
     sock: UdpSocket,
     /// A unicast socket connected to `addr` (see the module).
     connected: AtomicBool,
+    /// The failures' memory, under the one lock the error path already
+    /// took (a send that succeeds takes none).
+    failing: Mutex<Failing>,
+}
+
+#[derive(Default)]
+struct Failing {
     /// The cause of `stats.last_error`: a refusal like the last one (every
     /// other datagram while nobody listens) is not formatted again.
-    last_cause: Mutex<Option<Cause>>,
+    cause: Option<Cause>,
+    /// Core's rule: the first error at once, then less and less often
+    /// while they go on (a destination down for a week was a line every
+    /// 1000 errors: every 40 s at 50 Hz, every 2 s at 1 kHz).
+    log: RateLog,
 }
 
 /// What tells two send errors apart without formatting them.
@@ -79,20 +92,31 @@ impl Destination {
             stats: DestStats::default(),
             sock,
             connected: AtomicBool::new(connected),
-            last_cause: Mutex::new(None),
+            failing: Mutex::default(),
         })
     }
 
-    /// Keep `e` as the last error, formatted only when its cause changed.
+    /// Count the failed send `e`, log it if due (with the errors since
+    /// the last line: the growth of STATUS `errors` between the lines),
+    /// and keep it as the last error, formatted only when its cause changed.
     fn note_error(&self, e: &io::Error) {
+        // Counted under the lock: the POSE (frame thread) and STATUS
+        // (async side) sends of one destination tell one tally.
+        let mut f = self.failing.lock().unwrap_or_else(|p| p.into_inner());
+        let n = self.stats.errors.fetch_add(1, Relaxed) + 1;
+        if let Some(k) = f.log.tick(Instant::now()) {
+            tracing::warn!(
+                destination = %self.addr,
+                errors = n,
+                since_last_line = k,
+                "send failed: {e}"
+            );
+        }
         let cause = Some((e.kind(), e.raw_os_error()));
-        let Ok(mut last) = self.last_cause.lock() else {
-            return;
-        };
-        if *last == cause {
+        if f.cause == cause {
             return;
         }
-        *last = cause;
+        f.cause = cause;
         if let Ok(mut g) = self.stats.last_error.lock() {
             *g = Some(e.to_string());
         }
@@ -152,8 +176,9 @@ impl Publisher {
 
     /// Send one datagram to every destination; returns how many took it.
     /// Never allocates unless a destination fails with another error than
-    /// its last one (the error text) or for its first and every 1000th
-    /// error (the log line).
+    /// its last one (the error text) or a line about its errors is due
+    /// (core's `RateLog`: at once, then after 1 s, 10 s, 1 min, then every
+    /// 10 min while they go on).
     pub fn send(&self, msg: &[u8]) -> usize {
         let mut ok = 0;
         for d in &self.dests {
@@ -162,15 +187,7 @@ impl Publisher {
                     d.stats.sent.fetch_add(1, Relaxed);
                     ok += 1;
                 }
-                Err(e) => {
-                    let n = d.stats.errors.fetch_add(1, Relaxed) + 1;
-                    // Log the first error and then every 1000th, so a dead
-                    // destination is visible without flooding the journal.
-                    if n == 1 || n.is_multiple_of(1000) {
-                        tracing::warn!(destination = %d.addr, errors = n, "send failed: {e}");
-                    }
-                    d.note_error(&e);
-                }
+                Err(e) => d.note_error(&e),
             }
         }
         ok
@@ -255,6 +272,33 @@ mod tests {
         assert_eq!(d[0].stats.sent.load(Relaxed), 0);
         assert!(d[0].stats.last_error.lock().unwrap().is_some());
         assert_eq!(d[1].stats.sent.load(Relaxed), 3);
+    }
+
+    /// Soak audit: a destination that keeps failing was logged at every
+    /// 1000th error for as long as it failed. Now core's rule: the first
+    /// error at once, the next line no sooner than 1 s later, whatever the
+    /// number of errors in between (5000 here, all counted).
+    #[test]
+    fn a_failing_destination_is_not_logged_every_thousand_errors() {
+        let bad: SocketAddr = "255.255.255.255:9".parse().unwrap();
+        let p = Publisher::open(&Outputs {
+            destinations: vec![bad],
+            multicast: None,
+            status_interval: Duration::from_secs(1),
+        })
+        .unwrap();
+        let t0 = std::time::Instant::now();
+        let log = lightpose_testkit::logs::logged(|| {
+            for _ in 0..5000 {
+                p.send(b"{}");
+            }
+        });
+        let lines: Vec<&str> = log.lines().filter(|l| l.contains("send failed")).collect();
+        assert_eq!(p.destinations()[0].stats.errors.load(Relaxed), 5000);
+        assert!(lines[0].contains("errors=1 since_last_line=1"), "{log}");
+        // One more line per second the sends took on a loaded host.
+        let most = 1 + t0.elapsed().as_secs() as usize;
+        assert!((1..=most).contains(&lines.len()), "{log}");
     }
 
     /// Issue 16: a unicast destination where nobody listens is counted as

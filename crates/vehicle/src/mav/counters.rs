@@ -1,10 +1,12 @@
 //! What the MAVLink link did, for STATUS: messages used per kind, refused
 //! per reason, sent per kind, skipped per reason, and the last error.
 //! Counters are atomics; the last error and the autopilot's last heartbeat
-//! are kept under a lock that only the I/O task and STATUS take.
+//! are kept under a lock that only the I/O task and STATUS take, the
+//! refusals' log rule under one that only the I/O task takes.
 
 use super::inbound::{Refusal, Refused};
 use super::outbound::Skip;
+use lightpose_core::ratelog::RateLog;
 use serde::Serialize;
 use std::io;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -37,6 +39,9 @@ pub struct MavCounters {
     pub(crate) link_failures: AtomicU64,
     pub(crate) autopilot_seen: Mutex<Option<Instant>>,
     pub(crate) last_error: Mutex<Option<LastError>>,
+    /// Per refusal reason, core's rule: the first at once, then less and
+    /// less often while they go on (a flood was a line every 1000th).
+    refused_log: Mutex<[RateLog; Refusal::ALL.len()]>,
 }
 
 /// STATUS figures of the MAVLink link.
@@ -154,25 +159,44 @@ impl LastError {
 }
 
 impl MavCounters {
-    /// Count a refused message; the first of each reason and every 1000th
-    /// is logged, and the latest is kept for STATUS.
+    /// Count a refused message; the first of each reason is logged at
+    /// once, then less and less often while more come (core's `RateLog`),
+    /// and the latest is kept for STATUS.
     pub(crate) fn refuse(&self, r: &Refused) {
-        let k = self.refused[r.reason.index()].fetch_add(1, Relaxed) + 1;
         let e = LastError::Refused(*r);
-        if k == 1 || k.is_multiple_of(1000) {
-            tracing::warn!(count = k, "mavlink: refused {}", e.line());
+        if let Some((count, since)) = self.count_refusal(r.reason) {
+            tracing::warn!(
+                count,
+                since_last_line = since,
+                "mavlink: refused {}",
+                e.line()
+            );
         }
         self.set_error(e);
     }
 
     /// Count a dropped frame candidate (bad CRC, unknown id, bad flags).
     pub(crate) fn drop_frame(&self, reason: Refusal, msg_id: Option<u32>) {
-        let k = self.refused[reason.index()].fetch_add(1, Relaxed) + 1;
         let e = LastError::Dropped(reason, msg_id);
-        if k == 1 || k.is_multiple_of(1000) {
-            tracing::warn!(count = k, "mavlink: dropped {}", e.line());
+        if let Some((count, since)) = self.count_refusal(reason) {
+            tracing::warn!(
+                count,
+                since_last_line = since,
+                "mavlink: dropped {}",
+                e.line()
+            );
         }
         self.set_error(e);
+    }
+
+    /// Count one of `reason`: (its count, those since the last line) when
+    /// a line is due.
+    fn count_refusal(&self, reason: Refusal) -> Option<(u64, u64)> {
+        let i = reason.index();
+        let count = self.refused[i].fetch_add(1, Relaxed) + 1;
+        let mut logs = self.refused_log.lock().unwrap_or_else(|p| p.into_inner());
+        let since = logs.get_mut(i)?.tick(Instant::now())?;
+        Some((count, since))
     }
 
     pub(crate) fn set_error(&self, e: LastError) {

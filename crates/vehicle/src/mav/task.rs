@@ -99,6 +99,10 @@ pub async fn run_with(
     let mut backoff = Backoff::new(Duration::from_millis(200), s.reopen_max);
     let mut tx = Sender::new(&s);
     let c = &hub.mavlink;
+    // Failed opens (an autopilot off for the week, its serial device
+    // gone): core's rule, not every 20th attempt (a line every 100 s at
+    // the 5 s back-off).
+    let mut open_log = RateLog::new();
     loop {
         let opened = match first.take() {
             Some(link) => Ok(link),
@@ -123,8 +127,8 @@ pub async fn run_with(
             Err(e) => {
                 let k = c.link_failures.fetch_add(1, Relaxed) + 1;
                 let line = crate::error_chain(&e);
-                if k == 1 || k.is_multiple_of(20) {
-                    tracing::warn!(attempts = k, "mavlink: {line}");
+                if let Some(since) = open_log.tick(Instant::now()) {
+                    tracing::warn!(attempts = k, since_last_line = since, "mavlink: {line}");
                 }
                 c.set_error(LastError::Io(line));
             }
@@ -248,12 +252,13 @@ fn absorb(sc: &mut Scanner, s: &MavlinkSettings, hub: &Hub) -> bool {
 /// The journal's account of `ok` poses not sent (no std, a bad std or
 /// time, a value too big for MAVLink): STATUS counts them all, and the
 /// journal says the first of each reason at once, with the pose's seq and
-/// why, then at most one line a second while more come.
+/// why, then less and less often while more come (core's rule: after 1 s,
+/// 10 s, 1 min, then every 10 min).
 /// (Decimation is the configured rate limit, not a fault: not logged.)
 struct SkipLog {
     /// VISION_SPEED_ESTIMATE's skips (else VISION_POSITION_ESTIMATE's).
     speed: bool,
-    /// Per reason, core's rule: the first at once, then a line a second.
+    /// Per reason, core's rule: the first at once, then less and less often.
     logs: [RateLog; Skip::ALL.len()],
 }
 
@@ -291,7 +296,8 @@ impl SkipLog {
                 reason,
                 count,
                 "mavlink: {message} not sent for pose {seq}: {why}; \
-                 more {reason} skips are logged at most once a second"
+                 while more {reason} skips come they are logged after 1 s, \
+                 10 s, 1 min, then every 10 min"
             );
         } else {
             tracing::warn!(
