@@ -191,6 +191,9 @@ pub async fn listen(
     cell: std::sync::Arc<AttitudeCell>,
 ) {
     let mut buf = [0u8; 2048];
+    // A peer sending garbage at any rate costs lines by core's rule, not
+    // one per 100 datagrams.
+    let mut log = lightpose_core::ratelog::RateLog::new();
     loop {
         let (n, from) = match sock.recv_from(&mut buf).await {
             Ok(x) => x,
@@ -204,8 +207,8 @@ pub async fn listen(
             Ok(r) => cell.store(Instant::now(), r),
             Err(e) => {
                 let k = cell.reject(e.reason);
-                if k == 1 || k.is_multiple_of(100) {
-                    tracing::warn!(from = %from, rejected = k, reason = e.reason.as_str(), "attitude: {e}");
+                if let Some(since) = log.tick(Instant::now()) {
+                    tracing::warn!(from = %from, rejected = k, since_last_line = since, reason = e.reason.as_str(), "attitude: {e}");
                 }
             }
         }

@@ -90,10 +90,22 @@ pub async fn run(s: DvlSettings, hub: Arc<Hub>, shutdown: impl Future<Output = (
     }
 }
 
+/// Whether to log a repeated event now, and for how many (core's rule).
+fn tick(log: &std::sync::Mutex<lightpose_core::ratelog::RateLog>) -> Option<u64> {
+    log.lock()
+        .ok()
+        .and_then(|mut l| l.tick(std::time::Instant::now()))
+}
+
 fn connect_failed(s: &DvlSettings, hub: &Hub, why: &str) {
     let k = hub.dvl.connect_failures.fetch_add(1, Relaxed) + 1;
-    if k == 1 || k.is_multiple_of(20) {
-        tracing::warn!(attempts = k, "dvl: cannot connect to {}: {why}", s.address);
+    if let Some(since) = tick(&hub.dvl.connect_log) {
+        tracing::warn!(
+            attempts = k,
+            since_last_line = since,
+            "dvl: cannot connect to {}: {why}",
+            s.address
+        );
     }
     hub.dvl.set_error(format!("{}: {why}", s.address));
 }
@@ -172,8 +184,13 @@ fn take_line(s: &DvlSettings, hub: &Hub, line: &[u8]) -> bool {
 
 fn refuse(hub: &Hub, r: DvlRefusal, what: &str) {
     let k = hub.dvl.refused[r.index()].fetch_add(1, Relaxed) + 1;
-    if k == 1 || k.is_multiple_of(100) {
-        tracing::warn!(count = k, "dvl: refused ({}): {what}", r.as_str());
+    if let Some(since) = tick(&hub.dvl.refuse_log) {
+        tracing::warn!(
+            count = k,
+            since_last_line = since,
+            "dvl: refused ({}): {what}",
+            r.as_str()
+        );
     }
     hub.dvl.set_error(format!("{}: {what}", r.as_str()));
 }

@@ -167,6 +167,9 @@ pub struct DvlCounters {
     pub(crate) high_temperature: AtomicU64,
     pub(crate) refused: [AtomicU64; DvlRefusal::ALL.len()],
     pub(crate) last_error: Mutex<Option<String>>,
+    /// Core's rule for repeated lines: failed connects, refused lines.
+    pub(crate) connect_log: Mutex<lightpose_core::ratelog::RateLog>,
+    pub(crate) refuse_log: Mutex<lightpose_core::ratelog::RateLog>,
 }
 
 /// STATUS figures of the DVL client.

@@ -25,12 +25,14 @@ use super::Output;
 use crate::config::Foxglove;
 use crate::engine::Acquired;
 use hub::Hub;
+use lightpose_core::ratelog::RateLog;
 use lightpose_core::{Frame, LogHeader, PoseEstimate};
 use lightpose_logs::{Encoder, Message, WriteError};
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::thread::JoinHandle;
+use std::time::Instant;
 
 /// Frames that may wait for the encoder thread.
 const HANDOFF_QUEUE: usize = 64;
@@ -48,6 +50,8 @@ pub struct LiveView {
     tx: Option<SyncSender<Item>>,
     hub: Arc<Hub>,
     join: Option<JoinHandle<()>>,
+    /// Frames the encoder could not take: core's rule for repeated lines.
+    dropped_log: RateLog,
 }
 
 impl LiveView {
@@ -64,6 +68,7 @@ impl LiveView {
             tx: Some(tx),
             hub,
             join: Some(join),
+            dropped_log: RateLog::new(),
         })
     }
 }
@@ -74,25 +79,30 @@ fn encode(rx: Receiver<Item>, mut enc: Encoder, hub: &Hub) {
         hub.publish(&m);
         Ok(())
     };
+    let mut log = RateLog::new();
     while let Ok(item) = rx.recv() {
         hub.note_frame_t(item.frame.t);
         // A frame or estimate without a log time (t < 0) has no message:
         // the recording refuses it the same way.
         if let Err(e) = enc.frame(&item.frame, &mut publish) {
-            skipped(hub, &e);
+            skipped(hub, &mut log, &e);
         }
         if let Err(e) = enc.pose(&item.est, Some(item.wall_unix), &mut publish) {
-            skipped(hub, &e);
+            skipped(hub, &mut log, &e);
         }
     }
 }
 
-/// A frame or estimate that has no message: counted, logged at the first
-/// and every 1000th.
-fn skipped(hub: &Hub, e: &WriteError) {
+/// A frame or estimate that has no message: counted, logged by core's
+/// rule for repeated lines.
+fn skipped(hub: &Hub, log: &mut RateLog, e: &WriteError) {
     let n = hub.skipped.fetch_add(1, Relaxed) + 1;
-    if n == 1 || n.is_multiple_of(1000) {
-        tracing::warn!(skipped = n, "live view: {e}: not shown");
+    if let Some(k) = log.tick(Instant::now()) {
+        tracing::warn!(
+            skipped = n,
+            since_last_line = k,
+            "live view: {e}: not shown"
+        );
     }
 }
 
@@ -114,15 +124,17 @@ impl Output for LiveView {
             Err(TrySendError::Disconnected(_)) => true,
         };
         let n = self.hub.handoff_dropped.fetch_add(1, Relaxed) + 1;
-        if n == 1 || n.is_multiple_of(1000) {
+        if let Some(k) = self.dropped_log.tick(Instant::now()) {
             if gone {
                 tracing::error!(
                     handoff_dropped = n,
+                    since_last_line = k,
                     "live view: the encoder thread is gone: frame not shown"
                 );
             } else {
                 tracing::warn!(
                     handoff_dropped = n,
+                    since_last_line = k,
                     "live view: the encoder thread is behind: frame not shown"
                 );
             }
