@@ -300,23 +300,27 @@ fn a_channel_id_beyond_32_bits_is_refused() {
     });
 }
 
-/// The live server alone with short ping and silence times (the daemon's
-/// are 15 s and 45 s), on a free port.
-async fn live_with_short_silence() -> (
+type Server = (
     std::sync::Arc<lightposed::outputs::live::hub::Hub>,
     tokio::task::JoinHandle<()>,
-) {
+);
+
+/// The live server alone with `limits`, on a free port.
+async fn live_server(limits: lightposed::outputs::live::server::Limits) -> Server {
     use lightposed::outputs::live::{hub::Hub, server};
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let hub = std::sync::Arc::new(Hub::new(listener.local_addr().unwrap()));
-    let limits = server::Limits {
-        client_queue: 16,
-        max_clients: 2,
-        ping: Duration::from_millis(100),
-        silence: Duration::from_millis(400),
-    };
     let task = tokio::spawn(server::serve(listener, hub.clone(), limits));
     (hub, task)
+}
+
+/// The live server alone with short ping and silence times (the daemon's
+/// are 15 s and 45 s), on a free port.
+async fn live_with_short_silence() -> Server {
+    let mut limits = lightposed::outputs::live::server::Limits::new(16, 2);
+    limits.ping = Duration::from_millis(100);
+    limits.silence = Duration::from_millis(400);
+    live_server(limits).await
 }
 
 /// Soak audit: a client that subscribed to nothing is never written to, so
@@ -367,6 +371,123 @@ fn a_client_that_answers_no_ping_is_dropped_and_one_that_does_is_kept() {
         let mut third = connect().await;
         third.send(Ws::text(subscribe_all())).await.unwrap();
         assert_eq!(hub.report()["refused"], 0);
+        server.abort();
+    });
+}
+
+/// A handshaken client with a small receive buffer that reads the
+/// greeting and nothing after it.
+async fn tiny_buffer_client(
+    addr: SocketAddr,
+) -> tokio_tungstenite::WebSocketStream<tokio::net::TcpStream> {
+    let sock = socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).unwrap();
+    sock.set_recv_buffer_size(4096).unwrap();
+    sock.connect(&addr.into()).unwrap();
+    sock.set_nonblocking(true).unwrap();
+    let tcp = tokio::net::TcpStream::from_std(sock.into()).unwrap();
+    let (mut ws, _) = tokio_tungstenite::client_async(request(addr), tcp)
+        .await
+        .expect("handshake");
+    for _ in 0..2 {
+        ws.next().await.expect("serverInfo, advertise").unwrap();
+    }
+    ws
+}
+
+/// Network audit: the reply to a request was sent with no time limit, in
+/// the loop that also checks for silence, so a client that sent bogus
+/// subscribes and then read nothing held its place (all of `max_clients`,
+/// four such) until it closed its socket. Every write is now bounded by
+/// the stall limit: the client is cut and its place is free.
+#[test]
+fn a_client_that_never_reads_its_replies_is_cut_and_its_place_freed() {
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut limits = lightposed::outputs::live::server::Limits::new(16, 1);
+        // Pings and the silence check cannot save the day here.
+        limits.ping = Duration::from_secs(30);
+        limits.silence = Duration::from_secs(60);
+        limits.stall = Duration::from_millis(300);
+        let (hub, server) = live_server(limits).await;
+        let addr = hub.listen;
+        let stuck = tiny_buffer_client(addr).await;
+        // About 60 KB of subscribes to no channel: each reply names them
+        // all (about 20 KB), and none is read.
+        let subs: Vec<Value> = (0..1700)
+            .map(|i| serde_json::json!({"id": i, "channelId": 4294967297u64}))
+            .collect();
+        let bogus = serde_json::json!({"op": "subscribe", "subscriptions": subs}).to_string();
+        let (mut sink, _stream) = stuck.split();
+        let flood = tokio::spawn(async move {
+            for _ in 0..2000 {
+                if sink.send(Ws::text(bogus.clone())).await.is_err() {
+                    break;
+                }
+            }
+        });
+        let t0 = Instant::now();
+        while hub.client_count() > 0 && t0.elapsed() < Duration::from_secs(5) {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        assert_eq!(hub.client_count(), 0, "not cut after {:?}", t0.elapsed());
+        assert_eq!(hub.report()["timed_out"], 0, "cut by the stall limit");
+        // Its place (max_clients 1) is free: another client is served.
+        let mut next = tiny_buffer_client(addr).await;
+        next.send(Ws::text(subscribe_all())).await.unwrap();
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        let r = hub.report();
+        assert_eq!(
+            (r["clients"].as_u64(), r["refused"].as_u64()),
+            (Some(1), Some(0)),
+            "{r}"
+        );
+        flood.abort();
+        server.abort();
+    });
+}
+
+/// Network audit: every accepted connection got a task with no limit
+/// before its 5 s handshake timeout, and ~1,400 half-open ones took the
+/// daemon's every descriptor (the DVL's reconnect then failed). At most
+/// `HANDSHAKES` (16) wait in their handshake; the 17th is closed at once
+/// and counted, and once one of them goes a real client is served.
+#[test]
+fn the_17th_half_open_connection_is_closed_at_once_while_16_wait() {
+    use lightposed::outputs::live::server::{Limits, HANDSHAKES};
+    use tokio::io::AsyncReadExt;
+    assert_eq!(HANDSHAKES, 16);
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let (hub, server) = live_server(Limits::new(16, 4)).await;
+        let addr = hub.listen;
+        let mut waiting = Vec::new();
+        for _ in 0..HANDSHAKES {
+            waiting.push(tokio::net::TcpStream::connect(addr).await.unwrap());
+        }
+        let mut extra = tokio::net::TcpStream::connect(addr).await.unwrap();
+        let mut buf = [0u8; 64];
+        let t0 = Instant::now();
+        let r = tokio::time::timeout(Duration::from_secs(2), extra.read(&mut buf)).await;
+        assert!(
+            matches!(r, Ok(Ok(0)) | Ok(Err(_))),
+            "the 17th is not closed: {r:?}"
+        );
+        assert!(t0.elapsed() < Duration::from_secs(1), "{:?}", t0.elapsed());
+        for w in &mut waiting {
+            let r = tokio::time::timeout(Duration::from_millis(20), w.read(&mut buf)).await;
+            assert!(r.is_err(), "one of the 16 was closed: {r:?}");
+        }
+        assert_eq!(hub.report()["handshakes_refused"], 1);
+        // One of them goes: its place in the handshake is free again.
+        drop(waiting.pop());
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        let mut ws = tiny_buffer_client(addr).await;
+        ws.send(Ws::text(subscribe_all())).await.unwrap();
+        assert_eq!(hub.report()["handshakes_refused"], 1);
+        assert!(
+            t0.elapsed() < Duration::from_secs(4),
+            "inside the 5 s handshake limit"
+        );
         server.abort();
     });
 }

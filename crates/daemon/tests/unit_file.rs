@@ -207,3 +207,29 @@ fn systemd_analyze_verify_knows_every_key() {
         );
     }
 }
+
+/// Network audit: with no LimitNOFILE the daemon had 1024 descriptors, and
+/// a flood of connections to the live view took them all (the DVL's
+/// reconnect failed). The unit sets one limit, a number (not `infinity`)
+/// well above what the daemon needs and above the 1024 that ran out.
+#[test]
+fn limit_nofile_is_set_and_sane() {
+    let v = one(&unit(), "LimitNOFILE");
+    // `N` or `SOFT:HARD`: both numbers, soft no more than hard.
+    let n: Vec<u64> = v
+        .split(':')
+        .map(|x| {
+            x.trim()
+                .parse()
+                .unwrap_or_else(|_| panic!("LimitNOFILE={v}: not a number"))
+        })
+        .collect();
+    assert!(
+        n.len() <= 2 && n[0] <= *n.last().unwrap(),
+        "LimitNOFILE={v}"
+    );
+    assert!(
+        (2048..=65536).contains(&n[0]),
+        "LimitNOFILE={v}: the soft limit should be a few thousand"
+    );
+}

@@ -144,3 +144,76 @@ fn the_dvl_client_reads_reports_and_survives_what_a_real_one_does() {
     assert!(st.drops >= 3, "{st:?}");
     assert!(st.last_error.is_some());
 }
+
+/// Network audit: an overlong line was refused only at its newline, so a
+/// peer sending one endless line kept the connection with nothing
+/// refused. Past 64 KiB without a newline the connection is dropped,
+/// counted `garbage`, with `last_error` saying so, and connected again.
+#[test]
+fn a_peer_sending_an_endless_line_is_dropped_and_counted() {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let hub = Hub::new();
+    let mut set = settings(port);
+    set.silence = Duration::from_secs(10); // not what ends it here
+    let _client = spawn_dvl(set, hub.clone());
+    let c = &hub.dvl;
+    let mut s = accept(&listener);
+    // The client stops reading at 64 KiB: later writes may fail.
+    let _ = s.write_all(&vec![b'x'; 200 * 1024]);
+    assert!(
+        wait_until(Duration::from_secs(3), || c.drops() == 1),
+        "{:?}",
+        c.status()
+    );
+    let st = c.status();
+    assert_eq!(c.refused(DvlRefusal::Garbage), 1, "{st:?}");
+    assert_eq!(st.silences, 0, "{st:?}");
+    assert!(
+        st.last_error
+            .as_deref()
+            .is_some_and(|e| e.contains("64 KiB")),
+        "{st:?}"
+    );
+    let _again = accept(&listener);
+    assert!(wait_until(Duration::from_secs(3), || c.connects() == 2));
+}
+
+/// Network audit: any byte reset the silence timer, so a peer trickling a
+/// byte every 2 s kept the connection (and a stale `last_error`). Only a
+/// DVL message counts: reports every 100 ms keep it well past the 0.5 s
+/// silence, a byte every 100 ms does not.
+#[test]
+fn a_peer_trickling_bytes_is_dropped_as_silent() {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let hub = Hub::new();
+    let mut set = settings(port);
+    set.silence = Duration::from_millis(500);
+    let _client = spawn_dvl(set, hub.clone());
+    let c = &hub.dvl;
+    let mut s = accept(&listener);
+    // A healthy DVL at 10 Hz for 1.2 s: kept.
+    for i in 0..12 {
+        s.write_all(report(0.01 * i as f64, 0.0, 0.0, true).as_bytes())
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let st = c.status();
+    assert_eq!((st.drops, st.silences, st.reports), (0, 0, 12), "{st:?}");
+    // Then a space every 100 ms: no message, dropped as silent.
+    let t0 = Instant::now();
+    while c.status().silences == 0 && t0.elapsed() < Duration::from_secs(3) {
+        let _ = s.write_all(b" ");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let st = c.status();
+    assert_eq!((st.drops, st.silences), (1, 1), "{st:?}");
+    assert!(
+        st.last_error
+            .as_deref()
+            .is_some_and(|e| e.contains("silent")),
+        "{st:?}"
+    );
+    assert!(t0.elapsed() < Duration::from_secs(2), "{:?}", t0.elapsed());
+}

@@ -1,7 +1,19 @@
 //! The DVL's TCP client: connect, read reports line by line into the
-//! hub's velocity reading, and when the DVL closes the connection, errs or
-//! falls silent, connect again after a capped back-off. Never returns
-//! before `shutdown`; every loss is counted.
+//! hub's velocity reading, and when the DVL closes the connection, errs,
+//! falls silent or sends a line longer than a report can be, connect again
+//! after a capped back-off. Never returns before `shutdown`; every loss is
+//! counted.
+//!
+//! Silence is judged on messages, not bytes: only a line that is a DVL
+//! message (a `type`d JSON object: a velocity report, even one refused as
+//! `velocity_invalid`, water-track or out of range, or another report such
+//! as dead reckoning) keeps the connection. A peer that trickles bytes, or
+//! sends garbage or one endless line, is not a DVL speaking its protocol
+//! and is dropped. A refused velocity report still counts: the DVL is
+//! there and says why it has no velocity (no bottom lock above its range,
+//! out of the water), which reconnecting cannot change; dropping it every
+//! `silence` would only turn that into a loop of warnings, while the
+//! reading going stale and `refused` already show it.
 
 use super::{parse_line, DvlLine, DvlRefusal};
 use crate::backoff::Backoff;
@@ -25,8 +37,9 @@ pub struct DvlSettings {
     pub max_speed_mps: f64,
     pub reconnect_first: Duration,
     pub reconnect_max: Duration,
-    /// No byte for this long and the connection is given up (the DVL
-    /// reports at 2–15 Hz while it is in the water and pinging).
+    /// No DVL message for this long and the connection is given up (the
+    /// DVL reports at 2–15 Hz while it is in the water and pinging; bytes
+    /// that make no message do not count).
     pub silence: Duration,
     pub connect_timeout: Duration,
 }
@@ -50,6 +63,18 @@ enum Ended {
     Closed,
     Error(std::io::Error),
     Silent,
+    /// A line passed [`MAX_LINE`] without its end.
+    Overlong,
+}
+
+/// What one line was, for the connection.
+enum Heard {
+    /// A good velocity report.
+    Report,
+    /// Another DVL message, or a velocity report refused on its content.
+    Message,
+    /// Blank, garbage, malformed: no sign of a DVL.
+    Nothing,
 }
 
 /// Run the DVL client until `shutdown` resolves.
@@ -73,8 +98,9 @@ pub async fn run(s: DvlSettings, hub: Arc<Hub>, shutdown: impl Future<Output = (
                     Ended::Error(e) => e.to_string(),
                     Ended::Silent => {
                         c.silences.fetch_add(1, Relaxed);
-                        format!("silent for {:?}", s.silence)
+                        format!("silent: no DVL message for {:?}", s.silence)
                     }
+                    Ended::Overlong => "a line longer than 64 KiB".to_string(),
                 };
                 c.drops.fetch_add(1, Relaxed);
                 tracing::warn!("dvl: connection to {} lost: {why}", s.address);
@@ -119,11 +145,12 @@ async fn session(
 ) -> Ended {
     let mut chunk = [0u8; 4096];
     let mut line: Vec<u8> = Vec::with_capacity(4096);
-    let mut overlong = false;
+    // The deadline moves only with a DVL message, not with any byte.
+    let mut deadline = tokio::time::Instant::now() + s.silence;
     loop {
         let n = tokio::select! {
             _ = &mut shutdown => return Ended::Shutdown,
-            r = tokio::time::timeout(s.silence, stream.read(&mut chunk)) => match r {
+            r = tokio::time::timeout_at(deadline, stream.read(&mut chunk)) => match r {
                 Err(_) => return Ended::Silent,
                 Ok(Err(e)) => return Ended::Error(e),
                 Ok(Ok(0)) => return Ended::Closed,
@@ -132,29 +159,32 @@ async fn session(
         };
         for &b in &chunk[..n] {
             if b != b'\n' {
-                if line.len() < MAX_LINE {
-                    line.push(b);
-                } else {
-                    overlong = true;
+                if line.len() >= MAX_LINE {
+                    // No report is this long: the peer is no DVL, or broken.
+                    refuse(hub, DvlRefusal::Garbage, "a line longer than 64 KiB");
+                    return Ended::Overlong;
                 }
+                line.push(b);
                 continue;
             }
-            if overlong {
-                refuse(hub, DvlRefusal::Garbage, "a line longer than 64 KiB");
-            } else if take_line(s, hub, &line) {
-                backoff.reset();
+            match take_line(s, hub, &line) {
+                Heard::Report => {
+                    backoff.reset();
+                    deadline = tokio::time::Instant::now() + s.silence;
+                }
+                Heard::Message => deadline = tokio::time::Instant::now() + s.silence,
+                Heard::Nothing => {}
             }
             line.clear();
-            overlong = false;
         }
     }
 }
 
-/// Use one line; true if it was a good report.
-fn take_line(s: &DvlSettings, hub: &Hub, line: &[u8]) -> bool {
+/// Use one line; what it was.
+fn take_line(s: &DvlSettings, hub: &Hub, line: &[u8]) -> Heard {
     let text = line.trim_ascii();
     if text.is_empty() {
-        return false;
+        return Heard::Nothing;
     }
     match parse_line(text, s.max_speed_mps) {
         Ok(DvlLine::Velocity(v)) => {
@@ -167,17 +197,24 @@ fn take_line(s: &DvlSettings, hub: &Hub, line: &[u8]) -> bool {
                     "dvl: reports high temperature (status bit 0): it will shut down soon"
                 );
             }
-            true
+            Heard::Report
         }
         Ok(DvlLine::Other) => {
             hub.dvl.other.fetch_add(1, Relaxed);
-            false
+            Heard::Message
         }
         Err(r) => {
             // Control characters escaped: the line goes to the log.
             let head = String::from_utf8_lossy(&text[..text.len().min(60)]);
             refuse(hub, r, &lightpose_core::textfile::excerpt(&head, 60));
-            false
+            match r {
+                DvlRefusal::Garbage | DvlRefusal::Malformed => Heard::Nothing,
+                // A velocity report, refused on its content.
+                DvlRefusal::Invalid
+                | DvlRefusal::WaterTrack
+                | DvlRefusal::OutOfRange
+                | DvlRefusal::BadCovariance => Heard::Message,
+            }
         }
     }
 }

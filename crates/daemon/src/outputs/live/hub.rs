@@ -136,6 +136,9 @@ pub struct Hub {
     /// Connections accepted, and turned away (too many clients).
     pub connections: AtomicU64,
     pub refused: AtomicU64,
+    /// Connections closed at once: `server::HANDSHAKES` already in their
+    /// handshake (a flood of half-open connections).
+    pub handshakes_refused: AtomicU64,
     /// Clients ended because nothing came from them (no pong) for long.
     pub timed_out: AtomicU64,
     /// Messages dropped for clients that went before, summed in.
@@ -161,6 +164,7 @@ impl Hub {
             subscriptions: AtomicUsize::new(0),
             connections: AtomicU64::new(0),
             refused: AtomicU64::new(0),
+            handshakes_refused: AtomicU64::new(0),
             timed_out: AtomicU64::new(0),
             dropped_gone: AtomicU64::new(0),
             sent_gone: AtomicU64::new(0),
@@ -300,6 +304,7 @@ impl Hub {
             "clients": list.len(),
             "connections": self.connections.load(Relaxed),
             "refused": self.refused.load(Relaxed),
+            "handshakes_refused": self.handshakes_refused.load(Relaxed),
             "timed_out": self.timed_out.load(Relaxed),
             "sent": sent,
             "dropped": dropped,

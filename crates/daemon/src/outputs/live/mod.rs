@@ -172,12 +172,7 @@ pub async fn start(cfg: &Foxglove, header: &LogHeader) -> std::io::Result<Live> 
     let listen = listener.local_addr()?;
     let hub = Arc::new(Hub::new(listen));
     let output = LiveView::start(hub.clone(), header)?;
-    let limits = server::Limits {
-        client_queue: cfg.client_queue,
-        max_clients: cfg.max_clients,
-        ping: server::PING,
-        silence: server::SILENCE,
-    };
+    let limits = server::Limits::new(cfg.client_queue, cfg.max_clients);
     let server = tokio::spawn(server::serve(listener, hub.clone(), limits));
     tracing::info!("foxglove live view on ws://{listen}");
     Ok(Live {

@@ -9,11 +9,20 @@
 //! `status` and otherwise ignored.
 //!
 //! One task per client, on the daemon's runtime: it reads the client's
-//! requests and writes what the hub queued for it. A write that does not
+//! requests and writes what the hub queued for it. Every write (the
+//! greeting, a reply, queued messages, a ping, the close) that does not
 //! finish within [`STALL`] (a client that stopped reading, a cable pulled)
-//! ends that client; meanwhile its queue fills and the hub drops and
-//! counts its messages. A client that subscribed to nothing is never
-//! written to, so the server pings every client ([`PING`]; browsers and
+//! ends that client: a write waits in the same loop as the silence check,
+//! so an unbounded one would hold the client's place for as long as it
+//! keeps its socket open. Meanwhile its queue fills and the hub drops and
+//! counts its messages. At most [`HANDSHAKES`] connections may be in their
+//! handshake at once; more are closed at once and counted
+//! (`handshakes_refused`): each holds a descriptor, and a flood of
+//! half-open ones once took every descriptor the daemon had (the DVL's
+//! reconnect and the recording's rotation need them).
+//!
+//! A client that subscribed to nothing is never written to, so the
+//! server pings every client ([`PING`]; browsers and
 //! Foxglove answer by themselves) and ends one from which nothing at all
 //! has come for [`SILENCE`] (counted, `timed_out`): else a laptop
 //! unplugged from the tether would hold its place among `max_clients`
@@ -21,6 +30,7 @@
 
 use super::hub::{Client, Hub};
 use futures_util::{SinkExt, StreamExt};
+use lightpose_core::ratelog::RateLog;
 use lightpose_logs::schema::{MESSAGE_ENCODING, SCHEMA_ENCODING};
 use lightpose_logs::Channel;
 use serde::Deserialize;
@@ -30,7 +40,7 @@ use std::sync::atomic::Ordering::Relaxed;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::mpsc;
+use tokio::sync::{mpsc, OwnedSemaphorePermit, Semaphore};
 use tokio::time::{Instant, MissedTickBehavior};
 use tokio_tungstenite::tungstenite::handshake::server::{ErrorResponse, Request, Response};
 use tokio_tungstenite::tungstenite::http::{HeaderValue, StatusCode};
@@ -51,6 +61,9 @@ pub const PING: Duration = Duration::from_secs(15);
 pub const SILENCE: Duration = Duration::from_secs(45);
 /// A handshake that takes longer ends the connection.
 const HANDSHAKE: Duration = Duration::from_secs(5);
+/// Connections in their handshake at once: real clients are a handful
+/// (`max_clients`), so 16 is plenty and bounds what a flood costs.
+pub const HANDSHAKES: usize = 16;
 /// Queued messages written before one flush.
 const BATCH: usize = 64;
 /// Largest message a client may send (a subscribe to every channel is
@@ -65,6 +78,24 @@ pub struct Limits {
     /// [`PING`] and [`SILENCE`]; shorter in tests.
     pub ping: Duration,
     pub silence: Duration,
+    /// [`STALL`]; shorter in tests.
+    pub stall: Duration,
+    /// [`HANDSHAKES`].
+    pub handshakes: usize,
+}
+
+impl Limits {
+    /// The daemon's limits, with its queue size and client count.
+    pub fn new(client_queue: usize, max_clients: usize) -> Limits {
+        Limits {
+            client_queue,
+            max_clients,
+            ping: PING,
+            silence: SILENCE,
+            stall: STALL,
+            handshakes: HANDSHAKES,
+        }
+    }
 }
 
 /// Why a session ended.
@@ -83,11 +114,28 @@ impl From<String> for End {
 
 /// Accept clients on `listener` until the task is aborted.
 pub async fn serve(listener: TcpListener, hub: Arc<Hub>, limits: Limits) {
+    let handshaking = Arc::new(Semaphore::new(limits.handshakes));
+    // A flood is logged by core's rule for repeated lines, not per connection.
+    let mut flood_log = RateLog::new();
     loop {
         match listener.accept().await {
-            Ok((stream, addr)) => {
-                tokio::spawn(client(stream, addr, hub.clone(), limits));
-            }
+            Ok((stream, addr)) => match handshaking.clone().try_acquire_owned() {
+                Ok(permit) => {
+                    tokio::spawn(client(stream, addr, hub.clone(), limits, permit));
+                }
+                Err(_) => {
+                    // Closed at once (dropped): the descriptor is back.
+                    let n = hub.handshakes_refused.fetch_add(1, Relaxed) + 1;
+                    if let Some(k) = flood_log.tick(std::time::Instant::now()) {
+                        tracing::warn!(
+                            handshakes_refused = n,
+                            since_last_line = k,
+                            "foxglove: {addr} closed: {} connections already in their handshake",
+                            limits.handshakes
+                        );
+                    }
+                }
+            },
             Err(e) => {
                 // Out of descriptors, say: wait rather than spin.
                 tracing::warn!("foxglove: accept failed: {e}");
@@ -231,6 +279,7 @@ async fn write_batch(
     rx: &mut mpsc::Receiver<Bytes>,
     c: &Client,
     first: Bytes,
+    stall: Duration,
 ) -> Result<(), String> {
     let mut n = 1;
     let write = async {
@@ -242,20 +291,37 @@ async fn write_batch(
         }
         ws.flush().await
     };
-    match tokio::time::timeout(STALL, write).await {
+    match tokio::time::timeout(stall, write).await {
         Ok(Ok(())) => {
             c.sent.fetch_add(n as u64, Relaxed);
             Ok(())
         }
         Ok(Err(e)) => Err(e.to_string()),
-        Err(_) => Err(format!("not reading: a write took more than {STALL:?}")),
+        Err(_) => Err(format!("not reading: a write took more than {stall:?}")),
+    }
+}
+
+/// Send `msg`, bounded by `stall` like every write to a client.
+async fn send(ws: &mut WebSocketStream<TcpStream>, msg: Ws, stall: Duration) -> Result<(), String> {
+    match tokio::time::timeout(stall, ws.send(msg)).await {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(e.to_string()),
+        Err(_) => Err(format!("not reading: a write took more than {stall:?}")),
     }
 }
 
 /// One client's session, from the handshake to its end.
-async fn client(stream: TcpStream, addr: SocketAddr, hub: Arc<Hub>, limits: Limits) {
+async fn client(
+    stream: TcpStream,
+    addr: SocketAddr,
+    hub: Arc<Hub>,
+    limits: Limits,
+    handshaking: OwnedSemaphorePermit,
+) {
     let _ = stream.set_nodelay(true);
-    let mut ws = match handshake(stream).await {
+    let shaken = handshake(stream).await;
+    drop(handshaking); // the handshake is over: room for another
+    let mut ws = match shaken {
         Ok(ws) => ws,
         Err(e) => {
             tracing::info!("foxglove: {addr}: {e}");
@@ -268,13 +334,14 @@ async fn client(stream: TcpStream, addr: SocketAddr, hub: Arc<Hub>, limits: Limi
             "foxglove: {addr} turned away: {} clients already",
             limits.max_clients
         );
-        let _ = ws.close(None).await;
+        let _ = tokio::time::timeout(limits.stall, ws.close(None)).await;
         return;
     };
     tracing::info!("foxglove: {addr} connected");
     let end = session_loop(&mut ws, &mut rx, &hub, &c, &limits).await;
     hub.leave(c.id);
-    let _ = tokio::time::timeout(Duration::from_secs(1), ws.close(None)).await;
+    let close = limits.stall.min(Duration::from_secs(1));
+    let _ = tokio::time::timeout(close, ws.close(None)).await;
     let (sent, dropped) = (c.sent.load(Relaxed), c.dropped.load(Relaxed));
     match end {
         End::Silent(d) => {
@@ -295,17 +362,13 @@ async fn client(stream: TcpStream, addr: SocketAddr, hub: Arc<Hub>, limits: Limi
 async fn ping(
     ws: &mut WebSocketStream<TcpStream>,
     heard: Instant,
-    silence: Duration,
+    limits: &Limits,
 ) -> Result<(), End> {
     let quiet = heard.elapsed();
-    if quiet >= silence {
+    if quiet >= limits.silence {
         return Err(End::Silent(quiet));
     }
-    match tokio::time::timeout(STALL, ws.send(Ws::Ping(Bytes::new()))).await {
-        Ok(Ok(())) => Ok(()),
-        Ok(Err(e)) => Err(e.to_string().into()),
-        Err(_) => Err(format!("not reading: a ping took more than {STALL:?}").into()),
-    }
+    Ok(send(ws, Ws::Ping(Bytes::new()), limits.stall).await?)
 }
 
 /// Greet, then serve requests, queued messages and pings until the client
@@ -318,8 +381,8 @@ async fn session_loop(
     limits: &Limits,
 ) -> End {
     for text in greeting(&hub.session) {
-        if let Err(e) = ws.send(Ws::text(text)).await {
-            return e.to_string().into();
+        if let Err(e) = send(ws, Ws::text(text), limits.stall).await {
+            return e.into();
         }
     }
     let mut heard = Instant::now();
@@ -335,8 +398,8 @@ async fn session_loop(
                 match msg {
                     Some(Ok(Ws::Text(t))) => {
                         if let Some(reply) = request(hub, c, t.as_str()) {
-                            if let Err(e) = ws.send(reply).await {
-                                return e.to_string().into();
+                            if let Err(e) = send(ws, reply, limits.stall).await {
+                                return e.into();
                             }
                         }
                     }
@@ -347,14 +410,14 @@ async fn session_loop(
             }
             out = rx.recv() => match out {
                 Some(first) => {
-                    if let Err(e) = write_batch(ws, rx, c, first).await {
+                    if let Err(e) = write_batch(ws, rx, c, first, limits.stall).await {
                         return e.into();
                     }
                 }
                 None => return "the daemon stops".to_string().into(),
             },
             _ = ticks.tick() => {
-                if let Err(end) = ping(ws, heard, limits.silence).await {
+                if let Err(end) = ping(ws, heard, limits).await {
                     return end;
                 }
             }
