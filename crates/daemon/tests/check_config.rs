@@ -205,7 +205,10 @@ const ATT: &str =
 fn a_listen_address_not_of_this_machine_is_refused_at_its_line() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    let text = sim_text(OUT, &format!("{ATT}listen = \"203.0.113.5:14550\"\n"));
+    let text = sim_text(
+        OUT,
+        &format!("{ATT}listen = \"203.0.113.5:14550\"\nallow_from = [\"203.0.113.9\"]\n"),
+    );
     let p = write(d, "att.toml", &text);
     let err = refused(
         &p,
@@ -261,6 +264,39 @@ fn a_listen_address_not_of_this_machine_is_refused_at_its_line() {
             "outputs.multicast: cannot set interface: ",
             "203.0.113.5 is not an address of this machine",
         ],
+    );
+}
+
+/// Audit: an attitude input beyond loopback names who may send or says
+/// allow_remote; refused at the listen line otherwise, before any bind.
+#[test]
+fn a_remote_attitude_listen_without_allow_from_or_allow_remote_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    for (i, more) in ["", "allow_remote = false\n"].into_iter().enumerate() {
+        let text = sim_text(OUT, &format!("{ATT}listen = \"0.0.0.0:17151\"\n{more}"));
+        let p = write(d, &format!("open{i}.toml"), &text);
+        refused(
+            &p,
+            2,
+            line_of(&text, "listen ="),
+            &[
+                "attitude.listen: 0.0.0.0:17151 is not a loopback address",
+                "allow_from",
+                "allow_remote = true",
+            ],
+        );
+    }
+    let text = sim_text(
+        OUT,
+        &format!("{ATT}listen = \"0.0.0.0:17151\"\nallow_from = [\n\"10.0.0.5\",\n\"nope\"]\n"),
+    );
+    let p = write(d, "bad_from.toml", &text);
+    refused(
+        &p,
+        2,
+        line_of(&text, "\"nope\""),
+        &["attitude.allow_from: \"nope\" is not an address"],
     );
 }
 
@@ -389,4 +425,33 @@ fn an_interface_for_an_ipv6_group_is_refused_where_it_would_be_ignored() {
         line_of(&text, "interface ="),
         &["outputs.multicast.interface: 127.0.0.1 would be ignored"],
     );
+}
+
+/// `autopilot_system_id` and `autopilot_component_id` are MAVLink ids,
+/// 1..=255 (0 is the broadcast id): refused at their line otherwise.
+#[test]
+fn the_autopilot_ids_are_refused_at_their_line_outside_1_to_255() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let site = "[site]\nbeacon_heading_deg = 0.0\nbeacon_depth_m = 1.0\n";
+    for (key, v, want) in [
+        ("autopilot_component_id", "0", "0 is the broadcast id"),
+        ("autopilot_system_id", "0", "0 is the broadcast id"),
+        ("autopilot_component_id", "256", ""),
+    ] {
+        let text = sim_text(
+            OUT,
+            &format!("{site}[mavlink]\nconnection = \"udpout:127.0.0.1:14550\"\n{key} = {v}\n"),
+        );
+        let p = write(d, "ids.toml", &text);
+        let what = format!("mavlink.{key}: ");
+        refused(&p, 2, line_of(&text, key), &[&what, want]);
+    }
+    let text = sim_text(
+        OUT,
+        &format!("{site}[mavlink]\nconnection = \"udpout:127.0.0.1:14550\"\nautopilot_system_id = 2\nautopilot_component_id = 255\n"),
+    );
+    let p = write(d, "ok.toml", &text);
+    let (code, err) = run("--check-config", &p);
+    assert_eq!(code, Some(0), "{err}");
 }

@@ -228,6 +228,78 @@ fn bad_attitude_datagrams_are_counted_by_reason() {
     );
 }
 
+/// Audit: with `allow_from`, a stranger's valid readings are counted
+/// `sender` and never attached, while the AHRS's are.
+#[test]
+fn attitude_from_a_sender_not_allowed_is_refused_and_not_attached() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let log = dir.path().join("a.jsonl");
+    let rec = dir.path().join("rec");
+    let frames: Vec<(u64, String)> = (0..200)
+        .map(|k| (k, format!("{}", k as f64 * 0.01)))
+        .collect();
+    let refs: Vec<(u64, &str)> = frames.iter().map(|(k, t)| (*k, t.as_str())).collect();
+    write_log(&log, 100.0, &refs);
+    let port = UdpSocket::bind("127.0.0.1:0")
+        .expect("port")
+        .local_addr()
+        .expect("addr")
+        .port();
+    // Both on loopback: the AHRS is named with its port, so the stranger
+    // differs only by port (an address alone is unit-tested in config).
+    let ahrs = UdpSocket::bind("127.0.0.1:0").expect("ahrs");
+    let stranger = UdpSocket::bind("127.0.0.1:0").expect("stranger");
+    let ahrs_at = ahrs.local_addr().expect("ahrs addr");
+    let (sub, addr) = subscriber();
+    let extra = format!(
+        "[recording]\ndir = \"{}\"\n[attitude]\nenabled = true\nlisten = \"127.0.0.1:{port}\"\nallow_from = [\"{ahrs_at}\"]\nbeacon_axis_heading_deg = 0.0\nmax_age_s = 0.5\n",
+        rec.display()
+    );
+    let text = replay_config(&log, &[addr], "pace = \"recorded\"", &extra);
+    let cfg = Config::parse(&text, "t.toml", None).expect("valid");
+    let h = run_in_process(cfg, Duration::from_millis(1500));
+    std::thread::sleep(Duration::from_millis(300));
+    let (mut sent_ahrs, mut sent_stranger) = (0u64, 0u64);
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_millis(800) {
+        let to = ("127.0.0.1", port);
+        let good = br#"{"class":"ATTITUDE","t":1,"pitch":3,"yaw":180}"#;
+        sent_ahrs += u64::from(ahrs.send_to(good, to).is_ok());
+        for _ in 0..5 {
+            let evil = br#"{"class":"ATTITUDE","t":1,"pitch":30,"yaw":90}"#;
+            sent_stranger += u64::from(stranger.send_to(evil, to).is_ok());
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let msgs = collect(&sub, Duration::from_millis(1200));
+    h.join().expect("daemon");
+    let att = &last_status(&msgs)["attitude"];
+    // Loopback does not drop here; the counts are those sent.
+    assert_eq!(att["received"].as_u64(), Some(sent_ahrs), "{att}");
+    assert_eq!(
+        att["rejected_by"]["sender"].as_u64(),
+        Some(sent_stranger),
+        "{att}"
+    );
+    assert_eq!(att["rejected"].as_u64(), Some(sent_stranger), "{att}");
+    let file = std::fs::read_dir(&rec)
+        .expect("rec")
+        .next()
+        .expect("a log")
+        .expect("entry")
+        .path();
+    let pitches: Vec<f64> = lightpose_core::LogReader::open(&file)
+        .expect("log")
+        .filter_map(|f| f.ok().and_then(|f| f.attitude))
+        .map(|a| a.pitch.deg())
+        .collect();
+    assert!(pitches.len() > 10, "{} frames with attitude", pitches.len());
+    assert!(
+        pitches.iter().all(|p| (p - 3.0).abs() < 1e-9),
+        "{pitches:?}"
+    );
+}
+
 /// A config file in `dir` for the sim backend with `top` keys and `backend`
 /// keys, calibration and scene from the shipped files unless given.
 fn sim_config(dir: &Path, top: &str, backend: &str) -> PathBuf {

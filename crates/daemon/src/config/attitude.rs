@@ -1,7 +1,13 @@
 //! `[attitude]`: the optional input of the vehicle's AHRS readings.
 //!
 //! Ranges: `listen` not on port 0; `beacon_axis_heading_deg` -360..=360;
-//! `max_age_s` (0, 60] s.
+//! `max_age_s` (0, 60] s; `allow_from` a non-empty list of sender
+//! addresses, each an IP (any port) or an IP:port.
+//!
+//! The datagrams carry no authentication, so whoever reaches the port
+//! steers the estimate's pitch and yaw: a `listen` that is not loopback
+//! needs `allow_from` (who may send) or an explicit `allow_remote = true`,
+//! as the live view's does.
 //!
 //! The beacon's heading is `[site] beacon_heading_deg`, which the MAVLink
 //! link uses too; `beacon_axis_heading_deg` here is the older spelling,
@@ -11,8 +17,9 @@
 use super::locate::{positive_to, socket_addr, within, AddrUse, Ctx};
 use super::places::{self, Places};
 use super::ConfigError;
+use lightpose_core::textfile::excerpt;
 use serde::Deserialize;
-use std::net::{Ipv4Addr, SocketAddr};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::time::Duration;
 use toml::Spanned;
 
@@ -23,6 +30,38 @@ pub struct AttitudeInput {
     pub beacon_axis_heading_deg: f64,
     /// A reading older than this is not attached to a frame.
     pub max_age: Duration,
+    /// The senders whose datagrams are read; `None`: any.
+    pub allow_from: Option<Vec<Sender>>,
+}
+
+/// One entry of `allow_from`: an address, and a port when one was given.
+///
+/// An address alone is the usual entry: an AHRS (or the bridge in front
+/// of it) keeps its address but often sends from an ephemeral port that
+/// changes at each restart; a port pins the sender down further when the
+/// host runs other programs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Sender {
+    pub ip: IpAddr,
+    pub port: Option<u16>,
+}
+
+impl Sender {
+    /// Whether a datagram from `from` is this sender's. An IPv4 sender
+    /// seen on a dual-stack socket (`::ffff:a.b.c.d`) is the same sender.
+    #[inline]
+    pub fn admits(&self, from: SocketAddr) -> bool {
+        from.ip().to_canonical() == self.ip && self.port.is_none_or(|p| p == from.port())
+    }
+}
+
+impl std::fmt::Display for Sender {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.port {
+            Some(p) => write!(f, "{}", SocketAddr::new(self.ip, p)),
+            None => write!(f, "{}", self.ip),
+        }
+    }
 }
 
 #[derive(Deserialize)]
@@ -32,6 +71,8 @@ pub(super) struct RawAttitude {
     listen: Option<Spanned<String>>,
     beacon_axis_heading_deg: Option<Spanned<f64>>,
     max_age_s: Option<Spanned<f64>>,
+    allow_from: Option<Spanned<Vec<Spanned<String>>>>,
+    allow_remote: Option<bool>,
 }
 
 /// `None` unless the table says `enabled = true`; the heading from
@@ -51,8 +92,24 @@ pub(super) fn validate(
         places::ATTITUDE_LISTEN,
         ctx.line_of_value(table, a.listen.as_ref()),
     );
+    let allow_from = match &a.allow_from {
+        Some(list) => Some(senders(ctx, list)?),
+        None => None,
+    };
     let listen = match &a.listen {
-        Some(l) => socket_addr(ctx, l, "attitude.listen", AddrUse::Listen)?,
+        Some(l) => {
+            let addr = socket_addr(ctx, l, "attitude.listen", AddrUse::Listen)?;
+            // Beyond this host anyone who reaches the port sets the
+            // vehicle's pitch and yaw in the estimate: a decision, said.
+            if !addr.ip().is_loopback() && allow_from.is_none() && a.allow_remote != Some(true) {
+                return Err(ctx.err(
+                    l.span(),
+                    "attitude.listen",
+                    format!("{addr} is not a loopback address: the input has no authentication, so anyone who reaches it feeds the estimate; name the AHRS in allow_from = [\"192.168.2.10\"], or set allow_remote = true on a trusted network"),
+                ));
+            }
+            addr
+        }
         None => SocketAddr::from((Ipv4Addr::LOCALHOST, 17151)),
     };
     let beacon_axis_heading_deg = match (&a.beacon_axis_heading_deg, site_heading_deg) {
@@ -90,5 +147,148 @@ pub(super) fn validate(
         listen,
         beacon_axis_heading_deg,
         max_age,
+        allow_from,
     }))
+}
+
+/// `allow_from`: each entry an IP or an IP:port; not empty (that would
+/// refuse every reading: leave the input off instead).
+fn senders(ctx: &Ctx, list: &Spanned<Vec<Spanned<String>>>) -> Result<Vec<Sender>, ConfigError> {
+    const KEY: &str = "attitude.allow_from";
+    if list.get_ref().is_empty() {
+        let msg = "empty: it would refuse every sender; name the AHRS's address, or leave the key out to accept any";
+        return Err(ctx.err(list.span(), KEY, msg));
+    }
+    let one = |v: &Spanned<String>| {
+        let text = v.get_ref().trim();
+        let s = match (text.parse::<SocketAddr>(), text.parse::<IpAddr>()) {
+            (Ok(a), _) if a.port() != 0 => Sender {
+                ip: a.ip().to_canonical(),
+                port: Some(a.port()),
+            },
+            (_, Ok(ip)) => Sender {
+                ip: ip.to_canonical(),
+                port: None,
+            },
+            _ => {
+                let written = excerpt(v.get_ref(), 60);
+                let msg = format!("\"{written}\" is not an address or address:port with a port in 1..=65535 (e.g. \"192.168.2.10\")");
+                return Err(ctx.err(v.span(), KEY, msg));
+            }
+        };
+        // No datagram comes from these: an entry naming one is a mistake
+        // that would silently refuse the AHRS.
+        if s.ip.is_unspecified() || s.ip.is_multicast() {
+            let msg = format!("{s}: no datagram comes from an unspecified or multicast address; name the AHRS's own");
+            return Err(ctx.err(v.span(), KEY, msg));
+        }
+        Ok(s)
+    };
+    list.get_ref().iter().map(one).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Sender;
+    use crate::config::Config;
+    use std::net::SocketAddr;
+
+    const BASE: &str = "calibration = \"c.toml\"\n[backend]\nkind = \"sim\"\n[outputs]\ndestinations = [\"127.0.0.1:9\"]\n[attitude]\nenabled = true\nbeacon_axis_heading_deg = 0.0\n";
+
+    fn parse(extra: &str) -> Result<Config, String> {
+        Config::parse(&format!("{BASE}{extra}"), "t.toml", None).map_err(|e| e.to_string())
+    }
+
+    fn from(a: &str) -> SocketAddr {
+        a.parse().expect("test address")
+    }
+
+    /// Audit: a listen beyond loopback is a decision (allow_from or
+    /// allow_remote), refused at its line otherwise.
+    #[test]
+    fn a_remote_listen_needs_allow_from_or_allow_remote() {
+        let c = parse("").unwrap().attitude.unwrap();
+        assert!(c.listen.ip().is_loopback() && c.allow_from.is_none());
+        let e = parse("listen = \"0.0.0.0:17151\"\n").unwrap_err();
+        assert!(
+            e.starts_with("t.toml:9: attitude.listen: 0.0.0.0:17151 is not a loopback address")
+                && e.contains("allow_from")
+                && !e.contains('\n'),
+            "{e}"
+        );
+        let e = parse("listen = \"[::]:17151\"\nallow_remote = false\n").unwrap_err();
+        assert!(e.starts_with("t.toml:9: attitude.listen: "), "{e}");
+        let c = parse("listen = \"0.0.0.0:17151\"\nallow_remote = true\n").unwrap();
+        assert_eq!(c.attitude.unwrap().allow_from, None);
+        let c = parse(
+            "listen = \"0.0.0.0:17151\"\nallow_from = [\"192.168.2.10\", \"10.0.0.5:14555\"]\n",
+        )
+        .unwrap()
+        .attitude
+        .unwrap();
+        assert_eq!(
+            c.allow_from.unwrap(),
+            [
+                Sender {
+                    ip: "192.168.2.10".parse().unwrap(),
+                    port: None
+                },
+                Sender {
+                    ip: "10.0.0.5".parse().unwrap(),
+                    port: Some(14555)
+                },
+            ]
+        );
+        // Loopback needs neither; allow_from still filters there.
+        let c = parse("listen = \"127.0.0.1:17151\"\nallow_from = [\"127.0.0.1\"]\n").unwrap();
+        assert_eq!(c.attitude.unwrap().allow_from.map(|v| v.len()), Some(1));
+    }
+
+    #[test]
+    fn bad_allow_from_entries_are_refused_at_their_line() {
+        for (extra, want) in [
+            ("allow_from = []\n", "t.toml:9: attitude.allow_from: empty"),
+            (
+                "allow_from = [\n\"192.168.2.10\",\n\"ahrs.local\"]\n",
+                "t.toml:11: attitude.allow_from: \"ahrs.local\" is not an address",
+            ),
+            (
+                "allow_from = [\"10.0.0.5:0\"]\n",
+                "t.toml:9: attitude.allow_from: \"10.0.0.5:0\" is not an address",
+            ),
+            (
+                "allow_from = [\"0.0.0.0\"]\n",
+                "t.toml:9: attitude.allow_from: 0.0.0.0: no datagram",
+            ),
+            (
+                "allow_from = [\"239.1.2.3:5000\"]\n",
+                "t.toml:9: attitude.allow_from: 239.1.2.3:5000: no datagram",
+            ),
+            (
+                "allow_from = \"10.0.0.5\"\n",
+                "t.toml:9: attitude.allow_from: ",
+            ),
+        ] {
+            let e = parse(extra).unwrap_err();
+            assert!(e.starts_with(want) && !e.contains('\n'), "{extra}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_sender_admits_its_address_and_port_only() {
+        let any_port = Sender {
+            ip: "192.168.2.10".parse().unwrap(),
+            port: None,
+        };
+        assert!(any_port.admits(from("192.168.2.10:40000")));
+        assert!(any_port.admits(from("[::ffff:192.168.2.10]:1")));
+        assert!(!any_port.admits(from("192.168.2.11:40000")));
+        let pinned = Sender {
+            ip: "192.168.2.10".parse().unwrap(),
+            port: Some(14555),
+        };
+        assert!(pinned.admits(from("192.168.2.10:14555")));
+        assert!(!pinned.admits(from("192.168.2.10:14556")));
+        assert_eq!(pinned.to_string(), "192.168.2.10:14555");
+    }
 }

@@ -9,14 +9,18 @@
 //! numbers (`malformed`), not of class ATTITUDE (`class`), has no `t` that
 //! is a time in seconds (|t| ≤ 1e10, the rule of core's `FrameOrder`:
 //! `time`), or a pitch outside ±90° or a heading outside ±360° (`angle`).
+//! With `allow_from`, a datagram from any other sender is refused unread
+//! (`sender`), its refusals logged apart so that a stranger's flood cannot
+//! crowd out the lines about the AHRS's own.
 
 use super::Input;
 use crate::config::AttitudeInput;
 use lightpose_core::log::plausible_t;
 use lightpose_core::textfile::excerpt;
-use lightpose_core::{Angle, AttitudeReading, Frame};
+use lightpose_core::{Angle, AttitudeReading, AttitudeStd, Frame};
+use lightpose_vehicle::latest::Latest;
+use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
-use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 /// Why a datagram was refused.
@@ -26,14 +30,16 @@ pub enum Reason {
     Class = 1,
     Time = 2,
     Angle = 3,
+    Sender = 4,
 }
 
 impl Reason {
-    pub const ALL: [Reason; 4] = [
+    pub const ALL: [Reason; 5] = [
         Reason::Malformed,
         Reason::Class,
         Reason::Time,
         Reason::Angle,
+        Reason::Sender,
     ];
     pub fn as_str(self) -> &'static str {
         match self {
@@ -41,6 +47,7 @@ impl Reason {
             Reason::Class => "class",
             Reason::Time => "time",
             Reason::Angle => "angle",
+            Reason::Sender => "sender",
         }
     }
 }
@@ -59,13 +66,33 @@ impl std::fmt::Display for Rejected {
 }
 
 /// The latest reading, written by the listener and read once per frame.
-#[derive(Default)]
+///
+/// A sequence lock rather than a mutex: under a flood of valid datagrams
+/// the frame thread would otherwise wait on the receiver for each frame.
+/// Words: the reading's instant (ns after `epoch`), pitch, yaw, and the
+/// two σ (NaN when the reading has none), all as `f64` bits but the first.
 pub struct AttitudeCell {
-    latest: Mutex<Option<(Instant, AttitudeReading)>>,
+    /// What the stored instants count from: readings are stored as they
+    /// arrive, after the cell was made (an earlier one would count as made
+    /// at `epoch`, younger than it is, which the listener never stores).
+    epoch: Instant,
+    latest: Latest<5>,
     pub received: AtomicU64,
     pub rejected: AtomicU64,
     /// Refusals by [`Reason`], in the order of [`Reason::ALL`].
-    pub rejected_by: [AtomicU64; 4],
+    pub rejected_by: [AtomicU64; Reason::ALL.len()],
+}
+
+impl Default for AttitudeCell {
+    fn default() -> Self {
+        AttitudeCell {
+            epoch: Instant::now(),
+            latest: Latest::default(),
+            received: AtomicU64::new(0),
+            rejected: AtomicU64::new(0),
+            rejected_by: Default::default(),
+        }
+    }
 }
 
 impl AttitudeCell {
@@ -76,25 +103,51 @@ impl AttitudeCell {
     }
 
     pub fn store(&self, at: Instant, r: AttitudeReading) {
-        if let Ok(mut g) = self.latest.lock() {
-            *g = Some((at, r));
-        }
+        // u64 nanoseconds last 584 years of uptime.
+        let ns = at.saturating_duration_since(self.epoch).as_nanos() as u64;
+        let (sp, sy) = r
+            .std
+            .map_or((f64::NAN, f64::NAN), |s| (s.pitch.rad(), s.yaw.rad()));
+        self.latest.store([
+            ns,
+            r.pitch.rad().to_bits(),
+            r.yaw.rad().to_bits(),
+            sp.to_bits(),
+            sy.to_bits(),
+        ]);
         self.received.fetch_add(1, Relaxed);
+    }
+
+    /// The latest reading and when it came; `None` before the first (or,
+    /// rarely, when a writer kept the cell busy: that frame goes without).
+    #[inline]
+    fn latest(&self) -> Option<(Instant, AttitudeReading)> {
+        let (_, [ns, p, y, sp, sy]) = self.latest.load()?;
+        let (sp, sy) = (f64::from_bits(sp), f64::from_bits(sy));
+        let std = (sp.is_finite() && sy.is_finite()).then(|| AttitudeStd {
+            pitch: Angle::from_rad(sp),
+            yaw: Angle::from_rad(sy),
+        });
+        let r = AttitudeReading {
+            pitch: Angle::from_rad(f64::from_bits(p)),
+            yaw: Angle::from_rad(f64::from_bits(y)),
+            std,
+        };
+        Some((self.epoch + Duration::from_nanos(ns), r))
     }
 
     /// The latest reading if it is younger than `max_age` at `at` (one
     /// received after `at` is fresh).
     #[inline]
     pub fn fresh(&self, at: Instant, max_age: Duration) -> Option<AttitudeReading> {
-        let g = self.latest.lock().ok()?;
-        let (taken, r) = (*g)?;
+        let (taken, r) = self.latest()?;
         (at.saturating_duration_since(taken) <= max_age).then_some(r)
     }
 
     /// Age of the latest reading, for STATUS.
     pub fn age(&self, now: Instant) -> Option<Duration> {
-        let g = self.latest.lock().ok()?;
-        g.map(|(at, _)| now.saturating_duration_since(at))
+        self.latest()
+            .map(|(at, _)| now.saturating_duration_since(at))
     }
 }
 
@@ -184,6 +237,14 @@ pub fn parse(datagram: &[u8], beacon_axis_heading_deg: f64) -> Result<AttitudeRe
     })
 }
 
+/// Whether `allow_from` (if given) lets `from` send.
+#[inline]
+fn admitted(cfg: &AttitudeInput, from: SocketAddr) -> bool {
+    cfg.allow_from
+        .as_ref()
+        .is_none_or(|list| list.iter().any(|s| s.admits(from)))
+}
+
 /// Receive ATTITUDE datagrams until the task is dropped.
 pub async fn listen(
     sock: tokio::net::UdpSocket,
@@ -192,8 +253,10 @@ pub async fn listen(
 ) {
     let mut buf = [0u8; 2048];
     // A peer sending garbage at any rate costs lines by core's rule, not
-    // one per 100 datagrams.
+    // one per 100 datagrams; strangers have their own log so that their
+    // flood does not hide the AHRS's refusals.
     let mut log = lightpose_core::ratelog::RateLog::new();
+    let mut stranger_log = lightpose_core::ratelog::RateLog::new();
     loop {
         let (n, from) = match sock.recv_from(&mut buf).await {
             Ok(x) => x,
@@ -203,6 +266,14 @@ pub async fn listen(
                 continue;
             }
         };
+        if !admitted(&cfg, from) {
+            // Not parsed: a stranger's content is neither read nor quoted.
+            let k = cell.reject(Reason::Sender);
+            if let Some(since) = stranger_log.tick(Instant::now()) {
+                tracing::warn!(from = %from, rejected = k, since_last_line = since, reason = Reason::Sender.as_str(), "attitude: datagram from {from} refused: not in attitude.allow_from");
+            }
+            continue;
+        }
         match parse(&buf[..n], cfg.beacon_axis_heading_deg) {
             Ok(r) => cell.store(Instant::now(), r),
             Err(e) => {
@@ -317,6 +388,70 @@ mod tests {
         )
         .is_ok());
         assert!(parse(br#"{"class":"ATTITUDE","t":0,"pitch":90,"yaw":-360}"#, 0.0).is_ok());
+    }
+
+    fn reading(pitch: f64, yaw: f64, std: Option<(f64, f64)>) -> AttitudeReading {
+        AttitudeReading {
+            pitch: Angle::from_deg(pitch),
+            yaw: Angle::from_deg(yaw),
+            std: std.map(|(p, y)| AttitudeStd {
+                pitch: Angle::from_deg(p),
+                yaw: Angle::from_deg(y),
+            }),
+        }
+    }
+
+    /// Audit item 2: the lock-free cell gives the latest reading, its σ
+    /// and its age as the mutex did.
+    #[test]
+    fn the_cell_gives_the_latest_reading() {
+        let c = AttitudeCell::default();
+        let t0 = Instant::now();
+        assert!(c.age(t0).is_none());
+        c.store(t0, reading(1.0, 2.0, Some((0.5, 1.5))));
+        let t1 = t0 + Duration::from_millis(40);
+        c.store(t1, reading(-3.0, 170.0, None));
+        let got = c.fresh(t1, Duration::from_millis(1)).expect("fresh");
+        assert_eq!(got, reading(-3.0, 170.0, None));
+        assert_eq!(
+            c.age(t1 + Duration::from_millis(7)),
+            Some(Duration::from_millis(7))
+        );
+        c.store(t1, reading(4.0, -5.0, Some((0.25, 2.0))));
+        assert_eq!(
+            c.fresh(t1, Duration::ZERO),
+            Some(reading(4.0, -5.0, Some((0.25, 2.0))))
+        );
+        assert_eq!(c.received.load(Relaxed), 3);
+    }
+
+    /// A reader alongside a flooding writer sees whole readings only, and
+    /// the last one once the writer stops.
+    #[test]
+    fn a_reader_beside_a_flood_sees_whole_readings() {
+        let c = std::sync::Arc::new(AttitudeCell::default());
+        let w = {
+            let c = c.clone();
+            std::thread::spawn(move || {
+                for k in 0..200_000u32 {
+                    let v = f64::from(k % 90);
+                    c.store(Instant::now(), reading(v, -v, Some((v, v))));
+                }
+            })
+        };
+        let max = Duration::from_secs(60);
+        while !w.is_finished() {
+            if let Some(r) = c.fresh(Instant::now(), max) {
+                assert_eq!(r.yaw, -r.pitch);
+                assert_eq!(r.std.map(|s| s.pitch), Some(r.pitch));
+            }
+        }
+        w.join().expect("writer");
+        let last = f64::from(199_999u32 % 90);
+        assert_eq!(
+            c.fresh(Instant::now(), max),
+            Some(reading(last, -last, Some((last, last))))
+        );
     }
 
     #[test]
