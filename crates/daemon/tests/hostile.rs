@@ -181,16 +181,7 @@ fn a_backward_seq_is_skipped_not_counted_lost() {
 fn bad_attitude_datagrams_are_counted_by_reason() {
     let dir = tempfile::tempdir().expect("tempdir");
     let log = dir.path().join("a.jsonl");
-    let frames: Vec<(u64, String)> = (0..200)
-        .map(|k| (k, format!("{}", k as f64 * 0.01)))
-        .collect();
-    let refs: Vec<(u64, &str)> = frames.iter().map(|(k, t)| (*k, t.as_str())).collect();
-    write_log(&log, 100.0, &refs);
-    let port = UdpSocket::bind("127.0.0.1:0")
-        .expect("port")
-        .local_addr()
-        .expect("addr")
-        .port();
+    let port = two_seconds_of_log_and_a_port(&log);
     let (sub, addr) = subscriber();
     let extra = format!(
         "[attitude]\nenabled = true\nlisten = \"127.0.0.1:{port}\"\nbeacon_axis_heading_deg = 0.0\n"
@@ -228,6 +219,20 @@ fn bad_attitude_datagrams_are_counted_by_reason() {
     );
 }
 
+/// A 2 s log of 200 frames at `log`, and a free UDP port for an input.
+fn two_seconds_of_log_and_a_port(log: &std::path::Path) -> u16 {
+    let frames: Vec<(u64, String)> = (0..200)
+        .map(|k| (k, format!("{}", k as f64 * 0.01)))
+        .collect();
+    let refs: Vec<(u64, &str)> = frames.iter().map(|(k, t)| (*k, t.as_str())).collect();
+    write_log(log, 100.0, &refs);
+    UdpSocket::bind("127.0.0.1:0")
+        .expect("port")
+        .local_addr()
+        .expect("addr")
+        .port()
+}
+
 /// Audit: with `allow_from`, a stranger's valid readings are counted
 /// `sender` and never attached, while the AHRS's are.
 #[test]
@@ -235,16 +240,7 @@ fn attitude_from_a_sender_not_allowed_is_refused_and_not_attached() {
     let dir = tempfile::tempdir().expect("tempdir");
     let log = dir.path().join("a.jsonl");
     let rec = dir.path().join("rec");
-    let frames: Vec<(u64, String)> = (0..200)
-        .map(|k| (k, format!("{}", k as f64 * 0.01)))
-        .collect();
-    let refs: Vec<(u64, &str)> = frames.iter().map(|(k, t)| (*k, t.as_str())).collect();
-    write_log(&log, 100.0, &refs);
-    let port = UdpSocket::bind("127.0.0.1:0")
-        .expect("port")
-        .local_addr()
-        .expect("addr")
-        .port();
+    let port = two_seconds_of_log_and_a_port(&log);
     // Both on loopback: the AHRS is named with its port, so the stranger
     // differs only by port (an address alone is unit-tested in config).
     let ahrs = UdpSocket::bind("127.0.0.1:0").expect("ahrs");

@@ -106,17 +106,7 @@ fn a_python_foxglove_client_decodes_frames_images_and_poses() {
 /// A client that does the handshake, subscribes to every channel and then
 /// never reads again: its receive buffer is made small so that it fills.
 async fn stuck_client(addr: SocketAddr) -> impl Sized {
-    let sock = socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).unwrap();
-    sock.set_recv_buffer_size(4096).unwrap();
-    sock.connect(&addr.into()).unwrap();
-    sock.set_nonblocking(true).unwrap();
-    let tcp = tokio::net::TcpStream::from_std(sock.into()).unwrap();
-    let (mut ws, _) = tokio_tungstenite::client_async(request(addr), tcp)
-        .await
-        .expect("handshake");
-    for _ in 0..2 {
-        ws.next().await.expect("serverInfo, advertise").unwrap();
-    }
+    let mut ws = tiny_buffer_client(addr).await;
     ws.send(Ws::text(subscribe_all())).await.unwrap();
     ws
 }

@@ -29,6 +29,25 @@ pub(super) fn est(seq: u64) -> PoseEstimate {
     PoseEstimate::empty(seq, seq as f64 * 0.01, Status::NoLight, "test")
 }
 
+/// The frame and estimate `seq` as the frame thread hands them over.
+pub(super) fn item(seq: u64) -> Item {
+    Item {
+        frame: frame(seq),
+        est: est(seq),
+        wall_unix: 1.7e9,
+    }
+}
+
+/// A recording worker of `c` and its counters.
+pub(super) fn worker(c: &Recording) -> (Worker, Arc<RecStats>) {
+    let stats = Arc::new(RecStats {
+        format: c.format,
+        ..RecStats::default()
+    });
+    let w = Worker::new(c, LogHeader::new(10, 5.0), stats.clone());
+    (w, stats)
+}
+
 pub(super) fn cfg(dir: PathBuf, rotate_bytes: Option<u64>, queue: usize) -> Recording {
     Recording {
         dir,
@@ -159,11 +178,6 @@ fn the_error_is_cleared_when_recording_resumes() {
         LogHeader::new(10, 5.0),
         stats.clone(),
     );
-    let item = |seq| Item {
-        frame: frame(seq),
-        est: est(seq),
-        wall_unix: 1.7e9,
-    };
     w.write(&item(0));
     assert_eq!(stats.state(), RecState::Error);
     assert!(stats.error.lock().unwrap().is_some());

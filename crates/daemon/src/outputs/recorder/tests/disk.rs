@@ -4,18 +4,16 @@
 //! old recordings pruned for `max_total_mb` and `keep_free_mb`.
 
 use super::super::space::{default_floor, free_bytes, Space, MAX_FLOOR, MIN_FREE};
-use super::super::worker::{Worker, RETRY_FIRST, RETRY_MAX};
-use super::{cfg, est, frame};
-use super::{Item, RecState, RecStats};
-use crate::config::{RecFormat, Recording};
-use lightpose_core::LogHeader;
+use super::super::worker::{RETRY_FIRST, RETRY_MAX};
+use super::RecState;
+use super::{cfg, item, worker};
+use crate::config::RecFormat;
 use lightpose_testkit::logs::logged;
 use std::fs::File;
 use std::io;
 use std::os::fd::AsRawFd;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering::Relaxed;
-use std::sync::Arc;
 
 /// A new file whose writes all fail as on a full disk: it exists, as a
 /// file created on a full filesystem does (an inode is still free).
@@ -24,23 +22,6 @@ fn on_full_disk(path: &Path) -> io::Result<File> {
     let full = File::options().write(true).open("/dev/full")?;
     nix::unistd::dup2(full.as_raw_fd(), f.as_raw_fd())?;
     Ok(f)
-}
-
-fn item(seq: u64) -> Item {
-    Item {
-        frame: frame(seq),
-        est: est(seq),
-        wall_unix: 1.7e9,
-    }
-}
-
-fn worker(c: &Recording) -> (Worker, Arc<RecStats>) {
-    let stats = Arc::new(RecStats {
-        format: c.format,
-        ..RecStats::default()
-    });
-    let w = Worker::new(c, LogHeader::new(10, 5.0), stats.clone());
-    (w, stats)
 }
 
 fn files_in(dir: &Path) -> Vec<PathBuf> {

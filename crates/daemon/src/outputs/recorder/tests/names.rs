@@ -4,33 +4,14 @@
 //! over, never overwritten, and costs no frame.
 
 use super::super::names::{self, Rank};
-use super::super::worker::Worker;
-use super::{cfg, est, frame};
-use super::{Item, LogHeader, RecState, RecStats, Recorder};
-use crate::config::Recording;
+use super::{cfg, est, frame, item, worker};
+use super::{LogHeader, RecState, Recorder};
 use crate::outputs::recfile::create_new;
 use lightpose_core::LogReader;
 use std::fs::File;
 use std::io;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
-use std::sync::Arc;
-
-fn item(seq: u64) -> Item {
-    Item {
-        frame: frame(seq),
-        est: est(seq),
-        wall_unix: 1.7e9,
-    }
-}
-
-fn worker(c: &Recording) -> (Worker, Arc<RecStats>) {
-    let stats = Arc::new(RecStats::default());
-    (
-        Worker::new(c, LogHeader::new(10, 5.0), stats.clone()),
-        stats,
-    )
-}
 
 /// The names in `dir`, in name order.
 fn names_in(dir: &Path) -> Vec<String> {
