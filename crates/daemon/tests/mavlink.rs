@@ -268,6 +268,14 @@ fn bad_mavlink_input_costs_no_frame() {
     let mut unknown = good.clone();
     unknown[7..10].copy_from_slice(&[0x77, 0x77, 0x07]);
     let nan = autopilot.encode(&attitude(f32::NAN, 0.5)).to_vec();
+    // Its HEARTBEAT first: without `autopilot_system_id` nothing else is
+    // taken before it tells who the autopilot is.
+    let beat = Encoder::new(1, 1)
+        .encode(&lightpose_vehicle::standin::autopilot_heartbeat())
+        .to_vec();
+    for _ in 0..3 {
+        tx.send_to(&beat, to).expect("send");
+    }
     for d in [&bad_crc, &unknown, &nan, &b"not mavlink at all".to_vec()] {
         for _ in 0..50 {
             tx.send_to(d, to).expect("send");
@@ -325,6 +333,11 @@ fn bad_mavlink_input_costs_no_frame() {
         sent >= 50 && sent <= queued,
         "{sent} sent, {queued} queued: {m}"
     );
+    // STATUS names the autopilot, learned from its HEARTBEAT, and the peer.
+    assert_eq!(m["autopilot"]["system"], 1, "{m}");
+    assert_eq!(m["autopilot"]["configured"], false, "{m}");
+    assert_eq!(m["peer"], tx.local_addr().expect("addr").to_string(), "{m}");
+    assert_eq!(m["peer_changes"], 0, "{m}");
 }
 
 /// The binary with `cfg_text`: its exit code and stderr.

@@ -104,8 +104,13 @@ pub struct MavlinkTable {
     pub connection: String,
     pub system_id: Option<u8>,
     pub component_id: Option<u8>,
-    /// Take input only from this system (default: from any).
+    /// The autopilot's system id (default: learned from the first
+    /// autopilot HEARTBEAT of `autopilot_component_id`).
     pub autopilot_system_id: Option<u8>,
+    /// The autopilot's component id (default 1, MAV_COMP_ID_AUTOPILOT1).
+    /// Readings are taken, and poses sent on `udpin`, only from the
+    /// autopilot: a GCS or a second vehicle on the LAN is not it.
+    pub autopilot_component_id: Option<u8>,
     pub attitude: Option<bool>,
     /// `global_position_int` (default), `vfr_hud` or `none`.
     pub depth: Option<String>,
@@ -150,11 +155,24 @@ impl MavlinkTable {
                 format!("{range:?} is not [shallowest, deepest]"),
             ));
         }
+        for (key, v) in [
+            ("autopilot_system_id", self.autopilot_system_id),
+            ("autopilot_component_id", self.autopilot_component_id),
+        ] {
+            if v == Some(0) {
+                return Err(err(
+                    M,
+                    key,
+                    "0 is the broadcast id, not a sender's: want 1..=255",
+                ));
+            }
+        }
         Ok(InputConfig {
             attitude: self.attitude.unwrap_or(true),
             depth,
             temperature: self.temperature.unwrap_or(true),
             autopilot_system: self.autopilot_system_id,
+            autopilot_component: self.autopilot_component_id.unwrap_or(1),
             depth_range_m: range,
             ..InputConfig::default()
         })
@@ -334,6 +352,10 @@ mod tests {
         let site = f.site.validate().unwrap();
         let (m, age) = f.mavlink.validate(site).unwrap();
         assert_eq!((m.system_id, m.component_id), (1, 197));
+        assert_eq!(
+            (m.input.autopilot_system, m.input.autopilot_component),
+            (None, 1)
+        );
         assert_eq!(m.input.depth, DepthSource::VfrHud);
         assert_eq!(m.output.position_rate_hz, Some(5.0));
         assert_eq!(age.attitude, Duration::from_millis(250));
@@ -392,6 +414,10 @@ mod tests {
         assert!(t(|m| m.depth = Some("baro".into())).starts_with("[mavlink] depth:"));
         assert!(t(|m| m.roll_std_deg = Some(f64::NAN)).starts_with("[mavlink] roll_std_deg:"));
         assert!(t(|m| m.missing_std = Some("guess".into())).starts_with("[mavlink] missing_std:"));
+        assert!(t(|m| m.autopilot_system_id = Some(0))
+            .starts_with("[mavlink] autopilot_system_id: 0 is the broadcast id"));
+        assert!(t(|m| m.autopilot_component_id = Some(0))
+            .starts_with("[mavlink] autopilot_component_id: 0 is the broadcast id"));
         let dvl = DvlTable {
             address: "192.168.2.95".into(),
             ..Default::default()

@@ -248,9 +248,11 @@ fn a_flood_costs_no_frame_and_the_latest_valid_reading_wins() {
     assert!(st.sent[2].1 > 0, "heartbeats");
 }
 
-/// A `udpin` component knows its autopilot only from the first datagram;
-/// it greets it with a HEARTBEAT then, not a heartbeat period later (here
-/// a minute, so that only the greeting can arrive in time).
+/// A `udpin` component knows its autopilot only from the first datagram
+/// with the autopilot's frame (here its ATTITUDE: the system is
+/// configured; unset, only its HEARTBEAT would tell); it greets it with a
+/// HEARTBEAT then, not a heartbeat period later (here a minute, so that
+/// only the greeting can arrive in time).
 #[test]
 fn a_udpin_component_greets_a_new_peer_at_once() {
     let port = UdpSocket::bind("127.0.0.1:0")
@@ -263,6 +265,7 @@ fn a_udpin_component_greets_a_new_peer_at_once() {
         Site::new(Angle::ZERO, 3.0),
     );
     s.heartbeat_period = Duration::from_secs(60);
+    s.input.autopilot_system = Some(1);
     let hub = Arc::new(Hub::default());
     let _running = spawn_mavlink(s, hub.clone());
     let ap = UdpSocket::bind("127.0.0.1:0").expect("autopilot");

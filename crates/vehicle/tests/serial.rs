@@ -67,6 +67,9 @@ fn mavlink_over_a_serial_port_both_ways_and_through_an_unplug() {
     );
     s.heartbeat_period = Duration::from_millis(50);
     s.reopen_max = Duration::from_millis(200);
+    // The autopilot configured: its ATTITUDEs are taken without a
+    // HEARTBEAT first.
+    s.input.autopilot_system = Some(1);
     let _running = spawn_mavlink(s, hub.clone());
 
     // In: attitudes split across writes, garbage and a broken CRC between,

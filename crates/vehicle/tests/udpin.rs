@@ -1,19 +1,24 @@
 //! `udpin` over real UDP on loopback: the poses and heartbeats go to the
-//! last sender of a valid MAVLink frame from the autopilot we accept, not
-//! to whoever sent the last datagram. A stray sender's garbage, a frame
-//! with a broken CRC and another system's valid frame are counted and
-//! redirect nothing; the autopilot moving to another port is followed.
+//! address the autopilot's own frames come from, not to whoever sent the
+//! last datagram. A stray sender's garbage, a frame with a broken CRC and
+//! another system's valid frame are counted and redirect nothing; a GCS's
+//! or a second vehicle's readings are counted and never attached; the
+//! autopilot moving to another port is followed once its old one has been
+//! silent for `PEER_SILENCE`.
 
 mod common;
 
 use common::{estimate, spawn_mavlink, wait_until};
 use lightpose_core::Angle;
 use lightpose_vehicle::mav::inbound::Refusal;
+use lightpose_vehicle::mav::link::PEER_SILENCE;
 use lightpose_vehicle::mav::outbound::Encoder;
 use lightpose_vehicle::mav::scan::{Framing, Scanned, Scanner};
 use lightpose_vehicle::standin::autopilot_heartbeat;
 use lightpose_vehicle::{Hub, MavlinkSettings, Site};
-use mavlink::dialects::ardupilotmega::{HEARTBEAT_DATA, VISION_POSITION_ESTIMATE_DATA};
+use mavlink::dialects::ardupilotmega::{
+    MavAutopilot, MavMessage, MavType, ATTITUDE_DATA, HEARTBEAT_DATA, VISION_POSITION_ESTIMATE_DATA,
+};
 use mavlink::MessageData;
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
@@ -33,6 +38,53 @@ fn beat(system: u8) -> Vec<u8> {
     Encoder::new(system, 1)
         .encode(&autopilot_heartbeat())
         .to_vec()
+}
+
+/// A GCS's heartbeat (QGroundControl: system 255, component 190).
+fn gcs_beat() -> Vec<u8> {
+    let m = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_GCS,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        ..Default::default()
+    });
+    Encoder::new(255, 190).encode(&m).to_vec()
+}
+
+/// An ATTITUDE of yaw `yaw` rad from (system, component).
+fn attitude(system: u8, component: u8, yaw: f32) -> Vec<u8> {
+    let m = MavMessage::ATTITUDE(ATTITUDE_DATA {
+        yaw,
+        ..Default::default()
+    });
+    Encoder::new(system, component).encode(&m).to_vec()
+}
+
+/// A heartbeat of (system, component), as an autopilot sends it.
+fn beat_of(system: u8, component: u8) -> Vec<u8> {
+    Encoder::new(system, component)
+        .encode(&autopilot_heartbeat())
+        .to_vec()
+}
+
+/// A `udpin` link on a free loopback port, its heartbeat every 50 ms.
+fn listening(configure: impl FnOnce(&mut MavlinkSettings)) -> (MavlinkSettings, SocketAddr) {
+    let port = socket().local_addr().unwrap().port();
+    let daemon: SocketAddr = format!("127.0.0.1:{port}").parse().unwrap();
+    let mut s = MavlinkSettings::new(
+        format!("udpin:{daemon}").parse().unwrap(),
+        Site::new(Angle::from_deg(30.0), 3.0),
+    );
+    s.heartbeat_period = Duration::from_millis(50);
+    configure(&mut s);
+    (s, daemon)
+}
+
+/// Wait for the task to have bound its port (a datagram before is lost).
+fn bound(hub: &Hub) {
+    let open = wait_until(Duration::from_secs(5), || {
+        hub.mavlink.status(Instant::now()).link_opens >= 1
+    });
+    assert!(open, "the udpin link opens");
 }
 
 /// The message ids `sock` hears for `how_long`.
@@ -120,8 +172,9 @@ fn only_a_valid_frame_from_the_autopilot_chooses_where_poses_go() {
     assert!(ap_heard.contains(&POSITION), "{ap_heard:?}");
     assert!(ap_heard.contains(&HEARTBEAT), "{ap_heard:?}");
 
-    // The autopilot (or its router) on another port: followed at its first
-    // valid frame.
+    // The autopilot (or its router) on another port: followed once the
+    // old one has been silent for PEER_SILENCE (see the test below).
+    std::thread::sleep(PEER_SILENCE + Duration::from_millis(100));
     let moved = socket();
     assert!(announce(&moved, daemon), "the moved autopilot is greeted");
     let moved_heard = poses_heard(&hub, &moved, Duration::from_millis(300), &mut seq);
@@ -129,4 +182,166 @@ fn only_a_valid_frame_from_the_autopilot_chooses_where_poses_go() {
     let _ = hear(&autopilot, Duration::from_millis(50));
     let old_heard = poses_heard(&hub, &autopilot, Duration::from_millis(200), &mut seq);
     assert!(old_heard.is_empty(), "the old port got {old_heard:?}");
+}
+
+/// Audit: by default (no `autopilot_system_id`) a GCS's heartbeat took the
+/// poses, and a second vehicle's readings were attached. The autopilot is
+/// learned from its own HEARTBEAT (component 1, not a GCS); a GCS and a
+/// second vehicle (system 2) neither take the peer nor give readings, and
+/// are counted; before the autopilot is known nothing is attached.
+#[test]
+fn a_gcs_and_a_second_vehicle_neither_take_the_poses_nor_give_readings() {
+    let (s, daemon) = listening(|_| {});
+    let hub = Hub::new();
+    let _task = spawn_mavlink(s.clone(), hub.clone());
+    bound(&hub);
+    let (autopilot, gcs, rov2) = (socket(), socket(), socket());
+
+    // Before any autopilot HEARTBEAT: an ATTITUDE of (1, 1) is not taken.
+    autopilot
+        .send_to(&attitude(1, 1, 0.0), daemon)
+        .expect("send");
+    let m = &hub.mavlink;
+    assert!(wait_until(Duration::from_secs(5), || m
+        .refused(Refusal::AutopilotUnknown)
+        >= 1));
+    assert_eq!(m.used(0), 0);
+    assert_eq!(m.autopilot(), None);
+
+    // A GCS's heartbeat first: not adopted.
+    gcs.send_to(&gcs_beat(), daemon).expect("send");
+    assert!(wait_until(Duration::from_secs(5), || m
+        .refused(Refusal::OtherComponent)
+        >= 1));
+    assert_eq!((m.autopilot(), m.peer()), (None, None));
+    assert!(announce(&autopilot, daemon), "the autopilot is greeted");
+    let id = m.autopilot().expect("learned");
+    assert_eq!((id.system, id.component, id.configured), (1, 1, false));
+    assert_eq!(m.peer(), autopilot.local_addr().ok());
+
+    // The others' streams, yaw biased, while the autopilot's goes on.
+    let used_before = m.used(0);
+    for _ in 0..20 {
+        gcs.send_to(&gcs_beat(), daemon).expect("send");
+        gcs.send_to(&attitude(255, 190, 1.0), daemon).expect("send");
+        rov2.send_to(&beat(2), daemon).expect("send");
+        rov2.send_to(&attitude(2, 1, 1.0), daemon).expect("send");
+        autopilot
+            .send_to(&attitude(1, 1, 0.0), daemon)
+            .expect("send");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(wait_until(Duration::from_secs(5), || m.used(0) >= used_before + 20));
+    assert_eq!(m.used(0), used_before + 20, "only the autopilot's are used");
+    assert!(
+        m.refused(Refusal::OtherSystem) >= 40,
+        "{:?}",
+        m.status(Instant::now())
+    );
+    assert!(m.refused(Refusal::OtherComponent) >= 40);
+    let yaw = hub
+        .readings
+        .attitude(Instant::now(), Duration::from_secs(5))
+        .expect("attached")
+        .yaw;
+    let want = s.site.yaw_b(Angle::ZERO);
+    assert!(
+        (yaw - want).deg().abs() < 1e-3,
+        "{} vs {}",
+        yaw.deg(),
+        want.deg()
+    );
+
+    // The poses go to the autopilot only.
+    let mut seq = 0;
+    let heard = poses_heard(&hub, &autopilot, Duration::from_millis(300), &mut seq);
+    assert!(heard.contains(&POSITION), "{heard:?}");
+    for (who, sock) in [("the GCS", &gcs), ("the second vehicle", &rov2)] {
+        let got = poses_heard(&hub, sock, Duration::from_millis(200), &mut seq);
+        assert!(got.is_empty(), "{who} got {got:?}");
+    }
+    assert_eq!(m.peer_changes(), 0);
+    let st = serde_json::to_value(m.status(Instant::now())).expect("json");
+    assert_eq!(st["peer"], autopilot.local_addr().unwrap().to_string());
+    assert_eq!(st["autopilot"]["system"], 1);
+}
+
+/// Audit: a second sender with the autopilot's own ids (a second ROV with
+/// default SYSID 1) took the poses from the autopilot that was still
+/// talking, and its readings were attached. Now its frames are refused
+/// (`other_address`) while the autopilot speaks; once the autopilot has
+/// been silent for PEER_SILENCE the new address becomes the peer.
+#[test]
+fn the_peer_moves_only_after_the_autopilot_fell_silent() {
+    let (s, daemon) = listening(|s| s.input.autopilot_system = Some(1));
+    let hub = Hub::new();
+    let _task = spawn_mavlink(s, hub.clone());
+    let (autopilot, twin) = (socket(), socket());
+    assert!(announce(&autopilot, daemon), "the autopilot is greeted");
+    let m = &hub.mavlink;
+    let id = m.autopilot().expect("configured");
+    assert!(id.configured);
+
+    // The twin at 200 Hz for 1 s while the autopilot beats at 20 Hz.
+    let end = Instant::now() + Duration::from_secs(1);
+    let mut seq = 0;
+    let mut heard = Vec::new();
+    while Instant::now() < end {
+        for _ in 0..10 {
+            twin.send_to(&beat(1), daemon).expect("send");
+            twin.send_to(&attitude(1, 1, 1.0), daemon).expect("send");
+        }
+        autopilot.send_to(&beat(1), daemon).expect("send");
+        heard.extend(poses_heard(
+            &hub,
+            &autopilot,
+            Duration::from_millis(50),
+            &mut seq,
+        ));
+    }
+    let n = heard.iter().filter(|id| **id == POSITION).count();
+    assert!(n >= 10, "the autopilot heard {n} estimates in 1 s");
+    assert!(m.refused(Refusal::OtherAddress) >= 100);
+    assert_eq!(m.used(0), 0, "the twin's ATTITUDEs are not attached");
+    assert_eq!(
+        (m.peer(), m.peer_changes()),
+        (autopilot.local_addr().ok(), 0)
+    );
+
+    // The autopilot falls silent: the twin takes over after PEER_SILENCE,
+    // not before.
+    let silent = Instant::now();
+    let moved = wait_until(PEER_SILENCE + Duration::from_secs(3), || {
+        twin.send_to(&beat(1), daemon).expect("send");
+        std::thread::sleep(Duration::from_millis(20));
+        m.peer() == twin.local_addr().ok()
+    });
+    assert!(moved && silent.elapsed() >= PEER_SILENCE - Duration::from_millis(100));
+    assert_eq!(m.peer_changes(), 1);
+}
+
+/// A configured component other than 1: that component's HEARTBEAT teaches
+/// the system; component 1 of the same system is another component.
+#[test]
+fn a_configured_component_is_the_autopilot() {
+    let (s, daemon) = listening(|s| s.input.autopilot_component = 2);
+    let hub = Hub::new();
+    let _task = spawn_mavlink(s, hub.clone());
+    bound(&hub);
+    let (autopilot, other) = (socket(), socket());
+    let m = &hub.mavlink;
+    other.send_to(&beat_of(1, 1), daemon).expect("send");
+    other.send_to(&attitude(1, 1, 1.0), daemon).expect("send");
+    assert!(wait_until(Duration::from_secs(5), || m
+        .refused(Refusal::OtherComponent)
+        >= 2));
+    assert_eq!((m.autopilot(), m.peer()), (None, None));
+    autopilot.send_to(&beat_of(1, 2), daemon).expect("send");
+    autopilot
+        .send_to(&attitude(1, 2, 0.0), daemon)
+        .expect("send");
+    assert!(wait_until(Duration::from_secs(5), || m.used(0) == 1));
+    let id = m.autopilot().expect("learned");
+    assert_eq!((id.system, id.component), (1, 2));
+    assert_eq!(m.peer(), autopilot.local_addr().ok());
 }

@@ -269,8 +269,12 @@ impl Session {
                         scanner.commit(n);
                         // udpin: answer whoever sent a valid frame, not
                         // whoever sent a datagram.
-                        if self.take(&mut scanner) {
-                            link.accept_sender();
+                        // A new peer gets our HEARTBEAT at once: a
+                        // daemon takes nothing from us before it.
+                        if self.take(&mut scanner)
+                            && link.accept_sender(std::time::Instant::now()).is_some()
+                        {
+                            let _ = link.send(self.enc.encode(&autopilot_heartbeat())).await;
                         }
                     }
                     Err(e) if link.framing() == Framing::Stream => return Err(e).context("serial link"),

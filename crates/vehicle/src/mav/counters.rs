@@ -9,6 +9,7 @@ use super::outbound::Skip;
 use lightpose_core::ratelog::RateLog;
 use serde::Serialize;
 use std::io;
+use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -38,10 +39,25 @@ pub struct MavCounters {
     pub(crate) link_opens: AtomicU64,
     pub(crate) link_failures: AtomicU64,
     pub(crate) autopilot_seen: Mutex<Option<Instant>>,
+    /// The autopilot, once configured or learned (see `inbound::origin`).
+    pub(crate) autopilot: Mutex<Option<AutopilotId>>,
+    /// Where poses go on `udpin`: a copy of the link's, for STATUS.
+    pub(crate) peer: Mutex<Option<SocketAddr>>,
+    pub(crate) peer_changes: AtomicU64,
     pub(crate) last_error: Mutex<Option<LastError>>,
     /// Per refusal reason, core's rule: the first at once, then less and
     /// less often while they go on (a flood was a line every 1000th).
     refused_log: Mutex<[RateLog; Refusal::ALL.len()]>,
+}
+
+/// Who the autopilot is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct AutopilotId {
+    pub system: u8,
+    pub component: u8,
+    /// From `[mavlink] autopilot_system_id` (else learned from its
+    /// HEARTBEAT).
+    pub configured: bool,
 }
 
 /// STATUS figures of the MAVLink link.
@@ -75,6 +91,13 @@ pub struct MavlinkStatus {
     pub link_failures: u64,
     /// Seconds since the autopilot's last HEARTBEAT.
     pub autopilot_heartbeat_age_s: Option<f64>,
+    /// The autopilot whose readings are taken (null until known).
+    pub autopilot: Option<AutopilotId>,
+    /// Where poses go on `udpin` (null before the autopilot spoke, and on
+    /// other transports).
+    pub peer: Option<String>,
+    /// Moves of the `udpin` peer after it was silent (the first is none).
+    pub peer_changes: u64,
     pub last_error: Option<String>,
 }
 
@@ -205,6 +228,32 @@ impl MavCounters {
         }
     }
 
+    /// The autopilot, once known.
+    pub fn autopilot(&self) -> Option<AutopilotId> {
+        self.autopilot.lock().ok().and_then(|g| *g)
+    }
+
+    /// The `udpin` peer, if any.
+    pub fn peer(&self) -> Option<SocketAddr> {
+        self.peer.lock().ok().and_then(|g| *g)
+    }
+
+    pub fn peer_changes(&self) -> u64 {
+        self.peer_changes.load(Relaxed)
+    }
+
+    pub(crate) fn set_autopilot(&self, id: AutopilotId) {
+        if let Ok(mut g) = self.autopilot.lock() {
+            *g = Some(id);
+        }
+    }
+
+    pub(crate) fn set_peer(&self, p: Option<SocketAddr>) {
+        if let Ok(mut g) = self.peer.lock() {
+            *g = p;
+        }
+    }
+
     pub fn refused(&self, reason: Refusal) -> u64 {
         self.refused[reason.index()].load(Relaxed)
     }
@@ -241,6 +290,14 @@ impl MavCounters {
                 .ok()
                 .and_then(|g| *g)
                 .map(|t| now.saturating_duration_since(t).as_secs_f64()),
+            autopilot: self.autopilot.lock().ok().and_then(|g| *g),
+            peer: self
+                .peer
+                .lock()
+                .ok()
+                .and_then(|g| *g)
+                .map(|a| a.to_string()),
+            peer_changes: self.peer_changes.load(Relaxed),
             last_error: self
                 .last_error
                 .lock()

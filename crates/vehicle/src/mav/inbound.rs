@@ -47,8 +47,13 @@ pub struct InputConfig {
     pub attitude: bool,
     pub depth: DepthSource,
     pub temperature: bool,
-    /// Only messages from this system id count (others are refused).
+    /// The autopilot's system id; when unset it is learned from the first
+    /// autopilot HEARTBEAT of `autopilot_component` (see [`origin`]).
     pub autopilot_system: Option<u8>,
+    /// The autopilot's component id (1, MAV_COMP_ID_AUTOPILOT1, by
+    /// default): a GCS, a camera or a second flight controller on the
+    /// same system is not the autopilot.
+    pub autopilot_component: u8,
     /// Depths (m, positive down) outside this range are refused.
     pub depth_range_m: [f64; 2],
     /// Water temperatures (°C) outside this range are refused.
@@ -62,6 +67,7 @@ impl Default for InputConfig {
             depth: DepthSource::GlobalPositionInt,
             temperature: true,
             autopilot_system: None,
+            autopilot_component: 1,
             depth_range_m: [-10.0, 1000.0],
             temperature_range_c: [-5.0, 50.0],
         }
@@ -76,6 +82,14 @@ pub enum Refusal {
     UnknownMessage,
     BadFlags,
     OtherSystem,
+    /// The autopilot's system, but another component (a GCS, a gimbal).
+    OtherComponent,
+    /// Before the autopilot is known (configured or learned from its
+    /// HEARTBEAT), nothing but a HEARTBEAT is taken.
+    AutopilotUnknown,
+    /// On `udpin`, a datagram from an address other than the autopilot's
+    /// while the autopilot still speaks (see `link::PEER_SILENCE`).
+    OtherAddress,
     Malformed,
     NotFinite,
     AngleOutOfRange,
@@ -87,11 +101,14 @@ pub enum Refusal {
 }
 
 impl Refusal {
-    pub const ALL: [Refusal; 10] = [
+    pub const ALL: [Refusal; 13] = [
         Refusal::BadCrc,
         Refusal::UnknownMessage,
         Refusal::BadFlags,
         Refusal::OtherSystem,
+        Refusal::OtherComponent,
+        Refusal::AutopilotUnknown,
+        Refusal::OtherAddress,
         Refusal::Malformed,
         Refusal::NotFinite,
         Refusal::AngleOutOfRange,
@@ -106,6 +123,9 @@ impl Refusal {
             Refusal::UnknownMessage => "unknown_message",
             Refusal::BadFlags => "bad_flags",
             Refusal::OtherSystem => "other_system",
+            Refusal::OtherComponent => "other_component",
+            Refusal::AutopilotUnknown => "autopilot_unknown",
+            Refusal::OtherAddress => "other_address",
             Refusal::Malformed => "malformed",
             Refusal::NotFinite => "not_finite",
             Refusal::AngleOutOfRange => "angle_out_of_range",
@@ -170,10 +190,31 @@ fn decode<D: MessageData>(f: &RawFrame) -> Result<D, Refused> {
     D::deser(f.version, f.payload).map_err(|_| refuse(Refusal::Malformed, f, f64::NAN))
 }
 
-/// Interpret one CRC-valid frame.
+/// Whether a frame comes from the autopilot: its component, and its
+/// system as configured or else as `learned` (the first autopilot
+/// HEARTBEAT's). Anyone on the LAN can send MAVLink (a GCS, a second ROV
+/// with the same default ids), and their readings must not reach a pose.
+/// Until the system is known only a HEARTBEAT passes, to be told apart.
+pub fn origin(f: &RawFrame, cfg: &InputConfig, learned: Option<u8>) -> Result<(), Refused> {
+    if f.component != cfg.autopilot_component {
+        return Err(refuse(Refusal::OtherComponent, f, f.component as f64));
+    }
+    match cfg.autopilot_system.or(learned) {
+        Some(s) if s != f.system => Err(refuse(Refusal::OtherSystem, f, f.system as f64)),
+        Some(_) => Ok(()),
+        None if f.msg_id == HEARTBEAT_DATA::ID => Ok(()),
+        None => Err(refuse(Refusal::AutopilotUnknown, f, f.system as f64)),
+    }
+}
+
+/// Interpret one CRC-valid frame of the configured autopilot component
+/// (and system, when set); the caller checks the rest with [`origin`].
 pub fn interpret(f: &RawFrame, cfg: &InputConfig, site: &Site) -> Result<Input, Refused> {
     if cfg.autopilot_system.is_some_and(|s| s != f.system) {
         return Err(refuse(Refusal::OtherSystem, f, f.system as f64));
+    }
+    if f.component != cfg.autopilot_component {
+        return Err(refuse(Refusal::OtherComponent, f, f.component as f64));
     }
     match f.msg_id {
         ATTITUDE_DATA::ID if cfg.attitude => attitude(f, &decode(f)?, site),
@@ -197,18 +238,23 @@ pub fn interpret(f: &RawFrame, cfg: &InputConfig, site: &Site) -> Result<Input, 
             }
             Ok(Input::Temperature(c))
         }
-        HEARTBEAT_DATA::ID => {
-            let m: HEARTBEAT_DATA = decode(f)?;
-            let autopilot = m.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID
-                && m.mavtype != MavType::MAV_TYPE_GCS;
-            Ok(if autopilot {
-                Input::AutopilotHeartbeat
-            } else {
-                Input::Unused
-            })
-        }
+        HEARTBEAT_DATA::ID => Ok(if is_autopilot_heartbeat(f) {
+            Input::AutopilotHeartbeat
+        } else {
+            Input::Unused
+        }),
         _ => Ok(Input::Unused),
     }
+}
+
+/// Whether `f` is a HEARTBEAT of an autopilot: its `autopilot` field not
+/// MAV_AUTOPILOT_INVALID (what GCSs and companions send) and its type not
+/// a GCS (whatever its component).
+pub fn is_autopilot_heartbeat(f: &RawFrame) -> bool {
+    f.msg_id == HEARTBEAT_DATA::ID
+        && decode::<HEARTBEAT_DATA>(f).is_ok_and(|m| {
+            m.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID && m.mavtype != MavType::MAV_TYPE_GCS
+        })
 }
 
 fn attitude(f: &RawFrame, m: &ATTITUDE_DATA, site: &Site) -> Result<Input, Refused> {
@@ -383,6 +429,39 @@ mod tests {
         };
         let r = interpret(&frame(137, 2, &buf[..n]), &only_1, &site).unwrap_err();
         assert_eq!(r.reason, Refusal::OtherSystem);
+    }
+
+    /// Audit: any system and component were trusted. Only the autopilot's
+    /// (system, component) passes; before its system is known, only a
+    /// HEARTBEAT (which may tell it).
+    #[test]
+    fn only_the_autopilot_passes_origin() {
+        let cfg = InputConfig::default();
+        let mut buf = [0u8; 255];
+        let n = raw(&ATTITUDE_DATA::default(), &mut buf);
+        let of = |system, component| RawFrame {
+            component,
+            ..frame(30, system, &buf[..n])
+        };
+        let why = |f: &RawFrame, learned| origin(f, &cfg, learned).map_err(|r| r.reason);
+        assert_eq!(why(&of(1, 1), Some(1)), Ok(()));
+        assert_eq!(why(&of(2, 1), Some(1)), Err(Refusal::OtherSystem));
+        assert_eq!(why(&of(1, 190), Some(1)), Err(Refusal::OtherComponent));
+        assert_eq!(why(&of(1, 1), None), Err(Refusal::AutopilotUnknown));
+        let hb = RawFrame {
+            msg_id: HEARTBEAT_DATA::ID,
+            ..of(1, 1)
+        };
+        assert_eq!(why(&hb, None), Ok(()));
+        // A configured system needs no HEARTBEAT; a configured component.
+        let cfg = InputConfig {
+            autopilot_system: Some(3),
+            autopilot_component: 2,
+            ..cfg
+        };
+        assert!(origin(&of(3, 2), &cfg, None).is_ok());
+        let r = origin(&of(3, 1), &cfg, None).map_err(|r| r.reason);
+        assert_eq!(r, Err(Refusal::OtherComponent));
     }
 
     /// Audit: a roll out of range was refused with the yaw's value, so

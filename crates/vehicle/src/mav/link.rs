@@ -1,7 +1,7 @@
 //! The MAVLink transports, named as MAVLink tools name them:
 //! `udpout:HOST:PORT` (send to the autopilot's or router's port, hear its
-//! replies), `udpin:ADDR:PORT` (listen; reply to the last sender of a valid
-//! MAVLink frame from the autopilot, see [`Link::accept_sender`]) and
+//! replies), `udpin:ADDR:PORT` (listen; reply to the address the
+//! autopilot's own frames come from, see [`Link::accept_sender`]) and
 //! `serial:/dev/ttyX:BAUD`.
 //!
 //! Serial is our own: the port is opened and set up by `serialport`
@@ -17,6 +17,7 @@ use std::io;
 use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::os::fd::AsRawFd;
 use std::str::FromStr;
+use std::time::{Duration, Instant};
 use tokio::io::unix::AsyncFd;
 use tokio::net::UdpSocket;
 
@@ -117,12 +118,31 @@ pub enum LinkError {
     },
 }
 
+/// How long the `udpin` peer must have sent nothing from the autopilot
+/// before another address may take its place. ArduSub sends a HEARTBEAT
+/// every second and its streams at several Hz, so 3 s is three missed
+/// heartbeats (what GCSs call a lost link): a moved autopilot or router
+/// costs at most that much of the poses, while a second sender with the
+/// same ids never takes the poses from an autopilot that still speaks.
+pub const PEER_SILENCE: Duration = Duration::from_secs(3);
+
+/// What [`Link::accept_sender`] did with the peer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PeerChange {
+    /// The first peer of this link.
+    First(SocketAddr),
+    /// The peer moved after `PEER_SILENCE` of silence.
+    Moved { from: SocketAddr, to: SocketAddr },
+}
+
 enum Inner {
     UdpOut(UdpSocket),
     UdpIn {
         sock: UdpSocket,
         /// Where frames go: set only by `accept_sender`.
         peer: Option<SocketAddr>,
+        /// When the peer last sent a frame of the autopilot.
+        heard: Option<Instant>,
         /// The sender of the last datagram received, not yet vouched for.
         sender: Option<SocketAddr>,
     },
@@ -176,6 +196,7 @@ impl Link {
             Endpoint::UdpIn(addr) => Inner::UdpIn {
                 sock: UdpSocket::bind(addr).await.map_err(sock_err(ep))?,
                 peer: None,
+                heard: None,
                 sender: None,
             },
             Endpoint::Serial { path, baud } => Inner::Serial(open_serial(path, *baud).map_err(
@@ -210,16 +231,66 @@ impl Link {
         !matches!(self.inner, Inner::UdpIn { peer: None, .. })
     }
 
-    /// On `udpin`, make the sender of the datagram last received the peer
-    /// that frames go to (elsewhere nothing). The caller does so only when
-    /// that datagram held a valid MAVLink frame from the autopilot it
-    /// accepts: any host can send a datagram to a listening port, and
-    /// garbage or another system's frame must not redirect the poses.
-    pub fn accept_sender(&mut self) {
-        if let Inner::UdpIn { peer, sender, .. } = &mut self.inner {
-            if let Some(s) = sender.take() {
-                *peer = Some(s);
+    /// The `udpin` peer, if any (elsewhere none: the far end is fixed).
+    pub fn peer(&self) -> Option<SocketAddr> {
+        match &self.inner {
+            Inner::UdpIn { peer, .. } => *peer,
+            _ => None,
+        }
+    }
+
+    /// Where the last datagram came from (`udpin`), else None.
+    pub fn sender(&self) -> Option<SocketAddr> {
+        match &self.inner {
+            Inner::UdpIn { sender, .. } => *sender,
+            _ => None,
+        }
+    }
+
+    /// Whether the last datagram may speak for the autopilot: on `udpin`
+    /// only the peer's may, or anyone's when there is no peer yet or it
+    /// has been silent for [`PEER_SILENCE`]; elsewhere always.
+    pub fn sender_admitted(&self, now: Instant) -> bool {
+        match &self.inner {
+            Inner::UdpIn {
+                peer: Some(p),
+                heard,
+                sender,
+                ..
+            } => {
+                *sender == Some(*p)
+                    || heard.is_none_or(|h| now.saturating_duration_since(h) >= PEER_SILENCE)
             }
+            _ => true,
+        }
+    }
+
+    /// On `udpin`, make the sender of the datagram last received the peer
+    /// that frames go to, if [`Link::sender_admitted`] (elsewhere nothing).
+    /// The caller does so only when that datagram held a valid frame of
+    /// the autopilot: any host can send to a listening port, and garbage,
+    /// another system's frame or a second sender with the autopilot's ids
+    /// must not redirect the poses.
+    pub fn accept_sender(&mut self, now: Instant) -> Option<PeerChange> {
+        let admitted = self.sender_admitted(now);
+        let Inner::UdpIn {
+            peer,
+            heard,
+            sender,
+            ..
+        } = &mut self.inner
+        else {
+            return None;
+        };
+        let s = sender.take()?;
+        if !admitted {
+            return None;
+        }
+        *heard = Some(now);
+        match peer.replace(s) {
+            None => Some(PeerChange::First(s)),
+            Some(old) if old != s => Some(PeerChange::Moved { from: old, to: s }),
+            Some(_) => None,
         }
     }
 

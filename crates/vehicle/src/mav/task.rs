@@ -3,13 +3,15 @@
 //! heartbeat, and reopens the link (with a capped back-off) when it fails.
 //! It returns only when `shutdown` resolves.
 
-use super::counters::{LastError, NetOp};
-use super::inbound::{interpret, Input, InputConfig, Refusal};
-use super::link::{Endpoint, Link, Sent};
+use super::counters::{AutopilotId, LastError, NetOp};
+use super::inbound::{
+    interpret, is_autopilot_heartbeat, origin, Input, InputConfig, Refusal, Refused,
+};
+use super::link::{Endpoint, Link, PeerChange, Sent, PEER_SILENCE};
 use super::outbound::{
     heartbeat, skip_why, vision_position, vision_speed, Encoder, Outgoing, OutputConfig, Skip,
 };
-use super::scan::{Framing, Scanned, Scanner};
+use super::scan::{Framing, RawFrame, Scanned, Scanner};
 use crate::backoff::Backoff;
 use crate::ned::Site;
 use crate::Hub;
@@ -17,6 +19,7 @@ use lightpose_core::ratelog::RateLog;
 use mavlink::dialects::ardupilotmega::MavMessage;
 use std::future::Future;
 use std::io;
+use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::Arc;
@@ -98,6 +101,7 @@ pub async fn run_with(
     let mut shutdown = std::pin::pin!(shutdown);
     let mut backoff = Backoff::new(Duration::from_millis(200), s.reopen_max);
     let mut tx = Sender::new(&s);
+    let mut ap = Autopilot::new(&s.input, &hub);
     let c = &hub.mavlink;
     // Failed opens (an autopilot off for the week, its serial device
     // gone): core's rule, not every 20th attempt (a line every 100 s at
@@ -115,7 +119,12 @@ pub async fn run_with(
             Ok(link) => {
                 c.link_opens.fetch_add(1, Relaxed);
                 tracing::info!("mavlink: link open on {}", s.endpoint);
-                match serve(&s, &hub, link, &mut tx, shutdown.as_mut(), &mut backoff).await {
+                let io = Io {
+                    tx: &mut tx,
+                    ap: &mut ap,
+                    backoff: &mut backoff,
+                };
+                match serve(&s, &hub, link, io, shutdown.as_mut()).await {
                     Ended::Shutdown => return,
                     Ended::Lost(e) => {
                         c.link_failures.fetch_add(1, Relaxed);
@@ -140,14 +149,23 @@ pub async fn run_with(
     }
 }
 
+/// What a session borrows from the run: the sender, who the autopilot
+/// is, and the reopen back-off.
+struct Io<'a> {
+    tx: &'a mut Sender,
+    ap: &'a mut Autopilot,
+    backoff: &'a mut Backoff,
+}
+
 async fn serve(
     s: &MavlinkSettings,
     hub: &Hub,
     mut link: Link,
-    tx: &mut Sender,
+    io: Io<'_>,
     mut shutdown: Pin<&mut impl Future<Output = ()>>,
-    backoff: &mut Backoff,
 ) -> Ended {
+    let Io { tx, ap, backoff } = io;
+    hub.mavlink.set_peer(None);
     let mut scanner = Scanner::new(link.framing());
     let mut beat = tokio::time::interval(s.heartbeat_period);
     beat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -158,8 +176,15 @@ async fn serve(
             r = link.recv(scanner.spare()) => match r {
                 Ok(n) => {
                     scanner.commit(n);
-                    if absorb(&mut scanner, s, hub) {
-                        link.accept_sender();
+                    let now = Instant::now();
+                    let from = Source {
+                        addr: link.sender(),
+                        admitted: link.sender_admitted(now),
+                    };
+                    if absorb(&mut scanner, s, hub, ap, from) {
+                        if let Some(change) = link.accept_sender(now) {
+                            peer_changed(hub, change);
+                        }
                     }
                     backoff.reset();
                     // On udpin the autopilot is known from its first
@@ -190,56 +215,137 @@ async fn serve(
     }
 }
 
-/// Turn everything the scanner holds into readings or counts. True when
-/// it held a CRC-valid frame from a system we take input from (on `udpin`,
-/// what makes its sender the peer).
-fn absorb(sc: &mut Scanner, s: &MavlinkSettings, hub: &Hub) -> bool {
+/// Who the autopilot is, for the whole run (kept across reopened links):
+/// its system as configured, or learned from its first HEARTBEAT; its
+/// component is configured (1 by default).
+struct Autopilot {
+    system: Option<u8>,
+    /// Whether "autopilot: …" has been logged.
+    announced: bool,
+    /// Other autopilots' heartbeats (a second vehicle on the LAN): core's
+    /// rule, the first at once, then less and less often.
+    others: RateLog,
+}
+
+impl Autopilot {
+    fn new(cfg: &InputConfig, hub: &Hub) -> Self {
+        if let Some(system) = cfg.autopilot_system {
+            hub.mavlink.set_autopilot(AutopilotId {
+                system,
+                component: cfg.autopilot_component,
+                configured: true,
+            });
+        }
+        Autopilot {
+            system: cfg.autopilot_system,
+            announced: false,
+            others: RateLog::new(),
+        }
+    }
+
+    /// An autopilot HEARTBEAT that passed `origin`: the autopilot's own,
+    /// which teaches its system if not yet known.
+    fn heartbeat(&mut self, f: &RawFrame, s: &MavlinkSettings, hub: &Hub, from: &Source) {
+        if self.announced {
+            return;
+        }
+        let configured = self.system.is_some();
+        self.system = Some(f.system);
+        self.announced = true;
+        hub.mavlink.set_autopilot(AutopilotId {
+            system: f.system,
+            component: f.component,
+            configured,
+        });
+        let at = from.describe(s);
+        tracing::info!(
+            "mavlink: autopilot: system {} component {} at {at}{}",
+            f.system,
+            f.component,
+            if configured {
+                ""
+            } else {
+                " (learned from its HEARTBEAT)"
+            }
+        );
+    }
+
+    /// A frame `origin` refused: if it is another autopilot's HEARTBEAT,
+    /// say so (it is counted with the refusal and not adopted).
+    fn other(&mut self, f: &RawFrame, s: &MavlinkSettings, from: &Source) {
+        if !is_autopilot_heartbeat(f) {
+            return;
+        }
+        if let Some(since) = self.others.tick(Instant::now()) {
+            let at = from.describe(s);
+            tracing::warn!(
+                since_last_line = since,
+                "mavlink: another autopilot, system {} component {} at {at}, is not adopted \
+                 (the autopilot is system {:?} component {})",
+                f.system,
+                f.component,
+                self.system,
+                s.input.autopilot_component
+            );
+        }
+    }
+}
+
+/// Where a datagram came from, and whether it may speak for the autopilot
+/// (on `udpin`, see `Link::sender_admitted`).
+#[derive(Clone, Copy)]
+struct Source {
+    addr: Option<SocketAddr>,
+    admitted: bool,
+}
+
+impl Source {
+    /// For a log line (rare: allocates).
+    fn describe(&self, s: &MavlinkSettings) -> String {
+        self.addr
+            .map_or_else(|| s.endpoint.to_string(), |a| a.to_string())
+    }
+}
+
+/// Count and log a move of the `udpin` peer.
+fn peer_changed(hub: &Hub, change: PeerChange) {
     let c = &hub.mavlink;
-    let now = Instant::now();
+    match change {
+        PeerChange::First(to) => {
+            tracing::info!("mavlink: poses go to {to}, where the autopilot's frames come from");
+            c.set_peer(Some(to));
+        }
+        PeerChange::Moved { from, to } => {
+            let n = c.peer_changes.fetch_add(1, Relaxed) + 1;
+            tracing::warn!(
+                peer_changes = n,
+                "mavlink: poses go to {to} now: the autopilot's frames come from there, \
+                 and {from} sent none for {} s",
+                PEER_SILENCE.as_secs()
+            );
+            c.set_peer(Some(to));
+        }
+    }
+}
+
+/// Turn everything the scanner holds into readings or counts. True when
+/// it held a CRC-valid frame of the autopilot (on `udpin`, what makes its
+/// sender the peer).
+fn absorb(
+    sc: &mut Scanner,
+    s: &MavlinkSettings,
+    hub: &Hub,
+    ap: &mut Autopilot,
+    from: Source,
+) -> bool {
+    let c = &hub.mavlink;
     let mut from_autopilot = false;
     while let Some(ev) = sc.next_frame() {
-        let f = match ev {
-            Scanned::Frame(f) => f,
-            Scanned::BadCrc { msg_id } => {
-                c.drop_frame(Refusal::BadCrc, Some(msg_id));
-                continue;
-            }
-            Scanned::Unknown { msg_id } => {
-                c.drop_frame(Refusal::UnknownMessage, Some(msg_id));
-                continue;
-            }
-            Scanned::BadFlags => {
-                c.drop_frame(Refusal::BadFlags, None);
-                continue;
-            }
-        };
-        c.frames.fetch_add(1, Relaxed);
-        let input = interpret(&f, &s.input, &s.site);
-        // A frame refused for its values (NaN, out of range) still comes
-        // from the autopilot; one from another system does not.
-        from_autopilot |= !matches!(&input, Err(r) if r.reason == Refusal::OtherSystem);
-        let input = match input {
-            Ok(i) => i,
-            Err(r) => {
-                c.refuse(&r);
-                continue;
-            }
-        };
-        match input {
-            Input::Attitude(a, rates) => hub.readings.store_attitude_with_rates(now, &a, rates),
-            Input::Depth(d) => hub.readings.store_depth(now, &d),
-            Input::Temperature(t) => hub.readings.store_temperature(now, t),
-            Input::AutopilotHeartbeat => {
-                if let Ok(mut g) = c.autopilot_seen.lock() {
-                    *g = Some(now);
-                }
-            }
-            Input::Unused => {
-                c.unused.fetch_add(1, Relaxed);
-            }
-        }
-        if let Some(k) = input.kind() {
-            c.used[k].fetch_add(1, Relaxed);
+        match ev {
+            Scanned::Frame(f) => from_autopilot |= take(&f, s, hub, ap, &from),
+            Scanned::BadCrc { msg_id } => c.drop_frame(Refusal::BadCrc, Some(msg_id)),
+            Scanned::Unknown { msg_id } => c.drop_frame(Refusal::UnknownMessage, Some(msg_id)),
+            Scanned::BadFlags => c.drop_frame(Refusal::BadFlags, None),
         }
     }
     if sc.framing() == Framing::Datagram {
@@ -247,6 +353,58 @@ fn absorb(sc: &mut Scanner, s: &MavlinkSettings, hub: &Hub) -> bool {
     }
     c.garbage_bytes.fetch_add(sc.take_garbage(), Relaxed);
     from_autopilot
+}
+
+/// One CRC-valid frame: a reading, a count or a refusal. True when it
+/// came from the autopilot (a frame refused for its values, NaN or out of
+/// range, still does).
+fn take(f: &RawFrame, s: &MavlinkSettings, hub: &Hub, ap: &mut Autopilot, from: &Source) -> bool {
+    let c = &hub.mavlink;
+    let now = Instant::now();
+    c.frames.fetch_add(1, Relaxed);
+    if let Err(r) = origin(f, &s.input, ap.system) {
+        ap.other(f, s, from);
+        c.refuse(&r);
+        return false;
+    }
+    // The autopilot's ids from another address than the peer's, while
+    // the peer speaks: a second vehicle with the same default ids.
+    if !from.admitted {
+        c.refuse(&Refused {
+            reason: Refusal::OtherAddress,
+            msg_id: f.msg_id,
+            system: f.system,
+            value: from.addr.map_or(f64::NAN, |a| a.port() as f64),
+        });
+        return false;
+    }
+    let input = match interpret(f, &s.input, &s.site) {
+        Ok(i) => i,
+        Err(r) => {
+            c.refuse(&r);
+            return ap.system.is_some();
+        }
+    };
+    match input {
+        Input::Attitude(a, rates) => hub.readings.store_attitude_with_rates(now, &a, rates),
+        Input::Depth(d) => hub.readings.store_depth(now, &d),
+        Input::Temperature(t) => hub.readings.store_temperature(now, t),
+        Input::AutopilotHeartbeat => {
+            ap.heartbeat(f, s, hub, from);
+            if let Ok(mut g) = c.autopilot_seen.lock() {
+                *g = Some(now);
+            }
+        }
+        Input::Unused => {
+            c.unused.fetch_add(1, Relaxed);
+        }
+    }
+    if let Some(k) = input.kind() {
+        c.used[k].fetch_add(1, Relaxed);
+    }
+    // Before the system is known only a HEARTBEAT passes `origin`, and
+    // one of a GCS or a companion is not the autopilot's.
+    ap.system.is_some()
 }
 
 /// The journal's account of `ok` poses not sent (no std, a bad std or

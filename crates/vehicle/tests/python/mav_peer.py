@@ -40,11 +40,9 @@ def clean(v):
 
 def autopilot_frames(tx):
     t = int(time.monotonic() * 1000) & 0xFFFFFFFF
+    # The HEARTBEAT first: it tells the reader who the autopilot is, and
+    # nothing else is taken before (no readings are refused here).
     msgs = [
-        tx.attitude_encode(t, ROLL, PITCH, YAW, 0.0, 0.0, 0.0),
-        tx.vfr_hud_encode(0.0, 0.0, 200, 0, VFR_ALT, 0.0),
-        tx.global_position_int_encode(t, 0, 0, 0, REL_ALT_MM, 0, 0, 0, 0),
-        tx.scaled_pressure2_encode(t, 1030.0, 0.0, TEMP_CDEG),
         tx.heartbeat_encode(
             apm.MAV_TYPE_SUBMARINE,
             apm.MAV_AUTOPILOT_ARDUPILOTMEGA,
@@ -52,6 +50,10 @@ def autopilot_frames(tx):
             0,
             apm.MAV_STATE_ACTIVE,
         ),
+        tx.attitude_encode(t, ROLL, PITCH, YAW, 0.0, 0.0, 0.0),
+        tx.vfr_hud_encode(0.0, 0.0, 200, 0, VFR_ALT, 0.0),
+        tx.global_position_int_encode(t, 0, 0, 0, REL_ALT_MM, 0, 0, 0, 0),
+        tx.scaled_pressure2_encode(t, 1030.0, 0.0, TEMP_CDEG),
     ]
     return [m.pack(tx) for m in msgs]
 
