@@ -150,18 +150,8 @@ impl Histogram {
             return None;
         }
         let max = self.max_ns.load(Relaxed) as f64 * 1e-9;
-        let rank = ((q.clamp(0.0, 1.0) * n as f64).ceil() as u64).max(1);
-        let mut acc = 0;
-        for (i, b) in self.buckets.iter().enumerate() {
-            acc += b.load(Relaxed);
-            if acc >= rank {
-                if i == BUCKETS {
-                    return Some(max);
-                }
-                return Some(upper_edge(i).min(max));
-            }
-        }
-        Some(max)
+        let counts = self.buckets.iter().map(|b| b.load(Relaxed)).enumerate();
+        Some(bucket_of_rank(counts, n, q).map_or(max, |i| edge_within(i, max)))
     }
 
     pub fn max(&self) -> Option<f64> {
@@ -204,15 +194,36 @@ impl HistSnapshot {
         if n == 0 {
             return None;
         }
-        let rank = ((q.clamp(0.0, 1.0) * n as f64).ceil() as u64).max(1);
-        let mut acc = 0;
-        for (i, b) in self.0.iter().enumerate() {
-            acc += b;
-            if acc >= rank {
-                return Some(upper_edge(i.min(BUCKETS - 1)));
-            }
+        let i = bucket_of_rank(self.0.iter().copied().enumerate(), n, q);
+        Some(upper_edge(i.unwrap_or(BUCKETS - 1).min(BUCKETS - 1)))
+    }
+}
+
+/// The bucket (index, count pairs in order) holding quantile `q` (0..1) of
+/// `n` samples; `None` if the counts end first.
+pub(crate) fn bucket_of_rank(
+    counts: impl Iterator<Item = (usize, u64)>,
+    n: u64,
+    q: f64,
+) -> Option<usize> {
+    let rank = ((q.clamp(0.0, 1.0) * n as f64).ceil() as u64).max(1);
+    let mut acc = 0;
+    for (i, c) in counts {
+        acc += c;
+        if acc >= rank {
+            return Some(i);
         }
-        Some(upper_edge(BUCKETS - 1))
+    }
+    None
+}
+
+/// Bucket `i`'s upper edge in seconds, never above the largest sample
+/// `max`; the overflow bucket is `max` itself.
+pub(crate) fn edge_within(i: usize, max: f64) -> f64 {
+    if i >= BUCKETS {
+        max
+    } else {
+        upper_edge(i).min(max)
     }
 }
 

@@ -338,16 +338,24 @@ impl Readings {
         a
     }
 
+    /// How long before `now` the latest reading of `cell` was taken.
+    fn age<const N: usize>(&self, cell: &Latest<N>, now: Instant) -> Option<Duration> {
+        cell.load()
+            .map(|(_, w)| now.saturating_duration_since(self.epoch + Duration::from_nanos(w[0])))
+    }
+
+    /// How long before `now` the latest attitude was taken.
+    pub fn attitude_age(&self, now: Instant) -> Option<Duration> {
+        self.age(&self.attitude, now)
+    }
+
     fn one_status<const N: usize>(
         &self,
         cell: &Latest<N>,
         k: usize,
         now: Instant,
     ) -> ReadingStatus {
-        let age_s = cell.load().map(|(_, w)| {
-            now.saturating_duration_since(self.epoch + Duration::from_nanos(w[0]))
-                .as_secs_f64()
-        });
+        let age_s = self.age(cell, now).map(|d| d.as_secs_f64());
         ReadingStatus {
             age_s,
             stored: cell.version(),

@@ -35,9 +35,7 @@ fn socket() -> UdpSocket {
 
 /// A heartbeat of system `system`, as an autopilot sends it.
 fn beat(system: u8) -> Vec<u8> {
-    Encoder::new(system, 1)
-        .encode(&autopilot_heartbeat())
-        .to_vec()
+    beat_of(system, 1)
 }
 
 /// A GCS's heartbeat (QGroundControl: system 255, component 190).

@@ -103,6 +103,9 @@ pub struct Engine {
     /// Expected period, for deadline accounting; `None` when the source
     /// goes as fast as it can.
     period: Option<Duration>,
+    /// The source's `t` is the monotonic clock at capture (a board): the
+    /// clock is then read at each arrival to place the capture.
+    t_is_monotonic: bool,
     late_tolerance: f64,
     fallback_temp_c: Option<f64>,
     max_frames: Option<u64>,
@@ -141,6 +144,7 @@ impl Engine {
     /// deadlines at the source's own period, late after half a period.
     pub fn new(source: Box<dyn FrameSource>, estimator: Box<dyn Estimator>) -> Engine {
         let period = source.period();
+        let t_is_monotonic = source.t_is_monotonic();
         Engine {
             source,
             estimator,
@@ -150,6 +154,7 @@ impl Engine {
             stop: Stop::new(),
             reload: None,
             period,
+            t_is_monotonic,
             late_tolerance: 0.5,
             fallback_temp_c: None,
             max_frames: None,
@@ -305,7 +310,7 @@ impl Engine {
     fn acquire(&mut self, books: &mut Books) -> Got {
         let got = self.source.next_frame();
         let arrival = Instant::now();
-        let mono_s = lightpose_hal::clock::monotonic_s();
+        let mono_s = self.t_is_monotonic.then(lightpose_hal::clock::monotonic_s);
         let wall_unix = SystemTime::now()
             .duration_since(SystemTime::UNIX_EPOCH)
             .map_or(0.0, |d| d.as_secs_f64());
@@ -319,11 +324,7 @@ impl Engine {
                 // A board's `t` is the middle of its read: the readings and
                 // the latency belong to that instant, not to the end of
                 // the read (up to half a slow read later).
-                let lag = if self.source.t_is_monotonic() {
-                    capture_lag(frame.t, mono_s)
-                } else {
-                    Duration::ZERO
-                };
+                let lag = mono_s.map_or(Duration::ZERO, |m| capture_lag(frame.t, m));
                 Got::Frame(Acquired {
                     frame,
                     arrival,

@@ -17,8 +17,8 @@ use super::Input;
 use crate::config::AttitudeInput;
 use lightpose_core::log::plausible_t;
 use lightpose_core::textfile::excerpt;
-use lightpose_core::{Angle, AttitudeReading, AttitudeStd, Frame};
-use lightpose_vehicle::latest::Latest;
+use lightpose_core::{Angle, AttitudeReading, Frame};
+use lightpose_vehicle::Readings;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::{Duration, Instant};
@@ -65,18 +65,12 @@ impl std::fmt::Display for Rejected {
     }
 }
 
-/// The latest reading, written by the listener and read once per frame.
-///
-/// A sequence lock rather than a mutex: under a flood of valid datagrams
-/// the frame thread would otherwise wait on the receiver for each frame.
-/// Words: the reading's instant (ns after `epoch`), pitch, yaw, and the
-/// two σ (NaN when the reading has none), all as `f64` bits but the first.
+/// The latest reading, written by the listener and read once per frame:
+/// the vehicle's own lock-free attitude slot ([`Readings`]), so that under
+/// a flood of valid datagrams the frame thread never waits on the
+/// receiver; with this input's counts.
 pub struct AttitudeCell {
-    /// What the stored instants count from: readings are stored as they
-    /// arrive, after the cell was made (an earlier one would count as made
-    /// at `epoch`, younger than it is, which the listener never stores).
-    epoch: Instant,
-    latest: Latest<5>,
+    latest: Readings,
     pub received: AtomicU64,
     pub rejected: AtomicU64,
     /// Refusals by [`Reason`], in the order of [`Reason::ALL`].
@@ -86,8 +80,7 @@ pub struct AttitudeCell {
 impl Default for AttitudeCell {
     fn default() -> Self {
         AttitudeCell {
-            epoch: Instant::now(),
-            latest: Latest::default(),
+            latest: Readings::default(),
             received: AtomicU64::new(0),
             rejected: AtomicU64::new(0),
             rejected_by: Default::default(),
@@ -103,51 +96,20 @@ impl AttitudeCell {
     }
 
     pub fn store(&self, at: Instant, r: AttitudeReading) {
-        // u64 nanoseconds last 584 years of uptime.
-        let ns = at.saturating_duration_since(self.epoch).as_nanos() as u64;
-        let (sp, sy) = r
-            .std
-            .map_or((f64::NAN, f64::NAN), |s| (s.pitch.rad(), s.yaw.rad()));
-        self.latest.store([
-            ns,
-            r.pitch.rad().to_bits(),
-            r.yaw.rad().to_bits(),
-            sp.to_bits(),
-            sy.to_bits(),
-        ]);
+        self.latest.store_attitude(at, &r);
         self.received.fetch_add(1, Relaxed);
     }
 
-    /// The latest reading and when it came; `None` before the first (or,
-    /// rarely, when a writer kept the cell busy: that frame goes without).
-    #[inline]
-    fn latest(&self) -> Option<(Instant, AttitudeReading)> {
-        let (_, [ns, p, y, sp, sy]) = self.latest.load()?;
-        let (sp, sy) = (f64::from_bits(sp), f64::from_bits(sy));
-        let std = (sp.is_finite() && sy.is_finite()).then(|| AttitudeStd {
-            pitch: Angle::from_rad(sp),
-            yaw: Angle::from_rad(sy),
-        });
-        let r = AttitudeReading {
-            pitch: Angle::from_rad(f64::from_bits(p)),
-            yaw: Angle::from_rad(f64::from_bits(y)),
-            std,
-        };
-        Some((self.epoch + Duration::from_nanos(ns), r))
-    }
-
     /// The latest reading if it is younger than `max_age` at `at` (one
-    /// received after `at` is fresh).
+    /// received after `at` is fresh). No rates come with it: as received.
     #[inline]
     pub fn fresh(&self, at: Instant, max_age: Duration) -> Option<AttitudeReading> {
-        let (taken, r) = self.latest()?;
-        (at.saturating_duration_since(taken) <= max_age).then_some(r)
+        self.latest.attitude(at, max_age)
     }
 
     /// Age of the latest reading, for STATUS.
     pub fn age(&self, now: Instant) -> Option<Duration> {
-        self.latest()
-            .map(|(at, _)| now.saturating_duration_since(at))
+        self.latest.attitude_age(now)
     }
 }
 
@@ -289,6 +251,7 @@ pub async fn listen(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lightpose_core::AttitudeStd;
 
     #[test]
     fn heading_is_referred_to_the_beam() {

@@ -5,7 +5,7 @@
 //! [`RECENT`] ago are dropped. Only the STATUS side runs this: the frame
 //! thread still only increments a bucket and a max.
 
-use super::{upper_edge, Histogram, BUCKETS};
+use super::{bucket_of_rank, edge_within, Histogram};
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::PoisonError;
@@ -102,17 +102,8 @@ impl Window {
         let max_ns = self.slots.iter().map(|s| s.max_ns).max().unwrap_or(0);
         let max = max_ns as f64 * 1e-9;
         let quantile = |q: f64| {
-            let rank = ((q * count as f64).ceil() as u64).max(1);
-            let mut acc = 0;
-            let i = counts.iter().find_map(|(&i, &n)| {
-                acc += n;
-                (acc >= rank).then_some(i as usize)
-            })?;
-            Some(if i >= BUCKETS {
-                max
-            } else {
-                upper_edge(i).min(max)
-            })
+            let pairs = counts.iter().map(|(&i, &n)| (i as usize, n));
+            bucket_of_rank(pairs, count, q).map(|i| edge_within(i, max))
         };
         let has = count > 0;
         let start = self.slots.front().map_or(self.prev_at, |s| s.start);

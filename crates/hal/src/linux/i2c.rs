@@ -108,21 +108,7 @@ impl i2c::Error for I2cError {
 }
 
 /// The messages of one transaction, on the stack.
-pub struct Messages<'a> {
-    list: [LinuxI2CMessage<'a>; MAX_MESSAGES],
-    len: usize,
-}
-
-impl<'a> Messages<'a> {
-    /// The messages in use, in order: what the kernel reads.
-    pub fn as_slice(&self) -> &[LinuxI2CMessage<'a>] {
-        &self.list[..self.len]
-    }
-
-    fn as_mut_slice(&mut self) -> &mut [LinuxI2CMessage<'a>] {
-        &mut self.list[..self.len]
-    }
-}
+pub type Messages<'a> = super::Stacked<LinuxI2CMessage<'a>, MAX_MESSAGES>;
 
 /// The i2c-dev messages that carry `ops` to the chip at `addr`: the pure
 /// half of [`LinuxI2c::transaction`] (no ioctl), public so that tests
@@ -134,26 +120,28 @@ impl<'a> Messages<'a> {
 /// as embedded-hal's contract says of adjacent operations of one kind (and
 /// as i2cdev's `LinuxI2CDevice`, under linux-embedded-hal, did).
 pub fn messages<'a>(addr: u16, ops: &'a mut [Operation<'_>]) -> Result<Messages<'a>, I2cError> {
-    if ops.len() > MAX_MESSAGES {
-        return Err(I2cError::TooManyMessages { needed: ops.len() });
+    let ops_len = ops.len();
+    if ops_len > MAX_MESSAGES {
+        return Err(I2cError::TooManyMessages { needed: ops_len });
     }
-    let mut m = Messages {
-        list: std::array::from_fn(|_| LinuxI2CMessage::write(&[])),
-        len: 0,
-    };
+    let mut m = Messages::new(std::array::from_fn(|_| LinuxI2CMessage::write(&[])));
     let mut previous_read = None;
-    for (slot, op) in m.list.iter_mut().zip(ops.iter_mut()) {
-        let (read, len) = match op {
-            Operation::Read(buf) => (true, buf.len()),
-            Operation::Write(buf) => (false, buf.len()),
-        };
+    for op in ops.iter_mut() {
         // i2cdev would cut the length to 16 bits without a word.
-        if len > usize::from(u16::MAX) {
-            return Err(I2cError::TooLong { len });
-        }
-        let msg = match op {
-            Operation::Read(buf) => LinuxI2CMessage::read(buf),
-            Operation::Write(buf) => LinuxI2CMessage::write(buf),
+        let fits = |len: usize| {
+            (len <= usize::from(u16::MAX))
+                .then_some(())
+                .ok_or(I2cError::TooLong { len })
+        };
+        let (read, msg) = match op {
+            Operation::Read(buf) => {
+                fits(buf.len())?;
+                (true, LinuxI2CMessage::read(buf))
+            }
+            Operation::Write(buf) => {
+                fits(buf.len())?;
+                (false, LinuxI2CMessage::write(buf))
+            }
         };
         let mut flags = I2CMessageFlags::empty();
         if read {
@@ -163,8 +151,9 @@ pub fn messages<'a>(addr: u16, ops: &'a mut [Operation<'_>]) -> Result<Messages<
             flags |= I2CMessageFlags::NO_START;
         }
         previous_read = Some(read);
-        *slot = msg.with_address(addr).with_flags(flags);
-        m.len += 1;
+        // Counted above: there is room.
+        m.push(msg.with_address(addr).with_flags(flags))
+            .ok_or(I2cError::TooManyMessages { needed: ops_len })?;
     }
     Ok(m)
 }

@@ -17,6 +17,36 @@ use crate::{FrameSource, HalError};
 use i2c::LinuxI2c;
 use spi::LinuxSpi;
 
+/// Up to `N` items of one transaction on the stack (SPI transfers, I²C
+/// messages): the kernel reads the ones in use as one array, and nothing
+/// is allocated per transaction.
+pub struct Stacked<T, const N: usize> {
+    list: [T; N],
+    len: usize,
+}
+
+impl<T, const N: usize> Stacked<T, N> {
+    fn new(list: [T; N]) -> Self {
+        Stacked { list, len: 0 }
+    }
+
+    /// Add `t`; `None` when all `N` are taken.
+    fn push(&mut self, t: T) -> Option<()> {
+        *self.list.get_mut(self.len)? = t;
+        self.len += 1;
+        Some(())
+    }
+
+    /// The items in use, in order: what the kernel reads.
+    pub fn as_slice(&self) -> &[T] {
+        &self.list[..self.len]
+    }
+
+    fn as_mut_slice(&mut self) -> &mut [T] {
+        &mut self.list[..self.len]
+    }
+}
+
 fn open_buses(buses: &[String]) -> Result<Vec<(String, LinuxI2c)>, HalError> {
     buses
         .iter()

@@ -96,34 +96,13 @@ fn transfers_of(op: &Operation<'_, u8>) -> usize {
 }
 
 /// The transfers of one transaction, on the stack.
-pub struct Transfers<'a> {
-    list: [SpidevTransfer<'a, 'a>; MAX_TRANSFERS],
-    len: usize,
-}
+pub type Transfers<'a> = super::Stacked<SpidevTransfer<'a, 'a>, MAX_TRANSFERS>;
 
-impl<'a> Transfers<'a> {
-    fn push(&mut self, t: SpidevTransfer<'a, 'a>) -> Result<(), SpiError> {
-        // `transfers` counted first, so this never fails; an error, not a
-        // panic, if a miscount ever let it.
-        let slot = self
-            .list
-            .get_mut(self.len)
-            .ok_or(SpiError::TooManyTransfers {
-                needed: self.len + 1,
-            })?;
-        *slot = t;
-        self.len += 1;
-        Ok(())
-    }
-
-    /// The transfers in use, in order: what the kernel reads.
-    pub fn as_slice(&self) -> &[SpidevTransfer<'a, 'a>] {
-        &self.list[..self.len]
-    }
-
-    fn as_mut_slice(&mut self) -> &mut [SpidevTransfer<'a, 'a>] {
-        &mut self.list[..self.len]
-    }
+/// Add `t` to `list`. `transfers` counted first, so this never fails; an
+/// error, not a panic, if a miscount ever let it.
+fn push<'a>(list: &mut Transfers<'a>, t: SpidevTransfer<'a, 'a>) -> Result<(), SpiError> {
+    let needed = list.as_slice().len() + 1;
+    list.push(t).ok_or(SpiError::TooManyTransfers { needed })
 }
 
 /// The spidev transfers that carry `ops`, in order: the pure half of
@@ -142,33 +121,33 @@ pub fn transfers<'a>(ops: &'a mut [Operation<'_, u8>]) -> Result<Transfers<'a>, 
     if needed > MAX_TRANSFERS {
         return Err(SpiError::TooManyTransfers { needed });
     }
-    let mut t = Transfers {
-        list: Default::default(),
-        len: 0,
-    };
+    let mut t = Transfers::new(Default::default());
     for op in ops.iter_mut() {
         match op {
-            Operation::Read(buf) => t.push(SpidevTransfer::read(buf))?,
-            Operation::Write(buf) => t.push(SpidevTransfer::write(buf))?,
+            Operation::Read(buf) => push(&mut t, SpidevTransfer::read(buf))?,
+            Operation::Write(buf) => push(&mut t, SpidevTransfer::write(buf))?,
             Operation::Transfer(read, write) => {
                 let n = read.len().min(write.len());
                 let (r, r_rest) = read.split_at_mut(n);
                 let (w, w_rest) = write.split_at(n);
-                t.push(SpidevTransfer::read_write(w, r))?;
+                push(&mut t, SpidevTransfer::read_write(w, r))?;
                 if !r_rest.is_empty() {
-                    t.push(SpidevTransfer::read(r_rest))?;
+                    push(&mut t, SpidevTransfer::read(r_rest))?;
                 } else if !w_rest.is_empty() {
-                    t.push(SpidevTransfer::write(w_rest))?;
+                    push(&mut t, SpidevTransfer::write(w_rest))?;
                 }
             }
-            Operation::TransferInPlace(buf) => t.push(SpidevTransfer::read_write_in_place(buf))?,
+            Operation::TransferInPlace(buf) => {
+                push(&mut t, SpidevTransfer::read_write_in_place(buf))?
+            }
             Operation::DelayNs(ns) => {
                 let mut us = delay_us(*ns);
                 while us > 0 {
                     let step = us.min(MAX_DELAY_US);
-                    t.push(SpidevTransfer::delay(
-                        u16::try_from(step).unwrap_or(u16::MAX),
-                    ))?;
+                    push(
+                        &mut t,
+                        SpidevTransfer::delay(u16::try_from(step).unwrap_or(u16::MAX)),
+                    )?;
                     us -= step;
                 }
             }

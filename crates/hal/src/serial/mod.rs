@@ -391,7 +391,6 @@ impl Bank for SerialBank {
 
     fn read(&mut self, wanted: &[u16], raw: &mut [RawBoard]) -> Result<(), SourceError> {
         let deadline = Instant::now() + self.timeout;
-        self.sampled_at = None;
         let (mut sum, mut used) = (0.0, 0u32);
         for (b, r) in raw.iter_mut().enumerate().take(self.ports.len()) {
             let mask = wanted.get(b).copied().unwrap_or(0);

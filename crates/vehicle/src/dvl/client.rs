@@ -118,9 +118,9 @@ pub async fn run(s: DvlSettings, hub: Arc<Hub>, shutdown: impl Future<Output = (
 
 /// Whether to log a repeated event now, and for how many (core's rule).
 fn tick(log: &std::sync::Mutex<lightpose_core::ratelog::RateLog>) -> Option<u64> {
-    log.lock()
-        .ok()
-        .and_then(|mut l| l.tick(std::time::Instant::now()))
+    // A poisoned lock still holds a usable rule (MavCounters does the same).
+    let mut l = log.lock().unwrap_or_else(|p| p.into_inner());
+    l.tick(std::time::Instant::now())
 }
 
 fn connect_failed(s: &DvlSettings, hub: &Hub, why: &str) {

@@ -290,14 +290,9 @@ impl MavCounters {
                 .ok()
                 .and_then(|g| *g)
                 .map(|t| now.saturating_duration_since(t).as_secs_f64()),
-            autopilot: self.autopilot.lock().ok().and_then(|g| *g),
-            peer: self
-                .peer
-                .lock()
-                .ok()
-                .and_then(|g| *g)
-                .map(|a| a.to_string()),
-            peer_changes: self.peer_changes.load(Relaxed),
+            autopilot: self.autopilot(),
+            peer: self.peer().map(|a| a.to_string()),
+            peer_changes: self.peer_changes(),
             last_error: self
                 .last_error
                 .lock()

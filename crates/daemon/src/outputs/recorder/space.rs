@@ -43,9 +43,8 @@ pub(crate) struct Space {
     dir: PathBuf,
     /// Bytes to keep free: below, nothing is written (0: no check);
     /// `None`: [`default_floor`] of the filesystem.
+    /// Set (not 0), the oldest recordings are deleted to keep it free.
     pub(crate) keep_free: Option<u64>,
-    /// Delete the oldest recordings to keep `keep_free` free.
-    prune_free: bool,
     /// The recordings' total kept under this, oldest deleted first.
     max_total: Option<u64>,
     /// A recording could not be deleted (said once, not every check).
@@ -63,7 +62,6 @@ impl Space {
         Space {
             dir: cfg.dir.clone(),
             keep_free: cfg.keep_free_bytes,
-            prune_free: cfg.keep_free_bytes.is_some_and(|b| b > 0),
             max_total: cfg.max_total_bytes,
             stuck: AtomicBool::new(false),
         }
@@ -91,7 +89,7 @@ impl Space {
         let Ok((mut free, keep)) = self.room() else {
             return Ok(());
         };
-        if free < keep && self.prune_free {
+        if free < keep && self.keep_free.is_some_and(|b| b > 0) {
             for old in recordings(&self.dir) {
                 if free >= keep {
                     break;
