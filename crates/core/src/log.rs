@@ -17,8 +17,10 @@ use std::path::Path;
 mod framelog;
 pub use framelog::{ByteError, Cut, FrameLog};
 mod order;
+mod rawline;
 mod readings;
 pub use order::{plausible_t, FrameOrder, DEFAULT_MAX_GAP_S, MAX_ABS_T_S};
+use rawline::{RawLine, Reading, Std};
 pub use readings::as_logged;
 use readings::{parse_attitude, parse_depth, parse_velocity};
 
@@ -139,24 +141,6 @@ impl LogHeader {
             extra: m,
         })
     }
-}
-
-#[derive(Deserialize)]
-struct RawLine {
-    class: Option<String>,
-    seq: Option<serde_json::Value>,
-    t: Option<f64>,
-    counts: Option<Vec<serde_json::Value>>,
-    temp_c: Option<f64>,
-    truth: Option<RawTruth>,
-    // The vehicle's own readings are taken apart by hand: a reading that is
-    // malformed costs that reading (counted), never the frame's light.
-    attitude: Option<serde_json::Value>,
-    depth: Option<serde_json::Value>,
-    velocity: Option<serde_json::Value>,
-    /// A frame-level `std` object (`{"z":..,"fwd":..,..}`) for readings that
-    /// carry none of their own: FORMATS.md allows either place.
-    std: Option<serde_json::Value>,
 }
 
 #[derive(Deserialize, Serialize)]
@@ -295,12 +279,21 @@ impl<R: BufRead> LogReader<R> {
 
     /// The next frame, `None` at the end of the log.
     pub fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
+        // The line is parsed in place (its fields borrowed from it, no
+        // allocation per frame): the buffer is out of `self` meanwhile.
+        let mut buf = std::mem::take(&mut self.buf);
+        let r = self.next_frame_in(&mut buf);
+        self.buf = buf;
+        r
+    }
+
+    fn next_frame_in(&mut self, buf: &mut Vec<u8>) -> Option<Result<Frame, LogError>> {
         loop {
             if self.done {
                 return None;
             }
             let line = self.line_no + 1;
-            let text = match read_line(&mut self.src, &mut self.buf, &self.name, line) {
+            let text = match read_line(&mut self.src, buf, &self.name, line) {
                 Ok(Some(text)) => text,
                 Ok(None) => {
                     self.done = true;
@@ -335,7 +328,7 @@ impl<R: BufRead> LogReader<R> {
                     return Some(Err(self.line_err(msg)));
                 }
             };
-            match raw.class.as_deref() {
+            match raw.class.as_ref().map(|c| &*c.0) {
                 Some("FRAME") => {}
                 Some(other) => {
                     self.other_lines += 1;
@@ -362,12 +355,13 @@ impl<R: BufRead> LogReader<R> {
     /// counted and named: the frame keeps its light).
     fn reading<T>(
         &mut self,
-        v: Option<&serde_json::Value>,
-        fs: Option<&serde_json::Value>,
-        parse: fn(&serde_json::Value, Option<&serde_json::Value>) -> Result<T, String>,
+        v: Option<&Reading>,
+        fs: Option<&Std>,
+        parse: fn(&Reading, Option<&Std>) -> Result<T, String>,
     ) -> Option<T> {
+        // A null reading is `None` here (serde's `Option`).
         match v {
-            None | Some(serde_json::Value::Null) => None,
+            None => None,
             Some(v) => match parse(v, fs) {
                 Ok(r) => Some(r),
                 Err(msg) => {
@@ -379,7 +373,7 @@ impl<R: BufRead> LogReader<R> {
         }
     }
 
-    fn frame_from(&mut self, raw: RawLine) -> Result<Frame, LogError> {
+    fn frame_from(&mut self, raw: RawLine<'_>) -> Result<Frame, LogError> {
         let seq = raw
             .seq
             .as_ref()
@@ -392,19 +386,22 @@ impl<R: BufRead> LogReader<R> {
         let values = raw
             .counts
             .ok_or_else(|| self.line_err("FRAME has no counts"))?;
-        if values.len() != NDET {
-            return Err(self.line_err(format!(
-                "counts has {} values, expected {NDET}",
-                values.len()
-            )));
+        if values.len != NDET {
+            return Err(self.line_err(format!("counts has {} values, expected {NDET}", values.len)));
         }
         let fs = full_scale(self.header.adc_bits) as u64;
         let mut counts = [0u16; NDET];
-        for (k, (v, c)) in values.iter().zip(counts.iter_mut()).enumerate() {
-            match v.as_u64() {
+        for (k, (v, c)) in values.values.iter().zip(counts.iter_mut()).enumerate() {
+            match *v {
                 Some(n) if n <= fs => *c = n as u16,
                 _ => {
-                    let v = excerpt(&v.to_string(), 40);
+                    // The first value that is no integer is the one kept.
+                    let v = match (v, &values.first_other) {
+                        (Some(n), _) => n.to_string(),
+                        (None, Some(other)) => other.to_string(),
+                        (None, None) => String::new(),
+                    };
+                    let v = excerpt(&v, 40);
                     return Err(
                         self.line_err(format!("counts[{k}] = {v} is not an integer in 0..{fs}"))
                     );

@@ -2,44 +2,47 @@
 //! each taken apart by hand so that a malformed one costs that reading
 //! (counted by the reader), never the frame's light.
 
+use super::rawline::{Num, Reading, Std};
 use crate::frame::{AttitudeStd, DepthReading, VelocityReading};
 use crate::{Angle, AttitudeReading, BodyVec};
 
 /// The named numbers of a reading object (`{"z":..}`, `{"fwd":..,..}`),
-/// with its optional `std` object, or why not.
+/// with its optional `std` object (else the frame's), or why not.
 fn reading_fields<const N: usize>(
-    v: &serde_json::Value,
+    v: &Reading,
     what: &str,
     keys: [&str; N],
-    frame_std: Option<&serde_json::Value>,
+    frame_std: Option<&Std>,
 ) -> Result<([f64; N], Option<[f64; N]>), String> {
-    let obj = v
-        .as_object()
-        .ok_or_else(|| format!("{what} is not an object"))?;
+    let Reading::Object { fields, std } = v else {
+        return Err(format!("{what} is not an object"));
+    };
     let mut vals = [0.0; N];
     for (slot, key) in vals.iter_mut().zip(keys) {
-        *slot = obj
-            .get(key)
-            .and_then(|x| x.as_f64())
-            .ok_or_else(|| format!("{what} has no number {key}"))?;
+        *slot = match fields.get(key) {
+            Num::Number(x) => x,
+            _ => return Err(format!("{what} has no number {key}")),
+        };
     }
-    let std = match obj.get("std").or(frame_std) {
-        None | Some(serde_json::Value::Null) => None,
-        Some(sv) => {
-            let so = sv
-                .as_object()
-                .ok_or_else(|| format!("{what} std is not an object"))?;
+    // The reading's own `std`, even null, stands before the frame's.
+    let std = match std {
+        Std::Absent => frame_std,
+        own => Some(own),
+    };
+    let std = match std {
+        None | Some(Std::Absent | Std::Null) => None,
+        Some(Std::NotObject) => return Err(format!("{what} std is not an object")),
+        Some(Std::Object(so)) => {
             let mut out = [0.0; N];
             let mut any = false;
             for (slot, key) in out.iter_mut().zip(keys) {
                 match so.get(key) {
-                    None | Some(serde_json::Value::Null) => *slot = f64::NAN,
-                    Some(x) => {
-                        *slot = x
-                            .as_f64()
-                            .ok_or_else(|| format!("{what} std.{key} is not a number"))?;
+                    Num::Absent | Num::Null => *slot = f64::NAN,
+                    Num::Number(x) => {
+                        *slot = x;
                         any = true;
                     }
+                    Num::Other => return Err(format!("{what} std.{key} is not a number")),
                 }
             }
             // A frame-level std that names none of this reading's keys is
@@ -89,10 +92,7 @@ pub fn as_logged(frame: &mut crate::Frame) {
     }
 }
 
-pub(super) fn parse_attitude(
-    v: &serde_json::Value,
-    fs: Option<&serde_json::Value>,
-) -> Result<AttitudeReading, String> {
+pub(super) fn parse_attitude(v: &Reading, fs: Option<&Std>) -> Result<AttitudeReading, String> {
     let ([p, y], std) = reading_fields(v, "attitude", ["pitch", "yaw"], fs)?;
     Ok(AttitudeReading {
         pitch: Angle::from_deg(p),
@@ -104,10 +104,7 @@ pub(super) fn parse_attitude(
     })
 }
 
-pub(super) fn parse_depth(
-    v: &serde_json::Value,
-    fs: Option<&serde_json::Value>,
-) -> Result<DepthReading, String> {
+pub(super) fn parse_depth(v: &Reading, fs: Option<&Std>) -> Result<DepthReading, String> {
     let ([z], std) = reading_fields(v, "depth", ["z"], fs)?;
     Ok(DepthReading {
         z,
@@ -115,10 +112,7 @@ pub(super) fn parse_depth(
     })
 }
 
-pub(super) fn parse_velocity(
-    v: &serde_json::Value,
-    fs: Option<&serde_json::Value>,
-) -> Result<VelocityReading, String> {
+pub(super) fn parse_velocity(v: &Reading, fs: Option<&Std>) -> Result<VelocityReading, String> {
     let (fwd, std) = reading_fields(v, "velocity", ["fwd", "right", "down"], fs)?;
     Ok(VelocityReading {
         v: BodyVec(fwd),
