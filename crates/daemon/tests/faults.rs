@@ -477,6 +477,29 @@ fn a_stuck_channel_is_left_out_named_and_poses_go_on() {
     assert!(frames.is_some_and(|n| n > 50), "{fin}");
 }
 
+/// A channel stuck between the bounds (the spot's centre at 400 counts,
+/// a value light can give) is no bound one frame can refuse: its history
+/// can (a count noise alone would have moved). Left out after a few
+/// frames, named in STATUS, and the poses go on. (What it costs read as
+/// data is measured in the pipeline's tests/stuck_channel.rs: here it
+/// was only not named.)
+#[test]
+fn a_channel_stuck_between_the_bounds_is_left_out_by_its_history() {
+    let (clean, _) = mock_run("");
+    let (stuck, fin) = mock_run("stuck = [{ r = 2, c = 2, value = 400 }]");
+    let ok = |m: &std::collections::BTreeMap<String, usize>| m.get("ok").copied().unwrap_or(0);
+    assert!(ok(&clean) > 30, "clean: {clean:?}");
+    assert!(
+        ok(&stuck) * 10 >= ok(&clean) * 9,
+        "stuck {stuck:?}, clean {clean:?}"
+    );
+    assert_eq!(
+        fin["channels"]["excluded_now"],
+        serde_json::json!([[2, 2]]),
+        "{fin}"
+    );
+}
+
 // ---- the DS18B20 vanishing -------------------------------------------------
 
 const W1_GOOD: &str =

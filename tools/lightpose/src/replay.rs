@@ -104,7 +104,7 @@ fn say_summary(a: &ReplayArgs, s: &ReplaySummary) {
     }
     if let Some(line) = s.excluded_line() {
         eprintln!(
-            "lightpose: {}: channel(s) left out as stuck (a bound no light gives beside its neighbours): {line}",
+            "lightpose: {}: channel(s) left out as stuck (a bound no light gives beside its neighbours, or a count frozen past its noise): {line}",
             a.log.display()
         );
     }

@@ -501,7 +501,7 @@ impl Engine {
             if mask != 0 {
                 tracing::warn!(
                     seq = acq.frame.seq,
-                    "channel(s) {} left out as stuck: a bound no light gives beside its neighbours (STATUS channels)",
+                    "channel(s) {} left out as stuck: a bound no light gives beside its neighbours, or a count frozen past its noise (STATUS channels)",
                     rc(u64::from(mask))
                 );
             } else {

@@ -20,6 +20,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod crb;
+pub mod frozen;
 pub mod light;
 pub mod single_frame;
 pub mod solver;

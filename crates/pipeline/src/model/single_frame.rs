@@ -16,6 +16,7 @@
 
 use lightpose_core::{Estimator, Frame, PoseEstimate, ReadingUse, Status, StdDev, NDET};
 
+use super::frozen::FrozenWatch;
 use super::light::{to_pose, PoseVec};
 use super::solver::{solve, Censoring, LmResult, Prior, SolveOptions};
 use super::tracker::readings::{check_attitude, Pending};
@@ -44,6 +45,8 @@ pub struct ModelEstimator {
     /// K_D's doubt in use: the setting, else the model's own.
     k_d_sigma: f64,
     last: Option<(f64, PoseVec)>,
+    /// Each channel's history, for channels stuck between the bounds.
+    frozen: FrozenWatch,
 }
 
 /// What one frame's solve produced, before it becomes a `PoseEstimate`;
@@ -104,6 +107,7 @@ impl ModelEstimator {
             cfg,
             k_d_sigma,
             last: None,
+            frozen: FrozenWatch::default(),
         })
     }
 
@@ -115,6 +119,18 @@ impl ModelEstimator {
         &self.cfg
     }
 
+    /// Take `frame`'s counts into each channel's history (once per frame,
+    /// before anything reads it): what finds a channel stuck between the
+    /// bounds.
+    pub(crate) fn observe_channels(&mut self, frame: &Frame) {
+        self.frozen.observe(&self.model, &frame.counts);
+    }
+
+    /// The channels frozen by their history, bit k for detector k.
+    pub(crate) fn frozen_mask(&self) -> u32 {
+        self.frozen.mask()
+    }
+
     /// Whether some channel stands clearly (`min_signal_sigma`) above its
     /// own dark level; without that a frame says nothing about pose.
     pub fn has_light(&self, frame: &Frame) -> bool {
@@ -122,7 +138,7 @@ impl ModelEstimator {
         let cpv = m.counts_per_volt();
         let sigma0 = m.count_variance(0.0).sqrt();
         // A channel stuck at full scale is no light.
-        let kinds = Censoring::classify(m, &frame.counts);
+        let kinds = Censoring::classify(m, &frame.counts, self.frozen.mask());
         let best = (0..NDET)
             .filter(|&k| kinds[k] != Censoring::Excluded)
             .map(|k| (frame.counts[k] as f64 - m.offset_v[k] * cpv) / sigma0)
@@ -144,7 +160,11 @@ impl ModelEstimator {
             }
         };
         f.attitude = k.attitude;
-        f.excluded = Censoring::excluded_mask(&Censoring::classify(&self.model, &frame.counts));
+        f.excluded = Censoring::excluded_mask(&Censoring::classify(
+            &self.model,
+            &frame.counts,
+            self.frozen.mask(),
+        ));
         f
     }
 
@@ -228,6 +248,7 @@ impl ModelEstimator {
             max_angle: c.max_angle_deg.to_radians(),
             k_d: m.light.k_d,
             gt,
+            frozen: self.frozen.mask(),
         }
     }
 
@@ -390,7 +411,7 @@ pub(crate) fn coarse_start(
     o: &SolveOptions,
 ) -> Option<PoseVec> {
     let cpv = m.counts_per_volt();
-    let frame = &Censoring::stand_in(m, &Censoring::classify(m, &frame.counts), frame);
+    let frame = &Censoring::stand_in(m, &Censoring::classify(m, &frame.counts, o.frozen), frame);
     let mut e = [0.0; NDET];
     for k in 0..NDET {
         let v = frame.counts[k] as f64 / cpv - m.offset_v[k];
@@ -471,6 +492,7 @@ impl Estimator for ModelEstimator {
     }
 
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
+        self.observe_channels(frame);
         let warm = self
             .last
             .filter(|(t, _)| {
@@ -489,6 +511,7 @@ impl Estimator for ModelEstimator {
 
     fn reset(&mut self) {
         self.last = None;
+        self.frozen.reset();
     }
 }
 

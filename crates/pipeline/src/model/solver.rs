@@ -61,7 +61,11 @@ impl Censoring {
     ///   least the lesser one's light; one that reads dark between two
     ///   clearly lit (10 σ of the dark noise and 5 % of full scale) is
     ///   stuck.
-    pub fn classify(m: &SensorModel, counts: &[u16; NDET]) -> [Censoring; NDET] {
+    ///
+    /// `frozen` (bit k for detector k) are channels whose history says they
+    /// are stuck between the bounds ([`FrozenWatch`](super::frozen::FrozenWatch)):
+    /// `Excluded` too.
+    pub fn classify(m: &SensorModel, counts: &[u16; NDET], frozen: u32) -> [Censoring; NDET] {
         let fs = m.full_scale();
         let cpv = m.counts_per_volt();
         let mut out = [Censoring::Data; NDET];
@@ -102,7 +106,7 @@ impl Censoring {
                 }),
                 _ => false,
             };
-            if stuck {
+            if stuck || frozen & (1 << k) != 0 {
                 out[k] = Censoring::Excluded;
             }
         }
@@ -231,6 +235,9 @@ pub struct SolveOptions {
     pub k_d: f64,
     /// Temperature gain g_T of this frame.
     pub gt: f64,
+    /// Channels frozen by their history (bit k for detector k), left out
+    /// as stuck ones are (see [`Censoring::classify`]).
+    pub frozen: u32,
 }
 
 /// Outcome of one solve.
@@ -438,7 +445,7 @@ pub fn solve(
     prior: &Prior,
     o: &SolveOptions,
 ) -> LmResult {
-    let kinds = Censoring::classify(m, counts);
+    let kinds = Censoring::classify(m, counts, o.frozen);
     let n_saturated = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
     let n_data = kinds.iter().filter(|k| **k == Censoring::Data).count();
     let p = Problem {

@@ -71,3 +71,11 @@ pub fn synth_frame(
         velocity: None,
     }
 }
+
+/// The shipped tank calibration's light model (config/calibration/tank.toml).
+pub fn tank_model() -> SensorModel {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/calibration/tank.toml");
+    let cal = crate::calibration::Calibration::load(&path).expect("tank calibration");
+    cal.physical.as_ref().expect("light model").sensor_model()
+}

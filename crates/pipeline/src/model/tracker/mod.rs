@@ -479,7 +479,8 @@ impl Estimator for Tracker {
 
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
         // Once per frame: the counts update and the report share it.
-        let kinds = Censoring::classify(&self.model, &frame.counts);
+        self.init.observe_channels(frame);
+        let kinds = Censoring::classify(&self.model, &frame.counts, self.init.frozen_mask());
         let mut e = self.estimate_frame(frame, kinds);
         e.excluded_channels = Censoring::excluded_mask(&kinds);
         e
@@ -487,6 +488,7 @@ impl Estimator for Tracker {
 
     fn reset(&mut self) {
         self.state = None;
+        self.init.reset();
     }
 
     /// K_D while it is estimated (`estimate_k_d`, or from the first DVL

@@ -354,7 +354,8 @@ impl Tracker {
         let p = self.paper.as_ref()?;
         // The paper's moments read the whole image: a stuck channel, left
         // out of the fits, is read as its neighbours here.
-        let frame = &Censoring::stand_in(m, &Censoring::classify(m, &frame.counts), frame);
+        let kinds = Censoring::classify(m, &frame.counts, self.init.frozen_mask());
+        let frame = &Censoring::stand_in(m, &kinds, frame);
         let x = p.est.range_of(frame)?;
         let cpv = m.counts_per_volt();
         let (peak, k) = (0..frame.counts.len())
