@@ -7,7 +7,7 @@
 
 use crate::config::{Config, Outputs};
 use crate::engine::Engine;
-use crate::outputs::recorder::Recorder;
+use crate::outputs::recorder::{Epoch, Recorder};
 use crate::outputs::udp::{PoseDatagrams, PublishError, Publisher};
 use crate::stats::Stats;
 use crate::wiring::{build_estimator, open_source};
@@ -95,6 +95,8 @@ struct Rig {
     adc_bits: u8,
     /// The source's frame clock (a recording's header).
     rate_hz: f64,
+    /// What its frames' `t` counts from (a recording's clock record).
+    epoch: Epoch,
 }
 
 /// The rig for `frames` frames; `sim_clock_hz`: the simulator's frame
@@ -133,6 +135,7 @@ fn rig(
         source.adc_bits(),
     );
     let rate_hz = source.rate_hz().unwrap_or(cfg.rate_hz);
+    let epoch = Epoch::of(source.t_is_monotonic());
     let engine = Engine::new(source, estimator)
         .stats(stats.clone())
         .period(None)
@@ -147,6 +150,7 @@ fn rig(
         source: source_desc,
         adc_bits,
         rate_hz,
+        epoch,
     })
 }
 
@@ -323,7 +327,7 @@ pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
         max_total_bytes: None,
     };
     let header = lightpose_core::LogHeader::new(rig.adc_bits, rig.rate_hz);
-    let recorder = Recorder::start(&rec_cfg, header).map_err(DaemonError::Recorder)?;
+    let recorder = Recorder::start(&rec_cfg, header, rig.epoch).map_err(DaemonError::Recorder)?;
     let rec_stats = recorder.stats.clone();
     let engine = rig.engine.output(Box::new(recorder));
     let t0 = Instant::now();

@@ -11,7 +11,7 @@ use crate::inputs::vehicle::VehicleReadings;
 use crate::notify::{notify, NotifyState};
 use crate::outputs::live::{self, hub::Hub};
 use crate::outputs::mavlink::ToAutopilot;
-use crate::outputs::recorder::{RecStats, Recorder};
+use crate::outputs::recorder::{Epoch, RecStats, Recorder};
 use crate::outputs::udp::{PoseDatagrams, PublishError, Publisher};
 use crate::outputs::StatusTap;
 use crate::stats::Stats;
@@ -276,8 +276,10 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     };
     let vehicle = start_vehicle(cfg).await?;
     let header = log_header(cfg, source.as_ref(), &source_desc);
+    // What the recording's clock record says its log time counts from.
+    let epoch = Epoch::of(source.t_is_monotonic());
     let recorder = match &cfg.recording {
-        Some(r) => Some(Recorder::start(r, header.clone()).map_err(DaemonError::Recorder)?),
+        Some(r) => Some(Recorder::start(r, header.clone(), epoch).map_err(DaemonError::Recorder)?),
         None => None,
     };
     let rec_stats = recorder.as_ref().map(|r| r.stats.clone());

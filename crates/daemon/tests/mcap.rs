@@ -1,10 +1,11 @@
 //! The daemon and MCAP (issue 15): its replay backend reads MCAP as JSONL
 //! (the same POSE datagrams, byte for byte); its MCAP recording after
 //! SIGTERM is read by the reference Python `mcap` library with frames,
-//! poses and STATUS, the poses equal to the POSE datagrams it sent; after
-//! kill -9 of the real binary, `lightpose convert`'s library recovers every
-//! frame up to the last complete chunk, at least every frame STATUS called
-//! synced; a bad MCAP is refused at start with one line and exit 2.
+//! poses, STATUS and clock records, the poses equal to the POSE datagrams
+//! it sent; after kill -9 of the real binary, `lightpose convert`'s
+//! library recovers every frame up to the last complete chunk, at least
+//! every frame STATUS called synced; a bad MCAP is refused at start with
+//! one line and exit 2.
 
 mod common;
 use common::run::{
@@ -182,6 +183,9 @@ fn sigterm_leaves_mcap_recordings_the_reference_library_reads() {
             .and_then(|v| v.parse().ok())
             .expect("status count");
         assert!(status >= 1, "{}: STATUS recorded: {line}", log.display());
+        // Each file maps its log time to the wall clock (the script checks
+        // the record's values).
+        assert!(line.contains(" clock="), "{}: {line}", log.display());
         all.extend(seqs);
     }
     assert!(all.windows(2).all(|w| w[1] == w[0] + 1), "seq contiguous");

@@ -14,7 +14,7 @@ use lightpose_testkit::alloc::Counting;
 use lightposed::config::Config;
 use lightposed::engine::Engine;
 use lightposed::outputs::live;
-use lightposed::outputs::recorder::Recorder;
+use lightposed::outputs::recorder::{Epoch, Recorder};
 use lightposed::outputs::udp::PoseDatagrams;
 use lightposed::Publisher;
 use std::net::UdpSocket;
@@ -78,7 +78,8 @@ fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
     }
     assert!(live.hub.wanted(), "the client subscribed");
     let rec_cfg = cfg.recording.as_ref().expect("recording");
-    let recorder = Recorder::start(rec_cfg, header).expect("recorder");
+    let epoch = Epoch::of(source.t_is_monotonic());
+    let recorder = Recorder::start(rec_cfg, header, epoch).expect("recorder");
     let rec_stats = recorder.stats.clone();
     let publisher = Arc::new(Publisher::open(&cfg.outputs).expect("publisher"));
     let engine = Engine::new(

@@ -17,6 +17,33 @@ pub const SCHEMA_ENCODING: &str = "jsonschema";
 pub const HEADER_METADATA: &str = "lightpose-header";
 pub const HEADER_KEY: &str = "json";
 
+/// Metadata record that maps the log time to the wall clock (a daemon's
+/// recording: at its start, and again when the wall clock steps). Every
+/// value a string; keys in [`clock_key`].
+pub const CLOCK_METADATA: &str = "lightpose-clock";
+
+/// Keys of the [`CLOCK_METADATA`] record.
+pub mod clock_key {
+    /// The frames' time base: `monotonic` (a board: seconds since the
+    /// computer booted) or `source` (the simulator's or a replayed log's
+    /// own time).
+    pub const EPOCH: &str = "epoch";
+    /// The pair, read together: `t` in the log's epoch (seconds), the same
+    /// instant as an MCAP log time (integer nanoseconds), and Unix time
+    /// (seconds) on the computer's wall clock.
+    pub const T: &str = "t";
+    pub const LOG_TIME: &str = "log_time";
+    pub const UNIX: &str = "unix";
+    /// `unix − t`: add it to a log time (in seconds) to get Unix time.
+    pub const OFFSET: &str = "offset";
+    /// Whether the kernel said the wall clock was synchronized (NTP, GPS):
+    /// `true`, `false` or `unknown`.
+    pub const SYNCED: &str = "synced";
+    /// Why this record was written: `open`, `step` (the wall clock stepped
+    /// against the monotonic clock) or `sync` (`synced` changed).
+    pub const REASON: &str = "reason";
+}
+
 /// Topics. The first three carry the JSON objects of FORMATS.md; the rest
 /// carry the same data in Foxglove's types.
 pub mod topic {

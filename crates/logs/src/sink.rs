@@ -4,6 +4,7 @@
 use crate::write::{McapOptions, McapWriter, WriteError};
 use crate::Format;
 use lightpose_core::{Frame, LogHeader, LogWriter, PoseEstimate};
+use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::Path;
@@ -16,6 +17,12 @@ pub trait LogSink {
     fn write_pose(&mut self, p: &PoseEstimate, wall_unix: Option<f64>) -> Result<(), WriteError>;
     /// A STATUS object at `t` in the log's epoch. JSONL: nothing.
     fn write_status(&mut self, t: f64, json: &[u8]) -> Result<(), WriteError>;
+    /// A metadata record (MCAP; it closes the open chunk). JSONL: nothing.
+    fn write_metadata(
+        &mut self,
+        name: &str,
+        pairs: BTreeMap<String, String>,
+    ) -> Result<(), WriteError>;
     /// Whether poses and status are kept (MCAP) or passed over (JSONL).
     fn keeps_poses(&self) -> bool;
     /// Push everything written so far to the file (MCAP: close the chunk).
@@ -34,6 +41,13 @@ impl<W: Write> LogSink for McapWriter<W> {
     }
     fn write_status(&mut self, t: f64, json: &[u8]) -> Result<(), WriteError> {
         McapWriter::write_status(self, t, json)
+    }
+    fn write_metadata(
+        &mut self,
+        name: &str,
+        pairs: BTreeMap<String, String>,
+    ) -> Result<(), WriteError> {
+        McapWriter::write_metadata(self, name, pairs)
     }
     fn keeps_poses(&self) -> bool {
         true
@@ -57,6 +71,9 @@ impl<W: Write> LogSink for LogWriter<W> {
         Ok(())
     }
     fn write_status(&mut self, _: f64, _: &[u8]) -> Result<(), WriteError> {
+        Ok(())
+    }
+    fn write_metadata(&mut self, _: &str, _: BTreeMap<String, String>) -> Result<(), WriteError> {
         Ok(())
     }
     fn keeps_poses(&self) -> bool {

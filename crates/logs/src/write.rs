@@ -249,6 +249,21 @@ impl<W: Write> McapWriter<W> {
             .status(t, json, &mut Self::sink(&mut self.mcap, &self.ids))
     }
 
+    /// Append a metadata record `name` of `pairs` (it closes the open
+    /// chunk: metadata sits between chunks). Readers here pass over every
+    /// metadata record but the HEADER's.
+    pub fn write_metadata(
+        &mut self,
+        name: &str,
+        pairs: BTreeMap<String, String>,
+    ) -> Result<(), WriteError> {
+        self.mcap.write_metadata(&Metadata {
+            name: name.into(),
+            metadata: pairs,
+        })?;
+        Ok(())
+    }
+
     /// Close the open chunk and flush the sink: everything written so far
     /// survives a power loss once the sink has it on disk.
     pub fn flush(&mut self) -> Result<(), WriteError> {

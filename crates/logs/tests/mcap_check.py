@@ -8,7 +8,8 @@ library (pinned in tests/python/requirements.txt), run by tests/python.rs.
 log (and POSE lines) it must hold, JSON parsed by Python's own json module
 and every float compared bit for bit; the Foxglove channels decoded and
 checked against the frames and poses (the attitude quaternion against
-MODEL.md's forward axis). Prints one line of counts.
+MODEL.md's forward axis); `lightpose-clock` records, if any, checked and
+counted (`clock=N` at the end). Prints one line of counts.
 
 `cut`: a file cut short, read by the library's non-seeking reader, which
 yields what it can before the cut; prints the number of FRAME messages.
@@ -115,6 +116,31 @@ def check_summary(reader, header_line):
     return summary
 
 
+def check_clocks(reader):
+    """The `lightpose-clock` records (a daemon's recording): their count."""
+    n = 0
+    for m in reader.iter_metadata():
+        if m.name != "lightpose-clock":
+            continue
+        c, where = m.metadata, f"lightpose-clock #{n}"
+        n += 1
+        if c.get("epoch") not in ("monotonic", "source"):
+            fail(f"{where}: epoch {c.get('epoch')!r}")
+        if c.get("synced") not in ("true", "false", "unknown"):
+            fail(f"{where}: synced {c.get('synced')!r}")
+        if c.get("reason") not in ("open", "step", "sync") or (n == 1) != (c["reason"] == "open"):
+            fail(f"{where}: reason {c.get('reason')!r}")
+        try:
+            t, unix, offset = float(c["t"]), float(c["unix"]), float(c["offset"])
+        except (KeyError, ValueError) as e:
+            fail(f"{where}: {e!r} in {c}")
+        if abs(offset - (unix - t)) > 1e-6:
+            fail(f"{where}: offset {offset} is not unix - t")
+        if "log_time" in c and abs(int(c["log_time"]) - t * 1e9) > max(1.0, t * 1e-6):
+            fail(f"{where}: log_time {c['log_time']} for t = {t}")
+    return n
+
+
 def full(path, log, poses_path):
     with open(log, encoding="utf-8") as f:
         lines = [line.rstrip("\n") for line in f if line.strip()]
@@ -124,6 +150,7 @@ def full(path, log, poses_path):
     with open(path, "rb") as f:
         reader = make_reader(f)
         check_summary(reader, lines[0])
+        clocks = check_clocks(reader)
         for _schema, ch, msg in reader.iter_messages(log_time_order=False):
             i = n[ch.topic]
             n[ch.topic] += 1
@@ -171,7 +198,10 @@ def full(path, log, poses_path):
         fail(f"{n['/lightpose/frame']} frames and {n['/lightpose/image']} images for {len(frames)} lines")
     if poses is not None and n["/lightpose/pose"] != len(poses):
         fail(f"{n['/lightpose/pose']} poses for {len(poses)} lines")
-    print(" ".join(f"{t.split('/')[-1]}={c}" for t, c in n.items()))
+    counts = [f"{t.split('/')[-1]}={c}" for t, c in n.items()]
+    if clocks:
+        counts.append(f"clock={clocks}")
+    print(" ".join(counts))
 
 
 def cut(path):

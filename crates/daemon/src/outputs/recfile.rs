@@ -21,6 +21,7 @@ use crate::config::RecFormat;
 use lightpose_core::{Frame, LogHeader, LogWriter, PoseEstimate};
 use lightpose_logs::foxglove::Stamp;
 use lightpose_logs::{LogSink, McapOptions, McapWriter, WriteError};
+use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::os::unix::fs::FileExt;
@@ -253,6 +254,22 @@ impl RecFile {
     /// A STATUS object at the log time `t` (MCAP; JSONL keeps none).
     pub fn status(&mut self, t: f64, json: &[u8]) -> Result<(), String> {
         self.sink.write_status(t, json).map_err(|e| self.err(e))
+    }
+
+    /// A metadata record (MCAP: it closes the open chunk; JSONL keeps
+    /// none).
+    pub fn metadata(&mut self, name: &str, pairs: BTreeMap<String, String>) -> Result<(), String> {
+        if self.format != RecFormat::Mcap {
+            return Ok(());
+        }
+        self.sink
+            .write_metadata(name, pairs)
+            .map_err(|e| self.err(e))?;
+        // The chunk it closed, as a flush's (none before the first frame).
+        if self.frames > 0 {
+            self.flushes += 1;
+        }
+        Ok(())
     }
 
     /// Close the open chunk, write it and sync the file: what was written

@@ -11,6 +11,7 @@
 //! ([`names`]), not by the wall clock; frames that could not be recorded
 //! are counted, never hidden.
 
+pub mod clock;
 mod names;
 mod space;
 #[cfg(test)]
@@ -22,6 +23,8 @@ pub use space::{default_floor, MIN_FREE};
 use super::{Output, StatusTap};
 use crate::config::{RecFormat, Recording};
 use crate::engine::Acquired;
+use clock::ClockWatch;
+pub use clock::Epoch;
 use lightpose_core::ratelog::RateLog;
 use lightpose_core::{Frame, LogHeader, PoseEstimate};
 use std::io;
@@ -138,14 +141,17 @@ pub struct Recorder {
 
 impl Recorder {
     /// Start the recorder thread. `header` is written at the top of every
-    /// file (its adc_bits is taken from the first frame).
-    pub fn start(cfg: &Recording, header: LogHeader) -> io::Result<Recorder> {
+    /// file (its adc_bits is taken from the first frame, and the file's
+    /// `clock` added); `epoch` is what the frames' `t` counts from.
+    pub fn start(cfg: &Recording, header: LogHeader, epoch: Epoch) -> io::Result<Recorder> {
         let stats = Arc::new(RecStats {
             format: cfg.format,
             ..RecStats::default()
         });
         stats.set_state(RecState::Idle);
-        Recorder::spawn(Worker::new(cfg, header, stats), cfg.queue)
+        let mut worker = Worker::new(cfg, header, stats);
+        worker.clock = ClockWatch::new(epoch);
+        Recorder::spawn(worker, cfg.queue)
     }
 
     /// `worker` on its thread behind a queue of `queue` frames.

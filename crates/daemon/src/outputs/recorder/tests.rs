@@ -2,6 +2,7 @@
 //! format cannot hold, STATUS behind a slow disk ([`disk`]: a full disk;
 //! [`names`]: the recordings' names and the order of pruning).
 
+mod clock;
 mod disk;
 mod names;
 
@@ -72,7 +73,7 @@ fn stamp_of_known_instants() {
 fn rotates_by_size_and_every_file_reads_back_whole() {
     let dir = tempfile::tempdir().unwrap();
     let cfg = cfg(dir.path().to_path_buf(), Some(2000), 1024);
-    let mut r = Recorder::start(&cfg, LogHeader::new(10, 100.0)).unwrap();
+    let mut r = Recorder::start(&cfg, LogHeader::new(10, 100.0), Epoch::Source).unwrap();
     for s in 0..100 {
         r.record(&frame(s), &est(s), 1.7e9);
     }
@@ -103,7 +104,7 @@ fn refusing_disk_is_reported_not_fatal() {
     std::fs::write(&blocker, b"x").unwrap();
     // A directory under a file: ENOTDIR.
     let cfg = cfg(blocker.join("sub"), None, 16);
-    let mut r = Recorder::start(&cfg, LogHeader::new(10, 5.0)).unwrap();
+    let mut r = Recorder::start(&cfg, LogHeader::new(10, 5.0), Epoch::Source).unwrap();
     r.record(&frame(0), &est(0), 1.7e9);
     r.record(&frame(1), &est(1), 1.7e9);
     let t0 = Instant::now();
@@ -253,7 +254,7 @@ fn a_frame_without_log_time_is_skipped_and_the_file_goes_on() {
     let dir = tempfile::tempdir().unwrap();
     let mut c = cfg(dir.path().to_path_buf(), None, 1024);
     c.format = RecFormat::Mcap;
-    let mut r = Recorder::start(&c, LogHeader::new(10, 100.0)).unwrap();
+    let mut r = Recorder::start(&c, LogHeader::new(10, 100.0), Epoch::Source).unwrap();
     for s in 0..40 {
         let (mut f, mut e) = (frame(s), est(s));
         if s == 5 || s == 17 {

@@ -5,11 +5,12 @@
 //! attempt; a file opened while in error must reach the disk (its first
 //! sync) before recording counts as resumed.
 
+use super::clock::{ClockPair, ClockWatch, Epoch, Reason, Synced};
 use super::names;
 use super::space::{Space, EVERY};
 use super::{Item, RecState, RecStats};
 use crate::config::recording::Rotation;
-use crate::config::Recording;
+use crate::config::{RecFormat, Recording};
 use crate::outputs::recfile::{self, extension, Closed, Opener, RecError, RecFile};
 use lightpose_core::ratelog::RateLog;
 use lightpose_core::LogHeader;
@@ -60,6 +61,9 @@ pub(super) struct Worker {
     /// Frames the format cannot hold: core's rule, the first at once,
     /// then less and less often while they go on (a whole replayed log).
     skip_log: RateLog,
+    /// The wall clock against the frames' time: each file's pair, and
+    /// MCAP's new records when the wall clock steps.
+    pub(super) clock: ClockWatch,
 }
 
 impl Worker {
@@ -81,6 +85,7 @@ impl Worker {
             last_t: None,
             open_file: recfile::create_new,
             skip_log: RateLog::new(),
+            clock: ClockWatch::new(Epoch::Source),
         }
     }
 
@@ -110,6 +115,12 @@ impl Worker {
             }
             if self.file.is_some() && self.space_at.is_some_and(|t| now >= t) {
                 self.check_space();
+            }
+            // JSON Lines has no place for a record after its header.
+            if self.file.is_some() && self.cfg.format == RecFormat::Mcap {
+                if let Some((pair, step)) = self.clock.check(now) {
+                    self.clock_record(&pair, step);
+                }
             }
         }
         self.close();
@@ -169,7 +180,7 @@ impl Worker {
                 self.stats.failed.fetch_add(1, Relaxed);
                 return;
             }
-            if let Err(e) = self.open(item.frame.adc_bits) {
+            if let Err(e) = self.open(item) {
                 self.fail(e);
                 self.stats.failed.fetch_add(1, Relaxed);
                 return;
@@ -185,6 +196,9 @@ impl Worker {
                 self.last_t = Some(item.frame.t);
                 if self.flush_at.is_none() {
                     self.flush_at = Some(Instant::now() + self.cfg.flush);
+                }
+                if let Some((pair, step)) = self.clock.frame(item.frame.t, item.wall_unix) {
+                    self.clock_record(&pair, step);
                 }
             }
             Err(RecError::Skip(e)) => self.skip(&e),
@@ -218,6 +232,26 @@ impl Worker {
         }
     }
 
+    /// A new clock record into the open file (MCAP): the wall clock
+    /// stepped by `step` s, or its synchronization changed.
+    fn clock_record(&mut self, pair: &ClockPair, step: f64) {
+        let Some(f) = self.file.as_mut() else { return };
+        let (name, pairs) = pair.metadata();
+        if let Err(e) = f.metadata(name, pairs) {
+            self.fail(e);
+            return;
+        }
+        match pair.reason {
+            Reason::Step => tracing::info!(
+                "recording: the wall clock stepped by {step:+.3} s; a {name} record gives the new mapping"
+            ),
+            _ => tracing::info!(
+                "recording: the kernel now says the wall clock is {}synchronized ({name} record)",
+                if pair.synced == Synced::Yes { "" } else { "not " }
+            ),
+        }
+    }
+
     /// Push the open file to the disk (the flush_s timer).
     pub(super) fn flush(&mut self) {
         self.flush_at = None;
@@ -246,7 +280,7 @@ impl Worker {
         }
     }
 
-    fn open(&mut self, adc_bits: u8) -> Result<(), String> {
+    fn open(&mut self, item: &Item) -> Result<(), String> {
         std::fs::create_dir_all(&self.cfg.dir)
             .map_err(|e| format!("{}: {e}", self.cfg.dir.display()))?;
         // Before pruning, which may delete the highest.
@@ -262,11 +296,21 @@ impl Worker {
         )?;
         self.counter = counter;
         let mut header = self.header.clone();
-        header.adc_bits = adc_bits;
+        header.adc_bits = item.frame.adc_bits;
         header
             .extra
             .insert("started".into(), super::unix_now().into());
-        let file = RecFile::create(path, file, self.cfg.format, &header, CHUNK_BYTES)?;
+        let clock = self
+            .clock
+            .open(item.frame.t, item.wall_unix, Instant::now());
+        header.extra.insert("clock".into(), clock.header_json());
+        let mut file = RecFile::create(path, file, self.cfg.format, &header, CHUNK_BYTES)?;
+        let (name, pairs) = clock.metadata();
+        if let Err(e) = file.metadata(name, pairs) {
+            // No frame in it: removed.
+            file.close();
+            return Err(e);
+        }
         let shown = file.path.display().to_string();
         self.file = Some(file);
         self.opened = Instant::now();

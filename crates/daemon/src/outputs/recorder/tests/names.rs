@@ -5,7 +5,7 @@
 
 use super::super::names::{self, Rank};
 use super::{cfg, est, frame, item, worker};
-use super::{LogHeader, RecState, Recorder};
+use super::{Epoch, LogHeader, RecState, Recorder};
 use crate::outputs::recfile::create_new;
 use lightpose_core::LogReader;
 use std::fs::File;
@@ -202,7 +202,7 @@ fn the_counter_continues_across_runs() {
     let c = cfg(d.to_path_buf(), Some(400), 1024);
     let mut first = 0;
     for run in 0..2u64 {
-        let mut r = Recorder::start(&c, LogHeader::new(10, 100.0)).unwrap();
+        let mut r = Recorder::start(&c, LogHeader::new(10, 100.0), Epoch::Source).unwrap();
         for s in run * 30..run * 30 + 30 {
             r.record(&frame(s), &est(s), 1.7e9);
         }
