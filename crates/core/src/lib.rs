@@ -25,7 +25,9 @@ pub use frame::{AttitudeReading, AttitudeStd, DepthReading, Frame, Truth, Veloci
 pub use geometry::{Attitude, BeamVec, BodyVec, Pose};
 pub use light::{LightParams, Scattering};
 pub use log::{ByteError, Cut, FrameLog, FrameOrder, LogError, LogHeader, LogReader, LogWriter};
-pub use pose::{PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev, READINGS};
+pub use pose::{
+    Agreement, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev, CHECKED, READINGS,
+};
 
 /// Replace a non-finite number by `None`: no message or log ever carries
 /// NaN or infinity (FORMATS.md).

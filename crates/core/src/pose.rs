@@ -218,6 +218,27 @@ impl ReadingUses {
     }
 }
 
+/// The own-sensor reading components whose agreement with the light the
+/// tracker watches ([`Agreement`]), in order.
+pub const CHECKED: [&str; 6] = ["pitch", "yaw", "depth", "fwd", "right", "down"];
+
+/// How each own-sensor reading component has agreed with the light lately
+/// (not on the wire: for STATUS, the replay summary and the log). A
+/// reading that is biased rather than noisy (a depth sensor zeroed on
+/// another day, a mis-surveyed beacon depth, an AHRS mounted askew) is
+/// taken whole by a filter that believes its σ; what shows it is that its
+/// innovations ν/√S, zero-mean for a reading as good as its σ, keep one
+/// sign while the light pulls the other way.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Agreement {
+    /// The mean of each [`CHECKED`] component's normalized innovation over
+    /// the estimator's window; `None` until the window is full.
+    pub mean: [Option<f64>; 6],
+    /// Bit i: component i of this frame's reading is past the limit: it and
+    /// the light disagree by more than noise.
+    pub suspect: u8,
+}
+
 /// One estimate. Angles in degrees, as they go on the wire.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoseEstimate {
@@ -240,6 +261,9 @@ pub struct PoseEstimate {
     /// for detector k = 5·row + col (not on the wire: for STATUS and the
     /// replay summary).
     pub excluded_channels: u32,
+    /// How the own-sensor readings have agreed with the light lately (not
+    /// on the wire; the tracker's, default elsewhere).
+    pub agreement: Agreement,
 }
 
 /// Names of the six estimated fields, in message order.
@@ -275,6 +299,7 @@ impl PoseEstimate {
             estimator,
             readings: ReadingUses::default(),
             excluded_channels: 0,
+            agreement: Agreement::default(),
         }
     }
 

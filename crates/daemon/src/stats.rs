@@ -265,6 +265,13 @@ pub struct Stats {
     pub excluded: [AtomicU64; NDET],
     /// The channels left out of the last frame (bit mask).
     pub excluded_now: AtomicU64,
+    /// The reading check (`PoseEstimate::agreement`), per component in
+    /// core's `CHECKED` order: f64 bits of its last window mean (0 bits:
+    /// none yet, read as null), frames it disagreed with the light on, and
+    /// the components disagreeing on the last frame (bit mask).
+    pub agreement_bits: [AtomicU64; 6],
+    pub disagreed: [AtomicU64; 6],
+    pub disagreeing_now: AtomicU64,
     pub latency: Histogram,
     /// Last error of the source, for STATUS.
     pub last_error: Mutex<Option<String>>,

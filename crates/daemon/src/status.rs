@@ -7,7 +7,7 @@ use crate::outputs::live::hub::Hub;
 use crate::outputs::recorder::RecStats;
 use crate::outputs::udp::Publisher;
 use crate::stats::{Histogram, Stats, TempSource};
-use lightpose_core::{ReadingUse, Refusal, Status, COLS, NDET, READINGS};
+use lightpose_core::{ReadingUse, Refusal, Status, CHECKED, COLS, NDET, READINGS};
 use lightpose_hal::SourceHealth;
 use serde_json::{json, Value};
 use std::sync::atomic::Ordering::Relaxed;
@@ -242,6 +242,22 @@ fn channels(s: &Stats) -> Value {
 /// updated the pose on a frame whose reading was refused.
 fn readings(s: &Stats) -> Value {
     let mut v = serde_json::Map::new();
+    let now = s.disagreeing_now.load(Relaxed);
+    let check: serde_json::Map<String, Value> = CHECKED
+        .iter()
+        .enumerate()
+        .map(|(i, name)| {
+            let bits = s.agreement_bits[i].load(Relaxed);
+            let mean = (bits != 0).then(|| f64::from_bits(bits));
+            let c = json!({
+                "mean": mean,
+                "disagreeing": now & (1 << i) != 0,
+                "frames": s.disagreed[i].load(Relaxed),
+            });
+            (name.to_string(), c)
+        })
+        .collect();
+    v.insert("check".to_string(), Value::Object(check));
     for (name, counts) in READINGS.iter().zip(&s.readings) {
         let n = |u: ReadingUse| counts[u.index()].load(Relaxed);
         let refused: serde_json::Map<String, Value> = Refusal::ALL

@@ -50,3 +50,48 @@ fn bad_readings_are_refused_by_reason_and_counted_in_status() {
     assert_eq!(n("velocity", &["refused", "implausible"]), 1, "{rd}");
     assert_eq!(n("velocity", &["ignored"]), 0, "{rd}");
 }
+
+/// The same log with every depth reading 0.2 m deep (a depth sensor zeroed
+/// on another day): the reading check calls depth disagreeing with the
+/// light in STATUS `readings.check`, where the clean log has it agreeing.
+#[test]
+fn a_biased_depth_is_called_disagreeing_in_status() {
+    let r = root();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let biased = dir.path().join("biased.jsonl");
+    let text = std::fs::read_to_string(r.join("tests/data/fusion-all.jsonl")).expect("log");
+    let mut out = String::new();
+    for line in text.lines() {
+        let mut v: serde_json::Value = serde_json::from_str(line).expect("json line");
+        if let Some(z) = v["depth"]["z"].as_f64() {
+            v["depth"]["z"] = serde_json::json!(z + 0.2);
+        }
+        out.push_str(&v.to_string());
+        out.push('\n');
+    }
+    std::fs::write(&biased, out).expect("write");
+    for (log, told) in [
+        (r.join("tests/data/fusion-all.jsonl"), false),
+        (biased, true),
+    ] {
+        let (sub, addr) = subscriber();
+        let text = format!(
+            "rate_hz = 5.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"replay\"\nlog = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 0.2\n",
+            r.join("config/calibration/tank.toml").display(),
+            log.display(),
+        );
+        let cfg = Config::parse(&text, "check.toml", None).expect("valid config");
+        let (_, msgs) = run_to_end(cfg, Duration::from_secs(20), &sub);
+        let st = *of_class(&msgs, "STATUS").last().expect("a STATUS");
+        let depth = &st["readings"]["check"]["depth"];
+        let frames = depth["frames"].as_u64().expect("frames");
+        assert!(depth["mean"].is_f64(), "{depth}");
+        if told {
+            assert!(frames > 5, "{}: {depth}", log.display());
+            assert!(depth["mean"].as_f64() > Some(1.0), "{depth}");
+        } else {
+            assert_eq!(frames, 0, "{}: {depth}", log.display());
+            assert_eq!(depth["disagreeing"], false, "{depth}");
+        }
+    }
+}

@@ -8,7 +8,8 @@
 mod running;
 
 use lightpose_core::{
-    Cut, Estimator, FrameLog, LogError, PoseEstimate, ReadingUse, Status, COLS, NDET, READINGS,
+    Cut, Estimator, FrameLog, LogError, PoseEstimate, ReadingUse, Status, CHECKED, COLS, NDET,
+    READINGS,
 };
 use std::fmt;
 use std::io::Write;
@@ -184,6 +185,11 @@ pub struct ReplaySummary {
     /// Frames on which the estimator left each channel out as stuck
     /// (`PoseEstimate::excluded_channels`), by detector 5·row + col.
     pub excluded: [u64; NDET],
+    /// The reading check (`PoseEstimate::agreement`), per component in
+    /// [`CHECKED`] order: frames on which it disagreed with the light, and
+    /// the window mean of its normalized innovation farthest from 0.
+    pub disagreed: [u64; 6],
+    pub agreement_extreme: [Option<f64>; 6],
 }
 
 impl ReplaySummary {
@@ -217,6 +223,31 @@ impl ReplaySummary {
             .collect();
         (!parts.is_empty()).then(|| parts.join(", "))
     }
+
+    /// "depth on 30 frames (window mean ν/√S up to +1.92)" for the reading
+    /// components that disagreed with the light, or `None`.
+    pub fn disagreed_line(&self) -> Option<String> {
+        let parts: Vec<String> = (0..CHECKED.len())
+            .filter(|&i| self.disagreed[i] > 0)
+            .map(|i| {
+                let m = self.agreement_extreme[i].unwrap_or(f64::NAN);
+                format!(
+                    "{} on {} frames (window mean ν/√S up to {m:+.2})",
+                    CHECKED[i], self.disagreed[i]
+                )
+            })
+            .collect();
+        (!parts.is_empty()).then(|| parts.join(", "))
+    }
+
+    /// "pitch +0.31, yaw -0.18, depth +0.25" : each checked component's
+    /// window mean farthest from 0, or `None` when no window filled.
+    pub fn agreement_line(&self) -> Option<String> {
+        let parts: Vec<String> = (0..CHECKED.len())
+            .filter_map(|i| self.agreement_extreme[i].map(|m| format!("{} {m:+.2}", CHECKED[i])))
+            .collect();
+        (!parts.is_empty()).then(|| parts.join(", "))
+    }
 }
 
 /// Replay `log` through `est`, writing one POSE line per frame to `out`.
@@ -242,6 +273,8 @@ pub fn replay<W: Write>(
         first_bad_reading: None,
         water_k_d: None,
         excluded: [0; NDET],
+        disagreed: [0; 6],
+        agreement_extreme: [None; 6],
     };
     while let Some(item) = log.next_frame() {
         // The reader keeps only the last bad reading's text: taken as soon
@@ -277,6 +310,16 @@ pub fn replay<W: Write>(
         }
         for (k, n) in s.excluded.iter_mut().enumerate() {
             *n += u64::from(pose.excluded_channels >> k & 1);
+        }
+        let a = &pose.agreement;
+        for i in 0..CHECKED.len() {
+            s.disagreed[i] += u64::from(a.suspect >> i & 1);
+            if let Some(m) = a.mean[i] {
+                let far = s.agreement_extreme[i].is_none_or(|e: f64| m.abs() > e.abs());
+                if far {
+                    s.agreement_extreme[i] = Some(m);
+                }
+            }
         }
         if let Some(t) = &frame.truth {
             errors.add(&pose, t);

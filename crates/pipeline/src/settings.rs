@@ -258,6 +258,19 @@ pub struct TrackerConfig {
     /// The K_D doubt (1σ, m⁻¹) the bank is told when the check fires:
     /// what an operator who takes a calibration into unknown water sets.
     pub water_check_doubt: f64,
+    /// Frames of the reading check (0: off; at most
+    /// `WATER_CHECK_MAX_FRAMES`): the mean of each own-sensor reading
+    /// component's normalized innovation ν/√S over this many frames with
+    /// it. Past `reading_check_limit` the reading is reported as
+    /// disagreeing with the light (PoseEstimate::agreement: STATUS, the
+    /// replay summary, a warning). Report only: nothing fused changes. Why:
+    /// a biased depth or pitch reading goes whole into the pose, every
+    /// pose `ok`, the gate silent (docs/estimators.md, "The reading check").
+    pub reading_check_frames: usize,
+    /// The reading check's limit on |mean ν/√S| (0 for a reading as good
+    /// as its σ, whose mean over 25 frames has a σ of 0.2 if its
+    /// innovations are white).
+    pub reading_check_limit: f64,
     /// Random-walk density of K_D, (m⁻¹)²/s (the tracker's ln K_D walks
     /// by this over K_D²).
     pub k_d_walk_psd: f64,
@@ -480,6 +493,8 @@ impl Default for TrackerConfig {
             water_check_frames: 25,
             water_check_nis: 1.7,
             water_check_doubt: 0.3,
+            reading_check_frames: 25,
+            reading_check_limit: 1.0,
             x_range: [3.0, 12.0],
             init_frames: 5,
             update_iterations: 1,
@@ -572,6 +587,18 @@ impl TrackerConfig {
             return bad(format!(
                 "tracker water_check_frames = {} must be 0 (off) to {WATER_CHECK_MAX_FRAMES}",
                 self.water_check_frames
+            ));
+        }
+        if self.reading_check_frames > WATER_CHECK_MAX_FRAMES {
+            return bad(format!(
+                "tracker reading_check_frames = {} must be 0 (off) to {WATER_CHECK_MAX_FRAMES}",
+                self.reading_check_frames
+            ));
+        }
+        if !(self.reading_check_limit.is_finite() && self.reading_check_limit > 0.0) {
+            return bad(format!(
+                "tracker reading_check_limit = {} must be positive",
+                self.reading_check_limit
             ));
         }
         if !(self.water_check_nis.is_finite() && self.water_check_nis > 1.0) {

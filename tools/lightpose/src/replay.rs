@@ -78,6 +78,9 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         if let Some(line) = s.readings_line() {
             println!("readings: {line}");
         }
+        if let Some(line) = s.agreement_line() {
+            println!("reading check, window mean of ν/√S farthest from 0: {line}");
+        }
     }
     Ok(())
 }
@@ -105,6 +108,12 @@ fn say_summary(a: &ReplayArgs, s: &ReplaySummary) {
     if let Some(line) = s.excluded_line() {
         eprintln!(
             "lightpose: {}: channel(s) left out as stuck (a bound no light gives beside its neighbours, or a count frozen past its noise): {line}",
+            a.log.display()
+        );
+    }
+    if let Some(line) = s.disagreed_line() {
+        eprintln!(
+            "lightpose: {}: own-sensor reading(s) disagree with the light (a bias, not noise: check the sensor's zero and mounting, and beacon_depth_m): {line}",
             a.log.display()
         );
     }

@@ -20,13 +20,14 @@
 mod failure;
 mod health;
 mod seq;
+mod verdicts;
 
 use crate::inputs::Input;
 use crate::outputs::Output;
 use crate::stats::{BackendState, Stats, TempSource};
 use failure::LastFailure;
 use lightpose_core::ratelog::RateLog;
-use lightpose_core::{Estimator, Frame, PoseEstimate, ReadingUse};
+use lightpose_core::{Estimator, Frame, PoseEstimate};
 use lightpose_hal::{FrameSource, SourceError, Stop};
 use seq::{SeqBooks, Step};
 use std::sync::atomic::Ordering::Relaxed;
@@ -466,48 +467,7 @@ impl Engine {
         stats.by_status[si].fetch_add(1, Relaxed);
         stats.last_status.store(si as u8, Relaxed);
         stats.frames.fetch_add(1, Relaxed);
-        for (counts, u) in stats
-            .readings
-            .iter()
-            .zip(est.readings.settled(&acq.frame).all())
-        {
-            if u != ReadingUse::Absent {
-                counts[u.index()].fetch_add(1, Relaxed);
-            }
-        }
-        let mask = est.excluded_channels;
-        for (k, n) in stats.excluded.iter().enumerate() {
-            if mask & (1 << k) != 0 {
-                n.fetch_add(1, Relaxed);
-            }
-        }
-        let before = stats.excluded_now.swap(u64::from(mask), Relaxed);
-        if before != u64::from(mask) {
-            // Said when the set changes, not per frame: a stuck channel
-            // stays stuck.
-            let rc = |m: u64| {
-                (0..lightpose_core::NDET)
-                    .filter(|k| m & (1 << k) != 0)
-                    .map(|k| {
-                        format!(
-                            "({},{})",
-                            k / lightpose_core::COLS,
-                            k % lightpose_core::COLS
-                        )
-                    })
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            };
-            if mask != 0 {
-                tracing::warn!(
-                    seq = acq.frame.seq,
-                    "channel(s) {} left out as stuck: a bound no light gives beside its neighbours, or a count frozen past its noise (STATUS channels)",
-                    rc(u64::from(mask))
-                );
-            } else {
-                tracing::info!(seq = acq.frame.seq, "channel(s) {} read again", rc(before));
-            }
-        }
+        verdicts::count(stats, est, &acq.frame);
 
         let Some(p) = self.period else { return };
         let seq = acq.frame.seq;

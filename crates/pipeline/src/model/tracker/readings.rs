@@ -241,6 +241,48 @@ fn fuse<const M: usize>(
     fuse_into(s, r, lin, wrap, gate, &[true; NS])
 }
 
+/// Each component's normalized innovation ν_i/√S_ii against `s` (for the
+/// reading check, `agreement.rs`), formed before any gate.
+fn judge<const M: usize>(
+    s: &State,
+    r: &Checked<M>,
+    lin: &Linear<M>,
+    wrap: [bool; M],
+    innov: &mut [Option<f64>],
+) {
+    let y = innovation(r, lin, wrap);
+    let sm = lin.jac * s.p * lin.jac.transpose()
+        + SMatrix::<f64, M, M>::from_diagonal(&r.sigma.component_mul(&r.sigma));
+    for (i, slot) in innov.iter_mut().enumerate().take(M) {
+        *slot = Some(y[i] / sm[(i, i)].sqrt()).filter(|v| v.is_finite());
+    }
+}
+
+/// [`fuse`], judging every component first.
+fn fuse_judged<const M: usize>(
+    s: &mut State,
+    r: &Checked<M>,
+    lin: &Linear<M>,
+    wrap: [bool; M],
+    gate: f64,
+    innov: &mut [Option<f64>],
+) -> ReadingUse {
+    judge(s, r, lin, wrap, innov);
+    fuse(s, r, lin, wrap, gate)
+}
+
+/// The reading less its prediction, angles wrapped to ±π where marked.
+fn innovation<const M: usize>(r: &Checked<M>, lin: &Linear<M>, wrap: [bool; M]) -> SVector<f64, M> {
+    let mut y = r.z - lin.h;
+    for (i, w) in wrap.iter().enumerate() {
+        if *w {
+            y[i] = (y[i] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+        }
+    }
+    y
+}
+
 /// [`fuse`], moving only the state components marked in `moves` (the
 /// Joseph form keeps P honest for the restricted gain).
 fn fuse_into<const M: usize>(
@@ -251,13 +293,7 @@ fn fuse_into<const M: usize>(
     gate: f64,
     moves: &[bool; NS],
 ) -> ReadingUse {
-    let mut y = r.z - lin.h;
-    for (i, w) in wrap.iter().enumerate() {
-        if *w {
-            y[i] = (y[i] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                - std::f64::consts::PI;
-        }
-    }
+    let y = innovation(r, lin, wrap);
     let rm = SMatrix::<f64, M, M>::from_diagonal(&r.sigma.component_mul(&r.sigma));
     let sm = lin.jac * s.p * lin.jac.transpose() + rm;
     let Some(ch) = sm.cholesky() else {
@@ -507,21 +543,40 @@ impl Tracker {
 
     /// Fuse the frame's checked readings into `s`, attitude first (it
     /// sharpens the other two's models), and say what became of each.
-    pub(super) fn update_readings(&self, s: &mut State, r: &FrameReadings) -> [ReadingUse; 3] {
+    /// Fuse the frame's readings into `s`: what became of each (attitude,
+    /// depth, velocity), and each component's normalized innovation in
+    /// [`lightpose_core::CHECKED`] order (`None`: no such reading).
+    pub(super) fn update_readings(
+        &self,
+        s: &mut State,
+        r: &FrameReadings,
+    ) -> ([ReadingUse; 3], [Option<f64>; 6]) {
         let g = self.gate;
+        let mut innov = [None; 6];
+        let (att, rest) = innov.split_at_mut(2);
+        let (dep, vel) = rest.split_at_mut(1);
         let attitude = match &r.attitude {
             Pending::Done(u) => *u,
-            Pending::Ready(c) => fuse(s, c, &Self::attitude_model(s), [false, true], g[1]),
+            Pending::Ready(c) => {
+                let lin = Self::attitude_model(s);
+                fuse_judged(s, c, &lin, [false, true], g[1], att)
+            }
         };
         let depth = match &r.depth {
             Pending::Done(u) => *u,
-            Pending::Ready(c) => fuse(s, c, &self.depth_model(s), [false], g[0]),
+            Pending::Ready(c) => {
+                let lin = self.depth_model(s);
+                fuse_judged(s, c, &lin, [false], g[0], dep)
+            }
         };
         let velocity = match &r.velocity {
             Pending::Done(u) => *u,
-            Pending::Ready(c) => fuse(s, c, &self.velocity_model(s), [false; 3], g[2]),
+            Pending::Ready(c) => {
+                let lin = self.velocity_model(s);
+                fuse_judged(s, c, &lin, [false; 3], g[2], vel)
+            }
         };
-        [attitude, depth, velocity]
+        ([attitude, depth, velocity], innov)
     }
 }
 

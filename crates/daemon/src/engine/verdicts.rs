@@ -1,0 +1,90 @@
+//! What each estimate says about its frame's inputs, into STATUS and the
+//! log: the own-sensor readings' verdicts, the channels left out as stuck,
+//! and the reading check (a reading that disagrees with the light). Lines
+//! are written when a set changes, not per frame: a stuck channel stays
+//! stuck, a biased sensor stays biased.
+
+use crate::stats::Stats;
+use lightpose_core::{Frame, PoseEstimate, ReadingUse, CHECKED, COLS, NDET};
+use std::sync::atomic::Ordering::Relaxed;
+
+/// Count `est`'s verdicts on `frame` into `stats`, and log a change of
+/// the stuck channels or of the disagreeing readings.
+pub(super) fn count(stats: &Stats, est: &PoseEstimate, frame: &Frame) {
+    for (counts, u) in stats.readings.iter().zip(est.readings.settled(frame).all()) {
+        if u != ReadingUse::Absent {
+            counts[u.index()].fetch_add(1, Relaxed);
+        }
+    }
+    channels(stats, est.excluded_channels, frame.seq);
+    agreement(stats, est, frame.seq);
+}
+
+fn channels(stats: &Stats, mask: u32, seq: u64) {
+    for (k, n) in stats.excluded.iter().enumerate() {
+        if mask & (1 << k) != 0 {
+            n.fetch_add(1, Relaxed);
+        }
+    }
+    let before = stats.excluded_now.swap(u64::from(mask), Relaxed);
+    if before == u64::from(mask) {
+        return;
+    }
+    let rc = |m: u64| {
+        (0..NDET)
+            .filter(|k| m & (1 << k) != 0)
+            .map(|k| format!("({},{})", k / COLS, k % COLS))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    if mask != 0 {
+        tracing::warn!(
+            seq,
+            "channel(s) {} left out as stuck: a bound no light gives beside its neighbours, or a count frozen past its noise (STATUS channels)",
+            rc(u64::from(mask))
+        );
+    } else {
+        tracing::info!(seq, "channel(s) {} read again", rc(before));
+    }
+}
+
+fn agreement(stats: &Stats, est: &PoseEstimate, seq: u64) {
+    let a = &est.agreement;
+    for i in 0..CHECKED.len() {
+        if let Some(m) = a.mean[i] {
+            stats.agreement_bits[i].store(m.to_bits(), Relaxed);
+        }
+        if a.suspect & (1 << i) != 0 {
+            stats.disagreed[i].fetch_add(1, Relaxed);
+        }
+    }
+    let now = u64::from(a.suspect);
+    let before = stats.disagreeing_now.swap(now, Relaxed);
+    if before == now {
+        return;
+    }
+    let names = |m: u64| {
+        (0..CHECKED.len())
+            .filter(|i| m & (1 << i) != 0)
+            .map(|i| match a.mean[i] {
+                Some(v) => format!("{} ({v:+.2})", CHECKED[i]),
+                None => CHECKED[i].to_string(),
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if now & !before != 0 {
+        tracing::warn!(
+            seq,
+            "own-sensor reading(s) {} disagree with the light: their innovations keep one sign (window mean of ν/√S); a bias, not noise: check the sensor's zero and mounting, and beacon_depth_m (STATUS readings.check)",
+            names(now & !before)
+        );
+    }
+    if before & !now != 0 {
+        tracing::info!(
+            seq,
+            "own-sensor reading(s) {} agree with the light again",
+            names(before & !now)
+        );
+    }
+}
