@@ -540,6 +540,7 @@ impl TrackerConfig {
             ("paper_rate_drift_mps", self.paper_rate_drift_mps),
             ("surge_max_sigma", self.surge_max_sigma),
             ("water_check_doubt", self.water_check_doubt),
+            ("reading_check_limit", self.reading_check_limit),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!("tracker {name} = {v} must be positive"));
@@ -583,23 +584,15 @@ impl TrackerConfig {
                 self.paper_rate_frames
             ));
         }
-        if self.water_check_frames > WATER_CHECK_MAX_FRAMES {
-            return bad(format!(
-                "tracker water_check_frames = {} must be 0 (off) to {WATER_CHECK_MAX_FRAMES}",
-                self.water_check_frames
-            ));
-        }
-        if self.reading_check_frames > WATER_CHECK_MAX_FRAMES {
-            return bad(format!(
-                "tracker reading_check_frames = {} must be 0 (off) to {WATER_CHECK_MAX_FRAMES}",
-                self.reading_check_frames
-            ));
-        }
-        if !(self.reading_check_limit.is_finite() && self.reading_check_limit > 0.0) {
-            return bad(format!(
-                "tracker reading_check_limit = {} must be positive",
-                self.reading_check_limit
-            ));
+        for (name, n) in [
+            ("water_check_frames", self.water_check_frames),
+            ("reading_check_frames", self.reading_check_frames),
+        ] {
+            if n > WATER_CHECK_MAX_FRAMES {
+                return bad(format!(
+                    "tracker {name} = {n} must be 0 (off) to {WATER_CHECK_MAX_FRAMES}"
+                ));
+            }
         }
         if !(self.water_check_nis.is_finite() && self.water_check_nis > 1.0) {
             return bad(format!(

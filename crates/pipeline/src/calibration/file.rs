@@ -965,13 +965,18 @@ pub(crate) mod tests {
     }
 
     #[test]
-    fn the_water_check_s_settings_are_read_and_checked() {
+    fn the_water_and_reading_checks_settings_are_read_and_checked() {
         let mut text = sample().to_toml().unwrap();
-        text.push_str("\n[estimator.tracker]\nwater_check_frames = 0\n");
+        text.push_str("\n[estimator.tracker]\nwater_check_frames = 0\nreading_check_frames = 40\nreading_check_limit = 1.5\n");
         let c = Calibration::parse(&text, "c.toml").unwrap();
-        assert_eq!(c.estimator.unwrap().tracker.water_check_frames, 0);
+        let t = c.estimator.unwrap().tracker;
+        assert_eq!(t.water_check_frames, 0);
+        assert_eq!((t.reading_check_frames, t.reading_check_limit), (40, 1.5));
         for (key, bad, says) in [
             ("water_check_frames", "65", "0 (off) to 64"),
+            ("reading_check_frames", "65", "0 (off) to 64"),
+            ("reading_check_limit", "0.0", "must be positive"),
+            ("reading_check_limit", "nan", "must be positive"),
             ("water_check_nis", "1.0", "must be above 1"),
             ("water_check_nis", "nan", "must be above 1"),
             ("water_check_doubt", "-0.3", "must be positive"),

@@ -21,6 +21,7 @@
 
 use lightpose_core::{Agreement, ReadingUse, Refusal};
 
+use super::window::FrameWindow;
 use crate::settings::WATER_CHECK_MAX_FRAMES;
 
 /// Components, in [`lightpose_core::CHECKED`] order.
@@ -32,44 +33,6 @@ pub(super) const N: usize = 6;
 /// and no DVL bias tried moved them (5 % scale, 5° turned).
 const JUDGED: usize = 3;
 
-/// One component's last normalized innovations, in a fixed ring.
-#[derive(Debug, Clone, Copy)]
-struct Window {
-    vals: [f64; WATER_CHECK_MAX_FRAMES],
-    head: usize,
-    len: usize,
-}
-
-impl Default for Window {
-    fn default() -> Self {
-        Window {
-            vals: [0.0; WATER_CHECK_MAX_FRAMES],
-            head: 0,
-            len: 0,
-        }
-    }
-}
-
-impl Window {
-    fn push(&mut self, v: f64) {
-        self.vals[self.head] = v;
-        self.head = (self.head + 1) % WATER_CHECK_MAX_FRAMES;
-        self.len = (self.len + 1).min(WATER_CHECK_MAX_FRAMES);
-    }
-
-    /// The mean of the last `span` values, once there are that many.
-    fn mean(&self, span: usize) -> Option<f64> {
-        if span == 0 || span > WATER_CHECK_MAX_FRAMES || self.len < span {
-            return None;
-        }
-        let n = WATER_CHECK_MAX_FRAMES;
-        let sum: f64 = (0..span)
-            .map(|k| self.vals[(self.head + n - 1 - k) % n])
-            .sum();
-        Some(sum / span as f64)
-    }
-}
-
 /// Each normalized innovation enters its window clipped to ±3: one reading
 /// far off (a glitch the gate refused: 100σ) is not a bias, and moves a
 /// 25-frame mean by at most 0.12; a bias keeps every value at the clip.
@@ -78,7 +41,7 @@ const CLIP: f64 = 3.0;
 /// Every component's window.
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Agreements {
-    windows: [Window; N],
+    windows: [FrameWindow; N],
 }
 
 impl Agreements {
@@ -94,7 +57,7 @@ impl Agreements {
             );
             if let (Some(v), true) = (v, judged) {
                 if v.is_finite() {
-                    self.windows[i].push(v.clamp(-CLIP, CLIP));
+                    self.windows[i].push(v.clamp(-CLIP, CLIP), WATER_CHECK_MAX_FRAMES);
                 }
             }
         }

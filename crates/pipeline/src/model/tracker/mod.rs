@@ -43,6 +43,7 @@ mod tests;
 #[cfg(test)]
 mod tests_fusion;
 mod water_check;
+mod window;
 
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{

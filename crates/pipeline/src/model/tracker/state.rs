@@ -97,7 +97,7 @@ pub(super) struct State {
     pub counts_nis: Option<f64>,
     /// The last frames' `counts_nis` with a DVL reading fused (the water
     /// check, `water_check_frames`).
-    pub water_nis: super::water_check::NisWindow,
+    pub water_nis: super::window::FrameWindow,
 }
 
 impl State {
