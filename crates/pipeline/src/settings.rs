@@ -258,18 +258,20 @@ pub struct TrackerConfig {
     /// The K_D doubt (1σ, m⁻¹) the bank is told when the check fires:
     /// what an operator who takes a calibration into unknown water sets.
     pub water_check_doubt: f64,
-    /// Frames of the reading check (0: off; at most
-    /// `WATER_CHECK_MAX_FRAMES`): the mean of each own-sensor reading
-    /// component's normalized innovation ν/√S over this many frames with
-    /// it. Past `reading_check_limit` the reading is reported as
-    /// disagreeing with the light (PoseEstimate::agreement: STATUS, the
-    /// replay summary, a warning). Report only: nothing fused changes. Why:
-    /// a biased depth or pitch reading goes whole into the pose, every
-    /// pose `ok`, the gate silent (docs/estimators.md, "The reading check").
-    pub reading_check_frames: usize,
+    /// Seconds of the reading check (0: off; at most
+    /// `READING_CHECK_MAX_S`): the mean of each own-sensor reading
+    /// component's normalized innovation ν/√S over this long, in slots of
+    /// 0.2 s (one frame each at MODEL.md's 5 Hz; the frames of a slot
+    /// averaged at a faster rate, so that the window is a time, not a
+    /// count of ever more correlated frames). Past `reading_check_limit`
+    /// the reading is reported as disagreeing with the light
+    /// (PoseEstimate::agreement: STATUS, the replay summary, a warning).
+    /// Report only: nothing fused changes. Why: a biased depth or pitch
+    /// reading goes whole into the pose, every pose `ok`, the gate silent
+    /// (docs/estimators.md, "Biased readings").
+    pub reading_check_s: f64,
     /// The reading check's limit on |mean ν/√S| (0 for a reading as good
-    /// as its σ, whose mean over 25 frames has a σ of 0.2 if its
-    /// innovations are white).
+    /// as its σ, whose mean over 25 white slots has a σ of 0.2).
     pub reading_check_limit: f64,
     /// Random-walk density of K_D, (m⁻¹)²/s (the tracker's ln K_D walks
     /// by this over K_D²).
@@ -444,6 +446,12 @@ pub struct TrackerConfig {
 /// The most frames `water_check_frames` may span (a fixed ring).
 pub const WATER_CHECK_MAX_FRAMES: usize = 64;
 
+/// The reading check's slot: its window holds one mean per slot.
+pub const READING_CHECK_SLOT_S: f64 = 0.2;
+
+/// The longest `reading_check_s`: as many slots as the ring holds.
+pub const READING_CHECK_MAX_S: f64 = WATER_CHECK_MAX_FRAMES as f64 * READING_CHECK_SLOT_S;
+
 /// The most frames `paper_rate_frames` may span (the tracker keeps that
 /// many paper ranges, in a fixed ring: no allocation per frame).
 pub const PAPER_RATE_MAX_FRAMES: usize = 8;
@@ -493,7 +501,7 @@ impl Default for TrackerConfig {
             water_check_frames: 25,
             water_check_nis: 1.7,
             water_check_doubt: 0.3,
-            reading_check_frames: 25,
+            reading_check_s: 5.0,
             reading_check_limit: 1.0,
             x_range: [3.0, 12.0],
             init_frames: 5,
@@ -584,15 +592,17 @@ impl TrackerConfig {
                 self.paper_rate_frames
             ));
         }
-        for (name, n) in [
-            ("water_check_frames", self.water_check_frames),
-            ("reading_check_frames", self.reading_check_frames),
-        ] {
-            if n > WATER_CHECK_MAX_FRAMES {
-                return bad(format!(
-                    "tracker {name} = {n} must be 0 (off) to {WATER_CHECK_MAX_FRAMES}"
-                ));
-            }
+        if self.water_check_frames > WATER_CHECK_MAX_FRAMES {
+            return bad(format!(
+                "tracker water_check_frames = {} must be 0 (off) to {WATER_CHECK_MAX_FRAMES}",
+                self.water_check_frames
+            ));
+        }
+        if !(0.0..=READING_CHECK_MAX_S).contains(&self.reading_check_s) {
+            return bad(format!(
+                "tracker reading_check_s = {} must be 0 (off) to {READING_CHECK_MAX_S}",
+                self.reading_check_s
+            ));
         }
         if !(self.water_check_nis.is_finite() && self.water_check_nis > 1.0) {
             return bad(format!(

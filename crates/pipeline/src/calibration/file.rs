@@ -967,14 +967,15 @@ pub(crate) mod tests {
     #[test]
     fn the_water_and_reading_checks_settings_are_read_and_checked() {
         let mut text = sample().to_toml().unwrap();
-        text.push_str("\n[estimator.tracker]\nwater_check_frames = 0\nreading_check_frames = 40\nreading_check_limit = 1.5\n");
+        text.push_str("\n[estimator.tracker]\nwater_check_frames = 0\nreading_check_s = 8.0\nreading_check_limit = 1.5\n");
         let c = Calibration::parse(&text, "c.toml").unwrap();
         let t = c.estimator.unwrap().tracker;
         assert_eq!(t.water_check_frames, 0);
-        assert_eq!((t.reading_check_frames, t.reading_check_limit), (40, 1.5));
+        assert_eq!((t.reading_check_s, t.reading_check_limit), (8.0, 1.5));
         for (key, bad, says) in [
             ("water_check_frames", "65", "0 (off) to 64"),
-            ("reading_check_frames", "65", "0 (off) to 64"),
+            ("reading_check_s", "13.0", "0 (off) to 12.8"),
+            ("reading_check_s", "-1.0", "0 (off) to 12.8"),
             ("reading_check_limit", "0.0", "must be positive"),
             ("reading_check_limit", "nan", "must be positive"),
             ("water_check_nis", "1.0", "must be above 1"),

@@ -60,7 +60,7 @@ use crate::model::single_frame::ModelEstimator;
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
 use crate::paper::MomentsEstimator;
-use crate::settings::{Dof, ModelConfig, ModelError, Motion, TrackerConfig};
+use crate::settings::{Dof, ModelConfig, ModelError, Motion, TrackerConfig, READING_CHECK_SLOT_S};
 use lightpose_core::light::WATER_TEMP_C;
 
 /// The paper's range law (eqs. 2–3) of the same calibration.
@@ -490,7 +490,7 @@ impl Estimator for Tracker {
         let kinds = Censoring::classify(&self.model, &frame.counts, self.init.frozen_mask());
         let mut e = self.estimate_frame(frame, kinds);
         e.excluded_channels = Censoring::excluded_mask(&kinds);
-        let span = self.cfg.reading_check_frames;
+        let span = (self.cfg.reading_check_s / READING_CHECK_SLOT_S).round() as usize;
         e.agreement = self
             .agreement
             .report(span, self.cfg.reading_check_limit, &e.readings.all());
@@ -534,7 +534,7 @@ impl Tracker {
         s.counts_ll = None;
         s.counts_nis = None;
         let (uses, innov) = self.update_readings(&mut s, &readings);
-        self.agreement.push(&innov, &uses);
+        self.agreement.push(&innov, &uses, frame.t);
         s.attitude_fused = uses[0] == ReadingUse::Used;
         // A DVL ties successive ranges together independently of the
         // light, so the brightness along the track measures K_D (Beer's
