@@ -234,8 +234,9 @@ pub struct Agreement {
     /// The mean of each [`CHECKED`] component's normalized innovation over
     /// the estimator's window; `None` until the window is full.
     pub mean: [Option<f64>; 6],
-    /// Bit i: component i of this frame's reading is past the limit: it and
-    /// the light disagree by more than noise.
+    /// Bit i: component i's window mean is past the limit: the reading and
+    /// the light disagree by more than noise (kept through frames without
+    /// the reading).
     pub suspect: u8,
 }
 

@@ -266,10 +266,12 @@ pub struct Stats {
     /// The channels left out of the last frame (bit mask).
     pub excluded_now: AtomicU64,
     /// The reading check (`PoseEstimate::agreement`), per component in
-    /// core's `CHECKED` order: f64 bits of its last window mean (0 bits:
-    /// none yet, read as null), frames it disagreed with the light on, and
-    /// the components disagreeing on the last frame (bit mask).
+    /// core's `CHECKED` order: f64 bits of its last window mean (valid when
+    /// its bit in `agreement_known` is set: the last estimate had one),
+    /// frames it disagreed with the light on, and the components
+    /// disagreeing on the last frame (bit mask).
     pub agreement_bits: [AtomicU64; 6],
+    pub agreement_known: AtomicU64,
     pub disagreed: [AtomicU64; 6],
     pub disagreeing_now: AtomicU64,
     pub latency: Histogram,

@@ -243,12 +243,13 @@ fn channels(s: &Stats) -> Value {
 fn readings(s: &Stats) -> Value {
     let mut v = serde_json::Map::new();
     let now = s.disagreeing_now.load(Relaxed);
+    let known = s.agreement_known.load(Relaxed);
     let check: serde_json::Map<String, Value> = CHECKED
         .iter()
         .enumerate()
         .map(|(i, name)| {
             let bits = s.agreement_bits[i].load(Relaxed);
-            let mean = (bits != 0).then(|| f64::from_bits(bits));
+            let mean = (known & (1 << i) != 0).then(|| f64::from_bits(bits));
             let c = json!({
                 "mean": mean,
                 "disagreeing": now & (1 << i) != 0,

@@ -145,7 +145,7 @@ fn a_stuck_channel_costs_the_tracker_little_and_its_std_holds_it() {
 }
 
 /// A channel frozen at its first count, inside the spot, is read as data
-/// until its history says noise would have moved it (8 frames here), then
+/// until its history says noise would have moved it (11 repeats here), then
 /// left out: as many poses `ok` as clean, x close to clean. Fitted as data
 /// throughout, the centre channel made 9 of the 41 poses `diverged` and 12
 /// `initialising` (20 `ok`), a spot neighbour 8 `diverged`.

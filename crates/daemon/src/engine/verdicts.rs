@@ -50,14 +50,17 @@ fn channels(stats: &Stats, mask: u32, seq: u64) {
 
 fn agreement(stats: &Stats, est: &PoseEstimate, seq: u64) {
     let a = &est.agreement;
+    let mut known = 0u64;
     for i in 0..CHECKED.len() {
         if let Some(m) = a.mean[i] {
             stats.agreement_bits[i].store(m.to_bits(), Relaxed);
+            known |= 1 << i;
         }
         if a.suspect & (1 << i) != 0 {
             stats.disagreed[i].fetch_add(1, Relaxed);
         }
     }
+    stats.agreement_known.store(known, Relaxed);
     let now = u64::from(a.suspect);
     let before = stats.disagreeing_now.swap(now, Relaxed);
     if before == now {

@@ -6,19 +6,19 @@
 //! Why: a channel frozen at its first reading is right at first and grows
 //! wrong as the vehicle moves; fitted as data it cost a quarter of the
 //! tank zigzag's poses (the centre channel: 9 of 41 `diverged`, 12
-//! `initialising`). Noise alone moves a lit channel's count: two readings
-//! of one light with analog noise σ (counts) land on the same code with a
-//! chance of at most 1/(2σ√π) when codes are 1 LSB wide (the density of
-//! their difference at 0, N(0, 2σ²), which a uniform code position
-//! averages over a triangle of area 1); this takes codes up to 2 LSB wide
-//! (an ADC's differential non-linearity), 1/(σ√π). A channel is frozen
-//! when the chance that noise alone repeated its count as many frames as
-//! it has falls below [`FALSE_ALARM`]: 13 frames at σ = 3 counts, 21 at
-//! σ = 1.5, never below σ = 1/√π (a channel that quiet may repeat by
-//! itself). Motion only makes a repeat less likely, so the figure holds for
-//! a vehicle at rest. A count at a bound (0, full scale, at or below the
-//! dark level) repeats by itself and is not counted. The first change of
-//! the count takes the channel back.
+//! `initialising`). Noise alone moves a lit channel's count. The worst case
+//! for telling a frozen channel from a live one is a vehicle at rest with
+//! the light in the middle of a code: each reading then lands in that code
+//! with a chance of P(|Z| < w/2σ) for analog noise σ (counts) and a code w
+//! counts wide; this takes codes up to 2 counts wide (an ADC's differential
+//! non-linearity), P(|Z| < 1/σ), and calls a channel frozen when the chance
+//! that noise alone repeated its count as many frames as it has falls
+//! below [`FALSE_ALARM`]: 21 repeats at σ = 3 counts, 40 at 1.5, 73 at 1,
+//! 11 at the tank's lit spot. Motion only makes a repeat less likely.
+//! A count at a bound (0, full scale, at or below the dark level) repeats
+//! by itself and is not counted. The first change of the count takes the
+//! channel back. A frame seen twice (the same `t`: a water bank's member
+//! taking over the frame its tracker saw) is one observation.
 
 use lightpose_core::NDET;
 
@@ -28,13 +28,26 @@ use super::SensorModel;
 /// count long enough to be called frozen: 25 channels at 5 Hz make one
 /// such call in ~250 years, at 100 Hz in ~13; each costs one channel until
 /// its count next moves.
-pub const FALSE_ALARM: f64 = 1e-9;
+pub const FALSE_ALARM: f64 = 1e-12;
+
+/// The chance that a reading with analog noise `sigma` (counts) lands in
+/// the code of the one before, at worst (the light still, mid-code, codes
+/// up to 2 counts wide): P(|Z| < 1/σ).
+pub fn repeat_chance(sigma: f64) -> f64 {
+    if !(sigma > 0.0) {
+        return 1.0;
+    }
+    let a = 1.0 / sigma;
+    (1.0 - super::tracker::readings::erfc(a / std::f64::consts::SQRT_2)).clamp(0.0, 1.0)
+}
 
 /// The watch over each channel's history: fixed arrays, nothing
 /// allocated, one pass per frame.
 #[derive(Debug, Clone, Copy)]
 pub struct FrozenWatch {
     last: [u16; NDET],
+    /// The time of the last frame observed.
+    t: f64,
     /// ln of the chance that noise alone gave the run of equal counts so
     /// far (0 after a change).
     ln_chance: [f64; NDET],
@@ -45,6 +58,7 @@ impl Default for FrozenWatch {
     fn default() -> Self {
         FrozenWatch {
             last: [0; NDET],
+            t: f64::NAN,
             ln_chance: [0.0; NDET],
             seen: false,
         }
@@ -52,8 +66,13 @@ impl Default for FrozenWatch {
 }
 
 impl FrozenWatch {
-    /// Take one frame's counts (in the order the frames come).
-    pub fn observe(&mut self, m: &SensorModel, counts: &[u16; NDET]) {
+    /// Take one frame's counts (in the order the frames come; `t` its
+    /// time: the same frame again is not a repeat).
+    pub fn observe(&mut self, m: &SensorModel, counts: &[u16; NDET], t: f64) {
+        if self.seen && t == self.t {
+            return;
+        }
+        self.t = t;
         if !self.seen {
             self.last = *counts;
             self.seen = true;
@@ -77,7 +96,7 @@ impl FrozenWatch {
             // The model's variance less the quantization it adds: the
             // analog noise that moves a code.
             let sigma = (m.count_variance(e) - 1.0 / 12.0).max(0.0).sqrt();
-            let p = (1.0 / (sigma * std::f64::consts::PI.sqrt())).min(1.0);
+            let p = repeat_chance(sigma);
             if p.is_finite() && p > 0.0 {
                 self.ln_chance[k] += p.ln();
             }
@@ -115,7 +134,7 @@ mod tests {
         let k = 12;
         let level = 300u16;
         let sigma = sigma_at(&m, k, f64::from(level));
-        let need = (FALSE_ALARM.ln() / (1.0 / (sigma * std::f64::consts::PI.sqrt())).ln()).ceil();
+        let need = (FALSE_ALARM.ln() / repeat_chance(sigma).ln()).ceil();
         let mut w = FrozenWatch::default();
         let mut counts = [100u16; NDET];
         counts[k] = level;
@@ -127,7 +146,7 @@ mod tests {
                     *c = 100 + (j % 7) + i as u16;
                 }
             }
-            w.observe(&m, &counts);
+            w.observe(&m, &counts, f64::from(j));
             if called_at.is_none() && w.mask() != 0 {
                 called_at = Some(j);
                 assert_eq!(w.mask(), 1 << k, "only the frozen channel");
@@ -135,10 +154,10 @@ mod tests {
         }
         // Frame 0 is the first reading; frame j is its j-th repeat.
         assert_eq!(called_at.map(f64::from), Some(need), "σ {sigma}");
-        assert!((5.0..=40.0).contains(&need), "{need} repeats at σ {sigma}");
+        assert!((5.0..=60.0).contains(&need), "{need} repeats at σ {sigma}");
         // It comes back at its first change.
         counts[k] += 1;
-        w.observe(&m, &counts);
+        w.observe(&m, &counts, 200.0);
         assert_eq!(w.mask(), 0);
     }
 
@@ -150,10 +169,35 @@ mod tests {
         counts[1] = fs;
         counts[2] = (m.offset_v[2] * m.counts_per_volt()).floor() as u16;
         let mut w = FrozenWatch::default();
-        for _ in 0..10_000 {
-            w.observe(&m, &counts);
+        for j in 0..10_000 {
+            w.observe(&m, &counts, f64::from(j));
         }
         assert_eq!(w.mask(), 0);
+    }
+
+    #[test]
+    fn the_same_frame_twice_is_one_observation() {
+        let m = tank_model();
+        let mut counts = [100u16; NDET];
+        counts[12] = 300;
+        let mut once = FrozenWatch::default();
+        let mut twice = FrozenWatch::default();
+        for j in 0..100 {
+            once.observe(&m, &counts, f64::from(j));
+            twice.observe(&m, &counts, f64::from(j));
+            twice.observe(&m, &counts, f64::from(j));
+            assert_eq!(once.mask(), twice.mask(), "frame {j}");
+        }
+    }
+
+    /// The per-repeat chance: P(|Z| < 1/σ), 1 for no noise.
+    #[test]
+    fn the_repeat_chance_is_a_normal_s_mass_within_one_code() {
+        assert_eq!(repeat_chance(0.0), 1.0);
+        assert!((repeat_chance(1.0) - 0.682_689_5).abs() < 1e-6);
+        assert!((repeat_chance(2.0) - 0.382_924_9).abs() < 1e-6);
+        let n = |s: f64| (FALSE_ALARM.ln() / repeat_chance(s).ln()).ceil();
+        assert_eq!((n(3.0), n(1.5), n(1.0)), (21.0, 40.0, 73.0));
     }
 
     #[test]
@@ -165,7 +209,7 @@ mod tests {
         // analog noise is the dark noise alone.
         let mut flagged = 0u32;
         let frames = 200_000;
-        for _ in 0..frames {
+        for j in 0..frames {
             let mut counts = [0u16; NDET];
             for (k, c) in counts.iter_mut().enumerate() {
                 let dark = m.offset_v[k] * m.counts_per_volt();
@@ -174,7 +218,7 @@ mod tests {
                 let v = mean + s * rng.normal();
                 *c = v.round().clamp(0.0, m.full_scale()) as u16;
             }
-            w.observe(&m, &counts);
+            w.observe(&m, &counts, f64::from(j));
             flagged += w.mask().count_ones();
         }
         assert_eq!(flagged, 0, "{frames} frames of noise");

@@ -123,12 +123,18 @@ impl ModelEstimator {
     /// before anything reads it): what finds a channel stuck between the
     /// bounds.
     pub(crate) fn observe_channels(&mut self, frame: &Frame) {
-        self.frozen.observe(&self.model, &frame.counts);
+        self.frozen.observe(&self.model, &frame.counts, frame.t);
     }
 
     /// The channels frozen by their history, bit k for detector k.
     pub(crate) fn frozen_mask(&self) -> u32 {
         self.frozen.mask()
+    }
+
+    /// Take over `from`'s channel histories (a water bank's member taking
+    /// over from the tracker it replaces: a frozen channel stays known).
+    pub(crate) fn inherit_channels(&mut self, from: &ModelEstimator) {
+        self.frozen = from.frozen;
     }
 
     /// Whether some channel stands clearly (`min_signal_sigma`) above its

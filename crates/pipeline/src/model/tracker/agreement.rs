@@ -99,13 +99,15 @@ impl Agreements {
     }
 
     /// The check over the last `span` slots with each component, and
-    /// which components of this frame's readings are past `limit`.
-    pub fn report(&self, span: usize, limit: f64, uses: &[ReadingUse; 3]) -> Agreement {
+    /// which components are past `limit`. A frame without the reading
+    /// (a stale depth, a DVL dropout) keeps its verdict: its window has not
+    /// moved, and a verdict that came and went with each gap would log a
+    /// pair of lines per gap.
+    pub fn report(&self, span: usize, limit: f64) -> Agreement {
         let mut a = Agreement::default();
         for (i, w) in self.windows.iter().enumerate() {
             a.mean[i] = w.mean(span);
-            let present = !matches!(uses[reading_of(i)], ReadingUse::Absent);
-            if i < JUDGED && present && a.mean[i].is_some_and(|m| m.abs() > limit) {
+            if i < JUDGED && a.mean[i].is_some_and(|m| m.abs() > limit) {
                 a.suspect |= 1 << i;
             }
         }
@@ -138,7 +140,7 @@ mod tests {
                 &used,
                 0.2 * k as f64,
             );
-            let r = a.report(25, 1.0, &used);
+            let r = a.report(25, 1.0);
             // A slot's mean enters at the next slot's first frame.
             if k < 25 {
                 assert_eq!(r.mean[2], None, "window not full at {k}");
@@ -147,10 +149,11 @@ mod tests {
                 assert_eq!(r.suspect, 1 << 2);
             }
         }
-        // Absent from this frame: not suspect now, the mean kept.
+        // A frame without depth leaves the verdict as it was.
         let absent = [ReadingUse::Used, ReadingUse::Absent, ReadingUse::Used];
-        let r = a.report(25, 1.0, &absent);
-        assert_eq!(r.suspect, 0);
+        a.push(&[None; 6], &absent, 6.0);
+        let r = a.report(25, 1.0);
+        assert_eq!(r.suspect, 1 << 2);
         assert_eq!(r.mean[2], Some(1.5));
         // A reading refused as malformed says nothing of agreement.
         let bad = [
@@ -158,9 +161,9 @@ mod tests {
             ReadingUse::Refused(Refusal::NotFinite),
             ReadingUse::Used,
         ];
-        a.push(&[None, None, Some(-100.0), None, None, None], &bad, 6.0);
-        a.push(&[None, None, None, None, None, None], &bad, 6.2);
-        assert_eq!(a.report(25, 1.0, &used).mean[2], Some(1.5));
+        a.push(&[None, None, Some(-100.0), None, None, None], &bad, 6.2);
+        a.push(&[None, None, None, None, None, None], &bad, 6.4);
+        assert_eq!(a.report(25, 1.0).mean[2], Some(1.5));
     }
 
     /// At 50 Hz ten frames make a slot: the window is 5 s whatever the
@@ -179,13 +182,13 @@ mod tests {
                 &used,
                 0.02 * k as f64,
             );
-            if a.report(25, 0.5, &used).mean[2].is_some() {
+            if a.report(25, 0.5).mean[2].is_some() {
                 slots += 1;
             }
         }
         // 250 frames (5 s) fill the 25 slots; then a mean of 1 each.
         assert!((5..=12).contains(&slots), "{slots}");
-        let r = a.report(25, 0.5, &used);
+        let r = a.report(25, 0.5);
         assert!(r.mean[2].is_some_and(|m| (m - 1.0).abs() < 1e-9), "{r:?}");
     }
 }

@@ -48,6 +48,12 @@ pub struct WaterBank {
 }
 
 impl WaterBank {
+    /// Every member takes over `from`'s histories of the sensors
+    /// ([`Tracker::inherit_checks`]).
+    pub(crate) fn inherit_checks(&mut self, from: &Tracker) {
+        self.members.iter_mut().for_each(|m| m.inherit_checks(from));
+    }
+
     /// The doubt in ln K_D above which a tracker is run as a bank
     /// (`water_bank`): 0.25, a told σ of a quarter of K_D. Over a minute at
     /// 4–6 m (3 runs, attitude sensor, tank calibration), one tracker told σ in

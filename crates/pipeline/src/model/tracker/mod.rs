@@ -140,6 +140,15 @@ impl Tracker {
         })
     }
 
+    /// Take over `from`'s histories of the sensors (its channels' and its
+    /// readings' checks), which a water bank's member replacing it would
+    /// otherwise learn again (a frozen channel read as data for 20 frames,
+    /// a biased depth unreported for 5 s, during the bank's start fits).
+    pub(crate) fn inherit_checks(&mut self, from: &Tracker) {
+        self.init.inherit_channels(&from.init);
+        self.agreement = from.agreement;
+    }
+
     /// Give the tracker the paper's estimator of the same calibration, for
     /// the range it reads off the brightest channel.
     pub fn with_paper(mut self, cal: &crate::calibration::Calibration) -> Self {
@@ -491,9 +500,7 @@ impl Estimator for Tracker {
         let mut e = self.estimate_frame(frame, kinds);
         e.excluded_channels = Censoring::excluded_mask(&kinds);
         let span = (self.cfg.reading_check_s / READING_CHECK_SLOT_S).round() as usize;
-        e.agreement = self
-            .agreement
-            .report(span, self.cfg.reading_check_limit, &e.readings.all());
+        e.agreement = self.agreement.report(span, self.cfg.reading_check_limit);
         e
     }
 
@@ -549,10 +556,9 @@ impl Tracker {
         s.paper_x = None;
         s.paper_rate_used = false;
         self.read_paper(&mut s, frame, &uses);
+        // A frame without light cannot judge a sensor the gate keeps
+        // refusing (below): the state and the refusal stand until one can.
         let lost = self.lost_to_readings(&mut s, &uses);
-        if lost && !self.init.has_light(frame) {
-            return self.restart(frame, &readings);
-        }
         // A frame without light says nothing of pose; the readings still
         // keep the filter on course.
         if !self.init.has_light(frame) {

@@ -184,7 +184,7 @@ fn chi2_survival(k: usize, x: f64) -> f64 {
 
 /// Complementary error function (Numerical Recipes' Chebyshev fit,
 /// relative error < 1.2e-7 everywhere): enough for a gate threshold.
-fn erfc(x: f64) -> f64 {
+pub(crate) fn erfc(x: f64) -> f64 {
     let z = x.abs();
     let t = 1.0 / (1.0 + 0.5 * z);
     let poly = -z * z - 1.265_512_23

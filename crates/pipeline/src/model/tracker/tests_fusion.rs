@@ -236,6 +236,12 @@ fn a_sensor_the_settings_turn_off_is_ignored() {
 /// (beyond the gate); with `light_too` the light sees the vehicle there
 /// too (the filter has lost it), else on the track (the depth is wrong).
 fn depth_off(light_too: bool) -> Vec<(Status, ReadingUse)> {
+    depth_off_with_dark(light_too, 0..0)
+}
+
+/// [`depth_off`] with the frames `dark` (by their index 10..18) seen
+/// without light.
+fn depth_off_with_dark(light_too: bool, dark: std::ops::Range<u64>) -> Vec<(Status, ReadingUse)> {
     let m = SensorModel::default();
     let (mut tr, _) = warmed([true, true, false], 10, 5);
     let mut rng = Rng::new(55);
@@ -250,6 +256,9 @@ fn depth_off(light_too: bool) -> Vec<(Status, ReadingUse)> {
         let mut f = synth_frame(&m, &pose, i, t, None, &mut rng);
         with_readings(&mut f, t, &pose, [true, true, false], &mut rng);
         f.depth = Some(DepthReading::new(track.z + 1.5));
+        if dark.contains(&i) {
+            f.counts = [0; NDET];
+        }
         let e = tr.estimate(&f);
         statuses.push((e.status, e.readings.depth));
     }
@@ -266,6 +275,24 @@ fn a_sensor_refused_again_and_again_stays_refused_while_the_light_fits() {
     let gated = ReadingUse::Refused(Refusal::Gate);
     for s in &statuses {
         assert_eq!(*s, (Status::Ok, gated), "{statuses:?}");
+    }
+}
+
+/// Frames without light cannot judge such a sensor: the state and the
+/// refusal stand through them (before, a dark frame restarted the filter,
+/// its start failed for want of light, and the next lit frame started
+/// with the biased depth as its prior).
+#[test]
+fn a_sensor_refused_through_dark_frames_stays_refused() {
+    let statuses = depth_off_with_dark(false, 13..16);
+    let gated = ReadingUse::Refused(Refusal::Gate);
+    for (k, s) in statuses.iter().enumerate() {
+        let want = if (3..6).contains(&k) {
+            Status::NoLight
+        } else {
+            Status::Ok
+        };
+        assert_eq!(*s, (want, gated), "frame {k}: {statuses:?}");
     }
 }
 

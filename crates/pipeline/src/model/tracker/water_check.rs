@@ -83,6 +83,7 @@ impl Estimator for WaterWatch {
         // the tracker's state is the wrong water's.
         self.fired = Some((frame.t, median));
         self.bank.reset();
+        self.bank.inherit_checks(&self.tracker);
         self.bank.estimate(frame)
     }
 

@@ -103,9 +103,8 @@ fn a_boards_mcap_maps_its_log_time_to_the_wall_clock() {
         (log_time as f64 / 1e9 - t).abs() < 1e-6,
         "{log_time} vs {t}"
     );
+    // "unknown" where adjtimex is refused (a seccomp profile, gVisor).
     assert!(["true", "false", "unknown"].contains(&c["synced"].as_str()));
-    #[cfg(target_os = "linux")]
-    assert_ne!(c["synced"], "unknown", "adjtimex reads without privilege");
     // Every record after the first is a step or a change of sync.
     assert!(clocks[1..].iter().all(|c| c["reason"] != "open"));
 
