@@ -62,17 +62,23 @@ impl AttitudeRates {
     }
 }
 
-/// `a` carried from `taken` to `at` at `rates`, over at most
-/// [`MAX_CARRY_S`] either way (a reading newer than the capture is carried
-/// back). Yaw is wrapped into (−180°, 180°], pitch kept within ±90°.
-fn carried(a: Att, rates: Option<AttitudeRates>, taken: Instant, at: Instant) -> Att {
-    let Some(w) = rates else { return a };
+/// Seconds from `taken` to `at` (negative for a reading newer than the
+/// capture), within ±[`MAX_CARRY_S`]: how far a reading is carried.
+fn carry_s(taken: Instant, at: Instant) -> f64 {
     let dt = if at >= taken {
         (at - taken).as_secs_f64()
     } else {
         -(taken - at).as_secs_f64()
     };
-    let dt = dt.clamp(-MAX_CARRY_S, MAX_CARRY_S);
+    dt.clamp(-MAX_CARRY_S, MAX_CARRY_S)
+}
+
+/// `a` carried from `taken` to `at` at `rates`, over at most
+/// [`MAX_CARRY_S`] either way (a reading newer than the capture is carried
+/// back). Yaw is wrapped into (−180°, 180°], pitch kept within ±90°.
+fn carried(a: Att, rates: Option<AttitudeRates>, taken: Instant, at: Instant) -> Att {
+    let Some(w) = rates else { return a };
+    let dt = carry_s(taken, at);
     Att {
         pitch: Angle::from_rad((a.pitch.rad() + w.pitch * dt).clamp(-FRAC_PI_2, FRAC_PI_2)),
         yaw: wrap_pi(Angle::from_rad(a.yaw.rad() + w.yaw * dt)),
@@ -97,12 +103,7 @@ fn carried_depth(
     let (Some(att), Some(vel)) = (att, vel) else {
         return d;
     };
-    let dt = if at >= taken {
-        (at - taken).as_secs_f64()
-    } else {
-        -(taken - at).as_secs_f64()
-    };
-    let dt = dt.clamp(-MAX_CARRY_S, MAX_CARRY_S);
+    let dt = carry_s(taken, at);
     let (st, ct) = att.pitch.rad().sin_cos();
     let [fwd, _, down] = vel.v.0;
     let climb = st * fwd - ct * down;

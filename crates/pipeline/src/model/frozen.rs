@@ -38,7 +38,7 @@ pub fn repeat_chance(sigma: f64) -> f64 {
         return 1.0;
     }
     let a = 1.0 / sigma;
-    (1.0 - super::tracker::readings::erfc(a / std::f64::consts::SQRT_2)).clamp(0.0, 1.0)
+    (1.0 - super::normal::erfc(a / std::f64::consts::SQRT_2)).clamp(0.0, 1.0)
 }
 
 /// The watch over each channel's history: fixed arrays, nothing

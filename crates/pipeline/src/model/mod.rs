@@ -22,6 +22,7 @@
 pub mod crb;
 pub mod frozen;
 pub mod light;
+pub(crate) mod normal;
 pub mod single_frame;
 pub mod solver;
 #[cfg(test)]

@@ -228,6 +228,12 @@ impl ClockWatch {
         let c = (self.read)();
         self.offset = c.unix - c.mono;
         self.synced = c.synced;
+        self.pair(c, reason, t, wall_unix)
+    }
+
+    /// The pair of clocks `c` read for `reason`: a board's is `c` itself,
+    /// another epoch's the frame's `t` and its arrival `wall_unix`.
+    fn pair(&self, c: Clocks, reason: Reason, t: f64, wall_unix: f64) -> ClockPair {
         let (t, unix) = match self.epoch {
             Epoch::Monotonic => (c.mono, c.unix),
             Epoch::Source => (t, wall_unix),
@@ -259,23 +265,12 @@ impl ClockWatch {
         } else {
             return None;
         };
+        self.offset = c.unix - c.mono;
+        self.synced = c.synced;
         match self.epoch {
-            Epoch::Monotonic => {
-                self.offset = c.unix - c.mono;
-                self.synced = c.synced;
-                let pair = ClockPair {
-                    epoch: self.epoch,
-                    t: c.mono,
-                    unix: c.unix,
-                    synced: c.synced,
-                    reason,
-                };
-                Some((pair, step))
-            }
+            Epoch::Monotonic => Some((self.pair(c, reason, c.mono, c.unix), step)),
             Epoch::Source => {
                 // Not twice for one change while the record is owed.
-                self.offset = c.unix - c.mono;
-                self.synced = c.synced;
                 self.owed.get_or_insert((reason, step));
                 None
             }

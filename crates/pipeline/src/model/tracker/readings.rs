@@ -19,6 +19,7 @@
 // `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+use crate::model::normal::erfc;
 use lightpose_core::{AttitudeReading, Frame, ReadingUse, Refusal};
 use nalgebra::{SMatrix, SVector};
 
@@ -182,27 +183,6 @@ fn chi2_survival(k: usize, x: f64) -> f64 {
     }
 }
 
-/// Complementary error function (Numerical Recipes' Chebyshev fit,
-/// relative error < 1.2e-7 everywhere): enough for a gate threshold.
-pub(crate) fn erfc(x: f64) -> f64 {
-    let z = x.abs();
-    let t = 1.0 / (1.0 + 0.5 * z);
-    let poly = -z * z - 1.265_512_23
-        + t * (1.000_023_68
-            + t * (0.374_091_96
-                + t * (0.096_784_18
-                    + t * (-0.186_288_06
-                        + t * (0.278_868_07
-                            + t * (-1.135_203_98
-                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
-    let r = t * poly.exp();
-    if x >= 0.0 {
-        r
-    } else {
-        2.0 - r
-    }
-}
-
 /// The χ² values with 1, 2 and 3 degrees of freedom that a consistent
 /// reading exceeds with probability `p` (bisection on the survival
 /// function).
@@ -241,24 +221,9 @@ fn fuse<const M: usize>(
     fuse_into(s, r, lin, wrap, gate, &[true; NS])
 }
 
-/// Each component's normalized innovation ν_i/√S_ii against `s` (for the
-/// reading check, `agreement.rs`), formed before any gate.
-fn judge<const M: usize>(
-    s: &State,
-    r: &Checked<M>,
-    lin: &Linear<M>,
-    wrap: [bool; M],
-    innov: &mut [Option<f64>],
-) {
-    let y = innovation(r, lin, wrap);
-    let sm = lin.jac * s.p * lin.jac.transpose()
-        + SMatrix::<f64, M, M>::from_diagonal(&r.sigma.component_mul(&r.sigma));
-    for (i, slot) in innov.iter_mut().enumerate().take(M) {
-        *slot = Some(y[i] / sm[(i, i)].sqrt()).filter(|v| v.is_finite());
-    }
-}
-
-/// [`fuse`], judging every component first.
+/// [`fuse`], and each component's normalized innovation ν_i/√S_ii
+/// against `s` into `innov` (for the reading check, `agreement.rs`),
+/// formed before the gate.
 fn fuse_judged<const M: usize>(
     s: &mut State,
     r: &Checked<M>,
@@ -267,20 +232,7 @@ fn fuse_judged<const M: usize>(
     gate: f64,
     innov: &mut [Option<f64>],
 ) -> ReadingUse {
-    judge(s, r, lin, wrap, innov);
-    fuse(s, r, lin, wrap, gate)
-}
-
-/// The reading less its prediction, angles wrapped to ±π where marked.
-fn innovation<const M: usize>(r: &Checked<M>, lin: &Linear<M>, wrap: [bool; M]) -> SVector<f64, M> {
-    let mut y = r.z - lin.h;
-    for (i, w) in wrap.iter().enumerate() {
-        if *w {
-            y[i] = (y[i] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                - std::f64::consts::PI;
-        }
-    }
-    y
+    fuse_with(s, r, lin, wrap, gate, &[true; NS], innov)
 }
 
 /// [`fuse`], moving only the state components marked in `moves` (the
@@ -293,9 +245,32 @@ fn fuse_into<const M: usize>(
     gate: f64,
     moves: &[bool; NS],
 ) -> ReadingUse {
-    let y = innovation(r, lin, wrap);
+    fuse_with(s, r, lin, wrap, gate, moves, &mut [])
+}
+
+/// [`fuse_into`], writing the first `innov.len()` components' normalized
+/// innovations ν_i/√S_ii into `innov` (none for an empty slice).
+fn fuse_with<const M: usize>(
+    s: &mut State,
+    r: &Checked<M>,
+    lin: &Linear<M>,
+    wrap: [bool; M],
+    gate: f64,
+    moves: &[bool; NS],
+    innov: &mut [Option<f64>],
+) -> ReadingUse {
+    let mut y = r.z - lin.h;
+    for (i, w) in wrap.iter().enumerate() {
+        if *w {
+            y[i] = (y[i] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+        }
+    }
     let rm = SMatrix::<f64, M, M>::from_diagonal(&r.sigma.component_mul(&r.sigma));
     let sm = lin.jac * s.p * lin.jac.transpose() + rm;
+    for (i, slot) in innov.iter_mut().enumerate().take(M) {
+        *slot = Some(y[i] / sm[(i, i)].sqrt()).filter(|v| v.is_finite());
+    }
     let Some(ch) = sm.cholesky() else {
         return ReadingUse::Refused(Refusal::Gate);
     };
@@ -542,8 +517,7 @@ impl Tracker {
     }
 
     /// Fuse the frame's checked readings into `s`, attitude first (it
-    /// sharpens the other two's models), and say what became of each.
-    /// Fuse the frame's readings into `s`: what became of each (attitude,
+    /// sharpens the other two's models): what became of each (attitude,
     /// depth, velocity), and each component's normalized innovation in
     /// [`lightpose_core::CHECKED`] order (`None`: no such reading).
     pub(super) fn update_readings(
