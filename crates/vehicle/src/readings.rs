@@ -6,9 +6,10 @@
 //! Readings are already in the frames of MODEL.md when stored (pitch and
 //! yaw in B, z in B, velocity in V). An attitude stored with its rates
 //! ([`AttitudeRates`], from ATTITUDE's body rates) is carried from the
-//! moment it was taken to the frame's capture; the others are copied as
-//! they are (docs/vehicle.md, "Time"). Neither storing nor attaching
-//! allocates or takes a lock (see `latest`).
+//! moment it was taken to the frame's capture, and a depth by the DVL's
+//! climb rate, each std widened by the carry's error; the others are
+//! copied as they are (docs/vehicle.md, "Time"). Neither storing nor
+//! attaching allocates or takes a lock (see `latest`).
 
 use crate::latest::{opt, word, Latest};
 use crate::ned::wrap_pi;
@@ -63,26 +64,86 @@ impl AttitudeRates {
 }
 
 /// Seconds from `taken` to `at` (negative for a reading newer than the
-/// capture), within ±[`MAX_CARRY_S`]: how far a reading is carried.
-fn carry_s(taken: Instant, at: Instant) -> f64 {
-    let dt = if at >= taken {
+/// capture), not bounded: how far the reading is from the capture.
+fn span_s(taken: Instant, at: Instant) -> f64 {
+    if at >= taken {
         (at - taken).as_secs_f64()
     } else {
         -(taken - at).as_secs_f64()
-    };
-    dt.clamp(-MAX_CARRY_S, MAX_CARRY_S)
+    }
+}
+
+/// `span` within ±[`MAX_CARRY_S`]: how far a reading is carried.
+fn carry_s(span: f64) -> f64 {
+    span.clamp(-MAX_CARRY_S, MAX_CARRY_S)
+}
+
+const DEG: f64 = std::f64::consts::PI / 180.0;
+
+/// White angular-acceleration density (rad/s²)²/Hz behind the carry's
+/// error: the tracker's default `ang_accel_psd_deg`, 20 (°/s²)²/Hz
+/// (docs/estimators.md), so that a carried reading is as uncertain as the
+/// tracker's own prediction over the same time from a known rate. For an
+/// ROV it is a change of rate of √20 ≈ 4.5 °/s in a second, 1.4 °/s in
+/// 0.1 s: a turn started or stopped within the carry.
+const CARRY_ANG_ACCEL_PSD: f64 = 20.0 * DEG * DEG;
+
+/// 1σ of ATTITUDE's Euler rates (rad/s): 0.5 °/s. A MEMS gyro's noise
+/// through the autopilot's low-pass is a few hundredths of a °/s and its
+/// bias left after the EKF about 0.1 °/s; the rest is for thruster
+/// vibration and the Euler conversion's roll (1° of roll in a 30 °/s turn
+/// moves θ̇ by 0.5 °/s). Small beside the acceleration's term beyond
+/// 0.1 s (0.125° against 0.32° at 0.25 s).
+const CARRY_RATE_STD: f64 = 0.5 * DEG;
+
+/// The variance a carry adds to an angle (rad²): the reading is `span`
+/// seconds from the capture and was carried `dt` of them at `rate`. With a
+/// white angular acceleration of density q the carried angle is off by
+/// ∫(ω(s) − ω(taken)) ds, of variance q·|span|³/3; the rate's own error
+/// adds (σ_ω·|span|)²; and beyond [`MAX_CARRY_S`] the turn not made,
+/// (rate·(|span| − |dt|))², is off in full.
+fn carry_var(rate: f64, span: f64, dt: f64) -> f64 {
+    let s = span.abs();
+    let dropped = rate * (s - dt.abs());
+    CARRY_ANG_ACCEL_PSD * s * s * s / 3.0 + (CARRY_RATE_STD * s).powi(2) + dropped * dropped
+}
+
+/// `std` grown in quadrature by `var`. A std that is not finite and
+/// positive is left as it is (the estimator refuses it: widening must not
+/// turn a bad std into a good one).
+fn widened(std: f64, var: f64) -> f64 {
+    let w = (std * std + var).sqrt();
+    if var > 0.0 && std.is_finite() && std > 0.0 && w.is_finite() {
+        w
+    } else {
+        std
+    }
 }
 
 /// `a` carried from `taken` to `at` at `rates`, over at most
 /// [`MAX_CARRY_S`] either way (a reading newer than the capture is carried
-/// back). Yaw is wrapped into (−180°, 180°], pitch kept within ±90°.
+/// back). Yaw is wrapped into (−180°, 180°], pitch kept within ±90°. Its
+/// std, if it has one, grows by the carry's error ([`carry_var`]), back as
+/// well as forward; a reading without a std keeps none (the estimator's
+/// configured σ applies, which does not know the carry).
+///
+/// A reading without rates is neither carried nor widened, though it is off
+/// by about rate × age: the rate is unknown here, an ROV's spread of rates
+/// (still on station, 30 °/s in a turn) is no one number, and the error is
+/// a lag shared by successive frames, which a wider σ would only lighten,
+/// not describe (the tracker, which has the rate, is where it could be
+/// taken off).
 fn carried(a: Att, rates: Option<AttitudeRates>, taken: Instant, at: Instant) -> Att {
     let Some(w) = rates else { return a };
-    let dt = carry_s(taken, at);
+    let span = span_s(taken, at);
+    let dt = carry_s(span);
     Att {
         pitch: Angle::from_rad((a.pitch.rad() + w.pitch * dt).clamp(-FRAC_PI_2, FRAC_PI_2)),
         yaw: wrap_pi(Angle::from_rad(a.yaw.rad() + w.yaw * dt)),
-        std: a.std,
+        std: a.std.map(|s| AttitudeStd {
+            pitch: Angle::from_rad(widened(s.pitch.rad(), carry_var(w.pitch, span, dt))),
+            yaw: Angle::from_rad(widened(s.yaw.rad(), carry_var(w.yaw, span, dt))),
+        }),
     }
 }
 
@@ -93,6 +154,14 @@ fn carried(a: Att, rates: Option<AttitudeRates>, taken: Instant, at: Instant) ->
 /// either way. Without a velocity or an attitude, as it is. Why: a pressure
 /// sensor streamed at 5–10 Hz is 0.1–0.2 s old at a frame's capture, 0.05–0.1
 /// m at 0.5 m/s of descent against its σ of 0.02 m.
+///
+/// Its std, if it has one, grows in quadrature by the climb rate's error
+/// over the carry: σ_climb² = (sin θ·σ_fwd)² + (cos θ·σ_down)² from the
+/// DVL's std (its components taken as independent, as they are stored),
+/// times span²; beyond [`MAX_CARRY_S`] also the climb not carried. The
+/// pitch's error is left out (0.3° at 1 m/s is 0.005 m/s against a DVL's
+/// 0.02), and so is the heave's change during the carry (the DVL does not
+/// report acceleration). A velocity without a std adds nothing.
 fn carried_depth(
     d: DepthReading,
     att: Option<&AttitudeReading>,
@@ -103,13 +172,23 @@ fn carried_depth(
     let (Some(att), Some(vel)) = (att, vel) else {
         return d;
     };
-    let dt = carry_s(taken, at);
+    let span = span_s(taken, at);
+    let dt = carry_s(span);
     let (st, ct) = att.pitch.rad().sin_cos();
     let [fwd, _, down] = vel.v.0;
     let climb = st * fwd - ct * down;
     let z = d.z + climb * dt;
+    let climb_var = vel.std.map_or(0.0, |s| {
+        let [sf, _, sd] = s.0;
+        (st * sf).powi(2) + (ct * sd).powi(2)
+    });
+    let dropped = climb * (span.abs() - dt.abs());
+    let var = climb_var * span * span + dropped * dropped;
     if z.is_finite() {
-        DepthReading { z, std: d.std }
+        DepthReading {
+            z,
+            std: d.std.map(|s| widened(s, var)),
+        }
     } else {
         d
     }
@@ -624,6 +703,151 @@ mod tests {
         assert!(close(depth_at(0.0, [0.0, 0.0, 0.5], -100), -0.95));
         // Sideways motion does not change depth.
         assert!(close(depth_at(0.0, [0.0, 0.7, 0.0], 200), -1.0));
+    }
+
+    /// An attitude reading with its own std (all in °).
+    fn with_std(pitch: f64, yaw: f64, s_pitch: f64, s_yaw: f64) -> AttitudeReading {
+        AttitudeReading {
+            std: Some(AttitudeStd {
+                pitch: deg(s_pitch),
+                yaw: deg(s_yaw),
+            }),
+            ..AttitudeReading::new(deg(pitch), deg(yaw))
+        }
+    }
+
+    /// The std of the attitude `r` gives a frame captured at `at`.
+    fn attached_std(r: &Readings, at: Instant, max_age: &MaxAge) -> Option<AttitudeStd> {
+        let mut f = Frame::new(0, 0.0, 10, [0; NDET]);
+        r.attach(&mut f, at, max_age);
+        f.attitude.expect("an attitude").std
+    }
+
+    /// The carry's model in °: σ² + q·|Δ|³/3 + (σ_ω·|Δ|)², q = 20 (°/s²)²/Hz,
+    /// σ_ω = 0.5 °/s.
+    fn model(std: f64, span: f64) -> f64 {
+        (std * std + 20.0 * span.powi(3) / 3.0 + (0.5 * span).powi(2)).sqrt()
+    }
+
+    fn close_std(got: Option<AttitudeStd>, pitch: f64, yaw: f64) -> bool {
+        got.is_some_and(|s| {
+            (s.pitch.deg() - pitch).abs() < 1e-9 && (s.yaw.deg() - yaw).abs() < 1e-9
+        })
+    }
+
+    /// Audit: a carried attitude kept the std of the reading, as if the
+    /// rates held exactly over the carry. It grows by the carry's error:
+    /// in quadrature, q·|Δ|³/3 from the angular acceleration plus the
+    /// rate's own (σ_ω·|Δ|)², forward and back alike.
+    #[test]
+    fn a_carried_attitude_s_std_grows_with_the_carry() {
+        let r = Readings::default();
+        let t0 = Instant::now() + Duration::from_secs(5);
+        let ages = MaxAge::default();
+        let a = with_std(2.0, 10.0, 0.3, 1.5);
+        r.store_attitude_with_rates(t0, &a, rates(-4.0, 30.0));
+        // No carry: the reading's own std, bit for bit.
+        assert_eq!(attached_std(&r, t0, &ages), a.std);
+        // 0.1 s and 0.25 s (the default limit) forward.
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        let s1 = attached_std(&r, at(100), &ages);
+        assert!(close_std(s1, model(0.3, 0.1), model(1.5, 0.1)), "{s1:?}");
+        let s25 = attached_std(&r, at(250), &ages);
+        assert!(
+            close_std(s25, model(0.3, 0.25), model(1.5, 0.25)),
+            "{s25:?}"
+        );
+        // The numbers docs/vehicle.md gives: pitch 0.3° → 0.315° / 0.458°,
+        // yaw 1.5° → 1.503° / 1.539°; the carry alone 0.096° / 0.346°.
+        let s25 = s25.unwrap();
+        assert!((s25.pitch.deg() - 0.458_03).abs() < 1e-5, "{s25:?}");
+        assert!((s25.yaw.deg() - 1.539_41).abs() < 1e-5, "{s25:?}");
+        assert!((model(0.0, 0.1) - 0.095_74).abs() < 1e-5);
+        assert!((model(0.0, 0.25) - 0.346_11).abs() < 1e-5);
+        // A reading newer than the capture by 0.1 s, carried back: widened
+        // as much as one 0.1 s older.
+        r.store_attitude_with_rates(at(100), &a, rates(-4.0, 30.0));
+        let back = attached_std(&r, t0, &ages);
+        assert!(
+            close_std(back, model(0.3, 0.1), model(1.5, 0.1)),
+            "{back:?}"
+        );
+        // Beyond the 0.5 s a rate is trusted, the turn not made is off in
+        // full: 2 s old under a 10 s limit, carried 0.5 s, 1.5 s of 4 °/s
+        // and 30 °/s left.
+        r.store_attitude_with_rates(t0, &a, rates(-4.0, 30.0));
+        let long = MaxAge {
+            attitude: Duration::from_secs(10),
+            ..ages
+        };
+        let far = attached_std(&r, t0 + Duration::from_secs(2), &long);
+        let add = |std: f64, left: f64| (model(std, 2.0).powi(2) + left * left).sqrt();
+        assert!(close_std(far, add(0.3, 6.0), add(1.5, 45.0)), "{far:?}");
+        // Without rates: neither carried nor widened (see `carried`).
+        r.store_attitude(t0, &a);
+        assert_eq!(attached_std(&r, at(200), &ages), a.std);
+        // Without a std: still none (the estimator's σ applies).
+        r.store_attitude_with_rates(
+            t0,
+            &AttitudeReading::new(deg(2.0), deg(10.0)),
+            rates(-4.0, 30.0),
+        );
+        assert_eq!(attached_std(&r, at(200), &ages), None);
+        // A std of 0 (which the estimator refuses) is not made acceptable.
+        r.store_attitude_with_rates(t0, &with_std(2.0, 10.0, 0.0, 1.5), rates(-4.0, 30.0));
+        let s = attached_std(&r, at(200), &ages).unwrap();
+        assert_eq!(s.pitch.rad(), 0.0);
+        assert!((s.yaw.deg() - model(1.5, 0.2)).abs() < 1e-9, "{s:?}");
+    }
+
+    /// A carried depth's std grows by the DVL's error in the climb rate
+    /// over the carry: σ_climb² = (sin θ·σ_fwd)² + (cos θ·σ_down)².
+    #[test]
+    fn a_carried_depth_s_std_grows_with_the_dvl_s_std() {
+        let ages = MaxAge::default();
+        let depth_at = |std: Option<f64>, v_std: Option<[f64; 3]>, ms: i64| {
+            let r = Readings::default();
+            let t0 = Instant::now() + Duration::from_secs(5);
+            r.store_depth(t0, &DepthReading { z: -1.0, std });
+            r.store_velocity(
+                t0,
+                &VelocityReading {
+                    std: v_std.map(BodyVec),
+                    ..VelocityReading::new(1.0, 0.0, 0.5)
+                },
+            );
+            r.store_attitude(t0, &AttitudeReading::new(deg(30.0), deg(0.0)));
+            let at = if ms >= 0 {
+                t0 + Duration::from_millis(ms as u64)
+            } else {
+                t0 - Duration::from_millis((-ms) as u64)
+            };
+            let mut f = Frame::new(0, 0.0, 10, [0; NDET]);
+            r.attach(&mut f, at, &ages);
+            f.depth.expect("a depth")
+        };
+        let dvl = Some([0.02, 0.01, 0.03]);
+        // Nose up 30°: σ_climb² = (0.5·0.02)² + (cos 30°·0.03)² = 0.000775.
+        let climb_var = 0.000_775;
+        let close = |d: DepthReading, want: f64| d.std.is_some_and(|s| (s - want).abs() < 1e-12);
+        let d = depth_at(Some(0.02), dvl, 200);
+        assert!(close(d, (0.0004f64 + climb_var * 0.04).sqrt()), "{d:?}");
+        assert!((d.std.unwrap() - 0.020_761).abs() < 1e-6, "{d:?}");
+        // Carried back 0.1 s: widened by 0.1 s of it.
+        let d = depth_at(Some(0.02), dvl, -100);
+        assert!(close(d, (0.0004f64 + climb_var * 0.01).sqrt()), "{d:?}");
+        // The same carry with a noisier DVL widens more.
+        let noisy = depth_at(Some(0.02), Some([0.05, 0.05, 0.1]), 200);
+        assert!(noisy.std.unwrap() > d.std.unwrap() + 0.001, "{noisy:?}");
+        // No carry, or a DVL without a std: the reading's own std (z
+        // carried all the same).
+        assert_eq!(depth_at(Some(0.02), dvl, 0).std, Some(0.02));
+        let d = depth_at(Some(0.02), None, 200);
+        assert_eq!(d.std, Some(0.02));
+        let climb = 0.5 * 1.0 - 30f64.to_radians().cos() * 0.5;
+        assert!((d.z - (-1.0 + climb * 0.2)).abs() < 1e-12, "{d:?}");
+        // A depth without a std keeps none.
+        assert_eq!(depth_at(None, dvl, 200).std, None);
     }
 
     #[test]
