@@ -10,11 +10,14 @@ mod common;
 
 use common::run::{collect, of_class, run_in_process};
 use common::subscriber;
-use common::vehicle::{free_port, judge, mavlink_config, stand_in, write_bare_log};
+use common::vehicle::{
+    free_port, judge, mavlink_config, stand_in, stand_in_signed, write_bare_log,
+};
 use common::vehicle::{BEACON_DEPTH_M, HEADING_DEG, WATER_C};
 use lightpose_core::LogReader;
 use lightpose_testkit::python::python;
 use lightpose_vehicle::mav::outbound::Encoder;
+use lightpose_vehicle::mav::signing::{SigningConfig, SigningKey};
 use lightposed::Config;
 use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA};
 use serde_json::Value;
@@ -183,6 +186,53 @@ fn rust_stand_in_autopilot_gets_poses_within_bounds() {
         "{v}"
     );
     replay_sees_what_the_live_estimator_saw(&rec, &of_class(&msgs, "POSE"));
+}
+
+/// With `[mavlink.signing]` (a passphrase file beside the config) the
+/// daemon signs everything it sends and takes only signed frames: an
+/// autopilot signing with the same passphrase gets poses within the same
+/// bounds and refuses none of the daemon's frames, and STATUS names the
+/// key by its fingerprint.
+#[test]
+fn a_signed_link_carries_poses_both_ways() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let log = dir.path().join("bare.jsonl");
+    let truth = write_bare_log(&log, RATE_HZ, SECONDS);
+    std::fs::write(dir.path().join("mav.pass"), "harbour trial\n").expect("key file");
+    let ap = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    let (sub, dest) = subscriber();
+    let port = free_port();
+    let conn = format!("udpin:127.0.0.1:{port}");
+    let extra = "[mavlink.signing]\npassphrase_file = \"mav.pass\"\nlink_id = 2\n";
+    let text = mavlink_config(&log, dest, &conn, extra);
+    let cfg = Config::parse(&text, "t.toml", Some(dir.path())).expect("valid");
+    let daemon = run_in_process(cfg, Duration::from_secs(30));
+    let key = SigningKey::from_passphrase("harbour trial");
+    let signing = SigningConfig {
+        key: key.clone(),
+        link_id: 0,
+        allow_unsigned: false,
+    };
+    let to = Some(([127, 0, 0, 1], port).into());
+    let (quiet, deadline) = (Duration::from_millis(1500), Duration::from_secs(20));
+    let heard = stand_in_signed(&ap, to, &truth, quiet, deadline, Some(signing));
+    let summary = daemon.join().expect("daemon thread");
+    assert!(summary.source_ended, "{summary:?}");
+    assert_eq!((heard.refused_signature, heard.bad), (0, 0), "{heard:?}");
+    let (stats, covered, frames) = judge(&heard.positions, &truth, P95_AFTER_S);
+    assert!(covered * 10 >= frames * 8, "{covered} of {frames}");
+    check_p95("signed link", stats.p95());
+    let v = last_vehicle_status(&collect(&sub, Duration::from_millis(100)));
+    let m = &v["mavlink"];
+    assert_eq!(m["signing"]["key"], key.fingerprint(), "{m}");
+    assert_eq!(m["signing"]["link_id"], 2, "{m}");
+    for why in ["unsigned", "bad_signature", "replayed"] {
+        assert!(m["refused"].get(why).is_none(), "{m}");
+    }
+    assert!(
+        v["readings"]["attitude"]["attached"].as_u64().unwrap_or(0) > 0,
+        "{v}"
+    );
 }
 
 /// The recording carries the readings the stand-in sent, and replaying it

@@ -7,11 +7,13 @@ use crate::dvl::client::DvlSettings;
 use crate::mav::inbound::{DepthSource, InputConfig};
 use crate::mav::link::Endpoint;
 use crate::mav::outbound::{MissingStd, OutputConfig};
+use crate::mav::signing::{KeyForm, SigningConfig, SigningKey};
 use crate::mav::task::MavlinkSettings;
 use crate::ned::{NedVec, Site};
 use crate::readings::MaxAge;
 use lightpose_core::Angle;
 use serde::Deserialize;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// A key with a value that cannot be used.
@@ -129,6 +131,56 @@ pub struct MavlinkTable {
     pub assume_position_std_m: Option<f64>,
     pub assume_angle_std_deg: Option<f64>,
     pub assume_surge_std_mps: Option<f64>,
+    /// `[mavlink.signing]`: MAVLink 2 signing (docs/vehicle.md).
+    pub signing: Option<SigningTable>,
+}
+
+/// `[mavlink.signing]`: the key, in a file of its own (not in the
+/// configuration, which is readable by more people than the key should
+/// be), as 64 hex digits or as a passphrase.
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SigningTable {
+    pub key_file: Option<String>,
+    pub passphrase_file: Option<String>,
+    /// Default 0.
+    pub link_id: Option<u8>,
+    /// Default false: only signed frames are taken.
+    pub allow_unsigned: Option<bool>,
+}
+
+impl SigningTable {
+    /// The key read, with relative paths taken from `base_dir`.
+    fn validate(&self, base_dir: Option<&Path>) -> Result<SigningConfig, ConfigError> {
+        let path = |p: &str| match base_dir {
+            Some(d) if Path::new(p).is_relative() => d.join(p),
+            _ => PathBuf::from(p),
+        };
+        let (key, file, form) = match (&self.key_file, &self.passphrase_file) {
+            (Some(k), None) => ("signing.key_file", k, KeyForm::Hex),
+            (None, Some(p)) => ("signing.passphrase_file", p, KeyForm::Passphrase),
+            (Some(_), Some(_)) => {
+                return Err(err(
+                    M,
+                    "signing",
+                    "key_file and passphrase_file both given: want one",
+                ))
+            }
+            (None, None) => {
+                return Err(err(
+                    M,
+                    "signing",
+                    "no key: want key_file (64 hex digits) or passphrase_file",
+                ))
+            }
+        };
+        let key = SigningKey::load(&path(file), form).map_err(|e| err(M, key, e))?;
+        Ok(SigningConfig {
+            key,
+            link_id: self.link_id.unwrap_or(0),
+            allow_unsigned: self.allow_unsigned.unwrap_or(false),
+        })
+    }
 }
 
 const M: &str = "mavlink";
@@ -242,9 +294,21 @@ impl MavlinkTable {
         })
     }
 
-    /// The link's settings, and how old its readings may be (velocity's
-    /// age is `[dvl]`'s and is left at its default here).
+    /// As [`MavlinkTable::validate_in`], with relative key files taken
+    /// from the working directory.
     pub fn validate(&self, site: Site) -> Result<(MavlinkSettings, MaxAge), ConfigError> {
+        self.validate_in(site, None)
+    }
+
+    /// The link's settings, and how old its readings may be (velocity's
+    /// age is `[dvl]`'s and is left at its default here). A signing key
+    /// file's relative path is taken from `base_dir` (the configuration's
+    /// directory), and the file is read here.
+    pub fn validate_in(
+        &self,
+        site: Site,
+        base_dir: Option<&Path>,
+    ) -> Result<(MavlinkSettings, MaxAge), ConfigError> {
         let endpoint: Endpoint = self
             .connection
             .parse()
@@ -257,6 +321,10 @@ impl MavlinkTable {
         }
         s.input = self.input()?;
         s.output = self.output()?;
+        s.signing = match &self.signing {
+            Some(t) => Some(t.validate(base_dir)?),
+            None => None,
+        };
         let hz = within(M, "heartbeat_hz", self.heartbeat_hz, 1.0, 0.1, 10.0)?;
         s.heartbeat_period = Duration::from_secs_f64(1.0 / hz);
         let age = |key, v, d| within(M, key, v, d, 0.0, 3600.0).map(Duration::from_secs_f64);

@@ -14,6 +14,7 @@ use lightpose_vehicle::mav::inbound::DepthSource;
 use lightpose_vehicle::mav::link::Sent;
 use lightpose_vehicle::mav::outbound::Encoder;
 use lightpose_vehicle::mav::scan::{Framing, Scanned, Scanner};
+use lightpose_vehicle::mav::signing::{KeyForm, SigningConfig, SigningKey};
 use lightpose_vehicle::standin::{
     autopilot_heartbeat, autopilot_messages, decode, ErrorStats, Received, SensorState, ERROR_AXES,
 };
@@ -73,9 +74,33 @@ pub struct FakeAutopilotArgs {
     /// capture times, once they come) or our own.
     #[arg(long, default_value = "daemon", value_parser = ["daemon", "own"])]
     clock: String,
+    /// Sign what is sent and take only frames signed with the key, as an
+    /// autopilot with MAVLink 2 signing set up: the key is SHA-256 of the
+    /// passphrase in this file (MAVProxy's and QGroundControl's), as the
+    /// daemon's `[mavlink.signing] passphrase_file`.
+    #[arg(long, conflicts_with = "signing_key_file")]
+    signing_passphrase_file: Option<PathBuf>,
+    /// The same with the key as 64 hex digits (`key_file`).
+    #[arg(long)]
+    signing_key_file: Option<PathBuf>,
     /// Print every estimate received.
     #[arg(long)]
     verbose: bool,
+}
+
+/// The signing asked for, if any (link id 0, unsigned frames refused).
+fn signing(a: &FakeAutopilotArgs) -> anyhow::Result<Option<SigningConfig>> {
+    let (path, form, flag) = match (&a.signing_passphrase_file, &a.signing_key_file) {
+        (Some(p), _) => (p, KeyForm::Passphrase, "--signing-passphrase-file"),
+        (None, Some(p)) => (p, KeyForm::Hex, "--signing-key-file"),
+        (None, None) => return Ok(None),
+    };
+    let key = SigningKey::load(path, form).map_err(|e| anyhow!("{flag}: {e}"))?;
+    Ok(Some(SigningConfig {
+        key,
+        link_id: 0,
+        allow_unsigned: false,
+    }))
 }
 
 /// Everything the loop keeps.
@@ -92,6 +117,10 @@ struct Session {
     offset: Option<f64>,
     start: Instant,
     enc: Encoder,
+    /// Signing is on, and the frames it dropped (unsigned, another key,
+    /// replayed).
+    signed: bool,
+    unsigned_or_bad: u64,
     stats: ErrorStats,
     sent_sets: u64,
     speeds: u64,
@@ -169,6 +198,7 @@ pub fn run(a: FakeAutopilotArgs) -> anyhow::Result<()> {
     let site = check_numbers(&a)?;
     let scene = Scene::load(&a.scene)?;
     let traj = Trajectory::load(&a.trajectory)?;
+    let signing = signing(&a)?;
     let endpoint: Endpoint = a.connect.parse().map_err(|e| anyhow!("--connect: {e}"))?;
     let rate = a.rate.unwrap_or(scene.adc.rate_hz);
     if !rate_ok(rate) {
@@ -203,7 +233,9 @@ pub fn run(a: FakeAutopilotArgs) -> anyhow::Result<()> {
         follow_daemon: a.clock == "daemon",
         offset: None,
         start: Instant::now(),
-        enc: Encoder::new(1, 1),
+        signed: signing.is_some(),
+        enc: Encoder::new(1, 1).signed(signing),
+        unsigned_or_bad: 0,
         stats: ErrorStats::default(),
         sent_sets: 0,
         speeds: 0,
@@ -326,6 +358,12 @@ impl Session {
         let mut valid = false;
         while let Some(ev) = sc.next_frame() {
             let Scanned::Frame(f) = ev else { continue };
+            if let Some(sg) = self.enc.signer_mut() {
+                if sg.check(f.bytes).is_err() {
+                    self.unsigned_or_bad += 1;
+                    continue;
+                }
+            }
             valid = true;
             match decode(&f) {
                 Some(Received::Position(p)) => {
@@ -413,8 +451,16 @@ impl Session {
     }
 
     fn summary(&self) -> String {
+        let refused = if self.signed {
+            format!(
+                "; {} frames refused for their signature",
+                self.unsigned_or_bad
+            )
+        } else {
+            String::new()
+        };
         format!(
-            "fake-autopilot: sent {} sets of sensor messages; received {} VISION_POSITION_ESTIMATE ({} off the trajectory's times), {} VISION_SPEED_ESTIMATE, heartbeats from components {:?}; {}",
+            "fake-autopilot: sent {} sets of sensor messages; received {} VISION_POSITION_ESTIMATE ({} off the trajectory's times), {} VISION_SPEED_ESTIMATE, heartbeats from components {:?}{refused}; {}",
             self.sent_sets,
             self.stats.len() as u64 + self.no_truth,
             self.no_truth,

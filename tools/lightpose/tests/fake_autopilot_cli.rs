@@ -211,3 +211,65 @@ fn numbers_out_of_range_are_refused_with_their_bound() {
         assert_eq!(r.code, Some(0), "{arg}: {}", r.err);
     }
 }
+
+/// With `--signing-passphrase-file` every frame it sends carries a good
+/// signature of that passphrase's key (what a signed autopilot sends); a
+/// key file that is not there is one line naming the option.
+#[test]
+fn a_signing_stand_in_signs_what_it_sends() {
+    use lightpose_vehicle::mav::signing::{SigningConfig, SigningKey};
+    let dir = tempfile::tempdir().unwrap();
+    let pass = dir.path().join("mav.pass");
+    std::fs::write(&pass, "desk check\n").unwrap();
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    let port = sock.local_addr().unwrap().port();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lightpose"))
+        .args(["fake-autopilot", "--scene"])
+        .arg(root().join("config/scenes/tank.toml"))
+        .arg("--trajectory")
+        .arg(root().join("config/trajectories/dive.csv"))
+        .args(["--connect", &format!("udpout:127.0.0.1:{port}")])
+        .args(["--duration", "1", "--rate", "20"])
+        .arg("--signing-passphrase-file")
+        .arg(&pass)
+        .stdout(Stdio::null())
+        .spawn()
+        .expect("lightpose runs");
+    let mut signer = lightpose_vehicle::mav::signing::Signer::new(SigningConfig {
+        key: SigningKey::from_passphrase("desk check"),
+        link_id: 0,
+        allow_unsigned: false,
+    });
+    let (mut sc, mut buf, mut good) = (Scanner::new(Framing::Datagram), [0u8; 2048], 0);
+    while good < 20 {
+        let (n, _) = sock.recv_from(&mut buf).expect("the stand-in sends");
+        sc.push(&buf[..n]);
+        while let Some(ev) = sc.next_frame() {
+            let Scanned::Frame(f) = ev else {
+                panic!("a bad frame: {ev:?}")
+            };
+            assert_eq!(signer.check(f.bytes), Ok(()), "message {}", f.msg_id);
+            good += 1;
+        }
+        sc.end_of_datagram();
+    }
+    assert!(child.wait().unwrap().success());
+    let out = Command::new(env!("CARGO_BIN_EXE_lightpose"))
+        .args(["fake-autopilot", "--scene"])
+        .arg(root().join("config/scenes/tank.toml"))
+        .arg("--trajectory")
+        .arg(root().join("config/trajectories/dive.csv"))
+        .arg("--signing-key-file")
+        .arg(dir.path().join("absent.key"))
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("--signing-key-file:") && err.contains("absent.key"),
+        "{err}"
+    );
+}

@@ -68,7 +68,7 @@ pub(super) fn validate(
                 ));
             };
             let (s, age) = table
-                .validate(site)
+                .validate_in(site, ctx.base_dir)
                 .map_err(|e| vehicle_error(ctx, t.span().start, &e))?;
             no_port_0(ctx, t.span().start, &s.endpoint)?;
             // A udpin address is bound: `wiring::check` tries it.
@@ -142,16 +142,33 @@ fn deserialize<T: DeserializeOwned>(
 /// The vehicle crate's `[table] key: msg` at the line of the key.
 fn vehicle_error(ctx: &Ctx, start: usize, e: &lightpose_vehicle::ConfigError) -> ConfigError {
     ctx.at(
-        ctx.line_of_key(start, e.key),
+        sub_table_line(ctx, e.table, e.key).unwrap_or_else(|| ctx.line_of_key(start, e.key)),
         &format!("{}.{}", e.table, e.key),
         e.msg.clone(),
     )
+}
+
+/// The line of a key of a sub-table (`signing.key_file` of `[mavlink]` is
+/// `key_file` under `[mavlink.signing]`), or of the sub-table's header.
+fn sub_table_line(ctx: &Ctx, table: &str, key: &str) -> Option<usize> {
+    let (sub, rest) = key.split_once('.').unwrap_or((key, ""));
+    let header = format!("[{table}.{sub}]");
+    let mut at = 0;
+    for line in ctx.src.split_inclusive('\n') {
+        if line.trim() == header {
+            let key_line = if rest.is_empty() { sub } else { rest };
+            return Some(ctx.line_of_key(at, key_line));
+        }
+        at += line.len();
+    }
+    None
 }
 
 #[cfg(test)]
 mod tests {
     use crate::config::Config;
     use lightpose_vehicle::mav::inbound::DepthSource;
+    use lightpose_vehicle::mav::signing::SigningKey;
     use std::time::Duration;
 
     const BASE: &str = "calibration = \"c.toml\"\n[backend]\nkind = \"sim\"\n[outputs]\ndestinations = [\"127.0.0.1:9\"]\n";
@@ -183,6 +200,29 @@ mod tests {
             .vehicle
             .unwrap();
         assert!(v.mavlink.is_none() && v.dvl.is_some());
+    }
+
+    /// A key file is read at start-up, its relative path taken from the
+    /// configuration's directory (so a config and its key travel together).
+    #[test]
+    fn a_signing_key_file_is_read_beside_the_config() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("mav.pass"), "sea trial 7\n").unwrap();
+        let src = format!(
+            "{BASE}{SITE}[mavlink]\nconnection = \"udpin:0.0.0.0:14550\"\n[mavlink.signing]\npassphrase_file = \"mav.pass\"\nlink_id = 9\n"
+        );
+        let c = Config::parse(&src, "t.toml", Some(dir.path())).unwrap();
+        let sg = c.vehicle.unwrap().mavlink.unwrap().signing.unwrap();
+        assert_eq!(sg.key, SigningKey::from_passphrase("sea trial 7"));
+        assert_eq!((sg.link_id, sg.allow_unsigned), (9, false));
+        // Both forms at once is one too many.
+        let both = format!("{src}key_file = \"k.hex\"\n");
+        let e = Config::parse(&both, "t.toml", Some(dir.path())).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("t.toml:11: mavlink.signing: key_file and passphrase_file both"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -246,6 +286,22 @@ mod tests {
         .unwrap_err();
         assert!(
             e.starts_with("t.toml:11: mavlink.rate: unknown field `rate`"),
+            "{e}"
+        );
+        let e = parse(&format!(
+            "{SITE}[mavlink]\nconnection = \"udpin:0.0.0.0:14550\"\n[mavlink.signing]\nlink_id = 2\nkey_file = \"/nonexistent/k\"\n"
+        ))
+        .unwrap_err();
+        assert!(
+            e.starts_with("t.toml:13: mavlink.signing.key_file: /nonexistent/k: No such file"),
+            "{e}"
+        );
+        let e = parse(&format!(
+            "{SITE}[mavlink]\nconnection = \"udpin:0.0.0.0:14550\"\n[mavlink.signing]\nlink_id = 2\n"
+        ))
+        .unwrap_err();
+        assert!(
+            e.starts_with("t.toml:11: mavlink.signing: no key: want key_file"),
             "{e}"
         );
         let e = parse("[site]\nbeacon_heading_deg = 30.0\nbeacon_depth_m = -2.0\n").unwrap_err();

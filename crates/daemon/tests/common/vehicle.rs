@@ -11,6 +11,7 @@ use lightpose_sim::{Scene, Simulator, Trajectory};
 use lightpose_vehicle::mav::inbound::DepthSource;
 use lightpose_vehicle::mav::outbound::{Encoder, VisionPosition};
 use lightpose_vehicle::mav::scan::{Framing, Scanned, Scanner};
+use lightpose_vehicle::mav::signing::SigningConfig;
 use lightpose_vehicle::standin::{
     autopilot_heartbeat, autopilot_messages, decode, ErrorStats, Received, SensorState,
 };
@@ -102,6 +103,8 @@ pub struct Heard {
     /// Frames that were not MAVLink 2, or failed their CRC, or unknown.
     pub not_v2: usize,
     pub bad: usize,
+    /// With signing: frames without the key's good signature.
+    pub refused_signature: usize,
 }
 
 /// A stand-in autopilot on `sock`, talking to `daemon` (its `udpin`
@@ -121,10 +124,24 @@ pub fn stand_in(
     quiet: Duration,
     deadline: Duration,
 ) -> Heard {
+    stand_in_signed(sock, daemon, truth, quiet, deadline, None)
+}
+
+/// [`stand_in`] as an autopilot with MAVLink 2 signing: what it sends is
+/// signed, and what it gets is checked (refusals counted, not read).
+pub fn stand_in_signed(
+    sock: &UdpSocket,
+    daemon: Option<SocketAddr>,
+    truth: &[(f64, Pose)],
+    quiet: Duration,
+    deadline: Duration,
+    signing: Option<SigningConfig>,
+) -> Heard {
     sock.set_read_timeout(Some(Duration::from_millis(5)))
         .expect("timeout");
     let site = site();
-    let (mut scan, mut enc) = (Scanner::new(Framing::Datagram), Encoder::new(1, 1));
+    let mut scan = Scanner::new(Framing::Datagram);
+    let mut enc = Encoder::new(1, 1).signed(signing);
     let (start, mut heard) = (Instant::now(), Heard::default());
     let (mut peer, mut origin, mut last_rx): (
         Option<SocketAddr>,
@@ -145,6 +162,13 @@ pub fn stand_in(
                 };
                 if f.version != MavlinkVersion::V2 {
                     heard.not_v2 += 1;
+                }
+                if enc
+                    .signer_mut()
+                    .is_some_and(|sg| sg.check(f.bytes).is_err())
+                {
+                    heard.refused_signature += 1;
+                    continue;
                 }
                 match decode(&f) {
                     Some(Received::Position(p)) => {

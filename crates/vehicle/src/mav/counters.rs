@@ -45,6 +45,8 @@ pub struct MavCounters {
     pub(crate) peer: Mutex<Option<SocketAddr>>,
     pub(crate) peer_changes: AtomicU64,
     pub(crate) last_error: Mutex<Option<LastError>>,
+    /// MAVLink 2 signing as the task runs it (null: off).
+    pub(crate) signing: Mutex<Option<SigningStatus>>,
     /// Per refusal reason, core's rule: the first at once, then less and
     /// less often while they go on (a flood was a line every 1000th).
     refused_log: Mutex<[RateLog; Refusal::ALL.len()]>,
@@ -58,6 +60,16 @@ pub struct AutopilotId {
     /// From `[mavlink] autopilot_system_id` (else learned from its
     /// HEARTBEAT).
     pub configured: bool,
+}
+
+/// Signing as configured, for STATUS: the key by its fingerprint only.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct SigningStatus {
+    /// The first 4 bytes of the key's SHA-256, in hex.
+    pub key: String,
+    pub link_id: u8,
+    /// Unsigned frames are taken too.
+    pub allow_unsigned: bool,
 }
 
 /// STATUS figures of the MAVLink link.
@@ -99,6 +111,9 @@ pub struct MavlinkStatus {
     /// Moves of the `udpin` peer after it was silent (the first is none).
     pub peer_changes: u64,
     pub last_error: Option<String>,
+    /// Signing, when configured (its refusals are `unsigned`,
+    /// `bad_signature` and `replayed` in `refused`).
+    pub signing: Option<SigningStatus>,
 }
 
 fn table<const N: usize>(names: [&'static str; N], c: &[AtomicU64; N]) -> Vec<(&'static str, u64)> {
@@ -298,6 +313,7 @@ impl MavCounters {
                 .lock()
                 .ok()
                 .and_then(|g| g.as_ref().map(LastError::line)),
+            signing: self.signing.lock().ok().and_then(|g| g.clone()),
         }
     }
 }

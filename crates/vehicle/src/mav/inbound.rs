@@ -98,10 +98,17 @@ pub enum Refusal {
     /// `VFR_HUD.alt` exactly 0: what ArduSub sends with no depth sensor or
     /// no EKF origin, not a depth.
     VfrHudZero,
+    /// Signing is configured and the frame has no signature.
+    Unsigned,
+    /// A signature that is not the configured key's.
+    BadSignature,
+    /// A good signature on a timestamp its stream has had (a frame played
+    /// again), or a new stream over a minute behind.
+    Replayed,
 }
 
 impl Refusal {
-    pub const ALL: [Refusal; 13] = [
+    pub const ALL: [Refusal; 16] = [
         Refusal::BadCrc,
         Refusal::UnknownMessage,
         Refusal::BadFlags,
@@ -115,6 +122,9 @@ impl Refusal {
         Refusal::DepthOutOfRange,
         Refusal::TemperatureOutOfRange,
         Refusal::VfrHudZero,
+        Refusal::Unsigned,
+        Refusal::BadSignature,
+        Refusal::Replayed,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -132,6 +142,9 @@ impl Refusal {
             Refusal::DepthOutOfRange => "depth_out_of_range",
             Refusal::TemperatureOutOfRange => "temperature_out_of_range",
             Refusal::VfrHudZero => "vfr_hud_zero",
+            Refusal::Unsigned => "unsigned",
+            Refusal::BadSignature => "bad_signature",
+            Refusal::Replayed => "replayed",
         }
     }
 
@@ -313,6 +326,7 @@ mod tests {
             component: 1,
             msg_id: id,
             payload,
+            bytes: payload,
         }
     }
 

@@ -9,6 +9,7 @@
 //! [`RestartCounter`]): the autopilot's EKF resets its position to ours
 //! when it changes instead of treating the jump as an outlier.
 
+use super::signing::{timestamp_now, Signer, SigningConfig};
 use crate::covariance::{position_covariance, speed_covariance, PoseStd, SpeedStd};
 use crate::latest::{opt, word, Latest};
 use crate::ned::{NedVec, Site};
@@ -540,12 +541,13 @@ pub fn heartbeat(active: bool) -> MavMessage {
 }
 
 /// MAVLink 2 framing with this component's ids and its own sequence
-/// numbers, into one reused buffer.
+/// numbers, into one reused buffer; signed when signing is configured.
 pub struct Encoder {
     system_id: u8,
     component_id: u8,
     seq: u8,
     raw: MAVLinkV2MessageRaw,
+    signer: Option<Signer>,
 }
 
 impl Encoder {
@@ -555,7 +557,22 @@ impl Encoder {
             component_id,
             seq: 0,
             raw: MAVLinkV2MessageRaw::new(),
+            signer: None,
         }
+    }
+
+    /// Frames signed with `signing`'s key (and its link id).
+    pub fn signed(self, signing: Option<SigningConfig>) -> Self {
+        Encoder {
+            signer: signing.map(Signer::new),
+            ..self
+        }
+    }
+
+    /// The signing state, which the frames taken also move (their
+    /// timestamps; see [`Signer::check`]).
+    pub fn signer_mut(&mut self) -> Option<&mut Signer> {
+        self.signer.as_mut()
     }
 
     /// The frame of `msg`, valid until the next call.
@@ -566,7 +583,10 @@ impl Encoder {
             sequence: self.seq,
         };
         self.seq = self.seq.wrapping_add(1);
-        self.raw.serialize_message(h, msg);
+        match &mut self.signer {
+            Some(sg) => sg.serialize(&mut self.raw, h, msg, timestamp_now()),
+            None => self.raw.serialize_message(h, msg),
+        }
         self.raw.raw_bytes()
     }
 }

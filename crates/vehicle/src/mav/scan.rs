@@ -4,7 +4,8 @@
 //! message id without a word; STATUS must count both, so framing is done
 //! here and the crate gives the CRC, the CRC_EXTRA table and the payload
 //! decoders. MAVLink 1 (0xFE) and 2 (0xFD) frames are read; a signed
-//! MAVLink 2 frame is read without checking its signature.
+//! MAVLink 2 frame's signature is checked by the task when signing is
+//! configured (`signing`), from the frame's bytes.
 
 use mavlink::dialects::ardupilotmega::MavMessage;
 use mavlink::{calculate_crc, MavlinkVersion, Message};
@@ -25,6 +26,8 @@ pub struct RawFrame<'a> {
     pub component: u8,
     pub msg_id: u32,
     pub payload: &'a [u8],
+    /// The whole frame, start marker to signature.
+    pub bytes: &'a [u8],
 }
 
 /// What the scanner found next.
@@ -226,6 +229,7 @@ impl Scanner {
             component,
             msg_id,
             payload: &c[header..header + len],
+            bytes: c,
         }))
     }
 }

@@ -3,7 +3,7 @@
 //! heartbeat, and reopens the link (with a capped back-off) when it fails.
 //! It returns only when `shutdown` resolves.
 
-use super::counters::{AutopilotId, LastError, NetOp};
+use super::counters::{AutopilotId, LastError, NetOp, SigningStatus};
 use super::inbound::{
     interpret, is_autopilot_heartbeat, origin, Input, InputConfig, Refusal, Refused,
 };
@@ -12,6 +12,7 @@ use super::outbound::{
     heartbeat, skip_why, vision_position, vision_speed, Encoder, Outgoing, OutputConfig, Skip,
 };
 use super::scan::{Framing, RawFrame, Scanned, Scanner};
+use super::signing::{Rejected, Signer, SigningConfig};
 use crate::backoff::Backoff;
 use crate::ned::Site;
 use crate::Hub;
@@ -40,6 +41,9 @@ pub struct MavlinkSettings {
     pub heartbeat_period: Duration,
     /// Longest wait between attempts to (re)open the link.
     pub reopen_max: Duration,
+    /// MAVLink 2 signing: every frame sent signed, only signed frames
+    /// taken (`signing`).
+    pub signing: Option<SigningConfig>,
 }
 
 impl MavlinkSettings {
@@ -54,6 +58,7 @@ impl MavlinkSettings {
             output: OutputConfig::default(),
             heartbeat_period: Duration::from_secs(1),
             reopen_max: Duration::from_secs(5),
+            signing: None,
         }
     }
 }
@@ -98,6 +103,7 @@ pub async fn run_with(
     if let Some(why) = slow_rate(&s.output) {
         tracing::warn!("mavlink: {why}");
     }
+    announce_signing(&s, &hub);
     let mut shutdown = std::pin::pin!(shutdown);
     let mut backoff = Backoff::new(Duration::from_millis(200), s.reopen_max);
     let mut tx = Sender::new(&s);
@@ -149,6 +155,35 @@ pub async fn run_with(
     }
 }
 
+/// Say at start how the link is signed (journal and STATUS).
+fn announce_signing(s: &MavlinkSettings, hub: &Hub) {
+    let Some(sg) = &s.signing else { return };
+    let status = SigningStatus {
+        key: sg.key.fingerprint(),
+        link_id: sg.link_id,
+        allow_unsigned: sg.allow_unsigned,
+    };
+    tracing::info!(
+        "mavlink: signing with key {} on link id {}; unsigned frames {}",
+        status.key,
+        status.link_id,
+        if status.allow_unsigned {
+            "taken too"
+        } else {
+            "refused"
+        }
+    );
+    if super::signing::timestamp_now() == 0 {
+        tracing::warn!(
+            "mavlink: the clock reads before 2015: signatures take their time from the \
+             autopilot's first signed frame, and until then the autopilot may refuse ours"
+        );
+    }
+    if let Ok(mut g) = hub.mavlink.signing.lock() {
+        *g = Some(status);
+    }
+}
+
 /// What a session borrows from the run: the sender, who the autopilot
 /// is, and the reopen back-off.
 struct Io<'a> {
@@ -181,7 +216,7 @@ async fn serve(
                         addr: link.sender(),
                         admitted: link.sender_admitted(now),
                     };
-                    if absorb(&mut scanner, s, hub, ap, from) {
+                    if absorb(&mut scanner, s, hub, ap, from, tx.enc.signer_mut()) {
                         if let Some(change) = link.accept_sender(now) {
                             peer_changed(hub, change);
                         }
@@ -330,19 +365,27 @@ fn peer_changed(hub: &Hub, change: PeerChange) {
 
 /// Turn everything the scanner holds into readings or counts. True when
 /// it held a CRC-valid frame of the autopilot (on `udpin`, what makes its
-/// sender the peer).
+/// sender the peer). With signing, a frame without the key's signature is
+/// dropped first: it is nobody's, so it neither reads nor moves the peer.
 fn absorb(
     sc: &mut Scanner,
     s: &MavlinkSettings,
     hub: &Hub,
     ap: &mut Autopilot,
     from: Source,
+    mut signer: Option<&mut Signer>,
 ) -> bool {
     let c = &hub.mavlink;
     let mut from_autopilot = false;
     while let Some(ev) = sc.next_frame() {
         match ev {
-            Scanned::Frame(f) => from_autopilot |= take(&f, s, hub, ap, &from),
+            Scanned::Frame(f) => {
+                let checked = signer.as_deref_mut().map_or(Ok(()), |sg| sg.check(f.bytes));
+                match checked {
+                    Ok(()) => from_autopilot |= take(&f, s, hub, ap, &from),
+                    Err(r) => c.drop_frame(refusal_of(r), Some(f.msg_id)),
+                }
+            }
             Scanned::BadCrc { msg_id } => c.drop_frame(Refusal::BadCrc, Some(msg_id)),
             Scanned::Unknown { msg_id } => c.drop_frame(Refusal::UnknownMessage, Some(msg_id)),
             Scanned::BadFlags => c.drop_frame(Refusal::BadFlags, None),
@@ -353,6 +396,14 @@ fn absorb(
     }
     c.garbage_bytes.fetch_add(sc.take_garbage(), Relaxed);
     from_autopilot
+}
+
+fn refusal_of(r: Rejected) -> Refusal {
+    match r {
+        Rejected::Unsigned => Refusal::Unsigned,
+        Rejected::BadSignature => Refusal::BadSignature,
+        Rejected::Replayed => Refusal::Replayed,
+    }
 }
 
 /// One CRC-valid frame: a reading, a count or a refusal. True when it
@@ -483,7 +534,7 @@ struct Sender {
 impl Sender {
     fn new(s: &MavlinkSettings) -> Self {
         Sender {
-            enc: Encoder::new(s.system_id, s.component_id),
+            enc: Encoder::new(s.system_id, s.component_id).signed(s.signing.clone()),
             seen: 0,
             last_pos_t: None,
             last_sent: None,

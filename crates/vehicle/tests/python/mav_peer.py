@@ -9,9 +9,17 @@ when it has seen enough of each message (two HEARTBEATs from each
 component), or at the deadline, and prints
 {"done": ...} with its counts and pymavlink's receive-error count.
 
-usage: mav_peer.py N_POSITIONS TIMEOUT_S
+With PASSPHRASE it signs what it sends (link id 7) with the key
+SHA-256(PASSPHRASE), as MAVProxy's `signing setup` makes it, and checks the
+signature of what it receives (pymavlink refuses frames not signed with
+the key: they count as bad data); "done" then also has pymavlink's
+signature counts.
+
+usage: mav_peer.py N_POSITIONS TIMEOUT_S [PASSPHRASE]
+(MAV_PEER_COMPONENTS: how many components of ours to expect, default 2.)
 """
 
+import hashlib
 import json
 import math
 import os
@@ -68,6 +76,13 @@ def main():
     rx = apm.MAVLink(None)
     rx.robust_parsing = True
     tx = apm.MAVLink(None, srcSystem=1, srcComponent=1)
+    if len(sys.argv) > 3:
+        key = hashlib.sha256(sys.argv[3].encode()).digest()
+        # As mavutil's setup_signing: timestamps in 10 us since 2015.
+        now = int((time.time() - 1420070400) * 100 * 1000)
+        tx.signing.secret_key, tx.signing.link_id = key, 7
+        tx.signing.sign_outgoing, tx.signing.timestamp = True, now
+        rx.signing.secret_key = key
     peers, counts, bad, next_send, rounds = set(), {}, 0, 0.0, 0
     beats = {}  # HEARTBEATs per (system, component) that sent them
     while time.monotonic() < deadline:
@@ -92,6 +107,11 @@ def main():
                     "comp": m.get_srcComponent(),
                     "seq": m.get_seq(),
                     "v2": m.get_msgbuf()[0] == 0xFD,
+                    # Verified with the key (only with a PASSPHRASE), and the
+                    # frame's own "signed" flag.
+                    "signed": bool(m.get_signed()),
+                    "flag_signed": bool(m.get_msgbuf()[2] & 1),
+                    "link_id": m.get_link_id(),
                     "fields": {k: clean(v) for k, v in m.to_dict().items()},
                 }
                 print(json.dumps(line), flush=True)
@@ -111,7 +131,7 @@ def main():
             and counts.get("VISION_SPEED_ESTIMATE", 0) >= 1
             # Two from each of the test's two components: four in all
             # could be three of one and one of the other (failed once).
-            and len(beats) >= 2
+            and len(beats) >= int(os.environ.get("MAV_PEER_COMPONENTS", "2"))
             and min(beats.values()) >= 2
             and rounds >= 4
         ):
@@ -122,6 +142,9 @@ def main():
         "bad_data": bad,
         "receive_errors": rx.total_receive_errors,
         "rounds": rounds,
+        "good_signatures": rx.signing.goodsig_count,
+        "bad_signatures": rx.signing.badsig_count,
+        "unsigned": rx.signing.unsigned_count,
     }
     print(json.dumps(done), flush=True)
 

@@ -1,0 +1,419 @@
+//! MAVLink 2 message signing (mavlink.io/en/guide/message_signing.html).
+//! With a key configured, every frame this component sends is signed, and
+//! only frames signed with the key are taken.
+//!
+//! Why: an autopilot with signing on (ArduPilot after `SETUP_SIGNING`)
+//! drops unsigned frames on every link but USB, so an unsigned
+//! `VISION_POSITION_ESTIMATE` never reaches its EKF. And on a vehicle's
+//! LAN, without it whoever can send a UDP datagram can feed the estimator
+//! an attitude or a depth, or (on `udpin`) become the poses' destination.
+//!
+//! The signature is SHA-256 over the key and the frame from its start
+//! marker through the timestamp, cut to 6 bytes; the timestamp counts
+//! 10 µs since 2015-01-01 UTC and must grow on each stream (link id,
+//! system, component), which is what stops a recorded frame from being
+//! played again.
+
+use mavlink::MAVLinkV2MessageRaw;
+use sha2::{Digest, Sha256};
+use std::fmt;
+use std::path::Path;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+/// Link id, timestamp and signature after a signed frame's checksum.
+pub const SIGNATURE_LEN: usize = 13;
+const SIG_VALUE_LEN: usize = 6;
+const STX_V2: u8 = 0xFD;
+const IFLAG_SIGNED: u8 = 0x01;
+/// 2015-01-01 00:00:00 UTC in Unix seconds: the timestamps' epoch.
+const EPOCH_2015_S: u64 = 1_420_070_400;
+/// A stream not heard before is refused when its timestamp is more than a
+/// minute behind ours (the spec's rule: an old recording is not new).
+const NEW_STREAM_SLACK: u64 = 60 * 100_000;
+/// Streams remembered (link id, system, component). Only frames with a
+/// valid signature make one, so this is a bound, not a working size: a
+/// vehicle has a handful (autopilot, GCS, a companion or two).
+const MAX_STREAMS: usize = 32;
+
+/// The 32-byte secret both ends share. Its `Debug` shows a fingerprint,
+/// never the key (settings are logged).
+#[derive(Clone, PartialEq, Eq)]
+pub struct SigningKey([u8; 32]);
+
+/// How a key file holds the key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KeyForm {
+    /// 64 hexadecimal digits: the 32 bytes themselves.
+    Hex,
+    /// A passphrase: the key is its SHA-256, as MAVProxy's `signing setup`
+    /// and QGroundControl derive it.
+    Passphrase,
+}
+
+impl SigningKey {
+    pub fn from_bytes(key: [u8; 32]) -> Self {
+        SigningKey(key)
+    }
+
+    /// 64 hexadecimal digits.
+    pub fn from_hex(text: &str) -> Result<Self, String> {
+        let t = text.trim();
+        if t.len() != 64 || !t.bytes().all(|b| b.is_ascii_hexdigit()) {
+            return Err(format!(
+                "not a key: want 64 hexadecimal digits (32 bytes), found {} characters",
+                t.chars().count()
+            ));
+        }
+        let mut key = [0u8; 32];
+        for (k, pair) in key.iter_mut().zip(t.as_bytes().chunks(2)) {
+            let hex = std::str::from_utf8(pair).map_err(|e| e.to_string())?;
+            *k = u8::from_str_radix(hex, 16).map_err(|e| e.to_string())?;
+        }
+        Ok(SigningKey(key))
+    }
+
+    /// The SHA-256 of `passphrase` (its bytes as written).
+    pub fn from_passphrase(passphrase: &str) -> Self {
+        SigningKey(Sha256::digest(passphrase.as_bytes()).into())
+    }
+
+    /// The key in the file at `path`: its first line (a trailing newline
+    /// is not part of a passphrase; an empty one is refused).
+    pub fn load(path: &Path, form: KeyForm) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let line = text.lines().next().unwrap_or("").trim_end_matches('\r');
+        match form {
+            KeyForm::Hex => Self::from_hex(line).map_err(|e| format!("{}: {e}", path.display())),
+            KeyForm::Passphrase if line.is_empty() => {
+                Err(format!("{}: the passphrase is empty", path.display()))
+            }
+            KeyForm::Passphrase => Ok(Self::from_passphrase(line)),
+        }
+    }
+
+    /// A name for the key in logs and STATUS: the first 4 bytes of its
+    /// SHA-256, which tell two keys apart without saying either.
+    pub fn fingerprint(&self) -> String {
+        let d = Sha256::digest(self.0);
+        d[..4].iter().map(|b| format!("{b:02x}")).collect()
+    }
+
+    /// The signature of `signed`: a frame from its start marker through
+    /// the timestamp.
+    fn sign(&self, signed: &[u8]) -> [u8; SIG_VALUE_LEN] {
+        let mut h = Sha256::new();
+        h.update(self.0);
+        h.update(signed);
+        let d = h.finalize();
+        let mut out = [0u8; SIG_VALUE_LEN];
+        out.copy_from_slice(&d[..SIG_VALUE_LEN]);
+        out
+    }
+}
+
+impl fmt::Debug for SigningKey {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "SigningKey({})", self.fingerprint())
+    }
+}
+
+/// `[mavlink.signing]` as validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SigningConfig {
+    pub key: SigningKey,
+    /// The link id this component signs with (one per link of a system).
+    pub link_id: u8,
+    /// Take unsigned frames too (MAVLink 1 included): for a change-over,
+    /// while the autopilot's link is not signed yet. Frames that are
+    /// signed must still carry a good signature.
+    pub allow_unsigned: bool,
+}
+
+/// Why a frame was not taken.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rejected {
+    /// No signature, and unsigned frames are not taken.
+    Unsigned,
+    /// A signature that is not the key's (another key, or altered bytes).
+    BadSignature,
+    /// A good signature on a timestamp not newer than its stream's last
+    /// (a frame played again), or a new stream more than a minute behind.
+    Replayed,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Stream {
+    id: (u8, u8, u8),
+    timestamp: u64,
+    used: bool,
+}
+
+/// One link's signing: the key, the last timestamp sent or taken, and each
+/// stream's last timestamp. No allocation after it is made.
+#[derive(Debug, Clone)]
+pub struct Signer {
+    cfg: SigningConfig,
+    timestamp: u64,
+    streams: [Stream; MAX_STREAMS],
+}
+
+/// Now in the timestamps' unit (10 µs since 2015), 0 for a clock before
+/// 2015 (a computer that booted without its time): the timestamp then
+/// comes from the frames taken (see [`Signer::check`]).
+pub fn timestamp_now() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| (d.as_micros() / 10) as u64)
+        .saturating_sub(EPOCH_2015_S * 100_000)
+}
+
+impl Signer {
+    pub fn new(cfg: SigningConfig) -> Self {
+        Signer {
+            cfg,
+            timestamp: 0,
+            streams: [Stream::default(); MAX_STREAMS],
+        }
+    }
+
+    pub fn config(&self) -> &SigningConfig {
+        &self.cfg
+    }
+
+    /// Serialize `msg` into `raw` signed, with timestamp the later of
+    /// `now` and one past the last used or taken.
+    pub fn serialize<M: mavlink::Message>(
+        &mut self,
+        raw: &mut MAVLinkV2MessageRaw,
+        header: mavlink::MavHeader,
+        msg: &M,
+        now: u64,
+    ) {
+        raw.serialize_message_for_signing(header, msg);
+        self.timestamp = now.max(self.timestamp + 1);
+        *raw.signature_link_id_mut() = self.cfg.link_id;
+        raw.signature_timestamp_bytes_mut()
+            .copy_from_slice(&self.timestamp.to_le_bytes()[..6]);
+        let n = raw.raw_bytes().len();
+        let sig = self.cfg.key.sign(&raw.raw_bytes()[..n - SIG_VALUE_LEN]);
+        raw.signature_value_mut().copy_from_slice(&sig);
+    }
+
+    /// Whether `frame` (a whole CRC-valid MAVLink 1 or 2 frame) may be
+    /// taken. A good signature moves the stream's timestamp and ours (so a
+    /// computer without the time signs after the autopilot's clock).
+    pub fn check(&mut self, frame: &[u8]) -> Result<(), Rejected> {
+        let signed =
+            frame.len() >= 12 + SIGNATURE_LEN && frame[0] == STX_V2 && frame[2] & IFLAG_SIGNED != 0;
+        if !signed {
+            return if self.cfg.allow_unsigned {
+                Ok(())
+            } else {
+                Err(Rejected::Unsigned)
+            };
+        }
+        let (body, sig) = frame.split_at(frame.len() - SIG_VALUE_LEN);
+        if self.cfg.key.sign(body) != sig {
+            return Err(Rejected::BadSignature);
+        }
+        let tail = &body[body.len() - 7..];
+        let mut ts = [0u8; 8];
+        ts[..6].copy_from_slice(&tail[1..]);
+        let ts = u64::from_le_bytes(ts);
+        let id = (tail[0], frame[5], frame[6]);
+        match self.streams.iter_mut().find(|s| s.used && s.id == id) {
+            Some(s) if ts <= s.timestamp => return Err(Rejected::Replayed),
+            Some(s) => s.timestamp = ts,
+            None if ts.saturating_add(NEW_STREAM_SLACK) < self.timestamp => {
+                return Err(Rejected::Replayed)
+            }
+            None => {
+                // A free slot, else the stream heard of longest ago.
+                let slot = self
+                    .streams
+                    .iter_mut()
+                    .min_by_key(|s| (s.used, s.timestamp))
+                    .expect("MAX_STREAMS > 0");
+                *slot = Stream {
+                    id,
+                    timestamp: ts,
+                    used: true,
+                };
+            }
+        }
+        self.timestamp = self.timestamp.max(ts);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA};
+    use mavlink::MavHeader;
+
+    fn cfg(allow_unsigned: bool) -> SigningConfig {
+        SigningConfig {
+            key: SigningKey::from_passphrase("correct horse"),
+            link_id: 3,
+            allow_unsigned,
+        }
+    }
+
+    fn attitude() -> MavMessage {
+        MavMessage::ATTITUDE(ATTITUDE_DATA {
+            pitch: 0.1,
+            ..Default::default()
+        })
+    }
+
+    fn header(system: u8, component: u8) -> MavHeader {
+        MavHeader {
+            system_id: system as u32,
+            component_id: component,
+            sequence: 0,
+        }
+    }
+
+    fn signed(s: &mut Signer, system: u8, now: u64) -> Vec<u8> {
+        let mut raw = MAVLinkV2MessageRaw::new();
+        s.serialize(&mut raw, header(system, 1), &attitude(), now);
+        raw.raw_bytes().to_vec()
+    }
+
+    /// A passphrase's key is its SHA-256, as MAVProxy makes it: FIPS
+    /// 180's vector for "abc".
+    #[test]
+    fn a_passphrase_is_hashed_and_hex_is_read_as_bytes() {
+        let k = SigningKey::from_passphrase("abc");
+        let hex = "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad";
+        assert_eq!(k, SigningKey::from_hex(hex).unwrap());
+        assert_eq!(k, SigningKey::from_hex(&hex.to_uppercase()).unwrap());
+        assert!(SigningKey::from_hex(&hex[..62]).is_err());
+        assert!(SigningKey::from_hex(&format!("{}zz", &hex[..62])).is_err());
+        assert_eq!(format!("{k:?}"), format!("SigningKey({})", k.fingerprint()));
+        assert!(!format!("{k:?}").contains("ba7816"));
+    }
+
+    #[test]
+    fn key_files_are_read_by_their_first_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("key");
+        std::fs::write(&p, "abc\n").unwrap();
+        assert_eq!(
+            SigningKey::load(&p, KeyForm::Passphrase).unwrap(),
+            SigningKey::from_passphrase("abc")
+        );
+        let e = SigningKey::load(&p, KeyForm::Hex).unwrap_err();
+        assert!(e.contains("64 hexadecimal digits"), "{e}");
+        std::fs::write(&p, "\n").unwrap();
+        let e = SigningKey::load(&p, KeyForm::Passphrase).unwrap_err();
+        assert!(e.contains("empty"), "{e}");
+        let e = SigningKey::load(&dir.path().join("none"), KeyForm::Hex).unwrap_err();
+        assert!(e.contains("none"), "{e}");
+    }
+
+    #[test]
+    fn a_frame_signed_with_the_key_is_taken_once() {
+        let (mut a, mut b) = (Signer::new(cfg(false)), Signer::new(cfg(false)));
+        let f = signed(&mut a, 1, 1000);
+        assert_eq!(f[2] & IFLAG_SIGNED, IFLAG_SIGNED);
+        assert_eq!(b.check(&f), Ok(()));
+        // The same frame again is a replay.
+        assert_eq!(b.check(&f), Err(Rejected::Replayed));
+        // The next one from the same stream is newer even at the same now.
+        let g = signed(&mut a, 1, 1000);
+        assert_eq!(b.check(&g), Ok(()));
+    }
+
+    #[test]
+    fn another_key_or_an_altered_byte_is_refused() {
+        let mut a = Signer::new(cfg(false));
+        let mut other = Signer::new(SigningConfig {
+            key: SigningKey::from_passphrase("wrong"),
+            ..cfg(false)
+        });
+        let f = signed(&mut a, 1, 5);
+        assert_eq!(other.check(&f), Err(Rejected::BadSignature));
+        let mut b = Signer::new(cfg(false));
+        for k in 0..f.len() {
+            let mut g = f.clone();
+            g[k] ^= 0x10;
+            // The start marker altered makes it no MAVLink 2 frame (hence
+            // unsigned); any other byte breaks the signature.
+            let want = if k == 0 {
+                Rejected::Unsigned
+            } else {
+                Rejected::BadSignature
+            };
+            assert_eq!(b.check(&g), Err(want), "byte {k}");
+        }
+        assert_eq!(b.check(&f), Ok(()));
+    }
+
+    #[test]
+    fn unsigned_frames_are_taken_only_when_allowed() {
+        let mut raw = MAVLinkV2MessageRaw::new();
+        raw.serialize_message(header(1, 1), &attitude());
+        let f = raw.raw_bytes().to_vec();
+        assert_eq!(Signer::new(cfg(false)).check(&f), Err(Rejected::Unsigned));
+        assert_eq!(Signer::new(cfg(true)).check(&f), Ok(()));
+        // Allowed unsigned does not let a bad signature through.
+        let mut a = Signer::new(cfg(true));
+        let mut g = signed(&mut a, 1, 9);
+        let n = g.len();
+        g[n - 1] ^= 1;
+        assert_eq!(
+            Signer::new(cfg(true)).check(&g),
+            Err(Rejected::BadSignature)
+        );
+    }
+
+    /// A computer whose clock is at 1970 signs after what it has taken; a
+    /// new stream a minute behind is a recording, not a newcomer.
+    #[test]
+    fn timestamps_follow_the_frames_taken() {
+        let minute = 60 * 100_000;
+        let mut ap = Signer::new(cfg(false));
+        let mut me = Signer::new(cfg(false));
+        assert_eq!(me.check(&signed(&mut ap, 1, 50 * minute)), Ok(()));
+        let mine = signed(&mut me, 1, 0);
+        let ts = u64::from_le_bytes({
+            let mut b = [0u8; 8];
+            b[..6].copy_from_slice(&mine[mine.len() - 12..mine.len() - 6]);
+            b
+        });
+        assert_eq!(ts, 50 * minute + 1);
+        // A stream first heard 2 minutes behind: refused; 30 s behind: taken.
+        let mut old = Signer::new(cfg(false));
+        assert_eq!(
+            me.check(&signed(&mut old, 2, 48 * minute)),
+            Err(Rejected::Replayed)
+        );
+        let mut late = Signer::new(cfg(false));
+        assert_eq!(
+            me.check(&signed(&mut late, 3, 50 * minute - minute / 2)),
+            Ok(())
+        );
+    }
+
+    #[test]
+    fn streams_are_bounded_and_the_oldest_is_forgotten() {
+        let mut me = Signer::new(cfg(false));
+        let mut peers: Vec<Signer> = (0..=MAX_STREAMS).map(|_| Signer::new(cfg(false))).collect();
+        for (k, p) in peers.iter_mut().enumerate() {
+            let f = signed(p, k as u8 + 1, 1000 + k as u64);
+            assert_eq!(me.check(&f), Ok(()), "stream {k}");
+        }
+        assert!(me.streams.iter().all(|s| s.used));
+        assert!(!me.streams.iter().any(|s| s.id.1 == 1), "the oldest went");
+    }
+
+    #[test]
+    fn the_clock_counts_from_2015_in_10_microseconds() {
+        let now = timestamp_now();
+        // 2026 is 11+ years after 2015: over 3.4e13 units.
+        assert!(now > 11 * 365 * 86_400 * 100_000, "{now}");
+        assert!(now < 1 << 48, "fits 48 bits");
+    }
+}
