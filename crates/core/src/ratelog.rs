@@ -8,6 +8,13 @@
 //! [`STEPS`]: 1 s, 10 s, 1 min, then every 10 min), each saying how many
 //! events came since the line before it; after [`QUIET`] without one, the
 //! condition is over and the next event is again logged at once.
+//!
+//! The events after the last line of a condition are told by a closing
+//! line: the owner calls [`RateLog::settle`] from something that runs
+//! anyway (a per-frame path, a timer, a status tick), and writes one line
+//! when it answers, at the level of the condition's lines: "…: the
+//! condition is over: N more since the last line, the last S s ago". So
+//! the n of all lines, tick's and settle's, add up to the events counted.
 
 use std::time::{Duration, Instant};
 
@@ -57,6 +64,56 @@ impl RateLog {
             step: 0,
             unsaid: 0,
         }
+    }
+
+    /// Events counted and not said yet (a field read: owners on a
+    /// per-frame path call [`RateLog::settle`], which wants the clock,
+    /// only when this is not 0).
+    pub const fn pending(&self) -> u64 {
+        self.unsaid
+    }
+
+    /// How long before `now` the last event came (zero if none, or if it
+    /// is stamped after `now`): for the closing line's "the last S s ago".
+    pub fn since_last(&self, now: Instant) -> Duration {
+        self.last
+            .map_or(Duration::ZERO, |t| now.saturating_duration_since(t))
+    }
+
+    /// The closing line: `Some(n)` once, when events are pending and none
+    /// came for the step in force (the wait the next line would have had:
+    /// 1 s after a condition's first line, 10 s after its second, 1 min,
+    /// then 10 min), n = those events. `None` while events still come,
+    /// and when there is nothing to tell; after it, `None` until another
+    /// event.
+    ///
+    /// Why the step in force and not [`QUIET`]: the end of a burst (a
+    /// stall of a few seconds) is told within seconds, not 10 min later,
+    /// and the line breaks no rule, as it is the line the next event would
+    /// have been given: it comes at least the step after the line before
+    /// it (and after the last event), and it counts as a line of the
+    /// condition (the step after it is the next one). The lines of one
+    /// condition, tick's and settle's together, are spaced as
+    /// [`STEPS`] say, so a condition that keeps coming back (within
+    /// [`QUIET`]) still comes down to a line per 10 min. Only [`QUIET`]
+    /// without an event ends the condition for [`RateLog::tick`]: an
+    /// event after the closing line is logged at once if the next step has
+    /// passed since it (always after [`QUIET`]; in the 10-min step, the
+    /// closing line comes only then), else by the steps as before.
+    pub fn settle(&mut self, now: Instant) -> Option<u64> {
+        if self.unsaid == 0 {
+            return None;
+        }
+        let wait = STEPS[usize::from(self.step)];
+        let since = |t: Option<Instant>| t.is_none_or(|t| now.saturating_duration_since(t) >= wait);
+        // The last line too: an event stamped before it (another
+        // thread's clock read) must not bring the next line forward.
+        if !(since(self.last) && since(self.said)) {
+            return None;
+        }
+        self.step = (self.step + 1).min(STEPS.len() as u8 - 1);
+        self.said = Some(now);
+        Some(std::mem::take(&mut self.unsaid))
     }
 
     /// An event at `now`: `Some(n)` when a line should be written now, n =
@@ -173,7 +230,172 @@ mod tests {
         assert_eq!(log.tick(late + STEPS[0]), Some(2));
     }
 
+    /// Lines (time since `t0`, count, whether settle's) of a timeline of
+    /// events and settle calls at `t0` + each offset.
+    fn timeline(
+        log: &mut RateLog,
+        t0: Instant,
+        at: impl Iterator<Item = (Duration, bool)>,
+    ) -> Vec<(Duration, u64, bool)> {
+        at.filter_map(|(d, settle)| {
+            let now = t0 + d;
+            let got = if settle {
+                log.settle(now)
+            } else {
+                log.tick(now)
+            };
+            got.map(|n| (d, n, settle))
+        })
+        .collect()
+    }
+
+    /// Events every 10 ms for 3 s, settle called every 100 ms for 2 min:
+    /// lines at 0 and 1 s, then the closing line with the 199 events
+    /// after 1 s, the step in force (10 s) after the last one; once. An
+    /// event after it within the next step (1 min) waits for that step,
+    /// and is told alone by the next closing line.
+    #[test]
+    fn the_end_of_a_burst_is_told_one_step_after_its_last_event() {
+        let t0 = Instant::now();
+        let mut log = RateLog::new();
+        let ms = Duration::from_millis;
+        let events = (0..300).map(|k| (ms(10 * k), false));
+        let settles = (0..1200).map(|k| (ms(100 * k + 5), true));
+        let mut at: Vec<_> = events.chain(settles).collect();
+        at.push((ms(20_000), false));
+        at.sort();
+        let got = timeline(&mut log, t0, at.into_iter());
+        assert_eq!(
+            got,
+            [
+                (ms(0), 1, false),
+                (ms(1_000), 100, false),
+                (ms(13_005), 199, true),
+                (ms(80_005), 1, true),
+            ]
+        );
+        assert_eq!(got.iter().map(|l| l.1).sum::<u64>(), 301);
+        assert_eq!(log.pending(), 0);
+        assert_eq!(log.since_last(t0 + ms(80_005)), ms(60_005));
+    }
+
+    /// Nothing pending, nothing to settle; after the closing line, none
+    /// again until an event; and a condition over for `QUIET` starts
+    /// anew, its first event logged at once.
+    #[test]
+    fn settle_says_each_event_once() {
+        let t0 = Instant::now();
+        let s = Duration::from_secs;
+        let mut log = RateLog::new();
+        assert_eq!(log.settle(t0), None);
+        assert_eq!(log.tick(t0), Some(1));
+        assert_eq!(log.settle(t0 + s(5)), None, "the first line said it");
+        assert_eq!(log.tick(t0 + s(5)), Some(1));
+        assert_eq!(log.tick(t0 + s(6)), None);
+        assert_eq!(log.settle(t0 + s(15)), None, "9 s of the 10 s step");
+        assert_eq!(log.settle(t0 + s(16)), Some(1));
+        assert_eq!(log.settle(t0 + s(17)), None);
+        assert_eq!(log.settle(t0 + s(3600)), None);
+        let back = t0 + s(6) + QUIET;
+        assert_eq!(log.tick(back), Some(1), "a new condition");
+        assert_eq!(log.tick(back + s(1) / 2), None);
+        assert_eq!(log.settle(back + s(1)), None, "0.5 s without one");
+        assert_eq!(log.settle(back + s(3) / 2), Some(1), "the 1 s step");
+    }
+
+    /// A burst of 1 s every 5 min for a day (within `QUIET`: one
+    /// condition), settle called every second: closing lines come while
+    /// the steps are short, and then a line per 10 min as without them:
+    /// 148 lines, not a line or two per burst (288 bursts).
+    #[test]
+    fn bursts_that_keep_coming_back_come_down_to_a_line_per_10_min() {
+        let t0 = Instant::now();
+        let mut log = RateLog::new();
+        let ms = Duration::from_millis;
+        let mut at: Vec<_> = (0..288u64)
+            .flat_map(|b| (0..100).map(move |k| (ms(300_000 * b + 10 * k), false)))
+            .chain((0..86_400).map(|k| (ms(1000 * k + 5), true)))
+            .collect();
+        at.sort();
+        let got = timeline(&mut log, t0, at.into_iter());
+        let kinds: Vec<bool> = got.iter().map(|l| l.2).collect();
+        assert_eq!(kinds[..4], [false, true, false, true]);
+        for w in got[3..].windows(2) {
+            assert!(w[1].0 - w[0].0 >= QUIET, "{:?}", w);
+        }
+        assert!(got.len() <= 4 + 144, "{} lines", got.len());
+        let said: u64 = got.iter().map(|l| l.1).sum();
+        assert_eq!(said + log.pending(), 288 * 100);
+    }
+
     proptest! {
+        /// Settle interleaved with events, whatever the gaps: events are
+        /// said as without settle (at once after a quiet gap, else when the
+        /// step since the last line has passed); settle says exactly when
+        /// events are pending and none came for the step in force since
+        /// the last event and the last line, then counts as a line; never
+        /// two closing lines without an event between; every line of a
+        /// condition the step after the one before; and the counts said
+        /// plus those pending are every event.
+        #[test]
+        fn settled_lines_keep_the_steps_and_count_every_event(
+            ops in prop::collection::vec(
+                (prop_oneof![0u64..2_000, 0u64..120_000, 0u64..1_300_000], any::<bool>()),
+                1..400,
+            )
+        ) {
+            let t0 = Instant::now();
+            let mut log = RateLog::new();
+            let mut now = t0;
+            let (mut last, mut line_at) = (None::<Instant>, t0);
+            let (mut events, mut pending, mut said) = (0u64, 0u64, 0u64);
+            let (mut lines_in_condition, mut settled_last) = (0usize, false);
+            for (k, (g, settle)) in ops.iter().enumerate() {
+                now += Duration::from_millis(*g);
+                let step = STEPS[lines_in_condition.saturating_sub(1).min(STEPS.len() - 1)];
+                let got = if *settle {
+                    let got = log.settle(now);
+                    let due = pending > 0
+                        && last.is_some_and(|l| now - l >= step)
+                        && now - line_at >= step;
+                    prop_assert_eq!(got.is_some(), due, "settle {}, {:?} after the last line", k, now - line_at);
+                    if got.is_some() {
+                        prop_assert!(!settled_last, "two closing lines in a row at {}", k);
+                        settled_last = true;
+                    }
+                    got
+                } else {
+                    events += 1;
+                    pending += 1;
+                    settled_last = false;
+                    let fresh = last.is_none_or(|l| now - l >= QUIET);
+                    last = Some(now);
+                    let got = log.tick(now);
+                    if fresh {
+                        prop_assert!(got.is_some(), "event {} after a quiet gap not said", k);
+                        lines_in_condition = 0;
+                    } else {
+                        let due = now - line_at >= step;
+                        prop_assert_eq!(got.is_some(), due, "event {}, {:?} after the last line", k, now - line_at);
+                    }
+                    got
+                };
+                if let Some(n) = got {
+                    if lines_in_condition > 0 {
+                        prop_assert!(now - line_at >= step, "line {} {:?} after the one before", k, now - line_at);
+                    }
+                    prop_assert!(n >= 1);
+                    prop_assert_eq!(n, pending);
+                    pending = 0;
+                    said += n;
+                    lines_in_condition += 1;
+                    line_at = now;
+                }
+                prop_assert_eq!(log.pending(), pending);
+            }
+            prop_assert_eq!(said + log.pending(), events);
+        }
+
         /// Whatever the gaps: the first event and the first after a quiet
         /// gap are said at once; within one condition a line comes exactly
         /// when the step (1 s, 10 s, 1 min, then 10 min) since the last

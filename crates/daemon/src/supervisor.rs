@@ -76,6 +76,9 @@ impl Ticker {
         self.seq += 1;
         if let Ok(bytes) = serde_json::to_vec(&msg) {
             ctx.publisher.send(&bytes);
+            // The destinations' closing lines (send errors that stopped):
+            // STATUS comes whatever happens, POSE only with frames.
+            ctx.publisher.settle(Instant::now());
             for t in &self.taps {
                 t.status(&bytes);
             }

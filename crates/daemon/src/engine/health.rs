@@ -41,7 +41,10 @@ pub(super) struct HealthLog {
 impl HealthLog {
     /// The health copied at `now` (`was` the copy before it): a line if
     /// a fault grew and one is due, or `at_exit` if some growth was not
-    /// told yet (the last copy: nothing is left unsaid).
+    /// told yet (the last copy: nothing is left unsaid), or, the faults
+    /// having stopped growing for the step in force (core's
+    /// `RateLog::settle`), the closing line with the growth not told yet.
+    /// Copies come once a second: the closing line at most a second late.
     pub(super) fn note(
         &mut self,
         was: Option<&SourceHealth>,
@@ -56,8 +59,13 @@ impl HealthLog {
                 .zip(now_n.iter().zip(from))
                 .any(|((_, alone), (n, f))| *alone && n > f)
         };
-        let due = faults_grew(&was_n) && self.log.tick(now).is_some();
-        if !(due || at_exit && faults_grew(&self.said)) {
+        let grew = faults_grew(&was_n);
+        let due = grew && self.log.tick(now).is_some();
+        // Settled only in a copy where they did not grow: one where they
+        // did is an event, which tick has just counted.
+        let over = !due && !grew && self.log.settle(now).is_some();
+        let untold = faults_grew(&self.said);
+        if !(due || (at_exit || over) && untold) {
             return;
         }
         let what: Vec<String> = SKIPS
@@ -71,11 +79,20 @@ impl HealthLog {
             .last_bad_line
             .as_deref()
             .or(new.last_bad_reading.as_deref());
-        tracing::warn!(
-            last = last.unwrap_or("-"),
-            "source skipped {} since the last such line (STATUS backend.health)",
-            what.join(", ")
-        );
+        if over && !at_exit {
+            tracing::warn!(
+                last = last.unwrap_or("-"),
+                "source skips: the condition is over: {} more since the last line, the last {:.0} s ago (STATUS backend.health)",
+                what.join(", "),
+                self.log.since_last(now).as_secs_f64()
+            );
+        } else {
+            tracing::warn!(
+                last = last.unwrap_or("-"),
+                "source skipped {} since the last such line (STATUS backend.health)",
+                what.join(", ")
+            );
+        }
         self.said = now_n;
     }
 }
@@ -114,6 +131,42 @@ mod tests {
         assert_eq!(&told[..4], [10, 10, 100, 600]);
         assert_eq!(told.iter().sum::<u64>(), 36_050);
         assert!(text.contains("no checksum"), "{text}");
+    }
+
+    /// A board that sent garbage for 3 s and then stopped: lines at 1 s
+    /// and 2 s, and the third second's 10 bad lines, not due then (the
+    /// 10 s step), told by the closing line once the faults have not
+    /// grown for that step (at 13 s); then nothing, and nothing at exit.
+    #[test]
+    fn skips_that_stop_are_told_by_a_closing_line() {
+        let t0 = Instant::now();
+        let mut log = HealthLog::default();
+        let health = |s: u64| SourceHealth {
+            bad_lines: 10 * s.min(3),
+            last_bad_line: Some("ttyUSB0 line 7: no checksum".into()),
+            ..SourceHealth::default()
+        };
+        let text = lightpose_testkit::logs::logged(|| {
+            for s in 1..=60 {
+                let at = t0 + Duration::from_secs(s);
+                log.note(Some(&health(s - 1)), &health(s), at, false);
+                if s == 12 {
+                    assert_eq!(log.log.pending(), 1, "not yet");
+                }
+            }
+            log.note(Some(&health(60)), &health(60), t0, true);
+        });
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 3, "{text}");
+        assert!(lines[0].contains("skipped 10 bad lines"), "{text}");
+        assert!(lines[1].contains("skipped 10 bad lines"), "{text}");
+        assert!(
+            lines[2].contains("WARN")
+                && lines[2].contains(
+                    "source skips: the condition is over: 10 bad lines more since the last line, the last 10 s ago"
+                ),
+            "{text}"
+        );
     }
 
     /// Superseded lines alone are no fault: no line, but they are named

@@ -278,8 +278,52 @@ impl Engine {
             // Once a second, not per frame: the copy allocates.
             books.health_at = Instant::now();
             self.copy_health(books, false);
+            self.settle_logs(books, books.health_at);
         }
         None
+    }
+
+    /// The closing line of each kind of frame event whose condition is
+    /// over (core's `RateLog::settle`: none for the step in force), with
+    /// the events since its last line, at the level of its lines. Once a
+    /// second between frames (with the health copy) is enough: the line
+    /// comes at most a second after it is due. No allocation unless a
+    /// line is written.
+    fn settle_logs(&self, books: &mut Books, now: Instant) {
+        let stats = &self.stats;
+        let ago = |log: &RateLog| log.since_last(now).as_secs_f64();
+        if let Some(k) = books.late_log.settle(now) {
+            tracing::warn!(
+                late_total = stats.late.load(Relaxed),
+                since_last_line = k,
+                "late frames: the condition is over: {k} more since the last line, the last {:.1} s ago",
+                ago(&books.late_log)
+            );
+        }
+        if let Some(k) = books.fail_log.settle(now) {
+            tracing::warn!(
+                failed_total = stats.failed.load(Relaxed),
+                since_last_line = k,
+                "failed frames: the condition is over: {k} more since the last line, the last {:.1} s ago",
+                ago(&books.fail_log)
+            );
+        }
+        if let Some(k) = books.lost_log.settle(now) {
+            tracing::warn!(
+                lost_total = stats.lost.load(Relaxed),
+                gaps_since_last_line = k,
+                "seq gaps (frames lost at the source): the condition is over: {k} more since the last line, the last {:.1} s ago",
+                ago(&books.lost_log)
+            );
+        }
+        if let Some(k) = books.glitch_log.settle(now) {
+            tracing::info!(
+                lost_total = stats.lost.load(Relaxed),
+                glitches_since_last_line = k,
+                "lone seq glitches: the condition is over: {k} more since the last line, the last {:.1} s ago",
+                ago(&books.glitch_log)
+            );
+        }
     }
 
     /// The source's health into STATUS, and a line in the log when the

@@ -547,3 +547,58 @@ fn latency_counts_from_the_capture_and_includes_half_the_read() {
         );
     }
 }
+
+/// Fails `fails` times at once, then a frame every 10 ms.
+struct FailsFirst {
+    fails: u64,
+    seq: u64,
+}
+impl FrameSource for FailsFirst {
+    fn next_frame(&mut self) -> Result<Frame, SourceError> {
+        if self.fails > 0 {
+            self.fails -= 1;
+            return Err(SourceError::Timeout {
+                place: "board a".into(),
+            });
+        }
+        std::thread::sleep(Duration::from_millis(10));
+        self.seq += 1;
+        Ok(frame(self.seq, self.seq as f64 * 0.01))
+    }
+    fn adc_bits(&self) -> u8 {
+        10
+    }
+    fn describe(&self) -> String {
+        "fails first".into()
+    }
+}
+
+/// A burst of 30 failures: the first is said at once; the 29 after it
+/// were never told (the journal's count stopped at 1 while STATUS said
+/// 30). Once none came for the step in force (1 s), the closing line
+/// tells them, at the failures' level, within a second more.
+#[test]
+fn the_end_of_a_burst_of_failures_is_told() {
+    let stats = Arc::new(Stats::default());
+    let text = lightpose_testkit::logs::logged(|| {
+        let end = Engine::new(
+            Box::new(FailsFirst { fails: 30, seq: 0 }),
+            Box::new(Nothing),
+        )
+        .stats(stats.clone())
+        .max_frames(260)
+        .run();
+        assert_eq!(end, EndReason::FrameLimit);
+    });
+    assert_eq!(stats.failed.load(Relaxed), 30);
+    let failed: Vec<&str> = text.lines().filter(|l| l.contains("failed")).collect();
+    assert_eq!(failed.len(), 2, "{text}");
+    assert!(failed[0].contains("since_last_line=1"), "{text}");
+    assert!(
+        failed[1].contains("WARN")
+            && failed[1].contains("failed_total=30")
+            && failed[1]
+                .contains("failed frames: the condition is over: 29 more since the last line"),
+        "{text}"
+    );
+}

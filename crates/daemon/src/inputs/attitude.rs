@@ -220,7 +220,23 @@ pub async fn listen(
     let mut log = lightpose_core::ratelog::RateLog::new();
     let mut stranger_log = lightpose_core::ratelog::RateLog::new();
     loop {
-        let (n, from) = match sock.recv_from(&mut buf).await {
+        // Refusals not told yet: wake at least every second for their
+        // closing line (the AHRS may stop sending too; recv_from is
+        // cancel-safe); else wait for the next datagram as long as it
+        // takes.
+        let pending = log.pending() > 0 || stranger_log.pending() > 0;
+        let got = if pending {
+            tokio::time::timeout(Duration::from_secs(1), sock.recv_from(&mut buf))
+                .await
+                .ok()
+        } else {
+            Some(sock.recv_from(&mut buf).await)
+        };
+        if pending {
+            settle(&mut log, &mut stranger_log, &cell, Instant::now());
+        }
+        let Some(got) = got else { continue };
+        let (n, from) = match got {
             Ok(x) => x,
             Err(e) => {
                 tracing::warn!("attitude: receive failed: {e}");
@@ -245,6 +261,33 @@ pub async fn listen(
                 }
             }
         }
+    }
+}
+
+/// The closing lines of refusals that stopped (core's
+/// `RateLog::settle`): the AHRS's, then strangers'.
+fn settle(
+    log: &mut lightpose_core::ratelog::RateLog,
+    stranger_log: &mut lightpose_core::ratelog::RateLog,
+    cell: &AttitudeCell,
+    now: Instant,
+) {
+    if let Some(since) = log.settle(now) {
+        tracing::warn!(
+            rejected = cell.rejected.load(Relaxed),
+            since_last_line = since,
+            "attitude: datagrams refused: the condition is over: {since} more since the last line, the last {:.1} s ago",
+            log.since_last(now).as_secs_f64()
+        );
+    }
+    if let Some(since) = stranger_log.settle(now) {
+        tracing::warn!(
+            rejected = cell.rejected.load(Relaxed),
+            since_last_line = since,
+            reason = Reason::Sender.as_str(),
+            "attitude: datagrams from senders not in attitude.allow_from: the condition is over: {since} more since the last line, the last {:.1} s ago",
+            stranger_log.since_last(now).as_secs_f64()
+        );
     }
 }
 

@@ -183,6 +183,13 @@ impl Recorder {
         match tx.try_send(item) {
             Ok(()) => {
                 self.stats.queued.fetch_add(1, Relaxed);
+                // Drops that stopped: the closing line, checked on the
+                // frames that follow them (a field read per frame; the
+                // clock only while some are untold). A frame is what
+                // could be dropped, so the next one is soon enough.
+                if self.drop_log.pending() > 0 {
+                    self.settle_drops(Instant::now());
+                }
             }
             Err(TrySendError::Full(_)) => {
                 let n = self.stats.dropped.fetch_add(1, Relaxed) + 1;
@@ -197,6 +204,18 @@ impl Recorder {
             Err(TrySendError::Disconnected(_)) => {
                 self.stats.failed.fetch_add(1, Relaxed);
             }
+        }
+    }
+
+    /// The closing line of the drops (core's `RateLog::settle`).
+    fn settle_drops(&mut self, now: Instant) {
+        if let Some(k) = self.drop_log.settle(now) {
+            tracing::warn!(
+                dropped = self.stats.dropped.load(Relaxed),
+                since_last_line = k,
+                "recording queue full: the condition is over: {k} more frames not recorded since the last line, the last {:.1} s ago",
+                self.drop_log.since_last(now).as_secs_f64()
+            );
         }
     }
 
@@ -262,16 +281,27 @@ impl StatusTap for StatusFeed {
             return;
         }
         // Disconnected: the recorder thread ended (the daemon stops).
-        if let Err(TrySendError::Full(_)) = self.tx.try_send(json.to_vec()) {
-            let mut log = self.log.lock().unwrap_or_else(|p| p.into_inner());
+        let full = matches!(self.tx.try_send(json.to_vec()), Err(TrySendError::Full(_)));
+        let mut log = self.log.lock().unwrap_or_else(|p| p.into_inner());
+        let now = Instant::now();
+        if full {
             let n = self.stats.status_dropped.fetch_add(1, Relaxed) + 1;
-            if let Some(k) = log.tick(Instant::now()) {
+            if let Some(k) = log.tick(now) {
                 tracing::warn!(
                     status_dropped = n,
                     since_last_line = k,
                     "recording: the recorder thread is behind (a slow disk): STATUS not recorded"
                 );
             }
+        } else if let Some(k) = log.settle(now) {
+            // Each STATUS is the periodic call: the closing line of the
+            // drops that stopped.
+            tracing::warn!(
+                status_dropped = self.stats.status_dropped.load(Relaxed),
+                since_last_line = k,
+                "recording: STATUS not recorded: the condition is over: {k} more since the last line, the last {:.1} s ago",
+                log.since_last(now).as_secs_f64()
+            );
         }
     }
 }

@@ -122,6 +122,21 @@ impl Destination {
         }
     }
 
+    /// The closing line of this destination's errors once they stopped
+    /// (core's `RateLog::settle`): the errors since the last line.
+    fn settle(&self, now: Instant) {
+        let mut f = self.failing.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(k) = f.log.settle(now) {
+            tracing::warn!(
+                destination = %self.addr,
+                errors = self.stats.errors.load(Relaxed),
+                since_last_line = k,
+                "send failures: the condition is over: {k} more since the last line, the last {:.1} s ago",
+                f.log.since_last(now).as_secs_f64()
+            );
+        }
+    }
+
     fn send(&self, msg: &[u8]) -> std::io::Result<usize> {
         if self.multicast {
             return self.sock.send_to(msg, self.addr);
@@ -191,6 +206,18 @@ impl Publisher {
             }
         }
         ok
+    }
+}
+
+impl Publisher {
+    /// Each destination's closing line, when its errors stopped with some
+    /// not told yet (see [`Destination`]'s log). Called by the supervisor
+    /// with each STATUS (once a second whatever happens), not per send:
+    /// a send that succeeds takes no lock.
+    pub fn settle(&self, now: Instant) {
+        for d in &self.dests {
+            d.settle(now);
+        }
     }
 }
 
@@ -299,6 +326,39 @@ mod tests {
         // One more line per second the sends took on a loaded host.
         let most = 1 + t0.elapsed().as_secs() as usize;
         assert!((1..=most).contains(&lines.len()), "{log}");
+    }
+
+    /// Errors that stop are told to the end: the first at once, the 4
+    /// after it by the closing line once none came for the step in force
+    /// (1 s), which the STATUS tick asks for; once.
+    #[test]
+    fn the_end_of_a_destination_s_errors_is_told() {
+        let bad: SocketAddr = "255.255.255.255:9".parse().unwrap();
+        let p = Publisher::open(&Outputs {
+            destinations: vec![bad],
+            multicast: None,
+            status_interval: Duration::from_secs(1),
+        })
+        .unwrap();
+        let log = lightpose_testkit::logs::logged(|| {
+            for _ in 0..5 {
+                p.send(b"{}");
+            }
+            let now = Instant::now();
+            p.settle(now);
+            p.settle(now + Duration::from_secs(2));
+            p.settle(now + Duration::from_secs(3));
+        });
+        let lines: Vec<&str> = log.lines().collect();
+        assert_eq!(lines.len(), 2, "{log}");
+        assert!(lines[0].contains("send failed"), "{log}");
+        assert!(
+            lines[1].contains("WARN")
+                && lines[1].contains("errors=5 since_last_line=4")
+                && lines[1]
+                    .contains("send failures: the condition is over: 4 more since the last line"),
+            "{log}"
+        );
     }
 
     /// Issue 16: a unicast destination where nobody listens is counted as

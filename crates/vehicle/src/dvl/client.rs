@@ -109,6 +109,9 @@ pub async fn run(s: DvlSettings, hub: Arc<Hub>, shutdown: impl Future<Output = (
             Ok(Err(e)) => connect_failed(&s, &hub, &e.to_string()),
             Err(_) => connect_failed(&s, &hub, "connect timed out"),
         }
+        // Between attempts (at most `reconnect_max` + `connect_timeout`
+        // apart); while connected, `session` asks once a second.
+        settle(&s, &hub, Instant::now());
         tokio::select! {
             _ = &mut shutdown => return,
             _ = tokio::time::sleep(backoff.next_delay()) => {}
@@ -121,6 +124,32 @@ fn tick(log: &std::sync::Mutex<lightpose_core::ratelog::RateLog>) -> Option<u64>
     // A poisoned lock still holds a usable rule (MavCounters does the same).
     let mut l = log.lock().unwrap_or_else(|p| p.into_inner());
     l.tick(std::time::Instant::now())
+}
+
+/// The closing lines of failed connects and refused lines that stopped
+/// (core's `RateLog::settle`), at the level of their lines.
+fn settle(s: &DvlSettings, hub: &Hub, now: Instant) {
+    let c = &hub.dvl;
+    let settled = |log: &std::sync::Mutex<lightpose_core::ratelog::RateLog>| {
+        let mut l = log.lock().unwrap_or_else(|p| p.into_inner());
+        l.settle(now).map(|k| (k, l.since_last(now).as_secs_f64()))
+    };
+    if let Some((since, ago)) = settled(&c.connect_log) {
+        tracing::warn!(
+            attempts = c.connect_failures.load(Relaxed),
+            since_last_line = since,
+            "dvl: failed connects to {}: the condition is over: {since} more since the last line, the last {ago:.1} s ago",
+            s.address
+        );
+    }
+    if let Some((since, ago)) = settled(&c.refuse_log) {
+        let refused: u64 = c.refused.iter().map(|n| n.load(Relaxed)).sum();
+        tracing::warn!(
+            refused,
+            since_last_line = since,
+            "dvl: refused lines: the condition is over: {since} more since the last line, the last {ago:.1} s ago (STATUS dvl.refused)"
+        );
+    }
 }
 
 fn connect_failed(s: &DvlSettings, hub: &Hub, why: &str) {
@@ -147,6 +176,10 @@ async fn session(
     let mut line: Vec<u8> = Vec::with_capacity(4096);
     // The deadline moves only with a DVL message, not with any byte.
     let mut deadline = tokio::time::Instant::now() + s.silence;
+    // The logs' closing lines, asked on the first read a second after the
+    // last ask: the DVL reports at 2–15 Hz, and a DVL silent for
+    // `silence` ends the session (then `run` asks between attempts).
+    let mut settle_at = Instant::now();
     loop {
         let n = tokio::select! {
             _ = &mut shutdown => return Ended::Shutdown,
@@ -157,6 +190,11 @@ async fn session(
                 Ok(Ok(n)) => n,
             },
         };
+        let now = Instant::now();
+        if now >= settle_at {
+            settle(s, hub, now);
+            settle_at = now + Duration::from_secs(1);
+        }
         for &b in &chunk[..n] {
             if b != b'\n' {
                 if line.len() >= MAX_LINE {
@@ -230,4 +268,49 @@ fn refuse(hub: &Hub, r: DvlRefusal, what: &str) {
         );
     }
     hub.dvl.set_error(format!("{}: {what}", r.as_str()));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Refused lines and failed connects that stop are told to the end:
+    /// each log's first event at once, the rest by its closing line once
+    /// none came for the step in force (1 s); once.
+    #[test]
+    fn refusals_and_failed_connects_that_stop_are_told_by_a_closing_line() {
+        let hub = Hub::new();
+        let s = DvlSettings::new("127.0.0.1:9");
+        let text = lightpose_testkit::logs::logged(|| {
+            for _ in 0..3 {
+                refuse(&hub, DvlRefusal::Garbage, "not json");
+            }
+            refuse(&hub, DvlRefusal::Invalid, "velocity_valid false");
+            for _ in 0..2 {
+                connect_failed(&s, &hub, "connection refused");
+            }
+            let now = Instant::now();
+            settle(&s, &hub, now);
+            settle(&s, &hub, now + Duration::from_secs(2));
+            settle(&s, &hub, now + Duration::from_secs(3));
+        });
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 4, "{text}");
+        assert!(
+            lines[2].contains("WARN")
+                && lines[2].contains("attempts=2 since_last_line=1")
+                && lines[2].contains(
+                    "dvl: failed connects to 127.0.0.1:9: the condition is over: 1 more since the last line"
+                ),
+            "{text}"
+        );
+        assert!(
+            lines[3].contains("WARN")
+                && lines[3].contains("refused=4 since_last_line=3")
+                && lines[3].contains(
+                    "dvl: refused lines: the condition is over: 3 more since the last line"
+                ),
+            "{text}"
+        );
+    }
 }

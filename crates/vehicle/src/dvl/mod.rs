@@ -167,7 +167,9 @@ pub struct DvlCounters {
     pub(crate) high_temperature: AtomicU64,
     pub(crate) refused: [AtomicU64; DvlRefusal::ALL.len()],
     pub(crate) last_error: Mutex<Option<String>>,
-    /// Core's rule for repeated lines: failed connects, refused lines.
+    /// Core's rule for repeated lines: failed connects, refused lines
+    /// (their closing lines: `client::settle`, between connect attempts
+    /// and once a second in a session).
     pub(crate) connect_log: Mutex<lightpose_core::ratelog::RateLog>,
     pub(crate) refuse_log: Mutex<lightpose_core::ratelog::RateLog>,
 }

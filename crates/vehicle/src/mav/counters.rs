@@ -227,6 +227,25 @@ impl MavCounters {
         self.set_error(e);
     }
 
+    /// The closing line of each refusal reason that stopped coming (core's
+    /// `RateLog::settle`), with its count in all.
+    pub(crate) fn settle(&self, now: Instant) {
+        let mut logs = self.refused_log.lock().unwrap_or_else(|p| p.into_inner());
+        for (r, log) in Refusal::ALL.iter().zip(logs.iter_mut()) {
+            let Some(since) = log.settle(now) else {
+                continue;
+            };
+            tracing::warn!(
+                count = self.refused(*r),
+                since_last_line = since,
+                "mavlink: refused or dropped ({}): the condition is over: {since} more since the \
+                 last line, the last {:.1} s ago",
+                r.as_str(),
+                log.since_last(now).as_secs_f64()
+            );
+        }
+    }
+
     /// Count one of `reason`: (its count, those since the last line) when
     /// a line is due.
     fn count_refusal(&self, reason: Refusal) -> Option<(u64, u64)> {

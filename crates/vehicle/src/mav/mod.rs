@@ -10,4 +10,5 @@ pub mod link;
 pub mod outbound;
 pub mod scan;
 pub mod signing;
+mod skips;
 pub mod task;

@@ -8,11 +8,10 @@ use super::inbound::{
     interpret, is_autopilot_heartbeat, origin, Input, InputConfig, Refusal, Refused,
 };
 use super::link::{Endpoint, Link, PeerChange, Sent, PEER_SILENCE};
-use super::outbound::{
-    heartbeat, skip_why, vision_position, vision_speed, Encoder, Outgoing, OutputConfig, Skip,
-};
+use super::outbound::{heartbeat, vision_position, vision_speed, Encoder, OutputConfig, Skip};
 use super::scan::{Framing, RawFrame, Scanned, Scanner};
 use super::signing::{Rejected, Signer, SigningConfig};
+use super::skips::SkipLog;
 use crate::backoff::Backoff;
 use crate::ned::Site;
 use crate::Hub;
@@ -129,6 +128,7 @@ pub async fn run_with(
                     tx: &mut tx,
                     ap: &mut ap,
                     backoff: &mut backoff,
+                    open_log: &mut open_log,
                 };
                 match serve(&s, &hub, link, io, shutdown.as_mut()).await {
                     Ended::Shutdown => return,
@@ -148,10 +148,40 @@ pub async fn run_with(
                 c.set_error(LastError::Io(line));
             }
         }
+        settle(&s, &hub, &mut tx, &mut ap, &mut open_log);
         tokio::select! {
             _ = &mut shutdown => return,
             _ = tokio::time::sleep(backoff.next_delay()) => {}
         }
+    }
+}
+
+/// The closing lines of the link's repeated events whose condition is
+/// over (core's `RateLog::settle`): refusals, skips, other autopilots,
+/// failed opens. On each heartbeat tick while the link is up and before
+/// each back-off wait while it is not, so a line comes at most a second
+/// (or a back-off) after it is due.
+fn settle(
+    s: &MavlinkSettings,
+    hub: &Hub,
+    tx: &mut Sender,
+    ap: &mut Autopilot,
+    open_log: &mut RateLog,
+) {
+    let now = Instant::now();
+    hub.mavlink.settle(now);
+    tx.pos_skips.settle(&hub.mavlink.skipped, now);
+    tx.speed_skips.settle(&hub.mavlink.speed_skipped, now);
+    ap.settle(now);
+    if let Some(k) = open_log.settle(now) {
+        tracing::warn!(
+            attempts = hub.mavlink.link_failures.load(Relaxed),
+            since_last_line = k,
+            "mavlink: failed opens of {}: the condition is over: {k} more since the last line, \
+             the last {:.1} s ago",
+            s.endpoint,
+            open_log.since_last(now).as_secs_f64()
+        );
     }
 }
 
@@ -190,6 +220,8 @@ struct Io<'a> {
     tx: &'a mut Sender,
     ap: &'a mut Autopilot,
     backoff: &'a mut Backoff,
+    /// Failed opens: their closing line comes once the link is up.
+    open_log: &'a mut RateLog,
 }
 
 async fn serve(
@@ -199,7 +231,12 @@ async fn serve(
     io: Io<'_>,
     mut shutdown: Pin<&mut impl Future<Output = ()>>,
 ) -> Ended {
-    let Io { tx, ap, backoff } = io;
+    let Io {
+        tx,
+        ap,
+        backoff,
+        open_log,
+    } = io;
     hub.mavlink.set_peer(None);
     let mut scanner = Scanner::new(link.framing());
     let mut beat = tokio::time::interval(s.heartbeat_period);
@@ -241,6 +278,7 @@ async fn serve(
                 }
             }
             _ = beat.tick() => {
+                settle(s, hub, tx, ap, open_log);
                 let active = tx.last_sent.is_some_and(|t| t.elapsed() < 2 * s.heartbeat_period.max(Duration::from_secs(1)));
                 if let Err(e) = tx.send(&mut link, hub, &heartbeat(active), 2).await {
                     return Ended::Lost(e);
@@ -303,6 +341,18 @@ impl Autopilot {
                 " (learned from its HEARTBEAT)"
             }
         );
+    }
+
+    /// The closing line of other autopilots' heartbeats once they stopped.
+    fn settle(&mut self, now: Instant) {
+        if let Some(k) = self.others.settle(now) {
+            tracing::warn!(
+                since_last_line = k,
+                "mavlink: another autopilot's heartbeats: the condition is over: {k} more since \
+                 the last line, the last {:.1} s ago",
+                self.others.since_last(now).as_secs_f64()
+            );
+        }
     }
 
     /// A frame `origin` refused: if it is another autopilot's HEARTBEAT,
@@ -458,68 +508,6 @@ fn take(f: &RawFrame, s: &MavlinkSettings, hub: &Hub, ap: &mut Autopilot, from: 
     ap.system.is_some()
 }
 
-/// The journal's account of `ok` poses not sent (no std, a bad std or
-/// time, a value too big for MAVLink): STATUS counts them all, and the
-/// journal says the first of each reason at once, with the pose's seq and
-/// why, then less and less often while more come (core's rule: after 1 s,
-/// 10 s, 1 min, then every 10 min).
-/// (Decimation is the configured rate limit, not a fault: not logged.)
-struct SkipLog {
-    /// VISION_SPEED_ESTIMATE's skips (else VISION_POSITION_ESTIMATE's).
-    speed: bool,
-    /// Per reason, core's rule: the first at once, then less and less often.
-    logs: [RateLog; Skip::ALL.len()],
-}
-
-impl SkipLog {
-    fn new(speed: bool) -> Self {
-        SkipLog {
-            speed,
-            logs: [RateLog::new(); Skip::ALL.len()],
-        }
-    }
-
-    /// Whether a skip `k` at `now` is to be logged; if so, how many of
-    /// that reason came since the last line (this one included).
-    fn due(&mut self, k: Skip, now: Instant) -> Option<u64> {
-        self.logs.get_mut(k.index())?.tick(now)
-    }
-
-    /// Log skip `k` of pose `o`, the `count`th of its reason, if due.
-    fn note(&mut self, o: &Outgoing, k: Skip, count: u64) {
-        if k == Skip::Decimated {
-            return;
-        }
-        let Some(since) = self.due(k, Instant::now()) else {
-            return;
-        };
-        let message = if self.speed {
-            "VISION_SPEED_ESTIMATE"
-        } else {
-            "VISION_POSITION_ESTIMATE"
-        };
-        let (seq, why, reason) = (o.seq, skip_why(o, k, self.speed), k.as_str());
-        if count == since {
-            tracing::warn!(
-                seq,
-                reason,
-                count,
-                "mavlink: {message} not sent for pose {seq}: {why}; \
-                 while more {reason} skips come they are logged after 1 s, \
-                 10 s, 1 min, then every 10 min"
-            );
-        } else {
-            tracing::warn!(
-                seq,
-                reason,
-                count,
-                "mavlink: {message} not sent for pose {seq}: {why} \
-                 ({since} {reason} skips since the last line, {count} in all)"
-            );
-        }
-    }
-}
-
 /// The sending side: the encoder with its sequence numbers, the rate
 /// limit's memory, the outbox version last taken and the skips' log.
 struct Sender {
@@ -627,26 +615,5 @@ mod tests {
         assert!(why.contains("333 ms") && why.contains("300 ms"), "{why}");
         assert_eq!(slow_rate(&at(Some(4.0))), None);
         assert_eq!(slow_rate(&at(None)), None);
-    }
-
-    /// The first skip of each reason is logged at once, then at most one
-    /// line per second of that reason while more come, each saying how
-    /// many came since the last.
-    #[test]
-    fn skips_are_logged_first_then_at_most_once_a_second() {
-        let mut log = SkipLog::new(false);
-        let t0 = Instant::now();
-        let ms = |n: u64| t0 + Duration::from_millis(n);
-        assert_eq!(log.due(Skip::NoStd, ms(0)), Some(1));
-        for (k, at) in (2..=40).zip((25..).step_by(25)) {
-            assert_eq!(log.due(Skip::NoStd, ms(at)), None, "skip {k}");
-        }
-        // Another reason has its own first line.
-        assert_eq!(log.due(Skip::BadTime, ms(500)), Some(1));
-        assert_eq!(log.due(Skip::NoStd, ms(1000)), Some(40));
-        assert_eq!(log.due(Skip::NoStd, ms(1999)), None);
-        // After a quiet spell the next one is said at once.
-        assert_eq!(log.due(Skip::NoStd, ms(60_000)), Some(2));
-        assert_eq!(log.due(Skip::BadTime, ms(60_000)), Some(1));
     }
 }

@@ -29,10 +29,10 @@ use lightpose_core::ratelog::RateLog;
 use lightpose_core::{Frame, LogHeader, PoseEstimate};
 use lightpose_logs::{Encoder, Message, WriteError};
 use std::sync::atomic::Ordering::Relaxed;
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::thread::JoinHandle;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Frames that may wait for the encoder thread.
 const HANDOFF_QUEUE: usize = 64;
@@ -52,6 +52,9 @@ pub struct LiveView {
     join: Option<JoinHandle<()>>,
     /// Frames the encoder could not take: core's rule for repeated lines.
     dropped_log: RateLog,
+    /// Whether the last of them found the encoder thread gone (an error,
+    /// not a warning): the closing line's level.
+    dropped_gone: bool,
 }
 
 impl LiveView {
@@ -69,6 +72,7 @@ impl LiveView {
             hub,
             join: Some(join),
             dropped_log: RateLog::new(),
+            dropped_gone: false,
         })
     }
 }
@@ -80,7 +84,26 @@ fn encode(rx: Receiver<Item>, mut enc: Encoder, hub: &Hub) {
         Ok(())
     };
     let mut log = RateLog::new();
-    while let Ok(item) = rx.recv() {
+    loop {
+        // Skips not told yet: wake at least every second for their
+        // closing line (frames stop coming when nobody subscribes);
+        // else wait for the next frame as long as it takes.
+        let got = if log.pending() > 0 {
+            match rx.recv_timeout(Duration::from_secs(1)) {
+                Ok(item) => Some(item),
+                Err(RecvTimeoutError::Timeout) => None,
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+        } else {
+            match rx.recv() {
+                Ok(item) => Some(item),
+                Err(_) => break,
+            }
+        };
+        if log.pending() > 0 {
+            settle_skipped(hub, &mut log, Instant::now());
+        }
+        let Some(item) = got else { continue };
         hub.note_frame_t(item.frame.t);
         // A frame or estimate without a log time (t < 0) has no message:
         // the recording refuses it the same way.
@@ -90,6 +113,19 @@ fn encode(rx: Receiver<Item>, mut enc: Encoder, hub: &Hub) {
         if let Err(e) = enc.pose(&item.est, Some(item.wall_unix), &mut publish) {
             skipped(hub, &mut log, &e);
         }
+    }
+}
+
+/// The closing line of the skips once they stopped (core's
+/// `RateLog::settle`).
+fn settle_skipped(hub: &Hub, log: &mut RateLog, now: Instant) {
+    if let Some(k) = log.settle(now) {
+        tracing::warn!(
+            skipped = hub.skipped.load(Relaxed),
+            since_last_line = k,
+            "live view: messages not shown: the condition is over: {k} more since the last line, the last {:.1} s ago",
+            log.since_last(now).as_secs_f64()
+        );
     }
 }
 
@@ -109,6 +145,12 @@ fn skipped(hub: &Hub, log: &mut RateLog, e: &WriteError) {
 impl Output for LiveView {
     #[inline]
     fn emit(&mut self, frame: &Acquired, est: &PoseEstimate) {
+        // Drops that stopped (or nobody wants frames now): the closing
+        // line, checked on the frames that follow (a field read per
+        // frame; the clock only while some are untold).
+        if self.dropped_log.pending() > 0 {
+            self.settle_dropped(Instant::now());
+        }
         if !self.hub.wanted() {
             return;
         }
@@ -124,6 +166,7 @@ impl Output for LiveView {
             Err(TrySendError::Disconnected(_)) => true,
         };
         let n = self.hub.handoff_dropped.fetch_add(1, Relaxed) + 1;
+        self.dropped_gone = gone;
         if let Some(k) = self.dropped_log.tick(Instant::now()) {
             if gone {
                 tracing::error!(
@@ -147,6 +190,31 @@ impl Output for LiveView {
             if j.join().is_err() {
                 tracing::error!("live view encoder thread panicked");
             }
+        }
+    }
+}
+
+impl LiveView {
+    /// The closing line of the frames not handed over (core's
+    /// `RateLog::settle`), at the level of their lines.
+    fn settle_dropped(&mut self, now: Instant) {
+        let Some(k) = self.dropped_log.settle(now) else {
+            return;
+        };
+        let n = self.hub.handoff_dropped.load(Relaxed);
+        let ago = self.dropped_log.since_last(now).as_secs_f64();
+        if self.dropped_gone {
+            tracing::error!(
+                handoff_dropped = n,
+                since_last_line = k,
+                "live view: frames not shown (the encoder thread is gone): the condition is over: {k} more since the last line, the last {ago:.1} s ago"
+            );
+        } else {
+            tracing::warn!(
+                handoff_dropped = n,
+                since_last_line = k,
+                "live view: frames not shown (the encoder thread behind): the condition is over: {k} more since the last line, the last {ago:.1} s ago"
+            );
         }
     }
 }
@@ -180,4 +248,41 @@ pub async fn start(cfg: &Foxglove, header: &LogHeader) -> std::io::Result<Live> 
         output,
         server,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Messages not shown, a burst of 3: the first said at once, the 2
+    /// after it by the closing line once none came for 1 s (the encoder
+    /// thread wakes every second while some are untold); once.
+    #[test]
+    fn skips_that_stop_are_told_by_a_closing_line() {
+        let hub = Hub::new("127.0.0.1:0".parse().unwrap());
+        let mut log = RateLog::new();
+        let e = WriteError::Time {
+            what: "frame",
+            seq: 1,
+            t: -1.0,
+        };
+        let text = lightpose_testkit::logs::logged(|| {
+            for _ in 0..3 {
+                skipped(&hub, &mut log, &e);
+            }
+            let now = Instant::now();
+            settle_skipped(&hub, &mut log, now);
+            settle_skipped(&hub, &mut log, now + Duration::from_secs(2));
+            settle_skipped(&hub, &mut log, now + Duration::from_secs(3));
+        });
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 2, "{text}");
+        assert!(
+            lines[1].contains("WARN")
+                && lines[1].contains("skipped=3 since_last_line=2")
+                && lines[1]
+                    .contains("live view: messages not shown: the condition is over: 2 more"),
+            "{text}"
+        );
+    }
 }

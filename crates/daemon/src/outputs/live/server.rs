@@ -118,7 +118,29 @@ pub async fn serve(listener: TcpListener, hub: Arc<Hub>, limits: Limits) {
     // A flood is logged by core's rule for repeated lines, not per connection.
     let mut flood_log = RateLog::new();
     loop {
-        match listener.accept().await {
+        // Refusals not told yet: wake at least every second for their
+        // closing line (accept is cancel-safe); else wait for the next
+        // connection as long as it takes.
+        let accepted = if flood_log.pending() > 0 {
+            tokio::time::timeout(Duration::from_secs(1), listener.accept())
+                .await
+                .ok()
+        } else {
+            Some(listener.accept().await)
+        };
+        if flood_log.pending() > 0 {
+            let now = std::time::Instant::now();
+            if let Some(k) = flood_log.settle(now) {
+                tracing::warn!(
+                    handshakes_refused = hub.handshakes_refused.load(Relaxed),
+                    since_last_line = k,
+                    "foxglove: connections refused (too many in their handshake): the condition is over: {k} more since the last line, the last {:.1} s ago",
+                    flood_log.since_last(now).as_secs_f64()
+                );
+            }
+        }
+        let Some(accepted) = accepted else { continue };
+        match accepted {
             Ok((stream, addr)) => match handshaking.clone().try_acquire_owned() {
                 Ok(permit) => {
                     tokio::spawn(client(stream, addr, hub.clone(), limits, permit));

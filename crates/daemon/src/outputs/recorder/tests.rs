@@ -283,6 +283,42 @@ fn a_frame_without_log_time_is_skipped_and_the_file_goes_on() {
     assert_eq!(lightpose_logs::FrameLog::cut(&log), None);
 }
 
+/// Frames the format cannot hold, a burst of 3: the first said at once,
+/// the 2 after it by the closing line once none came for 1 s (the
+/// recorder thread's loop asks at least every 250 ms); once.
+#[test]
+fn the_end_of_a_burst_of_skipped_frames_is_told() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut c = cfg(dir.path().to_path_buf(), None, 1024);
+    c.format = RecFormat::Mcap;
+    let (mut w, stats) = worker(&c);
+    let text = lightpose_testkit::logs::logged(|| {
+        for s in 0..3 {
+            let (mut f, mut e) = (frame(s), est(s));
+            (f.t, e.t) = (-1.0, -1.0);
+            w.write(&Item {
+                frame: f,
+                est: e,
+                wall_unix: 1.7e9,
+            });
+        }
+        let now = Instant::now();
+        w.settle_skips(now);
+        w.settle_skips(now + Duration::from_secs(2));
+        w.settle_skips(now + Duration::from_secs(3));
+    });
+    assert_eq!(stats.skipped.load(Relaxed), 3);
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 2, "{text}");
+    assert!(lines[0].contains("skipped=1 since_last_line=1"), "{text}");
+    assert!(
+        lines[1].contains("WARN")
+            && lines[1].contains("skipped=3 since_last_line=2")
+            && lines[1].contains("the condition is over: 2 more not recorded since the last line"),
+        "{text}"
+    );
+}
+
 /// STATUS that finds its queue full (the recorder thread held by a disk
 /// that takes nothing: a FIFO nobody reads) is counted, not dropped
 /// silently.

@@ -110,6 +110,9 @@ impl Worker {
                 self.status(&s);
             }
             let now = Instant::now();
+            // The loop wakes at least every `IDLE`: the skips' closing
+            // line comes at most that late.
+            self.settle_skips(now);
             if self.flush_at.is_some_and(|t| now >= t) {
                 self.flush();
             }
@@ -218,6 +221,19 @@ impl Worker {
                 skipped = n,
                 since_last_line = k,
                 "recording: {e}: frame not recorded"
+            );
+        }
+    }
+
+    /// The closing line of the skips once they stopped (core's
+    /// `RateLog::settle`).
+    pub(super) fn settle_skips(&mut self, now: Instant) {
+        if let Some(k) = self.skip_log.settle(now) {
+            tracing::warn!(
+                skipped = self.stats.skipped.load(Relaxed),
+                since_last_line = k,
+                "recording: frames the format cannot hold: the condition is over: {k} more not recorded since the last line, the last {:.1} s ago",
+                self.skip_log.since_last(now).as_secs_f64()
             );
         }
     }
