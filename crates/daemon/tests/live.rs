@@ -481,3 +481,213 @@ fn the_17th_half_open_connection_is_closed_at_once_while_16_wait() {
         server.abort();
     });
 }
+
+/// A client on `addr` past its handshake and the greeting (serverInfo,
+/// advertise): admitted.
+async fn greeted(addr: SocketAddr) -> tokio_tungstenite::WebSocketStream<tokio::net::TcpStream> {
+    let tcp = tokio::net::TcpStream::connect(addr).await.unwrap();
+    let (mut ws, _) = tokio_tungstenite::client_async(request(addr), tcp)
+        .await
+        .expect("handshake");
+    for _ in 0..2 {
+        let m = tokio::time::timeout(Duration::from_secs(10), ws.next())
+            .await
+            .expect("the greeting within 10 s")
+            .expect("open")
+            .unwrap();
+        assert!(m.is_text(), "serverInfo, advertise: {m:?}");
+    }
+    ws
+}
+
+/// The first thing the server sends a client on `addr` after the
+/// handshake (a Close for one turned away), waited for 10 s at most.
+async fn first_message(addr: SocketAddr) -> Option<Ws> {
+    let tcp = tokio::net::TcpStream::connect(addr).await.unwrap();
+    let (mut ws, _) = tokio_tungstenite::client_async(request(addr), tcp)
+        .await
+        .expect("handshake");
+    let got = tokio::time::timeout(Duration::from_secs(10), ws.next()).await;
+    got.expect("a message or the end within 10 s")
+        .and_then(|m| m.ok())
+}
+
+/// Polls `cond` every 10 ms for 10 s at most (generous: the machine may be
+/// loaded), saying `what` if it never holds.
+async fn wait_for(what: &str, cond: impl Fn() -> bool) {
+    let t0 = Instant::now();
+    while !cond() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "not within 10 s: {what}"
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+}
+
+fn addrs(r: &Value) -> Vec<String> {
+    let list = r["client_list"].as_array().expect("client_list");
+    let mut v: Vec<String> = list.iter().map(|c| c["addr"].to_string()).collect();
+    v.sort();
+    v
+}
+
+fn local(ws: &tokio_tungstenite::WebSocketStream<tokio::net::TcpStream>) -> String {
+    Value::from(ws.get_ref().local_addr().unwrap().to_string()).to_string()
+}
+
+/// Left list: four clients that answered pings but subscribed to nothing
+/// (forgotten tabs) held every place, and the operator's Foxglove was
+/// refused. A fifth now has the client idle the longest (past the
+/// minimum, here 300 ms) closed to make room, idle counting from the
+/// unsubscribe that left a client nothing: the first client, which
+/// subscribed and then unsubscribed everything, is spared for the second.
+#[test]
+fn four_idle_clients_and_a_fifth_the_longest_idle_makes_room() {
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut limits = lightposed::outputs::live::server::Limits::new(16, 4);
+        limits.idle_evict = Duration::from_millis(300);
+        let (hub, server) = live_server(limits).await;
+        let addr = hub.listen;
+        let mut c = Vec::new();
+        for _ in 0..4 {
+            c.push(greeted(addr).await);
+        }
+        c[0].send(Ws::text(subscribe_all())).await.unwrap();
+        wait_for("c0 subscribed", || hub.wanted()).await;
+        let ids: Vec<u32> = (1..=7).collect();
+        let unsub = serde_json::json!({"op": "unsubscribe", "subscriptionIds": ids});
+        c[0].send(Ws::text(unsub.to_string())).await.unwrap();
+        wait_for("c0 unsubscribed", || !hub.wanted()).await;
+        // Every one idle past the minimum (a sleep only lasts longer on a
+        // loaded machine); c1 the longest, since its join.
+        tokio::time::sleep(Duration::from_millis(600)).await;
+        let fifth = greeted(addr).await;
+        let closed = tokio::time::timeout(Duration::from_secs(10), c[1].next())
+            .await
+            .expect("c1 closed within 10 s");
+        match closed {
+            Some(Ok(Ws::Close(Some(f)))) => {
+                assert_eq!(u16::from(f.code), 1013, "try again later: {f}");
+                assert!(f.reason.contains("make room"), "{f}");
+            }
+            other => panic!("c1 not closed with a reason: {other:?}"),
+        }
+        let r = hub.report();
+        assert_eq!(
+            (r["evicted"].as_u64(), r["refused"].as_u64()),
+            (Some(1), Some(0)),
+            "{r}"
+        );
+        assert_eq!(
+            (r["clients"].as_u64(), r["connections"].as_u64()),
+            (Some(4), Some(5)),
+            "{r}"
+        );
+        let mut want = vec![local(&c[0]), local(&c[2]), local(&c[3]), local(&fifth)];
+        want.sort();
+        assert_eq!(addrs(&r), want, "{r}");
+        server.abort();
+    });
+}
+
+/// Four clients that subscribe are never evicted, however short the
+/// minimum: a fifth is refused as before.
+#[test]
+fn four_subscribed_clients_and_a_fifth_it_is_refused() {
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut limits = lightposed::outputs::live::server::Limits::new(16, 4);
+        limits.idle_evict = Duration::ZERO;
+        let (hub, server) = live_server(limits).await;
+        let addr = hub.listen;
+        let mut c = Vec::new();
+        for _ in 0..4 {
+            let mut ws = greeted(addr).await;
+            ws.send(Ws::text(subscribe_all())).await.unwrap();
+            c.push(ws);
+        }
+        wait_for("all four subscribed", || {
+            let r = hub.report();
+            let list = r["client_list"].as_array().cloned().unwrap_or_default();
+            list.len() == 4 && list.iter().all(|c| c["subscriptions"] == 7)
+        })
+        .await;
+        let got = first_message(addr).await;
+        assert!(matches!(got, Some(Ws::Close(_)) | None), "{got:?}");
+        let r = hub.report();
+        assert_eq!(
+            (
+                r["refused"].as_u64(),
+                r["evicted"].as_u64(),
+                r["clients"].as_u64()
+            ),
+            (Some(1), Some(0), Some(4)),
+            "{r}"
+        );
+        let mut want: Vec<String> = c.iter().map(local).collect();
+        want.sort();
+        assert_eq!(addrs(&r), want, "{r}");
+        server.abort();
+    });
+}
+
+/// Four idle clients, none idle for the minimum yet (the daemon's 60 s):
+/// a fifth is refused, and nobody is evicted.
+#[test]
+fn four_clients_idle_for_less_than_the_minimum_and_a_fifth_it_is_refused() {
+    use lightposed::outputs::live::server::{Limits, IDLE_EVICT};
+    assert_eq!(IDLE_EVICT, Duration::from_secs(60));
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let (hub, server) = live_server(Limits::new(16, 4)).await;
+        let addr = hub.listen;
+        let mut c = Vec::new();
+        for _ in 0..4 {
+            c.push(greeted(addr).await);
+        }
+        let got = first_message(addr).await;
+        assert!(matches!(got, Some(Ws::Close(_)) | None), "{got:?}");
+        let r = hub.report();
+        assert_eq!(
+            (
+                r["refused"].as_u64(),
+                r["evicted"].as_u64(),
+                r["clients"].as_u64()
+            ),
+            (Some(1), Some(0), Some(4)),
+            "{r}"
+        );
+        let list = r["client_list"].as_array().unwrap();
+        assert!(list.iter().all(|c| c["idle_s"].is_f64()), "{r}");
+        server.abort();
+    });
+}
+
+/// The daemon stopping (`Hub::close`) ends every client's session with a
+/// Close, where taking them out of the list left their tasks waiting on a
+/// queue that never closed (they lived until the runtime was dropped).
+#[test]
+fn the_daemon_stopping_closes_every_client() {
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let (hub, _task) = live_server(lightposed::outputs::live::server::Limits::new(16, 4)).await;
+        let addr = hub.listen;
+        let mut a = greeted(addr).await;
+        let mut b = greeted(addr).await;
+        wait_for("two clients", || hub.client_count() == 2).await;
+        hub.close();
+        for ws in [&mut a, &mut b] {
+            let got = tokio::time::timeout(Duration::from_secs(10), ws.next())
+                .await
+                .expect("the end within 10 s");
+            assert!(
+                matches!(got, None | Some(Ok(Ws::Close(_))) | Some(Err(_))),
+                "{got:?}"
+            );
+        }
+        assert_eq!(hub.client_count(), 0);
+        assert_eq!(hub.evicted.load(std::sync::atomic::Ordering::Relaxed), 0);
+    });
+}

@@ -9,6 +9,11 @@
 //! (its subscription id differs) is a slice of a shared block
 //! ([`Blocks`]), and a block is used again once every message in it was
 //! written to its client.
+//!
+//! Each client also keeps since when it has subscribed to nothing (from
+//! its join, or from the unsubscribe that left it nothing), so that a
+//! newcomer finding every place taken can have the client idle the
+//! longest make room ([`Hub::join`], docs/foxglove.md).
 
 use bytes::{BufMut, Bytes, BytesMut};
 use lightpose_logs::foxglove::Stamp;
@@ -18,8 +23,10 @@ use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::mpsc::Sender;
+use tokio::sync::Notify;
 
 /// Opcode of a binary `messageData` frame (server → client).
 pub const MESSAGE_DATA: u8 = 0x01;
@@ -76,51 +83,123 @@ impl Blocks {
     }
 }
 
+/// What a client subscribed to, under one lock so that a subscribe and
+/// an eviction cannot cross.
+struct Subs {
+    /// Its subscription id for each channel (by [`Channel::index`]).
+    by_channel: [Option<u32>; 7],
+    /// Since when it has subscribed to nothing (its join, or the
+    /// unsubscribe that left it nothing); `None` while it subscribes.
+    idle_since: Option<Instant>,
+    /// Out of the hub (evicted, or left): it subscribes to nothing more,
+    /// so that the hub's count of subscriptions stays true.
+    gone: bool,
+}
+
+impl Subs {
+    fn count(&self) -> usize {
+        self.by_channel.iter().filter(|x| x.is_some()).count()
+    }
+}
+
 /// One connected client.
 pub struct Client {
     pub id: u64,
     pub addr: SocketAddr,
-    /// Its subscription id for each channel (by [`Channel::index`]).
-    subs: Mutex<[Option<u32>; 7]>,
+    subs: Mutex<Subs>,
     tx: Sender<Bytes>,
+    /// Told when the client is evicted: its task ends the session.
+    evict: Notify,
     pub sent: AtomicU64,
     pub dropped: AtomicU64,
 }
 
 impl Client {
     /// Subscribe `sub` to channel `index`; whether that channel exists.
+    /// A client evicted a moment ago subscribes nothing (its task is
+    /// ending), but is not told the channel does not exist.
     pub fn subscribe(&self, hub: &Hub, sub: u32, index: usize) -> bool {
         let Ok(mut s) = self.subs.lock() else {
             return false;
         };
-        let Some(slot) = s.get_mut(index) else {
+        if index >= s.by_channel.len() {
             return false;
-        };
-        if slot.replace(sub).is_none() {
+        }
+        if s.gone {
+            return true;
+        }
+        if s.by_channel[index].replace(sub).is_none() {
             hub.subscriptions.fetch_add(1, Relaxed);
         }
+        s.idle_since = None;
         true
     }
 
-    /// End subscription `sub`, wherever it is.
+    /// End subscription `sub`, wherever it is; the one that leaves the
+    /// client nothing starts its idle time (an eviction counts from it).
     pub fn unsubscribe(&self, hub: &Hub, sub: u32) {
-        if let Ok(mut s) = self.subs.lock() {
-            for slot in s.iter_mut().filter(|x| **x == Some(sub)) {
-                *slot = None;
-                hub.subscriptions.fetch_sub(1, Relaxed);
-            }
+        let Ok(mut s) = self.subs.lock() else { return };
+        for slot in s.by_channel.iter_mut().filter(|x| **x == Some(sub)) {
+            *slot = None;
+            hub.subscriptions.fetch_sub(1, Relaxed);
+        }
+        if s.idle_since.is_none() && s.count() == 0 {
+            s.idle_since = Some(Instant::now());
         }
     }
 
+    /// Resolves once the client was evicted to make room: its task waits
+    /// on it beside its socket and queue.
+    pub async fn evicted(&self) {
+        self.evict.notified().await
+    }
+
     fn subscription(&self, channel: Channel) -> Option<u32> {
-        self.subs.lock().ok().and_then(|s| s[channel.index()])
+        self.subs
+            .lock()
+            .ok()
+            .and_then(|s| s.by_channel[channel.index()])
     }
 
     fn count_subscriptions(&self) -> usize {
-        self.subs
-            .lock()
-            .map_or(0, |s| s.iter().filter(|x| x.is_some()).count())
+        self.subs.lock().map_or(0, |s| s.count())
     }
+
+    /// How long it has subscribed to nothing at `now`; `None` while it
+    /// subscribes (or is gone): what STATUS shows and eviction ranks by.
+    fn idle_for(&self, now: Instant) -> Option<Duration> {
+        let s = self.subs.lock().ok()?;
+        let since = s.idle_since.filter(|_| !s.gone)?;
+        Some(now.saturating_duration_since(since))
+    }
+
+    /// Marks it gone if it is still idle for `min_idle` at `now` (checked
+    /// under the lock a subscribe takes, so a client that subscribed since
+    /// it was picked is spared); how long it was idle.
+    fn take_if_idle(&self, now: Instant, min_idle: Duration) -> Option<Duration> {
+        let mut s = self.subs.lock().ok()?;
+        let idle = now.saturating_duration_since(s.idle_since.filter(|_| !s.gone)?);
+        if idle < min_idle {
+            return None;
+        }
+        s.gone = true;
+        Some(idle)
+    }
+}
+
+/// A client disconnected to make room for a newcomer.
+#[derive(Debug, Clone, Copy)]
+pub struct Evicted {
+    pub addr: SocketAddr,
+    /// How long it had subscribed to nothing.
+    pub idle: Duration,
+}
+
+/// A newcomer admitted, and the client it replaced if every place was
+/// taken.
+pub struct Joined {
+    pub client: Arc<Client>,
+    pub evicted: Option<Evicted>,
 }
 
 /// The live view's clients and counters, shared by the encoder thread, the
@@ -141,6 +220,10 @@ pub struct Hub {
     pub handshakes_refused: AtomicU64,
     /// Clients ended because nothing came from them (no pong) for long.
     pub timed_out: AtomicU64,
+    /// Clients disconnected to make room: subscribed to nothing for long.
+    pub evicted: AtomicU64,
+    /// Set by `close`: the daemon stops.
+    closing: std::sync::atomic::AtomicBool,
     /// Messages dropped for clients that went before, summed in.
     dropped_gone: AtomicU64,
     sent_gone: AtomicU64,
@@ -166,6 +249,8 @@ impl Hub {
             refused: AtomicU64::new(0),
             handshakes_refused: AtomicU64::new(0),
             timed_out: AtomicU64::new(0),
+            evicted: AtomicU64::new(0),
+            closing: std::sync::atomic::AtomicBool::new(false),
             dropped_gone: AtomicU64::new(0),
             sent_gone: AtomicU64::new(0),
             handoff_dropped: AtomicU64::new(0),
@@ -186,25 +271,69 @@ impl Hub {
         self.clients.lock().map_or(0, |c| c.len())
     }
 
-    /// A new client with a queue of `queue` messages; `None` when
-    /// `max` clients are already served.
-    pub fn join(&self, addr: SocketAddr, tx: Sender<Bytes>, max: usize) -> Option<Arc<Client>> {
+    /// A new client whose queue is `tx`. When `max` clients are already
+    /// served, the one that has subscribed to nothing the longest, and for
+    /// at least `min_idle`, is evicted to make room (an operator's
+    /// Foxglove must not be refused for a forgotten tab); `None`, counted
+    /// `refused`, when none qualifies: a client that subscribes is never
+    /// evicted.
+    pub fn join(
+        &self,
+        addr: SocketAddr,
+        tx: Sender<Bytes>,
+        max: usize,
+        min_idle: Duration,
+    ) -> Option<Joined> {
         let mut clients = self.clients.lock().ok()?;
+        let mut evicted = None;
         if clients.len() >= max {
-            self.refused.fetch_add(1, Relaxed);
-            return None;
+            evicted = self.evict_idlest(&mut clients, min_idle);
+            if evicted.is_none() || clients.len() >= max {
+                self.refused.fetch_add(1, Relaxed);
+                return None;
+            }
         }
         let c = Arc::new(Client {
             id: self.next_id.fetch_add(1, Relaxed),
             addr,
-            subs: Mutex::new([None; 7]),
+            subs: Mutex::new(Subs {
+                by_channel: [None; 7],
+                idle_since: Some(Instant::now()),
+                gone: false,
+            }),
             tx,
+            evict: Notify::new(),
             sent: AtomicU64::new(0),
             dropped: AtomicU64::new(0),
         });
         clients.push(c.clone());
         self.connections.fetch_add(1, Relaxed);
-        Some(c)
+        Some(Joined { client: c, evicted })
+    }
+
+    /// Out of `clients`, the one idle (subscribed to nothing) the longest,
+    /// if for `min_idle` at least: retired, counted, its task told to end.
+    /// Picked, then taken under its own lock, again if it subscribed in
+    /// between (bounded: each retry means one client fewer qualifies).
+    fn evict_idlest(&self, clients: &mut Vec<Arc<Client>>, min_idle: Duration) -> Option<Evicted> {
+        let now = Instant::now();
+        for _ in 0..clients.len() {
+            let (i, _) = clients
+                .iter()
+                .enumerate()
+                .filter_map(|(i, c)| Some((i, c.idle_for(now)?)))
+                .filter(|&(_, idle)| idle >= min_idle)
+                .max_by_key(|&(_, idle)| idle)?;
+            let Some(idle) = clients[i].take_if_idle(now, min_idle) else {
+                continue;
+            };
+            let c = clients.swap_remove(i);
+            self.retire(&c);
+            self.evicted.fetch_add(1, Relaxed);
+            c.evict.notify_one();
+            return Some(Evicted { addr: c.addr, idle });
+        }
+        None
     }
 
     /// A client went: its subscriptions end, its counts join the totals.
@@ -214,24 +343,47 @@ impl Hub {
         };
         if let Some(i) = clients.iter().position(|c| c.id == id) {
             let c = clients.swap_remove(i);
-            let n = c.count_subscriptions();
-            self.subscriptions.fetch_sub(n, Relaxed);
-            self.dropped_gone
-                .fetch_add(c.dropped.load(Relaxed), Relaxed);
-            self.sent_gone.fetch_add(c.sent.load(Relaxed), Relaxed);
+            self.retire(&c);
         }
     }
 
-    /// Every client goes (the daemon stops): their queues close, so their
-    /// tasks say goodbye and end.
+    /// The accounts of a client just taken out of the list: its
+    /// subscriptions end (and no more may start), its counts join the
+    /// totals.
+    fn retire(&self, c: &Client) {
+        let n = c.subs.lock().map_or(0, |mut s| {
+            s.gone = true;
+            let n = s.count();
+            s.by_channel = [None; 7];
+            n
+        });
+        self.subscriptions.fetch_sub(n, Relaxed);
+        self.dropped_gone
+            .fetch_add(c.dropped.load(Relaxed), Relaxed);
+        self.sent_gone.fetch_add(c.sent.load(Relaxed), Relaxed);
+    }
+
+    /// Every client goes (the daemon stops): each is taken out and its
+    /// task told, as an eviction tells it, so that it says goodbye and
+    /// ends. (Taking them out alone did not end them: a client's queue
+    /// sender lives in the `Client` its own task holds, so the queue never
+    /// closed and the tasks lived until the runtime was dropped.)
     pub fn close(&self) {
-        let ids: Vec<u64> = self
+        self.closing.store(true, Relaxed);
+        let gone: Vec<Arc<Client>> = self
             .clients
             .lock()
-            .map_or_else(|_| Vec::new(), |c| c.iter().map(|c| c.id).collect());
-        for id in ids {
-            self.leave(id);
+            .map_or_else(|_| Vec::new(), |mut c| c.drain(..).collect());
+        for c in gone {
+            self.retire(&c);
+            c.evict.notify_one();
         }
+    }
+
+    /// Whether the daemon is stopping (`close`): a told client's session
+    /// ends for that, not for a newcomer.
+    pub fn closing(&self) -> bool {
+        self.closing.load(Relaxed)
     }
 
     pub fn note_frame_t(&self, t: f64) {
@@ -280,6 +432,7 @@ impl Hub {
             .clients
             .lock()
             .map_or_else(|_| Vec::new(), |c| c.clone());
+        let now = Instant::now();
         let (mut sent, mut dropped) = (
             self.sent_gone.load(Relaxed),
             self.dropped_gone.load(Relaxed),
@@ -293,6 +446,7 @@ impl Hub {
                 json!({
                     "addr": c.addr.to_string(),
                     "subscriptions": c.count_subscriptions(),
+                    "idle_s": c.idle_for(now).map(|d| (d.as_secs_f64() * 10.0).round() / 10.0),
                     "sent": s,
                     "dropped": d,
                 })
@@ -306,6 +460,7 @@ impl Hub {
             "refused": self.refused.load(Relaxed),
             "handshakes_refused": self.handshakes_refused.load(Relaxed),
             "timed_out": self.timed_out.load(Relaxed),
+            "evicted": self.evicted.load(Relaxed),
             "sent": sent,
             "dropped": dropped,
             "handoff_dropped": self.handoff_dropped.load(Relaxed),
@@ -338,9 +493,15 @@ mod tests {
     fn framing_subscriptions_and_drops() {
         let hub = Hub::new("127.0.0.1:1".parse().unwrap());
         let (tx, mut rx) = tokio::sync::mpsc::channel(2);
-        let c = hub.join("127.0.0.1:2".parse().unwrap(), tx, 1).unwrap();
+        let never = Duration::from_secs(3600);
+        let c = hub
+            .join("127.0.0.1:2".parse().unwrap(), tx, 1, never)
+            .unwrap()
+            .client;
         let (tx2, _rx2) = tokio::sync::mpsc::channel(2);
-        assert!(hub.join("127.0.0.1:3".parse().unwrap(), tx2, 1).is_none());
+        assert!(hub
+            .join("127.0.0.1:3".parse().unwrap(), tx2, 1, never)
+            .is_none());
         assert_eq!(hub.refused.load(Relaxed), 1);
         assert!(!hub.wanted());
         hub.publish(&msg(Channel::Frame, b"{}"));
@@ -375,5 +536,59 @@ mod tests {
             (r["sent"].as_u64(), r["dropped"].as_u64()),
             (Some(5), Some(1))
         );
+    }
+
+    /// A client joined with a throwaway queue.
+    fn join(hub: &Hub, port: u16, max: usize, min_idle: Duration) -> Option<Joined> {
+        let (tx, _rx) = tokio::sync::mpsc::channel(2);
+        let addr = SocketAddr::from(([127, 0, 0, 1], port));
+        hub.join(addr, tx, max, min_idle)
+    }
+
+    /// Every place taken: the client idle the longest goes for a newcomer,
+    /// idle counting from its last unsubscribe; a subscribed one never
+    /// goes, and one evicted a moment ago subscribes nothing (the hub's
+    /// count of subscriptions stays true).
+    #[test]
+    fn the_longest_idle_client_makes_room_and_a_subscribed_one_never() {
+        let hub = Hub::new("127.0.0.1:1".parse().unwrap());
+        let zero = Duration::ZERO;
+        let a = join(&hub, 2, 2, zero).unwrap().client;
+        let b = join(&hub, 3, 2, zero).unwrap().client;
+        // a subscribes, then unsubscribes everything: idle from then,
+        // after b.
+        assert!(a.subscribe(&hub, 1, 0));
+        assert!(a.idle_for(Instant::now()).is_none());
+        a.unsubscribe(&hub, 1);
+        assert!(!hub.wanted());
+        let joined = join(&hub, 4, 2, zero).expect("room made");
+        let gone = joined.evicted.expect("one evicted");
+        assert_eq!(gone.addr, b.addr, "b, idle since its join, before a");
+        assert_eq!(hub.evicted.load(Relaxed), 1);
+        assert!(b.subscribe(&hub, 9, 0), "not told the channel is missing");
+        assert!(!hub.wanted(), "an evicted client subscribed");
+        // Both left subscribe: a newcomer is refused, whatever the minimum.
+        let c = joined.client;
+        assert!(a.subscribe(&hub, 1, 0) && c.subscribe(&hub, 1, 6));
+        assert!(join(&hub, 5, 2, zero).is_none());
+        // Idle, but not yet for the minimum: refused too.
+        a.unsubscribe(&hub, 1);
+        assert!(join(&hub, 6, 2, Duration::from_secs(3600)).is_none());
+        assert_eq!(
+            (hub.refused.load(Relaxed), hub.evicted.load(Relaxed)),
+            (2, 1)
+        );
+        let r = hub.report();
+        assert_eq!(
+            (r["clients"].as_u64(), r["evicted"].as_u64()),
+            (Some(2), Some(1))
+        );
+        let idle: Vec<bool> = r["client_list"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c["idle_s"].is_f64())
+            .collect();
+        assert_eq!(idle.iter().filter(|&&x| x).count(), 1, "{r}");
     }
 }

@@ -27,6 +27,16 @@
 //! has come for [`SILENCE`] (counted, `timed_out`): else a laptop
 //! unplugged from the tether would hold its place among `max_clients`
 //! until a restart.
+//!
+//! A client that answers the pings but subscribes to nothing (a forgotten
+//! browser tab, a script left connected) would still hold its place, and
+//! `max_clients` of them would turn the operator's Foxglove away at sea.
+//! So a newcomer that finds every place taken has the client that has
+//! subscribed to nothing the longest, for [`IDLE_EVICT`] at least, closed
+//! to make room ([`Hub::join`]; logged, counted `evicted`); idle time
+//! counts from the join or from the unsubscribe that left the client
+//! nothing. A client that subscribes to anything is never evicted; with
+//! no client idle long enough the newcomer is refused as before.
 
 use super::hub::{Client, Hub};
 use futures_util::{SinkExt, StreamExt};
@@ -44,7 +54,8 @@ use tokio::sync::{mpsc, OwnedSemaphorePermit, Semaphore};
 use tokio::time::{Instant, MissedTickBehavior};
 use tokio_tungstenite::tungstenite::handshake::server::{ErrorResponse, Request, Response};
 use tokio_tungstenite::tungstenite::http::{HeaderValue, StatusCode};
-use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
+use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
+use tokio_tungstenite::tungstenite::protocol::{CloseFrame, WebSocketConfig};
 use tokio_tungstenite::tungstenite::{Bytes, Message as Ws};
 use tokio_tungstenite::WebSocketStream;
 
@@ -59,6 +70,16 @@ pub const PING: Duration = Duration::from_secs(15);
 /// A client from which nothing (a pong, a request) came for this long is
 /// gone: three pings unanswered.
 pub const SILENCE: Duration = Duration::from_secs(45);
+/// A client that has subscribed to nothing for this long may be closed to
+/// make room for a newcomer when every place is taken. Foxglove subscribes
+/// within a second or two of connecting (its panels ask for their topics
+/// as the layout loads), and switching layouts unsubscribes and
+/// subscribes again within a second, so a minute never catches a client
+/// in use; it is short beside a dive, so an operator turned away by
+/// forgotten tabs gets in on retrying within a minute. Longer than
+/// [`SILENCE`], so a client that is gone altogether is ended by the pings
+/// first.
+pub const IDLE_EVICT: Duration = Duration::from_secs(60);
 /// A handshake that takes longer ends the connection.
 const HANDSHAKE: Duration = Duration::from_secs(5);
 /// Connections in their handshake at once: real clients are a handful
@@ -82,6 +103,8 @@ pub struct Limits {
     pub stall: Duration,
     /// [`HANDSHAKES`].
     pub handshakes: usize,
+    /// [`IDLE_EVICT`]; shorter in tests.
+    pub idle_evict: Duration,
 }
 
 impl Limits {
@@ -94,6 +117,7 @@ impl Limits {
             silence: SILENCE,
             stall: STALL,
             handshakes: HANDSHAKES,
+            idle_evict: IDLE_EVICT,
         }
     }
 }
@@ -102,6 +126,8 @@ impl Limits {
 enum End {
     /// Nothing came from the client for this long (no pong either).
     Silent(Duration),
+    /// Closed to make room for a newcomer: it subscribed to nothing.
+    Evicted,
     /// It closed, an error, a stalled write, the daemon stopping.
     Other(String),
 }
@@ -351,11 +377,7 @@ async fn client(
         }
     };
     let (tx, mut rx) = mpsc::channel(limits.client_queue);
-    let Some(c) = hub.join(addr, tx, limits.max_clients) else {
-        tracing::warn!(
-            "foxglove: {addr} turned away: {} clients already",
-            limits.max_clients
-        );
+    let Some(c) = admit(&hub, addr, tx, &limits) else {
         let _ = tokio::time::timeout(limits.stall, ws.close(None)).await;
         return;
     };
@@ -363,7 +385,11 @@ async fn client(
     let end = session_loop(&mut ws, &mut rx, &hub, &c, &limits).await;
     hub.leave(c.id);
     let close = limits.stall.min(Duration::from_secs(1));
-    let _ = tokio::time::timeout(close, ws.close(None)).await;
+    let frame = matches!(end, End::Evicted).then(|| CloseFrame {
+        code: CloseCode::Again,
+        reason: "closed to make room for another client: subscribed to nothing".into(),
+    });
+    let _ = tokio::time::timeout(close, ws.close(frame)).await;
     let (sent, dropped) = (c.sent.load(Relaxed), c.dropped.load(Relaxed));
     match end {
         End::Silent(d) => {
@@ -373,10 +399,44 @@ async fn client(
                  a cable pulled?); {sent} messages sent, {dropped} dropped"
             );
         }
+        End::Evicted => tracing::info!(
+            "foxglove: {addr} gone (closed to make room); {sent} messages sent, {dropped} dropped"
+        ),
         End::Other(why) => {
             tracing::info!("foxglove: {addr} gone ({why}); {sent} messages sent, {dropped} dropped")
         }
     }
+}
+
+/// Join the hub, making room by evicting a long-idle client if every
+/// place is taken (one line for the operator saying who went and why);
+/// `None` (logged) when the newcomer is turned away.
+fn admit(
+    hub: &Hub,
+    addr: SocketAddr,
+    tx: mpsc::Sender<Bytes>,
+    limits: &Limits,
+) -> Option<Arc<Client>> {
+    let max = limits.max_clients;
+    let Some(joined) = hub.join(addr, tx, max, limits.idle_evict) else {
+        tracing::warn!(
+            refused = hub.refused.load(Relaxed),
+            "foxglove: {addr} turned away: {max} clients already, none of them \
+             subscribed to nothing for {:.0} s or more",
+            limits.idle_evict.as_secs_f64()
+        );
+        return None;
+    };
+    if let Some(gone) = joined.evicted {
+        tracing::warn!(
+            evicted = hub.evicted.load(Relaxed),
+            "foxglove: {} disconnected to make room for {addr} ({max} clients already): \
+             it held a place for {:.0} s without subscribing to anything",
+            gone.addr,
+            gone.idle.as_secs_f64()
+        );
+    }
+    Some(joined.client)
 }
 
 /// On each ping tick: the end of a client silent for `silence`, else a
@@ -443,6 +503,12 @@ async fn session_loop(
                     return end;
                 }
             }
+            _ = c.evicted() => {
+                if hub.closing() {
+                    return "the daemon stops".to_string().into();
+                }
+                return End::Evicted;
+            }
         }
     }
 }
@@ -473,7 +539,10 @@ mod tests {
     fn requests_subscribe_unsubscribe_and_the_rest_is_warned() {
         let hub = Hub::new("127.0.0.1:1".parse().unwrap());
         let (tx, _rx) = mpsc::channel(4);
-        let c = hub.join("127.0.0.1:2".parse().unwrap(), tx, 4).unwrap();
+        let c = hub
+            .join("127.0.0.1:2".parse().unwrap(), tx, 4, IDLE_EVICT)
+            .unwrap()
+            .client;
         let sub = r#"{"op":"subscribe","subscriptions":[{"id":5,"channelId":1},{"id":6,"channelId":9},{"id":7,"channelId":0}]}"#;
         let reply = request(&hub, &c, sub).expect("a warning for channels 9 and 0");
         assert!(
