@@ -21,4 +21,12 @@ pub trait Estimator: Send {
     fn water_k_d(&self) -> Option<f64> {
         None
     }
+
+    /// The depth sensor's offset and its 1σ (m), if the estimator
+    /// estimates it (the tracker's `depth_offset_sigma_m`); None otherwise
+    /// (the default). What STATUS and the replay summary report as
+    /// `depth_offset`.
+    fn depth_offset(&self) -> Option<(f64, f64)> {
+        None
+    }
 }

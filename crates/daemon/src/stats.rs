@@ -282,6 +282,10 @@ pub struct Stats {
     /// (`Estimator::water_k_d`); 0 (0.0) while it learns none, as no
     /// learned water is that clear.
     pub water_k_d_bits: AtomicU64,
+    /// f64 bits of the depth sensor's offset and its 1σ as the estimator
+    /// has learned them (`Estimator::depth_offset`); 0 bits (0.0 with a σ
+    /// of 0) while it estimates none, as no estimate has a σ of 0.
+    pub depth_offset_bits: [AtomicU64; 2],
     /// The source's own counters (temperature sensor and its fallback,
     /// bad serial lines, reopens, injected faults), copied about once a
     /// second by the frame thread.
@@ -305,6 +309,15 @@ impl Stats {
     pub fn water_k_d(&self) -> Option<f64> {
         let k = f64::from_bits(self.water_k_d_bits.load(Relaxed));
         (k.is_finite() && k > 0.0).then_some(k)
+    }
+    pub fn depth_offset(&self) -> Option<(f64, f64)> {
+        let [m, sd] = [0, 1].map(|i| f64::from_bits(self.depth_offset_bits[i].load(Relaxed)));
+        (m.is_finite() && sd.is_finite() && sd > 0.0).then_some((m, sd))
+    }
+    pub fn set_depth_offset(&self, o: Option<(f64, f64)>) {
+        let (m, sd) = o.unwrap_or((0.0, 0.0));
+        self.depth_offset_bits[0].store(m.to_bits(), Relaxed);
+        self.depth_offset_bits[1].store(sd.to_bits(), Relaxed);
     }
     pub fn set_water_k_d(&self, k: Option<f64>) {
         self.water_k_d_bits.store(

@@ -165,6 +165,7 @@ fn estimator(c: &StatusCtx) -> Value {
         "calibration": c.cfg.calibration.describe(),
         "reloads": s.calibration_reloads.load(Relaxed),
         "water_k_d": opt(s.water_k_d()),
+        "depth_offset": s.depth_offset().map(|(m, sd)| json!({"m": m, "std": sd})),
     })
 }
 

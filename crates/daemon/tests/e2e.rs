@@ -711,6 +711,62 @@ fn tells_systemd_ready_status_and_watchdog() {
     assert!(got.contains("STATUS=") && got.contains("frames"), "{got}");
 }
 
+/// Told that the depth may be off by a constant (`depth_offset_sigma_m`),
+/// the daemon's STATUS says by how much the tracker found it off: a minute
+/// of coming and going with all three sensors, replayed from a log whose
+/// depth readings are 0.2 m off; told nothing, it says null.
+#[test]
+fn status_reports_the_depth_offset_the_tracker_learned() {
+    use lightpose_core::{LogHeader, LogWriter};
+    use lightpose_sim::{Scene, Simulator, Trajectory};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = std::fs::read_to_string(root().join("config/scenes/tank.toml")).unwrap();
+    let scene = Scene::parse(&(text + "\n[attitude]\n\n[depth]\n\n[dvl]\n"), "s").unwrap();
+    let traj = Trajectory::load(&root().join("tests/data/to-and-fro.csv")).unwrap();
+    let log = dir.path().join("biased.jsonl");
+    let header = LogHeader::new(scene.adc.bits, scene.adc.rate_hz);
+    let file = std::io::BufWriter::new(std::fs::File::create(&log).unwrap());
+    let mut w = LogWriter::new(file, &header).unwrap();
+    let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
+    let mut sim = Simulator::new(scene, 5);
+    for (seq, t) in times.into_iter().enumerate() {
+        let mut f = sim.frame_moving(seq as u64, t, &traj.kinematics(t));
+        if let Some(d) = f.depth.as_mut() {
+            d.z += 0.2;
+        }
+        w.write_frame(&f).unwrap();
+    }
+    w.flush().unwrap();
+    let untold = root().join("config/calibration/tank.toml");
+    let told = dir.path().join("told.toml");
+    let mut cal = std::fs::read_to_string(&untold).unwrap();
+    cal += "\n[estimator.tracker]\ndepth_offset_sigma_m = 0.3\n";
+    std::fs::write(&told, cal).unwrap();
+    for (cal, want) in [(&told, true), (&untold, false)] {
+        let (sub, addr) = subscriber();
+        let text = format!(
+            "rate_hz = 5.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"replay\"\nlog = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 1.0\n",
+            cal.display(),
+            log.display()
+        );
+        let cfg = Config::parse(&text, "offset.toml", None).expect("valid");
+        let (s, msgs) = run_to_end(cfg, Duration::from_secs(60), &sub);
+        assert!(s.source_ended && s.frames == 301, "{} frames", s.frames);
+        let status = common::run::of_class(&msgs, "STATUS");
+        let last = *status.last().expect("a STATUS at stop");
+        let o = &last["estimator"]["depth_offset"];
+        if want {
+            let (m, sd) = (o["m"].as_f64(), o["std"].as_f64());
+            let (m, sd) = m
+                .zip(sd)
+                .unwrap_or_else(|| panic!("depth_offset in {last}"));
+            assert!((m - 0.2).abs() <= 3.0 * sd && sd < 0.02, "{m} ± {sd}");
+        } else {
+            assert!(o.is_null(), "{last}");
+        }
+    }
+}
+
 /// Told that the water may be far from the calibration's (`k_d_sigma =
 /// 0.3`: the tracker runs as a bank of waters), the daemon's STATUS says
 /// which water the tracker found: a minute of coming and going at 4–6 m in

@@ -182,6 +182,9 @@ pub struct ReplaySummary {
     /// The water's K_D as the estimator learned it by the log's end
     /// (`Estimator::water_k_d`), m⁻¹, if it learns it.
     pub water_k_d: Option<f64>,
+    /// The depth sensor's offset and its 1σ as the estimator left them
+    /// (`Estimator::depth_offset`), m, if it estimates one.
+    pub depth_offset: Option<(f64, f64)>,
     /// Frames on which the estimator left each channel out as stuck
     /// (`PoseEstimate::excluded_channels`), by detector 5·row + col.
     pub excluded: [u64; NDET],
@@ -272,6 +275,7 @@ pub fn replay<W: Write>(
         bad_readings: 0,
         first_bad_reading: None,
         water_k_d: None,
+        depth_offset: None,
         excluded: [0; NDET],
         disagreed: [0; 6],
         agreement_extreme: [None; 6],
@@ -331,6 +335,7 @@ pub fn replay<W: Write>(
     s.seq_gaps = log.seq_gaps();
     s.bad_readings = log.bad_readings().0;
     s.water_k_d = est.water_k_d();
+    s.depth_offset = est.depth_offset();
     Ok(s)
 }
 

@@ -344,6 +344,21 @@ pub struct TrackerConfig {
     /// its own attitude included (docs/spec-notes.md). Default: at the
     /// dome centre.
     pub depth_lever_arm_m: [f64; 3],
+    /// How far off the depth readings may be as a whole, 1σ (m): the
+    /// beacon's depth as configured, the surface pressure the autopilot
+    /// took at boot, the water's density, the tide over the beacon since.
+    /// 0 (the default): the readings are taken as unbiased (MODEL.md's
+    /// sensor) and the filter fuses them as they are. Above 0 the filter
+    /// holds the offset as a state, with this prior, which the light
+    /// estimates where it sees z (with the attitude sensor: the spot's
+    /// elevation at a known pitch); reported in STATUS and the replay
+    /// summary (docs/estimators.md, "A depth offset").
+    pub depth_offset_sigma_m: f64,
+    /// How fast that offset drifts, a random walk's density (m²/s): the
+    /// tide over the beacon moves a pressure depth by up to 1–2 cm a
+    /// minute where it is large. Default 1e-6: 1σ 0.008 m in a minute,
+    /// 0.06 m in an hour. Only with `depth_offset_sigma_m` above 0.
+    pub depth_offset_walk_psd: f64,
     /// Use `Frame.velocity` (DVL, body frame) when present, with this 1σ
     /// per component (m/s) unless the reading gives its own (MODEL.md's
     /// DVL: 0.02 m/s).
@@ -482,6 +497,8 @@ impl Default for TrackerConfig {
             use_depth: true,
             depth_sigma_m: 0.02,
             depth_lever_arm_m: [0.0; 3],
+            depth_offset_sigma_m: 0.0,
+            depth_offset_walk_psd: 1e-6,
             use_velocity: true,
             velocity_sigma_mps: 0.02,
             reading_gate_p: 1e-6,
@@ -619,6 +636,18 @@ impl TrackerConfig {
         }
         if let Some(v) = self.depth_lever_arm_m.iter().find(|v| !v.is_finite()) {
             return bad(format!("tracker depth_lever_arm_m has {v}: must be finite"));
+        }
+        if !(0.0..=100.0).contains(&self.depth_offset_sigma_m) {
+            return bad(format!(
+                "tracker depth_offset_sigma_m = {} must be 0 (off) to 100 m",
+                self.depth_offset_sigma_m
+            ));
+        }
+        if !(self.depth_offset_walk_psd.is_finite() && self.depth_offset_walk_psd >= 0.0) {
+            return bad(format!(
+                "tracker depth_offset_walk_psd = {} must be 0 or more (m²/s)",
+                self.depth_offset_walk_psd
+            ));
         }
         Ok(())
     }

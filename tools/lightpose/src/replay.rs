@@ -120,6 +120,11 @@ fn say_summary(a: &ReplayArgs, s: &ReplaySummary) {
     if let Some(k) = s.water_k_d {
         eprintln!("water: K_D {k:.3} m⁻¹ as the estimator learned it by the end");
     }
+    if let Some((m, sd)) = s.depth_offset {
+        eprintln!(
+            "depth: the sensor's offset {m:+.3} ± {sd:.3} m as the estimator learned it by the end (readings less it are the vehicle's z)"
+        );
+    }
     if s.bad_readings > 0 {
         let first = s
             .first_bad_reading

@@ -494,6 +494,7 @@ impl Engine {
             );
         }
         self.stats.set_water_k_d(water);
+        self.stats.set_depth_offset(self.estimator.depth_offset());
         est
     }
 

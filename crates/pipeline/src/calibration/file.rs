@@ -965,12 +965,16 @@ pub(crate) mod tests {
     }
 
     #[test]
-    fn the_water_and_reading_checks_settings_are_read_and_checked() {
+    fn the_water_reading_and_depth_offset_settings_are_read_and_checked() {
         let mut text = sample().to_toml().unwrap();
-        text.push_str("\n[estimator.tracker]\nwater_check_frames = 0\nreading_check_s = 8.0\nreading_check_limit = 1.5\n");
+        text.push_str("\n[estimator.tracker]\nwater_check_frames = 0\nreading_check_s = 8.0\nreading_check_limit = 1.5\ndepth_offset_sigma_m = 0.3\n");
         let c = Calibration::parse(&text, "c.toml").unwrap();
         let t = c.estimator.unwrap().tracker;
         assert_eq!(t.water_check_frames, 0);
+        assert_eq!(
+            (t.depth_offset_sigma_m, t.depth_offset_walk_psd),
+            (0.3, 1e-6)
+        );
         assert_eq!((t.reading_check_s, t.reading_check_limit), (8.0, 1.5));
         for (key, bad, says) in [
             ("water_check_frames", "65", "0 (off) to 64"),
@@ -981,6 +985,10 @@ pub(crate) mod tests {
             ("water_check_nis", "1.0", "must be above 1"),
             ("water_check_nis", "nan", "must be above 1"),
             ("water_check_doubt", "-0.3", "must be positive"),
+            ("depth_offset_sigma_m", "-0.1", "0 (off) to 100 m"),
+            ("depth_offset_sigma_m", "nan", "0 (off) to 100 m"),
+            ("depth_offset_walk_psd", "-1e-6", "must be 0 or more"),
+            ("depth_offset_walk_psd", "inf", "must be 0 or more"),
         ] {
             let mut text = sample().to_toml().unwrap();
             text.push_str(&format!("\n[estimator.tracker]\n{key} = {bad}\n"));

@@ -205,4 +205,12 @@ impl Estimator for WaterBank {
             .any(|m| m.k_d().is_some())
             .then(|| self.k_d())
     }
+
+    /// The depth offset of the heaviest member (the waters differ in range,
+    /// not in the depth sensor).
+    fn depth_offset(&self) -> Option<(f64, f64)> {
+        let heaviest =
+            (0..self.members.len()).max_by(|&a, &b| self.weight[a].total_cmp(&self.weight[b]))?;
+        self.members[heaviest].depth_offset()
+    }
 }

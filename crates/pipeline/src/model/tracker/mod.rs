@@ -54,7 +54,7 @@ pub use self::bank::WaterBank;
 pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
 use self::counts::CountsInput;
 use self::readings::{gate_thresholds, FrameReadings};
-use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
+use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, DOFF, KD, VEL};
 pub use self::water_check::WaterWatch;
 use crate::model::single_frame::ModelEstimator;
 use crate::model::solver::Censoring;
@@ -102,6 +102,44 @@ pub struct Tracker {
     /// The reading check's windows (about the sensors: kept across
     /// restarts).
     agreement: agreement::Agreements,
+    /// The depth sensor's offset as the last state knew it (about the
+    /// sensor: kept across restarts).
+    depth_offset: OffsetMemory,
+    /// The offset's prior for the start being made (see `restart`).
+    offset_prior: (f64, f64),
+}
+
+/// The depth offset as the filter last knew it: mean, variance (m, m²) and
+/// when. Before any state, the setting's prior.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct OffsetMemory {
+    mean: f64,
+    var: f64,
+    t: Option<f64>,
+}
+
+impl OffsetMemory {
+    fn new(cfg: &TrackerConfig) -> Self {
+        OffsetMemory {
+            mean: 0.0,
+            var: cfg.depth_offset_sigma_m * cfg.depth_offset_sigma_m,
+            t: None,
+        }
+    }
+
+    /// The prior at time `t`: the variance grown by the walk since (a gap,
+    /// or time gone back: the setting's prior, no less than what was known).
+    fn prior_at(&self, t: f64, cfg: &TrackerConfig) -> (f64, f64) {
+        let full = cfg.depth_offset_sigma_m * cfg.depth_offset_sigma_m;
+        match self.t {
+            Some(t0) if t >= t0 => {
+                let grown = self.var + cfg.depth_offset_walk_psd * (t - t0);
+                (self.mean, grown.min(full))
+            }
+            Some(_) => (self.mean, full),
+            None => (0.0, full),
+        }
+    }
 }
 
 impl Tracker {
@@ -131,12 +169,14 @@ impl Tracker {
         Ok(Tracker {
             model,
             gate: gate_thresholds(cfg.reading_gate_p),
-            cfg,
             init,
             paper: None,
             k_d_sigma,
             state: None,
             agreement: Default::default(),
+            depth_offset: OffsetMemory::new(&cfg),
+            offset_prior: (0.0, 0.0),
+            cfg,
         })
     }
 
@@ -147,6 +187,7 @@ impl Tracker {
     pub(crate) fn inherit_checks(&mut self, from: &Tracker) {
         self.init.inherit_channels(&from.init);
         self.agreement = from.agreement;
+        self.depth_offset = from.depth_offset;
     }
 
     /// Give the tracker the paper's estimator of the same calibration, for
@@ -235,6 +276,7 @@ impl Tracker {
 
     /// Start from `frame` (first frame, after a gap, or when lost).
     fn restart(&mut self, frame: &Frame, r: &FrameReadings) -> PoseEstimate {
+        self.offset_prior = self.depth_offset.prior_at(frame.t, &self.cfg);
         let paper = match r.attitude.ready() {
             Some(_) => None,
             None => self.paper_range(frame),
@@ -246,7 +288,7 @@ impl Tracker {
                 }
                 let mut e = self.to_estimate(frame, &s, Status::Initialising);
                 e.readings = verdicts(uses);
-                self.state = Some(s);
+                self.keep(s);
                 e
             }
             Err(st) => {
@@ -508,6 +550,7 @@ impl Estimator for Tracker {
         self.state = None;
         self.init.reset();
         self.agreement = Default::default();
+        self.depth_offset = OffsetMemory::new(&self.cfg);
     }
 
     /// K_D while it is estimated (`estimate_k_d`, or from the first DVL
@@ -517,6 +560,10 @@ impl Estimator for Tracker {
             .as_ref()
             .filter(|s| s.k_d_free)
             .map(|s| state::k_d_of(&s.x))
+    }
+
+    fn depth_offset(&self) -> Option<(f64, f64)> {
+        Tracker::depth_offset(self)
     }
 }
 
@@ -627,7 +674,31 @@ impl Tracker {
         let status = self.status_of(&s, applied, n_sat, &uses);
         let mut e = self.to_estimate(frame, &s, status);
         e.readings = verdicts(uses);
-        self.state = Some(s);
+        self.keep(s);
         e
+    }
+
+    /// Keep `s` as the filter's state, and what it knows of the depth
+    /// sensor's offset for a later start.
+    fn keep(&mut self, s: State) {
+        if self.cfg.depth_offset_sigma_m > 0.0 {
+            self.depth_offset = OffsetMemory {
+                mean: s.x[DOFF],
+                var: s.p[(DOFF, DOFF)],
+                t: Some(s.t),
+            };
+        }
+        self.state = Some(s);
+    }
+
+    /// The depth sensor's offset and its 1σ (m), while it is estimated
+    /// (`depth_offset_sigma_m` above 0): what STATUS and the replay
+    /// summary report.
+    pub fn depth_offset(&self) -> Option<(f64, f64)> {
+        if !(self.cfg.depth_offset_sigma_m > 0.0) {
+            return None;
+        }
+        let m = self.depth_offset;
+        m.t.map(|_| (m.mean, m.var.max(0.0).sqrt()))
     }
 }

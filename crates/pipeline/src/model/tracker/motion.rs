@@ -2,7 +2,7 @@
 //! model (surge along the bow plus a small sideslip, the default) or the
 //! world model (constant velocity in B).
 
-use super::state::{body_axes, body_axes_derivatives, Ms, State, KD, VEL};
+use super::state::{body_axes, body_axes_derivatives, Ms, State, DOFF, KD, VEL};
 use super::Tracker;
 use crate::settings::Motion;
 
@@ -25,6 +25,9 @@ impl Tracker {
             // The walk's density is in K_D, the state in ln K_D.
             let k = super::state::k_d_of(&s.x);
             s.p[(KD, KD)] += self.cfg.k_d_walk_psd * dt / (k * k).max(1e-18);
+        }
+        if self.cfg.depth_offset_sigma_m > 0.0 {
+            s.p[(DOFF, DOFF)] += self.cfg.depth_offset_walk_psd * dt;
         }
         s.p = (s.p + s.p.transpose()) * 0.5;
     }

@@ -24,7 +24,7 @@ use lightpose_core::{AttitudeReading, Frame, ReadingUse, Refusal};
 use nalgebra::{SMatrix, SVector};
 
 use super::counts::commit;
-use super::state::{body_axes, body_axes_derivatives, k_d_of, Ms, State, KD, NS, VEL};
+use super::state::{body_axes, body_axes_derivatives, k_d_of, Ms, State, DOFF, KD, NS, VEL};
 use super::Tracker;
 use crate::model::solver::Censoring;
 use crate::settings::{Motion, TrackerConfig};
@@ -307,15 +307,17 @@ impl Tracker {
         }
     }
 
-    /// The depth sensor's z: z + l_f·sin θ − l_d·cos θ.
+    /// The depth sensor's z: z + l_f·sin θ − l_d·cos θ, plus its offset
+    /// (0 with no doubt unless `depth_offset_sigma_m` asks for it).
     fn depth_model(&self, s: &State) -> Linear<1> {
         let [lf, _, ld] = self.cfg.depth_lever_arm_m;
         let (st, ct) = s.x[3].sin_cos();
         let mut jac = SMatrix::<f64, 1, NS>::zeros();
         jac[(0, 2)] = 1.0;
         jac[(0, 3)] = lf * ct + ld * st;
+        jac[(0, DOFF)] = 1.0;
         Linear {
-            h: SVector::<f64, 1>::new(s.x[2] + lf * st - ld * ct),
+            h: SVector::<f64, 1>::new(s.x[2] + lf * st - ld * ct + s.x[DOFF]),
             jac,
         }
     }
@@ -565,9 +567,12 @@ mod tests {
         let mut x = Vs::zeros();
         // K_D 0.14 ± 0.01 (the state holds ln K_D).
         let (ln_k, sd_ln_k) = (0.14f64.ln(), 0.01 / 0.14);
-        x.copy_from_slice(&[6.0, 0.1, 0.2, 0.05, 0.02, 0.4, 0.0, 0.0, 0.0, 0.0, ln_k]);
+        x.copy_from_slice(&[
+            6.0, 0.1, 0.2, 0.05, 0.02, 0.4, 0.0, 0.0, 0.0, 0.0, ln_k, 0.0,
+        ]);
+        // The depth offset held at 0 with no doubt (the default).
         let sd = [
-            0.3, 0.2, 0.2, 0.1, 0.1, 0.15, 0.05, 0.05, 0.05, 0.05, sd_ln_k,
+            0.3, 0.2, 0.2, 0.1, 0.1, 0.15, 0.05, 0.05, 0.05, 0.05, sd_ln_k, 0.0,
         ];
         let p = Ms::from_diagonal(&Vs::from_iterator(sd.iter().map(|s| s * s)));
         State::new(x, p, 0.6)

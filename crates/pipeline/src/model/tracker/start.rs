@@ -28,7 +28,7 @@ use lightpose_core::frame::full_scale;
 use lightpose_core::{Frame, ReadingUse, Status};
 
 use super::readings::{Checked, FrameReadings};
-use super::state::{body_axes, Ms, State, Vs, KD, VEL};
+use super::state::{body_axes, Ms, State, Vs, DOFF, KD, VEL};
 use super::Tracker;
 use crate::model::light::PoseVec;
 use crate::model::single_frame::coarse_start;
@@ -69,10 +69,40 @@ impl Tracker {
             p.inv_sigma[2] = lat;
         }
         if let Some(d) = r.depth.ready() {
-            p.mean[2] = self.dome_z_of_depth(d.z[0], p.mean[3]);
-            p.inv_sigma[2] = 1.0 / d.sigma[0];
+            let (offset, var) = self.offset_prior;
+            p.mean[2] = self.dome_z_of_depth(d.z[0] - offset, p.mean[3]);
+            p.inv_sigma[2] = 1.0 / (d.sigma[0] * d.sigma[0] + var).sqrt();
         }
         p
+    }
+
+    /// The depth offset's prior at the start (its mean and variance, as
+    /// the last state left them, grown by its walk since; 0 and 0 unless
+    /// `depth_offset_sigma_m` asks for it), and what the start fit's use
+    /// of the depth ties to it. The fit took the depth less the offset's
+    /// mean with the offset's variance V added to the reading's, R = σ² +
+    /// V, so every component's error holds −K·e_b (K = P·Hᵀ/R, the depth's
+    /// gain in the fit, H its model's row): the covariance −K·V, the mean
+    /// left where it was.
+    fn start_offset(&self, x: &mut Vs, p: &mut Ms, r: &FrameReadings) {
+        let (offset, var) = self.offset_prior;
+        if !(var > 0.0) {
+            return;
+        }
+        x[DOFF] = offset;
+        p[(DOFF, DOFF)] = var;
+        let Some(d) = r.depth.ready() else {
+            return;
+        };
+        let [lf, _, ld] = self.cfg.depth_lever_arm_m;
+        let (st, ct) = x[3].sin_cos();
+        let h_theta = lf * ct + ld * st;
+        let rr = d.sigma[0] * d.sigma[0] + var;
+        for i in 0..5 {
+            let c = -(p[(i, 2)] + p[(i, 3)] * h_theta) * var / rr;
+            p[(i, DOFF)] = c;
+            p[(DOFF, i)] = c;
+        }
     }
 
     /// The dome centre's z for a depth sensor reading `zd` at pitch `theta`
@@ -125,7 +155,7 @@ impl Tracker {
         if depth && (lf != 0.0 || ld != 0.0) {
             // The lever arm's share of the depth at the fitted pitch.
             if let Some(d) = r.depth.ready() {
-                prior.mean[2] = self.dome_z_of_depth(d.z[0], best.q[3]);
+                prior.mean[2] = self.dome_z_of_depth(d.z[0] - self.offset_prior.0, best.q[3]);
                 best = solve(&self.model, &frame.counts, &best.q, &prior, &o);
             }
         }
@@ -190,6 +220,7 @@ impl Tracker {
             p[(i, i)] = c.init_rate_sigma_deg.to_radians().powi(2);
         }
         x[KD] = super::state::ln_k_d(self.model.light.k_d);
+        self.start_offset(&mut x, &mut p, r);
         let mut s = State::new(x, p, frame.t);
         s.paper_x = paper_x.and(self.paper_bias());
         s.doubt_k_d(self.k_d_sigma);

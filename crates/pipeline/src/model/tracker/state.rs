@@ -5,8 +5,9 @@
 use nalgebra::{SMatrix, SVector};
 
 /// State: x, y, z, θ, ψ, three velocities (body model: surge u, sideslip
-/// right v and down w; world model: ẋ, ẏ, ż), θ̇, ψ̇, ln K_D.
-pub(super) const NS: usize = 11;
+/// right v and down w; world model: ẋ, ẏ, ż), θ̇, ψ̇, ln K_D, the depth
+/// sensor's offset.
+pub(super) const NS: usize = 12;
 /// Index of the first velocity component.
 pub(super) const VEL: usize = 5;
 /// Paper ranges kept for their change over `paper_rate_frames`.
@@ -17,6 +18,12 @@ pub(super) const PAPER_RING: usize = crate::settings::PAPER_RATE_MAX_FRAMES;
 /// (biasing the predicted brightness up); in ln K_D every point is a
 /// water, and a doubt is a factor (`ln_k_d_sigma`).
 pub(super) const KD: usize = 10;
+
+/// Index of the depth sensor's offset (m): what its readings are off by
+/// as a whole (`TrackerConfig::depth_offset_sigma_m`). Held at 0 with no
+/// doubt unless that setting asks for it, and then a state the light
+/// estimates (docs/estimators.md, "A depth offset").
+pub(super) const DOFF: usize = 11;
 
 /// The least K_D the state holds, m⁻¹: clearer than any natural water
 /// (the clearest ocean's is ~0.02), so that a calibration's K_D of 0 still

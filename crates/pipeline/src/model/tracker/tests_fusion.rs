@@ -334,6 +334,24 @@ fn readings_keep_the_filter_going_in_the_dark() {
 /// dome's z − 0.4·cos θ; told the lever arm, the tracker recovers the
 /// dome's z; not told, it is pulled most of the way (the light disagrees
 /// and holds it back a little: measured −0.30 m).
+/// Off by default: the depth offset's state stays exactly 0 with no doubt
+/// and no covariance with anything, through starts, depth and counts
+/// updates, so the other states move as they did with 11.
+#[test]
+fn the_depth_offset_is_held_at_zero_unless_told() {
+    use super::state::DOFF;
+    let (tr, _) = warmed([true, true, true], 30, 7);
+    let s = tr.state.as_ref().expect("a state");
+    assert_eq!(s.x[DOFF], 0.0);
+    assert!(s
+        .p
+        .row(DOFF)
+        .iter()
+        .chain(s.p.column(DOFF).iter())
+        .all(|v| *v == 0.0));
+    assert_eq!(Estimator::depth_offset(&tr), None);
+}
+
 #[test]
 fn the_depth_lever_arm_is_applied_with_the_attitude() {
     let m = SensorModel::default();

@@ -99,6 +99,13 @@ impl Estimator for WaterWatch {
             None => self.tracker.water_k_d(),
         }
     }
+
+    fn depth_offset(&self) -> Option<(f64, f64)> {
+        match self.fired {
+            Some(_) => self.bank.depth_offset(),
+            None => self.tracker.depth_offset(),
+        }
+    }
 }
 
 #[cfg(test)]
