@@ -91,7 +91,7 @@ impl Ticker {
 /// ADC than the frames (the start refuses both).
 fn reload(cfg: &Config, d: &Running) {
     let file = cfg.calibration.describe();
-    match crate::wiring::build_estimator_for(cfg, d.adc_bits) {
+    match crate::wiring::reload_estimator(cfg, d) {
         Ok(e) => {
             tracing::info!("reloading calibration {file}");
             let _ = d.reload.send(e);

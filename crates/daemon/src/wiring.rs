@@ -59,10 +59,38 @@ fn estimator_of(cfg: &Config, cal: &Calibration) -> Result<Box<dyn Estimator>, D
 /// a start builds it before opening the source and checks it after):
 /// refused when the calibration's light model is of another ADC.
 pub fn build_estimator_for(cfg: &Config, adc_bits: u8) -> Result<Box<dyn Estimator>, DaemonError> {
+    estimator_and_calibration(cfg, adc_bits).map(|(est, _)| est)
+}
+
+fn estimator_and_calibration(
+    cfg: &Config,
+    adc_bits: u8,
+) -> Result<(Box<dyn Estimator>, Calibration), DaemonError> {
     let cal = load_calibration(cfg)?;
     let est = estimator_of(cfg, &cal)?;
     reads_frames(cfg, est.as_ref(), &cal, adc_bits)?;
+    Ok((est, cal))
+}
+
+/// A reload's estimator for `d` ([`build_estimator_for`]), its σ for a
+/// reading without a std told to the vehicle readings (the reloaded
+/// calibration's `[estimator.tracker]` may have changed it). Told before
+/// the frame thread takes the estimator: a frame between gets the new σ.
+pub fn reload_estimator(cfg: &Config, d: &Running) -> Result<Box<dyn Estimator>, DaemonError> {
+    let (est, cal) = estimator_and_calibration(cfg, d.adc_bits)?;
+    assume_std(d.vehicle.as_ref(), est.name(), &cal);
     Ok(est)
+}
+
+/// Tell the vehicle readings the σ the estimator named `est` assumes for
+/// a reading without a std (computed here, once: the frame thread only
+/// reads it), so that a carried MAVLink reading goes on the frame with it
+/// widened (`inputs::vehicle::assumed_std`).
+fn assume_std(vehicle: Option<&VehicleLink>, est: &str, cal: &Calibration) {
+    if let Some(v) = vehicle {
+        let s = crate::inputs::vehicle::assumed_std(est, cal.estimator.as_ref());
+        v.hub.readings.assume_std(Some(s));
+    }
 }
 
 /// The estimator can read the source's frames (the light model's ADC is
@@ -275,6 +303,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         None => (None, None),
     };
     let vehicle = start_vehicle(cfg).await?;
+    assume_std(vehicle.as_ref(), est_name, &cal);
     let header = log_header(cfg, source.as_ref(), &source_desc);
     // What the recording's clock record says its log time counts from.
     let epoch = Epoch::of(source.t_is_monotonic());

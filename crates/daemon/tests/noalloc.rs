@@ -33,13 +33,22 @@ fn vehicle_hub() -> std::sync::Arc<Hub> {
     let hub = Hub::new();
     let at = Instant::now() + Duration::from_secs(3600);
     let r = &hub.readings;
-    r.store_attitude(
+    // With rates and the tracker's σ told (as wiring does): the carry and
+    // its widened assumed std run too.
+    r.assume_std(Some(lightposed::inputs::vehicle::assumed_std(
+        "tracker", None,
+    )));
+    r.store_attitude_with_rates(
         at,
         &AttitudeReading {
             pitch: Angle::from_deg(1.0),
             yaw: Angle::from_deg(-2.0),
             std: None,
         },
+        Some(lightpose_vehicle::AttitudeRates {
+            pitch: 0.01,
+            yaw: 0.1,
+        }),
     );
     r.store_depth(at, &DepthReading::new(0.1));
     r.store_temperature(at, 15.0);

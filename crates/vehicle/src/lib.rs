@@ -38,7 +38,7 @@ pub use mav::link::{Endpoint, Link};
 pub use mav::outbound::{MissingStd, Offer, OutputConfig, PoseOutbox, RestartCounter};
 pub use mav::task::MavlinkSettings;
 pub use ned::{NedPose, NedVec, Site};
-pub use readings::{Attached, AttitudeRates, MaxAge, Readings};
+pub use readings::{AssumedStd, Attached, AttitudeRates, MaxAge, Readings};
 
 use serde::Serialize;
 use std::sync::Arc;

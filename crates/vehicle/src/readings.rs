@@ -8,7 +8,9 @@
 //! ([`AttitudeRates`], from ATTITUDE's body rates) is carried from the
 //! moment it was taken to the frame's capture, and a depth by the DVL's
 //! climb rate, each std widened by the carry's error; the others are
-//! copied as they are (docs/vehicle.md, "Time"). Neither storing nor
+//! copied as they are (docs/vehicle.md, "Time"). A carried reading without
+//! a std of its own (MAVLink's) gets the σ the estimator assumes for it
+//! ([`AssumedStd`], told by the daemon), widened. Neither storing nor
 //! attaching allocates or takes a lock (see `latest`).
 
 use crate::latest::{opt, word, Latest};
@@ -120,12 +122,34 @@ fn widened(std: f64, var: f64) -> f64 {
     }
 }
 
+/// A std the estimator takes (finite and positive).
+fn usable(std: f64) -> bool {
+    std.is_finite() && std > 0.0
+}
+
+/// The σ (1σ) the estimator assumes for a reading that brings no std of
+/// its own: its configured `attitude_sigma_pitch_deg`,
+/// `attitude_sigma_yaw_deg` and `depth_sigma_m`. A reading without a std
+/// that is carried (its carry adds a variance above 0) goes on the frame
+/// with this σ widened by the carry's error, so that the estimator does
+/// not take it as surely as one taken at the capture; one not carried
+/// keeps no std (the estimator's σ applies as it is). Told to
+/// [`Readings::assume_std`] by whoever built the estimator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AssumedStd {
+    pub pitch: Angle,
+    pub yaw: Angle,
+    pub depth_m: f64,
+}
+
 /// `a` carried from `taken` to `at` at `rates`, over at most
 /// [`MAX_CARRY_S`] either way (a reading newer than the capture is carried
 /// back). Yaw is wrapped into (−180°, 180°], pitch kept within ±90°. Its
 /// std, if it has one, grows by the carry's error ([`carry_var`]), back as
-/// well as forward; a reading without a std keeps none (the estimator's
-/// configured σ applies, which does not know the carry).
+/// well as forward. A reading without a std that is carried (`at` ≠
+/// `taken`) gets `assumed`'s pitch and yaw σ, widened the same way, if
+/// both are usable; otherwise, or not carried, it keeps none (the
+/// estimator's configured σ applies, which does not know the carry).
 ///
 /// A reading without rates is neither carried nor widened, though it is off
 /// by about rate × age: the rate is unknown here, an ROV's spread of rates
@@ -133,16 +157,30 @@ fn widened(std: f64, var: f64) -> f64 {
 /// a lag shared by successive frames, which a wider σ would only lighten,
 /// not describe (the tracker, which has the rate, is where it could be
 /// taken off).
-fn carried(a: Att, rates: Option<AttitudeRates>, taken: Instant, at: Instant) -> Att {
+fn carried(
+    a: Att,
+    rates: Option<AttitudeRates>,
+    assumed: Option<AssumedStd>,
+    taken: Instant,
+    at: Instant,
+) -> Att {
     let Some(w) = rates else { return a };
     let span = span_s(taken, at);
     let dt = carry_s(span);
+    let (var_pitch, var_yaw) = (carry_var(w.pitch, span, dt), carry_var(w.yaw, span, dt));
+    let std = match a.std {
+        Some(s) => Some((s.pitch.rad(), s.yaw.rad())),
+        None if var_pitch > 0.0 && var_yaw > 0.0 => assumed
+            .map(|s| (s.pitch.rad(), s.yaw.rad()))
+            .filter(|&(p, y)| usable(p) && usable(y)),
+        None => None,
+    };
     Att {
         pitch: Angle::from_rad((a.pitch.rad() + w.pitch * dt).clamp(-FRAC_PI_2, FRAC_PI_2)),
         yaw: wrap_pi(Angle::from_rad(a.yaw.rad() + w.yaw * dt)),
-        std: a.std.map(|s| AttitudeStd {
-            pitch: Angle::from_rad(widened(s.pitch.rad(), carry_var(w.pitch, span, dt))),
-            yaw: Angle::from_rad(widened(s.yaw.rad(), carry_var(w.yaw, span, dt))),
+        std: std.map(|(p, y)| AttitudeStd {
+            pitch: Angle::from_rad(widened(p, var_pitch)),
+            yaw: Angle::from_rad(widened(y, var_yaw)),
         }),
     }
 }
@@ -162,10 +200,16 @@ fn carried(a: Att, rates: Option<AttitudeRates>, taken: Instant, at: Instant) ->
 /// pitch's error is left out (0.3° at 1 m/s is 0.005 m/s against a DVL's
 /// 0.02), and so is the heave's change during the carry (the DVL does not
 /// report acceleration). A velocity without a std adds nothing.
+///
+/// A depth without a std whose carry adds a variance (a DVL with a std,
+/// or a carry beyond [`MAX_CARRY_S`]) gets `assumed_m` (the estimator's
+/// `depth_sigma_m`), if usable, widened the same way; otherwise it keeps
+/// none.
 fn carried_depth(
     d: DepthReading,
     att: Option<&AttitudeReading>,
     vel: Option<&VelocityReading>,
+    assumed_m: Option<f64>,
     taken: Instant,
     at: Instant,
 ) -> DepthReading {
@@ -184,10 +228,13 @@ fn carried_depth(
     });
     let dropped = climb * (span.abs() - dt.abs());
     let var = climb_var * span * span + dropped * dropped;
+    let std = d
+        .std
+        .or_else(|| assumed_m.filter(|&s| var > 0.0 && usable(s)));
     if z.is_finite() {
         DepthReading {
             z,
-            std: d.std.map(|s| widened(s, var)),
+            std: std.map(|s| widened(s, var)),
         }
     } else {
         d
@@ -242,6 +289,9 @@ pub struct Readings {
     depth: Latest<3>,
     temperature: Latest<2>,
     velocity: Latest<7>,
+    /// The estimator's σ for a reading without one ([`AssumedStd`]):
+    /// pitch, yaw (rad), depth (m). Never written: none.
+    assumed: Latest<3>,
     uses: [Use; 4],
 }
 
@@ -262,6 +312,7 @@ impl Default for Readings {
             depth: Latest::default(),
             temperature: Latest::default(),
             velocity: Latest::default(),
+            assumed: Latest::default(),
             uses: Default::default(),
         }
     }
@@ -315,6 +366,30 @@ impl Readings {
         }
     }
 
+    /// The σ the estimator assumes for a reading without a std of its own
+    /// (`None`: none, as before any was told): from the next frame on, a
+    /// carried reading without a std goes on the frame with it, widened by
+    /// the carry (see [`AssumedStd`]). Told when the estimator is built (at
+    /// start and at a calibration reload); neither allocates nor locks. A
+    /// σ not finite makes it none as a whole.
+    pub fn assume_std(&self, s: Option<AssumedStd>) {
+        self.assumed.store([
+            word(s.map(|s| s.pitch.rad())),
+            word(s.map(|s| s.yaw.rad())),
+            word(s.map(|s| s.depth_m)),
+        ]);
+    }
+
+    /// The σ last told to [`Readings::assume_std`], if any.
+    pub fn assumed_std(&self) -> Option<AssumedStd> {
+        let (_, w) = self.assumed.load()?;
+        Some(AssumedStd {
+            pitch: Angle::from_rad(opt(w[0])?),
+            yaw: Angle::from_rad(opt(w[1])?),
+            depth_m: opt(w[2])?,
+        })
+    }
+
     /// An attitude without rates: attached as it is.
     pub fn store_attitude(&self, at: Instant, r: &AttitudeReading) {
         self.store_attitude_with_rates(at, r, None);
@@ -364,7 +439,8 @@ impl Readings {
     }
 
     /// The latest attitude if fresh at `at`, carried to `at` by its rates
-    /// when it has them.
+    /// when it has them (a std-less one given the assumed σ, widened: see
+    /// [`AssumedStd`]).
     pub fn attitude(&self, at: Instant, max_age: Duration) -> Option<AttitudeReading> {
         let (taken, w) = self.fresh(&self.attitude, ATT, at, max_age)?;
         let std = match (opt(w[3]), opt(w[4])) {
@@ -383,7 +459,12 @@ impl Readings {
             yaw: Angle::from_rad(f64::from_bits(w[2])),
             std,
         };
-        Some(carried(a, rates, taken, at))
+        let assumed = if a.std.is_none() && rates.is_some() {
+            self.assumed_std()
+        } else {
+            None
+        };
+        Some(carried(a, rates, assumed, taken, at))
     }
 
     /// The latest depth reading (z in B) if fresh at `at`.
@@ -427,8 +508,9 @@ impl Readings {
     /// Give `frame` every reading that is fresh at `capture` (the instant
     /// the frame was sampled) and that the frame does not carry already (a
     /// recording's or the simulator's own readings win); an attitude with
-    /// rates is carried to `capture`. For the frame thread: no allocation,
-    /// no lock.
+    /// rates is carried to `capture`, and a depth by the DVL's climb rate,
+    /// a carried one without a std given the assumed σ widened
+    /// ([`AssumedStd`]). For the frame thread: no allocation, no lock.
     pub fn attach(&self, frame: &mut Frame, capture: Instant, max_age: &MaxAge) -> Attached {
         let mut a = Attached::default();
         if frame.attitude.is_none() {
@@ -441,10 +523,16 @@ impl Readings {
         }
         if frame.depth.is_none() {
             frame.depth = self.depth_taken(capture, max_age.depth).map(|(taken, d)| {
+                let assumed = if d.std.is_none() {
+                    self.assumed_std().map(|s| s.depth_m)
+                } else {
+                    None
+                };
                 carried_depth(
                     d,
                     frame.attitude.as_ref(),
                     frame.velocity.as_ref(),
+                    assumed,
                     taken,
                     capture,
                 )
@@ -786,7 +874,8 @@ mod tests {
         // Without rates: neither carried nor widened (see `carried`).
         r.store_attitude(t0, &a);
         assert_eq!(attached_std(&r, at(200), &ages), a.std);
-        // Without a std: still none (the estimator's σ applies).
+        // Without a std, and no σ told (`assume_std`): still none (the
+        // estimator's σ applies).
         r.store_attitude_with_rates(
             t0,
             &AttitudeReading::new(deg(2.0), deg(10.0)),
@@ -848,6 +937,112 @@ mod tests {
         assert!((d.z - (-1.0 + climb * 0.2)).abs() < 1e-12, "{d:?}");
         // A depth without a std keeps none.
         assert_eq!(depth_at(None, dvl, 200).std, None);
+    }
+
+    /// The tracker's defaults: pitch 0.3°, yaw 1.5°, depth 0.02 m.
+    fn tracker_sigma() -> AssumedStd {
+        AssumedStd {
+            pitch: deg(0.3),
+            yaw: deg(1.5),
+            depth_m: 0.02,
+        }
+    }
+
+    /// Audit: MAVLink's ATTITUDE brings no std, so a carried attitude went
+    /// on with none and the estimator took its configured σ unwidened, as
+    /// if taken at the capture. Told the σ the estimator assumes, a carried
+    /// std-less reading gets it widened as a reading with that std would
+    /// be; one not carried, or without rates, keeps none.
+    #[test]
+    fn a_carried_attitude_without_a_std_gets_the_assumed_sigma_widened() {
+        let r = Readings::default();
+        let t0 = Instant::now() + Duration::from_secs(5);
+        let ages = MaxAge::default();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        let bare = AttitudeReading::new(deg(2.0), deg(10.0));
+        r.assume_std(Some(tracker_sigma()));
+        assert_eq!(r.assumed_std(), Some(tracker_sigma()));
+        r.store_attitude_with_rates(t0, &bare, rates(-4.0, 30.0));
+        // 0.25 s: pitch 0.3° → 0.458°, yaw 1.5° → 1.539°, exactly as a
+        // reading that came with 0.3° / 1.5°.
+        let s25 = attached_std(&r, at(250), &ages);
+        assert!(
+            close_std(s25, model(0.3, 0.25), model(1.5, 0.25)),
+            "{s25:?}"
+        );
+        let s25 = s25.unwrap();
+        assert!((s25.pitch.deg() - 0.458_03).abs() < 1e-5, "{s25:?}");
+        assert!((s25.yaw.deg() - 1.539_41).abs() < 1e-5, "{s25:?}");
+        let own = Readings::default();
+        own.store_attitude_with_rates(t0, &with_std(2.0, 10.0, 0.3, 1.5), rates(-4.0, 30.0));
+        assert_eq!(Some(s25), attached_std(&own, at(250), &ages));
+        // Carried back 0.1 s: widened as much as 0.1 s forward.
+        r.store_attitude_with_rates(at(100), &bare, rates(-4.0, 30.0));
+        let back = attached_std(&r, t0, &ages);
+        assert!(
+            close_std(back, model(0.3, 0.1), model(1.5, 0.1)),
+            "{back:?}"
+        );
+        // Not carried (taken at the capture): none, the estimator's σ.
+        assert_eq!(attached_std(&r, at(100), &ages), None);
+        // Without rates: neither carried nor given a std.
+        r.store_attitude(t0, &bare);
+        assert_eq!(attached_std(&r, at(250), &ages), None);
+        // A reading's own std wins over the assumed one.
+        let a = with_std(2.0, 10.0, 0.2, 1.0);
+        r.store_attitude_with_rates(t0, &a, rates(-4.0, 30.0));
+        let s = attached_std(&r, at(250), &ages);
+        assert!(close_std(s, model(0.2, 0.25), model(1.0, 0.25)), "{s:?}");
+        // An assumed σ the estimator would refuse is not given.
+        r.store_attitude_with_rates(t0, &bare, rates(-4.0, 30.0));
+        r.assume_std(Some(AssumedStd {
+            pitch: deg(0.0),
+            ..tracker_sigma()
+        }));
+        assert_eq!(attached_std(&r, at(250), &ages), None);
+        // Told none: as before any was told.
+        r.assume_std(None);
+        assert_eq!(r.assumed_std(), None);
+        assert_eq!(attached_std(&r, at(250), &ages), None);
+    }
+
+    /// A std-less depth carried by a DVL with a std gets the assumed depth
+    /// σ widened by the climb rate's error; carried by a DVL without one
+    /// (no variance added), or not carried, it keeps none.
+    #[test]
+    fn a_carried_depth_without_a_std_gets_the_assumed_sigma_widened() {
+        let ages = MaxAge::default();
+        let depth_at = |std: Option<f64>, v_std: Option<[f64; 3]>, ms: u64| {
+            let r = Readings::default();
+            r.assume_std(Some(tracker_sigma()));
+            let t0 = Instant::now() + Duration::from_secs(5);
+            r.store_depth(t0, &DepthReading { z: -1.0, std });
+            r.store_velocity(
+                t0,
+                &VelocityReading {
+                    std: v_std.map(BodyVec),
+                    ..VelocityReading::new(1.0, 0.0, 0.5)
+                },
+            );
+            r.store_attitude(t0, &AttitudeReading::new(deg(30.0), deg(0.0)));
+            let mut f = Frame::new(0, 0.0, 10, [0; NDET]);
+            r.attach(&mut f, t0 + Duration::from_millis(ms), &ages);
+            f.depth.expect("a depth")
+        };
+        let dvl = Some([0.02, 0.01, 0.03]);
+        // Nose up 30°, 0.2 s: 0.02 m → √(0.02² + 0.000775·0.2²) m, as a
+        // reading that came with 0.02 m.
+        let d = depth_at(None, dvl, 200);
+        let want = (0.0004f64 + 0.000_775 * 0.04).sqrt();
+        assert!(d.std.is_some_and(|s| (s - want).abs() < 1e-12), "{d:?}");
+        assert!((d.std.unwrap() - 0.020_761).abs() < 1e-6, "{d:?}");
+        assert_eq!(d.std, depth_at(Some(0.02), dvl, 200).std);
+        // A DVL without a std adds nothing: none (z carried all the same).
+        let d = depth_at(None, None, 200);
+        assert_eq!(d.std, None);
+        assert!(d.z != -1.0, "{d:?}");
+        // Not carried: none.
+        assert_eq!(depth_at(None, dvl, 0).std, None);
     }
 
     #[test]

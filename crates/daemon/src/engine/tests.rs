@@ -479,6 +479,60 @@ fn readings_are_attached_as_of_the_frame_capture() {
     assert_eq!(lagging(0.150, Duration::from_millis(450)).0, None);
 }
 
+/// (carried yaw in degrees, attitude std) per frame, as the outputs see
+/// it (the recording's frame).
+type SeenStd = Arc<Mutex<Vec<(f64, Option<lightpose_core::AttitudeStd>)>>>;
+struct WatchStd(SeenStd);
+impl Output for WatchStd {
+    fn emit(&mut self, a: &Acquired, _: &PoseEstimate) {
+        if let (Some(r), Ok(mut v)) = (a.frame.attitude, self.0.lock()) {
+            v.push((r.yaw.deg(), r.std));
+        }
+    }
+}
+
+/// Audit: MAVLink's ATTITUDE brings no std, so an attitude carried to the
+/// capture went on with none and the estimator took its configured σ as
+/// if the reading were taken then. With the hub told the estimator's σ
+/// (as wiring does at start), the frame the outputs and the recording see
+/// carries that σ widened by the carry: 0.2 s at 30 °/s here.
+#[test]
+fn a_carried_mavlink_attitude_goes_on_the_frame_with_the_assumed_sigma_widened() {
+    let hub = lightpose_vehicle::Hub::new();
+    hub.readings
+        .assume_std(Some(crate::inputs::vehicle::assumed_std("tracker", None)));
+    let seen: SeenStd = Arc::default();
+    let src = Lagging {
+        hub: hub.clone(),
+        lag: 0.150,
+        age: Duration::from_millis(350),
+        done: false,
+    };
+    let input = crate::inputs::vehicle::VehicleReadings {
+        hub,
+        max_age: lightpose_vehicle::MaxAge::default(),
+    };
+    let end = Engine::new(Box::new(src), Box::new(Nothing))
+        .input(Box::new(input))
+        .output(Box::new(WatchStd(seen.clone())))
+        .run();
+    assert_eq!(end, EndReason::SourceEnded);
+    let v = seen.lock().unwrap().clone();
+    assert_eq!(v.len(), 1);
+    let (yaw, std) = v[0];
+    // How far it was carried, from the carried yaw (−179° at 30 °/s):
+    // 0.2 s, more if the thread was preempted.
+    let span = (yaw + 179.0) / 30.0;
+    assert!((0.199..0.25).contains(&span), "carried {span} s");
+    // σ² + q·Δ³/3 + (σ_ω·Δ)² (q = 20 (°/s²)²/Hz, σ_ω = 0.5 °/s) on the
+    // tracker's 0.3° / 1.5°: at 0.2 s, 0.392° / 1.520°.
+    let model = |s: f64| (s * s + 20.0 * span.powi(3) / 3.0 + (0.5 * span).powi(2)).sqrt();
+    let std = std.expect("the assumed σ, widened");
+    assert!((std.pitch.deg() - model(0.3)).abs() < 1e-6, "{std:?}");
+    assert!((std.yaw.deg() - model(1.5)).abs() < 1e-6, "{std:?}");
+    assert!(std.pitch.deg() > 0.39, "{std:?}");
+}
+
 #[test]
 fn a_capture_lag_out_of_reason_is_bounded() {
     assert_eq!(capture_lag(99.85, 100.0), Duration::from_secs_f64(0.15));
