@@ -174,12 +174,31 @@ impl SigningTable {
                 ))
             }
         };
-        let key = SigningKey::load(&path(file), form).map_err(|e| err(M, key, e))?;
+        let file = path(file);
+        let key = SigningKey::load(&file, form).map_err(|e| err(M, key, e))?;
+        warn_if_others_read(&file);
         Ok(SigningConfig {
             key,
             link_id: self.link_id.unwrap_or(0),
             allow_unsigned: self.allow_unsigned.unwrap_or(false),
         })
+    }
+}
+
+/// A warning (not a refusal: the operator may have reasons) when the key
+/// file may be read by others than its owner, as ssh warns of a key.
+fn warn_if_others_read(file: &Path) {
+    use std::os::unix::fs::PermissionsExt;
+    if let Ok(m) = std::fs::metadata(file) {
+        let mode = m.permissions().mode();
+        if mode & 0o077 != 0 {
+            tracing::warn!(
+                "mavlink: the signing key file {} may be read by others (mode {:o}): \
+                 chmod 600 it, owned by lightposed's user",
+                file.display(),
+                mode & 0o777
+            );
+        }
     }
 }
 

@@ -103,12 +103,15 @@ pub enum Refusal {
     /// A signature that is not the configured key's.
     BadSignature,
     /// A good signature on a timestamp its stream has had (a frame played
-    /// again), or a new stream over a minute behind.
+    /// again).
     Replayed,
+    /// A good signature on a stream first heard over a minute behind our
+    /// signing clock (an old recording, or an autopilot whose clock is).
+    SigningClockBehind,
 }
 
 impl Refusal {
-    pub const ALL: [Refusal; 16] = [
+    pub const ALL: [Refusal; 17] = [
         Refusal::BadCrc,
         Refusal::UnknownMessage,
         Refusal::BadFlags,
@@ -125,6 +128,7 @@ impl Refusal {
         Refusal::Unsigned,
         Refusal::BadSignature,
         Refusal::Replayed,
+        Refusal::SigningClockBehind,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -145,6 +149,7 @@ impl Refusal {
             Refusal::Unsigned => "unsigned",
             Refusal::BadSignature => "bad_signature",
             Refusal::Replayed => "replayed",
+            Refusal::SigningClockBehind => "signing_clock_behind",
         }
     }
 

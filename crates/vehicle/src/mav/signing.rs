@@ -34,6 +34,9 @@ const NEW_STREAM_SLACK: u64 = 60 * 100_000;
 /// valid signature make one, so this is a bound, not a working size: a
 /// vehicle has a handful (autopilot, GCS, a companion or two).
 const MAX_STREAMS: usize = 32;
+/// The largest timestamp 48 bits hold: ours stops there (in the year
+/// 2104) rather than wrap to 0, which every receiver would refuse.
+const MAX_TIMESTAMP: u64 = (1 << 48) - 1;
 
 /// The 32-byte secret both ends share. Its `Debug` shows a fingerprint,
 /// never the key (settings are logged).
@@ -137,8 +140,12 @@ pub enum Rejected {
     /// A signature that is not the key's (another key, or altered bytes).
     BadSignature,
     /// A good signature on a timestamp not newer than its stream's last
-    /// (a frame played again), or a new stream more than a minute behind.
+    /// (a frame played again).
     Replayed,
+    /// A good signature on a stream first heard more than a minute behind
+    /// our timestamp: an old recording, or a sender whose clock is behind
+    /// (an autopilot without the time; see docs/vehicle.md, "Signing").
+    Behind,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -146,6 +153,9 @@ struct Stream {
     id: (u8, u8, u8),
     timestamp: u64,
     used: bool,
+    /// When it was last heard, as a count of frames taken: the one heard
+    /// longest ago makes room for a new stream.
+    heard: u64,
 }
 
 /// One link's signing: the key, the last timestamp sent or taken, and each
@@ -155,6 +165,8 @@ pub struct Signer {
     cfg: SigningConfig,
     timestamp: u64,
     streams: [Stream; MAX_STREAMS],
+    /// Frames taken so far (the streams' clock of when heard).
+    taken: u64,
 }
 
 /// Now in the timestamps' unit (10 µs since 2015), 0 for a clock before
@@ -173,6 +185,7 @@ impl Signer {
             cfg,
             timestamp: 0,
             streams: [Stream::default(); MAX_STREAMS],
+            taken: 0,
         }
     }
 
@@ -190,7 +203,7 @@ impl Signer {
         now: u64,
     ) {
         raw.serialize_message_for_signing(header, msg);
-        self.timestamp = now.max(self.timestamp + 1);
+        self.timestamp = now.max(self.timestamp + 1).min(MAX_TIMESTAMP);
         *raw.signature_link_id_mut() = self.cfg.link_id;
         raw.signature_timestamp_bytes_mut()
             .copy_from_slice(&self.timestamp.to_le_bytes()[..6]);
@@ -213,7 +226,15 @@ impl Signer {
             };
         }
         let (body, sig) = frame.split_at(frame.len() - SIG_VALUE_LEN);
-        if self.cfg.key.sign(body) != sig {
+        // Compared in constant time: how many bytes matched is not told.
+        let differ = self
+            .cfg
+            .key
+            .sign(body)
+            .iter()
+            .zip(sig)
+            .fold(0u8, |d, (a, b)| d | (a ^ b));
+        if differ != 0 {
             return Err(Rejected::BadSignature);
         }
         let tail = &body[body.len() - 7..];
@@ -221,23 +242,26 @@ impl Signer {
         ts[..6].copy_from_slice(&tail[1..]);
         let ts = u64::from_le_bytes(ts);
         let id = (tail[0], frame[5], frame[6]);
+        self.taken += 1;
+        let heard = self.taken;
         match self.streams.iter_mut().find(|s| s.used && s.id == id) {
             Some(s) if ts <= s.timestamp => return Err(Rejected::Replayed),
-            Some(s) => s.timestamp = ts,
+            Some(s) => (s.timestamp, s.heard) = (ts, heard),
             None if ts.saturating_add(NEW_STREAM_SLACK) < self.timestamp => {
-                return Err(Rejected::Replayed)
+                return Err(Rejected::Behind)
             }
             None => {
-                // A free slot, else the stream heard of longest ago.
+                // A free slot, else the stream heard longest ago.
                 let slot = self
                     .streams
                     .iter_mut()
-                    .min_by_key(|s| (s.used, s.timestamp))
+                    .min_by_key(|s| (s.used, s.heard))
                     .expect("MAX_STREAMS > 0");
                 *slot = Stream {
                     id,
                     timestamp: ts,
                     used: true,
+                    heard,
                 };
             }
         }
@@ -388,7 +412,7 @@ mod tests {
         let mut old = Signer::new(cfg(false));
         assert_eq!(
             me.check(&signed(&mut old, 2, 48 * minute)),
-            Err(Rejected::Replayed)
+            Err(Rejected::Behind)
         );
         let mut late = Signer::new(cfg(false));
         assert_eq!(
@@ -397,16 +421,40 @@ mod tests {
         );
     }
 
+    /// Streams are bounded; the one heard longest ago makes room, not the
+    /// one with the smallest timestamp (a live sender whose clock lags).
     #[test]
-    fn streams_are_bounded_and_the_oldest_is_forgotten() {
+    fn streams_are_bounded_and_the_one_heard_longest_ago_is_forgotten() {
         let mut me = Signer::new(cfg(false));
         let mut peers: Vec<Signer> = (0..=MAX_STREAMS).map(|_| Signer::new(cfg(false))).collect();
-        for (k, p) in peers.iter_mut().enumerate() {
-            let f = signed(p, k as u8 + 1, 1000 + k as u64);
+        // System 1 has the smallest timestamps, but is heard last.
+        for (k, p) in peers.iter_mut().enumerate().skip(1).take(MAX_STREAMS - 1) {
+            let f = signed(p, k as u8 + 1, 1000 + 10 * k as u64);
             assert_eq!(me.check(&f), Ok(()), "stream {k}");
         }
+        assert_eq!(me.check(&signed(&mut peers[0], 1, 500)), Ok(()));
+        let f = signed(&mut peers[MAX_STREAMS], MAX_STREAMS as u8 + 1, 2000);
+        assert_eq!(me.check(&f), Ok(()));
         assert!(me.streams.iter().all(|s| s.used));
-        assert!(!me.streams.iter().any(|s| s.id.1 == 1), "the oldest went");
+        assert!(
+            me.streams.iter().any(|s| s.id.1 == 1),
+            "the one heard last stays"
+        );
+        assert!(
+            !me.streams.iter().any(|s| s.id.1 == 2),
+            "the one heard first went"
+        );
+    }
+
+    /// Ours stops at the 48 bits' end instead of wrapping to 0.
+    #[test]
+    fn the_timestamp_saturates_at_48_bits() {
+        let mut me = Signer::new(cfg(false));
+        let mut far = Signer::new(cfg(false));
+        assert_eq!(me.check(&signed(&mut far, 1, MAX_TIMESTAMP)), Ok(()));
+        let mine = signed(&mut me, 1, 0);
+        let n = mine.len();
+        assert_eq!(&mine[n - 12..n - 6], &[0xFF; 6]);
     }
 
     #[test]

@@ -77,6 +77,7 @@ impl SkipLog {
             tracing::warn!(
                 reason,
                 count,
+                since_last_line = since,
                 "mavlink: {message} skips ({reason}): the condition is over: {since} more since \
                  the last line ({count} in all), the last {:.1} s ago",
                 log.since_last(now).as_secs_f64()

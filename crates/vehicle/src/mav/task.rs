@@ -453,6 +453,7 @@ fn refusal_of(r: Rejected) -> Refusal {
         Rejected::Unsigned => Refusal::Unsigned,
         Rejected::BadSignature => Refusal::BadSignature,
         Rejected::Replayed => Refusal::Replayed,
+        Rejected::Behind => Refusal::SigningClockBehind,
     }
 }
 
@@ -584,6 +585,14 @@ impl Sender {
     ) -> io::Result<()> {
         let c = &hub.mavlink;
         let framing = link.framing();
+        // Nowhere to send (udpin before the autopilot spoke): nothing is
+        // framed, so no sequence number or signing timestamp is spent on
+        // it (a timestamp moved by unsent frames could leave an autopilot
+        // whose clock is behind ours refused before it ever heard us).
+        if !link.has_peer() {
+            c.no_peer.fetch_add(1, Relaxed);
+            return Ok(());
+        }
         match link.send(self.enc.encode(msg)).await {
             Ok(Sent::Yes) => {
                 c.sent[kind].fetch_add(1, Relaxed);

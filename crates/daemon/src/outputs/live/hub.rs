@@ -285,6 +285,11 @@ impl Hub {
         min_idle: Duration,
     ) -> Option<Joined> {
         let mut clients = self.clients.lock().ok()?;
+        // After `close` (set under this lock), a handshake that finishes
+        // joins nothing: its task would wait on a queue nobody writes.
+        if self.closing() {
+            return None;
+        }
         let mut evicted = None;
         if clients.len() >= max {
             evicted = self.evict_idlest(&mut clients, min_idle);
@@ -369,11 +374,13 @@ impl Hub {
     /// sender lives in the `Client` its own task holds, so the queue never
     /// closed and the tasks lived until the runtime was dropped.)
     pub fn close(&self) {
-        self.closing.store(true, Relaxed);
-        let gone: Vec<Arc<Client>> = self
-            .clients
-            .lock()
-            .map_or_else(|_| Vec::new(), |mut c| c.drain(..).collect());
+        let gone: Vec<Arc<Client>> = self.clients.lock().map_or_else(
+            |_| Vec::new(),
+            |mut c| {
+                self.closing.store(true, Relaxed);
+                c.drain(..).collect()
+            },
+        );
         for c in gone {
             self.retire(&c);
             c.evict.notify_one();

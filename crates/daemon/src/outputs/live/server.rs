@@ -419,6 +419,10 @@ fn admit(
 ) -> Option<Arc<Client>> {
     let max = limits.max_clients;
     let Some(joined) = hub.join(addr, tx, max, limits.idle_evict) else {
+        if hub.closing() {
+            tracing::info!("foxglove: {addr} turned away: the daemon stops");
+            return None;
+        }
         tracing::warn!(
             refused = hub.refused.load(Relaxed),
             "foxglove: {addr} turned away: {max} clients already, none of them \

@@ -609,7 +609,7 @@ impl Tracker {
         // A frame without light says nothing of pose; the readings still
         // keep the filter on course.
         if !self.init.has_light(frame) {
-            self.state = Some(s);
+            self.keep(s);
             let mut e = PoseEstimate::empty(frame.seq, frame.t, Status::NoLight, Self::NAME);
             e.readings = verdicts(uses);
             return e;

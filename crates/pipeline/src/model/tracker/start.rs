@@ -80,11 +80,15 @@ impl Tracker {
     /// the last state left them, grown by its walk since; 0 and 0 unless
     /// `depth_offset_sigma_m` asks for it), and what the start fit's use
     /// of the depth ties to it. The fit took the depth less the offset's
-    /// mean with the offset's variance V added to the reading's, R = σ² +
-    /// V, so every component's error holds −K·e_b (K = P·Hᵀ/R, the depth's
-    /// gain in the fit, H its model's row): the covariance −K·V, the mean
-    /// left where it was.
-    fn start_offset(&self, x: &mut Vs, p: &mut Ms, r: &FrameReadings) {
+    /// mean as a prior on z with the offset's variance V added to the
+    /// reading's, R = σ² + V, so every component's error holds −K·e_b with
+    /// K_i = P_fit[i, z]/R (that prior's gain in the fit): the covariance
+    /// −K·V, the mean left where it was. `p_fit` is the fit's own
+    /// covariance, before a poor fit's widening: with the widened one the
+    /// joint covariance is not positive semi-definite once the widening
+    /// passes 1 + σ²/V (a review found it at 1.2 with the light weak on z),
+    /// while with the fit's own the widened block stays ≥ the tie.
+    pub(super) fn start_offset(&self, x: &mut Vs, p: &mut Ms, p_fit: &Ms, r: &FrameReadings) {
         let (offset, var) = self.offset_prior;
         if !(var > 0.0) {
             return;
@@ -94,12 +98,9 @@ impl Tracker {
         let Some(d) = r.depth.ready() else {
             return;
         };
-        let [lf, _, ld] = self.cfg.depth_lever_arm_m;
-        let (st, ct) = x[3].sin_cos();
-        let h_theta = lf * ct + ld * st;
         let rr = d.sigma[0] * d.sigma[0] + var;
         for i in 0..5 {
-            let c = -(p[(i, 2)] + p[(i, 3)] * h_theta) * var / rr;
+            let c = -p_fit[(i, 2)] * var / rr;
             p[(i, DOFF)] = c;
             p[(DOFF, i)] = c;
         }
@@ -194,33 +195,31 @@ impl Tracker {
             return Err(Status::NoLight);
         }
         let gt = super::gain_of(frame);
-        let Some(mut fit) = self.start_fit(frame, r, paper_x, gt) else {
+        let Some(fit) = self.start_fit(frame, r, paper_x, gt) else {
             return Err(Status::NoLight);
         };
         let status = self.start_status(frame, &fit);
         if status != Status::Ok {
             return Err(status);
         }
-        // A model that fits worse than its noise says: widen, don't lie.
-        let red = fit.chi2 / (fit.n_data.saturating_sub(5).max(1)) as f64;
-        if red > 1.0 {
-            fit.cov *= red;
-        }
         let mut x = Vs::zeros();
-        let mut p = Ms::zeros();
+        let mut p_fit = Ms::zeros();
         for i in 0..5 {
             x[i] = fit.q[i];
             for j in 0..5 {
-                p[(i, j)] = fit.cov[(i, j)];
+                p_fit[(i, j)] = fit.cov[(i, j)];
             }
         }
+        // A model that fits worse than its noise says: widen, don't lie.
+        let red = fit.chi2 / (fit.n_data.saturating_sub(5).max(1)) as f64;
+        let mut p = if red > 1.0 { p_fit * red } else { p_fit };
         self.start_velocity(&mut x, &mut p, r);
         let c = &self.cfg;
         for i in 8..10 {
             p[(i, i)] = c.init_rate_sigma_deg.to_radians().powi(2);
         }
         x[KD] = super::state::ln_k_d(self.model.light.k_d);
-        self.start_offset(&mut x, &mut p, r);
+        self.start_offset(&mut x, &mut p, &p_fit, r);
         let mut s = State::new(x, p, frame.t);
         s.paper_x = paper_x.and(self.paper_bias());
         s.doubt_k_d(self.k_d_sigma);
