@@ -16,6 +16,7 @@
 
 mod device;
 pub mod protocol;
+mod seqclock;
 
 use std::fmt;
 use std::io::Read;
@@ -30,6 +31,7 @@ use crate::text::{Recent, Text};
 use crate::{SourceError, SourceHealth};
 use device::Device;
 use protocol::{parse_line, LineAssembler, LineError, Sample};
+use seqclock::SeqClock;
 
 /// One configured serial board.
 #[derive(Debug, Clone, PartialEq)]
@@ -79,6 +81,8 @@ struct Port {
     /// When `latest` was sampled, as near as the port tells
     /// ([`crate::clock::monotonic_s`]): read, less its time on the wire.
     latest_at: f64,
+    /// When its lines were sampled, from their `seq` (`seqclock`).
+    clock: Box<SeqClock>,
     /// `latest` arrived since the last frame used a line of this board.
     fresh: bool,
     /// The board id of the last line of another board since this board's
@@ -116,6 +120,7 @@ impl SerialBank {
                     lines: LineAssembler::default(),
                     latest: None,
                     latest_at: 0.0,
+                    clock: Box::default(),
                     fresh: false,
                     foreign: None,
                 })
@@ -186,11 +191,13 @@ impl SerialBank {
         // A line is stamped when read, less its bytes' time on the wire
         // (10 bits a byte at 8N1): the board sampled, then sent it. Lines
         // that waited in the kernel's buffer (while the frame thread was
-        // busy or pacing) are stamped late by that wait, at most about a
-        // line period for the newest (docs/hardware.md).
+        // busy or pacing) would be late by that wait, up to about a line
+        // period for the newest: the board's steady rate and the lines'
+        // seq take it off (`seqclock`, docs/hardware.md).
         let read_s = crate::clock::monotonic_s();
         let s_per_byte = 10.0 / f64::from(p.cfg.baud.max(1));
         let id = p.cfg.id;
+        let clock = &mut p.clock;
         let (latest, latest_at) = (&mut p.latest, &mut p.latest_at);
         let (fresh, foreign) = (&mut p.fresh, &mut p.foreign);
         p.lines.push(&buf[..n], |line| {
@@ -200,7 +207,7 @@ impl SerialBank {
                         counters.superseded += 1;
                     }
                     // + "\r\n"
-                    *latest_at = read_s - (len + 2) as f64 * s_per_byte;
+                    *latest_at = clock.stamp(s.seq, read_s - (len + 2) as f64 * s_per_byte);
                     *latest = Some(s);
                     *fresh = true;
                     *foreign = None;
@@ -249,6 +256,7 @@ impl SerialBank {
         p.port = Some(port);
         p.lines.clear();
         p.latest = None;
+        p.clock.reset();
         p.fresh = false;
         p.foreign = None;
         Ok(())
