@@ -29,4 +29,10 @@ pub trait Estimator: Send {
     fn depth_offset(&self) -> Option<(f64, f64)> {
         None
     }
+
+    /// The attitude sensor's pitch offset and its 1σ (degrees), if the
+    /// estimator estimates it (the tracker's `pitch_offset_sigma_deg`).
+    fn pitch_offset_deg(&self) -> Option<(f64, f64)> {
+        None
+    }
 }

@@ -286,6 +286,8 @@ pub struct Stats {
     /// has learned them (`Estimator::depth_offset`); 0 bits (0.0 with a σ
     /// of 0) while it estimates none, as no estimate has a σ of 0.
     pub depth_offset_bits: [AtomicU64; 2],
+    /// The same for the attitude sensor's pitch offset (°).
+    pub pitch_offset_bits: [AtomicU64; 2],
     /// The source's own counters (temperature sensor and its fallback,
     /// bad serial lines, reopens, injected faults), copied about once a
     /// second by the frame thread.
@@ -311,13 +313,16 @@ impl Stats {
         (k.is_finite() && k > 0.0).then_some(k)
     }
     pub fn depth_offset(&self) -> Option<(f64, f64)> {
-        let [m, sd] = [0, 1].map(|i| f64::from_bits(self.depth_offset_bits[i].load(Relaxed)));
-        (m.is_finite() && sd.is_finite() && sd > 0.0).then_some((m, sd))
+        load_pair(&self.depth_offset_bits)
     }
     pub fn set_depth_offset(&self, o: Option<(f64, f64)>) {
-        let (m, sd) = o.unwrap_or((0.0, 0.0));
-        self.depth_offset_bits[0].store(m.to_bits(), Relaxed);
-        self.depth_offset_bits[1].store(sd.to_bits(), Relaxed);
+        store_pair(&self.depth_offset_bits, o);
+    }
+    pub fn pitch_offset_deg(&self) -> Option<(f64, f64)> {
+        load_pair(&self.pitch_offset_bits)
+    }
+    pub fn set_pitch_offset_deg(&self, o: Option<(f64, f64)>) {
+        store_pair(&self.pitch_offset_bits, o);
     }
     pub fn set_water_k_d(&self, k: Option<f64>) {
         self.water_k_d_bits.store(
@@ -330,6 +335,19 @@ impl Stats {
             .store(t.unwrap_or(f64::NAN).to_bits(), Relaxed);
         self.temp_source.store(src as u8, Relaxed);
     }
+}
+
+/// An estimate and its 1σ kept as f64 bits; none while the σ is 0 (no
+/// estimate has a σ of 0).
+fn load_pair(bits: &[AtomicU64; 2]) -> Option<(f64, f64)> {
+    let [m, sd] = [0, 1].map(|i| f64::from_bits(bits[i].load(Relaxed)));
+    (m.is_finite() && sd.is_finite() && sd > 0.0).then_some((m, sd))
+}
+
+fn store_pair(bits: &[AtomicU64; 2], o: Option<(f64, f64)>) {
+    let (m, sd) = o.unwrap_or((0.0, 0.0));
+    bits[0].store(m.to_bits(), Relaxed);
+    bits[1].store(sd.to_bits(), Relaxed);
 }
 
 #[cfg(test)]

@@ -166,6 +166,7 @@ fn estimator(c: &StatusCtx) -> Value {
         "reloads": s.calibration_reloads.load(Relaxed),
         "water_k_d": opt(s.water_k_d()),
         "depth_offset": s.depth_offset().map(|(m, sd)| json!({"m": m, "std": sd})),
+        "pitch_offset": s.pitch_offset_deg().map(|(d, sd)| json!({"deg": d, "std": sd})),
     })
 }
 

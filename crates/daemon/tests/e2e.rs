@@ -711,12 +711,13 @@ fn tells_systemd_ready_status_and_watchdog() {
     assert!(got.contains("STATUS=") && got.contains("frames"), "{got}");
 }
 
-/// Told that the depth may be off by a constant (`depth_offset_sigma_m`),
-/// the daemon's STATUS says by how much the tracker found it off: a minute
-/// of coming and going with all three sensors, replayed from a log whose
-/// depth readings are 0.2 m off; told nothing, it says null.
+/// Told that the depth and the attitude's pitch may be off by a constant
+/// (`depth_offset_sigma_m`, `pitch_offset_sigma_deg`), the daemon's STATUS
+/// says by how much the tracker found each off: a minute of coming and
+/// going with all three sensors, replayed from a log whose depth readings
+/// are 0.2 m off and pitch readings 1° off; told nothing, it says null.
 #[test]
-fn status_reports_the_depth_offset_the_tracker_learned() {
+fn status_reports_the_sensor_offsets_the_tracker_learned() {
     use lightpose_core::{LogHeader, LogWriter};
     use lightpose_sim::{Scene, Simulator, Trajectory};
     let dir = tempfile::tempdir().expect("tempdir");
@@ -734,13 +735,16 @@ fn status_reports_the_depth_offset_the_tracker_learned() {
         if let Some(d) = f.depth.as_mut() {
             d.z += 0.2;
         }
+        if let Some(a) = f.attitude.as_mut() {
+            a.pitch = lightpose_core::Angle::from_deg(a.pitch.deg() - 1.0);
+        }
         w.write_frame(&f).unwrap();
     }
     w.flush().unwrap();
     let untold = root().join("config/calibration/tank.toml");
     let told = dir.path().join("told.toml");
     let mut cal = std::fs::read_to_string(&untold).unwrap();
-    cal += "\n[estimator.tracker]\ndepth_offset_sigma_m = 0.3\n";
+    cal += "\n[estimator.tracker]\ndepth_offset_sigma_m = 0.3\npitch_offset_sigma_deg = 2.0\n";
     std::fs::write(&told, cal).unwrap();
     for (cal, want) in [(&told, true), (&untold, false)] {
         let (sub, addr) = subscriber();
@@ -754,15 +758,23 @@ fn status_reports_the_depth_offset_the_tracker_learned() {
         assert!(s.source_ended && s.frames == 301, "{} frames", s.frames);
         let status = common::run::of_class(&msgs, "STATUS");
         let last = *status.last().expect("a STATUS at stop");
-        let o = &last["estimator"]["depth_offset"];
+        let (o, po) = (
+            &last["estimator"]["depth_offset"],
+            &last["estimator"]["pitch_offset"],
+        );
         if want {
             let (m, sd) = (o["m"].as_f64(), o["std"].as_f64());
             let (m, sd) = m
                 .zip(sd)
                 .unwrap_or_else(|| panic!("depth_offset in {last}"));
-            assert!((m - 0.2).abs() <= 3.0 * sd && sd < 0.02, "{m} ± {sd}");
+            assert!((m - 0.2).abs() <= 3.0 * sd && sd < 0.05, "{m} ± {sd}");
+            let (d, sd) = (po["deg"].as_f64(), po["std"].as_f64());
+            let (d, sd) = d
+                .zip(sd)
+                .unwrap_or_else(|| panic!("pitch_offset in {last}"));
+            assert!((d + 1.0).abs() <= 3.0 * sd && sd < 0.5, "{d} ± {sd}");
         } else {
-            assert!(o.is_null(), "{last}");
+            assert!(o.is_null() && po.is_null(), "{last}");
         }
     }
 }

@@ -185,6 +185,8 @@ pub struct ReplaySummary {
     /// The depth sensor's offset and its 1σ as the estimator left them
     /// (`Estimator::depth_offset`), m, if it estimates one.
     pub depth_offset: Option<(f64, f64)>,
+    /// The attitude sensor's pitch offset and its 1σ (°), likewise.
+    pub pitch_offset_deg: Option<(f64, f64)>,
     /// Frames on which the estimator left each channel out as stuck
     /// (`PoseEstimate::excluded_channels`), by detector 5·row + col.
     pub excluded: [u64; NDET],
@@ -276,6 +278,7 @@ pub fn replay<W: Write>(
         first_bad_reading: None,
         water_k_d: None,
         depth_offset: None,
+        pitch_offset_deg: None,
         excluded: [0; NDET],
         disagreed: [0; 6],
         agreement_extreme: [None; 6],
@@ -336,6 +339,7 @@ pub fn replay<W: Write>(
     s.bad_readings = log.bad_readings().0;
     s.water_k_d = est.water_k_d();
     s.depth_offset = est.depth_offset();
+    s.pitch_offset_deg = est.pitch_offset_deg();
     Ok(s)
 }
 

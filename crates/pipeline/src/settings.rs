@@ -352,13 +352,20 @@ pub struct TrackerConfig {
     /// holds the offset as a state, with this prior, which the light
     /// estimates where it sees z (with the attitude sensor: the spot's
     /// elevation at a known pitch); reported in STATUS and the replay
-    /// summary (docs/estimators.md, "A depth offset").
+    /// summary (docs/estimators.md, "Sensor offsets").
     pub depth_offset_sigma_m: f64,
     /// How fast that offset drifts, a random walk's density (m²/s): the
     /// tide over the beacon moves a pressure depth by up to 1–2 cm a
     /// minute where it is large. Default 1e-6: 1σ 0.008 m in a minute,
     /// 0.06 m in an hour. Only with `depth_offset_sigma_m` above 0.
     pub depth_offset_walk_psd: f64,
+    /// How far off the attitude sensor's pitch may be as a whole, 1σ (°):
+    /// an AHRS mounted askew of the dome, a level calibration taken on a
+    /// slope. 0 (the default): believed. Above 0 a state with this prior
+    /// that the light estimates (with depth: the spot's elevation at a
+    /// known z), constant; reported in STATUS and the replay summary
+    /// (docs/estimators.md, "Sensor offsets").
+    pub pitch_offset_sigma_deg: f64,
     /// Use `Frame.velocity` (DVL, body frame) when present, with this 1σ
     /// per component (m/s) unless the reading gives its own (MODEL.md's
     /// DVL: 0.02 m/s).
@@ -499,6 +506,7 @@ impl Default for TrackerConfig {
             depth_lever_arm_m: [0.0; 3],
             depth_offset_sigma_m: 0.0,
             depth_offset_walk_psd: 1e-6,
+            pitch_offset_sigma_deg: 0.0,
             use_velocity: true,
             velocity_sigma_mps: 0.02,
             reading_gate_p: 1e-6,
@@ -634,6 +642,12 @@ impl TrackerConfig {
                 ));
             }
         }
+        self.validate_sensor_models()
+    }
+
+    /// The own sensors' lever arm and offsets (part of `validate`).
+    fn validate_sensor_models(&self) -> Result<(), ModelError> {
+        let bad = |m: String| Err(ModelError::Config(m));
         if let Some(v) = self.depth_lever_arm_m.iter().find(|v| !v.is_finite()) {
             return bad(format!("tracker depth_lever_arm_m has {v}: must be finite"));
         }
@@ -641,6 +655,12 @@ impl TrackerConfig {
             return bad(format!(
                 "tracker depth_offset_sigma_m = {} must be 0 (off) to 100 m",
                 self.depth_offset_sigma_m
+            ));
+        }
+        if !(0.0..=30.0).contains(&self.pitch_offset_sigma_deg) {
+            return bad(format!(
+                "tracker pitch_offset_sigma_deg = {} must be 0 (off) to 30°",
+                self.pitch_offset_sigma_deg
             ));
         }
         if !(self.depth_offset_walk_psd.is_finite() && self.depth_offset_walk_psd >= 0.0) {

@@ -120,6 +120,11 @@ fn say_summary(a: &ReplayArgs, s: &ReplaySummary) {
     if let Some(k) = s.water_k_d {
         eprintln!("water: K_D {k:.3} m⁻¹ as the estimator learned it by the end");
     }
+    if let Some((m, sd)) = s.pitch_offset_deg {
+        eprintln!(
+            "attitude: the sensor's pitch offset {m:+.2} ± {sd:.2}° as the estimator learned it by the end (its pitch less it is the vehicle's)"
+        );
+    }
     if let Some((m, sd)) = s.depth_offset {
         eprintln!(
             "depth: the sensor's offset {m:+.3} ± {sd:.3} m as the estimator learned it by the end (readings less it are the vehicle's z)"

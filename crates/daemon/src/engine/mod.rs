@@ -495,6 +495,8 @@ impl Engine {
         }
         self.stats.set_water_k_d(water);
         self.stats.set_depth_offset(self.estimator.depth_offset());
+        self.stats
+            .set_pitch_offset_deg(self.estimator.pitch_offset_deg());
         est
     }
 

@@ -987,6 +987,8 @@ pub(crate) mod tests {
             ("water_check_doubt", "-0.3", "must be positive"),
             ("depth_offset_sigma_m", "-0.1", "0 (off) to 100 m"),
             ("depth_offset_sigma_m", "nan", "0 (off) to 100 m"),
+            ("pitch_offset_sigma_deg", "31.0", "0 (off) to 30°"),
+            ("pitch_offset_sigma_deg", "nan", "0 (off) to 30°"),
             ("depth_offset_walk_psd", "-1e-6", "must be 0 or more"),
             ("depth_offset_walk_psd", "inf", "must be 0 or more"),
         ] {

@@ -135,6 +135,14 @@ impl WaterBank {
         }
     }
 
+    /// The member the weights favour most (the sensors' offsets are its:
+    /// the waters differ in range, not in the sensors).
+    fn heaviest(&self) -> Option<&Tracker> {
+        let k =
+            (0..self.members.len()).max_by(|&a, &b| self.weight[a].total_cmp(&self.weight[b]))?;
+        self.members.get(k)
+    }
+
     /// The mixture of the members' estimates: each field's weighted mean
     /// over the members that give it, and a σ that holds their spread;
     /// status and readings' verdicts of the heaviest member.
@@ -206,11 +214,11 @@ impl Estimator for WaterBank {
             .then(|| self.k_d())
     }
 
-    /// The depth offset of the heaviest member (the waters differ in range,
-    /// not in the depth sensor).
     fn depth_offset(&self) -> Option<(f64, f64)> {
-        let heaviest =
-            (0..self.members.len()).max_by(|&a, &b| self.weight[a].total_cmp(&self.weight[b]))?;
-        self.members[heaviest].depth_offset()
+        self.heaviest()?.depth_offset()
+    }
+
+    fn pitch_offset_deg(&self) -> Option<(f64, f64)> {
+        self.heaviest()?.pitch_offset_deg()
     }
 }

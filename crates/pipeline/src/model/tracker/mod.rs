@@ -35,6 +35,7 @@ mod bank;
 mod bound;
 mod counts;
 mod motion;
+mod offsets;
 pub(crate) mod readings;
 mod start;
 mod state;
@@ -54,7 +55,7 @@ pub use self::bank::WaterBank;
 pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
 use self::counts::CountsInput;
 use self::readings::{gate_thresholds, FrameReadings};
-use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, DOFF, KD, VEL};
+use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
 pub use self::water_check::WaterWatch;
 use crate::model::single_frame::ModelEstimator;
 use crate::model::solver::Censoring;
@@ -102,44 +103,9 @@ pub struct Tracker {
     /// The reading check's windows (about the sensors: kept across
     /// restarts).
     agreement: agreement::Agreements,
-    /// The depth sensor's offset as the last state knew it (about the
-    /// sensor: kept across restarts).
-    depth_offset: OffsetMemory,
-    /// The offset's prior for the start being made (see `restart`).
-    offset_prior: (f64, f64),
-}
-
-/// The depth offset as the filter last knew it: mean, variance (m, m²) and
-/// when. Before any state, the setting's prior.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct OffsetMemory {
-    mean: f64,
-    var: f64,
-    t: Option<f64>,
-}
-
-impl OffsetMemory {
-    fn new(cfg: &TrackerConfig) -> Self {
-        OffsetMemory {
-            mean: 0.0,
-            var: cfg.depth_offset_sigma_m * cfg.depth_offset_sigma_m,
-            t: None,
-        }
-    }
-
-    /// The prior at time `t`: the variance grown by the walk since (a gap,
-    /// or time gone back: the setting's prior, no less than what was known).
-    fn prior_at(&self, t: f64, cfg: &TrackerConfig) -> (f64, f64) {
-        let full = cfg.depth_offset_sigma_m * cfg.depth_offset_sigma_m;
-        match self.t {
-            Some(t0) if t >= t0 => {
-                let grown = self.var + cfg.depth_offset_walk_psd * (t - t0);
-                (self.mean, grown.min(full))
-            }
-            Some(_) => (self.mean, full),
-            None => (0.0, full),
-        }
-    }
+    /// The sensors' offsets as the last state knew them (about the
+    /// sensors: kept across restarts), and a start's priors of them.
+    offsets: offsets::Offsets,
 }
 
 impl Tracker {
@@ -174,8 +140,7 @@ impl Tracker {
             k_d_sigma,
             state: None,
             agreement: Default::default(),
-            depth_offset: OffsetMemory::new(&cfg),
-            offset_prior: (0.0, 0.0),
+            offsets: offsets::Offsets::new(&cfg),
             cfg,
         })
     }
@@ -187,7 +152,7 @@ impl Tracker {
     pub(crate) fn inherit_checks(&mut self, from: &Tracker) {
         self.init.inherit_channels(&from.init);
         self.agreement = from.agreement;
-        self.depth_offset = from.depth_offset;
+        self.offsets = from.offsets;
     }
 
     /// Give the tracker the paper's estimator of the same calibration, for
@@ -276,7 +241,7 @@ impl Tracker {
 
     /// Start from `frame` (first frame, after a gap, or when lost).
     fn restart(&mut self, frame: &Frame, r: &FrameReadings) -> PoseEstimate {
-        self.offset_prior = self.depth_offset.prior_at(frame.t, &self.cfg);
+        self.offsets.start_at(frame.t, &self.cfg);
         let paper = match r.attitude.ready() {
             Some(_) => None,
             None => self.paper_range(frame),
@@ -550,7 +515,7 @@ impl Estimator for Tracker {
         self.state = None;
         self.init.reset();
         self.agreement = Default::default();
-        self.depth_offset = OffsetMemory::new(&self.cfg);
+        self.offsets = offsets::Offsets::new(&self.cfg);
     }
 
     /// K_D while it is estimated (`estimate_k_d`, or from the first DVL
@@ -564,6 +529,10 @@ impl Estimator for Tracker {
 
     fn depth_offset(&self) -> Option<(f64, f64)> {
         Tracker::depth_offset(self)
+    }
+
+    fn pitch_offset_deg(&self) -> Option<(f64, f64)> {
+        Tracker::pitch_offset_deg(self)
     }
 }
 
@@ -678,16 +647,10 @@ impl Tracker {
         e
     }
 
-    /// Keep `s` as the filter's state, and what it knows of the depth
-    /// sensor's offset for a later start.
+    /// Keep `s` as the filter's state, and what it knows of the sensors'
+    /// offsets for a later start.
     fn keep(&mut self, s: State) {
-        if self.cfg.depth_offset_sigma_m > 0.0 {
-            self.depth_offset = OffsetMemory {
-                mean: s.x[DOFF],
-                var: s.p[(DOFF, DOFF)],
-                t: Some(s.t),
-            };
-        }
+        self.offsets.keep(&s, &self.cfg);
         self.state = Some(s);
     }
 
@@ -695,10 +658,14 @@ impl Tracker {
     /// (`depth_offset_sigma_m` above 0): what STATUS and the replay
     /// summary report.
     pub fn depth_offset(&self) -> Option<(f64, f64)> {
-        if !(self.cfg.depth_offset_sigma_m > 0.0) {
-            return None;
-        }
-        let m = self.depth_offset;
-        m.t.map(|_| (m.mean, m.var.max(0.0).sqrt()))
+        self.offsets.report(offsets::Offset::Depth, &self.cfg)
+    }
+
+    /// The attitude sensor's pitch offset and its 1σ (°), while it is
+    /// estimated (`pitch_offset_sigma_deg` above 0).
+    pub fn pitch_offset_deg(&self) -> Option<(f64, f64)> {
+        self.offsets
+            .report(offsets::Offset::Pitch, &self.cfg)
+            .map(|(m, sd)| (m.to_degrees(), sd.to_degrees()))
     }
 }

@@ -2,7 +2,8 @@
 //! model (surge along the bow plus a small sideslip, the default) or the
 //! world model (constant velocity in B).
 
-use super::state::{body_axes, body_axes_derivatives, Ms, State, DOFF, KD, VEL};
+use super::offsets::Offset;
+use super::state::{body_axes, body_axes_derivatives, Ms, State, KD, VEL};
 use super::Tracker;
 use crate::settings::Motion;
 
@@ -26,8 +27,11 @@ impl Tracker {
             let k = super::state::k_d_of(&s.x);
             s.p[(KD, KD)] += self.cfg.k_d_walk_psd * dt / (k * k).max(1e-18);
         }
-        if self.cfg.depth_offset_sigma_m > 0.0 {
-            s.p[(DOFF, DOFF)] += self.cfg.depth_offset_walk_psd * dt;
+        for o in Offset::ALL {
+            if o.told(&self.cfg) {
+                let i = o.index();
+                s.p[(i, i)] += o.walk(&self.cfg) * dt;
+            }
         }
         s.p = (s.p + s.p.transpose()) * 0.5;
     }

@@ -24,7 +24,7 @@ use lightpose_core::{AttitudeReading, Frame, ReadingUse, Refusal};
 use nalgebra::{SMatrix, SVector};
 
 use super::counts::commit;
-use super::state::{body_axes, body_axes_derivatives, k_d_of, Ms, State, DOFF, KD, NS, VEL};
+use super::state::{body_axes, body_axes_derivatives, k_d_of, Ms, State, DOFF, KD, NS, POFF, VEL};
 use super::Tracker;
 use crate::model::solver::Censoring;
 use crate::settings::{Motion, TrackerConfig};
@@ -296,13 +296,16 @@ fn fuse_with<const M: usize>(
 }
 
 impl Tracker {
-    /// (θ, ψ) of the state.
+    /// (θ, ψ) of the state as the attitude sensor reads them: its pitch
+    /// offset added (0 with no doubt unless `pitch_offset_sigma_deg` asks
+    /// for it).
     fn attitude_model(s: &State) -> Linear<2> {
         let mut jac = SMatrix::<f64, 2, NS>::zeros();
         jac[(0, 3)] = 1.0;
+        jac[(0, POFF)] = 1.0;
         jac[(1, 4)] = 1.0;
         Linear {
-            h: SVector::<f64, 2>::new(s.x[3], s.x[4]),
+            h: SVector::<f64, 2>::new(s.x[3] + s.x[POFF], s.x[4]),
             jac,
         }
     }
@@ -568,11 +571,11 @@ mod tests {
         // K_D 0.14 ± 0.01 (the state holds ln K_D).
         let (ln_k, sd_ln_k) = (0.14f64.ln(), 0.01 / 0.14);
         x.copy_from_slice(&[
-            6.0, 0.1, 0.2, 0.05, 0.02, 0.4, 0.0, 0.0, 0.0, 0.0, ln_k, 0.0,
+            6.0, 0.1, 0.2, 0.05, 0.02, 0.4, 0.0, 0.0, 0.0, 0.0, ln_k, 0.0, 0.0,
         ]);
-        // The depth offset held at 0 with no doubt (the default).
+        // The sensors' offsets held at 0 with no doubt (the default).
         let sd = [
-            0.3, 0.2, 0.2, 0.1, 0.1, 0.15, 0.05, 0.05, 0.05, 0.05, sd_ln_k, 0.0,
+            0.3, 0.2, 0.2, 0.1, 0.1, 0.15, 0.05, 0.05, 0.05, 0.05, sd_ln_k, 0.0, 0.0,
         ];
         let p = Ms::from_diagonal(&Vs::from_iterator(sd.iter().map(|s| s * s)));
         State::new(x, p, 0.6)

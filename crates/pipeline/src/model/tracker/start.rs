@@ -27,8 +27,9 @@
 use lightpose_core::frame::full_scale;
 use lightpose_core::{Frame, ReadingUse, Status};
 
+use super::offsets::Offset;
 use super::readings::{Checked, FrameReadings};
-use super::state::{body_axes, Ms, State, Vs, DOFF, KD, VEL};
+use super::state::{body_axes, Ms, State, Vs, KD, VEL};
 use super::Tracker;
 use crate::model::light::PoseVec;
 use crate::model::single_frame::coarse_start;
@@ -52,10 +53,12 @@ impl Tracker {
         }
         match r.attitude.ready() {
             Some(a) => {
-                for i in 0..2 {
-                    p.mean[3 + i] = a.z[i];
-                    p.inv_sigma[3 + i] = 1.0 / a.sigma[i];
-                }
+                // The pitch less its offset's mean, with its variance.
+                let (offset, var) = self.offsets.prior(Offset::Pitch);
+                p.mean[3] = a.z[0] - offset;
+                p.inv_sigma[3] = 1.0 / (a.sigma[0] * a.sigma[0] + var).sqrt();
+                p.mean[4] = a.z[1];
+                p.inv_sigma[4] = 1.0 / a.sigma[1];
             }
             None => {
                 let s = self.cfg.init_attitude_sigma_deg.to_radians();
@@ -69,41 +72,11 @@ impl Tracker {
             p.inv_sigma[2] = lat;
         }
         if let Some(d) = r.depth.ready() {
-            let (offset, var) = self.offset_prior;
+            let (offset, var) = self.offsets.prior(Offset::Depth);
             p.mean[2] = self.dome_z_of_depth(d.z[0] - offset, p.mean[3]);
             p.inv_sigma[2] = 1.0 / (d.sigma[0] * d.sigma[0] + var).sqrt();
         }
         p
-    }
-
-    /// The depth offset's prior at the start (its mean and variance, as
-    /// the last state left them, grown by its walk since; 0 and 0 unless
-    /// `depth_offset_sigma_m` asks for it), and what the start fit's use
-    /// of the depth ties to it. The fit took the depth less the offset's
-    /// mean as a prior on z with the offset's variance V added to the
-    /// reading's, R = σ² + V, so every component's error holds −K·e_b with
-    /// K_i = P_fit[i, z]/R (that prior's gain in the fit): the covariance
-    /// −K·V, the mean left where it was. `p_fit` is the fit's own
-    /// covariance, before a poor fit's widening: with the widened one the
-    /// joint covariance is not positive semi-definite once the widening
-    /// passes 1 + σ²/V (a review found it at 1.2 with the light weak on z),
-    /// while with the fit's own the widened block stays ≥ the tie.
-    pub(super) fn start_offset(&self, x: &mut Vs, p: &mut Ms, p_fit: &Ms, r: &FrameReadings) {
-        let (offset, var) = self.offset_prior;
-        if !(var > 0.0) {
-            return;
-        }
-        x[DOFF] = offset;
-        p[(DOFF, DOFF)] = var;
-        let Some(d) = r.depth.ready() else {
-            return;
-        };
-        let rr = d.sigma[0] * d.sigma[0] + var;
-        for i in 0..5 {
-            let c = -p_fit[(i, 2)] * var / rr;
-            p[(i, DOFF)] = c;
-            p[(DOFF, i)] = c;
-        }
     }
 
     /// The dome centre's z for a depth sensor reading `zd` at pitch `theta`
@@ -133,7 +106,8 @@ impl Tracker {
         gt: f64,
     ) -> Option<LmResult> {
         let o = self.start_options(gt);
-        let att = r.attitude.ready().map(|a| (a.z[0], a.z[1]));
+        let pitch_offset = self.offsets.prior(Offset::Pitch).0;
+        let att = r.attitude.ready().map(|a| (a.z[0] - pitch_offset, a.z[1]));
         let mut q0 = coarse_start(&self.model, frame, gt, att, &o)?;
         let mut prior = self.start_prior(r, q0.fixed_rows::<3>(0).norm(), paper_x);
         let depth = r.depth.ready().is_some();
@@ -156,7 +130,8 @@ impl Tracker {
         if depth && (lf != 0.0 || ld != 0.0) {
             // The lever arm's share of the depth at the fitted pitch.
             if let Some(d) = r.depth.ready() {
-                prior.mean[2] = self.dome_z_of_depth(d.z[0] - self.offset_prior.0, best.q[3]);
+                let offset = self.offsets.prior(Offset::Depth).0;
+                prior.mean[2] = self.dome_z_of_depth(d.z[0] - offset, best.q[3]);
                 best = solve(&self.model, &frame.counts, &best.q, &prior, &o);
             }
         }
@@ -219,7 +194,7 @@ impl Tracker {
             p[(i, i)] = c.init_rate_sigma_deg.to_radians().powi(2);
         }
         x[KD] = super::state::ln_k_d(self.model.light.k_d);
-        self.start_offset(&mut x, &mut p, &p_fit, r);
+        self.start_offsets(&mut x, &mut p, &p_fit, r);
         let mut s = State::new(x, p, frame.t);
         s.paper_x = paper_x.and(self.paper_bias());
         s.doubt_k_d(self.k_d_sigma);

@@ -6,8 +6,8 @@ use nalgebra::{SMatrix, SVector};
 
 /// State: x, y, z, θ, ψ, three velocities (body model: surge u, sideslip
 /// right v and down w; world model: ẋ, ẏ, ż), θ̇, ψ̇, ln K_D, the depth
-/// sensor's offset.
-pub(super) const NS: usize = 12;
+/// sensor's offset, the attitude sensor's pitch offset.
+pub(super) const NS: usize = 13;
 /// Index of the first velocity component.
 pub(super) const VEL: usize = 5;
 /// Paper ranges kept for their change over `paper_rate_frames`.
@@ -22,8 +22,11 @@ pub(super) const KD: usize = 10;
 /// Index of the depth sensor's offset (m): what its readings are off by
 /// as a whole (`TrackerConfig::depth_offset_sigma_m`). Held at 0 with no
 /// doubt unless that setting asks for it, and then a state the light
-/// estimates (docs/estimators.md, "A depth offset").
+/// estimates (`offsets`).
 pub(super) const DOFF: usize = 11;
+/// Index of the attitude sensor's pitch offset (rad; the same for
+/// `pitch_offset_sigma_deg`).
+pub(super) const POFF: usize = 12;
 
 /// The least K_D the state holds, m⁻¹: clearer than any natural water
 /// (the clearest ocean's is ~0.02), so that a calibration's K_D of 0 still

@@ -334,66 +334,75 @@ fn readings_keep_the_filter_going_in_the_dark() {
 /// dome's z − 0.4·cos θ; told the lever arm, the tracker recovers the
 /// dome's z; not told, it is pulled most of the way (the light disagrees
 /// and holds it back a little: measured −0.30 m).
-/// Off by default: the depth offset's state stays exactly 0 with no doubt
-/// and no covariance with anything, through starts, depth and counts
+/// Off by default: the sensors' offsets stay exactly 0 with no doubt and
+/// no covariance with anything, through starts, readings and counts
 /// updates, so the other states move as they did with 11.
 #[test]
-fn the_depth_offset_is_held_at_zero_unless_told() {
-    use super::state::DOFF;
+fn the_sensor_offsets_are_held_at_zero_unless_told() {
+    use super::state::{DOFF, POFF};
     let (tr, _) = warmed([true, true, true], 30, 7);
     let s = tr.state.as_ref().expect("a state");
-    assert_eq!(s.x[DOFF], 0.0);
-    assert!(s
-        .p
-        .row(DOFF)
-        .iter()
-        .chain(s.p.column(DOFF).iter())
-        .all(|v| *v == 0.0));
+    for i in [DOFF, POFF] {
+        assert_eq!(s.x[i], 0.0);
+        let row = s.p.row(i);
+        assert!(row.iter().chain(s.p.column(i).iter()).all(|v| *v == 0.0));
+    }
     assert_eq!(Estimator::depth_offset(&tr), None);
+    assert_eq!(Estimator::pitch_offset_deg(&tr), None);
 }
 
-/// The start's tie between the pose and the depth offset keeps the
-/// covariance positive semi-definite whatever the fit's widening (a review
-/// found it indefinite at a reduced χ² of 1.2 when the light said little of
-/// z and the tie was taken from the widened covariance).
+/// The start's ties between the pose and the offsets (depth and pitch at
+/// once) keep the covariance positive semi-definite whatever the fit's
+/// widening (a review found it indefinite at a reduced χ² of 1.2 when the
+/// light said little of z and the tie was taken from the widened
+/// covariance). The fit's covariance here is a posterior of the two
+/// priors and a light that ties z to pitch (the ridge), weak or strong.
 #[test]
-fn the_start_s_offset_tie_keeps_the_covariance_positive() {
-    use super::state::{Ms, Vs, DOFF, NS};
+fn the_start_s_offset_ties_keep_the_covariance_positive() {
+    use super::state::{Ms, Vs, DOFF, NS, POFF};
     let cfg = TrackerConfig {
         depth_offset_sigma_m: 0.3,
+        pitch_offset_sigma_deg: 2.0,
         ..TrackerConfig::default()
     };
-    let mut tr = Tracker::new(SensorModel::default(), cfg).unwrap();
-    tr.offset_prior = (0.0, 0.09);
+    let mut tr = Tracker::new(SensorModel::default(), cfg.clone()).unwrap();
+    tr.offsets.start_at(1.0, &cfg);
     let mut rng = Rng::new(3);
     let (pose, _) = zigzag(1.0);
     let mut f = synth_frame(&SensorModel::default(), &pose, 0, 1.0, None, &mut rng);
-    with_readings(&mut f, 1.0, &pose, [false, true, false], &mut rng);
+    with_readings(&mut f, 1.0, &pose, [true, true, false], &mut rng);
     let r = FrameReadings::check(&f, &tr.cfg);
-    for light_z in [0.001f64, 0.05, 3.0] {
-        // A fit whose z came mostly from the depth prior (R = σ² + V).
-        let rr = 0.02f64.powi(2) + 0.09;
-        let pz = 1.0 / (1.0 / rr + 1.0 / (light_z * light_z));
-        let mut p_fit = Ms::zeros();
-        for i in 0..5 {
-            p_fit[(i, i)] = 0.04;
-        }
-        p_fit[(2, 2)] = pz;
-        p_fit[(2, 3)] = 0.5 * (pz * 0.04).sqrt();
-        p_fit[(3, 2)] = p_fit[(2, 3)];
-        for red in [1.0, 1.2, 5.0, 100.0] {
-            let mut p = p_fit * red;
-            for i in 5..NS {
-                p[(i, i)] = p[(i, i)].max(1e-4);
+    let (vd, vp) = (0.09, 2f64.to_radians().powi(2));
+    let rd = r.depth.ready().expect("depth").sigma[0].powi(2) + vd;
+    let rp = r.attitude.ready().expect("attitude").sigma[0].powi(2) + vp;
+    for light in [1e-3f64, 1.0, 1e3] {
+        for ridge in [0.0, 0.9, 0.999] {
+            // The fit's information: the light's on the pose (z and pitch
+            // tied by `ridge`), plus the two priors.
+            let mut info = nalgebra::Matrix5::<f64>::identity() * 25.0;
+            info[(2, 2)] = light;
+            info[(3, 3)] = light * 100.0;
+            info[(2, 3)] = -ridge * (info[(2, 2)] * info[(3, 3)]).sqrt();
+            info[(3, 2)] = info[(2, 3)];
+            info[(2, 2)] += 1.0 / rd;
+            info[(3, 3)] += 1.0 / rp;
+            let cov = info.try_inverse().expect("invertible");
+            let mut p_fit = Ms::zeros();
+            p_fit.fixed_view_mut::<5, 5>(0, 0).copy_from(&cov);
+            for red in [1.0, 1.2, 5.0, 100.0] {
+                let mut p = p_fit * red;
+                for i in 5..NS {
+                    p[(i, i)] = p[(i, i)].max(1e-4);
+                }
+                let mut x = Vs::zeros();
+                tr.start_offsets(&mut x, &mut p, &p_fit, &r);
+                assert_eq!((p[(DOFF, DOFF)], p[(POFF, POFF)]), (vd, vp));
+                let least = p.symmetric_eigen().eigenvalues.min();
+                assert!(
+                    least >= -1e-12 * p.norm(),
+                    "light {light}, ridge {ridge}, widened {red}: λ {least}"
+                );
             }
-            let mut x = Vs::zeros();
-            tr.start_offset(&mut x, &mut p, &p_fit, &r);
-            assert_eq!(p[(DOFF, DOFF)], 0.09);
-            let least = p.symmetric_eigen().eigenvalues.min();
-            assert!(
-                least >= -1e-12,
-                "light σz {light_z}, widened {red}: λ {least}"
-            );
         }
     }
 }

@@ -106,6 +106,13 @@ impl Estimator for WaterWatch {
             None => self.tracker.depth_offset(),
         }
     }
+
+    fn pitch_offset_deg(&self) -> Option<(f64, f64)> {
+        match self.fired {
+            Some(_) => self.bank.pitch_offset_deg(),
+            None => self.tracker.pitch_offset_deg(),
+        }
+    }
 }
 
 #[cfg(test)]
