@@ -15,6 +15,12 @@
 //! when it answers, at the level of the condition's lines: "…: the
 //! condition is over: N more since the last line, the last S s ago". So
 //! the n of all lines, tick's and settle's, add up to the events counted.
+//!
+//! When the owner stops (the daemon's shutdown, a source that ended, a
+//! fatal error), the events still pending are told by [`RateLog::flush`],
+//! whatever the step's wait, in the same line with "at stop" for "the
+//! condition is over" ([`Close`]): so the lines, tick's, settle's and
+//! flush's, add up to every event counted, the last STATUS's counts.
 
 use std::time::{Duration, Instant};
 
@@ -40,6 +46,34 @@ pub const STEPS: [Duration; 4] = [
 /// frame every 2 s) start anew each time and log every event forever; with
 /// the longest step the worst is one line per 10 min.
 pub const QUIET: Duration = STEPS[STEPS.len() - 1];
+
+/// Which closing line an owner writes: the one of a condition over
+/// ([`RateLog::settle`]) or the one at stop ([`RateLog::flush`]). Its text
+/// is the line's "when" ("…: the condition is over: N more since the last
+/// line, …" / "…: at stop: N more …"), so that each owner writes its
+/// closing line once for both.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Close {
+    /// None came for the step in force: [`RateLog::settle`].
+    Over,
+    /// The owner stops: [`RateLog::flush`].
+    AtStop,
+}
+
+impl Close {
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Close::Over => "the condition is over",
+            Close::AtStop => "at stop",
+        }
+    }
+}
+
+impl std::fmt::Display for Close {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
 
 /// A rate-limited log of one kind of event: [`RateLog::tick`] at each
 /// event says whether to write a line now and how many events it stands
@@ -114,6 +148,28 @@ impl RateLog {
         self.step = (self.step + 1).min(STEPS.len() as u8 - 1);
         self.said = Some(now);
         Some(std::mem::take(&mut self.unsaid))
+    }
+
+    /// The line at stop: `Some(n)` when n > 0 events are pending, whatever
+    /// the step's wait (the owner stops: they would never be told), and
+    /// then nothing is pending; `None` when there is nothing to tell. It
+    /// counts as a line, as settle's does.
+    pub fn flush(&mut self, now: Instant) -> Option<u64> {
+        if self.unsaid == 0 {
+            return None;
+        }
+        self.step = (self.step + 1).min(STEPS.len() as u8 - 1);
+        self.said = Some(now);
+        Some(std::mem::take(&mut self.unsaid))
+    }
+
+    /// The closing line `when`: [`RateLog::settle`] for [`Close::Over`],
+    /// [`RateLog::flush`] for [`Close::AtStop`].
+    pub fn close(&mut self, now: Instant, when: Close) -> Option<u64> {
+        match when {
+            Close::Over => self.settle(now),
+            Close::AtStop => self.flush(now),
+        }
     }
 
     /// An event at `now`: `Some(n)` when a line should be written now, n =
@@ -328,7 +384,86 @@ mod tests {
         assert_eq!(said + log.pending(), 288 * 100);
     }
 
+    /// At stop, what is pending is told whatever the step's wait (settle
+    /// would wait for it), once; nothing pending, nothing told.
+    #[test]
+    fn flush_tells_what_is_pending_whatever_the_step() {
+        let t0 = Instant::now();
+        let ms = Duration::from_millis;
+        let mut log = RateLog::new();
+        assert_eq!(log.flush(t0), None, "nothing to tell");
+        assert_eq!(log.tick(t0), Some(1));
+        assert_eq!(log.flush(t0), None, "the first line said it");
+        for k in 1..=5 {
+            assert_eq!(log.tick(t0 + ms(100 * k)), None);
+        }
+        let stop = t0 + ms(600);
+        assert_eq!(log.settle(stop), None, "0.1 s of the 1 s step");
+        assert_eq!(log.close(stop, Close::Over), None);
+        assert_eq!(log.pending(), 5);
+        assert_eq!(log.close(stop, Close::AtStop), Some(5));
+        assert_eq!(log.pending(), 0);
+        assert_eq!(log.since_last(stop), ms(100));
+        assert_eq!(log.flush(stop), None, "once");
+        assert_eq!(log.settle(stop + QUIET), None);
+    }
+
+    #[test]
+    fn the_closing_lines_say_when() {
+        assert_eq!(Close::Over.to_string(), "the condition is over");
+        assert_eq!(
+            format!("late frames: {}: 3 more", Close::AtStop),
+            "late frames: at stop: 3 more"
+        );
+    }
+
     proptest! {
+        /// Events, settle and flush interleaved whatever the gaps, then a
+        /// flush at stop: every line says at least one event, flush says
+        /// exactly what is pending, and the lines of tick, settle and flush
+        /// add up to every event, nothing left pending.
+        #[test]
+        fn tick_settle_and_flush_lines_add_up_to_the_events(
+            ops in prop::collection::vec(
+                (prop_oneof![0u64..2_000, 0u64..120_000, 0u64..1_300_000], 0u8..8),
+                0..400,
+            )
+        ) {
+            let t0 = Instant::now();
+            let mut log = RateLog::new();
+            let mut now = t0;
+            let (mut events, mut said) = (0u64, 0u64);
+            for (g, op) in &ops {
+                now += Duration::from_millis(*g);
+                let pending = log.pending();
+                let got = match op {
+                    0..=4 => {
+                        events += 1;
+                        log.tick(now)
+                    }
+                    5 | 6 => log.settle(now),
+                    _ => {
+                        let got = log.flush(now);
+                        prop_assert_eq!(got.unwrap_or(0), pending);
+                        got
+                    }
+                };
+                if let Some(n) = got {
+                    prop_assert!(n >= 1);
+                    said += n;
+                }
+                prop_assert_eq!(said + log.pending(), events);
+            }
+            let pending = log.pending();
+            let last = log.flush(now);
+            prop_assert_eq!(last.unwrap_or(0), pending);
+            prop_assert_eq!(last.is_some(), pending > 0);
+            said += last.unwrap_or(0);
+            prop_assert_eq!(said, events);
+            prop_assert_eq!(log.pending(), 0);
+            prop_assert_eq!(log.flush(now), None);
+        }
+
         /// Settle interleaved with events, whatever the gaps: events are
         /// said as without settle (at once after a quiet gap, else when the
         /// step since the last line has passed); settle says exactly when

@@ -169,11 +169,15 @@ pub async fn supervise_to_end(
             _ = tick.tick() => ticker.tick(&ctx),
         }
     };
+    // Aborted, and awaited: their logs tell what is pending as they are
+    // dropped (at stop), before the summary.
     if let Some(h) = d.listener.take() {
         h.abort();
+        let _ = h.await;
     }
     if let Some(h) = d.live_server.take() {
         h.abort();
+        let _ = h.await;
     }
     let reason = stop(&d.stop, d.frames.take(), end).await;
     if let Some(v) = d.vehicle.take() {
@@ -182,8 +186,14 @@ pub async fn supervise_to_end(
     if let Some(hub) = &d.live {
         hub.close();
     }
-    // A last STATUS so that subscribers see the final counts and state.
+    // A last STATUS so that subscribers see the final counts and state;
+    // then what the log was not told yet of the send errors and of the
+    // STATUS the taps dropped, so that the journal's counts add up to it.
     ticker.send_status(&ctx, 0.0);
+    ctx.publisher.flush(Instant::now());
+    for t in &ticker.taps {
+        t.stop();
+    }
     (summary(&ctx, &reason), reason)
 }
 

@@ -71,13 +71,33 @@ fn a_burst_of_skipped_poses_is_one_warning_per_reason() {
         .filter(|l| l.contains("reason=\"no_std\""))
         .collect();
     // One line for the burst (one more per whole second it took, on a
-    // machine slow enough to stretch it).
+    // machine slow enough to stretch it), and at stop the skips after
+    // its last line: the lines add up to the burst.
+    let (at_stop, no_std): (Vec<&&str>, Vec<&&str>) =
+        no_std.into_iter().partition(|l| l.contains(": at stop: "));
     let most = 1 + took.as_secs() as usize;
     assert!(
         (1..=most).contains(&no_std.len()),
         "{} no_std lines for {burst} skips in {took:?}:\n{log}",
         no_std.len()
     );
+    let number_after = |l: &str, key: &str| -> u64 {
+        let at = l.find(key).unwrap_or_else(|| panic!("{key} in {l}")) + key.len();
+        let digits = l[at..].split(|c: char| !c.is_ascii_digit()).next();
+        digits.unwrap().parse().unwrap()
+    };
+    // The count in all of the last line: the skips its lines told.
+    let mut told = number_after(no_std[no_std.len() - 1], " count=");
+    assert!(at_stop.len() <= 1, "{log}");
+    for l in &at_stop {
+        assert!(
+            l.contains("VISION_POSITION_ESTIMATE skips (no_std): at stop: ")
+                && l.contains(&format!("({burst} in all)")),
+            "{l}"
+        );
+        told += number_after(l, "since_last_line=");
+    }
+    assert_eq!(told, burst, "{log}");
     let first = no_std[0];
     assert!(
         first.contains("VISION_POSITION_ESTIMATE not sent for pose 7:")

@@ -4,7 +4,7 @@
 //! once, then less and less often while they go on), not a line every
 //! second: a board that keeps sending garbage did that for weeks.
 
-use lightpose_core::ratelog::RateLog;
+use lightpose_core::ratelog::{Close, RateLog};
 use lightpose_hal::SourceHealth;
 use std::time::Instant;
 
@@ -40,11 +40,12 @@ pub(super) struct HealthLog {
 
 impl HealthLog {
     /// The health copied at `now` (`was` the copy before it): a line if
-    /// a fault grew and one is due, or `at_exit` if some growth was not
-    /// told yet (the last copy: nothing is left unsaid), or, the faults
-    /// having stopped growing for the step in force (core's
-    /// `RateLog::settle`), the closing line with the growth not told yet.
-    /// Copies come once a second: the closing line at most a second late.
+    /// a fault grew and one is due, or, the faults having stopped growing
+    /// for the step in force (core's `RateLog::settle`), the closing line
+    /// with the growth not told yet; or `at_exit` (the last copy: nothing
+    /// is left unsaid), the closing line at stop with the growth not told
+    /// yet (core's `RateLog::flush`). Copies come once a second: the
+    /// closing line at most a second late.
     pub(super) fn note(
         &mut self,
         was: Option<&SourceHealth>,
@@ -63,7 +64,10 @@ impl HealthLog {
         let due = grew && self.log.tick(now).is_some();
         // Settled only in a copy where they did not grow: one where they
         // did is an event, which tick has just counted.
-        let over = !due && !grew && self.log.settle(now).is_some();
+        let over = !due && !grew && !at_exit && self.log.settle(now).is_some();
+        if at_exit {
+            self.log.flush(now);
+        }
         let untold = faults_grew(&self.said);
         if !(due || (at_exit || over) && untold) {
             return;
@@ -79,10 +83,11 @@ impl HealthLog {
             .last_bad_line
             .as_deref()
             .or(new.last_bad_reading.as_deref());
-        if over && !at_exit {
+        if !due {
+            let when = if at_exit { Close::AtStop } else { Close::Over };
             tracing::warn!(
                 last = last.unwrap_or("-"),
-                "source skips: the condition is over: {} more since the last line, the last {:.0} s ago (STATUS backend.health)",
+                "source skips: {when}: {} more since the last line, the last {:.0} s ago (STATUS backend.health)",
                 what.join(", "),
                 self.log.since_last(now).as_secs_f64()
             );
@@ -127,9 +132,15 @@ mod tests {
             .filter_map(|l| l.split("source skipped ").nth(1))
             .map(|l| l.split(' ').next().unwrap().parse().unwrap())
             .collect();
-        assert_eq!(told.len(), 4 + 5 + 1, "{text}");
+        assert_eq!(told.len(), 4 + 5, "{text}");
         assert_eq!(&told[..4], [10, 10, 100, 600]);
-        assert_eq!(told.iter().sum::<u64>(), 36_050);
+        let at_stop: Vec<u64> = text
+            .lines()
+            .filter_map(|l| l.split("source skips: at stop: ").nth(1))
+            .map(|l| l.split(' ').next().unwrap().parse().unwrap())
+            .collect();
+        assert_eq!(at_stop.len(), 1, "{text}");
+        assert_eq!(told.iter().sum::<u64>() + at_stop[0], 36_050);
         assert!(text.contains("no checksum"), "{text}");
     }
 

@@ -240,8 +240,14 @@ impl Engine {
             o.finish();
         }
         // The last STATUS shows the source's counters as they ended, and
-        // the log is told what it was not yet.
+        // the log is told what it was not yet: the skips, and the frame
+        // events after their last line (at stop, whatever the step).
         self.copy_health(&mut books, true);
+        self.close_logs(
+            &mut books,
+            Instant::now(),
+            lightpose_core::ratelog::Close::AtStop,
+        );
         if reason != EndReason::SourceEnded {
             self.stats.set_state(BackendState::Stopped);
         }
@@ -290,37 +296,45 @@ impl Engine {
     /// comes at most a second after it is due. No allocation unless a
     /// line is written.
     fn settle_logs(&self, books: &mut Books, now: Instant) {
+        self.close_logs(books, now, lightpose_core::ratelog::Close::Over);
+    }
+
+    /// The closing lines `when`: of the conditions over (`settle_logs`),
+    /// or, at stop, of every kind with events not told yet (core's
+    /// `RateLog::flush`), so that the journal's counts add up to the last
+    /// STATUS's.
+    fn close_logs(&self, books: &mut Books, now: Instant, when: lightpose_core::ratelog::Close) {
         let stats = &self.stats;
         let ago = |log: &RateLog| log.since_last(now).as_secs_f64();
-        if let Some(k) = books.late_log.settle(now) {
+        if let Some(k) = books.late_log.close(now, when) {
             tracing::warn!(
                 late_total = stats.late.load(Relaxed),
                 since_last_line = k,
-                "late frames: the condition is over: {k} more since the last line, the last {:.1} s ago",
+                "late frames: {when}: {k} more since the last line, the last {:.1} s ago",
                 ago(&books.late_log)
             );
         }
-        if let Some(k) = books.fail_log.settle(now) {
+        if let Some(k) = books.fail_log.close(now, when) {
             tracing::warn!(
                 failed_total = stats.failed.load(Relaxed),
                 since_last_line = k,
-                "failed frames: the condition is over: {k} more since the last line, the last {:.1} s ago",
+                "failed frames: {when}: {k} more since the last line, the last {:.1} s ago",
                 ago(&books.fail_log)
             );
         }
-        if let Some(k) = books.lost_log.settle(now) {
+        if let Some(k) = books.lost_log.close(now, when) {
             tracing::warn!(
                 lost_total = stats.lost.load(Relaxed),
                 gaps_since_last_line = k,
-                "seq gaps (frames lost at the source): the condition is over: {k} more since the last line, the last {:.1} s ago",
+                "seq gaps (frames lost at the source): {when}: {k} more since the last line, the last {:.1} s ago",
                 ago(&books.lost_log)
             );
         }
-        if let Some(k) = books.glitch_log.settle(now) {
+        if let Some(k) = books.glitch_log.close(now, when) {
             tracing::info!(
                 lost_total = stats.lost.load(Relaxed),
                 glitches_since_last_line = k,
-                "lone seq glitches: the condition is over: {k} more since the last line, the last {:.1} s ago",
+                "lone seq glitches: {when}: {k} more since the last line, the last {:.1} s ago",
                 ago(&books.glitch_log)
             );
         }

@@ -656,3 +656,34 @@ fn the_end_of_a_burst_of_failures_is_told() {
         "{text}"
     );
 }
+
+/// A burst of 30 failures whose end the stop cuts (the source ends 50 ms
+/// later, before the 1 s step): the 29 after the first line were never
+/// told. At stop they are, in one line at the failures' level, and the
+/// journal's counts add up to STATUS's.
+#[test]
+fn a_burst_cut_by_the_stop_is_told_at_stop() {
+    let stats = Arc::new(Stats::default());
+    let text = lightpose_testkit::logs::logged(|| {
+        let end = Engine::new(
+            Box::new(FailsFirst { fails: 30, seq: 0 }),
+            Box::new(Nothing),
+        )
+        .stats(stats.clone())
+        .max_frames(5)
+        .run();
+        assert_eq!(end, EndReason::FrameLimit);
+    });
+    assert_eq!(stats.failed.load(Relaxed), 30);
+    let failed: Vec<&str> = text.lines().filter(|l| l.contains("failed")).collect();
+    assert_eq!(failed.len(), 2, "{text}");
+    assert!(failed[0].contains("since_last_line=1"), "{text}");
+    assert!(
+        failed[1].contains("WARN")
+            && failed[1].contains("failed_total=30")
+            && failed[1].contains("since_last_line=29")
+            && failed[1].contains("failed frames: at stop: 29 more since the last line"),
+        "{text}"
+    );
+    assert!(!text.contains("the condition is over"), "{text}");
+}

@@ -16,6 +16,7 @@
 use super::Input;
 use crate::config::AttitudeInput;
 use lightpose_core::log::plausible_t;
+use lightpose_core::ratelog::{Close, RateLog};
 use lightpose_core::textfile::excerpt;
 use lightpose_core::{Angle, AttitudeReading, Frame};
 use lightpose_vehicle::Readings;
@@ -216,15 +217,19 @@ pub async fn listen(
     let mut buf = [0u8; 2048];
     // A peer sending garbage at any rate costs lines by core's rule, not
     // one per 100 datagrams; strangers have their own log so that their
-    // flood does not hide the AHRS's refusals.
-    let mut log = lightpose_core::ratelog::RateLog::new();
-    let mut stranger_log = lightpose_core::ratelog::RateLog::new();
+    // flood does not hide the AHRS's refusals. Dropped with the task
+    // (aborted at stop), they tell what is pending.
+    let mut logs = RefusalLogs {
+        ahrs: RateLog::new(),
+        strangers: RateLog::new(),
+        cell: cell.clone(),
+    };
     loop {
         // Refusals not told yet: wake at least every second for their
         // closing line (the AHRS may stop sending too; recv_from is
         // cancel-safe); else wait for the next datagram as long as it
         // takes.
-        let pending = log.pending() > 0 || stranger_log.pending() > 0;
+        let pending = logs.ahrs.pending() > 0 || logs.strangers.pending() > 0;
         let got = if pending {
             tokio::time::timeout(Duration::from_secs(1), sock.recv_from(&mut buf))
                 .await
@@ -233,7 +238,7 @@ pub async fn listen(
             Some(sock.recv_from(&mut buf).await)
         };
         if pending {
-            settle(&mut log, &mut stranger_log, &cell, Instant::now());
+            logs.close(Instant::now(), Close::Over);
         }
         let Some(got) = got else { continue };
         let (n, from) = match got {
@@ -247,7 +252,7 @@ pub async fn listen(
         if !admitted(&cfg, from) {
             // Not parsed: a stranger's content is neither read nor quoted.
             let k = cell.reject(Reason::Sender);
-            if let Some(since) = stranger_log.tick(Instant::now()) {
+            if let Some(since) = logs.strangers.tick(Instant::now()) {
                 tracing::warn!(from = %from, rejected = k, since_last_line = since, reason = Reason::Sender.as_str(), "attitude: datagram from {from} refused: not in attitude.allow_from");
             }
             continue;
@@ -256,7 +261,7 @@ pub async fn listen(
             Ok(r) => cell.store(Instant::now(), r),
             Err(e) => {
                 let k = cell.reject(e.reason);
-                if let Some(since) = log.tick(Instant::now()) {
+                if let Some(since) = logs.ahrs.tick(Instant::now()) {
                     tracing::warn!(from = %from, rejected = k, since_last_line = since, reason = e.reason.as_str(), "attitude: {e}");
                 }
             }
@@ -264,30 +269,44 @@ pub async fn listen(
     }
 }
 
-/// The closing lines of refusals that stopped (core's
-/// `RateLog::settle`): the AHRS's, then strangers'.
-fn settle(
-    log: &mut lightpose_core::ratelog::RateLog,
-    stranger_log: &mut lightpose_core::ratelog::RateLog,
-    cell: &AttitudeCell,
-    now: Instant,
-) {
-    if let Some(since) = log.settle(now) {
-        tracing::warn!(
-            rejected = cell.rejected.load(Relaxed),
-            since_last_line = since,
-            "attitude: datagrams refused: the condition is over: {since} more since the last line, the last {:.1} s ago",
-            log.since_last(now).as_secs_f64()
-        );
+/// The listener's refusals, by core's rule for repeated lines: the AHRS's,
+/// and strangers' apart (their flood must not hide the AHRS's refusals).
+struct RefusalLogs {
+    ahrs: RateLog,
+    strangers: RateLog,
+    cell: std::sync::Arc<AttitudeCell>,
+}
+
+impl RefusalLogs {
+    /// The closing lines of refusals `when` (core's `RateLog::settle`
+    /// once they stopped, `RateLog::flush` at stop): the AHRS's, then
+    /// strangers'.
+    fn close(&mut self, now: Instant, when: Close) {
+        let rejected = || self.cell.rejected.load(Relaxed);
+        if let Some(since) = self.ahrs.close(now, when) {
+            tracing::warn!(
+                rejected = rejected(),
+                since_last_line = since,
+                "attitude: datagrams refused: {when}: {since} more since the last line, the last {:.1} s ago",
+                self.ahrs.since_last(now).as_secs_f64()
+            );
+        }
+        if let Some(since) = self.strangers.close(now, when) {
+            tracing::warn!(
+                rejected = rejected(),
+                since_last_line = since,
+                reason = Reason::Sender.as_str(),
+                "attitude: datagrams from senders not in attitude.allow_from: {when}: {since} more since the last line, the last {:.1} s ago",
+                self.strangers.since_last(now).as_secs_f64()
+            );
+        }
     }
-    if let Some(since) = stranger_log.settle(now) {
-        tracing::warn!(
-            rejected = cell.rejected.load(Relaxed),
-            since_last_line = since,
-            reason = Reason::Sender.as_str(),
-            "attitude: datagrams from senders not in attitude.allow_from: the condition is over: {since} more since the last line, the last {:.1} s ago",
-            stranger_log.since_last(now).as_secs_f64()
-        );
+}
+
+/// The listener ends only by being dropped (its task aborted at stop).
+impl Drop for RefusalLogs {
+    fn drop(&mut self) {
+        self.close(Instant::now(), Close::AtStop);
     }
 }
 
@@ -481,5 +500,56 @@ mod tests {
             .is_none());
         assert_eq!(wrap180(190.0), -170.0);
         assert_eq!(wrap180(-180.0), 180.0);
+    }
+
+    /// Refusals whose end the stop cuts: the listener's task is aborted
+    /// (the supervisor awaits it), and its logs, dropped with it, tell
+    /// what is pending at stop, the AHRS's and strangers' apart; the
+    /// journal's counts then add up to `rejected`.
+    #[test]
+    fn refusals_not_told_yet_are_told_when_the_listener_is_aborted() {
+        let text = lightpose_testkit::logs::logged(|| {
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .unwrap();
+            rt.block_on(async {
+                let sock = tokio::net::UdpSocket::bind("127.0.0.1:0").await.unwrap();
+                let to = sock.local_addr().unwrap();
+                let cfg = AttitudeInput {
+                    listen: to,
+                    beacon_axis_heading_deg: 0.0,
+                    max_age: Duration::from_secs(1),
+                    allow_from: Some(vec![crate::config::attitude::Sender {
+                        ip: "127.0.0.2".parse().unwrap(),
+                        port: None,
+                    }]),
+                };
+                let cell = std::sync::Arc::new(AttitudeCell::default());
+                let task = tokio::spawn(listen(sock, cfg, cell.clone()));
+                let peer = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+                for _ in 0..3 {
+                    peer.send_to(b"not an attitude", to).unwrap();
+                }
+                let deadline = Instant::now() + Duration::from_secs(5);
+                while cell.rejected.load(Relaxed) < 3 && Instant::now() < deadline {
+                    tokio::time::sleep(Duration::from_millis(5)).await;
+                }
+                assert_eq!(cell.rejected.load(Relaxed), 3);
+                task.abort();
+                assert!(task.await.unwrap_err().is_cancelled());
+            });
+        });
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 2, "{text}");
+        assert!(lines[0].contains("since_last_line=1"), "{text}");
+        assert!(
+            lines[1].contains("WARN")
+                && lines[1].contains("rejected=3 since_last_line=2")
+                && lines[1].contains(
+                    "attitude: datagrams from senders not in attitude.allow_from: at stop: 2 more since the last line"
+                ),
+            "{text}"
+        );
     }
 }

@@ -38,4 +38,7 @@ pub trait Output: Send {
 /// it may allocate, but must not block.
 pub trait StatusTap: Send + Sync {
     fn status(&self, json: &[u8]);
+    /// The daemon stops (after the last STATUS): tell what the log was
+    /// not told yet (core's `RateLog::flush`).
+    fn stop(&self) {}
 }

@@ -25,7 +25,7 @@ use crate::config::{RecFormat, Recording};
 use crate::engine::Acquired;
 use clock::ClockWatch;
 pub use clock::Epoch;
-use lightpose_core::ratelog::RateLog;
+use lightpose_core::ratelog::{Close, RateLog};
 use lightpose_core::{Frame, LogHeader, PoseEstimate};
 use std::io;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering::Relaxed};
@@ -209,11 +209,17 @@ impl Recorder {
 
     /// The closing line of the drops (core's `RateLog::settle`).
     fn settle_drops(&mut self, now: Instant) {
-        if let Some(k) = self.drop_log.settle(now) {
+        self.close_drops(now, Close::Over);
+    }
+
+    /// The closing line of the drops `when`: once they stopped, or at
+    /// stop (core's `RateLog::flush`).
+    fn close_drops(&mut self, now: Instant, when: Close) {
+        if let Some(k) = self.drop_log.close(now, when) {
             tracing::warn!(
                 dropped = self.stats.dropped.load(Relaxed),
                 since_last_line = k,
-                "recording queue full: the condition is over: {k} more frames not recorded since the last line, the last {:.1} s ago",
+                "recording queue full: {when}: {k} more frames not recorded since the last line, the last {:.1} s ago",
                 self.drop_log.since_last(now).as_secs_f64()
             );
         }
@@ -240,6 +246,8 @@ impl Recorder {
     /// STATUS and the log, and the recorder thread is left behind.
     pub fn finish_within(&mut self, bound: Duration) {
         self.tx = None;
+        // No frame comes after: the drops not told yet, at stop.
+        self.close_drops(Instant::now(), Close::AtStop);
         let Some(j) = self.join.take() else { return };
         let deadline = Instant::now() + bound;
         while !j.is_finished() && Instant::now() < deadline {
@@ -293,13 +301,28 @@ impl StatusTap for StatusFeed {
                     "recording: the recorder thread is behind (a slow disk): STATUS not recorded"
                 );
             }
-        } else if let Some(k) = log.settle(now) {
+        } else {
             // Each STATUS is the periodic call: the closing line of the
             // drops that stopped.
+            self.close(&mut log, now, Close::Over);
+        }
+    }
+
+    fn stop(&self) {
+        let mut log = self.log.lock().unwrap_or_else(|p| p.into_inner());
+        self.close(&mut log, Instant::now(), Close::AtStop);
+    }
+}
+
+impl StatusFeed {
+    /// The closing line of the STATUS not recorded `when` (core's
+    /// `RateLog::settle` or, at stop, `RateLog::flush`).
+    fn close(&self, log: &mut RateLog, now: Instant, when: Close) {
+        if let Some(k) = log.close(now, when) {
             tracing::warn!(
                 status_dropped = self.stats.status_dropped.load(Relaxed),
                 since_last_line = k,
-                "recording: STATUS not recorded: the condition is over: {k} more since the last line, the last {:.1} s ago",
+                "recording: STATUS not recorded: {when}: {k} more since the last line, the last {:.1} s ago",
                 log.since_last(now).as_secs_f64()
             );
         }

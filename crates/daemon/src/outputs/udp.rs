@@ -20,7 +20,7 @@ use super::Output;
 use crate::config::Outputs;
 use crate::engine::Acquired;
 use crate::stats::DestStats;
-use lightpose_core::ratelog::RateLog;
+use lightpose_core::ratelog::{Close, RateLog};
 use lightpose_core::PoseEstimate;
 use socket2::SockRef;
 use std::io;
@@ -122,16 +122,17 @@ impl Destination {
         }
     }
 
-    /// The closing line of this destination's errors once they stopped
-    /// (core's `RateLog::settle`): the errors since the last line.
-    fn settle(&self, now: Instant) {
+    /// The closing line of this destination's errors `when` (core's
+    /// `RateLog::settle` once they stopped, `RateLog::flush` at stop): the
+    /// errors since the last line.
+    fn close(&self, now: Instant, when: Close) {
         let mut f = self.failing.lock().unwrap_or_else(|p| p.into_inner());
-        if let Some(k) = f.log.settle(now) {
+        if let Some(k) = f.log.close(now, when) {
             tracing::warn!(
                 destination = %self.addr,
                 errors = self.stats.errors.load(Relaxed),
                 since_last_line = k,
-                "send failures: the condition is over: {k} more since the last line, the last {:.1} s ago",
+                "send failures: {when}: {k} more since the last line, the last {:.1} s ago",
                 f.log.since_last(now).as_secs_f64()
             );
         }
@@ -216,7 +217,15 @@ impl Publisher {
     /// a send that succeeds takes no lock.
     pub fn settle(&self, now: Instant) {
         for d in &self.dests {
-            d.settle(now);
+            d.close(now, Close::Over);
+        }
+    }
+
+    /// At stop (after the last STATUS): each destination's errors not
+    /// told yet, whatever the step (core's `RateLog::flush`).
+    pub fn flush(&self, now: Instant) {
+        for d in &self.dests {
+            d.close(now, Close::AtStop);
         }
     }
 }
@@ -357,6 +366,36 @@ mod tests {
                 && lines[1].contains("errors=5 since_last_line=4")
                 && lines[1]
                     .contains("send failures: the condition is over: 4 more since the last line"),
+            "{log}"
+        );
+    }
+
+    /// Errors whose end the stop cuts (none for the step yet): told by
+    /// the line at stop, after the last STATUS; once.
+    #[test]
+    fn errors_not_told_yet_are_told_at_stop() {
+        let bad: SocketAddr = "255.255.255.255:9".parse().unwrap();
+        let p = Publisher::open(&Outputs {
+            destinations: vec![bad],
+            multicast: None,
+            status_interval: Duration::from_secs(1),
+        })
+        .unwrap();
+        let log = lightpose_testkit::logs::logged(|| {
+            for _ in 0..5 {
+                p.send(b"{}");
+            }
+            let now = Instant::now();
+            p.settle(now);
+            p.flush(now);
+            p.flush(now + Duration::from_secs(1));
+        });
+        let lines: Vec<&str> = log.lines().collect();
+        assert_eq!(lines.len(), 2, "{log}");
+        assert!(
+            lines[1].contains("WARN")
+                && lines[1].contains("errors=5 since_last_line=4")
+                && lines[1].contains("send failures: at stop: 4 more since the last line"),
             "{log}"
         );
     }

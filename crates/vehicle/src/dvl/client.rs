@@ -18,6 +18,7 @@
 use super::{parse_line, DvlLine, DvlRefusal};
 use crate::backoff::Backoff;
 use crate::Hub;
+use lightpose_core::ratelog::Close;
 use std::future::Future;
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::Arc;
@@ -77,8 +78,14 @@ enum Heard {
     Nothing,
 }
 
-/// Run the DVL client until `shutdown` resolves.
+/// Run the DVL client until `shutdown` resolves; then tell the log what
+/// it was not told yet (failed connects, refused lines: at stop).
 pub async fn run(s: DvlSettings, hub: Arc<Hub>, shutdown: impl Future<Output = ()>) {
+    run_until(&s, &hub, shutdown).await;
+    close(&s, &hub, Instant::now(), Close::AtStop);
+}
+
+async fn run_until(s: &DvlSettings, hub: &Arc<Hub>, shutdown: impl Future<Output = ()>) {
     let mut shutdown = std::pin::pin!(shutdown);
     let mut backoff = Backoff::new(s.reconnect_first, s.reconnect_max);
     let c = &hub.dvl;
@@ -91,7 +98,7 @@ pub async fn run(s: DvlSettings, hub: Arc<Hub>, shutdown: impl Future<Output = (
             Ok(Ok(stream)) => {
                 c.connects.fetch_add(1, Relaxed);
                 tracing::info!("dvl: connected to {}", s.address);
-                let ended = session(&s, &hub, stream, shutdown.as_mut(), &mut backoff).await;
+                let ended = session(s, hub, stream, shutdown.as_mut(), &mut backoff).await;
                 let why = match ended {
                     Ended::Shutdown => return,
                     Ended::Closed => "closed by the DVL".to_string(),
@@ -106,12 +113,12 @@ pub async fn run(s: DvlSettings, hub: Arc<Hub>, shutdown: impl Future<Output = (
                 tracing::warn!("dvl: connection to {} lost: {why}", s.address);
                 c.set_error(format!("{}: {why}", s.address));
             }
-            Ok(Err(e)) => connect_failed(&s, &hub, &e.to_string()),
-            Err(_) => connect_failed(&s, &hub, "connect timed out"),
+            Ok(Err(e)) => connect_failed(s, hub, &e.to_string()),
+            Err(_) => connect_failed(s, hub, "connect timed out"),
         }
         // Between attempts (at most `reconnect_max` + `connect_timeout`
         // apart); while connected, `session` asks once a second.
-        settle(&s, &hub, Instant::now());
+        settle(s, hub, Instant::now());
         tokio::select! {
             _ = &mut shutdown => return,
             _ = tokio::time::sleep(backoff.next_delay()) => {}
@@ -129,25 +136,32 @@ fn tick(log: &std::sync::Mutex<lightpose_core::ratelog::RateLog>) -> Option<u64>
 /// The closing lines of failed connects and refused lines that stopped
 /// (core's `RateLog::settle`), at the level of their lines.
 fn settle(s: &DvlSettings, hub: &Hub, now: Instant) {
+    close(s, hub, now, Close::Over);
+}
+
+/// The closing lines `when`: as [`settle`], or at stop every count not
+/// told yet (core's `RateLog::flush`).
+fn close(s: &DvlSettings, hub: &Hub, now: Instant, when: Close) {
     let c = &hub.dvl;
-    let settled = |log: &std::sync::Mutex<lightpose_core::ratelog::RateLog>| {
+    let closed = |log: &std::sync::Mutex<lightpose_core::ratelog::RateLog>| {
         let mut l = log.lock().unwrap_or_else(|p| p.into_inner());
-        l.settle(now).map(|k| (k, l.since_last(now).as_secs_f64()))
+        l.close(now, when)
+            .map(|k| (k, l.since_last(now).as_secs_f64()))
     };
-    if let Some((since, ago)) = settled(&c.connect_log) {
+    if let Some((since, ago)) = closed(&c.connect_log) {
         tracing::warn!(
             attempts = c.connect_failures.load(Relaxed),
             since_last_line = since,
-            "dvl: failed connects to {}: the condition is over: {since} more since the last line, the last {ago:.1} s ago",
+            "dvl: failed connects to {}: {when}: {since} more since the last line, the last {ago:.1} s ago",
             s.address
         );
     }
-    if let Some((since, ago)) = settled(&c.refuse_log) {
+    if let Some((since, ago)) = closed(&c.refuse_log) {
         let refused: u64 = c.refused.iter().map(|n| n.load(Relaxed)).sum();
         tracing::warn!(
             refused,
             since_last_line = since,
-            "dvl: refused lines: the condition is over: {since} more since the last line, the last {ago:.1} s ago (STATUS dvl.refused)"
+            "dvl: refused lines: {when}: {since} more since the last line, the last {ago:.1} s ago (STATUS dvl.refused)"
         );
     }
 }
@@ -310,6 +324,38 @@ mod tests {
                 && lines[3].contains(
                     "dvl: refused lines: the condition is over: 3 more since the last line"
                 ),
+            "{text}"
+        );
+    }
+
+    /// Refused lines and failed connects whose end the stop cuts (none
+    /// for the step yet) are told at stop, each in one line; once.
+    #[test]
+    fn refusals_and_failed_connects_not_told_yet_are_told_at_stop() {
+        let hub = Hub::new();
+        let s = DvlSettings::new("127.0.0.1:9");
+        let text = lightpose_testkit::logs::logged(|| {
+            for _ in 0..3 {
+                refuse(&hub, DvlRefusal::Garbage, "not json");
+            }
+            for _ in 0..2 {
+                connect_failed(&s, &hub, "connection refused");
+            }
+            let now = Instant::now();
+            settle(&s, &hub, now);
+            close(&s, &hub, now, Close::AtStop);
+            close(&s, &hub, now, Close::AtStop);
+        });
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 4, "{text}");
+        assert!(
+            lines[2].contains("attempts=2 since_last_line=1")
+                && lines[2].contains("dvl: failed connects to 127.0.0.1:9: at stop: 1 more"),
+            "{text}"
+        );
+        assert!(
+            lines[3].contains("refused=3 since_last_line=2")
+                && lines[3].contains("dvl: refused lines: at stop: 2 more"),
             "{text}"
         );
     }

@@ -6,7 +6,7 @@
 
 use super::inbound::{Refusal, Refused};
 use super::outbound::Skip;
-use lightpose_core::ratelog::RateLog;
+use lightpose_core::ratelog::{Close, RateLog};
 use serde::Serialize;
 use std::io;
 use std::net::SocketAddr;
@@ -227,18 +227,19 @@ impl MavCounters {
         self.set_error(e);
     }
 
-    /// The closing line of each refusal reason that stopped coming (core's
-    /// `RateLog::settle`), with its count in all.
-    pub(crate) fn settle(&self, now: Instant) {
+    /// The closing line `when` of each refusal reason that stopped coming
+    /// (core's `RateLog::settle`) or, at stop, with refusals not told yet
+    /// (`RateLog::flush`), with its count in all.
+    pub(crate) fn close(&self, now: Instant, when: Close) {
         let mut logs = self.refused_log.lock().unwrap_or_else(|p| p.into_inner());
         for (r, log) in Refusal::ALL.iter().zip(logs.iter_mut()) {
-            let Some(since) = log.settle(now) else {
+            let Some(since) = log.close(now, when) else {
                 continue;
             };
             tracing::warn!(
                 count = self.refused(*r),
                 since_last_line = since,
-                "mavlink: refused or dropped ({}): the condition is over: {since} more since the \
+                "mavlink: refused or dropped ({}): {when}: {since} more since the \
                  last line, the last {:.1} s ago",
                 r.as_str(),
                 log.since_last(now).as_secs_f64()

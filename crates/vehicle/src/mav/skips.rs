@@ -3,7 +3,7 @@
 //! reason's skips stop.
 
 use super::outbound::{skip_why, Outgoing, Skip};
-use lightpose_core::ratelog::RateLog;
+use lightpose_core::ratelog::{Close, RateLog};
 use std::sync::atomic::AtomicU64;
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::Instant;
@@ -65,12 +65,18 @@ impl SkipLog {
         }
     }
 
-    /// The closing line of each reason whose skips stopped (core's
-    /// `RateLog::settle`), with its count in all from `counts` (STATUS's).
-    pub(super) fn settle(&mut self, counts: &[AtomicU64; Skip::ALL.len()], now: Instant) {
+    /// The closing line `when` of each reason whose skips stopped (core's
+    /// `RateLog::settle`) or, at stop, with skips not told yet
+    /// (`RateLog::flush`), with its count in all from `counts` (STATUS's).
+    pub(super) fn close(
+        &mut self,
+        counts: &[AtomicU64; Skip::ALL.len()],
+        now: Instant,
+        when: Close,
+    ) {
         let message = self.message();
         for (k, log) in Skip::ALL.iter().zip(self.logs.iter_mut()) {
-            let Some(since) = log.settle(now) else {
+            let Some(since) = log.close(now, when) else {
                 continue;
             };
             let (reason, count) = (k.as_str(), counts[k.index()].load(Relaxed));
@@ -78,7 +84,7 @@ impl SkipLog {
                 reason,
                 count,
                 since_last_line = since,
-                "mavlink: {message} skips ({reason}): the condition is over: {since} more since \
+                "mavlink: {message} skips ({reason}): {when}: {since} more since \
                  the last line ({count} in all), the last {:.1} s ago",
                 log.since_last(now).as_secs_f64()
             );
@@ -135,9 +141,9 @@ mod tests {
             assert_eq!(log.due(Skip::NoStd, ms(100 * k)), None);
         }
         let text = lightpose_testkit::logs::logged(|| {
-            log.settle(&counts, ms(1000));
-            log.settle(&counts, ms(1400));
-            log.settle(&counts, ms(1500));
+            log.close(&counts, ms(1000), Close::Over);
+            log.close(&counts, ms(1400), Close::Over);
+            log.close(&counts, ms(1500), Close::Over);
         });
         let lines: Vec<&str> = text
             .lines()
@@ -146,6 +152,33 @@ mod tests {
         assert_eq!(lines.len(), 1, "{text}");
         assert!(
             lines[0].contains("VISION_SPEED_ESTIMATE skips (no_std): the condition is over: 4 more since the last line (5 in all), the last 1.0 s ago"),
+            "{text}"
+        );
+    }
+
+    /// Skips whose end the stop cuts (0.1 s after the last, the step is
+    /// 1 s) are told at stop, once.
+    #[test]
+    fn skips_not_told_yet_are_told_at_stop() {
+        let counts: [AtomicU64; Skip::ALL.len()] = Default::default();
+        counts[Skip::NoStd.index()].store(5, Relaxed);
+        let mut log = SkipLog::new(false);
+        let t0 = Instant::now();
+        let ms = |n: u64| t0 + Duration::from_millis(n);
+        assert_eq!(log.due(Skip::NoStd, ms(0)), Some(1));
+        for k in 1..5 {
+            assert_eq!(log.due(Skip::NoStd, ms(100 * k)), None);
+        }
+        let text = lightpose_testkit::logs::logged(|| {
+            log.close(&counts, ms(500), Close::Over);
+            log.close(&counts, ms(500), Close::AtStop);
+            log.close(&counts, ms(600), Close::AtStop);
+        });
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 1, "{text}");
+        assert!(
+            lines[0].contains("since_last_line=4")
+                && lines[0].contains("VISION_POSITION_ESTIMATE skips (no_std): at stop: 4 more since the last line (5 in all), the last 0.1 s ago"),
             "{text}"
         );
     }

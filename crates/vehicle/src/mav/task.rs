@@ -15,7 +15,7 @@ use super::skips::SkipLog;
 use crate::backoff::Backoff;
 use crate::ned::Site;
 use crate::Hub;
-use lightpose_core::ratelog::RateLog;
+use lightpose_core::ratelog::{Close, RateLog};
 use mavlink::dialects::ardupilotmega::MavMessage;
 use std::future::Future;
 use std::io;
@@ -116,7 +116,7 @@ pub async fn run_with(
         let opened = match first.take() {
             Some(link) => Ok(link),
             None => tokio::select! {
-                _ = &mut shutdown => return,
+                _ = &mut shutdown => break,
                 r = Link::open(&s.endpoint) => r,
             },
         };
@@ -131,7 +131,7 @@ pub async fn run_with(
                     open_log: &mut open_log,
                 };
                 match serve(&s, &hub, link, io, shutdown.as_mut()).await {
-                    Ended::Shutdown => return,
+                    Ended::Shutdown => break,
                     Ended::Lost(e) => {
                         c.link_failures.fetch_add(1, Relaxed);
                         tracing::warn!("mavlink: link {} lost: {e}", s.endpoint);
@@ -148,36 +148,40 @@ pub async fn run_with(
                 c.set_error(LastError::Io(line));
             }
         }
-        settle(&s, &hub, &mut tx, &mut ap, &mut open_log);
+        close(&s, &hub, &mut tx, &mut ap, &mut open_log, Close::Over);
         tokio::select! {
-            _ = &mut shutdown => return,
+            _ = &mut shutdown => break,
             _ = tokio::time::sleep(backoff.next_delay()) => {}
         }
     }
+    // Shutdown: what the log was not told yet, at stop.
+    close(&s, &hub, &mut tx, &mut ap, &mut open_log, Close::AtStop);
 }
 
-/// The closing lines of the link's repeated events whose condition is
-/// over (core's `RateLog::settle`): refusals, skips, other autopilots,
-/// failed opens. On each heartbeat tick while the link is up and before
-/// each back-off wait while it is not, so a line comes at most a second
-/// (or a back-off) after it is due.
-fn settle(
+/// The closing lines of the link's repeated events `when`: whose
+/// condition is over (core's `RateLog::settle`), or at stop, every count
+/// not told yet (`RateLog::flush`): refusals, skips, other autopilots,
+/// failed opens. Over: on each heartbeat tick while the link is up and
+/// before each back-off wait while it is not, so a line comes at most a
+/// second (or a back-off) after it is due; at stop: once `run_with` ends.
+fn close(
     s: &MavlinkSettings,
     hub: &Hub,
     tx: &mut Sender,
     ap: &mut Autopilot,
     open_log: &mut RateLog,
+    when: Close,
 ) {
     let now = Instant::now();
-    hub.mavlink.settle(now);
-    tx.pos_skips.settle(&hub.mavlink.skipped, now);
-    tx.speed_skips.settle(&hub.mavlink.speed_skipped, now);
-    ap.settle(now);
-    if let Some(k) = open_log.settle(now) {
+    hub.mavlink.close(now, when);
+    tx.pos_skips.close(&hub.mavlink.skipped, now, when);
+    tx.speed_skips.close(&hub.mavlink.speed_skipped, now, when);
+    ap.close(now, when);
+    if let Some(k) = open_log.close(now, when) {
         tracing::warn!(
             attempts = hub.mavlink.link_failures.load(Relaxed),
             since_last_line = k,
-            "mavlink: failed opens of {}: the condition is over: {k} more since the last line, \
+            "mavlink: failed opens of {}: {when}: {k} more since the last line, \
              the last {:.1} s ago",
             s.endpoint,
             open_log.since_last(now).as_secs_f64()
@@ -278,7 +282,7 @@ async fn serve(
                 }
             }
             _ = beat.tick() => {
-                settle(s, hub, tx, ap, open_log);
+                close(s, hub, tx, ap, open_log, Close::Over);
                 let active = tx.last_sent.is_some_and(|t| t.elapsed() < 2 * s.heartbeat_period.max(Duration::from_secs(1)));
                 if let Err(e) = tx.send(&mut link, hub, &heartbeat(active), 2).await {
                     return Ended::Lost(e);
@@ -343,12 +347,13 @@ impl Autopilot {
         );
     }
 
-    /// The closing line of other autopilots' heartbeats once they stopped.
-    fn settle(&mut self, now: Instant) {
-        if let Some(k) = self.others.settle(now) {
+    /// The closing line of other autopilots' heartbeats `when`: once
+    /// they stopped, or at stop.
+    fn close(&mut self, now: Instant, when: Close) {
+        if let Some(k) = self.others.close(now, when) {
             tracing::warn!(
                 since_last_line = k,
-                "mavlink: another autopilot's heartbeats: the condition is over: {k} more since \
+                "mavlink: another autopilot's heartbeats: {when}: {k} more since \
                  the last line, the last {:.1} s ago",
                 self.others.since_last(now).as_secs_f64()
             );

@@ -25,7 +25,7 @@ use super::Output;
 use crate::config::Foxglove;
 use crate::engine::Acquired;
 use hub::Hub;
-use lightpose_core::ratelog::RateLog;
+use lightpose_core::ratelog::{Close, RateLog};
 use lightpose_core::{Frame, LogHeader, PoseEstimate};
 use lightpose_logs::{Encoder, Message, WriteError};
 use std::sync::atomic::Ordering::Relaxed;
@@ -101,7 +101,7 @@ fn encode(rx: Receiver<Item>, mut enc: Encoder, hub: &Hub) {
             }
         };
         if log.pending() > 0 {
-            settle_skipped(hub, &mut log, Instant::now());
+            close_skipped(hub, &mut log, Instant::now(), Close::Over);
         }
         let Some(item) = got else { continue };
         hub.note_frame_t(item.frame.t);
@@ -114,16 +114,18 @@ fn encode(rx: Receiver<Item>, mut enc: Encoder, hub: &Hub) {
             skipped(hub, &mut log, &e);
         }
     }
+    // The frame thread let go of the queue: the daemon stops.
+    close_skipped(hub, &mut log, Instant::now(), Close::AtStop);
 }
 
-/// The closing line of the skips once they stopped (core's
-/// `RateLog::settle`).
-fn settle_skipped(hub: &Hub, log: &mut RateLog, now: Instant) {
-    if let Some(k) = log.settle(now) {
+/// The closing line of the skips `when`: once they stopped (core's
+/// `RateLog::settle`), or at stop (`RateLog::flush`).
+fn close_skipped(hub: &Hub, log: &mut RateLog, now: Instant, when: Close) {
+    if let Some(k) = log.close(now, when) {
         tracing::warn!(
             skipped = hub.skipped.load(Relaxed),
             since_last_line = k,
-            "live view: messages not shown: the condition is over: {k} more since the last line, the last {:.1} s ago",
+            "live view: messages not shown: {when}: {k} more since the last line, the last {:.1} s ago",
             log.since_last(now).as_secs_f64()
         );
     }
@@ -149,7 +151,7 @@ impl Output for LiveView {
         // line, checked on the frames that follow (a field read per
         // frame; the clock only while some are untold).
         if self.dropped_log.pending() > 0 {
-            self.settle_dropped(Instant::now());
+            self.close_dropped(Instant::now(), Close::Over);
         }
         if !self.hub.wanted() {
             return;
@@ -191,14 +193,17 @@ impl Output for LiveView {
                 tracing::error!("live view encoder thread panicked");
             }
         }
+        // No frame comes after: the drops not told yet, at stop.
+        self.close_dropped(Instant::now(), Close::AtStop);
     }
 }
 
 impl LiveView {
-    /// The closing line of the frames not handed over (core's
-    /// `RateLog::settle`), at the level of their lines.
-    fn settle_dropped(&mut self, now: Instant) {
-        let Some(k) = self.dropped_log.settle(now) else {
+    /// The closing line of the frames not handed over `when` (core's
+    /// `RateLog::settle` once they stopped, `RateLog::flush` at stop), at
+    /// the level of their lines.
+    fn close_dropped(&mut self, now: Instant, when: Close) {
+        let Some(k) = self.dropped_log.close(now, when) else {
             return;
         };
         let n = self.hub.handoff_dropped.load(Relaxed);
@@ -207,13 +212,13 @@ impl LiveView {
             tracing::error!(
                 handoff_dropped = n,
                 since_last_line = k,
-                "live view: frames not shown (the encoder thread is gone): the condition is over: {k} more since the last line, the last {ago:.1} s ago"
+                "live view: frames not shown (the encoder thread is gone): {when}: {k} more since the last line, the last {ago:.1} s ago"
             );
         } else {
             tracing::warn!(
                 handoff_dropped = n,
                 since_last_line = k,
-                "live view: frames not shown (the encoder thread behind): the condition is over: {k} more since the last line, the last {ago:.1} s ago"
+                "live view: frames not shown (the encoder thread behind): {when}: {k} more since the last line, the last {ago:.1} s ago"
             );
         }
     }
@@ -271,9 +276,11 @@ mod tests {
                 skipped(&hub, &mut log, &e);
             }
             let now = Instant::now();
-            settle_skipped(&hub, &mut log, now);
-            settle_skipped(&hub, &mut log, now + Duration::from_secs(2));
-            settle_skipped(&hub, &mut log, now + Duration::from_secs(3));
+            let settle = |log: &mut RateLog, at| close_skipped(&hub, log, at, Close::Over);
+            settle(&mut log, now);
+            settle(&mut log, now + Duration::from_secs(2));
+            settle(&mut log, now + Duration::from_secs(3));
+            close_skipped(&hub, &mut log, now + Duration::from_secs(4), Close::AtStop);
         });
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 2, "{text}");

@@ -40,7 +40,7 @@
 
 use super::hub::{Client, Hub};
 use futures_util::{SinkExt, StreamExt};
-use lightpose_core::ratelog::RateLog;
+use lightpose_core::ratelog::{Close, RateLog};
 use lightpose_logs::schema::{MESSAGE_ENCODING, SCHEMA_ENCODING};
 use lightpose_logs::Channel;
 use serde::Deserialize;
@@ -141,29 +141,26 @@ impl From<String> for End {
 /// Accept clients on `listener` until the task is aborted.
 pub async fn serve(listener: TcpListener, hub: Arc<Hub>, limits: Limits) {
     let handshaking = Arc::new(Semaphore::new(limits.handshakes));
-    // A flood is logged by core's rule for repeated lines, not per connection.
-    let mut flood_log = RateLog::new();
+    // A flood is logged by core's rule for repeated lines, not per
+    // connection. Dropped with the task (aborted at stop), it tells what
+    // is pending.
+    let mut flood = FloodLog {
+        log: RateLog::new(),
+        hub: hub.clone(),
+    };
     loop {
         // Refusals not told yet: wake at least every second for their
         // closing line (accept is cancel-safe); else wait for the next
         // connection as long as it takes.
-        let accepted = if flood_log.pending() > 0 {
+        let accepted = if flood.log.pending() > 0 {
             tokio::time::timeout(Duration::from_secs(1), listener.accept())
                 .await
                 .ok()
         } else {
             Some(listener.accept().await)
         };
-        if flood_log.pending() > 0 {
-            let now = std::time::Instant::now();
-            if let Some(k) = flood_log.settle(now) {
-                tracing::warn!(
-                    handshakes_refused = hub.handshakes_refused.load(Relaxed),
-                    since_last_line = k,
-                    "foxglove: connections refused (too many in their handshake): the condition is over: {k} more since the last line, the last {:.1} s ago",
-                    flood_log.since_last(now).as_secs_f64()
-                );
-            }
+        if flood.log.pending() > 0 {
+            flood.close(std::time::Instant::now(), Close::Over);
         }
         let Some(accepted) = accepted else { continue };
         match accepted {
@@ -174,7 +171,7 @@ pub async fn serve(listener: TcpListener, hub: Arc<Hub>, limits: Limits) {
                 Err(_) => {
                     // Closed at once (dropped): the descriptor is back.
                     let n = hub.handshakes_refused.fetch_add(1, Relaxed) + 1;
-                    if let Some(k) = flood_log.tick(std::time::Instant::now()) {
+                    if let Some(k) = flood.log.tick(std::time::Instant::now()) {
                         tracing::warn!(
                             handshakes_refused = n,
                             since_last_line = k,
@@ -190,6 +187,34 @@ pub async fn serve(listener: TcpListener, hub: Arc<Hub>, limits: Limits) {
                 tokio::time::sleep(Duration::from_millis(200)).await;
             }
         }
+    }
+}
+
+/// Connections refused for too many in their handshake, by core's rule.
+struct FloodLog {
+    log: RateLog,
+    hub: Arc<Hub>,
+}
+
+impl FloodLog {
+    /// The closing line of the refusals `when` (core's `RateLog::settle`
+    /// once they stopped, `RateLog::flush` at stop).
+    fn close(&mut self, now: std::time::Instant, when: Close) {
+        if let Some(k) = self.log.close(now, when) {
+            tracing::warn!(
+                handshakes_refused = self.hub.handshakes_refused.load(Relaxed),
+                since_last_line = k,
+                "foxglove: connections refused (too many in their handshake): {when}: {k} more since the last line, the last {:.1} s ago",
+                self.log.since_last(now).as_secs_f64()
+            );
+        }
+    }
+}
+
+/// The accept loop ends only by being dropped (its task aborted at stop).
+impl Drop for FloodLog {
+    fn drop(&mut self) {
+        self.close(std::time::Instant::now(), Close::AtStop);
     }
 }
 

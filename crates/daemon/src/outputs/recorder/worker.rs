@@ -12,7 +12,7 @@ use super::{Item, RecState, RecStats};
 use crate::config::recording::Rotation;
 use crate::config::{RecFormat, Recording};
 use crate::outputs::recfile::{self, extension, Closed, Opener, RecError, RecFile};
-use lightpose_core::ratelog::RateLog;
+use lightpose_core::ratelog::{Close, RateLog};
 use lightpose_core::LogHeader;
 use lightpose_logs::WriteError;
 use std::sync::atomic::Ordering::Relaxed;
@@ -127,6 +127,7 @@ impl Worker {
             }
         }
         self.close();
+        self.close_skips(Instant::now(), Close::AtStop);
         // A refusing disk stays visible in the last STATUS.
         if self.stats.state() != RecState::Error {
             self.stats.set_state(RecState::Closed);
@@ -228,11 +229,17 @@ impl Worker {
     /// The closing line of the skips once they stopped (core's
     /// `RateLog::settle`).
     pub(super) fn settle_skips(&mut self, now: Instant) {
-        if let Some(k) = self.skip_log.settle(now) {
+        self.close_skips(now, Close::Over);
+    }
+
+    /// The closing line of the skips `when`: once they stopped, or at
+    /// stop (core's `RateLog::flush`).
+    pub(super) fn close_skips(&mut self, now: Instant, when: Close) {
+        if let Some(k) = self.skip_log.close(now, when) {
             tracing::warn!(
                 skipped = self.stats.skipped.load(Relaxed),
                 since_last_line = k,
-                "recording: frames the format cannot hold: the condition is over: {k} more not recorded since the last line, the last {:.1} s ago",
+                "recording: frames the format cannot hold: {when}: {k} more not recorded since the last line, the last {:.1} s ago",
                 self.skip_log.since_last(now).as_secs_f64()
             );
         }
