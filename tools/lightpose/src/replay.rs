@@ -113,7 +113,7 @@ fn say_summary(a: &ReplayArgs, s: &ReplaySummary) {
     }
     if let Some(line) = s.disagreed_line() {
         eprintln!(
-            "lightpose: {}: own-sensor reading(s) disagree with the light (a bias, not noise: check the sensor's zero and mounting, and beacon_depth_m): {line}",
+            "lightpose: {}: own-sensor reading(s) disagree with the light (a bias, not noise: check the sensor's zero and mounting, and beacon_depth_m, or tell the tracker depth_offset_sigma_m / pitch_offset_sigma_deg to estimate it): {line}",
             a.log.display()
         );
     }
