@@ -9,33 +9,11 @@
 //! Measured on a minute of coming and going in the tank (to-and-fro,
 //! 301 frames, all three sensors): docs/estimators.md, "Biased readings".
 
+mod common;
+
+use common::{minute, root};
 use lightpose_core::{Frame, CHECKED};
 use lightpose_pipeline::{build_estimator, Calibration};
-use lightpose_sim::{Scene, Simulator, Trajectory};
-use std::path::{Path, PathBuf};
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// The frames of a minute of coming and going between 4 and 6 m in the
-/// tank with the attitude sensor, depth and a DVL, MODEL.md's noise.
-fn minute(seed: u64) -> Vec<Frame> {
-    let text = std::fs::read_to_string(root().join("config/scenes/tank.toml")).expect("scene");
-    let scene = Scene::parse(
-        &(text + "\n[attitude]\n\n[depth]\n\n[dvl]\n"),
-        "tank+sensors",
-    )
-    .expect("scene with sensors");
-    let traj = Trajectory::load(&root().join("tests/data/to-and-fro.csv")).expect("trajectory");
-    let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
-    let mut sim = Simulator::new(scene, seed);
-    times
-        .iter()
-        .enumerate()
-        .map(|(j, &t)| sim.frame_moving(j as u64, t, &traj.kinematics(t)))
-        .collect()
-}
 
 struct Run {
     /// p95 of |x error| and |z error| (m) over the `ok` poses after 10 s.

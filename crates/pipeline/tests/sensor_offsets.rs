@@ -13,33 +13,11 @@
 //! frames, all three sensors) and on the held-out runs: docs/estimators.md,
 //! "Sensor offsets".
 
+mod common;
+
+use common::{minute, root};
 use lightpose_core::{Estimator, Frame, Status};
 use lightpose_pipeline::{build_estimator, Calibration};
-use lightpose_sim::{Scene, Simulator, Trajectory};
-use std::path::{Path, PathBuf};
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// A minute of coming and going between 4 and 6 m in the tank with the
-/// attitude sensor, depth and a DVL, MODEL.md's noise.
-fn minute(seed: u64) -> Vec<Frame> {
-    let text = std::fs::read_to_string(root().join("config/scenes/tank.toml")).expect("scene");
-    let scene = Scene::parse(
-        &(text + "\n[attitude]\n\n[depth]\n\n[dvl]\n"),
-        "tank+sensors",
-    )
-    .expect("scene with sensors");
-    let traj = Trajectory::load(&root().join("tests/data/to-and-fro.csv")).expect("trajectory");
-    let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
-    let mut sim = Simulator::new(scene, seed);
-    times
-        .iter()
-        .enumerate()
-        .map(|(j, &t)| sim.frame_moving(j as u64, t, &traj.kinematics(t)))
-        .collect()
-}
 
 /// The shipped tank calibration, its tracker told a depth offset doubt of
 /// `sigma` (m; 0: the default).

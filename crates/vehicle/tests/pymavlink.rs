@@ -5,15 +5,11 @@
 
 mod common;
 
-use common::{estimate, spawn_mavlink, wait_until};
+use common::{estimate, spawn_mavlink, wait_until, PyPeer};
 use lightpose_core::Angle;
-use lightpose_testkit::python::python;
 use lightpose_vehicle::mav::inbound::DepthSource;
 use lightpose_vehicle::{Hub, MavlinkSettings, NedVec, Site};
 use serde_json::Value;
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 const H_DEG: f64 = 30.0;
@@ -64,27 +60,8 @@ fn expected_covariance() -> [f64; 21] {
 
 #[test]
 fn pymavlink_reads_what_we_send_and_we_read_what_it_sends() {
-    let py = python();
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/python/mav_peer.py");
-    let mut child = Command::new(&py)
-        .args([script, "20", "20"])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("python starts");
-    let (tx, rx) = mpsc::channel::<Value>();
-    let out = child.stdout.take().expect("stdout");
-    let reader = std::thread::spawn(move || {
-        for line in BufReader::new(out).lines().map_while(Result::ok) {
-            let v: Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{line}: {e}"));
-            if tx.send(v).is_err() {
-                break;
-            }
-        }
-    });
-    let first = rx
-        .recv_timeout(Duration::from_secs(30))
-        .expect("the peer's port");
-    let port = first["port"].as_u64().expect("port") as u16;
+    let peer = PyPeer::spawn(&["20".into(), "20".into()], &[]);
+    let (mut child, rx, reader, port) = (peer.child, peer.lines, peer.reader, peer.port);
     let endpoint = format!("udpout:127.0.0.1:{port}").parse().unwrap();
 
     // Two components on the same autopilot: depth from GLOBAL_POSITION_INT

@@ -6,14 +6,11 @@
 
 mod common;
 
-use common::{estimate, spawn_mavlink, udpout, wait_until};
-use lightpose_testkit::python::python;
+use common::{estimate, spawn_mavlink, udpout, wait_until, PyPeer};
 use lightpose_vehicle::mav::signing::{SigningConfig, SigningKey};
 use lightpose_vehicle::{Hub, MavlinkSettings};
 use serde_json::Value;
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
-use std::sync::{mpsc, Arc};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 const PASSPHRASE: &str = "lightpose signing test";
@@ -36,29 +33,10 @@ fn run_peer(
     peer_pass: Option<&str>,
     ours: Option<SigningConfig>,
 ) -> (Vec<Value>, Arc<Hub>) {
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/python/mav_peer.py");
-    let mut args = vec![script.to_string(), n_pos.to_string(), timeout_s.to_string()];
+    let mut args = vec![n_pos.to_string(), timeout_s.to_string()];
     args.extend(peer_pass.map(str::to_string));
-    let mut child = Command::new(python())
-        .args(&args)
-        .env("MAV_PEER_COMPONENTS", "1")
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("python starts");
-    let (tx, rx) = mpsc::channel::<Value>();
-    let out = child.stdout.take().expect("stdout");
-    let reader = std::thread::spawn(move || {
-        for line in BufReader::new(out).lines().map_while(Result::ok) {
-            let v: Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{line}: {e}"));
-            if tx.send(v).is_err() {
-                break;
-            }
-        }
-    });
-    let first = rx
-        .recv_timeout(Duration::from_secs(30))
-        .expect("the peer's port");
-    let port = first["port"].as_u64().expect("port") as u16;
+    let peer = PyPeer::spawn(&args, &[("MAV_PEER_COMPONENTS", "1")]);
+    let (mut child, rx, reader, port) = (peer.child, peer.lines, peer.reader, peer.port);
     let mut s: MavlinkSettings = udpout(port);
     s.heartbeat_period = Duration::from_millis(100);
     s.signing = ours;

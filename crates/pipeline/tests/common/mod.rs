@@ -1,7 +1,36 @@
-//! What the Monte Carlo tests share: a seeded normal draw and a run in
-//! water drawn as `lightpose bench` draws it.
+//! What the pipeline's tests share: a seeded normal draw, a run in water
+//! drawn as `lightpose bench` draws it, and a minute of coming and going
+//! with every own sensor.
+#![allow(dead_code)]
 
-use lightpose_sim::{Scene, Simulator};
+use lightpose_core::Frame;
+use lightpose_sim::{Scene, Simulator, Trajectory};
+use std::path::{Path, PathBuf};
+
+/// The workspace's root.
+pub fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// The frames of a minute of coming and going between 4 and 6 m in the
+/// tank with the attitude sensor, depth and a DVL, MODEL.md's noise
+/// (tests/data/to-and-fro.csv, 301 frames at 5 Hz).
+pub fn minute(seed: u64) -> Vec<Frame> {
+    let text = std::fs::read_to_string(root().join("config/scenes/tank.toml")).expect("scene");
+    let scene = Scene::parse(
+        &(text + "\n[attitude]\n\n[depth]\n\n[dvl]\n"),
+        "tank+sensors",
+    )
+    .expect("scene with sensors");
+    let traj = Trajectory::load(&root().join("tests/data/to-and-fro.csv")).expect("trajectory");
+    let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
+    let mut sim = Simulator::new(scene, seed);
+    times
+        .iter()
+        .enumerate()
+        .map(|(j, &t)| sim.frame_moving(j as u64, t, &traj.kinematics(t)))
+        .collect()
+}
 
 /// A deterministic normal draw (Box–Muller on a small LCG) so the test
 /// needs no RNG crate and every run is the same.

@@ -99,3 +99,47 @@ pub fn estimate(seq: u64, t: f64) -> PoseEstimate {
     };
     e
 }
+
+/// The pymavlink stand-in (`tests/python/mav_peer.py` with `args`, env
+/// `envs`) running: its JSON lines as they come, and the UDP port it
+/// printed first.
+pub struct PyPeer {
+    pub child: std::process::Child,
+    pub lines: std::sync::mpsc::Receiver<serde_json::Value>,
+    pub reader: std::thread::JoinHandle<()>,
+    pub port: u16,
+}
+
+impl PyPeer {
+    pub fn spawn(args: &[String], envs: &[(&str, &str)]) -> PyPeer {
+        use std::io::{BufRead, BufReader};
+        let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/python/mav_peer.py");
+        let mut child = std::process::Command::new(lightpose_testkit::python::python())
+            .arg(script)
+            .args(args)
+            .envs(envs.iter().copied())
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .expect("python starts");
+        let (tx, rx) = std::sync::mpsc::channel::<serde_json::Value>();
+        let out = child.stdout.take().expect("stdout");
+        let reader = std::thread::spawn(move || {
+            for line in BufReader::new(out).lines().map_while(Result::ok) {
+                let v = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{line}: {e}"));
+                if tx.send(v).is_err() {
+                    break;
+                }
+            }
+        });
+        let first = rx
+            .recv_timeout(Duration::from_secs(30))
+            .expect("the peer's port");
+        let port = first["port"].as_u64().expect("port") as u16;
+        PyPeer {
+            child,
+            lines: rx,
+            reader,
+            port,
+        }
+    }
+}
