@@ -286,3 +286,43 @@ fn the_replay_summary_says_the_offset() {
         }
     }
 }
+
+/// A filter that loses the vehicle (frames it cannot fit, here channels
+/// scrambled for 3 s) restarts doubting what it learned of the offsets:
+/// the restart's offset σ is the prior's (a wrong one learned by a lost
+/// filter would otherwise be kept for good: the pitch's has no walk), and
+/// the light learns it again.
+#[test]
+fn a_lost_filter_restarts_doubting_the_offsets() {
+    let frames = minute(8);
+    let mut est = told(0.0, 2.0);
+    let (mut learned, mut after_restart, mut restarted) = (None, None, false);
+    for f in &frames {
+        let mut f = *f;
+        if let Some(a) = f.attitude.as_mut() {
+            a.pitch = lightpose_core::Angle::from_deg(a.pitch.deg() + 1.5);
+        }
+        if (25.0..28.0).contains(&f.t) {
+            f.counts.reverse();
+        }
+        let e = est.estimate(&f);
+        if (f.t - 24.8).abs() < 1e-9 {
+            learned = est.pitch_offset_deg();
+        }
+        if f.t >= 25.0 && e.status == Status::Initialising && !restarted {
+            restarted = true;
+            after_restart = est.pitch_offset_deg();
+        }
+    }
+    let (m, sd) = learned.expect("learned before");
+    assert!((m - 1.5).abs() < 0.2 && sd < 0.1, "{m} ± {sd}");
+    assert!(restarted, "the scrambled frames lose the filter");
+    let (_, sd) = after_restart.expect("reported after the restart");
+    assert!(sd > 0.5, "the restart's offset σ {sd}: not doubted");
+    let (m, sd) = est.pitch_offset_deg().expect("reported at the end");
+    eprintln!("relearned: {m:+.3} ± {sd:.3}°");
+    assert!(
+        (m - 1.5).abs() <= (3.0 * sd).max(0.1) && sd < 0.1,
+        "{m} ± {sd}"
+    );
+}

@@ -593,6 +593,13 @@ impl Tracker {
         };
         let applied = self.update_counts(&mut s, &inp);
         if lost {
+            // An estimated offset of a sensor refused frame after frame may
+            // be what changed (the sensor re-zeroed or remounted, or an
+            // offset learned wrong): its doubt goes back to the setting's
+            // prior, in this state and for a restart, so that the gate
+            // takes the sensor again and the light learns the offset anew
+            // (with no walk a wrong pitch offset was kept for good).
+            self.doubt_offsets_of_refused(&mut s);
             // A sensor the gate has refused frame after frame: either the
             // filter is lost, or the sensor is wrong (a depth sensor zeroed
             // on another day, a mis-set beacon depth). The light judges:
@@ -604,6 +611,7 @@ impl Tracker {
             let light_backs =
                 applied && s.counts_nis.is_some_and(|n| n <= self.cfg.water_check_nis);
             if !light_backs {
+                self.doubt_all_offsets();
                 return self.restart(frame, &readings);
             }
             let limit = self.cfg.reading_gate_restart;
@@ -627,7 +635,9 @@ impl Tracker {
         } else {
             s.rejected += 1;
             if s.rejected >= self.cfg.max_rejected {
-                // The filter has lost the vehicle: start again from this frame.
+                // The filter has lost the vehicle: start again from this
+                // frame, doubting what it learned of the sensors' offsets.
+                self.doubt_all_offsets();
                 return self.restart(frame, &readings);
             }
         }
@@ -645,6 +655,31 @@ impl Tracker {
         e.readings = verdicts(uses);
         self.keep(s);
         e
+    }
+
+    /// The offsets of the sensors `s` has refused `reading_gate_restart`
+    /// times in a row back to their prior doubt (see `estimate_frame`).
+    fn doubt_offsets_of_refused(&mut self, s: &mut State) {
+        let limit = self.cfg.reading_gate_restart;
+        for (k, o) in [(0, offsets::Offset::Pitch), (1, offsets::Offset::Depth)] {
+            if s.gated[k] >= limit && o.told(&self.cfg) {
+                let (i, full) = (o.index(), o.sigma(&self.cfg).powi(2));
+                // More variance on the diagonal keeps P positive.
+                s.p[(i, i)] = s.p[(i, i)].max(full);
+                self.offsets.doubt(o, &self.cfg);
+            }
+        }
+    }
+
+    /// Every told offset's memory back to its prior doubt: a filter that
+    /// lost the vehicle may have learned them wrong, and a restart would
+    /// otherwise take them as known (with no walk, a pitch offset for good).
+    fn doubt_all_offsets(&mut self) {
+        for o in offsets::Offset::ALL {
+            if o.told(&self.cfg) {
+                self.offsets.doubt(o, &self.cfg);
+            }
+        }
     }
 
     /// Keep `s` as the filter's state, and what it knows of the sensors'

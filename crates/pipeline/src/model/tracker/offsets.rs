@@ -135,6 +135,13 @@ impl Offsets {
         }
     }
 
+    /// `o`'s memory back to the setting's doubt (its mean kept): a start
+    /// takes it as weakly as it took the first.
+    pub fn doubt(&mut self, o: Offset, cfg: &TrackerConfig) {
+        let m = &mut self.mem[o as usize];
+        m.var = m.var.max(o.sigma(cfg).powi(2));
+    }
+
     /// `o` and its 1σ while it is estimated and a state has known it.
     pub fn report(&self, o: Offset, cfg: &TrackerConfig) -> Option<(f64, f64)> {
         let m = self.mem[o as usize];
