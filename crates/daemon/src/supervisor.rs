@@ -169,15 +169,15 @@ pub async fn supervise_to_end(
             _ = tick.tick() => ticker.tick(&ctx),
         }
     };
-    // Aborted, and awaited: their logs tell what is pending as they are
-    // dropped (at stop), before the summary.
-    if let Some(h) = d.listener.take() {
+    // Aborted, and awaited (an abort ends them at their next poll; bounded
+    // all the same, as the vehicle's stop is): their logs tell what is
+    // pending as they are dropped (at stop), before the summary.
+    for h in [d.listener.take(), d.live_server.take()]
+        .into_iter()
+        .flatten()
+    {
         h.abort();
-        let _ = h.await;
-    }
-    if let Some(h) = d.live_server.take() {
-        h.abort();
-        let _ = h.await;
+        let _ = tokio::time::timeout(Duration::from_secs(2), h).await;
     }
     let reason = stop(&d.stop, d.frames.take(), end).await;
     if let Some(v) = d.vehicle.take() {
