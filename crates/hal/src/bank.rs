@@ -9,7 +9,7 @@
 //! serial boards as configured and checked on every line). No rescaling,
 //! so counts stay exactly what the ADC gave, as the calibration expects.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use embedded_hal::{delay::DelayNs, i2c::I2c, spi::SpiDevice};
 use lightpose_core::{Frame, NDET};
@@ -17,7 +17,7 @@ use lightpose_core::{Frame, NDET};
 use crate::chanmap::{BoardSpec, ChannelMap, RawBoard, MAX_CH};
 use crate::clock::monotonic_s;
 use crate::drivers::{ads1115::Ads1115, ads7828::Ads7828, mcp3x08::Mcp3x08, DriverError};
-use crate::pace::Pacer;
+use crate::pace::{Pacer, Stop};
 use crate::temp::TempReader;
 use crate::text::{Recent, Text};
 use crate::{FrameSource, SourceError, SourceHealth};
@@ -40,6 +40,12 @@ pub trait Bank: Send {
     /// read, and the read mostly waits for it.
     fn sampled_at(&self) -> Option<f64> {
         None
+    }
+    /// Wait until `until` (the next frame's time), ending early on `stop`.
+    /// A bank that can use the time does (a serial bank stamps its boards'
+    /// lines as they arrive); the others sleep.
+    fn idle(&mut self, until: Instant, stop: &Stop) {
+        stop.sleep_until(until);
     }
 }
 
@@ -471,7 +477,9 @@ impl<B: Bank> BoardSource<B> {
 
 impl<B: Bank> FrameSource for BoardSource<B> {
     fn next_frame(&mut self) -> Result<Frame, SourceError> {
-        self.pacer.wait();
+        if let Some(until) = self.pacer.due() {
+            self.bank.idle(until, self.pacer.stop());
+        }
         // A failed read still uses up its sequence number, so that the log
         // shows the lost frame as a gap.
         let seq = self.seq;

@@ -149,18 +149,30 @@ impl Pacer {
     /// read, a stall) restarts the schedule from now instead of bursting to
     /// catch up.
     pub fn wait(&mut self) {
-        let Some(p) = self.period else { return };
+        if let Some(until) = self.due() {
+            self.stop.sleep_until(until);
+        }
+    }
+
+    /// The schedule of [`Pacer::wait`] without its sleep: when the next
+    /// frame is due, if that is later than now (the caller waits until
+    /// then, as it likes: a serial bank listens to its ports meanwhile).
+    pub fn due(&mut self) -> Option<Instant> {
+        let p = self.period?;
         let now = Instant::now();
-        let due = match self.next {
-            None => now,
-            Some(n) if n > now => {
-                self.stop.sleep_until(n);
-                n
-            }
-            Some(n) if now - n > p => now,
-            Some(n) => n,
+        let (due, wait) = match self.next {
+            None => (now, None),
+            Some(n) if n > now => (n, Some(n)),
+            Some(n) if now - n > p => (now, None),
+            Some(n) => (n, None),
         };
         self.next = Some(due + p);
+        wait
+    }
+
+    /// The stop its waits end on.
+    pub fn stop(&self) -> &Stop {
+        &self.stop
     }
 }
 

@@ -90,6 +90,11 @@ struct Port {
     foreign: Option<u8>,
 }
 
+/// The longest a serial bank's idle listens to its ports before it looks
+/// at the time and the stop again: a line is stamped within this (shared
+/// by the ports) of its arrival.
+const IDLE_SLICE: Duration = Duration::from_millis(2);
+
 /// All serial boards of a frame.
 pub struct SerialBank {
     ports: Vec<Port>,
@@ -445,6 +450,44 @@ impl Bank for SerialBank {
 
     fn sampled_at(&self) -> Option<f64> {
         self.sampled_at
+    }
+
+    /// Listen to the open ports until the next frame is due, so that each
+    /// line is read, and stamped, as it arrives: read only at the frame,
+    /// the newest line had waited in the buffer for a fixed 0–50 ms at a
+    /// divisor rate (5 Hz frames, 20 lines/s), which no fit of the read
+    /// stamps can see (`seqclock`). Each port is asked in turn for up to
+    /// [`IDLE_SLICE`], so a line is stamped within a slice per port of
+    /// its arrival. A port that fails here is closed and left for the
+    /// frame to reopen and report. Beats the stop's heart as it goes.
+    fn idle(&mut self, until: Instant, stop: &Stop) {
+        let n = self.ports.len().max(1) as u32;
+        loop {
+            if stop.is_raised() {
+                return;
+            }
+            stop.beat();
+            let now = Instant::now();
+            if now >= until {
+                return;
+            }
+            let slice = (until - now).min(IDLE_SLICE) / n;
+            let mut open = false;
+            for (b, p) in self.ports.iter_mut().enumerate() {
+                let Some(dev) = p.port.as_ref() else { continue };
+                open = true;
+                if device::readable(dev, slice) {
+                    let (buf, counters, recent) =
+                        (&mut self.buf, &mut self.counters, &mut self.recent);
+                    let _ = Self::pump(p, b, buf, counters, recent, Duration::ZERO);
+                }
+            }
+            if !open {
+                // Nothing open yet (the first frame opens them): sleep.
+                stop.sleep_until(until);
+                return;
+            }
+        }
     }
 
     fn health(&self, h: &mut SourceHealth) {

@@ -14,16 +14,13 @@
 //! the window's own; its offset from the window's least-waited line.
 //!
 //! What it can and cannot take off: the least wait over the window is
-//! the fit's floor. Read at a rate whose period is a multiple of the
-//! board's (5 Hz frames, 20 lines/s) by a board whose clock is a crystal's
-//! (tens of ppm), every read finds its newest line the same time φ old
-//! (0 to a period, fixed by where the two schedules fall), the least wait
-//! is φ, and nothing is taken off. Where the read instants move through
-//! the board's period — a board clocked by a ceramic resonator (±0.5 %,
-//! as on many Arduinos), a frame rate that is not a divisor of the line
-//! rate, a paced thread with jitter — the least wait falls to a few ms
-//! and the stamps with it. Stamping each line as it arrives (a reader of
-//! its own per port) would take it off everywhere; not done.
+//! the fit's floor. The bank now listens between frames (`idle`), so a
+//! line's read stamp is its arrival within a slice, and the fit smooths
+//! what jitter is left. Read only at the frame, a crystal board (tens of
+//! ppm) read at a divisor rate (5 Hz frames, 20 lines/s) had its newest
+//! line the same φ old at every read, the least wait was φ and nothing was
+//! taken off; the fit alone helps where the read instants move through the
+//! board's period (a resonator-clocked board, a non-divisor frame rate).
 //!
 //! Guards, so that a board that does not stream steadily is stamped as
 //! before: the fit is used only over at least [`MIN_LINES`] lines and
