@@ -627,12 +627,9 @@ impl FrameSource for FailsFirst {
     }
 }
 
-/// A burst of 30 failures: the first is said at once; the 29 after it
-/// were never told (the journal's count stopped at 1 while STATUS said
-/// 30). Once none came for the step in force (1 s), the closing line
-/// tells them, at the failures' level, within a second more.
-#[test]
-fn the_end_of_a_burst_of_failures_is_told() {
+/// The journal of a run whose first 30 frames fail, ended after
+/// `frames` frames (30 failures counted).
+fn burst_of_30_failures(frames: u64) -> String {
     let stats = Arc::new(Stats::default());
     let text = lightpose_testkit::logs::logged(|| {
         let end = Engine::new(
@@ -640,11 +637,21 @@ fn the_end_of_a_burst_of_failures_is_told() {
             Box::new(Nothing),
         )
         .stats(stats.clone())
-        .max_frames(260)
+        .max_frames(frames)
         .run();
         assert_eq!(end, EndReason::FrameLimit);
     });
     assert_eq!(stats.failed.load(Relaxed), 30);
+    text
+}
+
+/// A burst of 30 failures: the first is said at once; the 29 after it
+/// were never told (the journal's count stopped at 1 while STATUS said
+/// 30). Once none came for the step in force (1 s), the closing line
+/// tells them, at the failures' level, within a second more.
+#[test]
+fn the_end_of_a_burst_of_failures_is_told() {
+    let text = burst_of_30_failures(260);
     let failed: Vec<&str> = text.lines().filter(|l| l.contains("failed")).collect();
     assert_eq!(failed.len(), 2, "{text}");
     assert!(failed[0].contains("since_last_line=1"), "{text}");
@@ -663,18 +670,7 @@ fn the_end_of_a_burst_of_failures_is_told() {
 /// journal's counts add up to STATUS's.
 #[test]
 fn a_burst_cut_by_the_stop_is_told_at_stop() {
-    let stats = Arc::new(Stats::default());
-    let text = lightpose_testkit::logs::logged(|| {
-        let end = Engine::new(
-            Box::new(FailsFirst { fails: 30, seq: 0 }),
-            Box::new(Nothing),
-        )
-        .stats(stats.clone())
-        .max_frames(5)
-        .run();
-        assert_eq!(end, EndReason::FrameLimit);
-    });
-    assert_eq!(stats.failed.load(Relaxed), 30);
+    let text = burst_of_30_failures(5);
     let failed: Vec<&str> = text.lines().filter(|l| l.contains("failed")).collect();
     assert_eq!(failed.len(), 2, "{text}");
     assert!(failed[0].contains("since_last_line=1"), "{text}");

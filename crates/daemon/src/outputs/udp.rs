@@ -337,18 +337,24 @@ mod tests {
         assert!((1..=most).contains(&lines.len()), "{log}");
     }
 
+    /// A publisher whose one destination every send fails to (the
+    /// broadcast address, which an unprivileged socket may not send to).
+    fn failing_publisher() -> Publisher {
+        let bad: SocketAddr = "255.255.255.255:9".parse().unwrap();
+        Publisher::open(&Outputs {
+            destinations: vec![bad],
+            multicast: None,
+            status_interval: Duration::from_secs(1),
+        })
+        .unwrap()
+    }
+
     /// Errors that stop are told to the end: the first at once, the 4
     /// after it by the closing line once none came for the step in force
     /// (1 s), which the STATUS tick asks for; once.
     #[test]
     fn the_end_of_a_destination_s_errors_is_told() {
-        let bad: SocketAddr = "255.255.255.255:9".parse().unwrap();
-        let p = Publisher::open(&Outputs {
-            destinations: vec![bad],
-            multicast: None,
-            status_interval: Duration::from_secs(1),
-        })
-        .unwrap();
+        let p = failing_publisher();
         let log = lightpose_testkit::logs::logged(|| {
             for _ in 0..5 {
                 p.send(b"{}");
@@ -374,13 +380,7 @@ mod tests {
     /// the line at stop, after the last STATUS; once.
     #[test]
     fn errors_not_told_yet_are_told_at_stop() {
-        let bad: SocketAddr = "255.255.255.255:9".parse().unwrap();
-        let p = Publisher::open(&Outputs {
-            destinations: vec![bad],
-            multicast: None,
-            status_interval: Duration::from_secs(1),
-        })
-        .unwrap();
+        let p = failing_publisher();
         let log = lightpose_testkit::logs::logged(|| {
             for _ in 0..5 {
                 p.send(b"{}");

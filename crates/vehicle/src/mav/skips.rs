@@ -126,20 +126,35 @@ mod tests {
         assert_eq!(log.due(Skip::BadTime, ms(60_000)), Some(1));
     }
 
+    /// Five `no_std` skips 100 ms apart (the first said at once), of
+    /// VISION_SPEED_ESTIMATE when `speed`: the counts, the log, and the
+    /// time `n` ms after the first.
+    #[allow(clippy::type_complexity)]
+    fn five_no_std_skips(
+        speed: bool,
+    ) -> (
+        [AtomicU64; Skip::ALL.len()],
+        SkipLog,
+        impl Fn(u64) -> Instant,
+    ) {
+        let counts: [AtomicU64; Skip::ALL.len()] = Default::default();
+        counts[Skip::NoStd.index()].store(5, Relaxed);
+        let mut log = SkipLog::new(speed);
+        let t0 = Instant::now();
+        let ms = move |n: u64| t0 + Duration::from_millis(n);
+        assert_eq!(log.due(Skip::NoStd, ms(0)), Some(1));
+        for k in 1..5 {
+            assert_eq!(log.due(Skip::NoStd, ms(100 * k)), None);
+        }
+        (counts, log, ms)
+    }
+
     /// A reason whose skips stopped is closed with those not said yet,
     /// once, the step in force (1 s) after the last of them (at 1.4 s, not
     /// at 1 s).
     #[test]
     fn skips_that_stop_get_a_closing_line() {
-        let counts: [AtomicU64; Skip::ALL.len()] = Default::default();
-        counts[Skip::NoStd.index()].store(5, Relaxed);
-        let mut log = SkipLog::new(true);
-        let t0 = Instant::now();
-        let ms = |n: u64| t0 + Duration::from_millis(n);
-        assert_eq!(log.due(Skip::NoStd, ms(0)), Some(1));
-        for k in 1..5 {
-            assert_eq!(log.due(Skip::NoStd, ms(100 * k)), None);
-        }
+        let (counts, mut log, ms) = five_no_std_skips(true);
         let text = lightpose_testkit::logs::logged(|| {
             log.close(&counts, ms(1000), Close::Over);
             log.close(&counts, ms(1400), Close::Over);
@@ -160,15 +175,7 @@ mod tests {
     /// 1 s) are told at stop, once.
     #[test]
     fn skips_not_told_yet_are_told_at_stop() {
-        let counts: [AtomicU64; Skip::ALL.len()] = Default::default();
-        counts[Skip::NoStd.index()].store(5, Relaxed);
-        let mut log = SkipLog::new(false);
-        let t0 = Instant::now();
-        let ms = |n: u64| t0 + Duration::from_millis(n);
-        assert_eq!(log.due(Skip::NoStd, ms(0)), Some(1));
-        for k in 1..5 {
-            assert_eq!(log.due(Skip::NoStd, ms(100 * k)), None);
-        }
+        let (counts, mut log, ms) = five_no_std_skips(false);
         let text = lightpose_testkit::logs::logged(|| {
             log.close(&counts, ms(500), Close::Over);
             log.close(&counts, ms(500), Close::AtStop);

@@ -661,8 +661,8 @@ impl Tracker {
     /// times in a row back to their prior doubt (see `estimate_frame`).
     fn doubt_offsets_of_refused(&mut self, s: &mut State) {
         let limit = self.cfg.reading_gate_restart;
-        for (k, o) in [(0, offsets::Offset::Pitch), (1, offsets::Offset::Depth)] {
-            if s.gated[k] >= limit && o.told(&self.cfg) {
+        for o in offsets::Offset::ALL {
+            if s.gated[o.reading()] >= limit && o.told(&self.cfg) {
                 let (i, full) = (o.index(), o.sigma(&self.cfg).powi(2));
                 // More variance on the diagonal keeps P positive.
                 s.p[(i, i)] = s.p[(i, i)].max(full);

@@ -49,6 +49,15 @@ impl Offset {
         }
     }
 
+    /// Its sensor's place in a frame's readings (attitude, depth,
+    /// velocity: `State::gated`'s order).
+    pub fn reading(self) -> usize {
+        match self {
+            Offset::Pitch => 0,
+            Offset::Depth => 1,
+        }
+    }
+
     /// Its prior's 1σ (state units; 0: not estimated).
     pub fn sigma(self, cfg: &TrackerConfig) -> f64 {
         match self {
