@@ -103,14 +103,19 @@ pub enum Refusal {
     Implausible,
     /// Too far from what the estimator expects (innovation gate).
     Gate,
+    /// At odds with the light over a window (a DVL whose range change the
+    /// light's contradicts: mounted backwards, across the bow, in other
+    /// units).
+    Light,
 }
 
 impl Refusal {
-    pub const ALL: [Refusal; 4] = [
+    pub const ALL: [Refusal; 5] = [
         Refusal::NotFinite,
         Refusal::BadStd,
         Refusal::Implausible,
         Refusal::Gate,
+        Refusal::Light,
     ];
 
     /// Short word for summaries and STATUS counters.
@@ -120,6 +125,7 @@ impl Refusal {
             Refusal::BadStd => "bad_std",
             Refusal::Implausible => "implausible",
             Refusal::Gate => "gate",
+            Refusal::Light => "light",
         }
     }
 
@@ -179,6 +185,7 @@ impl ReadingUse {
             ReadingUse::Refused(Refusal::BadStd) => "refused_bad_std",
             ReadingUse::Refused(Refusal::Implausible) => "refused_implausible",
             ReadingUse::Refused(Refusal::Gate) => "refused_gate",
+            ReadingUse::Refused(Refusal::Light) => "refused_light",
         }
     }
 }
@@ -238,6 +245,12 @@ pub struct Agreement {
     /// the light disagree by more than noise (kept through frames without
     /// the reading).
     pub suspect: u8,
+    /// The DVL judged by the light's own range (the tracker's DVL check):
+    /// the light's change of range over the DVL's in the last window
+    /// judged (1 for a good DVL; −1 for one mounted backwards).
+    pub dvl_light_ratio: Option<f64>,
+    /// The DVL stands refused for contradicting the light's range.
+    pub dvl_refused: bool,
 }
 
 /// One estimate. Angles in degrees, as they go on the wire.

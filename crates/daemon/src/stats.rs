@@ -8,7 +8,7 @@ mod recent;
 pub use recent::{Recent, RECENT};
 
 use lightpose_core::{ReadingUse, Status, NDET};
-use std::sync::atomic::{AtomicU64, AtomicU8, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering::Relaxed};
 use std::sync::Mutex;
 use std::time::Duration;
 
@@ -274,6 +274,12 @@ pub struct Stats {
     pub agreement_known: AtomicU64,
     pub disagreed: [AtomicU64; 6],
     pub disagreeing_now: AtomicU64,
+    /// The DVL check (`Agreement::dvl_light_ratio`, `dvl_refused`): f64
+    /// bits of the last ratio judged (valid once `dvl_ratio_known`), and
+    /// whether the DVL stands refused.
+    pub dvl_ratio_bits: AtomicU64,
+    pub dvl_ratio_known: AtomicBool,
+    pub dvl_refused_now: AtomicBool,
     pub latency: Histogram,
     /// Last error of the source, for STATUS.
     pub last_error: Mutex<Option<String>>,

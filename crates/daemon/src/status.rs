@@ -240,13 +240,16 @@ fn channels(s: &Stats) -> Value {
 
 /// Per own-sensor reading, frames per outcome of the estimator's verdict:
 /// `used`, `ignored` (this estimator does not use it), `refused` by reason
-/// (`not_finite`, `bad_std`, `implausible`, `gate`); the light still
+/// (`not_finite`, `bad_std`, `implausible`, `gate`, `light`: the DVL
+/// check), and the checks against the light (`check`: the reading check
+/// per component, and `dvl`, the DVL check's last ratio of the light's
+/// change of range to the DVL's and its verdict); the light still
 /// updated the pose on a frame whose reading was refused.
 fn readings(s: &Stats) -> Value {
     let mut v = serde_json::Map::new();
     let now = s.disagreeing_now.load(Relaxed);
     let known = s.agreement_known.load(Relaxed);
-    let check: serde_json::Map<String, Value> = CHECKED
+    let mut check: serde_json::Map<String, Value> = CHECKED
         .iter()
         .enumerate()
         .map(|(i, name)| {
@@ -260,6 +263,14 @@ fn readings(s: &Stats) -> Value {
             (name.to_string(), c)
         })
         .collect();
+    let ratio = s
+        .dvl_ratio_known
+        .load(Relaxed)
+        .then(|| f64::from_bits(s.dvl_ratio_bits.load(Relaxed)));
+    check.insert(
+        "dvl".to_string(),
+        json!({"light_over_dvl": ratio, "refused": s.dvl_refused_now.load(Relaxed)}),
+    );
     v.insert("check".to_string(), Value::Object(check));
     for (name, counts) in READINGS.iter().zip(&s.readings) {
         let n = |u: ReadingUse| counts[u.index()].load(Relaxed);

@@ -95,3 +95,50 @@ fn a_biased_depth_is_called_disagreeing_in_status() {
         }
     }
 }
+
+/// A DVL mounted backwards with its mounting rotation unset (the mock's
+/// `faults.dvl_turned_deg = 180`, live frames of the tank zigzag with all
+/// three sensors): the light's range closes while the DVL says it opens, so
+/// the tracker refuses the DVL (STATUS `readings.velocity.refused.light`,
+/// `readings.check.dvl`), and the poses go on from the light. Without the
+/// fault the DVL is taken on every frame and the ratio is about 1.
+#[test]
+fn a_dvl_mounted_backwards_is_refused_by_the_light_in_status() {
+    let r = root();
+    for turned in [0.0, 180.0] {
+        let (sub, addr) = subscriber();
+        let text = format!(
+            "rate_hz = 10.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"mock\"\nscene = \"{}\"\ntrajectory = \"{}\"\nfaults = {{ dvl_turned_deg = {turned} }}\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 0.2\n",
+            r.join("config/calibration/tank.toml").display(),
+            r.join("tests/data/tank-sensors.toml").display(),
+            r.join("config/trajectories/zigzag.csv").display(),
+        );
+        let cfg = Config::parse(&text, "dvl.toml", None).expect("valid config");
+        let h = common::run::run_in_process(cfg, Duration::from_secs(5));
+        let mut msgs = Vec::new();
+        while !h.is_finished() {
+            msgs.extend(common::run::collect(&sub, Duration::from_millis(100)));
+        }
+        msgs.extend(common::run::collect(&sub, Duration::from_millis(300)));
+        h.join().expect("daemon");
+        let st = *of_class(&msgs, "STATUS").last().expect("a STATUS");
+        let (vel, dvl) = (&st["readings"]["velocity"], &st["readings"]["check"]["dvl"]);
+        let refused = vel["refused"]["light"].as_u64().expect("refused.light");
+        let used = vel["used"].as_u64().expect("used");
+        let ratio = dvl["light_over_dvl"].as_f64().expect("a ratio judged");
+        let ok = of_class(&msgs, "POSE")
+            .iter()
+            .filter(|p| p["status"] == "ok")
+            .count();
+        if turned == 0.0 {
+            assert_eq!(refused, 0, "{st}");
+            assert_eq!(dvl["refused"], false, "{dvl}");
+            assert!((ratio - 1.0).abs() < 0.5, "{dvl}");
+        } else {
+            assert!(refused > used, "{vel}");
+            assert_eq!(dvl["refused"], true, "{dvl}");
+            assert!(ratio < 0.0, "{dvl}");
+        }
+        assert!(ok > 25, "turned {turned}: {ok} ok poses");
+    }
+}

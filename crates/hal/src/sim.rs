@@ -175,6 +175,15 @@ impl FrameSource for SimSource {
             for &(k, v) in &self.faults.stuck {
                 f.counts[k] = v;
             }
+            if let Some(r) = f
+                .velocity
+                .as_mut()
+                .filter(|_| self.faults.dvl_turned != 0.0)
+            {
+                let (s, c) = self.faults.dvl_turned.sin_cos();
+                let [fwd, right, down] = r.v.0;
+                r.v.0 = [c * fwd - s * right, s * fwd + c * right, down];
+            }
             return Ok(f);
         }
     }
@@ -292,6 +301,37 @@ mod tests {
         let drops = (0..s.seq).filter(|q| (q + 1) % 7 == 0).count() as u64;
         assert!(drops >= 4);
         assert_eq!(s.health().injected_faults, errors + drops);
+    }
+
+    /// A DVL mounted backwards (turned 180°) reads the velocity negated,
+    /// down unchanged; turned 90°, forward motion reads to the left.
+    #[test]
+    fn a_turned_dvl_reads_the_velocity_turned() {
+        let scene = Scene {
+            dvl: Some(lightpose_sim::DvlNoise { sigma_mps: 0.0 }),
+            ..Scene::default()
+        };
+        let frame = |deg: f64| {
+            let faults = Faults {
+                dvl_turned: deg.to_radians(),
+                ..Faults::default()
+            };
+            let mut s = SimSource::new(
+                Simulator::new(scene.clone(), 7),
+                traj(),
+                None,
+                false,
+                faults,
+            );
+            s.next_frame().unwrap().velocity.expect("a DVL reading").v.0
+        };
+        let (v, back, across) = (frame(0.0), frame(180.0), frame(90.0));
+        assert!(v[0] > 0.5, "{v:?}");
+        for k in 0..2 {
+            assert!((back[k] + v[k]).abs() < 1e-9, "{back:?} {v:?}");
+        }
+        assert!((back[2] - v[2]).abs() < 1e-12);
+        assert!((across[1] - v[0]).abs() < 1e-9 && (across[0] + v[1]).abs() < 1e-9);
     }
 
     #[test]

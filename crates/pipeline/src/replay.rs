@@ -8,8 +8,8 @@
 mod running;
 
 use lightpose_core::{
-    Cut, Estimator, FrameLog, LogError, PoseEstimate, ReadingUse, Status, CHECKED, COLS, NDET,
-    READINGS,
+    Cut, Estimator, FrameLog, LogError, PoseEstimate, ReadingUse, Refusal, Status, CHECKED, COLS,
+    NDET, READINGS,
 };
 use std::fmt;
 use std::io::Write;
@@ -195,6 +195,9 @@ pub struct ReplaySummary {
     /// the window mean of its normalized innovation farthest from 0.
     pub disagreed: [u64; 6],
     pub agreement_extreme: [Option<f64>; 6],
+    /// The DVL check's ratio (light's change of range over the DVL's) on
+    /// the last frame the DVL stood refused by it.
+    pub dvl_refused_ratio: Option<f64>,
 }
 
 impl ReplaySummary {
@@ -245,6 +248,16 @@ impl ReplaySummary {
         (!parts.is_empty()).then(|| parts.join(", "))
     }
 
+    /// "on 287 frames (light/DVL -1.02)" when the DVL check refused the
+    /// DVL, or `None`.
+    pub fn dvl_refused_line(&self) -> Option<String> {
+        let n = self.readings[2][ReadingUse::Refused(Refusal::Light).index()];
+        (n > 0).then(|| match self.dvl_refused_ratio {
+            Some(r) => format!("on {n} frames (light/DVL {r:+.2})"),
+            None => format!("on {n} frames"),
+        })
+    }
+
     /// "pitch +0.31, yaw -0.18, depth +0.25" : each checked component's
     /// window mean farthest from 0, or `None` when no window filled.
     pub fn agreement_line(&self) -> Option<String> {
@@ -282,6 +295,7 @@ pub fn replay<W: Write>(
         excluded: [0; NDET],
         disagreed: [0; 6],
         agreement_extreme: [None; 6],
+        dvl_refused_ratio: None,
     };
     while let Some(item) = log.next_frame() {
         // The reader keeps only the last bad reading's text: taken as soon
@@ -327,6 +341,9 @@ pub fn replay<W: Write>(
                     s.agreement_extreme[i] = Some(m);
                 }
             }
+        }
+        if a.dvl_refused {
+            s.dvl_refused_ratio = a.dvl_light_ratio;
         }
         if let Some(t) = &frame.truth {
             errors.add(&pose, t);

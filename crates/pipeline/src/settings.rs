@@ -273,6 +273,14 @@ pub struct TrackerConfig {
     /// The reading check's limit on |mean ν/√S| (0 for a reading as good
     /// as its σ, whose mean over 25 white slots has a σ of 0.2).
     pub reading_check_limit: f64,
+    /// Judge the DVL by the light's own range (`model/tracker/dvl_check.rs`):
+    /// a DVL whose change of range over 5 s the light's contradicts (in
+    /// sign, or 5× apart, which no water does, beyond the law's wander and
+    /// noise) is refused (`refused_light`) until they agree within 2×.
+    /// Why: a DVL mounted backwards was fused on every frame, the AHRS
+    /// blamed, x 2.9 m off on `ok` poses (docs/estimators.md, "A DVL set
+    /// up wrong").
+    pub dvl_check: bool,
     /// Random-walk density of K_D, (m⁻¹)²/s (the tracker's ln K_D walks
     /// by this over K_D²).
     pub k_d_walk_psd: f64,
@@ -528,6 +536,7 @@ impl Default for TrackerConfig {
             water_check_doubt: 0.3,
             reading_check_s: 5.0,
             reading_check_limit: 1.0,
+            dvl_check: true,
             x_range: [3.0, 12.0],
             init_frames: 5,
             update_iterations: 1,

@@ -117,6 +117,12 @@ fn say_summary(a: &ReplayArgs, s: &ReplaySummary) {
             a.log.display()
         );
     }
+    if let Some(line) = s.dvl_refused_line() {
+        eprintln!(
+            "lightpose: {}: the DVL's velocity contradicted the light's change of range (backwards, across the bow, or in other units: check its mounting rotation, axes and units), so it was refused: {line}",
+            a.log.display()
+        );
+    }
     if let Some(k) = s.water_k_d {
         eprintln!("water: K_D {k:.3} m⁻¹ as the estimator learned it by the end");
     }

@@ -88,6 +88,11 @@ pub struct FaultConfig {
     /// Channels that always read the same value.
     #[serde(default)]
     pub stuck: Vec<StuckChannel>,
+    /// The DVL's velocity turned by this much about its down axis (°): a
+    /// DVL mounted turned with its mounting rotation unset (180: backwards).
+    /// Needs a scene with `[dvl]`.
+    #[serde(default)]
+    pub dvl_turned_deg: f64,
     /// Seed of the fault draws (apart from the simulator's).
     #[serde(default)]
     pub seed: u64,
@@ -110,6 +115,8 @@ pub struct Faults {
     pub drop_prob: f64,
     /// (detector index, value)
     pub stuck: Vec<(usize, u16)>,
+    /// Radians; 0 for none.
+    pub dvl_turned: f64,
     pub seed: u64,
 }
 
@@ -202,12 +209,19 @@ fn faults(f: &FaultConfig) -> Result<Faults, HalError> {
         }
         stuck.push((s.r * COLS + s.c, s.value));
     }
+    if !(f.dvl_turned_deg.is_finite() && f.dvl_turned_deg.abs() <= 360.0) {
+        return Err(err(
+            "faults.dvl_turned_deg",
+            format!("{} is not an angle within ±360°", f.dvl_turned_deg),
+        ));
+    }
     Ok(Faults {
         bus_error_every: f.bus_error_every,
         bus_error_prob: f.bus_error_prob,
         drop_every: f.drop_every,
         drop_prob: f.drop_prob,
         stuck,
+        dvl_turned: f.dvl_turned_deg.to_radians(),
         seed: f.seed,
     })
 }

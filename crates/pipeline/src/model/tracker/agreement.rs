@@ -30,7 +30,9 @@ pub(super) const N: usize = 6;
 /// The components that may be called suspect: pitch, yaw, depth. The
 /// DVL's are reported, not judged: their window means carry the motion
 /// model's lag (up to ±0.6 at the to-and-fro's reversals, no bias at all)
-/// and no DVL bias tried moved them (5 % scale, 5° turned).
+/// and no DVL bias tried moved them (5 % scale, 5° turned). A DVL set up
+/// wrong (backwards, across the bow, in other units) is judged by the
+/// light's range instead (`dvl_check`).
 const JUDGED: usize = 3;
 
 /// Each normalized innovation enters its slot clipped to ±3: one reading

@@ -24,7 +24,9 @@ use lightpose_core::{AttitudeReading, Frame, ReadingUse, Refusal};
 use nalgebra::{SMatrix, SVector};
 
 use super::counts::commit;
-use super::state::{body_axes, body_axes_derivatives, k_d_of, Ms, State, DOFF, KD, NS, POFF, VEL};
+use super::state::{
+    body_axes, body_axes_derivatives, k_d_of, Kinds, Ms, State, DOFF, KD, NS, POFF, VEL,
+};
 use super::Tracker;
 use crate::model::solver::Censoring;
 use crate::settings::{Motion, TrackerConfig};
@@ -358,20 +360,25 @@ impl Tracker {
     }
 
     /// The paper's range of `frame` (its on-axis law, eqs. 2–3) as a
-    /// reading of x, if configured: 1σ is the law's residual over the
-    /// calibration grid (scaled, see `paper_range_sigma_scale`) and the
-    /// counts' noise at the brightest channel through the law,
-    /// σ_count/(peak·b1), in quadrature.
-    pub(super) fn paper_range(&self, frame: &Frame) -> Option<PaperReading> {
+    /// reading of x, if configured (see `law_reading`).
+    pub(super) fn paper_range(&self, frame: &Frame, kinds: &Kinds) -> Option<PaperReading> {
         if !self.cfg.paper_range {
             return None;
         }
+        self.law_reading(frame, kinds)
+    }
+
+    /// The paper law's range of `frame` (light only: its brightest channel
+    /// through the law), its channels classified as `kinds`: 1σ is the
+    /// law's residual over the calibration grid (scaled, see
+    /// `paper_range_sigma_scale`) and the counts' noise at the brightest
+    /// channel through the law, σ_count/(peak·b1), in quadrature.
+    pub(super) fn law_reading(&self, frame: &Frame, kinds: &Kinds) -> Option<PaperReading> {
         let m = &self.model;
         let p = self.paper.as_ref()?;
         // The paper's moments read the whole image: a stuck channel, left
         // out of the fits, is read as its neighbours here.
-        let kinds = Censoring::classify(m, &frame.counts, self.init.frozen_mask());
-        let frame = &Censoring::stand_in(m, &kinds, frame);
+        let frame = &Censoring::stand_in(m, kinds, frame);
         let x = p.est.range_of(frame)?;
         let cpv = m.counts_per_volt();
         let (peak, k) = (0..frame.counts.len())

@@ -1,0 +1,448 @@
+//! The DVL judged by the light's own range: does the range change the
+//! DVL's velocity says agree with the one the light sees?
+//!
+//! A DVL set up wrong (mounted backwards or across the bow with its
+//! mounting rotation unset, its axes swapped, its units mistaken) gives a
+//! velocity as steady and as confident as a good one. The gate cannot see
+//! it, since the filter's velocity follows the DVL, and the reading check
+//! blames the attitude sensor instead: on a minute of coming and going in
+//! the tank with the DVL turned 180°, every reading was fused, the AHRS's
+//! yaw was called biased and refused, the water check learned a K_D of
+//! 0.048 for the tank's 0.09, and x was 2.9 m off at p95 on poses marked
+//! `ok` (docs/estimators.md, "A DVL set up wrong").
+//!
+//! The light sees the range independently of the DVL and of the filter:
+//! the paper's law reads it off the brightest channel. Over the last
+//! [`WINDOW_S`], the DVL's velocity along the line of sight (at the
+//! state's bearing of the beacon, which the light pins) integrates to the
+//! change of range it claims; the law's ranges at the window's ends (each
+//! a mean over a second) give the light's. Water unlike the calibration's
+//! scales the light's change (up to 1.5× for K_D 0.12 in a tank
+//! calibrated at 0.09), and the law's bias follows the geometry (ratios
+//! of 0.39–1.6 on good runs), but water never turns its sign or scales it
+//! by 5. So when no ratio in [`REFUSE`] brings the two within the law's
+//! wander and its counts' noise, the DVL is refused (`refused_light`)
+//! until a window with a metre of travel has its ratio inside [`TAKE`].
+//! The window is judged whether the DVL is fused or not, so a DVL put
+//! right is taken again.
+//!
+//! What it does not see: a DVL turned by 70° or less, or off in scale by
+//! 0.5–4× (a wrong sound speed is a few per cent), which the law's bias and
+//! the water can mimic; nor a turned DVL while the range does not change
+//! (a vehicle on station, or circling the beacon).
+//!
+//! About the sensor, not the state: kept across restarts, and handed to a
+//! water bank's members.
+
+use lightpose_core::{Frame, ReadingUse, Refusal};
+
+use super::readings::{FrameReadings, Pending};
+use super::state::Kinds;
+use super::Tracker;
+
+/// The window, s: the reading check's default, long enough for a metre
+/// of travel at cruising speed.
+pub(super) const WINDOW_S: f64 = 5.0;
+
+/// A window shorter than this is not judged, s; each end's range is the
+/// mean over its first and last [`END_S`], so that one noisy frame of the
+/// law (its brightest channel, at 10 m) is not a disagreement.
+const MIN_SPAN_S: f64 = 2.0;
+const END_S: f64 = 1.0;
+
+/// What the law's range may wander by over a window with a good DVL, m,
+/// beyond its counts' noise: its bias follows the geometry (0.34 m over
+/// 5 s on a minute in the tank).
+const WANDER_M: f64 = 0.35;
+
+/// The counts' noise of the two ends' means counts this many σ.
+const NOISE_K: f64 = 3.0;
+
+/// The least change of range, m, the DVL's or the light's, for a window's
+/// ratio to be reported and for a refused DVL to be taken again.
+pub(super) const MIN_TRAVEL_M: f64 = 1.0;
+
+/// Light's range change over the DVL's. When no ratio in this band brings
+/// the two within the law's wander and noise, the DVL is refused. On good
+/// runs in their own water (tank, harbour and the held-out tank; dive,
+/// zigzag, dock, approach and a minute of to-and-fro) the ratio of the
+/// ends was 0.39–1.6; other water scales it (K_D 0.12 in a tank
+/// calibrated at 0.09: up to 1.53). None of 24 000 Monte Carlo runs
+/// (`lightpose bench`, 2000 per case and set of sensors with a DVL, water
+/// drawn) refused a good DVL.
+pub(super) const REFUSE: [f64; 2] = [1.0 / 3.0, 3.0];
+
+/// Light's range change over the DVL's: inside this, with a metre of
+/// travel, a refused DVL is taken again.
+pub(super) const TAKE: [f64; 2] = [0.5, 2.0];
+
+/// Samples the window holds: one per 0.2 s slot, `READING_CHECK_MAX_S`.
+const RING: usize = crate::settings::WATER_CHECK_MAX_FRAMES;
+
+/// One slot's sample: its time, the light's range and its counts' noise
+/// (1σ), and the DVL's range change integrated since the chain began.
+#[derive(Debug, Clone, Copy, Default)]
+struct Sample {
+    t: f64,
+    light: f64,
+    noise: f64,
+    dvl: f64,
+}
+
+/// The window and the verdict.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct DvlCheck {
+    ring: [Sample; RING],
+    head: usize,
+    len: usize,
+    /// The last frame's time and DVL range rate (m/s), for the integral;
+    /// `None` breaks the chain (no DVL or no light on a frame, a gap).
+    last: Option<(f64, f64)>,
+    /// The integral of the DVL's range rate since the chain began, m.
+    dvl: f64,
+    refused: bool,
+    /// The last judged window's ratio, light over DVL.
+    ratio: Option<f64>,
+}
+
+impl Default for DvlCheck {
+    fn default() -> Self {
+        DvlCheck {
+            ring: [Sample::default(); RING],
+            head: 0,
+            len: 0,
+            last: None,
+            dvl: 0.0,
+            refused: false,
+            ratio: None,
+        }
+    }
+}
+
+impl DvlCheck {
+    /// Whether the DVL stands refused.
+    pub fn refused(&self) -> bool {
+        self.refused
+    }
+
+    /// The ratio of the light's range change to the DVL's over the last
+    /// judged window (`None` before one was judged).
+    pub fn ratio(&self) -> Option<f64> {
+        self.ratio
+    }
+
+    /// A frame on which the DVL or the light's range is missing: the
+    /// integral cannot go on, so the window starts again.
+    pub fn break_chain(&mut self) {
+        self.last = None;
+        self.len = 0;
+    }
+
+    /// Take one frame at time `t`: the light's range `light` (m) with its
+    /// counts' noise `noise` (1σ, m) and the DVL's range rate `rate` (m/s,
+    /// positive receding); judge the window of `span_s` (`max_gap_s` the
+    /// longest step of the integral). Returns whether the DVL is refused
+    /// from this frame on.
+    pub fn push(
+        &mut self,
+        t: f64,
+        light: [f64; 2],
+        rate: f64,
+        span_s: f64,
+        max_gap_s: f64,
+    ) -> bool {
+        let [light, noise] = light;
+        if !([t, light, noise, rate].iter().all(|v| v.is_finite()) && noise >= 0.0) {
+            self.break_chain();
+            return self.refused;
+        }
+        match self.last {
+            Some((t0, r0)) if t > t0 && t - t0 <= max_gap_s => {
+                self.dvl += 0.5 * (r0 + rate) * (t - t0);
+            }
+            _ => {
+                self.len = 0;
+                self.dvl = 0.0;
+            }
+        }
+        self.last = Some((t, rate));
+        // One sample per slot: at 50 Hz the window is still a time.
+        let newest = self.newest();
+        if newest.is_some_and(|n| t - n.t < crate::settings::READING_CHECK_SLOT_S - 0.01) {
+            return self.refused;
+        }
+        self.ring[self.head] = Sample {
+            t,
+            light,
+            noise,
+            dvl: self.dvl,
+        };
+        self.head = (self.head + 1) % RING;
+        self.len = (self.len + 1).min(RING);
+        if let Some(ends) = self.ends(t, span_s) {
+            self.judge(ends);
+        }
+        self.refused
+    }
+
+    /// The window's two ends (the means over its first and last `END_S`):
+    /// the light's change of range, the DVL's, and the 1σ of the light's
+    /// from the counts' noise. `None` while the window is under
+    /// `MIN_SPAN_S`.
+    fn ends(&self, now: f64, span_s: f64) -> Option<[f64; 3]> {
+        let window = (0..self.len)
+            .map(|k| self.ring[(self.head + RING - 1 - k) % RING])
+            .take_while(|o| now - o.t <= span_s + 1e-9);
+        let oldest = window.clone().last()?.t;
+        if now - oldest < MIN_SPAN_S {
+            return None;
+        }
+        // (Σ light, Σ dvl, Σ noise², n) over each end.
+        let mut sums = [[0.0; 4]; 2];
+        for o in window {
+            for (end, near) in [(0, o.t - oldest <= END_S), (1, now - o.t <= END_S)] {
+                if near {
+                    let e = &mut sums[end];
+                    e[0] += o.light;
+                    e[1] += o.dvl;
+                    e[2] += o.noise * o.noise;
+                    e[3] += 1.0;
+                }
+            }
+        }
+        let [old, new] = sums;
+        let d_light = new[0] / new[3] - old[0] / old[3];
+        let d_dvl = new[1] / new[3] - old[1] / old[3];
+        let sigma = (new[2] / (new[3] * new[3]) + old[2] / (old[3] * old[3])).sqrt();
+        Some([d_light, d_dvl, sigma])
+    }
+
+    /// The verdict on a window's ends.
+    fn judge(&mut self, [d_light, d_dvl, sigma]: [f64; 3]) {
+        if d_light.abs().max(d_dvl.abs()) >= MIN_TRAVEL_M {
+            self.ratio = Some(d_light / d_dvl);
+        }
+        // How far the light's change is from any the band allows.
+        let off = |[lo, hi]: [f64; 2]| {
+            let (a, b) = (lo * d_dvl, hi * d_dvl);
+            let (a, b) = (a.min(b), a.max(b));
+            (a - d_light).max(d_light - b).max(0.0)
+        };
+        if off(REFUSE) > WANDER_M + NOISE_K * sigma {
+            self.refused = true;
+        } else if off(TAKE) == 0.0 && d_dvl.abs() >= MIN_TRAVEL_M {
+            self.refused = false;
+        }
+    }
+
+    fn newest(&self) -> Option<Sample> {
+        (self.len > 0).then(|| self.ring[(self.head + RING - 1) % RING])
+    }
+}
+
+impl Tracker {
+    /// Judge the frame's DVL reading against the light's range (see the
+    /// module), and refuse it while the check says so. The bearing is the
+    /// last state's: the light pins it whatever the DVL says. Returns
+    /// whether the DVL was refused from this frame on, not before: the
+    /// state then holds the DVL's velocity (and the track it drew), which
+    /// the caller starts again without.
+    pub(super) fn judge_dvl(
+        &mut self,
+        frame: &Frame,
+        r: &mut FrameReadings,
+        kinds: &Kinds,
+    ) -> bool {
+        if !self.cfg.dvl_check {
+            return false;
+        }
+        let Some(c) = r.velocity.ready() else {
+            self.dvl_check.break_chain();
+            return false;
+        };
+        let v = [c.z[0], c.z[1], c.z[2]];
+        let was = self.dvl_check.refused();
+        let sample = self.state.as_ref().and_then(|s| {
+            let rate = range_rate([s.x[0], s.x[1], s.x[2]], s.x[3], s.x[4], v)?;
+            let law = self.law_reading(frame, kinds)?;
+            Some(([law.range.z[0], law.noise], rate))
+        });
+        let refused = match sample {
+            Some((light, rate)) => {
+                let gap = self.cfg.max_gap_s;
+                self.dvl_check.push(frame.t, light, rate, WINDOW_S, gap)
+            }
+            None => {
+                self.dvl_check.break_chain();
+                self.dvl_check.refused()
+            }
+        };
+        if refused {
+            r.velocity = Pending::Done(ReadingUse::Refused(Refusal::Light));
+        }
+        refused && !was
+    }
+}
+
+/// The DVL's range rate, m/s (+ receding from the beacon): its velocity
+/// (forward, right, down) in B through the body axes at pitch `theta` and
+/// yaw `psi`, along the line of sight from the beacon to the vehicle at
+/// `pos`.
+pub(super) fn range_rate(pos: [f64; 3], theta: f64, psi: f64, v: [f64; 3]) -> Option<f64> {
+    let r = (pos[0] * pos[0] + pos[1] * pos[1] + pos[2] * pos[2]).sqrt();
+    if !(r > 1e-6) {
+        return None;
+    }
+    let axes = super::state::body_axes(theta, psi);
+    let mut rate = 0.0;
+    for (a, vk) in axes.iter().zip(v) {
+        for i in 0..3 {
+            rate += vk * a[i] * pos[i] / r;
+        }
+    }
+    rate.is_finite().then_some(rate)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Frames at 5 Hz from `t0` for `secs` of a vehicle coming and going
+    /// between 4 and 8 m (a 20 s period), the DVL reading `scale` times
+    /// the truth's range rate.
+    fn run(check: &mut DvlCheck, t0: f64, secs: f64, scale: f64) -> bool {
+        let w = std::f64::consts::PI / 10.0;
+        let mut refused = check.refused();
+        for k in 0..(secs * 5.0).round() as usize {
+            let t = t0 + k as f64 * 0.2;
+            let (range, rate) = (6.0 - 2.0 * (w * t).sin(), -2.0 * w * (w * t).cos());
+            refused = check.push(t, [range, 0.02], rate * scale, 5.0, 2.0);
+        }
+        refused
+    }
+
+    #[test]
+    fn a_good_dvl_and_water_that_scales_the_light_are_taken() {
+        for scale in [1.0, 0.7, 1.5] {
+            let mut c = DvlCheck::default();
+            assert!(!run(&mut c, 0.0, 10.0, scale), "scale {scale}");
+            let r = c.ratio().expect("judged");
+            assert!((r * scale - 1.0).abs() < 0.01, "{r}");
+        }
+    }
+
+    #[test]
+    fn a_backwards_across_or_mistaken_dvl_is_refused() {
+        // Backwards, across the bow (no range change), 10× (cm/s as dm/s).
+        for scale in [-1.0, 0.0, 10.0, 0.1] {
+            let mut c = DvlCheck::default();
+            assert!(run(&mut c, 0.0, 5.0, scale), "scale {scale}");
+        }
+    }
+
+    #[test]
+    fn a_dvl_put_right_is_taken_again_and_a_doubtful_one_keeps_its_verdict() {
+        let mut c = DvlCheck::default();
+        assert!(run(&mut c, 0.0, 5.0, -1.0));
+        // Between the bands (light 3× the DVL): the verdict stands.
+        assert!(run(&mut c, 5.0, 10.0, 1.0 / 3.0));
+        assert!(!run(&mut c, 15.0, 10.0, 1.0));
+        // Never refused, a DVL 3× off stays taken: water cannot be told
+        // from it by the range alone.
+        let mut c = DvlCheck::default();
+        assert!(!run(&mut c, 0.0, 20.0, 1.0 / 3.0));
+        assert!(c.ratio().is_some_and(|r| (r - 3.0).abs() < 0.05));
+    }
+
+    #[test]
+    fn too_little_travel_and_broken_chains_judge_nothing() {
+        let mut c = DvlCheck::default();
+        // On station: the DVL says 0.5 m/s backwards but nothing moves
+        // far enough within a window broken every second.
+        for k in 0..100 {
+            let t = k as f64 * 0.2;
+            if k % 5 == 0 {
+                c.break_chain();
+            }
+            assert!(!c.push(t, [6.0, 0.02], 0.5, 5.0, 2.0));
+        }
+        assert_eq!(c.ratio(), None);
+        // Not finite: no panic, nothing judged.
+        assert!(!c.push(30.0, [f64::NAN, 0.02], 0.5, 5.0, 2.0));
+        assert!(!c.push(30.2, [6.0, -1.0], 0.5, 5.0, 2.0));
+    }
+
+    /// The law read at 10 m has counts' noise of its own (here 0.3 m per
+    /// frame, told): a good DVL is not refused for it, and a backwards one
+    /// still is.
+    #[test]
+    fn the_laws_noise_is_not_a_disagreement() {
+        let mut seed = 7u64;
+        let mut normal = || {
+            let mut u = || {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (a, b) = (u(), u());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        };
+        for (scale, want) in [(1.0, false), (-1.0, true)] {
+            let mut c = DvlCheck::default();
+            let mut refused = false;
+            for k in 0..150 {
+                let t = k as f64 * 0.2;
+                let w = std::f64::consts::TAU / 20.0;
+                let range = 10.0 - 1.5 * (w * t).sin() + 0.3 * normal();
+                let rate = -1.5 * w * (w * t).cos();
+                refused |= c.push(t, [range, 0.3], rate * scale, 5.0, 2.0);
+            }
+            assert_eq!(refused, want, "scale {scale}: {:?}", c.ratio());
+        }
+    }
+
+    /// A DVL that says the vehicle moves while the light's range stays put
+    /// (stuck reporting an old velocity) is refused too.
+    #[test]
+    fn a_dvl_moving_a_vehicle_on_station_is_refused() {
+        let mut c = DvlCheck::default();
+        let refused = (0..25).any(|k| c.push(k as f64 * 0.2, [6.0, 0.02], 0.5, 5.0, 2.0));
+        assert!(refused);
+    }
+
+    proptest::proptest! {
+        /// The range rate is the derivative of the range as the vehicle
+        /// moves by its body velocity through its axes.
+        #[test]
+        fn the_range_rate_is_the_ranges_derivative(
+            x in 1.0f64..15.0, y in -3.0f64..3.0, z in -3.0f64..3.0,
+            theta in -1.2f64..1.2, psi in -3.0f64..3.0,
+            u in -1.0f64..1.0, v in -1.0f64..1.0, w in -1.0f64..1.0,
+        ) {
+            let rate = range_rate([x, y, z], theta, psi, [u, v, w]).unwrap();
+            let axes = crate::model::tracker::state::body_axes(theta, psi);
+            let h = 1e-6;
+            let moved: Vec<f64> = (0..3)
+                .map(|i| [x, y, z][i] + h * (u * axes[0][i] + v * axes[1][i] + w * axes[2][i]))
+                .collect();
+            let r = |p: &[f64]| p.iter().map(|c| c * c).sum::<f64>().sqrt();
+            let numeric = (r(&moved) - r(&[x, y, z])) / h;
+            proptest::prop_assert!((numeric - rate).abs() < 1e-5, "{numeric} vs {rate}");
+        }
+    }
+
+    #[test]
+    fn the_range_rate_is_the_velocity_along_the_line_of_sight() {
+        // Level, facing the beacon (yaw 0): forward is −x in B.
+        let r = range_rate([6.0, 0.0, 0.0], 0.0, 0.0, [0.5, 0.0, 0.0]).unwrap();
+        assert!((r + 0.5).abs() < 1e-12);
+        // Sideways to the line of sight: no range change.
+        let r = range_rate([6.0, 0.0, 0.0], 0.0, 0.0, [0.0, 0.3, 0.0]).unwrap();
+        assert!(r.abs() < 1e-12);
+        // Down (−z in B) from below the beacon: receding.
+        let r = range_rate([0.0, 0.0, -5.0], 0.0, 0.0, [0.0, 0.0, 0.2]).unwrap();
+        assert!((r - 0.2).abs() < 1e-12);
+        assert_eq!(range_rate([0.0; 3], 0.0, 0.0, [1.0; 3]), None);
+    }
+}
