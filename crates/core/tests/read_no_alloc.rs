@@ -5,50 +5,20 @@
 //! thread with a global allocator. (lightpose-logs' `read_no_alloc` reads
 //! through `LogFile`, the opener replay uses, in both containers.)
 
-use lightpose_core::log::{as_logged, DEFAULT_MAX_GAP_S};
-use lightpose_core::{
-    Angle, AttitudeReading, AttitudeStd, BodyVec, DepthReading, Frame, FrameLog, LogHeader,
-    LogReader, LogWriter, Pose, Truth, VelocityReading, NDET,
-};
+mod support {
+    pub mod every_field;
+}
+
+use lightpose_core::log::DEFAULT_MAX_GAP_S;
+use lightpose_core::{Frame, FrameLog, LogHeader, LogReader, LogWriter};
 use lightpose_testkit::alloc::Counting;
+use support::every_field::frame;
 
 #[global_allocator]
 static A: Counting = Counting::new();
 
 const FRAMES: u64 = 300;
 const WARM: usize = 20;
-
-fn frame(seq: u64) -> Frame {
-    let mut counts = [0u16; NDET];
-    for (k, c) in counts.iter_mut().enumerate() {
-        *c = ((seq as usize * 13 + k * 41) % 1024) as u16;
-    }
-    let s = seq as f64;
-    let mut f = Frame::new(seq, 100.0 + s * 0.2, 10, counts);
-    f.temp_c = Some(12.25 - s * 1e-3);
-    f.truth = Some(Truth {
-        pose: Pose::new(5.0 + s * 0.01, -0.2, 0.3, Angle::ZERO, Angle::ZERO),
-        surge: seq.is_multiple_of(2).then_some(0.4),
-    });
-    f.attitude = Some(AttitudeReading {
-        pitch: Angle::from_deg(-3.5 + s * 1e-2),
-        yaw: Angle::from_deg(12.0 - s * 3e-3),
-        std: (!seq.is_multiple_of(3)).then_some(AttitudeStd {
-            pitch: Angle::from_deg(0.25),
-            yaw: Angle::from_deg(2.0),
-        }),
-    });
-    f.depth = Some(DepthReading {
-        z: -0.75 + s * 1e-3,
-        std: (!seq.is_multiple_of(5)).then_some(0.01),
-    });
-    f.velocity = Some(VelocityReading {
-        v: BodyVec([0.3, -0.02 + s * 1e-4, 0.01]),
-        std: (!seq.is_multiple_of(4)).then_some(BodyVec([0.02, 0.02, 0.04])),
-    });
-    as_logged(&mut f);
-    f
-}
 
 #[test]
 fn reading_a_frame_line_allocates_nothing_once_warm() {

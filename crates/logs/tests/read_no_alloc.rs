@@ -6,11 +6,13 @@
 //! chunk at a time into a reused buffer: measured and bounded per chunk.
 //! Counted per thread with a global allocator.
 
-use lightpose_core::log::{as_logged, DEFAULT_MAX_GAP_S};
-use lightpose_core::{
-    Angle, AttitudeReading, AttitudeStd, BodyVec, DepthReading, Frame, LogHeader, Pose, Truth,
-    VelocityReading, NDET,
-};
+// The same frames as core's no-allocation test.
+#[path = "../../core/tests/support/every_field.rs"]
+mod every_field;
+
+use every_field::frame;
+use lightpose_core::log::DEFAULT_MAX_GAP_S;
+use lightpose_core::{Frame, LogHeader};
 use lightpose_logs::{create, FrameLog, LogFile, McapOptions};
 use lightpose_testkit::alloc::Counting;
 use std::path::Path;
@@ -20,46 +22,6 @@ static A: Counting = Counting::new();
 
 const FRAMES: u64 = 400;
 const WARM: usize = 50;
-
-/// A frame with every field a FRAME line can carry, its attitude as a log
-/// line gives it back (core's `as_logged`).
-fn frame(seq: u64) -> Frame {
-    let mut counts = [0u16; NDET];
-    for (k, c) in counts.iter_mut().enumerate() {
-        *c = ((seq as usize * 7 + k * 40) % 1024) as u16;
-    }
-    let s = seq as f64;
-    let mut f = Frame::new(seq, s * 0.2, 10, counts);
-    f.temp_c = Some(19.937845150646073 + s * 1e-3);
-    f.truth = Some(Truth {
-        pose: Pose::new(
-            7.8 - s * 0.01,
-            0.1,
-            0.12,
-            Angle::from_deg(9.6),
-            Angle::from_deg(-2.0),
-        ),
-        surge: Some(0.5),
-    });
-    f.attitude = Some(AttitudeReading {
-        pitch: Angle::from_deg(9.5 + s * 1e-3),
-        yaw: Angle::from_deg(-2.1 - s * 7e-4),
-        std: Some(AttitudeStd {
-            pitch: Angle::from_deg(0.3),
-            yaw: Angle::from_deg(1.5),
-        }),
-    });
-    f.depth = Some(DepthReading {
-        z: 0.123456789 + s * 1e-4,
-        std: Some(0.02),
-    });
-    f.velocity = Some(VelocityReading {
-        v: BodyVec([0.5 + s * 1e-3, -0.01, 0.02]),
-        std: Some(BodyVec([0.03, 0.03, 0.05])),
-    });
-    as_logged(&mut f);
-    f
-}
 
 /// Write `FRAMES` frames to `path` (container by extension), read them back
 /// as replay does, and return the allocations over the frames after the

@@ -23,7 +23,6 @@ pub use space::{default_floor, MIN_FREE};
 use super::{Output, StatusTap};
 use crate::config::{RecFormat, Recording};
 use crate::engine::Acquired;
-use clock::ClockWatch;
 pub use clock::Epoch;
 use lightpose_core::ratelog::{Close, RateLog};
 use lightpose_core::{Frame, LogHeader, PoseEstimate};
@@ -149,9 +148,7 @@ impl Recorder {
             ..RecStats::default()
         });
         stats.set_state(RecState::Idle);
-        let mut worker = Worker::new(cfg, header, stats);
-        worker.clock = ClockWatch::new(epoch);
-        Recorder::spawn(worker, cfg.queue)
+        Recorder::spawn(Worker::new(cfg, header, stats, epoch), cfg.queue)
     }
 
     /// `worker` on its thread behind a queue of `queue` frames.

@@ -45,7 +45,7 @@ pub(super) fn worker(c: &Recording) -> (Worker, Arc<RecStats>) {
         format: c.format,
         ..RecStats::default()
     });
-    let w = Worker::new(c, LogHeader::new(10, 5.0), stats.clone());
+    let w = Worker::new(c, LogHeader::new(10, 5.0), stats.clone(), Epoch::Source);
     (w, stats)
 }
 
@@ -138,7 +138,7 @@ fn full_disk_mid_file_is_reported() {
         let stats = Arc::new(RecStats::default());
         let mut c = cfg(dir.path().to_path_buf(), None, 1);
         c.format = format;
-        let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone());
+        let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone(), Epoch::Source);
         let item = |seq| Item {
             frame: frame(seq),
             est: est(seq),
@@ -178,6 +178,7 @@ fn the_error_is_cleared_when_recording_resumes() {
         &cfg(blocker.clone(), None, 16),
         LogHeader::new(10, 5.0),
         stats.clone(),
+        Epoch::Source,
     );
     w.write(&item(0));
     assert_eq!(stats.state(), RecState::Error);
@@ -214,6 +215,7 @@ fn finish_does_not_wait_for_a_stuck_disk() {
         &cfg(rec, None, 4096),
         LogHeader::new(10, 5.0),
         stats.clone(),
+        Epoch::Source,
     );
     w.write(&Item {
         frame: frame(0),
@@ -339,7 +341,7 @@ fn status_behind_a_stuck_disk_is_counted() {
     });
     let mut c = cfg(dir.path().join("rec"), None, 4096);
     c.format = RecFormat::Mcap;
-    let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone());
+    let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone(), Epoch::Source);
     w.write(&Item {
         frame: frame(0),
         est: est(0),
@@ -407,7 +409,7 @@ fn mcap_without_rotation_rotates_by_default() {
     let mut c = cfg(dir.path().to_path_buf(), None, 16);
     c.format = RecFormat::Mcap;
     let stats = Arc::new(RecStats::default());
-    let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone());
+    let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone(), Epoch::Source);
     assert_eq!(w.rotation, default);
     let item = |seq| Item {
         frame: frame(seq),

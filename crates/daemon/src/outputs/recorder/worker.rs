@@ -67,7 +67,14 @@ pub(super) struct Worker {
 }
 
 impl Worker {
-    pub(super) fn new(cfg: &Recording, header: LogHeader, stats: Arc<RecStats>) -> Worker {
+    /// A worker writing `cfg`'s files, `header` at the top of each, the
+    /// frames' `t` counting from `epoch` (what ties them to the wall clock).
+    pub(super) fn new(
+        cfg: &Recording,
+        header: LogHeader,
+        stats: Arc<RecStats>,
+        epoch: Epoch,
+    ) -> Worker {
         Worker {
             cfg: cfg.clone(),
             rotation: cfg.rotation(),
@@ -85,7 +92,7 @@ impl Worker {
             last_t: None,
             open_file: recfile::create_new,
             skip_log: RateLog::new(),
-            clock: ClockWatch::new(Epoch::Source),
+            clock: ClockWatch::new(epoch),
         }
     }
 
