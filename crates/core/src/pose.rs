@@ -246,11 +246,33 @@ pub struct Agreement {
     /// the reading).
     pub suspect: u8,
     /// The DVL judged by the light's own range (the tracker's DVL check):
-    /// the light's change of range over the DVL's in the last window
-    /// judged (1 for a good DVL; −1 for one mounted backwards).
-    pub dvl_light_ratio: Option<f64>,
-    /// The DVL stands refused for contradicting the light's range.
+    /// the changes of range over the last window judged, m, the light's
+    /// and the DVL's (alike for a good DVL; opposite for one mounted
+    /// backwards).
+    pub dvl_range_change_m: Option<[f64; 2]>,
+    /// How far the DVL's track is turned from the light's, ° to
+    /// starboard (the tracker's mounting check, with an attitude reading):
+    /// about 0 for a good DVL, its mounting error for one turned.
+    pub dvl_turned_deg: Option<f64>,
+    /// The DVL stands refused for contradicting the light (its range or
+    /// its track).
     pub dvl_refused: bool,
+}
+
+impl Agreement {
+    /// What the DVL checks last judged, in words: "range over 5 s: light
+    /// -1.20 m, DVL +1.05 m; its track turned +179° to starboard of the
+    /// light's" (empty before either judged).
+    pub fn dvl_said(&self) -> String {
+        let range = self
+            .dvl_range_change_m
+            .map(|[l, d]| format!("range over 5 s: light {l:+.2} m, DVL {d:+.2} m"));
+        let turned = self
+            .dvl_turned_deg
+            .map(|t| format!("its track turned {t:+.0}° to starboard of the light's"));
+        let parts: Vec<String> = range.into_iter().chain(turned).collect();
+        parts.join("; ")
+    }
 }
 
 /// One estimate. Angles in degrees, as they go on the wire.

@@ -274,11 +274,14 @@ pub struct Stats {
     pub agreement_known: AtomicU64,
     pub disagreed: [AtomicU64; 6],
     pub disagreeing_now: AtomicU64,
-    /// The DVL check (`Agreement::dvl_light_ratio`, `dvl_refused`): f64
-    /// bits of the last ratio judged (valid once `dvl_ratio_known`), and
-    /// whether the DVL stands refused.
-    pub dvl_ratio_bits: AtomicU64,
-    pub dvl_ratio_known: AtomicBool,
+    /// The DVL checks (`Agreement::dvl_range_change_m`, `dvl_turned_deg`,
+    /// `dvl_refused`): f64 bits of the last changes of range judged (the
+    /// light's, the DVL's) and of the last turn, each valid once its
+    /// `_known` is set, and whether the DVL stands refused.
+    pub dvl_change_bits: [AtomicU64; 2],
+    pub dvl_change_known: AtomicBool,
+    pub dvl_turned_bits: AtomicU64,
+    pub dvl_turned_known: AtomicBool,
     pub dvl_refused_now: AtomicBool,
     pub latency: Histogram,
     /// Last error of the source, for STATUS.

@@ -10,7 +10,7 @@ use crate::stats::{Histogram, Stats, TempSource};
 use lightpose_core::{ReadingUse, Refusal, Status, CHECKED, COLS, NDET, READINGS};
 use lightpose_hal::SourceHealth;
 use serde_json::{json, Value};
-use std::sync::atomic::Ordering::Relaxed;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::time::Instant;
 
 /// Version of the message set (POSE, STATUS, VERSION) on the wire.
@@ -263,13 +263,20 @@ fn readings(s: &Stats) -> Value {
             (name.to_string(), c)
         })
         .collect();
-    let ratio = s
-        .dvl_ratio_known
-        .load(Relaxed)
-        .then(|| f64::from_bits(s.dvl_ratio_bits.load(Relaxed)));
+    let f64_if = |k: &AtomicBool, bits: &AtomicU64| {
+        k.load(Relaxed).then(|| f64::from_bits(bits.load(Relaxed)))
+    };
+    let change = s.dvl_change_known.load(Relaxed).then(|| {
+        let [l, d] = &s.dvl_change_bits;
+        json!({"light": f64::from_bits(l.load(Relaxed)), "dvl": f64::from_bits(d.load(Relaxed))})
+    });
     check.insert(
         "dvl".to_string(),
-        json!({"light_over_dvl": ratio, "refused": s.dvl_refused_now.load(Relaxed)}),
+        json!({
+            "range_change_m": change,
+            "turned_deg": f64_if(&s.dvl_turned_known, &s.dvl_turned_bits),
+            "refused": s.dvl_refused_now.load(Relaxed),
+        }),
     );
     v.insert("check".to_string(), Value::Object(check));
     for (name, counts) in READINGS.iter().zip(&s.readings) {

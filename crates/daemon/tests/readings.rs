@@ -101,7 +101,8 @@ fn a_biased_depth_is_called_disagreeing_in_status() {
 /// three sensors): the light's range closes while the DVL says it opens, so
 /// the tracker refuses the DVL (STATUS `readings.velocity.refused.light`,
 /// `readings.check.dvl`), and the poses go on from the light. Without the
-/// fault the DVL is taken on every frame and the ratio is about 1.
+/// fault the DVL is taken on every frame and the two changes of range
+/// agree.
 #[test]
 fn a_dvl_mounted_backwards_is_refused_by_the_light_in_status() {
     let r = root();
@@ -125,7 +126,12 @@ fn a_dvl_mounted_backwards_is_refused_by_the_light_in_status() {
         let (vel, dvl) = (&st["readings"]["velocity"], &st["readings"]["check"]["dvl"]);
         let refused = vel["refused"]["light"].as_u64().expect("refused.light");
         let used = vel["used"].as_u64().expect("used");
-        let ratio = dvl["light_over_dvl"].as_f64().expect("a ratio judged");
+        let light = dvl["range_change_m"]["light"]
+            .as_f64()
+            .expect("a window judged");
+        let by_dvl = dvl["range_change_m"]["dvl"]
+            .as_f64()
+            .expect("a window judged");
         let ok = of_class(&msgs, "POSE")
             .iter()
             .filter(|p| p["status"] == "ok")
@@ -133,11 +139,11 @@ fn a_dvl_mounted_backwards_is_refused_by_the_light_in_status() {
         if turned == 0.0 {
             assert_eq!(refused, 0, "{st}");
             assert_eq!(dvl["refused"], false, "{dvl}");
-            assert!((ratio - 1.0).abs() < 0.5, "{dvl}");
+            assert!((light / by_dvl - 1.0).abs() < 0.5, "{dvl}");
         } else {
             assert!(refused > used, "{vel}");
             assert_eq!(dvl["refused"], true, "{dvl}");
-            assert!(ratio < 0.0, "{dvl}");
+            assert!(light * by_dvl < 0.0, "{dvl}");
         }
         assert!(ok > 25, "turned {turned}: {ok} ok poses");
     }

@@ -180,9 +180,16 @@ impl FrameSource for SimSource {
                 .as_mut()
                 .filter(|_| self.faults.dvl_turned != 0.0)
             {
+                // Its axes turned to starboard: a forward motion reads
+                // partly to the right, each component's std with its axis.
                 let (s, c) = self.faults.dvl_turned.sin_cos();
                 let [fwd, right, down] = r.v.0;
                 r.v.0 = [c * fwd - s * right, s * fwd + c * right, down];
+                if let Some(sd) = r.std.as_mut() {
+                    let [f, ri, d] = sd.0;
+                    let turn = |a: f64, b: f64| (c * c * a * a + s * s * b * b).sqrt();
+                    sd.0 = [turn(f, ri), turn(ri, f), d];
+                }
             }
             return Ok(f);
         }
@@ -304,7 +311,8 @@ mod tests {
     }
 
     /// A DVL mounted backwards (turned 180°) reads the velocity negated,
-    /// down unchanged; turned 90°, forward motion reads to the left.
+    /// down unchanged; turned 90° (to starboard), forward motion reads to
+    /// the right.
     #[test]
     fn a_turned_dvl_reads_the_velocity_turned() {
         let scene = Scene {

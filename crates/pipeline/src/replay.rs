@@ -8,8 +8,8 @@
 mod running;
 
 use lightpose_core::{
-    Cut, Estimator, FrameLog, LogError, PoseEstimate, ReadingUse, Refusal, Status, CHECKED, COLS,
-    NDET, READINGS,
+    Agreement, Cut, Estimator, FrameLog, LogError, PoseEstimate, ReadingUse, Refusal, Status,
+    CHECKED, COLS, NDET, READINGS,
 };
 use std::fmt;
 use std::io::Write;
@@ -195,9 +195,9 @@ pub struct ReplaySummary {
     /// the window mean of its normalized innovation farthest from 0.
     pub disagreed: [u64; 6],
     pub agreement_extreme: [Option<f64>; 6],
-    /// The DVL check's ratio (light's change of range over the DVL's) on
-    /// the last frame the DVL stood refused by it.
-    pub dvl_refused_ratio: Option<f64>,
+    /// The checks against the light on the last frame the DVL stood
+    /// refused by them (what they judged: `Agreement::dvl_said`).
+    pub dvl_refused_last: Option<Agreement>,
 }
 
 impl ReplaySummary {
@@ -248,13 +248,13 @@ impl ReplaySummary {
         (!parts.is_empty()).then(|| parts.join(", "))
     }
 
-    /// "on 287 frames (light/DVL -1.02)" when the DVL check refused the
-    /// DVL, or `None`.
+    /// "on 287 frames (range over 5 s: light -1.20 m, DVL +1.05 m; ...)"
+    /// when the DVL checks refused the DVL, or `None`.
     pub fn dvl_refused_line(&self) -> Option<String> {
         let n = self.readings[2][ReadingUse::Refused(Refusal::Light).index()];
-        (n > 0).then(|| match self.dvl_refused_ratio {
-            Some(r) => format!("on {n} frames (light/DVL {r:+.2})"),
-            None => format!("on {n} frames"),
+        (n > 0).then(|| match self.dvl_refused_last.map(|a| a.dvl_said()) {
+            Some(said) if !said.is_empty() => format!("on {n} frames ({said})"),
+            _ => format!("on {n} frames"),
         })
     }
 
@@ -295,7 +295,7 @@ pub fn replay<W: Write>(
         excluded: [0; NDET],
         disagreed: [0; 6],
         agreement_extreme: [None; 6],
-        dvl_refused_ratio: None,
+        dvl_refused_last: None,
     };
     while let Some(item) = log.next_frame() {
         // The reader keeps only the last bad reading's text: taken as soon
@@ -343,7 +343,7 @@ pub fn replay<W: Write>(
             }
         }
         if a.dvl_refused {
-            s.dvl_refused_ratio = a.dvl_light_ratio;
+            s.dvl_refused_last = Some(*a);
         }
         if let Some(t) = &frame.truth {
             errors.add(&pose, t);

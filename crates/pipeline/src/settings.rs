@@ -274,9 +274,12 @@ pub struct TrackerConfig {
     /// as its σ, whose mean over 25 white slots has a σ of 0.2).
     pub reading_check_limit: f64,
     /// Judge the DVL by the light's own range (`model/tracker/dvl_check.rs`):
-    /// a DVL whose change of range over 5 s the light's contradicts (in
-    /// sign, or 5× apart, which no water does, beyond the law's wander and
-    /// noise) is refused (`refused_light`) until they agree within 2×.
+    /// a DVL whose change of range over 5 s the light's contradicts (under a
+    /// third of it or another sign, or over five times it, which no water
+    /// the beacon is seen through does, beyond the law's wander and noise),
+    /// or whose track turns from the light's by over 20° (with an attitude
+    /// reading, over 10 s), is refused (`refused_light`) until they agree
+    /// again.
     /// Why: a DVL mounted backwards was fused on every frame, the AHRS
     /// blamed, x 2.9 m off on `ok` poses (docs/estimators.md, "A DVL set
     /// up wrong").

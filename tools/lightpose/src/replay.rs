@@ -119,7 +119,7 @@ fn say_summary(a: &ReplayArgs, s: &ReplaySummary) {
     }
     if let Some(line) = s.dvl_refused_line() {
         eprintln!(
-            "lightpose: {}: the DVL's velocity contradicted the light's change of range (backwards, across the bow, or in other units: check its mounting rotation, axes and units), so it was refused: {line}",
+            "lightpose: {}: the DVL contradicted the light (its change of range, or its track's direction: mounted turned, its axes or units wrong; check its mounting rotation, axes and units), so it was refused: {line}",
             a.log.display()
         );
     }

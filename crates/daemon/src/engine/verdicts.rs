@@ -21,26 +21,35 @@ pub(super) fn count(stats: &Stats, est: &PoseEstimate, frame: &Frame) {
     dvl(stats, est, frame.seq);
 }
 
-/// The DVL check: its last ratio into STATUS, and a line when the DVL is
-/// refused for contradicting the light or taken again.
+/// The DVL checks: what they last judged into STATUS, and a line when the
+/// DVL is refused for contradicting the light or taken again.
 fn dvl(stats: &Stats, est: &PoseEstimate, seq: u64) {
     let a = &est.agreement;
-    if let Some(r) = a.dvl_light_ratio {
-        stats.dvl_ratio_bits.store(r.to_bits(), Relaxed);
-        stats.dvl_ratio_known.store(true, Relaxed);
+    if let Some(c) = a.dvl_range_change_m {
+        for (bits, v) in stats.dvl_change_bits.iter().zip(c) {
+            bits.store(v.to_bits(), Relaxed);
+        }
+        stats.dvl_change_known.store(true, Relaxed);
+    }
+    if let Some(d) = a.dvl_turned_deg {
+        stats.dvl_turned_bits.store(d.to_bits(), Relaxed);
+        stats.dvl_turned_known.store(true, Relaxed);
     }
     let before = stats.dvl_refused_now.swap(a.dvl_refused, Relaxed);
-    let ratio = a.dvl_light_ratio.unwrap_or(f64::NAN);
-    match (before, a.dvl_refused) {
-        (false, true) => tracing::warn!(
+    if before == a.dvl_refused {
+        return;
+    }
+    let said = a.dvl_said();
+    if a.dvl_refused {
+        tracing::warn!(
             seq,
-            "the DVL's velocity contradicts the light's change of range (light/DVL {ratio:+.2} over the last 5 s; a good DVL reads about 1, one mounted backwards -1): refused until they agree; check its mounting rotation, axes and units (STATUS readings.check.dvl, readings.velocity.refused.light)"
-        ),
-        (true, false) => tracing::info!(
+            "the DVL contradicts the light ({said}): refused until they agree; check its mounting rotation, axes and units (STATUS readings.check.dvl, readings.velocity.refused.light)"
+        );
+    } else {
+        tracing::info!(
             seq,
-            "the DVL agrees with the light's change of range again (light/DVL {ratio:+.2}): taken again"
-        ),
-        _ => {}
+            "the DVL agrees with the light again ({said}): taken again"
+        );
     }
 }
 

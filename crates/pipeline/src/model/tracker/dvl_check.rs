@@ -17,19 +17,23 @@
 //! state's bearing of the beacon, which the light pins) integrates to the
 //! change of range it claims; the law's ranges at the window's ends (each
 //! a mean over a second) give the light's. Water unlike the calibration's
-//! scales the light's change (up to 1.5× for K_D 0.12 in a tank
-//! calibrated at 0.09), and the law's bias follows the geometry (ratios
-//! of 0.39–1.6 on good runs), but water never turns its sign or scales it
-//! by 5. So when no ratio in [`REFUSE`] brings the two within the law's
-//! wander and its counts' noise, the DVL is refused (`refused_light`)
-//! until a window with a metre of travel has its ratio inside [`TAKE`].
-//! The window is judged whether the DVL is fused or not, so a DVL put
-//! right is taken again.
+//! scales the light's change: more turbid water up without bound (2.2× at
+//! 3 m in water of K_D 1.0 for a tank calibrated at 0.09), clearer water
+//! down to its geometric part at most (2/x of K_D + 2/x: 0.53 at 20 m in
+//! the tank); the law's bias follows the geometry (ratios of 0.39–1.6 on
+//! good runs). No water turns its sign or takes it under a third, and
+//! none the beacon is seen through makes it five times. So when the
+//! light's change along the DVL's is under [`REFUSE_BELOW`] of it or over
+//! [`REFUSE_ABOVE`] times it, beyond the law's wander and its counts'
+//! noise, the DVL is refused (`refused_light`) until a window with a metre
+//! of travel has its ratio inside [`TAKE`]. The window is judged whether
+//! the DVL is fused or not, so a DVL put right is taken again.
 //!
-//! What it does not see: a DVL turned by 70° or less, or off in scale by
-//! 0.5–4× (a wrong sound speed is a few per cent), which the law's bias and
-//! the water can mimic; nor a turned DVL while the range does not change
-//! (a vehicle on station, or circling the beacon).
+//! What it does not see: a DVL turned by up to ~80° (the track's direction
+//! does, with an attitude sensor: `dvl_heading`); a scale of ¼–4× (a wrong
+//! sound speed is a few per cent), which water mimics; nor a turned DVL
+//! while the range does not change (a vehicle on station, or circling the
+//! beacon).
 //!
 //! About the sensor, not the state: kept across restarts, and handed to a
 //! water bank's members.
@@ -37,7 +41,7 @@
 use lightpose_core::{Frame, ReadingUse, Refusal};
 
 use super::readings::{FrameReadings, Pending};
-use super::state::Kinds;
+use super::state::{body_axes, Kinds, State};
 use super::Tracker;
 
 /// The window, s: the reading check's default, long enough for a metre
@@ -58,19 +62,28 @@ const WANDER_M: f64 = 0.35;
 /// The counts' noise of the two ends' means counts this many σ.
 const NOISE_K: f64 = 3.0;
 
-/// The least change of range, m, the DVL's or the light's, for a window's
-/// ratio to be reported and for a refused DVL to be taken again.
+/// The least change of range the DVL claims, m, for a window to be
+/// judged.
+const MIN_JUDGED_M: f64 = 0.5;
+
+/// The least change of range, m: the DVL's, for a refused DVL to be taken
+/// again; the light's, for a DVL that claims too little to be refused.
 pub(super) const MIN_TRAVEL_M: f64 = 1.0;
 
-/// Light's range change over the DVL's. When no ratio in this band brings
-/// the two within the law's wander and noise, the DVL is refused. On good
-/// runs in their own water (tank, harbour and the held-out tank; dive,
-/// zigzag, dock, approach and a minute of to-and-fro) the ratio of the
-/// ends was 0.39–1.6; other water scales it (K_D 0.12 in a tank
-/// calibrated at 0.09: up to 1.53). None of 24 000 Monte Carlo runs
-/// (`lightpose bench`, 2000 per case and set of sensors with a DVL, water
-/// drawn) refused a good DVL.
-pub(super) const REFUSE: [f64; 2] = [1.0 / 3.0, 3.0];
+/// Light's range change over the DVL's: when the light's is less than
+/// this share of the DVL's (along it) beyond the law's wander and noise,
+/// the DVL is refused. On good runs in their own water (tank, harbour and
+/// the held-out tank; dive, zigzag, dock, approach and a minute of
+/// to-and-fro) the ratio of the ends was 0.39–1.6; clearer water than the
+/// calibration's takes it down to 2/x of K_D + 2/x at most. None of 24 000
+/// Monte Carlo runs (`lightpose bench`, 2000 per case and set of sensors
+/// with a DVL, water drawn) refused a good DVL.
+pub(super) const REFUSE_BELOW: f64 = 1.0 / 3.0;
+
+/// Light's range change over the DVL's: past this (beyond the wander and
+/// noise) the DVL is refused too; more turbid water than the calibration's
+/// grows the ratio, but not this far where the beacon is still seen.
+pub(super) const REFUSE_ABOVE: f64 = 5.0;
 
 /// Light's range change over the DVL's: inside this, with a metre of
 /// travel, a refused DVL is taken again.
@@ -101,8 +114,9 @@ pub(super) struct DvlCheck {
     /// The integral of the DVL's range rate since the chain began, m.
     dvl: f64,
     refused: bool,
-    /// The last judged window's ratio, light over DVL.
-    ratio: Option<f64>,
+    /// The last judged window's changes of range, m: the light's and the
+    /// DVL's.
+    changes: Option<[f64; 2]>,
 }
 
 impl Default for DvlCheck {
@@ -114,7 +128,7 @@ impl Default for DvlCheck {
             last: None,
             dvl: 0.0,
             refused: false,
-            ratio: None,
+            changes: None,
         }
     }
 }
@@ -125,10 +139,10 @@ impl DvlCheck {
         self.refused
     }
 
-    /// The ratio of the light's range change to the DVL's over the last
-    /// judged window (`None` before one was judged).
-    pub fn ratio(&self) -> Option<f64> {
-        self.ratio
+    /// The changes of range over the last judged window, m: the light's
+    /// and the DVL's (`None` before one was judged).
+    pub fn changes(&self) -> Option<[f64; 2]> {
+        self.changes
     }
 
     /// A frame on which the DVL or the light's range is missing: the
@@ -157,7 +171,7 @@ impl DvlCheck {
             return self.refused;
         }
         match self.last {
-            Some((t0, r0)) if t > t0 && t - t0 <= max_gap_s => {
+            Some((t0, r0)) if t >= t0 && t - t0 <= max_gap_s => {
                 self.dvl += 0.5 * (r0 + rate) * (t - t0);
             }
             _ => {
@@ -217,21 +231,41 @@ impl DvlCheck {
         Some([d_light, d_dvl, sigma])
     }
 
-    /// The verdict on a window's ends.
+    /// The verdict on a window's ends. Judged once either change is half a
+    /// metre: a good DVL on station (a change of 0) leaves no band for the
+    /// law's wander, which is then the whole of the light's change.
     fn judge(&mut self, [d_light, d_dvl, sigma]: [f64; 3]) {
-        if d_light.abs().max(d_dvl.abs()) >= MIN_TRAVEL_M {
-            self.ratio = Some(d_light / d_dvl);
+        if d_dvl.abs().max(d_light.abs()) < MIN_JUDGED_M {
+            return;
         }
-        // How far the light's change is from any the band allows.
-        let off = |[lo, hi]: [f64; 2]| {
-            let (a, b) = (lo * d_dvl, hi * d_dvl);
-            let (a, b) = (a.min(b), a.max(b));
-            (a - d_light).max(d_light - b).max(0.0)
+        self.changes = Some([d_light, d_dvl]);
+        let slack = WANDER_M + NOISE_K * sigma;
+        // The light's change along the DVL's, against the least any water
+        // gives: in clearer water than the calibration's the light's change
+        // shrinks only to its geometric part, 2/x of K_D + 2/x (0.53 at
+        // 20 m in the tank); in more turbid water it grows without bound
+        // (2.2× at 3 m in water of K_D 1.0 for the tank's 0.09), so a
+        // light that moves more than the DVL says is not judged here.
+        // A DVL claiming a fifth of the light's change or less (turned near
+        // 90°, or reading 10× too slow) is beyond the turbid water the
+        // beacon is seen through (K_D 1.0 for the tank's 0.09 makes it 2.2×
+        // at 3 m).
+        let along = if d_dvl == 0.0 {
+            -d_light.abs()
+        } else {
+            d_light * d_dvl.signum()
         };
-        if off(REFUSE) > WANDER_M + NOISE_K * sigma {
+        let least = REFUSE_BELOW * d_dvl.abs() - slack;
+        // And only once the light has moved a metre: on station the law's
+        // range drifts as the vehicle turns (which channel is brightest).
+        let most = (REFUSE_ABOVE * d_dvl.abs() + slack).max(MIN_TRAVEL_M);
+        if along < least || d_light.abs() > most {
             self.refused = true;
-        } else if off(TAKE) == 0.0 && d_dvl.abs() >= MIN_TRAVEL_M {
-            self.refused = false;
+        } else {
+            let ratio = d_light / d_dvl;
+            if (TAKE[0]..=TAKE[1]).contains(&ratio) && d_dvl.abs() >= MIN_TRAVEL_M {
+                self.refused = false;
+            }
         }
     }
 
@@ -241,47 +275,80 @@ impl DvlCheck {
 }
 
 impl Tracker {
-    /// Judge the frame's DVL reading against the light's range (see the
-    /// module), and refuse it while the check says so. The bearing is the
-    /// last state's: the light pins it whatever the DVL says. Returns
-    /// whether the DVL was refused from this frame on, not before: the
-    /// state then holds the DVL's velocity (and the track it drew), which
-    /// the caller starts again without.
-    pub(super) fn judge_dvl(
-        &mut self,
-        frame: &Frame,
-        r: &mut FrameReadings,
-        kinds: &Kinds,
-    ) -> bool {
-        if !self.cfg.dvl_check {
-            return false;
-        }
-        let Some(c) = r.velocity.ready() else {
-            self.dvl_check.break_chain();
-            return false;
-        };
-        let v = [c.z[0], c.z[1], c.z[2]];
-        let was = self.dvl_check.refused();
-        let sample = self.state.as_ref().and_then(|s| {
-            let rate = range_rate([s.x[0], s.x[1], s.x[2]], s.x[3], s.x[4], v)?;
-            let law = self.law_reading(frame, kinds)?;
-            Some(([law.range.z[0], law.noise], rate))
-        });
-        let refused = match sample {
-            Some((light, rate)) => {
-                let gap = self.cfg.max_gap_s;
-                self.dvl_check.push(frame.t, light, rate, WINDOW_S, gap)
-            }
-            None => {
-                self.dvl_check.break_chain();
-                self.dvl_check.refused()
-            }
-        };
-        if refused {
+    /// The checks' standing verdict on the frame's DVL reading: refused
+    /// while either check says so. Returns whether it was first refused
+    /// since the last frame that asked: the state then followed the DVL,
+    /// and the caller starts again without it.
+    pub(super) fn apply_dvl_verdict(&mut self, r: &mut FrameReadings) -> bool {
+        let refused = self.cfg.dvl_check && self.dvl_refused();
+        if refused && r.velocity.ready().is_some() {
             r.velocity = Pending::Done(ReadingUse::Refused(Refusal::Light));
         }
-        refused && !was
+        let first = refused && !self.dvl_restarted;
+        self.dvl_restarted = refused;
+        first
     }
+
+    /// Give the checks this frame's samples, at state `s` after the
+    /// frame's update (the bearing is the light's of this frame, as the
+    /// attitude reading is): the DVL's reading `v` (forward, right, down,
+    /// m/s, refused or not), the attitude reading `att` (pitch, yaw, rad)
+    /// and the law's range. A frame without them is skipped: the windows
+    /// go on across it while the gap is under `max_gap_s`.
+    pub(super) fn observe_dvl(
+        &mut self,
+        frame: &Frame,
+        s: &State,
+        v: Option<[f64; 3]>,
+        att: Option<[f64; 2]>,
+        kinds: &Kinds,
+    ) {
+        let Some(v) = v.filter(|_| self.cfg.dvl_check) else {
+            return;
+        };
+        let Some(law) = self.law_reading(frame, kinds) else {
+            return;
+        };
+        let (t, gap, range) = (frame.t, self.cfg.max_gap_s, law.range.z[0]);
+        if let Some(rate) = range_rate([s.x[0], s.x[1], s.x[2]], s.x[3], s.x[4], v) {
+            self.dvl_check
+                .push(t, [range, law.noise], rate, WINDOW_S, gap);
+        }
+        if let Some((light, vel)) = att.and_then(|att| horizontal(s, att, range, v)) {
+            self.dvl_heading.push(t, light, vel, gap);
+        }
+    }
+}
+
+impl Tracker {
+    /// Whether either check refuses the DVL now.
+    pub(super) fn dvl_refused(&self) -> bool {
+        self.dvl_check.refused() || self.dvl_heading.refused()
+    }
+}
+
+/// The vehicle's horizontal position in B by the light, and the DVL's
+/// horizontal velocity in B, both at the attitude reading's pitch and yaw
+/// `att` (rad): the law's `range` along the beacon's bearing in the body,
+/// which the light pins (read off state `s`: a DVL that turned the
+/// state's heading turned its position about the beacon with it, not the
+/// bearing), and the DVL's velocity `v` (forward, right, down).
+fn horizontal(s: &State, att: [f64; 2], range: f64, v: [f64; 3]) -> Option<([f64; 2], [f64; 2])> {
+    let p = [s.x[0], s.x[1], s.x[2]];
+    let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+    if !(r > 1e-6) {
+        return None;
+    }
+    let bearing = body_axes(s.x[3], s.x[4]).map(|a| -(a[0] * p[0] + a[1] * p[1] + a[2] * p[2]) / r);
+    let axes = body_axes(att[0], att[1]);
+    let (mut light, mut vel) = ([0.0; 2], [0.0; 2]);
+    for i in 0..2 {
+        for k in 0..3 {
+            light[i] -= range * bearing[k] * axes[k][i];
+            vel[i] += v[k] * axes[k][i];
+        }
+    }
+    Some((light, vel))
 }
 
 /// The DVL's range rate, m/s (+ receding from the beacon): its velocity
@@ -293,7 +360,7 @@ pub(super) fn range_rate(pos: [f64; 3], theta: f64, psi: f64, v: [f64; 3]) -> Op
     if !(r > 1e-6) {
         return None;
     }
-    let axes = super::state::body_axes(theta, psi);
+    let axes = body_axes(theta, psi);
     let mut rate = 0.0;
     for (a, vk) in axes.iter().zip(v) {
         for i in 0..3 {
@@ -326,8 +393,8 @@ mod tests {
         for scale in [1.0, 0.7, 1.5] {
             let mut c = DvlCheck::default();
             assert!(!run(&mut c, 0.0, 10.0, scale), "scale {scale}");
-            let r = c.ratio().expect("judged");
-            assert!((r * scale - 1.0).abs() < 0.01, "{r}");
+            let [l, d] = c.changes().expect("judged");
+            assert!((l * scale - d).abs() < 0.01 * l.abs(), "{l} {d}");
         }
     }
 
@@ -351,7 +418,9 @@ mod tests {
         // from it by the range alone.
         let mut c = DvlCheck::default();
         assert!(!run(&mut c, 0.0, 20.0, 1.0 / 3.0));
-        assert!(c.ratio().is_some_and(|r| (r - 3.0).abs() < 0.05));
+        assert!(c
+            .changes()
+            .is_some_and(|[l, d]| (l - 3.0 * d).abs() < 0.05 * l.abs()));
     }
 
     #[test]
@@ -366,7 +435,7 @@ mod tests {
             }
             assert!(!c.push(t, [6.0, 0.02], 0.5, 5.0, 2.0));
         }
-        assert_eq!(c.ratio(), None);
+        assert_eq!(c.changes(), None);
         // Not finite: no panic, nothing judged.
         assert!(!c.push(30.0, [f64::NAN, 0.02], 0.5, 5.0, 2.0));
         assert!(!c.push(30.2, [6.0, -1.0], 0.5, 5.0, 2.0));
@@ -398,7 +467,7 @@ mod tests {
                 let rate = -1.5 * w * (w * t).cos();
                 refused |= c.push(t, [range, 0.3], rate * scale, 5.0, 2.0);
             }
-            assert_eq!(refused, want, "scale {scale}: {:?}", c.ratio());
+            assert_eq!(refused, want, "scale {scale}: {:?}", c.changes());
         }
     }
 

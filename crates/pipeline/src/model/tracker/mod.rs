@@ -35,6 +35,7 @@ mod bank;
 mod bound;
 mod counts;
 mod dvl_check;
+mod dvl_heading;
 mod motion;
 mod offsets;
 pub(crate) mod readings;
@@ -110,6 +111,11 @@ pub struct Tracker {
     /// The DVL judged by the light's range (about the sensor: kept across
     /// restarts).
     dvl_check: dvl_check::DvlCheck,
+    /// The DVL's mounting judged by the light's track (likewise kept).
+    dvl_heading: dvl_heading::HeadingCheck,
+    /// The DVL stood refused at the last frame that asked (a first refusal
+    /// starts the filter again once).
+    dvl_restarted: bool,
 }
 
 impl Tracker {
@@ -146,6 +152,8 @@ impl Tracker {
             agreement: Default::default(),
             offsets: offsets::Offsets::new(&cfg),
             dvl_check: Default::default(),
+            dvl_heading: Default::default(),
+            dvl_restarted: false,
             cfg,
         })
     }
@@ -159,6 +167,8 @@ impl Tracker {
         self.agreement = from.agreement;
         self.offsets = from.offsets;
         self.dvl_check = from.dvl_check;
+        self.dvl_heading = from.dvl_heading;
+        self.dvl_restarted = from.dvl_restarted;
     }
 
     /// Give the tracker the paper's estimator of the same calibration, for
@@ -514,8 +524,9 @@ impl Estimator for Tracker {
         e.excluded_channels = Censoring::excluded_mask(&kinds);
         let span = (self.cfg.reading_check_s / READING_CHECK_SLOT_S).round() as usize;
         e.agreement = self.agreement.report(span, self.cfg.reading_check_limit);
-        e.agreement.dvl_light_ratio = self.dvl_check.ratio();
-        e.agreement.dvl_refused = self.dvl_check.refused();
+        e.agreement.dvl_range_change_m = self.dvl_check.changes();
+        e.agreement.dvl_refused = self.dvl_refused();
+        e.agreement.dvl_turned_deg = self.dvl_heading.turned_deg();
         e
     }
 
@@ -525,6 +536,8 @@ impl Estimator for Tracker {
         self.agreement = Default::default();
         self.offsets = offsets::Offsets::new(&self.cfg);
         self.dvl_check = Default::default();
+        self.dvl_heading = Default::default();
+        self.dvl_restarted = false;
     }
 
     /// K_D while it is estimated (`estimate_k_d`, or from the first DVL
@@ -550,7 +563,6 @@ impl Tracker {
     /// channels classified as `kinds`.
     fn estimate_frame(&mut self, frame: &Frame, kinds: [Censoring; NDET]) -> PoseEstimate {
         let mut readings = FrameReadings::check(frame, &self.cfg);
-        let dvl_turned_out_wrong = self.judge_dvl(frame, &mut readings, &kinds);
         // Issue 8: a temperature that is not water's is a bad frame, as in
         // the model estimator; the update used to correct such a frame as
         // if at 20 °C (up to 10 % off in brightness, a jump in range).
@@ -561,17 +573,22 @@ impl Tracker {
             e.readings = verdicts(unfused(&readings));
             return e;
         }
+        // The DVL's and the attitude's readings as the frame gives them,
+        // for the DVL checks after the update (refused or not).
+        let dvl_seen = readings.velocity.ready().map(|c| [c.z[0], c.z[1], c.z[2]]);
+        let att_seen = readings.attitude.ready().map(|c| [c.z[0], c.z[1]]);
+        if self.apply_dvl_verdict(&mut readings) {
+            // The DVL is refused from this frame on, and the state followed
+            // it (its velocity, the track it drew, what the offsets learned
+            // meanwhile): start again from the light without it (on the
+            // tank dock with the DVL turned 180°, x 1.3 m off at p95 when
+            // carried on, 0.05 m from the restart).
+            self.state = None;
+            self.doubt_all_offsets();
+        }
         let Some(mut s) = self.carried_to(frame.t) else {
             return self.restart(frame, &readings, &kinds);
         };
-        if dvl_turned_out_wrong {
-            // The state followed the DVL (its velocity, the track it drew,
-            // what the offsets learned meanwhile): start again from the
-            // light without it (on the tank dock with the DVL turned 180°,
-            // x 1.3 m off at p95 when carried on, 0.05 m from the restart).
-            self.doubt_all_offsets();
-            return self.restart(frame, &readings, &kinds);
-        }
         s.counts_ll = None;
         s.counts_nis = None;
         let (uses, innov) = self.update_readings(&mut s, &readings);
@@ -667,6 +684,9 @@ impl Tracker {
             let mut e = PoseEstimate::empty(frame.seq, frame.t, status, Self::NAME);
             e.readings = verdicts(uses);
             return e;
+        }
+        if applied {
+            self.observe_dvl(frame, &s, dvl_seen, att_seen, &kinds);
         }
         let status = self.status_of(&s, applied, n_sat, &uses);
         let mut e = self.to_estimate(frame, &s, status);
