@@ -242,8 +242,9 @@ fn channels(s: &Stats) -> Value {
 /// `used`, `ignored` (this estimator does not use it), `refused` by reason
 /// (`not_finite`, `bad_std`, `implausible`, `gate`, `light`: the DVL
 /// check), and the checks against the light (`check`: the reading check
-/// per component, and `dvl`, the DVL check's last ratio of the light's
-/// change of range to the DVL's and its verdict); the light still
+/// per component, and `dvl`, the DVL checks' last changes of range (the
+/// light's and the DVL's), the DVL track's turn, and their verdict); the
+/// light still
 /// updated the pose on a frame whose reading was refused.
 fn readings(s: &Stats) -> Value {
     let mut v = serde_json::Map::new();

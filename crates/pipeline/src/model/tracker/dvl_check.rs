@@ -62,8 +62,12 @@ const WANDER_M: f64 = 0.35;
 /// The counts' noise of the two ends' means counts this many σ.
 const NOISE_K: f64 = 3.0;
 
-/// The least change of range the DVL claims, m, for a window to be
-/// judged.
+/// Faster than this the light's range does not change, m/s: the DVL's
+/// own limit (`velocity_limit_mps`'s default).
+const JUMP_MPS: f64 = 5.0;
+
+/// The least change of range, m, the DVL's or the light's, for a window
+/// to be judged (and the DVL's, for the under-a-third test).
 const MIN_JUDGED_M: f64 = 0.5;
 
 /// The least change of range, m: the DVL's, for a refused DVL to be taken
@@ -117,6 +121,8 @@ pub(super) struct DvlCheck {
     /// The last judged window's changes of range, m: the light's and the
     /// DVL's.
     changes: Option<[f64; 2]>,
+    /// The last frame's time and light's range, for `jumped`.
+    last_light: Option<(f64, f64)>,
 }
 
 impl Default for DvlCheck {
@@ -129,6 +135,7 @@ impl Default for DvlCheck {
             dvl: 0.0,
             refused: false,
             changes: None,
+            last_light: None,
         }
     }
 }
@@ -143,6 +150,19 @@ impl DvlCheck {
     /// and the DVL's (`None` before one was judged).
     pub fn changes(&self) -> Option<[f64; 2]> {
         self.changes
+    }
+
+    /// Whether the light's range `light` at `t` jumped from the last
+    /// frame's further than any vehicle moves (a metre, or
+    /// [`JUMP_MPS`] × the time between): a looped simulation or spliced
+    /// logs put the vehicle elsewhere, which is no DVL's fault, so the
+    /// windows start again there.
+    pub fn jumped(&mut self, t: f64, light: f64) -> bool {
+        let jump = self
+            .last_light
+            .is_some_and(|(t0, l0)| (light - l0).abs() > (JUMP_MPS * (t - t0).abs()).max(1.0));
+        self.last_light = Some((t, light));
+        jump
     }
 
     /// A frame on which the DVL or the light's range is missing: the
@@ -289,35 +309,67 @@ impl Tracker {
         first
     }
 
-    /// Give the checks this frame's samples, at state `s` after the
-    /// frame's update (the bearing is the light's of this frame, as the
-    /// attitude reading is): the DVL's reading `v` (forward, right, down,
-    /// m/s, refused or not), the attitude reading `att` (pitch, yaw, rad)
-    /// and the law's range. A frame without them is skipped: the windows
-    /// go on across it while the gap is under `max_gap_s`.
-    pub(super) fn observe_dvl(
+    /// What the DVL checks read of this frame, before the update: the
+    /// DVL's reading (forward, right, down, m/s; refused or not), the
+    /// attitude reading (pitch, yaw, rad) and the law's reading of x. A
+    /// jump of the law's x no vehicle makes (a looped simulation, spliced
+    /// logs) starts the checks' windows again here, whatever the filter
+    /// does with the frame.
+    pub(super) fn dvl_sample(
         &mut self,
         frame: &Frame,
-        s: &State,
-        v: Option<[f64; 3]>,
-        att: Option<[f64; 2]>,
+        r: &FrameReadings,
         kinds: &Kinds,
-    ) {
-        let Some(v) = v.filter(|_| self.cfg.dvl_check) else {
-            return;
-        };
-        let Some(law) = self.law_reading(frame, kinds) else {
-            return;
-        };
-        let (t, gap, range) = (frame.t, self.cfg.max_gap_s, law.range.z[0]);
-        if let Some(rate) = range_rate([s.x[0], s.x[1], s.x[2]], s.x[3], s.x[4], v) {
-            self.dvl_check
-                .push(t, [range, law.noise], rate, WINDOW_S, gap);
+    ) -> Option<DvlSample> {
+        let v = r.velocity.ready().filter(|_| self.cfg.dvl_check)?;
+        let law = self.law_reading(frame, kinds)?;
+        let x = law.range.z[0];
+        if self.dvl_check.jumped(frame.t, x) {
+            self.dvl_check.break_chain();
+            self.dvl_heading.break_chain();
         }
-        if let Some((light, vel)) = att.and_then(|att| horizontal(s, att, range, v)) {
+        Some(DvlSample {
+            v: [v.z[0], v.z[1], v.z[2]],
+            att: r.attitude.ready().map(|a| [a.z[0], a.z[1]]),
+            x,
+            noise: law.noise,
+        })
+    }
+
+    /// Give the checks the frame's sample, at state `s` after the frame's
+    /// update (the bearing is the light's of this frame, as the attitude
+    /// reading is). The law reads x, the beacon's axis: the state's
+    /// geometry makes it a range (|p|/x, 1.004 at 5° off the axis). A frame
+    /// without a sample is skipped: the windows go on across it while the
+    /// gap is under `max_gap_s`.
+    pub(super) fn observe_dvl(&mut self, t: f64, s: &State, sample: Option<DvlSample>) {
+        let Some(d) = sample else {
+            return;
+        };
+        let p = [s.x[0], s.x[1], s.x[2]];
+        let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        if !(p[0] > 0.1 && r.is_finite()) {
+            return;
+        }
+        let to_range = r / p[0];
+        let (range, noise, gap) = (d.x * to_range, d.noise * to_range, self.cfg.max_gap_s);
+        if let Some(rate) = range_rate(p, s.x[3], s.x[4], d.v) {
+            self.dvl_check.push(t, [range, noise], rate, WINDOW_S, gap);
+        }
+        if let Some((light, vel)) = d.att.and_then(|att| horizontal(s, att, range, d.v)) {
             self.dvl_heading.push(t, light, vel, gap);
         }
     }
+}
+
+/// What the DVL checks read of one frame (`Tracker::dvl_sample`).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct DvlSample {
+    v: [f64; 3],
+    att: Option<[f64; 2]>,
+    /// The law's x (m) and its counts' noise (1σ, m).
+    x: f64,
+    noise: f64,
 }
 
 impl Tracker {
@@ -469,6 +521,18 @@ mod tests {
             }
             assert_eq!(refused, want, "scale {scale}: {:?}", c.changes());
         }
+    }
+
+    /// The law's range jumping further than a vehicle moves (a looped
+    /// simulation) is told; its wander and a fast vehicle's travel are not.
+    #[test]
+    fn a_jump_of_the_light_is_told() {
+        let mut c = DvlCheck::default();
+        assert!(!c.jumped(0.0, 8.0));
+        assert!(!c.jumped(0.2, 7.6));
+        assert!(!c.jumped(1.2, 3.0));
+        assert!(c.jumped(1.4, 8.5));
+        assert!(!c.jumped(1.6, 8.4));
     }
 
     /// A DVL that says the vehicle moves while the light's range stays put

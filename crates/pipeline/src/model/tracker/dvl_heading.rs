@@ -14,9 +14,10 @@
 //! state) turned into B by the AHRS's attitude. The DVL's velocity turned
 //! by the same attitude integrates to its own track. Over the last
 //! [`SPAN_S`], in blocks of a second (their means), the rotation that
-//! best lays the DVL's track onto the light's about their centroids is the
-//! DVL's turn (Procrustes): a water or a law that scales the light's track
-//! does not turn it, and an AHRS whose heading is off turns both alike.
+//! best lays the DVL's track onto the light's about their centroids, with a
+//! scale, is the DVL's turn (Procrustes): a water or a law that scales the
+//! light's track does not turn it, and an AHRS whose heading is off turns
+//! both alike.
 //! Once it is known to [`MAX_SE_DEG`], a turn past [`REFUSE_DEG`] refuses
 //! the DVL until it is back within [`TAKE_DEG`]; the turn is reported
 //! (STATUS `readings.check.dvl.turned_deg`), so the operator can set the
@@ -50,8 +51,8 @@ pub(super) const MIN_SPREAD_M2: f64 = 1.0;
 pub(super) const MAX_SE_DEG: f64 = 3.0;
 
 /// A turn past this refuses the DVL, °: on good DVLs the angle judged
-/// stayed within ±12.2° (the Monte Carlo's 12 000 runs with an attitude
-/// sensor and a DVL, water drawn) and −2.4…+0.4° on the minute in the
+/// stayed within ±13.1° (the Monte Carlo's 12 000 runs with an attitude
+/// sensor and a DVL, water drawn) and −5.1…+0.4° on the minute in the
 /// tank.
 pub(super) const REFUSE_DEG: f64 = 20.0;
 
@@ -186,19 +187,25 @@ impl HeadingCheck {
         // positive is counter-clockwise seen from above, the DVL's track
         // turned clockwise, to starboard, of the truth.
         let a = im.atan2(re);
-        // Its standard error from what the turn leaves unexplained (the
-        // light's lateral noise, the law's wander) over the track's spread:
-        // a short or noisy track is not judged.
+        // Its standard error from what the turn and a scale leave
+        // unexplained (the light's lateral noise, the law's wander) over the
+        // track's spread: a short or noisy track is not judged. The scale
+        // is fitted too (a water or a law that scales the light's track by
+        // k left |k − 1| in the residual, and at 1.3 nothing was judged).
+        let scale = re.hypot(im) / spread;
         let (sa, ca) = a.sin_cos();
         let mut left = 0.0;
         for k in 0..n {
             let (l, d, _) = block(k);
             let l = [l[0] - lm[0], l[1] - lm[1]];
             let d = [d[0] - dm[0], d[1] - dm[1]];
-            let turned = [ca * d[0] - sa * d[1], sa * d[0] + ca * d[1]];
-            left += (l[0] - turned[0]).powi(2) + (l[1] - turned[1]).powi(2);
+            let fit = [
+                scale * (ca * d[0] - sa * d[1]),
+                scale * (sa * d[0] + ca * d[1]),
+            ];
+            left += (l[0] - fit[0]).powi(2) + (l[1] - fit[1]).powi(2);
         }
-        let se = (left / (2 * n - 3) as f64 / spread).sqrt();
+        let se = (left / (2 * n - 4) as f64 / (scale * scale * spread)).sqrt();
         if !(se <= MAX_SE_DEG.to_radians()) {
             return;
         }
@@ -221,6 +228,12 @@ mod tests {
     /// pattern), the DVL's velocity turned by `deg` (starboard: clockwise
     /// seen from above in B).
     fn run(c: &mut HeadingCheck, secs: f64, deg: f64, noise: f64) -> bool {
+        run_scaled(c, secs, deg, noise, 1.0)
+    }
+
+    /// The same, the light's track `k` times the truth's about the beacon
+    /// (water unlike the calibration's, the law).
+    fn run_scaled(c: &mut HeadingCheck, secs: f64, deg: f64, noise: f64, scale: f64) -> bool {
         let (s, co) = (-deg.to_radians()).sin_cos();
         let mut refused = false;
         for k in 0..(secs * 5.0) as usize {
@@ -230,7 +243,8 @@ mod tests {
             let v = [1.6 * w * (w * t).cos(), 0.02];
             let jitter = noise * ((k * 7919 % 13) as f64 / 6.0 - 1.0);
             let turned = [co * v[0] - s * v[1], s * v[0] + co * v[1]];
-            refused = c.push(t, [p[0] + jitter, p[1] - jitter], turned, 2.0);
+            let light = [scale * p[0] + jitter, scale * p[1] - jitter];
+            refused = c.push(t, light, turned, 2.0);
         }
         refused
     }
@@ -249,6 +263,24 @@ mod tests {
             let told = c.turned_deg().expect("judged");
             let err = (told - deg + 180.0).rem_euclid(360.0) - 180.0;
             assert!(err.abs() < 2.0, "{deg}°: told {told}");
+        }
+    }
+
+    /// A light track scaled by the water (0.6–1.6×) turns nothing: the
+    /// turn is still judged and told.
+    #[test]
+    fn a_scaled_light_track_is_still_judged() {
+        for k in [0.6, 1.3, 1.6] {
+            for (deg, refused) in [(0.0, false), (45.0, true)] {
+                let mut c = HeadingCheck::default();
+                assert_eq!(
+                    run_scaled(&mut c, 30.0, deg, 0.05, k),
+                    refused,
+                    "{k}× {deg}°"
+                );
+                let told = c.turned_deg().expect("judged");
+                assert!((told - deg).abs() < 2.0, "{k}× {deg}°: told {told}");
+            }
         }
     }
 

@@ -575,8 +575,7 @@ impl Tracker {
         }
         // The DVL's and the attitude's readings as the frame gives them,
         // for the DVL checks after the update (refused or not).
-        let dvl_seen = readings.velocity.ready().map(|c| [c.z[0], c.z[1], c.z[2]]);
-        let att_seen = readings.attitude.ready().map(|c| [c.z[0], c.z[1]]);
+        let dvl_seen = self.dvl_sample(frame, &readings, &kinds);
         if self.apply_dvl_verdict(&mut readings) {
             // The DVL is refused from this frame on, and the state followed
             // it (its velocity, the track it drew, what the offsets learned
@@ -686,7 +685,7 @@ impl Tracker {
             return e;
         }
         if applied {
-            self.observe_dvl(frame, &s, dvl_seen, att_seen, &kinds);
+            self.observe_dvl(frame.t, &s, dvl_seen);
         }
         let status = self.status_of(&s, applied, n_sat, &uses);
         let mut e = self.to_estimate(frame, &s, status);
