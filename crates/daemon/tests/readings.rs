@@ -3,6 +3,8 @@
 //! (tests/data/fusion-all.jsonl, the pipeline's regression log) replayed
 //! with the tracker. Each bad reading is refused with its reason and
 //! counted in STATUS `readings`; the light still gives every frame a pose.
+//! Then readings that disagree with the light: a biased depth (the reading
+//! check) and a DVL set up wrong, backwards or turned 45° (the DVL checks).
 
 mod common;
 
@@ -147,4 +149,57 @@ fn a_dvl_mounted_backwards_is_refused_by_the_light_in_status() {
         }
         assert!(ok > 25, "turned {turned}: {ok} ok poses");
     }
+}
+
+/// A DVL turned 45° (its mounting rotation set wrong) on a minute of
+/// coming and going before the beacon with all three sensors, replayed:
+/// its change of range still agrees within the law's wander, but its track
+/// turns from the light's, so the tracker's mounting check refuses it and
+/// STATUS `readings.check.dvl.turned_deg` says by how much (what to set the
+/// DVL's mounting rotation to undo).
+#[test]
+fn a_dvl_turned_45_degrees_is_refused_and_its_turn_told_in_status() {
+    use lightpose_core::{LogHeader, LogWriter};
+    use lightpose_sim::{Scene, Simulator, Trajectory};
+    let r = root();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let log = dir.path().join("turned.jsonl");
+    let text = std::fs::read_to_string(r.join("config/scenes/tank.toml")).expect("scene");
+    let scene = Scene::parse(
+        &(text + "\n[attitude]\n\n[depth]\n\n[dvl]\n"),
+        "tank+sensors",
+    )
+    .expect("scene with sensors");
+    let traj = Trajectory::load(&r.join("tests/data/to-and-fro.csv")).expect("trajectory");
+    let header = LogHeader::new(scene.adc.bits, scene.adc.rate_hz);
+    let file = std::fs::File::create(&log).expect("create log");
+    let mut w = LogWriter::new(std::io::BufWriter::new(file), &header).expect("header");
+    let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
+    let mut sim = Simulator::new(scene, 5);
+    let (s, c) = 45f64.to_radians().sin_cos();
+    for (seq, &t) in times.iter().enumerate() {
+        let mut f = sim.frame_moving(seq as u64, t, &traj.kinematics(t));
+        let v = f.velocity.as_mut().expect("a DVL reading");
+        let [fwd, right, down] = v.v.0;
+        v.v.0 = [c * fwd - s * right, s * fwd + c * right, down];
+        w.write_frame(&f).expect("write frame");
+    }
+    w.flush().expect("flush");
+    drop(w);
+    let (sub, addr) = subscriber();
+    let text = format!(
+        "rate_hz = 5.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"replay\"\nlog = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 0.2\n",
+        r.join("config/calibration/tank.toml").display(),
+        log.display(),
+    );
+    let cfg = Config::parse(&text, "turned.toml", None).expect("valid config");
+    let (summary, msgs) = run_to_end(cfg, Duration::from_secs(30), &sub);
+    assert_eq!(summary.frames as usize, times.len(), "{summary:?}");
+    let st = *of_class(&msgs, "STATUS").last().expect("a STATUS");
+    let (vel, dvl) = (&st["readings"]["velocity"], &st["readings"]["check"]["dvl"]);
+    let refused = vel["refused"]["light"].as_u64().expect("refused.light");
+    let turned = dvl["turned_deg"].as_f64().expect("a turn judged");
+    assert_eq!(dvl["refused"], true, "{dvl}");
+    assert!(refused > 150, "{vel}");
+    assert!((turned - 45.0).abs() < 6.0, "{dvl}");
 }
