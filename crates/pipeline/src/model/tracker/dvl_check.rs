@@ -38,10 +38,11 @@
 //! About the sensor, not the state: kept across restarts, and handed to a
 //! water bank's members.
 
-use lightpose_core::{Frame, ReadingUse, Refusal};
+use lightpose_core::{Agreement, ReadingUse, Refusal};
 
-use super::readings::{FrameReadings, Pending};
-use super::state::{body_axes, Kinds, State};
+use super::dvl_heading::HeadingCheck;
+use super::readings::{FrameReadings, PaperReading, Pending};
+use super::state::{body_axes, State};
 use super::Tracker;
 
 /// The window, s: the reading check's default, long enough for a metre
@@ -108,7 +109,7 @@ struct Sample {
 
 /// The window and the verdict.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct DvlCheck {
+pub(super) struct RangeCheck {
     ring: [Sample; RING],
     head: usize,
     len: usize,
@@ -125,9 +126,9 @@ pub(super) struct DvlCheck {
     last_light: Option<(f64, f64)>,
 }
 
-impl Default for DvlCheck {
+impl Default for RangeCheck {
     fn default() -> Self {
-        DvlCheck {
+        RangeCheck {
             ring: [Sample::default(); RING],
             head: 0,
             len: 0,
@@ -140,7 +141,7 @@ impl Default for DvlCheck {
     }
 }
 
-impl DvlCheck {
+impl RangeCheck {
     /// Whether the DVL stands refused.
     pub fn refused(&self) -> bool {
         self.refused
@@ -294,39 +295,64 @@ impl DvlCheck {
     }
 }
 
+/// Both checks and what the tracker did about them: about the sensor, so
+/// kept across the filter's restarts and handed to a water bank's members.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct DvlChecks {
+    range: RangeCheck,
+    heading: HeadingCheck,
+    /// The DVL stood refused at the last frame that asked (a first refusal
+    /// starts the filter again once).
+    restarted: bool,
+}
+
+impl DvlChecks {
+    /// Whether either check refuses the DVL now.
+    pub fn refused(&self) -> bool {
+        self.range.refused() || self.heading.refused()
+    }
+
+    /// What they last judged, into `a`.
+    pub fn report(&self, a: &mut Agreement) {
+        a.dvl_range_change_m = self.range.changes();
+        a.dvl_turned_deg = self.heading.turned_deg();
+        a.dvl_refused = self.refused();
+    }
+}
+
 impl Tracker {
     /// The checks' standing verdict on the frame's DVL reading: refused
     /// while either check says so. Returns whether it was first refused
     /// since the last frame that asked: the state then followed the DVL,
     /// and the caller starts again without it.
     pub(super) fn apply_dvl_verdict(&mut self, r: &mut FrameReadings) -> bool {
-        let refused = self.cfg.dvl_check && self.dvl_refused();
+        let refused = self.cfg.dvl_check && self.dvl.refused();
         if refused && r.velocity.ready().is_some() {
             r.velocity = Pending::Done(ReadingUse::Refused(Refusal::Light));
         }
-        let first = refused && !self.dvl_restarted;
-        self.dvl_restarted = refused;
+        let first = refused && !self.dvl.restarted;
+        self.dvl.restarted = refused;
         first
     }
 
     /// What the DVL checks read of this frame, before the update: the
     /// DVL's reading (forward, right, down, m/s; refused or not), the
-    /// attitude reading (pitch, yaw, rad) and the law's reading of x. A
-    /// jump of the law's x no vehicle makes (a looped simulation, spliced
-    /// logs) starts the checks' windows again here, whatever the filter
-    /// does with the frame.
+    /// attitude reading (pitch, yaw, rad) and the law's reading of x
+    /// (`law`, the frame's). A jump of the law's x no vehicle makes (a
+    /// looped simulation, spliced logs) starts the checks' windows again
+    /// here, whatever the filter does with the frame.
     pub(super) fn dvl_sample(
         &mut self,
-        frame: &Frame,
+        t: f64,
         r: &FrameReadings,
-        kinds: &Kinds,
+        law: Option<PaperReading>,
     ) -> Option<DvlSample> {
         let v = r.velocity.ready().filter(|_| self.cfg.dvl_check)?;
-        let law = self.law_reading(frame, kinds)?;
+        let law = law?;
         let x = law.range.z[0];
-        if self.dvl_check.jumped(frame.t, x) {
-            self.dvl_check.break_chain();
-            self.dvl_heading.break_chain();
+        if self.dvl.range.jumped(t, x) {
+            self.dvl.range.break_chain();
+            self.dvl.heading.break_chain();
         }
         Some(DvlSample {
             v: [v.z[0], v.z[1], v.z[2]],
@@ -354,10 +380,10 @@ impl Tracker {
         let to_range = r / p[0];
         let (range, noise, gap) = (d.x * to_range, d.noise * to_range, self.cfg.max_gap_s);
         if let Some(rate) = range_rate(p, s.x[3], s.x[4], d.v) {
-            self.dvl_check.push(t, [range, noise], rate, WINDOW_S, gap);
+            self.dvl.range.push(t, [range, noise], rate, WINDOW_S, gap);
         }
         if let Some((light, vel)) = d.att.and_then(|att| horizontal(s, att, range, d.v)) {
-            self.dvl_heading.push(t, light, vel, gap);
+            self.dvl.heading.push(t, light, vel, gap);
         }
     }
 }
@@ -370,13 +396,6 @@ pub(super) struct DvlSample {
     /// The law's x (m) and its counts' noise (1σ, m).
     x: f64,
     noise: f64,
-}
-
-impl Tracker {
-    /// Whether either check refuses the DVL now.
-    pub(super) fn dvl_refused(&self) -> bool {
-        self.dvl_check.refused() || self.dvl_heading.refused()
-    }
 }
 
 /// The vehicle's horizontal position in B by the light, and the DVL's
@@ -429,7 +448,7 @@ mod tests {
     /// Frames at 5 Hz from `t0` for `secs` of a vehicle coming and going
     /// between 4 and 8 m (a 20 s period), the DVL reading `scale` times
     /// the truth's range rate.
-    fn run(check: &mut DvlCheck, t0: f64, secs: f64, scale: f64) -> bool {
+    fn run(check: &mut RangeCheck, t0: f64, secs: f64, scale: f64) -> bool {
         let w = std::f64::consts::PI / 10.0;
         let mut refused = check.refused();
         for k in 0..(secs * 5.0).round() as usize {
@@ -443,7 +462,7 @@ mod tests {
     #[test]
     fn a_good_dvl_and_water_that_scales_the_light_are_taken() {
         for scale in [1.0, 0.7, 1.5] {
-            let mut c = DvlCheck::default();
+            let mut c = RangeCheck::default();
             assert!(!run(&mut c, 0.0, 10.0, scale), "scale {scale}");
             let [l, d] = c.changes().expect("judged");
             assert!((l * scale - d).abs() < 0.01 * l.abs(), "{l} {d}");
@@ -454,21 +473,21 @@ mod tests {
     fn a_backwards_across_or_mistaken_dvl_is_refused() {
         // Backwards, across the bow (no range change), 10× (cm/s as dm/s).
         for scale in [-1.0, 0.0, 10.0, 0.1] {
-            let mut c = DvlCheck::default();
+            let mut c = RangeCheck::default();
             assert!(run(&mut c, 0.0, 5.0, scale), "scale {scale}");
         }
     }
 
     #[test]
     fn a_dvl_put_right_is_taken_again_and_a_doubtful_one_keeps_its_verdict() {
-        let mut c = DvlCheck::default();
+        let mut c = RangeCheck::default();
         assert!(run(&mut c, 0.0, 5.0, -1.0));
         // Between the bands (light 3× the DVL): the verdict stands.
         assert!(run(&mut c, 5.0, 10.0, 1.0 / 3.0));
         assert!(!run(&mut c, 15.0, 10.0, 1.0));
         // Never refused, a DVL 3× off stays taken: water cannot be told
         // from it by the range alone.
-        let mut c = DvlCheck::default();
+        let mut c = RangeCheck::default();
         assert!(!run(&mut c, 0.0, 20.0, 1.0 / 3.0));
         assert!(c
             .changes()
@@ -477,7 +496,7 @@ mod tests {
 
     #[test]
     fn too_little_travel_and_broken_chains_judge_nothing() {
-        let mut c = DvlCheck::default();
+        let mut c = RangeCheck::default();
         // On station: the DVL says 0.5 m/s backwards but nothing moves
         // far enough within a window broken every second.
         for k in 0..100 {
@@ -510,7 +529,7 @@ mod tests {
             (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
         };
         for (scale, want) in [(1.0, false), (-1.0, true)] {
-            let mut c = DvlCheck::default();
+            let mut c = RangeCheck::default();
             let mut refused = false;
             for k in 0..150 {
                 let t = k as f64 * 0.2;
@@ -527,7 +546,7 @@ mod tests {
     /// simulation) is told; its wander and a fast vehicle's travel are not.
     #[test]
     fn a_jump_of_the_light_is_told() {
-        let mut c = DvlCheck::default();
+        let mut c = RangeCheck::default();
         assert!(!c.jumped(0.0, 8.0));
         assert!(!c.jumped(0.2, 7.6));
         assert!(!c.jumped(1.2, 3.0));
@@ -539,7 +558,7 @@ mod tests {
     /// (stuck reporting an old velocity) is refused too.
     #[test]
     fn a_dvl_moving_a_vehicle_on_station_is_refused() {
-        let mut c = DvlCheck::default();
+        let mut c = RangeCheck::default();
         let refused = (0..25).any(|k| c.push(k as f64 * 0.2, [6.0, 0.02], 0.5, 5.0, 2.0));
         assert!(refused);
     }

@@ -56,8 +56,8 @@ use lightpose_core::{
 pub use self::bank::WaterBank;
 pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
 use self::counts::CountsInput;
-use self::readings::{gate_thresholds, FrameReadings};
-use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, Kinds, State, Vs, KD, VEL};
+use self::readings::{gate_thresholds, FrameReadings, PaperReading};
+use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
 pub use self::water_check::WaterWatch;
 use crate::model::single_frame::ModelEstimator;
 use crate::model::solver::Censoring;
@@ -108,14 +108,9 @@ pub struct Tracker {
     /// The sensors' offsets as the last state knew them (about the
     /// sensors: kept across restarts), and a start's priors of them.
     offsets: offsets::Offsets,
-    /// The DVL judged by the light's range (about the sensor: kept across
-    /// restarts).
-    dvl_check: dvl_check::DvlCheck,
-    /// The DVL's mounting judged by the light's track (likewise kept).
-    dvl_heading: dvl_heading::HeadingCheck,
-    /// The DVL stood refused at the last frame that asked (a first refusal
-    /// starts the filter again once).
-    dvl_restarted: bool,
+    /// The DVL judged by the light: its change of range and its track's
+    /// direction (about the sensor: kept across restarts).
+    dvl: dvl_check::DvlChecks,
 }
 
 impl Tracker {
@@ -151,9 +146,7 @@ impl Tracker {
             state: None,
             agreement: Default::default(),
             offsets: offsets::Offsets::new(&cfg),
-            dvl_check: Default::default(),
-            dvl_heading: Default::default(),
-            dvl_restarted: false,
+            dvl: Default::default(),
             cfg,
         })
     }
@@ -166,9 +159,7 @@ impl Tracker {
         self.init.inherit_channels(&from.init);
         self.agreement = from.agreement;
         self.offsets = from.offsets;
-        self.dvl_check = from.dvl_check;
-        self.dvl_heading = from.dvl_heading;
-        self.dvl_restarted = from.dvl_restarted;
+        self.dvl = from.dvl;
     }
 
     /// Give the tracker the paper's estimator of the same calibration, for
@@ -256,11 +247,16 @@ impl Tracker {
     }
 
     /// Start from `frame` (first frame, after a gap, or when lost).
-    fn restart(&mut self, frame: &Frame, r: &FrameReadings, kinds: &Kinds) -> PoseEstimate {
+    fn restart(
+        &mut self,
+        frame: &Frame,
+        r: &FrameReadings,
+        law: Option<PaperReading>,
+    ) -> PoseEstimate {
         self.offsets.start_at(frame.t, &self.cfg);
         let paper = match r.attitude.ready() {
             Some(_) => None,
-            None => self.paper_range(frame, kinds),
+            None => self.paper_range(law),
         };
         match self.start(frame, r, paper.as_ref().map(|p| &p.range)) {
             Ok((mut s, uses)) => {
@@ -299,12 +295,18 @@ impl Tracker {
     /// light's own range; its change is what the random-walk surge lacks
     /// without a DVL). With an attitude or depth reading the change is
     /// taken less the law's own drift the light model predicts.
-    fn read_paper(&self, s: &mut State, frame: &Frame, uses: &[ReadingUse; 3], kinds: &Kinds) {
+    fn read_paper(
+        &self,
+        s: &mut State,
+        frame: &Frame,
+        uses: &[ReadingUse; 3],
+        law: Option<PaperReading>,
+    ) {
         let attitude = uses[0] == ReadingUse::Used;
         if attitude && !(self.cfg.paper_rate_with_attitude && uses[2] != ReadingUse::Used) {
             return;
         }
-        let Some(mut c) = self.paper_range(frame, kinds) else {
+        let Some(mut c) = self.paper_range(law) else {
             return;
         };
         if self.cfg.paper_rate_geometry && (attitude || uses[1] == ReadingUse::Used) {
@@ -524,9 +526,7 @@ impl Estimator for Tracker {
         e.excluded_channels = Censoring::excluded_mask(&kinds);
         let span = (self.cfg.reading_check_s / READING_CHECK_SLOT_S).round() as usize;
         e.agreement = self.agreement.report(span, self.cfg.reading_check_limit);
-        e.agreement.dvl_range_change_m = self.dvl_check.changes();
-        e.agreement.dvl_refused = self.dvl_refused();
-        e.agreement.dvl_turned_deg = self.dvl_heading.turned_deg();
+        self.dvl.report(&mut e.agreement);
         e
     }
 
@@ -535,9 +535,7 @@ impl Estimator for Tracker {
         self.init.reset();
         self.agreement = Default::default();
         self.offsets = offsets::Offsets::new(&self.cfg);
-        self.dvl_check = Default::default();
-        self.dvl_heading = Default::default();
-        self.dvl_restarted = false;
+        self.dvl = Default::default();
     }
 
     /// K_D while it is estimated (`estimate_k_d`, or from the first DVL
@@ -573,9 +571,12 @@ impl Tracker {
             e.readings = verdicts(unfused(&readings));
             return e;
         }
+        // The paper law's reading of the frame, light only: the paper's
+        // range and rate read it, and the DVL checks.
+        let law = self.law_reading(frame, &kinds);
         // The DVL's and the attitude's readings as the frame gives them,
         // for the DVL checks after the update (refused or not).
-        let dvl_seen = self.dvl_sample(frame, &readings, &kinds);
+        let dvl_seen = self.dvl_sample(frame.t, &readings, law);
         if self.apply_dvl_verdict(&mut readings) {
             // The DVL is refused from this frame on, and the state followed
             // it (its velocity, the track it drew, what the offsets learned
@@ -586,7 +587,7 @@ impl Tracker {
             self.doubt_all_offsets();
         }
         let Some(mut s) = self.carried_to(frame.t) else {
-            return self.restart(frame, &readings, &kinds);
+            return self.restart(frame, &readings, law);
         };
         s.counts_ll = None;
         s.counts_nis = None;
@@ -605,7 +606,7 @@ impl Tracker {
         }
         s.paper_x = None;
         s.paper_rate_used = false;
-        self.read_paper(&mut s, frame, &uses, &kinds);
+        self.read_paper(&mut s, frame, &uses, law);
         // A frame without light cannot judge a sensor the gate keeps
         // refusing (below): the state and the refusal stand until one can.
         let lost = self.lost_to_readings(&mut s, &uses);
@@ -646,7 +647,7 @@ impl Tracker {
                 applied && s.counts_nis.is_some_and(|n| n <= self.cfg.water_check_nis);
             if !light_backs {
                 self.doubt_all_offsets();
-                return self.restart(frame, &readings, &kinds);
+                return self.restart(frame, &readings, law);
             }
             let limit = self.cfg.reading_gate_restart;
             s.gated
@@ -672,7 +673,7 @@ impl Tracker {
                 // The filter has lost the vehicle: start again from this
                 // frame, doubting what it learned of the sensors' offsets.
                 self.doubt_all_offsets();
-                return self.restart(frame, &readings, &kinds);
+                return self.restart(frame, &readings, law);
             }
         }
         s.frames = s.frames.saturating_add(1);

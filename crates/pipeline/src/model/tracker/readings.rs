@@ -359,13 +359,10 @@ impl Tracker {
         }
     }
 
-    /// The paper's range of `frame` (its on-axis law, eqs. 2–3) as a
-    /// reading of x, if configured (see `law_reading`).
-    pub(super) fn paper_range(&self, frame: &Frame, kinds: &Kinds) -> Option<PaperReading> {
-        if !self.cfg.paper_range {
-            return None;
-        }
-        self.law_reading(frame, kinds)
+    /// The paper's range of a frame (its on-axis law, eqs. 2–3: the
+    /// frame's `law_reading`) as a reading of x, if configured.
+    pub(super) fn paper_range(&self, law: Option<PaperReading>) -> Option<PaperReading> {
+        law.filter(|_| self.cfg.paper_range)
     }
 
     /// The paper law's range of `frame` (light only: its brightest channel
