@@ -1,7 +1,14 @@
 //! The one interface every pose estimator implements, so that replay, the
 //! daemon and the Monte Carlo can run any of them.
 
+use std::any::Any;
+
 use crate::{Frame, PoseEstimate};
+
+/// What an estimator found out about the vehicle's hardware rather than
+/// about its track (a channel stuck, a DVL set up wrong), handed to the
+/// estimator that replaces it; each estimator knows its own kind.
+pub type Findings = Box<dyn Any + Send>;
 
 /// A per-frame pose estimator that keeps its own state between frames.
 ///
@@ -34,5 +41,20 @@ pub trait Estimator: Send {
     /// estimator estimates it (the tracker's `pitch_offset_sigma_deg`).
     fn pitch_offset_deg(&self) -> Option<(f64, f64)> {
         None
+    }
+
+    /// What this estimator found out about the hardware, for the one
+    /// that replaces it on a calibration reload (SIGHUP): a stuck channel
+    /// or a DVL set up wrong is still so under the new calibration, and
+    /// would otherwise be read as data until found again. None (the
+    /// default) when it finds nothing such.
+    fn findings(&self) -> Option<Findings> {
+        None
+    }
+
+    /// Take over `found`, the findings of the estimator this one replaces;
+    /// findings of a kind it does not know are ignored (the default).
+    fn take_findings(&mut self, found: &(dyn Any + Send)) {
+        let _ = found;
     }
 }

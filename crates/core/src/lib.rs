@@ -20,7 +20,7 @@ pub mod textpos;
 
 pub use angle::Angle;
 pub use array::{ArrayGeometry, COLS, NDET, ROWS};
-pub use estimator::Estimator;
+pub use estimator::{Estimator, Findings};
 pub use frame::{AttitudeReading, AttitudeStd, DepthReading, Frame, Truth, VelocityReading};
 pub use geometry::{Attitude, BeamVec, BodyVec, Pose};
 pub use light::{LightParams, Scattering};

@@ -119,3 +119,82 @@ fn sighup_refuses_a_calibration_of_another_adc() {
         "{line}"
     );
 }
+
+/// The latest STATUS within `d`: (reloads, the DVL's readings used, refused
+/// by the light, and whether the checks stand refused).
+type DvlBooks = (u64, u64, u64, bool);
+
+fn dvl_books(sub: &UdpSocket, d: Duration) -> Option<DvlBooks> {
+    let msgs: Vec<Value> = collect(sub, d);
+    let st = *of_class(&msgs, "STATUS").last()?;
+    let vel = &st["readings"]["velocity"];
+    Some((
+        st["estimator"]["reloads"].as_u64()?,
+        vel["used"].as_u64()?,
+        vel["refused"]["light"].as_u64()?,
+        st["readings"]["check"]["dvl"]["refused"].as_bool()?,
+    ))
+}
+
+/// A DVL mounted backwards (the mock's `faults.dvl_turned_deg = 180`), found
+/// by the light, stays refused across a calibration reload: the new
+/// estimator takes over what the old one found of the hardware, where it
+/// used to fuse the DVL again until its own checks had a window (2–3 s,
+/// and a second restart of the track).
+#[test]
+fn sighup_keeps_a_dvl_set_up_wrong_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let r = common::root();
+    let (sub, addr) = subscriber();
+    let text = format!(
+        "rate_hz = 10.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"mock\"\nscene = \"{}\"\ntrajectory = \"{}\"\nfaults = {{ dvl_turned_deg = 180 }}\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 0.2\n",
+        r.join("config/calibration/tank.toml").display(),
+        r.join("tests/data/tank-sensors.toml").display(),
+        r.join("config/trajectories/zigzag.csv").display(),
+    );
+    let cfg = dir.path().join("lightposed.toml");
+    std::fs::write(&cfg, text).expect("config");
+    let log = dir.path().join("stderr.log");
+    let mut child = start(&cfg, &log, &sub);
+    let wait_for = |what: &str, ok: &dyn Fn(&DvlBooks) -> bool| {
+        let t0 = Instant::now();
+        loop {
+            if let Some(b) = dvl_books(&sub, Duration::from_millis(300)).filter(|b| ok(b)) {
+                return Ok(b);
+            }
+            if t0.elapsed() > Duration::from_secs(20) {
+                return Err(format!("{what} not within 20 s: {}", read(&log)));
+            }
+        }
+    };
+    let refused = wait_for("the DVL refused", &|b| b.3);
+    let refused = refused.unwrap_or_else(|e| {
+        let _ = child.kill();
+        panic!("{e}")
+    });
+    assert_eq!(refused.0, 0);
+    signal(&child, Signal::SIGHUP);
+    let reloaded = wait_for("the reload", &|b| b.0 == 1).unwrap_or_else(|e| {
+        let _ = child.kill();
+        panic!("{e}")
+    });
+    // 3 s after the reload: the DVL is refused on every frame.
+    std::thread::sleep(Duration::from_secs(3));
+    let after = dvl_books(&sub, Duration::from_millis(300));
+    signal(&child, Signal::SIGTERM);
+    let status = wait_exit(&mut child, Duration::from_secs(5));
+    assert_eq!(status.code(), Some(0), "{}", read(&log));
+    let after = after.expect("a STATUS after the reload");
+    assert!(after.3, "{after:?}");
+    assert_eq!(
+        after.1, reloaded.1,
+        "the DVL used after the reload: {after:?}"
+    );
+    assert!(after.2 >= reloaded.2 + 20, "{reloaded:?} → {after:?}");
+    let log = read(&log);
+    assert!(
+        log.lines()
+            .any(|l| l.contains("calibration reloaded") && l.contains("kept")),
+        "{log}"
+    );
+}

@@ -257,3 +257,66 @@ fn a_good_dvl_is_never_refused() {
         assert_eq!(r.refused, 0, "minute seed {seed}: {r:?}");
     }
 }
+
+/// A calibration reload (the daemon's SIGHUP) replaces the estimator; the
+/// new one takes over the DVL checks' verdicts (`Estimator::findings`):
+/// a DVL refused before it (backwards; turned 45°) is refused from the new
+/// one's first frame, with the turn told, where a new tracker on its own
+/// fuses it until its checks have a window again (backwards: 2–3 s; turned
+/// 45°: not within the 20 s left).
+#[test]
+fn a_reload_keeps_the_dvl_refused() {
+    let frames = minute(11);
+    for deg in [180.0, 45.0] {
+        let split = frames.partition_point(|f| f.t < 40.0);
+        let mut old = auto("config/calibration/tank.toml");
+        let before = run_on(&mut *old, &frames[..split], deg);
+        assert!(
+            before.last().is_some_and(|(_, refused, _)| *refused),
+            "{deg}°"
+        );
+        let mut new = auto("config/calibration/tank.toml");
+        new.take_findings(old.findings().expect("findings").as_ref());
+        let after = run_on(&mut *new, &frames[split..], deg);
+        let fresh = run_on(
+            &mut *auto("config/calibration/tank.toml"),
+            &frames[split..],
+            deg,
+        );
+        let used = |r: &[(bool, bool, Option<f64>)]| r.iter().filter(|u| u.0).count();
+        assert_eq!(
+            used(&after),
+            0,
+            "turned {deg}°: the DVL fused after the reload"
+        );
+        assert!(after.iter().all(|u| u.1), "turned {deg}°: {after:?}");
+        assert!(
+            used(&fresh) >= 10,
+            "turned {deg}°: a fresh tracker used it {}",
+            used(&fresh)
+        );
+        if deg == 45.0 {
+            let told = after[0].2.expect("the turn told from the first frame");
+            assert!((told - deg).abs() < 6.0, "told {told}°");
+        }
+    }
+}
+
+/// Per frame of `frames` with the DVL turned `deg`: whether the DVL
+/// reading was used, whether the checks stand refused, and the turn told.
+fn run_on(est: &mut dyn Estimator, frames: &[Frame], deg: f64) -> Vec<(bool, bool, Option<f64>)> {
+    frames
+        .iter()
+        .map(|f| {
+            let mut f = *f;
+            set_up_wrong(&mut f, deg, 1.0);
+            let e = est.estimate(&f);
+            let a = &e.agreement;
+            (
+                e.readings.velocity == ReadingUse::Used,
+                a.dvl_refused,
+                a.dvl_turned_deg,
+            )
+        })
+        .collect()
+}

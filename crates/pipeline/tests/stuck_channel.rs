@@ -172,3 +172,42 @@ fn a_channel_frozen_between_the_bounds_is_left_out_by_its_history() {
         );
     }
 }
+
+/// A calibration reload (the daemon's SIGHUP) replaces the estimator; the
+/// new one takes over the channels' histories (`Estimator::findings`), so
+/// a channel frozen before the reload is left out from the new one's first
+/// frame, where a new estimator on its own reads it as data again for its
+/// first repeats. The single-frame fit hands them on the same way.
+#[test]
+fn a_reload_keeps_a_frozen_channel_left_out() {
+    let cal = Calibration::load(&root().join("config/calibration/tank.toml")).unwrap();
+    let scene = Scene::load(&root().join("config/scenes/tank.toml")).unwrap();
+    let traj = Trajectory::load(&root().join("config/trajectories/zigzag.csv")).unwrap();
+    for name in ["tracker", "model"] {
+        let mut sim = Simulator::new(scene.clone(), 3);
+        let mut old = build_estimator(name, &cal).unwrap();
+        let (mut new, mut fresh) = (None, build_estimator(name, &cal).unwrap());
+        let (mut held, mut out_new, mut out_fresh) = (None, Vec::new(), Vec::new());
+        for i in 0..41 {
+            let t = traj.t0() + i as f64 * 0.2;
+            let mut f = sim.frame_moving(i, t, &traj.kinematics(t));
+            f.counts[12] = *held.get_or_insert(f.counts[12]);
+            if i < 25 {
+                let e = old.estimate(&f);
+                assert!(i < 24 || e.excluded_channels & (1 << 12) != 0, "{name}");
+                continue;
+            }
+            let new = new.get_or_insert_with(|| {
+                let mut e = build_estimator(name, &cal).unwrap();
+                e.take_findings(old.findings().expect("findings").as_ref());
+                e
+            });
+            out_new.push(new.estimate(&f).excluded_channels & (1 << 12) != 0);
+            out_fresh.push(fresh.estimate(&f).excluded_channels & (1 << 12) != 0);
+        }
+        assert!(out_new.iter().all(|&o| o), "{name}: {out_new:?}");
+        // Fresh from frame 25, it saw the channel move at its first
+        // frame and calls it frozen only after its repeats.
+        assert!(!out_fresh[0], "{name}: {out_fresh:?}");
+    }
+}

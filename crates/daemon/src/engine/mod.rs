@@ -272,8 +272,22 @@ impl Engine {
         {
             return Some(EndReason::FrameLimit);
         }
-        if let Some(e) = self.reload.as_ref().and_then(|rx| rx.try_recv().ok()) {
-            tracing::info!("calibration reloaded: estimator {} replaced", e.name());
+        if let Some(mut e) = self.reload.as_ref().and_then(|rx| rx.try_recv().ok()) {
+            // A stuck channel or a DVL set up wrong is still so under the
+            // new calibration (pipeline's model/findings.rs).
+            let found = self.estimator.findings();
+            if let Some(f) = &found {
+                e.take_findings(f.as_ref());
+            }
+            tracing::info!(
+                "calibration reloaded: estimator {} replaced{}",
+                e.name(),
+                if found.is_some() {
+                    "; what it found of the hardware (stuck channels, the DVL's checks) kept"
+                } else {
+                    ""
+                }
+            );
             self.estimator = e;
             // A new track: the autopilot is told (MAVLink reset_counter).
             self.outputs.iter_mut().for_each(|o| o.estimator_replaced());

@@ -14,8 +14,11 @@
 // Channel loops index several parallel per-detector arrays at once.
 #![allow(clippy::needless_range_loop)]
 
-use lightpose_core::{Estimator, Frame, PoseEstimate, ReadingUse, Status, StdDev, NDET};
+use std::any::Any;
 
+use lightpose_core::{Estimator, Findings, Frame, PoseEstimate, ReadingUse, Status, StdDev, NDET};
+
+use super::findings::Found;
 use super::frozen::FrozenWatch;
 use super::light::{to_pose, PoseVec};
 use super::solver::{solve, Censoring, LmResult, Prior, SolveOptions};
@@ -135,6 +138,17 @@ impl ModelEstimator {
     /// over from the tracker it replaces: a frozen channel stays known).
     pub(crate) fn inherit_channels(&mut self, from: &ModelEstimator) {
         self.frozen = from.frozen;
+    }
+
+    /// Its channels' histories, for the estimator that replaces it.
+    pub(crate) fn channels(&self) -> FrozenWatch {
+        self.frozen
+    }
+
+    /// Take over the channels' histories of the estimator this one
+    /// replaces (a calibration reload).
+    pub(crate) fn take_channels(&mut self, found: &Found) {
+        self.frozen = found.channels;
     }
 
     /// Whether some channel stands clearly (`min_signal_sigma`) above its
@@ -518,6 +532,21 @@ impl Estimator for ModelEstimator {
     fn reset(&mut self) {
         self.last = None;
         self.frozen.reset();
+    }
+
+    /// The channels' histories.
+    fn findings(&self) -> Option<Findings> {
+        Found {
+            channels: self.frozen,
+            dvl: None,
+        }
+        .boxed()
+    }
+
+    fn take_findings(&mut self, found: &(dyn Any + Send)) {
+        if let Some(f) = Found::of(found) {
+            self.take_channels(f);
+        }
     }
 }
 

@@ -13,7 +13,9 @@
 //! σ holds the members' spread, and the weights say which waters explain
 //! the frames.
 
-use lightpose_core::{Estimator, Frame, PoseEstimate, StdDev};
+use std::any::Any;
+
+use lightpose_core::{Estimator, Findings, Frame, PoseEstimate, StdDev};
 
 use super::state::{ln_k_d_reach, ln_k_d_sigma};
 use super::Tracker;
@@ -220,5 +222,14 @@ impl Estimator for WaterBank {
 
     fn pitch_offset_deg(&self) -> Option<(f64, f64)> {
         self.heaviest()?.pitch_offset_deg()
+    }
+
+    /// The heaviest member's, as it reports them.
+    fn findings(&self) -> Option<Findings> {
+        self.heaviest()?.findings()
+    }
+
+    fn take_findings(&mut self, found: &(dyn Any + Send)) {
+        self.members.iter_mut().for_each(|m| m.take_findings(found));
     }
 }

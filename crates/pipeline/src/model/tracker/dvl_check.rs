@@ -142,6 +142,15 @@ impl Default for RangeCheck {
 }
 
 impl RangeCheck {
+    /// Its verdict and last judged changes, with an empty window.
+    fn verdict(&self) -> RangeCheck {
+        RangeCheck {
+            refused: self.refused,
+            changes: self.changes,
+            ..Default::default()
+        }
+    }
+
     /// Whether the DVL stands refused.
     pub fn refused(&self) -> bool {
         self.refused
@@ -298,7 +307,7 @@ impl RangeCheck {
 /// Both checks and what the tracker did about them: about the sensor, so
 /// kept across the filter's restarts and handed to a water bank's members.
 #[derive(Debug, Clone, Copy, Default)]
-pub(super) struct DvlChecks {
+pub(crate) struct DvlChecks {
     range: RangeCheck,
     heading: HeadingCheck,
     /// The DVL stood refused at the last frame that asked (a first refusal
@@ -310,6 +319,18 @@ impl DvlChecks {
     /// Whether either check refuses the DVL now.
     pub fn refused(&self) -> bool {
         self.range.refused() || self.heading.refused()
+    }
+
+    /// The verdicts alone, for a tracker of another calibration (a
+    /// reload): the DVL's setup has not changed, but the windows hold this
+    /// calibration's light. A refused DVL stays refused, and is taken
+    /// again as a fresh window or track agrees; no second restart.
+    pub fn verdicts(&self) -> DvlChecks {
+        DvlChecks {
+            range: self.range.verdict(),
+            heading: self.heading.verdict(),
+            restarted: self.refused(),
+        }
     }
 
     /// What they last judged, into `a`.

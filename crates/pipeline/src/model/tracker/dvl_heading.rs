@@ -90,6 +90,15 @@ impl HeadingCheck {
         self.refused
     }
 
+    /// Its verdict and last judged turn, with no track.
+    pub fn verdict(&self) -> HeadingCheck {
+        HeadingCheck {
+            refused: self.refused,
+            turned: self.turned,
+            ..Default::default()
+        }
+    }
+
     /// The last judged turn of the DVL's readings, ° to starboard.
     pub fn turned_deg(&self) -> Option<f64> {
         self.turned.map(f64::to_degrees)

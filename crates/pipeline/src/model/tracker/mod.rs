@@ -48,17 +48,22 @@ mod tests_fusion;
 mod water_check;
 mod window;
 
+use std::any::Any;
+
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{
-    Estimator, Frame, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev, NDET,
+    Estimator, Findings, Frame, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev,
+    NDET,
 };
 
 pub use self::bank::WaterBank;
 pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
 use self::counts::CountsInput;
+pub(crate) use self::dvl_check::DvlChecks;
 use self::readings::{gate_thresholds, FrameReadings, PaperReading};
 use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
 pub use self::water_check::WaterWatch;
+use crate::model::findings::Found;
 use crate::model::single_frame::ModelEstimator;
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
@@ -553,6 +558,22 @@ impl Estimator for Tracker {
 
     fn pitch_offset_deg(&self) -> Option<(f64, f64)> {
         Tracker::pitch_offset_deg(self)
+    }
+
+    /// The channels' histories and the DVL checks' verdicts.
+    fn findings(&self) -> Option<Findings> {
+        Found {
+            channels: self.init.channels(),
+            dvl: Some(self.dvl.verdicts()),
+        }
+        .boxed()
+    }
+
+    fn take_findings(&mut self, found: &(dyn Any + Send)) {
+        if let Some(f) = Found::of(found) {
+            self.init.take_channels(f);
+            self.dvl = f.dvl.unwrap_or(self.dvl);
+        }
     }
 }
 

@@ -15,7 +15,9 @@
 //! (and 3 of the bench's 6,000) and on none of 400 minute-long ones
 //! (docs/estimators.md, "The water check").
 
-use lightpose_core::{Estimator, Frame, PoseEstimate};
+use std::any::Any;
+
+use lightpose_core::{Estimator, Findings, Frame, PoseEstimate};
 
 use super::{Tracker, WaterBank};
 use crate::settings::ModelError;
@@ -91,6 +93,18 @@ impl Estimator for WaterWatch {
         self.tracker.reset();
         self.bank.reset();
         self.fired = None;
+    }
+
+    fn findings(&self) -> Option<Findings> {
+        match self.fired {
+            Some(_) => self.bank.findings(),
+            None => self.tracker.findings(),
+        }
+    }
+
+    /// The tracker's, which the bank takes over when the check fires.
+    fn take_findings(&mut self, found: &(dyn Any + Send)) {
+        self.tracker.take_findings(found);
     }
 
     fn water_k_d(&self) -> Option<f64> {
