@@ -8,6 +8,7 @@
 
 pub mod angle;
 pub mod array;
+pub mod bounds;
 pub mod estimator;
 pub mod frame;
 pub mod geometry;

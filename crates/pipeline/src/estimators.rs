@@ -161,6 +161,26 @@ mod tests {
         assert_eq!(build_estimator("auto", &cal).unwrap().name(), "tracker");
     }
 
+    /// A dome as big as the search's farthest range (radius 5 m, within
+    /// the bounds a scene keeps, and ranges out to 4 m) is refused when the
+    /// estimator is built, not by a panic at the first frame's start.
+    #[test]
+    fn a_dome_too_big_to_search_around_is_refused() {
+        let mut cal = sample();
+        let mut p = sample_physical();
+        p.radius_m = 5.0;
+        cal.physical = Some(p);
+        let mut settings = EstimatorSettings::default();
+        settings.model.x_range = [1.0, 4.0];
+        settings.tracker.x_range = [1.0, 4.0];
+        cal.estimator = Some(settings);
+        assert!(cal.check().is_ok());
+        for n in ["model", "tracker"] {
+            let e = build_estimator(n, &cal).err().unwrap().to_string();
+            assert!(e.contains("leaves nothing to search"), "{e}");
+        }
+    }
+
     #[test]
     fn model_estimators_need_a_light_model() {
         let cal = sample();

@@ -98,6 +98,9 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
             fit.a, fit.feature, fit.b, fit.r2, fit.sigma
         );
     }
+    for n in &out.notes {
+        eprintln!("lightpose: note: {n}");
+    }
     if let Some(e) = &out.physical_skipped {
         eprintln!("lightpose: warning: no [physical] light model written: {e}");
     }

@@ -297,3 +297,59 @@ fn replay_reports_the_water_the_tracker_learned_when_told_to_doubt_it() {
     let k = learned(&err);
     assert!((0.15..=0.24).contains(&k), "found untold, K_D {k}: {err}");
 }
+
+/// What calibrate used to take without a word (an audit): a sweep header's
+/// `v_ref` no ADC has (1e300 was written into the calibration; −5 was
+/// replaced by 5 V) is refused naming the log; a sweep cut short, and
+/// frames the paper's fits cannot use (truth neither level nor centred),
+/// are told as notes, where it said "calibrated from N frames" alone.
+#[test]
+fn calibrate_refuses_an_impossible_header_v_ref_and_tells_what_it_left() {
+    let dir = tempfile::tempdir().unwrap();
+    let (sw, dk) = sweep(dir.path(), &root().join("config/scenes/tank.toml"));
+    let text = std::fs::read_to_string(&sw).unwrap();
+    let (head, frames) = text.split_once('\n').unwrap();
+    let mut h: serde_json::Value = serde_json::from_str(head).unwrap();
+    for bad in [
+        serde_json::json!(1e300),
+        serde_json::json!(-5.0),
+        serde_json::json!("x"),
+    ] {
+        h["v_ref"] = bad.clone();
+        let path = dir.path().join("bad-vref.jsonl");
+        std::fs::write(&path, format!("{h}\n{frames}")).unwrap();
+        let (ok, _, err) = calibrate(&path, &dk, &dir.path().join("c.toml"), &[]);
+        assert!(!ok, "v_ref {bad}: {err}");
+        assert!(
+            err.contains(&format!("{}: header v_ref: ", path.display())),
+            "{err}"
+        );
+    }
+    // Ten frames moved off both the level and the centred poses, and the
+    // last line cut in half.
+    let mut lines: Vec<String> = frames.lines().map(String::from).collect();
+    for l in lines.iter_mut().skip(100).step_by(50).take(10) {
+        let mut f: serde_json::Value = serde_json::from_str(l).unwrap();
+        f["truth"]["pitch"] = serde_json::json!(5.0);
+        f["truth"]["y"] = serde_json::json!(0.5);
+        *l = f.to_string();
+    }
+    let last = lines.pop().unwrap();
+    lines.push(last[..last.len() / 2].to_string());
+    let cut = dir.path().join("cut.jsonl");
+    std::fs::write(&cut, format!("{head}\n{}", lines.join("\n"))).unwrap();
+    let (ok, _, err) = calibrate(&cut, &dk, &dir.path().join("c.toml"), &[]);
+    assert!(ok, "{err}");
+    let n = lines.len() + 1;
+    assert!(
+        err.contains(&format!(
+            "note: {}: line {n}: last line cut short",
+            cut.display()
+        )),
+        "{err}"
+    );
+    assert!(
+        err.contains("note: frames the paper's fits did not use: 10 mixed pose"),
+        "{err}"
+    );
+}

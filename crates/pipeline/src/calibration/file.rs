@@ -14,6 +14,7 @@
 
 use super::physical_fit::PhysicalCalibration;
 use crate::settings::EstimatorSettings;
+use lightpose_core::bounds::{Within, MAX_K_D, MAX_V1_PER_V_REF, MAX_V_REF, MIN_V_REF};
 use lightpose_core::textfile::{parse_toml, read_text, TextError};
 use lightpose_core::textpos::line_of_key;
 use lightpose_core::NDET;
@@ -347,7 +348,8 @@ impl SceneFacts {
                 format!("{} must be 1..16", self.adc_bits),
             ));
         }
-        positive("scene", "v_ref", self.v_ref)?;
+        let v_ref = Within::closed(MIN_V_REF, MAX_V_REF, " V").check(self.v_ref);
+        v_ref.map_err(|m| ("scene", "v_ref", m))?;
         positive("scene", "rate_hz", self.rate_hz)?;
         finite("scene", "t_ref_c", self.t_ref_c)?;
         if (self.t_ref_c - lightpose_core::light::T_REF_C).abs() > 1e-9 {
@@ -410,8 +412,12 @@ impl Fits {
     /// angles, a first moment for y and z).
     fn check(&self) -> Result<(), Refusal> {
         let x = &self.x;
-        positive("fits.x", "a1", x.a1)?;
-        positive("fits.x", "b1", x.b1)?;
+        // Beyond these no light reads as a range (a b1 of 1e300 made every
+        // range the law's a1 alone, and those poses `ok`).
+        let a1 = Within::above(0.0, MAX_V1_PER_V_REF * MAX_V_REF, " V");
+        a1.check(x.a1).map_err(|m| ("fits.x", "a1", m))?;
+        let b1 = Within::above(0.0, MAX_K_D, " m⁻¹").why("the murkiest water's K_D");
+        b1.check(x.b1).map_err(|m| ("fits.x", "b1", m))?;
         finite("fits.x", "r2", x.r2)?;
         // A residual's σ goes into every pose's std: 0 or less would
         // publish a certainty no fit has.
@@ -655,7 +661,7 @@ impl Calibration {
         self.limits.check()?;
         self.fits_this_adc()?;
         if let Some(p) = &self.physical {
-            p.validate().map_err(|m| ("physical", "", m))?;
+            p.validate().map_err(|(k, m)| ("physical", k, m))?;
             self.physical_fits_this_adc(p)?;
         }
         if let Some(e) = &self.estimator {
@@ -787,7 +793,59 @@ pub(crate) mod tests {
         let line = text.lines().position(|l| l.starts_with("b1 =")).unwrap() + 1;
         assert_eq!(
             e,
-            format!("c.toml:{line}: fits.x.b1: -0.44 must be a positive number")
+            format!(
+                "c.toml:{line}: fits.x.b1: -0.44 is impossible: must be in (0, 100] m⁻¹ (the murkiest water's K_D)"
+            )
+        );
+    }
+
+    /// An audit's calibrations that loaded and then panicked the first
+    /// frame's start (a dome of radius 13 m, a spacing of NaN) or gave
+    /// garbage as `ok` poses (b1 = 1e300): each refused, naming its key.
+    #[test]
+    fn a_light_model_no_scene_could_hold_is_refused_naming_its_key() {
+        let base = sample();
+        let mut c = base.clone();
+        c.physical = Some(sample_physical());
+        let good = c.to_toml().unwrap();
+        Calibration::parse(&good, "c.toml").expect("the sample loads");
+        for (from, to, key) in [
+            ("radius_m = 0.229", "radius_m = 13.0", "physical.radius_m"),
+            (
+                "spacing_deg = 15.0",
+                "spacing_deg = nan",
+                "physical.spacing_deg",
+            ),
+            (
+                "spacing_deg = 15.0",
+                "spacing_deg = -1.0",
+                "physical.spacing_deg",
+            ),
+            (
+                "sigma_e_v = 0.05",
+                "sigma_e_v = 1e300",
+                "physical.sigma_e_v",
+            ),
+            ("b1 = 0.44", "b1 = 1e300", "fits.x.b1"),
+        ] {
+            assert_eq!(good.matches(from).count(), 1, "{from}");
+            let text = good.replace(from, to);
+            let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
+            let line = text.lines().position(|l| l.starts_with(to)).unwrap() + 1;
+            assert!(
+                e.starts_with(&format!("c.toml:{line}: {key}: ")),
+                "{to}: {e}"
+            );
+            assert!(e.contains("is impossible: must be in"), "{e}");
+        }
+        // A table's value (`[physical.v1]`) is named by its table.
+        let mut p = sample_physical();
+        p.v1.value = 1e300;
+        c.physical = Some(p);
+        let e = Calibration::parse(&c.to_toml().unwrap(), "c.toml").unwrap_err();
+        assert!(
+            e.to_string().contains("physical.v1: 1e300 is impossible"),
+            "{e}"
         );
     }
 
@@ -881,7 +939,7 @@ pub(crate) mod tests {
         let text = c.to_toml().unwrap();
         let e = Calibration::parse(&text, "c.toml").unwrap_err().to_string();
         assert!(
-            e.contains("physical: gain and offset_v must have 25 entries"),
+            e.contains("physical.gain: has 24 entries, expected 25"),
             "{e}"
         );
         // A partial table (the old raw form) is refused, naming the key.

@@ -60,7 +60,16 @@ pub struct CalibrateOptions {
 pub struct Calibrated {
     pub cal: Calibration,
     pub physical_skipped: Option<CalibError>,
+    /// What the user should know of the sweeps, one line each: a log cut
+    /// short, frames the paper's fits did not use (by reason), a light
+    /// model that fits its sweep poorly.
+    pub notes: Vec<String>,
 }
+
+/// A light model's χ²/dof above this says the sweep's frames or truth
+/// poses are not what the model can give (a fit of good data is ~1: the
+/// shipped tank's 0.98, the harbour's 0.99).
+const POOR_CHI2_PER_DOF: f64 = 3.0;
 
 impl CalibrateOptions {
     /// MODEL.md's defaults: 5 V reference, 20 °C, a 10-sample window.
@@ -333,6 +342,7 @@ impl PhysicalFeed {
         let mut out = Calibrated {
             cal,
             physical_skipped: self.err,
+            notes: Vec::new(),
         };
         if let (Some(fitter), Some(o)) = (self.fitter, &opts.physical) {
             let o = FitOptions { v_ref, ..o.clone() };
@@ -379,10 +389,11 @@ fn dark_pass(
     let mut dark = DarkAcc::default();
     let mut sources = Vec::new();
     let mut add = |p: &Path, bad: &mut BadLines| -> Result<(), CalibrateError> {
+        let v_ref = header_v_ref(&header_of(p)?, opts.v_ref, p).map_err(CalibrateError::Refused)?;
         stream(
             p,
-            |f, h| {
-                dark.push(f, header_v_ref(h, opts.v_ref));
+            |f, _| {
+                dark.push(f, v_ref);
                 phys.feed(|p| p.add_dark(f));
             },
             bad,
@@ -469,7 +480,7 @@ fn lit_pass(
         if is_dark_sweep(&h) {
             continue;
         }
-        v_ref = header_v_ref(&h, opts.v_ref);
+        v_ref = header_v_ref(&h, opts.v_ref, p).map_err(CalibrateError::Refused)?;
         let header = stream(
             p,
             |f, _| {
@@ -622,6 +633,7 @@ pub fn calibrate_full(
     let mut bad = BadLines {
         count: 0,
         report: &mut on_bad_line,
+        cuts: Vec::new(),
     };
     let mut phys = PhysicalFeed::new(opts);
     let (dark, dark_sources) = dark_pass(opts, &mut phys, &mut bad)?;
@@ -665,5 +677,21 @@ pub fn calibrate_full(
     };
     cal.check()
         .map_err(|(t, k, m)| CalibrateError::Refused(format!("the fit gave {t}.{k}: {m}")))?;
-    Ok(phys.finish(cal, opts, v_ref))
+    let mut out = phys.finish(cal, opts, v_ref);
+    out.notes = bad.cuts;
+    if !accs.skipped.is_empty() {
+        out.notes.push(format!(
+            "frames the paper's fits did not use: {}",
+            accs.skipped_text()
+        ));
+    }
+    if let Some(p) = out.cal.physical.as_ref() {
+        if p.chi2_per_dof > POOR_CHI2_PER_DOF {
+            out.notes.push(format!(
+                "the light model fits the sweep poorly (chi2/dof {:.1}, a good sweep's is ~1): are its truth poses the frames'?",
+                p.chi2_per_dof
+            ));
+        }
+    }
+    Ok(out)
 }

@@ -11,6 +11,10 @@
 //! mean gain is fixed to 1 by eliminating the last gain. A sweep that
 //! cannot determine a parameter is refused with the parameter's name.
 
+use lightpose_core::bounds::{
+    Within, MAX_GAIN, MAX_K_D, MAX_OMEGA, MAX_RADIUS_M, MAX_SPACING_DEG, MAX_V1_PER_V_REF,
+    MAX_V_REF, MIN_V_REF, WIDTH_DEG,
+};
 use lightpose_core::frame::full_scale;
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{Angle, ArrayGeometry, Frame, LightParams, Pose, Scattering, NDET};
@@ -101,12 +105,54 @@ impl PhysicalCalibration {
         }
     }
 
-    /// Check a loaded table: 25 channels, finite, positive where needed.
-    pub fn validate(&self) -> Result<(), String> {
-        if self.gain.len() != NDET || self.offset_v.len() != NDET {
-            return Err(format!("gain and offset_v must have {NDET} entries"));
+    /// Check a loaded table: 25 channels, and each number within the
+    /// bounds a scene's must keep (`lightpose_core::bounds`); the key and
+    /// why. An audit's dome of radius 13 m loaded, and the first frame's
+    /// start panicked (the search's nearest range beyond its farthest).
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        for (k, list) in [("gain", &self.gain), ("offset_v", &self.offset_v)] {
+            if list.len() != NDET {
+                return Err((k, format!("has {} entries, expected {NDET}", list.len())));
+            }
         }
-        self.sensor_model().validate()
+        let v_ref = Within::closed(MIN_V_REF, MAX_V_REF, " V").check(self.v_ref);
+        let v_ref = v_ref.map_err(|m| ("v_ref", m))?;
+        let volts = Within::closed(0.0, v_ref, " V").why("0..v_ref");
+        let offsets = Within::closed(-v_ref, v_ref, " V").why("within the ADC's ±v_ref");
+        let v1 = Within::above(0.0, MAX_V1_PER_V_REF * v_ref, " V·m²").why("1e6 × v_ref");
+        let mut checks = vec![
+            ("v1", self.v1.value, v1),
+            ("sigma_b_deg", self.sigma_b_deg.value, WIDTH_DEG),
+            ("sigma_r_deg", self.sigma_r_deg.value, WIDTH_DEG),
+            ("k_d", self.k_d.value, Within::closed(0.0, MAX_K_D, " m⁻¹")),
+            ("sigma_e_v", self.sigma_e_v, volts),
+            ("kappa_v", self.kappa_v, volts),
+            (
+                "spacing_deg",
+                self.spacing_deg,
+                Within::above(0.0, MAX_SPACING_DEG, "°").why("so the dome stays a hemisphere"),
+            ),
+            (
+                "radius_m",
+                self.radius_m,
+                Within::above(0.0, MAX_RADIUS_M, " m"),
+            ),
+        ];
+        checks.extend(
+            self.omega
+                .map(|o| ("omega", o.value, Within::closed(0.0, MAX_OMEGA, ""))),
+        );
+        checks.extend(
+            self.sigma_h_deg
+                .map(|h| ("sigma_h_deg", h.value, WIDTH_DEG)),
+        );
+        let gain = Within::above(0.0, MAX_GAIN, "");
+        checks.extend(self.gain.iter().map(|g| ("gain", g.value, gain)));
+        checks.extend(self.offset_v.iter().map(|o| ("offset_v", o.value, offsets)));
+        for (k, v, within) in checks {
+            within.check(v).map_err(|m| (k, m))?;
+        }
+        self.sensor_model().validate().map_err(|m| ("", m))
     }
 }
 

@@ -4,14 +4,17 @@
 //! need (the ADC reference, whether it is a dark sweep). JSON Lines or
 //! MCAP alike (`lightpose_logs::open`).
 
+use lightpose_core::bounds::{Within, MAX_V_REF, MIN_V_REF};
 use lightpose_core::{Frame, LogError, LogHeader};
 use lightpose_logs::open as open_log;
 use std::path::Path;
 
-/// Log lines refused while streaming: counted, and each handed on.
+/// Log lines refused while streaming: counted, and each handed on; and
+/// each log that was cut short, named with where.
 pub(super) struct BadLines<'a> {
     pub count: u64,
     pub report: &'a mut dyn FnMut(&LogError),
+    pub cuts: Vec<String>,
 }
 
 /// Open a log and feed every frame to `each`; bad lines to `bad`.
@@ -32,6 +35,9 @@ pub(super) fn stream(
             Err(e) => return Err(e),
         }
     }
+    if let Some(c) = r.cut() {
+        bad.cuts.push(format!("{}: {c}", path.display()));
+    }
     Ok(header)
 }
 
@@ -40,13 +46,19 @@ pub(super) fn header_of(path: &Path) -> Result<LogHeader, LogError> {
     Ok(open_log(path)?.header().clone())
 }
 
-/// The ADC reference a log's header states, else `default`.
-pub(super) fn header_v_ref(h: &LogHeader, default: f64) -> f64 {
-    h.extra
-        .get("v_ref")
-        .and_then(|v| v.as_f64())
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .unwrap_or(default)
+/// The ADC reference the header of log `path` states, else `default`; a
+/// stated one that no ADC has is refused, naming the log (it used to be
+/// replaced by `default` without a word, and 1e300 was taken).
+pub(super) fn header_v_ref(h: &LogHeader, default: f64, path: &Path) -> Result<f64, String> {
+    let Some(v) = h.extra.get("v_ref") else {
+        return Ok(default);
+    };
+    let within = Within::closed(MIN_V_REF, MAX_V_REF, " V");
+    match v.as_f64() {
+        Some(x) => within.check(x),
+        None => Err(format!("{v} is not a number of volts")),
+    }
+    .map_err(|m| format!("{}: header v_ref: {m}", path.display()))
 }
 
 /// Whether a log is a dark sweep (beacon off), by its header.

@@ -105,6 +105,16 @@ impl ModelEstimator {
         // Unset: the model's own doubt (a calibration's standard error).
         let k_d_sigma = *cfg.k_d_sigma.get_or_insert(model.k_d_sigma);
         cfg.validate()?;
+        // The search's nearest range is the dome's diameter at least: a
+        // dome as big as the farthest range leaves nothing to search (the
+        // start's clamp would panic).
+        let near = (cfg.x_range[0] / cfg.search_margin).max(model.geometry.radius_m * 2.0);
+        if !(near < cfg.x_range[1] * cfg.search_margin) {
+            return Err(ModelError::Config(format!(
+                "x_range = [{}, {}] m leaves nothing to search with a dome of radius {} m",
+                cfg.x_range[0], cfg.x_range[1], model.geometry.radius_m
+            )));
+        }
         Ok(ModelEstimator {
             model,
             cfg,

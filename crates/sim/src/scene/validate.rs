@@ -5,27 +5,16 @@
 //! they do not judge realism.
 
 use super::{Adc, AttitudeNoise, DepthNoise, DvlNoise, McSpread, Noise, Scene, SceneError};
+use lightpose_core::bounds::{
+    shown, Within, MAX_GAIN, MAX_K_D, MAX_OMEGA, MAX_RADIUS_M, MAX_SPACING_DEG, MAX_V1_PER_V_REF,
+    MAX_V_REF, MIN_V_REF, WIDTH_DEG,
+};
 use lightpose_core::textfile::parse_toml;
 use lightpose_core::textpos::line_of_key;
 use lightpose_core::{Angle, ArrayGeometry, LightParams, Scattering, COLS, NDET, ROWS};
 use serde::Deserialize;
 use std::fmt;
 
-/// Lowest ADC reference, V: no ADC resolves anything against less than a millivolt.
-const MIN_V_REF: f64 = 1e-3;
-/// Highest ADC reference, V: far above any ADC's (the board configurations' limit too).
-const MAX_V_REF: f64 = 50.0;
-/// Brightest beacon as a multiple of v_ref: saturating by six orders of
-/// magnitude at 1 m is still a test scene, more is a typo.
-const MAX_V1_PER_V_REF: f64 = 1e6;
-/// Murkiest water, m⁻¹: the muddiest estuaries reach ~10; at 100 light dies within centimetres.
-const MAX_K_D: f64 = 100.0;
-/// Largest ω: ω·K_D is a scattering coefficient, at most tens of times K_D even in turbid water.
-const MAX_OMEGA: f64 = 1e3;
-/// Largest dome radius, m: bigger than any vehicle that could carry the dome.
-const MAX_RADIUS_M: f64 = 10.0;
-/// Largest channel gain: channels spread about 1, a thousandfold is another detector.
-const MAX_GAIN: f64 = 1e3;
 /// Water temperature, °C: liquid water with margin (inside `WATER_TEMP_C`, so frames stay usable).
 const TEMP_C: (f64, f64) = (-5.0, 60.0);
 /// A temperature noise or spread, °C: no wider than the whole allowed temperature range.
@@ -36,77 +25,6 @@ const MAX_SIGMA_ANGLE_DEG: f64 = 180.0;
 const MAX_SIGMA_DEPTH_M: f64 = 100.0;
 /// A DVL's 1σ, m/s: several times the fastest vehicle's speed.
 const MAX_SIGMA_DVL_MPS: f64 = 10.0;
-
-/// The interval a number must lie in, with its unit and why, for the message.
-#[derive(Clone, Copy)]
-struct Within {
-    lo: f64,
-    hi: f64,
-    /// Whether the low and the high end are excluded.
-    open: (bool, bool),
-    unit: &'static str,
-    why: &'static str,
-}
-
-impl Within {
-    /// `[lo, hi]`.
-    const fn closed(lo: f64, hi: f64, unit: &'static str) -> Within {
-        Within {
-            lo,
-            hi,
-            open: (false, false),
-            unit,
-            why: "",
-        }
-    }
-    /// `(lo, hi]`.
-    const fn above(lo: f64, hi: f64, unit: &'static str) -> Within {
-        Within {
-            open: (true, false),
-            ..Within::closed(lo, hi, unit)
-        }
-    }
-    /// `(lo, hi)`.
-    const fn open(lo: f64, hi: f64, unit: &'static str) -> Within {
-        Within {
-            open: (true, true),
-            ..Within::closed(lo, hi, unit)
-        }
-    }
-    const fn why(self, why: &'static str) -> Within {
-        Within { why, ..self }
-    }
-    fn contains(&self, x: f64) -> bool {
-        let lo = if self.open.0 {
-            x > self.lo
-        } else {
-            x >= self.lo
-        };
-        let hi = if self.open.1 {
-            x < self.hi
-        } else {
-            x <= self.hi
-        };
-        x.is_finite() && lo && hi
-    }
-}
-
-impl fmt::Display for Within {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let (l, r) = (
-            if self.open.0 { '(' } else { '[' },
-            if self.open.1 { ')' } else { ']' },
-        );
-        write!(f, "in {l}{}, {}{r}{}", self.lo, self.hi, self.unit)?;
-        if !self.why.is_empty() {
-            write!(f, " ({})", self.why)?;
-        }
-        Ok(())
-    }
-}
-
-/// An angular width: a Gaussian 1σ that stays inside a hemisphere.
-const WIDTH_DEG: Within = Within::open(0.0, 90.0, "°");
 
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
@@ -220,8 +138,7 @@ impl Checker<'_> {
         within: Within,
     ) -> Result<f64, SceneError> {
         match v {
-            Some(x) if within.contains(x) => Ok(x),
-            Some(x) => Err(self.err(table, key, format!("{x} is impossible: must be {within}"))),
+            Some(x) => within.check(x).map_err(|m| self.err(table, key, m)),
             None if within.contains(default) => Ok(default),
             None => Err(self.err(
                 table,
@@ -262,7 +179,10 @@ impl Checker<'_> {
             Some((k, x)) if given => Err(self.err(
                 "array",
                 key,
-                format!("channel {k} = {x} is impossible: must be {within}"),
+                format!(
+                    "channel {k} = {} is impossible: must be {within}",
+                    shown(*x)
+                ),
             )),
             Some((_, x)) => Err(self.err(
                 "array",
@@ -349,7 +269,8 @@ impl RawArray {
                 }
             }
         }
-        let spacing = Within::above(0.0, 22.5, "°").why("so the dome stays a hemisphere");
+        let spacing =
+            Within::above(0.0, MAX_SPACING_DEG, "°").why("so the dome stays a hemisphere");
         let spacing = c.num("array", "spacing_deg", self.spacing_deg, 15.0, spacing)?;
         let radius = Within::above(0.0, MAX_RADIUS_M, " m");
         let radius = c.num("array", "radius_m", self.radius_m, 0.229, radius)?;
