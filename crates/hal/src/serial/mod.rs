@@ -88,6 +88,9 @@ struct Port {
     /// The board id of the last line of another board since this board's
     /// own last line: what a timeout of this port says.
     foreign: Option<u8>,
+    /// Why the port closed between frames (`idle`), told when it reopens:
+    /// no frame failed, so nothing else would say it.
+    closed_by: Option<SourceError>,
 }
 
 /// The longest a serial bank's idle listens to its ports before it looks
@@ -128,6 +131,7 @@ impl SerialBank {
                     clock: Box::default(),
                     fresh: false,
                     foreign: None,
+                    closed_by: None,
                 })
                 .collect(),
             bits,
@@ -255,7 +259,14 @@ impl SerialBank {
         let _ = port.clear(serialport::ClearBuffer::Input);
         if p.opened_once {
             counters.reopens += 1;
-            tracing::info!("serial board {} reopened at {}", p.cfg.name, p.cfg.path);
+            match p.closed_by.take() {
+                Some(e) => tracing::warn!(
+                    "serial board {} reopened at {}; it closed between frames: {e}",
+                    p.cfg.name,
+                    p.cfg.path
+                ),
+                None => tracing::info!("serial board {} reopened at {}", p.cfg.name, p.cfg.path),
+            }
         }
         p.opened_once = true;
         p.port = Some(port);
@@ -459,7 +470,7 @@ impl Bank for SerialBank {
     /// stamps can see (`seqclock`). Each port is asked in turn for up to
     /// [`IDLE_SLICE`], so a line is stamped within a slice per port of
     /// its arrival. A port that fails here is closed and left for the
-    /// frame to reopen and report. Beats the stop's heart as it goes.
+    /// frame to reopen, which tells why. Beats the stop's heart as it goes.
     fn idle(&mut self, until: Instant, stop: &Stop) {
         let n = self.ports.len().max(1) as u32;
         loop {
@@ -479,7 +490,9 @@ impl Bank for SerialBank {
                 if device::readable(dev, slice) {
                     let (buf, counters, recent) =
                         (&mut self.buf, &mut self.counters, &mut self.recent);
-                    let _ = Self::pump(p, b, buf, counters, recent, Duration::ZERO);
+                    if let Err(e) = Self::pump(p, b, buf, counters, recent, Duration::ZERO) {
+                        p.closed_by = Some(e);
+                    }
                 }
             }
             if !open {
