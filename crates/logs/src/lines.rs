@@ -16,7 +16,36 @@ use crate::schema::{self, name, topic};
 use lightpose_core::{Cut, LogError};
 use mcap::records::op;
 use std::collections::VecDeque;
-use std::io::{self, BufRead, Read};
+use std::io::{self, BufRead, Read, Seek, SeekFrom};
+
+/// The summary section of a finished MCAP file of `size` bytes (from its
+/// summary start to its summary offsets or footer), if its footer says it
+/// has one; `None` for a file cut short (no footer), without a summary, or
+/// with a footer that points outside the file.
+pub fn summary_of<R: Read + Seek>(src: &mut R, size: u64) -> Option<Vec<u8>> {
+    const FOOTER: usize = HEAD + 20 + 8;
+    let footer_at = size.checked_sub(FOOTER as u64).filter(|&at| at >= 8)?;
+    src.seek(SeekFrom::Start(footer_at)).ok()?;
+    let mut b = [0u8; FOOTER];
+    read_full(src, &mut b).ok().filter(|&n| n == FOOTER)?;
+    let le = |r: std::ops::Range<usize>| {
+        let mut a = [0u8; 8];
+        a.copy_from_slice(&b[r]);
+        u64::from_le_bytes(a)
+    };
+    if b[0] != op::FOOTER || le(1..9) != 20 || b[HEAD + 20..] != mcap::MAGIC[..] {
+        return None;
+    }
+    let (start, offsets) = (le(9..17), le(17..25));
+    let end = if offsets != 0 { offsets } else { footer_at };
+    if start < 8 || start >= end || end > footer_at || end - start > RECORD_LIMIT {
+        return None;
+    }
+    src.seek(SeekFrom::Start(start)).ok()?;
+    let mut s = vec![0u8; usize::try_from(end - start).ok()?];
+    read_full(src, &mut s).ok().filter(|&n| n == s.len())?;
+    Some(s)
+}
 
 /// Largest record (chunk) read: far above what any lightpose writer makes
 /// (64 KiB chunks by default) and what usual MCAP writers make (a few MiB).
@@ -159,6 +188,36 @@ impl<R: Read> McapLines<R> {
             keep_poses: false,
             poses: Vec::new(),
         })
+    }
+
+    /// Take the Schema and Channel records of `summary` (a finished
+    /// file's summary section) as declared. One that does not parse, or
+    /// names a lightpose topic with another schema, is left for the data
+    /// section's own record to say so.
+    pub fn declare_from_summary(&mut self, summary: Vec<u8>) {
+        let data = std::mem::replace(&mut self.body, summary);
+        let mut pos = 0;
+        while pos + HEAD <= self.body.len() {
+            let mut f = Fields::new(&self.body[pos..]);
+            let (Ok(o), Ok(len)) = (f.take(1), f.u64()) else {
+                break;
+            };
+            let opcode = o[0];
+            let Some(end) = usize::try_from(len)
+                .ok()
+                .and_then(|l| (pos + HEAD).checked_add(l))
+                .filter(|&e| e <= self.body.len())
+            else {
+                break;
+            };
+            let _ = match opcode {
+                op::SCHEMA => self.schema(pos + HEAD, end, 0),
+                op::CHANNEL => self.channel(pos + HEAD, end, 0),
+                _ => Ok(()),
+            };
+            pos = end;
+        }
+        self.body = data;
     }
 
     /// The line served last.

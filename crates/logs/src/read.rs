@@ -11,7 +11,7 @@ use crate::lines::McapLines;
 use lightpose_core::{Cut, Frame, FrameLog, FrameOrder, LogError, LogHeader, LogReader};
 use std::collections::VecDeque;
 use std::fs::File;
-use std::io::{self, BufReader, Read, Write};
+use std::io::{self, BufReader, Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 pub struct McapReader<R: Read> {
@@ -33,9 +33,15 @@ impl McapReader<BufReader<File>> {
             name: name.clone(),
             err,
         };
-        let f = File::open(path).map_err(io)?;
+        let mut f = File::open(path).map_err(io)?;
         let size = f.metadata().map_err(io)?.len();
-        McapReader::new(BufReader::with_capacity(1 << 16, f), name, Some(size))
+        // A finished file's summary declares its channels again: read
+        // first, a chunk that fails its CRC takes only its own frames even
+        // when it held the declarations (the first chunk does).
+        let summary = crate::lines::summary_of(&mut f, size);
+        f.seek(SeekFrom::Start(0)).map_err(io)?;
+        let src = BufReader::with_capacity(1 << 16, f);
+        McapReader::with_summary(src, name, Some(size), summary)
     }
 }
 
@@ -44,8 +50,22 @@ impl<R: Read> McapReader<R> {
     /// is how errors refer to it, `size` (when known) tells a file cut by a
     /// power loss from one with garbage at its end.
     pub fn new(src: R, name: impl Into<String>, size: Option<u64>) -> Result<Self, LogError> {
+        Self::with_summary(src, name, size, None)
+    }
+
+    /// As [`McapReader::new`], with the channels that `summary` (the file's
+    /// summary section, `lines::summary_of`) declares known from the start.
+    fn with_summary(
+        src: R,
+        name: impl Into<String>,
+        size: Option<u64>,
+        summary: Option<Vec<u8>>,
+    ) -> Result<Self, LogError> {
         let name = name.into();
         let mut lines = McapLines::new(src, name.clone(), size)?;
+        if let Some(s) = summary {
+            lines.declare_from_summary(s);
+        }
         let offset = lines.find_header()?;
         let inner = LogReader::new(lines, name.clone()).map_err(|e| match e {
             LogError::Line { msg, .. } => LogError::at(
