@@ -2,7 +2,9 @@
 //! the autopilot's serial port (reached through a symlink, as udev names
 //! it), the master is the autopilot. Frames cross in both directions split
 //! anywhere and among garbage; the autopilot unplugged and plugged back
-//! (master closed, a new pair behind the link) is survived.
+//! (master closed, a new pair behind the link) is survived; an autopilot
+//! that stops reading (master kept, never read) is a lost link within the
+//! write bound, and does not hold up a stop.
 
 mod common;
 
@@ -10,6 +12,7 @@ use common::{estimate, spawn_mavlink, wait_until};
 use lightpose_core::Angle;
 use lightpose_testkit::pty::Pty;
 use lightpose_vehicle::mav::inbound::Refusal;
+use lightpose_vehicle::mav::link::write_bound;
 use lightpose_vehicle::mav::scan::{Framing, Scanned, Scanner};
 use lightpose_vehicle::{Hub, MavlinkSettings, Site};
 use mavlink::dialects::ardupilotmega::{MavMessage, ATTITUDE_DATA};
@@ -124,4 +127,129 @@ fn mavlink_over_a_serial_port_both_ways_and_through_an_unplug() {
     assert!(wait_until(Duration::from_secs(5), || pitch_is(-0.3)));
     let st = hub.mavlink.status(Instant::now());
     assert!(st.last_error.is_some(), "{st:?}");
+}
+
+/// Offer a new pose (`seq`, capture time `seq` × 10 ms) for the task to send.
+fn offer(hub: &Hub, seq: &mut u64) {
+    *seq += 1;
+    hub.outbox.offer(&estimate(*seq, *seq as f64 * 0.01), 0);
+}
+
+/// Poll `cond` while offering a pose every millisecond, so that a port
+/// nobody reads fills and stays full.
+fn flood_until(
+    hub: &Hub,
+    seq: &mut u64,
+    timeout: Duration,
+    mut cond: impl FnMut() -> bool,
+) -> bool {
+    let end = Instant::now() + timeout;
+    while Instant::now() < end {
+        if cond() {
+            return true;
+        }
+        offer(hub, seq);
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    cond()
+}
+
+/// The autopilot stops reading but stays plugged in (a USB CDC port whose
+/// firmware hangs): once the pty's buffer is full, writes wait forever.
+/// The link is lost within its write bound (1 s at 115200 baud), counted
+/// and reopened; the reopened link, whose buffer is still full, is lost
+/// again a bound after it opened.
+#[test]
+fn a_serial_port_nobody_reads_is_lost_within_the_write_bound() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("ttyAUTOPILOT");
+    // The task is stopped after the device is gone (on a failure too: a
+    // write the bound does not end would hold the stop up until then).
+    let _running;
+    let _ap = Pty::plug(&link);
+    let hub = Hub::new();
+    let mut s = MavlinkSettings::new(
+        format!("serial:{}:115200", link.display()).parse().unwrap(),
+        Site::new(Angle::ZERO, 3.0),
+    );
+    s.heartbeat_period = Duration::from_millis(50);
+    s.reopen_max = Duration::from_millis(200);
+    let bound = write_bound(115200);
+    assert_eq!(bound, Duration::from_secs(1));
+    _running = spawn_mavlink(s, hub.clone());
+
+    let st = |hub: &Hub| hub.mavlink.status(Instant::now());
+    let mut seq = 0;
+    let lost = flood_until(&hub, &mut seq, Duration::from_secs(10), || {
+        st(&hub).link_failures >= 1
+    });
+    assert!(lost, "{:?}", st(&hub));
+    let why = st(&hub).last_error.unwrap_or_default();
+    assert!(why.contains("did not go out within 1000 ms"), "{why}");
+
+    // Reopened (after the back-off) onto the same full buffer: its first
+    // heartbeat waits, and the bound ends it.
+    assert!(flood_until(&hub, &mut seq, Duration::from_secs(5), || {
+        st(&hub).link_opens >= 2
+    }));
+    let opened = Instant::now();
+    assert!(flood_until(&hub, &mut seq, Duration::from_secs(5), || {
+        st(&hub).link_failures >= 2
+    }));
+    let took = opened.elapsed();
+    assert!(
+        took >= bound - Duration::from_millis(50) && took <= bound + Duration::from_millis(750),
+        "lost {took:?} after the reopen, the bound is {bound:?}"
+    );
+}
+
+/// A stop while a write waits on a port nobody reads is honoured at once,
+/// not after the write bound (68 s at 1200 baud).
+#[test]
+fn a_stop_is_honoured_while_a_serial_write_waits() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("ttyAUTOPILOT");
+    let ap = Pty::plug(&link);
+    let hub = Hub::new();
+    let mut s = MavlinkSettings::new(
+        format!("serial:{}:1200", link.display()).parse().unwrap(),
+        Site::new(Angle::ZERO, 3.0),
+    );
+    s.heartbeat_period = Duration::from_millis(50);
+    assert!(write_bound(1200) > Duration::from_secs(60));
+    let running = spawn_mavlink(s, hub.clone());
+
+    // Stuck: poses keep being offered and heartbeats keep being due, but
+    // nothing more goes out for 300 ms, and the link was never lost.
+    let sent = |hub: &Hub| (0..3).map(|k| hub.mavlink.sent(k)).sum::<u64>();
+    let (mut seq, mut last, mut since) = (0, 0, Instant::now());
+    let stuck = flood_until(&hub, &mut seq, Duration::from_secs(10), || {
+        let now = sent(&hub);
+        if now != last {
+            (last, since) = (now, Instant::now());
+        }
+        now > 0 && since.elapsed() > Duration::from_millis(300)
+    });
+    let st = hub.mavlink.status(Instant::now());
+    assert!(stuck, "{st:?}");
+    assert_eq!(st.link_failures, 0, "{st:?}");
+
+    // The stop, on another thread: a task that ignored it would hang.
+    let (done_tx, done_rx) = std::sync::mpsc::channel();
+    let stopping = Instant::now();
+    std::thread::spawn(move || {
+        drop(running);
+        let _ = done_tx.send(());
+    });
+    let stopped = done_rx.recv_timeout(Duration::from_secs(2));
+    assert!(
+        stopped.is_ok(),
+        "the task did not stop within 2 s of the stop while a write waited"
+    );
+    assert!(
+        stopping.elapsed() < Duration::from_millis(500),
+        "{:?}",
+        stopping.elapsed()
+    );
+    drop(ap);
 }

@@ -4,7 +4,8 @@
 //! another system's valid frame are counted and redirect nothing; a GCS's
 //! or a second vehicle's readings are counted and never attached; the
 //! autopilot moving to another port is followed once its old one has been
-//! silent for `PEER_SILENCE`.
+//! silent for `PEER_SILENCE`. A pose that met no peer does not take the
+//! rate limit's slot.
 
 mod common;
 
@@ -342,4 +343,56 @@ fn a_configured_component_is_the_autopilot() {
     let id = m.autopilot().expect("learned");
     assert_eq!((id.system, id.component), (1, 2));
     assert_eq!(m.peer(), autopilot.local_addr().ok());
+}
+
+/// How many poses the rate limit dropped.
+fn decimated(hub: &Hub) -> u64 {
+    let st = hub.mavlink.status(Instant::now());
+    st.skipped
+        .iter()
+        .find(|(name, _)| *name == "decimated")
+        .map_or(0, |(_, k)| *k)
+}
+
+/// A pose that could not be sent (no peer yet) does not take the rate
+/// limit's slot: the next pose inside `1/position_rate_hz` of it is sent
+/// once the autopilot has spoken, and only the pose after that one is
+/// decimated.
+#[test]
+fn a_pose_not_sent_does_not_decimate_the_next() {
+    let (s, daemon) = listening(|s| {
+        s.output.position_rate_hz = Some(5.0);
+        // One heartbeat at the start (not sent, no peer) and one greeting
+        // the autopilot: `no_peer` then counts only the pose below.
+        s.heartbeat_period = Duration::from_secs(60);
+    });
+    let hub = Hub::new();
+    let _task = spawn_mavlink(s, hub.clone());
+    bound(&hub);
+    let no_peer = || hub.mavlink.status(Instant::now()).no_peer;
+    assert!(wait_until(Duration::from_secs(5), || no_peer() >= 1));
+    let before = no_peer();
+
+    hub.outbox.offer(&estimate(1, 10.0), 0);
+    assert!(
+        wait_until(Duration::from_secs(5), || no_peer() > before),
+        "the pose meets no peer"
+    );
+    assert_eq!(hub.mavlink.sent(0), 0);
+
+    let autopilot = socket();
+    assert!(announce(&autopilot, daemon), "the autopilot is greeted");
+    // 50 ms after the unsent pose: inside the 200 ms limit of it.
+    hub.outbox.offer(&estimate(2, 10.05), 0);
+    let heard = hear(&autopilot, Duration::from_millis(300));
+    assert!(heard.contains(&POSITION), "{heard:?}");
+    assert_eq!(hub.mavlink.sent(0), 1);
+    assert_eq!(decimated(&hub), 0);
+
+    // The pose sent took the slot: 50 ms after it is decimated.
+    hub.outbox.offer(&estimate(3, 10.1), 0);
+    assert!(wait_until(Duration::from_secs(5), || decimated(&hub) == 1));
+    let heard = hear(&autopilot, Duration::from_millis(100));
+    assert!(!heard.contains(&POSITION), "{heard:?}");
+    assert_eq!(hub.mavlink.sent(0), 1);
 }

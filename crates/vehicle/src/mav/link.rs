@@ -146,7 +146,11 @@ enum Inner {
         /// The sender of the last datagram received, not yet vouched for.
         sender: Option<SocketAddr>,
     },
-    Serial(AsyncFd<TTYPort>),
+    Serial {
+        fd: AsyncFd<TTYPort>,
+        /// How long one frame may take to go out, see [`write_bound`].
+        write_bound: Duration,
+    },
 }
 
 /// An open MAVLink link.
@@ -199,12 +203,13 @@ impl Link {
                 heard: None,
                 sender: None,
             },
-            Endpoint::Serial { path, baud } => Inner::Serial(open_serial(path, *baud).map_err(
-                |source| LinkError::Serial {
+            Endpoint::Serial { path, baud } => Inner::Serial {
+                fd: open_serial(path, *baud).map_err(|source| LinkError::Serial {
                     endpoint: ep.to_string(),
                     source,
-                },
-            )?),
+                })?,
+                write_bound: write_bound(*baud),
+            },
         };
         Ok(Link { inner })
     }
@@ -212,7 +217,7 @@ impl Link {
     /// How frames arrive on this link.
     pub fn framing(&self) -> Framing {
         match self.inner {
-            Inner::Serial(_) => Framing::Stream,
+            Inner::Serial { .. } => Framing::Stream,
             _ => Framing::Datagram,
         }
     }
@@ -221,7 +226,7 @@ impl Link {
     pub fn local_addr(&self) -> Option<SocketAddr> {
         match &self.inner {
             Inner::UdpOut(s) | Inner::UdpIn { sock: s, .. } => s.local_addr().ok(),
-            Inner::Serial(_) => None,
+            Inner::Serial { .. } => None,
         }
     }
 
@@ -303,7 +308,7 @@ impl Link {
                 *sender = Some(from);
                 Ok(n)
             }
-            Inner::Serial(fd) => loop {
+            Inner::Serial { fd, .. } => loop {
                 let mut guard = fd.readable().await?;
                 match guard.try_io(|p| {
                     nix::unistd::read(p.get_ref().as_raw_fd(), buf).map_err(io::Error::from)
@@ -322,7 +327,9 @@ impl Link {
         }
     }
 
-    /// Send one frame.
+    /// Send one frame. On serial, a frame that has not gone out within
+    /// the link's [`write_bound`] fails with [`WriteStalled`] (kind
+    /// `TimedOut`): the far end stopped reading, and the link is lost.
     pub async fn send(&mut self, bytes: &[u8]) -> io::Result<Sent> {
         match &mut self.inner {
             Inner::UdpOut(s) => s.send(bytes).await.map(|_| Sent::Yes),
@@ -330,20 +337,58 @@ impl Link {
                 Some(p) => sock.send_to(bytes, *p).await.map(|_| Sent::Yes),
                 None => Ok(Sent::NoPeer),
             },
-            Inner::Serial(fd) => {
-                let mut rest = bytes;
-                while !rest.is_empty() {
-                    let mut guard = fd.writable().await?;
-                    match guard.try_io(|p| nix::unistd::write(p, rest).map_err(io::Error::from)) {
-                        Ok(Ok(n)) => rest = &rest[n..],
-                        Ok(Err(e)) => return Err(e),
-                        Err(_would_block) => continue,
+            Inner::Serial { fd, write_bound } => {
+                let bound = *write_bound;
+                let write = async {
+                    let mut rest = bytes;
+                    while !rest.is_empty() {
+                        let mut guard = fd.writable().await?;
+                        match guard.try_io(|p| nix::unistd::write(p, rest).map_err(io::Error::from))
+                        {
+                            Ok(Ok(n)) => rest = &rest[n..],
+                            Ok(Err(e)) => return Err(e),
+                            Err(_would_block) => continue,
+                        }
                     }
+                    Ok(Sent::Yes)
+                };
+                // A USB CDC autopilot that stops reading but stays
+                // enumerated never fails a write: the tty's buffer fills
+                // and `writable` never comes.
+                match tokio::time::timeout(bound, write).await {
+                    Ok(r) => r,
+                    Err(_elapsed) => Err(io::Error::new(
+                        io::ErrorKind::TimedOut,
+                        WriteStalled { bound },
+                    )),
                 }
-                Ok(Sent::Yes)
             }
         }
     }
+}
+
+/// A serial frame that did not go out within the link's [`write_bound`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("a frame did not go out within {} ms: the far end reads nothing", bound.as_millis())]
+pub struct WriteStalled {
+    pub bound: Duration,
+}
+
+/// The kernel transmit buffer a live serial link may have to drain before
+/// a frame of ours goes out: a UART's (`UART_XMIT_SIZE`, a page).
+const TX_BUFFER_BYTES: u64 = 4096;
+
+/// How long one frame may take to go out at `baud` before the far end is
+/// taken to have stopped reading: twice the time a full transmit buffer
+/// takes to drain at 10 bits a byte (8N1), and never under 1 s (the
+/// heartbeat period; USB's scheduling). A port that is read drains, one
+/// that is not fills at any rate we send, so the bound only decides how
+/// soon a stall is called lost: 1 s up to 115200 baud (a USB CDC
+/// autopilot, whose nominal baud is ignored), 1.4 s at 57600, 8.5 s at
+/// 9600.
+pub fn write_bound(baud: u32) -> Duration {
+    let drain_us = TX_BUFFER_BYTES * 10 * 1_000_000 / u64::from(baud.max(1));
+    Duration::from_secs(1).max(Duration::from_micros(2 * drain_us))
 }
 
 /// Open a serial port raw at `baud`, non-blocking, registered with tokio.
@@ -389,5 +434,19 @@ mod tests {
             let e = s.parse::<Endpoint>().unwrap_err();
             assert!(e.contains(why), "{s}: {e}");
         }
+    }
+
+    #[test]
+    fn the_write_bound_is_a_second_or_twice_a_full_buffer_at_the_baud() {
+        assert_eq!(write_bound(921_600), Duration::from_secs(1));
+        assert_eq!(write_bound(115_200), Duration::from_secs(1));
+        // 4096 bytes × 10 bits at 57600 baud: 711 ms, twice over.
+        let b = write_bound(57_600);
+        assert!(
+            b > Duration::from_millis(1420) && b < Duration::from_millis(1425),
+            "{b:?}"
+        );
+        assert!(write_bound(9_600) > Duration::from_secs(8));
+        assert!(write_bound(0) >= Duration::from_secs(1));
     }
 }

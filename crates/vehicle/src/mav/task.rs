@@ -276,16 +276,23 @@ async fn serve(
                     hub.mavlink.set_error(LastError::net(NetOp::Recv, &e));
                 }
             },
-            _ = hub.outbox.offered() => {
-                if let Err(e) = tx.poses(&mut link, s, hub).await {
+            // A send may wait up to the serial link's write bound (the
+            // autopilot not reading): a stop must not.
+            _ = hub.outbox.offered() => tokio::select! {
+                _ = &mut shutdown => return Ended::Shutdown,
+                r = tx.poses(&mut link, s, hub) => if let Err(e) = r {
                     return Ended::Lost(e);
-                }
-            }
+                },
+            },
             _ = beat.tick() => {
                 close(s, hub, tx, ap, open_log, Close::Over);
                 let active = tx.last_sent.is_some_and(|t| t.elapsed() < 2 * s.heartbeat_period.max(Duration::from_secs(1)));
-                if let Err(e) = tx.send(&mut link, hub, &heartbeat(active), 2).await {
-                    return Ended::Lost(e);
+                let msg = heartbeat(active);
+                tokio::select! {
+                    _ = &mut shutdown => return Ended::Shutdown,
+                    r = tx.send(&mut link, hub, &msg, 2) => if let Err(e) = r {
+                        return Ended::Lost(e);
+                    },
                 }
             }
         }
@@ -564,12 +571,17 @@ impl Sender {
                 return Ok(());
             }
         };
-        self.send(link, hub, &msg, 0).await?;
-        self.last_pos_t = Some(o.t);
-        self.last_sent = Some(Instant::now());
+        // Only a pose that went out takes the rate limit's slot: one not
+        // sent (no peer yet, a UDP error) must not decimate the next.
+        if self.send(link, hub, &msg, 0).await? {
+            self.last_pos_t = Some(o.t);
+            self.last_sent = Some(Instant::now());
+        }
         if s.output.speed && o.surge.is_some() {
             match vision_speed(&o, &s.site, &s.output).and_then(|v| v.message()) {
-                Ok(m) => self.send(link, hub, &m, 1).await?,
+                Ok(m) => {
+                    self.send(link, hub, &m, 1).await?;
+                }
                 Err(k) => {
                     let n = c.speed_skipped[k.index()].fetch_add(1, Relaxed) + 1;
                     self.speed_skips.note(&o, k, n);
@@ -579,15 +591,15 @@ impl Sender {
         Ok(())
     }
 
-    /// Send one message; an error is returned only when the link is lost
-    /// (serial), a UDP send error is counted.
+    /// Send one message: whether it went out. An error is returned only
+    /// when the link is lost (serial); a UDP send error is counted.
     async fn send(
         &mut self,
         link: &mut Link,
         hub: &Hub,
         msg: &MavMessage,
         kind: usize,
-    ) -> io::Result<()> {
+    ) -> io::Result<bool> {
         let c = &hub.mavlink;
         let framing = link.framing();
         // Nowhere to send (udpin before the autopilot spoke): nothing is
@@ -596,22 +608,24 @@ impl Sender {
         // whose clock is behind ours refused before it ever heard us).
         if !link.has_peer() {
             c.no_peer.fetch_add(1, Relaxed);
-            return Ok(());
+            return Ok(false);
         }
         match link.send(self.enc.encode(msg)).await {
             Ok(Sent::Yes) => {
                 c.sent[kind].fetch_add(1, Relaxed);
+                Ok(true)
             }
             Ok(Sent::NoPeer) => {
                 c.no_peer.fetch_add(1, Relaxed);
+                Ok(false)
             }
-            Err(e) if framing == Framing::Stream => return Err(e),
+            Err(e) if framing == Framing::Stream => Err(e),
             Err(e) => {
                 c.send_errors.fetch_add(1, Relaxed);
                 c.set_error(LastError::net(NetOp::Send, &e));
+                Ok(false)
             }
         }
-        Ok(())
     }
 }
 
