@@ -265,13 +265,20 @@ fn write_file(path: &Path, text: &str) -> Result<(), McError> {
     })
 }
 
-/// Write `steps.csv`, `summary.md`, `montecarlo.png` and `montecarlo.svg`
-/// into `dir` (created if missing).
-pub fn write_all(r: &McResult, info: &RunInfo, dir: &Path) -> Result<(), McError> {
+/// The directory [`write_all`] writes into, created if missing; an error
+/// if it cannot be (a file of that name). A caller makes it before a long
+/// run, so that such an `--out` fails at once, not after every run.
+pub fn create_dir(dir: &Path) -> Result<(), McError> {
     std::fs::create_dir_all(dir).map_err(|err| McError::Io {
         path: dir.display().to_string(),
         err,
-    })?;
+    })
+}
+
+/// Write `steps.csv`, `summary.md`, `montecarlo.png` and `montecarlo.svg`
+/// into `dir` (created if missing).
+pub fn write_all(r: &McResult, info: &RunInfo, dir: &Path) -> Result<(), McError> {
+    create_dir(dir)?;
     write_file(&dir.join(CSV_NAME), &csv_text(r))?;
     write_file(&dir.join(SUMMARY_NAME), &summary_text(r, info))?;
     let title = match info.case {

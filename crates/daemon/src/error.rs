@@ -18,9 +18,14 @@ pub enum DaemonError {
         #[source]
         source: lightpose_core::textfile::TextError,
     },
-    /// The calibration is wrong (the message names the file and line).
-    #[error(transparent)]
-    Calibration(#[from] lightpose_pipeline::CalError),
+    /// The calibration is wrong, said at the config's `calibration` key
+    /// (the cause names the calibration's own file and line).
+    #[error("{at}: calibration")]
+    Calibration {
+        at: KeyAt,
+        #[source]
+        source: lightpose_pipeline::CalError,
+    },
     /// No such estimator, or not with this calibration: at the config's
     /// `estimator` key.
     #[error("{at}: estimator")]
@@ -30,9 +35,14 @@ pub enum DaemonError {
         source: lightpose_pipeline::BuildError,
     },
     /// The backend's frames are of another ADC than the calibration's
-    /// light model.
-    #[error("backend {backend}: {msg}")]
-    AdcMismatch { backend: &'static str, msg: String },
+    /// light model: said at the config's `calibration` key, the file to
+    /// change (or the estimator).
+    #[error("{at}: calibration: backend {backend}: {msg}")]
+    AdcMismatch {
+        at: KeyAt,
+        backend: &'static str,
+        msg: String,
+    },
     #[error("backend {kind}")]
     Backend {
         kind: &'static str,
@@ -97,7 +107,7 @@ impl DaemonError {
         match self {
             DaemonError::Config(_)
             | DaemonError::CalibrationRead { .. }
-            | DaemonError::Calibration(_)
+            | DaemonError::Calibration { .. }
             | DaemonError::Estimator { .. }
             | DaemonError::AdcMismatch { .. }
             | DaemonError::NotFreeRunning { .. } => true,

@@ -230,13 +230,26 @@ fn fail(e: &(dyn std::error::Error + 'static), code: u8) -> ExitCode {
     ExitCode::from(code)
 }
 
+/// Print a result on stdout and exit 0. Not `println!`, which panics when
+/// the reader has gone (`| head`): a closed pipe is a quiet success, as
+/// for any Unix tool; another failure to write is one line and exit 1.
+fn say(text: impl std::fmt::Display) -> ExitCode {
+    use std::io::Write;
+    let mut o = std::io::stdout().lock();
+    match writeln!(o, "{text}").and_then(|()| o.flush()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("lightposed: writing to stdout: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
 /// Print a report and exit 0, or the one line and its exit code.
 fn print_report<R: std::fmt::Display>(r: Result<R, DaemonError>) -> ExitCode {
     match r {
-        Ok(r) => {
-            println!("{r}");
-            ExitCode::SUCCESS
-        }
+        Ok(r) => say(r),
         Err(e) => fail(&e, e.exit_code()),
     }
 }
@@ -247,10 +260,7 @@ fn check_config(p: &std::path::Path) -> ExitCode {
         .map_err(DaemonError::from)
         .and_then(|c| lightposed::wiring::check(&c));
     match checked {
-        Ok(()) => {
-            println!("{}: ok", p.display());
-            ExitCode::SUCCESS
-        }
+        Ok(()) => say(format_args!("{}: ok", p.display())),
         Err(e) => fail(&e, e.exit_code()),
     }
 }

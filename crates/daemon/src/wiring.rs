@@ -18,7 +18,7 @@ use crate::stats::Stats;
 use crate::status::version_message;
 use crate::vehicle::VehicleLink;
 use lightpose_core::{Estimator, LogHeader};
-use lightpose_hal::{FrameSource, HalError, Stop};
+use lightpose_hal::{FrameSource, HalError, Stop, ValidBackend};
 use lightpose_pipeline::Calibration;
 use lightpose_vehicle::mav::link::LinkError;
 use lightpose_vehicle::Endpoint;
@@ -37,7 +37,12 @@ fn load_calibration(cfg: &Config) -> Result<Calibration, DaemonError> {
             at: cfg.calibration_at.clone(),
             source,
         })?;
-    Ok(Calibration::parse(&text, &cfg.calibration.describe())?)
+    Calibration::parse(&text, &cfg.calibration.describe()).map_err(|source| {
+        DaemonError::Calibration {
+            at: cfg.calibration_at.clone(),
+            source,
+        }
+    })
 }
 
 /// Load the calibration and build the configured estimator.
@@ -103,6 +108,7 @@ fn reads_frames(
 ) -> Result<(), DaemonError> {
     lightpose_pipeline::reads_frames_of(est, cal, adc_bits).map_err(|msg| {
         DaemonError::AdcMismatch {
+            at: cfg.calibration_at.clone(),
             backend: cfg.backend.kind(),
             msg,
         }
@@ -114,16 +120,37 @@ fn reads_frames(
 /// backend reads (scene, trajectory, a log's header; hal opens no
 /// device), the recording directory (a file is none; nothing is created)
 /// and every address the daemon binds (bound and let go; the multicast
-/// interface set on a throwaway socket). `--check-config` runs this, and
-/// so does the binary before a start: a start fails on the same things
-/// with the same errors. Each names the config's `FILE:LINE`.
+/// interface set on a throwaway socket), and that the estimator reads the
+/// backend's ADC as a start checks it. `--check-config` runs this, and so
+/// does the binary before a start: a start fails on the same things with
+/// the same errors. Each names the config's `FILE:LINE`.
 pub fn check(cfg: &Config) -> Result<(), DaemonError> {
-    build_estimator(cfg)?;
-    lightpose_hal::check(&cfg.backend).map_err(|e| backend_error(cfg, e))?;
+    let cal = load_calibration(cfg)?;
+    let est = estimator_of(cfg, &cal)?;
+    reads_frames(cfg, est.as_ref(), &cal, checked_adc_bits(cfg)?)?;
     if let Some(r) = &cfg.recording {
         machine::recording_dir(&r.dir, &cfg.places.of(places::RECORDING_DIR))?;
     }
     check_binds(cfg)
+}
+
+/// The ADC of the frames the backend would give, without a device: a
+/// log's header or the simulator's scene from the source opened (as
+/// `lightpose_hal::check` opens it: nothing but files), a board's from its
+/// validated kind, after hal's check of it.
+fn checked_adc_bits(cfg: &Config) -> Result<u8, DaemonError> {
+    match &cfg.backend {
+        ValidBackend::Sim(_) | ValidBackend::Replay(_) => {
+            Ok(open_source(cfg, &Stop::new())?.adc_bits())
+        }
+        ValidBackend::Spi { common, .. }
+        | ValidBackend::Ads1115 { common, .. }
+        | ValidBackend::Ads7828 { common, .. }
+        | ValidBackend::Serial { common, .. } => {
+            lightpose_hal::check(&cfg.backend).map_err(|e| backend_error(cfg, e))?;
+            Ok(common.bits)
+        }
+    }
 }
 
 /// Bind what a start binds, each held until the last is done (as a start

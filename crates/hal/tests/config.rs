@@ -77,6 +77,11 @@ fn validation_errors_name_the_key() {
             format!("{}{}", MCP_HEAD.replace("rate_hz = 10.0", "rate_hz = -1.0"), mcp_map()),
             "rate_hz",
         ),
+        // Its period past a Duration: the pacer ran flat out (an audit).
+        (
+            format!("{}{}", MCP_HEAD.replace("rate_hz = 10.0", "rate_hz = 1e-300"), mcp_map()),
+            "rate_hz: 1e-300 is not 0 (as fast as possible) or in 0.001..=10000 Hz",
+        ),
         (
             format!("{}{}", MCP_HEAD.replace("spidev1.1", "spidev0.0"), mcp_map()),
             "/dev/spidev0.0 is used by two chips",
@@ -458,7 +463,7 @@ fn numbers_out_of_their_range_are_refused_by_key() {
             "{key}: {e}"
         );
         assert!(
-            e.contains(" is not in ") || e.contains("empty"),
+            e.contains(" is not in ") || e.contains(" or in ") || e.contains("empty"),
             "{key}: {e}"
         );
     }

@@ -3,6 +3,7 @@
 //! own sensors. Thin: the table is `lightpose_analysis::trade`.
 
 use crate::guard;
+use crate::stdout::out;
 use anyhow::Context;
 use lightpose_analysis::montecarlo::progress_bar;
 use lightpose_analysis::sensors::SensorSet;
@@ -37,7 +38,7 @@ pub struct BenchArgs {
         value_delimiter = ','
     )]
     sensors: Vec<String>,
-    /// Realizations the time per frame is measured over (median; at most
+    /// Realizations the time per frame is measured over (median; 1 to
     /// 1000: their frames are simulated up front).
     #[arg(long, default_value_t = 15)]
     timing_runs: usize,
@@ -51,6 +52,11 @@ pub struct BenchArgs {
 
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     guard::at_most("runs", a.runs, guard::MAX_RUNS, guard::RUNS_WHY)?;
+    guard::at_least_one(
+        "timing-runs",
+        a.timing_runs,
+        "the realizations the time per frame is measured over",
+    )?;
     guard::at_most(
         "timing-runs",
         a.timing_runs,
@@ -106,9 +112,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         }
     }
     text.push_str(&trade::summary(&sections));
-    print!("{text}");
+    // The file first: a reader of stdout that has gone ends the program.
     if let Some(p) = &a.out {
         std::fs::write(p, &text).with_context(|| format!("writing {}", p.display()))?;
     }
+    out!("{text}");
     Ok(())
 }

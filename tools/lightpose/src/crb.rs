@@ -2,6 +2,8 @@
 //! row per frame — the limit every estimator is held against (docs/
 //! estimators.md). Thin: the bound is `lightpose_analysis::bound`.
 
+use crate::guard;
+use crate::stdout::out;
 use anyhow::Context;
 use lightpose_analysis::bound::{along_trajectory, track_bound_along};
 use lightpose_analysis::sensors;
@@ -30,7 +32,7 @@ pub struct CrbArgs {
     /// Print the 95 % half-width (1.96σ) instead of 1σ.
     #[arg(long)]
     half_width: bool,
-    /// Print every n-th frame (the first and last always).
+    /// Print every n-th frame (the first and last always); at least 1.
     #[arg(long, default_value_t = 1)]
     every: usize,
     /// Also the bound for a tracker: the posterior bound along the whole
@@ -64,6 +66,7 @@ fn own_sensors(scene: &Scene) -> String {
 }
 
 pub fn run(a: CrbArgs) -> anyhow::Result<()> {
+    guard::at_least_one("every", a.every, "print every n-th frame")?;
     let mut scene = Scene::load(&a.scene)?;
     let traj = Trajectory::load(&a.trajectory)?;
     sensors::apply_choice(&a.sensors, &mut scene)
@@ -74,7 +77,7 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
     } else {
         None
     };
-    let every = a.every.max(1);
+    let every = a.every;
     let (k, what) = if a.half_width {
         (Z95, "95 % half-width (1.96σ)")
     } else {
@@ -141,6 +144,6 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
         }
         let _ = writeln!(out);
     }
-    print!("{out}");
+    out!("{out}");
     Ok(())
 }

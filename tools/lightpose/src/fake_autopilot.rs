@@ -7,6 +7,7 @@
 //! errors. The messages and the comparison are `lightpose_vehicle::standin`;
 //! this file is the loop.
 
+use crate::stdout::outln;
 use anyhow::{anyhow, Context};
 use lightpose_core::Angle;
 use lightpose_sim::{Scene, Trajectory};
@@ -249,7 +250,7 @@ pub fn run(a: FakeAutopilotArgs) -> anyhow::Result<()> {
         .build()
         .context("tokio runtime")?;
     rt.block_on(s.serve(endpoint, rate, a.duration))?;
-    println!("{}", s.summary());
+    outln!("{}", s.summary());
     Ok(())
 }
 
@@ -293,7 +294,7 @@ impl Session {
                 }
                 _ = report.tick() => {
                     if let Some(line) = self.progress() {
-                        println!("{line}");
+                        outln!("{line}");
                     }
                 }
                 r = link.recv(scanner.spare()) => match r {
@@ -388,14 +389,14 @@ impl Session {
                     let e = self.stats.push(&est, &truth);
                     self.latest = Some(e);
                     if self.verbose {
-                        println!("VISION_POSITION_ESTIMATE t {t:.3} s  NED {:+.3} {:+.3} {:+.3} m  pitch {:+.2}° heading {:+.2}°  reset {}  error {}", p.position.0[0], p.position.0[1], p.position.0[2], p.pitch.deg(), p.heading.deg(), p.reset_counter, errors(&e));
+                        outln!("VISION_POSITION_ESTIMATE t {t:.3} s  NED {:+.3} {:+.3} {:+.3} m  pitch {:+.2}° heading {:+.2}°  reset {}  error {}", p.position.0[0], p.position.0[1], p.position.0[2], p.pitch.deg(), p.heading.deg(), p.reset_counter, errors(&e));
                     }
                 }
                 Some(Received::Speed(v)) => {
                     self.speeds += 1;
                     if self.verbose {
                         let [n, e, d] = v.velocity.0;
-                        println!(
+                        outln!(
                             "VISION_SPEED_ESTIMATE t {:.3} s  NED {n:+.3} {e:+.3} {d:+.3} m/s",
                             v.usec as f64 * 1e-6
                         );

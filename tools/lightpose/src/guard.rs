@@ -26,6 +26,16 @@ pub fn at_most(flag: &str, n: usize, max: usize, why: &str) -> anyhow::Result<()
     Ok(())
 }
 
+/// `--{flag} n` must be at least 1, for a count the libraries would take
+/// as 1 (`what` says what one is): 0 asked for nothing, and must not be
+/// answered with something.
+pub fn at_least_one(flag: &str, n: usize, what: &str) -> anyhow::Result<()> {
+    if n == 0 {
+        bail!("--{flag} 0: at least 1 ({what})");
+    }
+    Ok(())
+}
+
 /// `runs` realizations of `frames` frames each must fit [`MAX_RUN_FRAMES`].
 pub fn run_frames(what: impl Display, runs: usize, frames: u64) -> anyhow::Result<()> {
     let total = (runs as u64).saturating_mul(frames);
@@ -93,6 +103,12 @@ mod tests {
             format!("--runs {}: at most 1000000 (memory)", usize::MAX)
         );
         assert!(run_frames("x", MAX_RUNS, u64::MAX).is_err());
+        assert!(at_least_one("every", 1, "frames").is_ok());
+        let e = at_least_one("every", 0, "print every n-th frame").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "--every 0: at least 1 (print every n-th frame)"
+        );
         assert!(run_frames("x", 2000, 41).is_ok());
     }
 }

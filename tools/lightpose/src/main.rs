@@ -10,6 +10,7 @@ mod guard;
 mod montecarlo;
 mod replay;
 mod simulate;
+mod stdout;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

@@ -4,6 +4,7 @@
 //! writes the results and prints the speed.
 
 use crate::guard;
+use crate::stdout::outln;
 use anyhow::Context;
 use lightpose_analysis::montecarlo::{self, progress_bar, McConfig};
 use lightpose_analysis::report::{self, RunInfo};
@@ -69,6 +70,9 @@ pub fn run(a: MontecarloArgs) -> anyhow::Result<()> {
     };
     // Check the name before any thread starts, for a clean one-line error.
     build_estimator(&a.estimator, &cal)?;
+    // The writer's own step, before the runs: an --out that cannot be a
+    // directory fails now, not after every realization.
+    report::create_dir(&a.out).context("writing results")?;
     let cfg = McConfig {
         scene,
         trajectory,
@@ -87,7 +91,7 @@ pub fn run(a: MontecarloArgs) -> anyhow::Result<()> {
     };
     // The error names the file.
     report::write_all(&result, &info, &a.out).context("writing results")?;
-    println!(
+    outln!(
         "montecarlo: {} realizations x {} frames ({}) in {:.2} s: {:.0} realizations/s on {} threads",
         result.runs,
         result.times.len(),
@@ -96,7 +100,7 @@ pub fn run(a: MontecarloArgs) -> anyhow::Result<()> {
         result.rate(),
         result.threads
     );
-    println!(
+    outln!(
         "case: {}; wrote {}/{{{},{},{}.png,{}.svg}}",
         case.map_or("none (no paper comparison)", |c| c.as_str()),
         a.out.display(),
@@ -163,6 +167,24 @@ mod tests {
             assert!(e.contains(want), "{e:?} lacks {want:?}");
             assert!(!e.contains('\n'), "{e:?} is not one line");
         }
+    }
+
+    /// Audit: an --out that is a file failed only after every realization
+    /// had run; now at once, before any.
+    #[test]
+    fn an_out_that_cannot_be_a_directory_fails_before_the_runs() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("taken");
+        std::fs::write(&file, "x").unwrap();
+        let mut a = args(&file);
+        // Enough realizations that running them first would show.
+        a.runs = 1_000_000;
+        let t0 = std::time::Instant::now();
+        let e = format!("{:#}", run(a).unwrap_err());
+        assert!(e.starts_with("writing results: "), "{e}");
+        assert!(e.contains(&file.display().to_string()), "{e}");
+        assert!(t0.elapsed() < std::time::Duration::from_secs(20), "{e}");
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
     }
 
     #[test]

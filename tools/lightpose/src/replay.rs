@@ -3,6 +3,7 @@
 //! against the log's truth. Thin: the loop is `lightpose_pipeline::replay`.
 
 use crate::guard;
+use crate::stdout::{out, outln};
 use anyhow::Context;
 use lightpose_core::FrameLog;
 use lightpose_core::Status;
@@ -69,17 +70,17 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     say_log(&a, log.as_ref());
     if a.report {
         match &s.report {
-            Some(r) => print!("{r}"),
+            Some(r) => out!("{r}"),
             None => eprintln!(
                 "lightpose: {}: no truth in the log, no error report",
                 a.log.display()
             ),
         }
         if let Some(line) = s.readings_line() {
-            println!("readings: {line}");
+            outln!("readings: {line}");
         }
         if let Some(line) = s.agreement_line() {
-            println!("reading check, window mean of ν/√S farthest from 0: {line}");
+            outln!("reading check, window mean of ν/√S farthest from 0: {line}");
         }
     }
     Ok(())

@@ -231,7 +231,7 @@ fn a_signing_stand_in_signs_what_it_sends() {
         .arg("--trajectory")
         .arg(root().join("config/trajectories/dive.csv"))
         .args(["--connect", &format!("udpout:127.0.0.1:{port}")])
-        .args(["--duration", "1", "--rate", "20"])
+        .args(["--duration", "3", "--rate", "20"])
         .arg("--signing-passphrase-file")
         .arg(&pass)
         .stdout(Stdio::null())

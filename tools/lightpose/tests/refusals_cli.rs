@@ -88,6 +88,43 @@ fn monte_carlo_run_counts_are_bounded() {
     refused(&a, &["--timing-runs 18446744073709551615: at most 1000"]);
 }
 
+/// Audit: `crb --every 0` was taken as 1 and `bench --timing-runs 0`
+/// printed a time per frame measured over no run. 0 asks for nothing:
+/// refused in one line, as `--runs 0` is.
+#[test]
+fn zero_counts_are_refused() {
+    let (sc, tr) = (scene(), dive());
+    refused(
+        &[
+            "crb",
+            "--scene",
+            s(&sc),
+            "--trajectory",
+            s(&tr),
+            "--every",
+            "0",
+        ],
+        &["--every 0: at least 1"],
+    );
+    let r = s(&root()).to_string();
+    refused(
+        &[
+            "bench",
+            "--root",
+            &r,
+            "--case",
+            "dive-tank",
+            "--sensors",
+            "none",
+            "--runs",
+            "1",
+            "--timing-runs",
+            "0",
+        ],
+        &["--timing-runs 0: at least 1"],
+    );
+}
+
 /// Item 2: a duration or noise that would panic or mean nothing.
 #[test]
 fn fake_autopilot_refuses_impossible_numbers() {

@@ -5,6 +5,7 @@
 //! through.
 
 use super::ConfigError;
+use lightpose_core::bounds::shown;
 use lightpose_core::textfile::{excerpt, one_line};
 use lightpose_core::textpos::line_of_offset;
 use std::net::SocketAddr;
@@ -75,20 +76,26 @@ impl Ctx<'_> {
     /// unknown key), at the line of its span.
     pub fn toml_error(&self, e: &toml::de::Error) -> ConfigError {
         let msg = e.message().trim().replace('\n', " ");
-        match e.span() {
-            Some(s) => self.at(
-                line_of_offset(self.src, s.start),
-                &key_on_line(self.src, s.start),
-                msg,
-            ),
-            None => self.whole(msg),
+        let Some(s) = e.span() else {
+            return self.whole(msg);
+        };
+        let line = line_of_offset(self.src, s.start);
+        match key_on_line(self.src, s.start) {
+            Some(key) => self.at(line, &key, msg),
+            // A line that is no `key =` (a syntax error): no key to name.
+            None => ConfigError::Line {
+                file: self.file.to_string(),
+                line,
+                msg: one_line(&msg),
+            },
         }
     }
 }
 
 /// The key written on the line of `offset`, for errors whose span points at
-/// a value; "?" when the line holds no `key =`.
-pub(super) fn key_on_line(src: &str, offset: usize) -> String {
+/// a value (or the table of a `[table]` line); `None` when the line holds
+/// neither.
+pub(super) fn key_on_line(src: &str, offset: usize) -> Option<String> {
     let start = src[..offset.min(src.len())]
         .rfind('\n')
         .map_or(0, |i| i + 1);
@@ -96,18 +103,15 @@ pub(super) fn key_on_line(src: &str, offset: usize) -> String {
     match line.split_once('=') {
         Some((k, _)) if !k.trim().is_empty() && !k.trim_start().starts_with('[') => {
             let key = k.trim().trim_matches('"');
-            match enclosing_table(&src[..start]) {
+            Some(match enclosing_table(&src[..start]) {
                 Some(table) => format!("{table}.{key}"),
                 None => key.to_string(),
-            }
+            })
         }
         _ => {
             let t = line.trim();
-            if t.starts_with('[') {
-                t.trim_matches(|c| c == '[' || c == ']').to_string()
-            } else {
-                "?".into()
-            }
+            t.starts_with('[')
+                .then(|| t.trim_matches(|c| c == '[' || c == ']').to_string())
         }
     }
 }
@@ -157,7 +161,11 @@ pub(super) fn positive_to(
     if x.is_finite() && x > 0.0 && x <= hi {
         Ok(x)
     } else {
-        Err(ctx.err(v.span(), key, format!("{x} is not in (0, {hi}]{unit}")))
+        Err(ctx.err(
+            v.span(),
+            key,
+            format!("{} is not in (0, {hi}]{unit}", shown(x)),
+        ))
     }
 }
 
@@ -173,7 +181,11 @@ pub(super) fn within(
     if x.is_finite() && (lo..=hi).contains(&x) {
         Ok(x)
     } else {
-        Err(ctx.err(v.span(), key, format!("{x} is not in {lo}..={hi}{unit}")))
+        Err(ctx.err(
+            v.span(),
+            key,
+            format!("{} is not in {lo}..={hi}{unit}", shown(x)),
+        ))
     }
 }
 

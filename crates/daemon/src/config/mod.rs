@@ -134,6 +134,13 @@ pub enum ConfigError {
         key: String,
         msg: String,
     },
+    /// At a line that names no key (toml's syntax errors).
+    #[error("{file}:{line}: {msg}")]
+    Line {
+        file: String,
+        line: usize,
+        msg: String,
+    },
     #[error("{file}: {msg}")]
     Whole { file: String, msg: String },
 }
@@ -323,7 +330,18 @@ destinations = ["127.0.0.1:9999"]
     #[test]
     fn bad_values_name_line_and_key() {
         let e = err(&MIN.replace("rate_hz = 50.0", "rate_hz = -1.0"));
-        assert_eq!(e, "t.toml:2: rate_hz: -1 is not in (0, 10000] Hz");
+        assert_eq!(
+            e,
+            "t.toml:2: rate_hz: -1 is not in 0.001..=10000 Hz (a frame at least every 1000 s)"
+        );
+        // Audit: 1e-300 Hz was taken and the pacer, its period past a
+        // Duration, ran flat out.
+        let e = err(&MIN.replace("rate_hz = 50.0", "rate_hz = 1e-300"));
+        assert_eq!(
+            e,
+            "t.toml:2: rate_hz: 1e-300 is not in 0.001..=10000 Hz (a frame at least every 1000 s)"
+        );
+        assert!(parse(&MIN.replace("rate_hz = 50.0", "rate_hz = 0.001")).is_ok());
         let e = err(&MIN.replace("127.0.0.1:9999", "nowhere"));
         assert!(
             e.starts_with("t.toml:11: outputs.destinations: \"nowhere\""),
@@ -357,6 +375,10 @@ destinations = ["127.0.0.1:9999"]
             "{e}"
         );
         assert!(!e.contains('\n'), "one line: {e}");
+        // Audit: a line that is no `key =` was said with a key of "?".
+        let e = err("this is [ not toml");
+        assert!(e.starts_with("t.toml:1: expected "), "{e}");
+        assert!(!e.contains('?'), "{e}");
     }
 
     #[test]
@@ -522,10 +544,12 @@ destinations = ["127.0.0.1:9999"]
         assert_eq!(line_of_offset(s, 0), 1);
         assert_eq!(line_of_offset(s, 6), 2);
         assert_eq!(line_of_key_in_table(s, 6, "b"), 3);
-        assert_eq!(key_on_line(s, 14), "t.b");
-        assert_eq!(key_on_line(s, 0), "a");
+        assert_eq!(key_on_line(s, 14).as_deref(), Some("t.b"));
+        assert_eq!(key_on_line(s, 0).as_deref(), Some("a"));
+        assert_eq!(key_on_line(s, 6).as_deref(), Some("t"), "a header");
+        assert_eq!(key_on_line("x y\n", 0), None, "no key on the line");
         // An array of tables, a header with a comment.
         let s = "[[x]] # boards\nc = 3\n";
-        assert_eq!(key_on_line(s, 15), "x.c");
+        assert_eq!(key_on_line(s, 15).as_deref(), Some("x.c"));
     }
 }

@@ -1,10 +1,10 @@
 //! The top-level keys: the frame rate, the lateness tolerance, the
 //! estimator's name and the calibration.
 //!
-//! Ranges: `rate_hz` (0, 10000] Hz (hal's bound for every source);
-//! `late_tolerance` (0, 10] periods.
+//! Ranges: `rate_hz` 0.001..=10000 Hz (the top: hal's bound for every
+//! source; the bottom: [`MIN_RATE_HZ`]); `late_tolerance` (0, 10] periods.
 
-use super::locate::{positive_to, Ctx};
+use super::locate::{positive_to, within, Ctx};
 use super::{embedded, ConfigError, Raw};
 use lightpose_core::textfile::TextSource;
 
@@ -18,9 +18,19 @@ pub(super) struct Top {
     pub calibration_line: usize,
 }
 
+/// The slowest frame rate: hal's for every source (a frame at least every
+/// 1000 s; 1e-300 Hz left the pacer without a period).
+use lightpose_hal::config::{MAX_RATE_HZ, MIN_RATE_HZ};
+
 pub(super) fn validate(ctx: &Ctx, raw: &Raw) -> Result<Top, ConfigError> {
     let rate_hz = match &raw.rate_hz {
-        Some(v) => positive_to(ctx, v, "rate_hz", 10_000.0, " Hz")?,
+        Some(v) => within(
+            ctx,
+            v,
+            "rate_hz",
+            (MIN_RATE_HZ, MAX_RATE_HZ),
+            " Hz (a frame at least every 1000 s)",
+        )?,
         None => 5.0,
     };
     let late_tolerance = match &raw.late_tolerance {

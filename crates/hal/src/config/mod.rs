@@ -237,15 +237,29 @@ pub(crate) fn err(key: impl Into<String>, msg: impl Into<String>) -> HalError {
 }
 
 /// `rate_hz`, or the env's when absent; `None` = as fast as possible.
+/// The slowest frame rate a source is paced at, Hz: a frame at least
+/// every 1000 s. A rate whose period is past what a `Duration` holds
+/// (1e-300 Hz) left the pacer without a period, frames as fast as they
+/// came (a bad-input audit).
+pub const MIN_RATE_HZ: f64 = 0.001;
+/// The fastest, Hz.
+pub const MAX_RATE_HZ: f64 = 10_000.0;
+
 pub(crate) fn rate(r: Option<f64>, env: &dyn Env) -> Result<Option<f64>, HalError> {
     let r = r.unwrap_or_else(|| env.default_rate_hz());
-    if !r.is_finite() || !(0.0..=10_000.0).contains(&r) {
+    if r == 0.0 {
+        return Ok(None);
+    }
+    if !r.is_finite() || !(MIN_RATE_HZ..=MAX_RATE_HZ).contains(&r) {
         return Err(err(
             "rate_hz",
-            format!("{r} is not in 0..=10000 (0 = as fast as possible)"),
+            format!(
+                "{} is not 0 (as fast as possible) or in {MIN_RATE_HZ}..={MAX_RATE_HZ} Hz (a frame at least every 1000 s)",
+                lightpose_core::bounds::shown(r)
+            ),
         ));
     }
-    Ok((r > 0.0).then_some(r))
+    Ok(Some(r))
 }
 
 /// `v` if it is in `lo..=hi` (a finite number), else an error naming `key`
