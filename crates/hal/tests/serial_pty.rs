@@ -404,8 +404,13 @@ fn a_port_lost_between_frames_is_told_when_it_reopens() {
         drop(b0);
         thread::sleep(Duration::from_millis(50));
         let b0 = Pty::plug(&path);
-        let w = later(&b0.master, Duration::from_millis(150), line(0, 2, 200));
-        w.join().unwrap();
+        // A board streams: lines every 50 ms for a second (the reopen
+        // flushes what came before it, whenever it comes).
+        let mut m = b0.master.try_clone().expect("clone master");
+        for j in 0..20 {
+            thread::sleep(Duration::from_millis(50));
+            let _ = m.write_all(&line(0, 2 + j, 200));
+        }
         b0
     });
     // (On a loaded machine the frame may come before the replug, and fail

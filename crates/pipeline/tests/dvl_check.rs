@@ -299,6 +299,16 @@ fn a_reload_keeps_the_dvl_refused() {
             let told = after[0].2.expect("the turn told from the first frame");
             assert!((told - deg).abs() < 6.0, "told {told}°");
         }
+        // A calibration with the checks off takes no verdict: nothing
+        // would ever update it, and STATUS would say refused for good.
+        let mut cal = Calibration::load(&root().join("config/calibration/tank.toml")).unwrap();
+        let mut settings = cal.estimator.take().unwrap_or_default();
+        settings.tracker.dvl_check = false;
+        cal.estimator = Some(settings);
+        let mut off = build_estimator("auto", &cal).expect("auto");
+        off.take_findings(old.findings().expect("findings").as_ref());
+        let unchecked = run_on(&mut *off, &frames[split..], deg);
+        assert!(unchecked.iter().all(|u| !u.1 && u.2.is_none()), "{deg}°");
     }
 }
 

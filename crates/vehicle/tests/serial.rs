@@ -154,6 +154,20 @@ fn flood_until(
     cond()
 }
 
+/// An autopilot on a pty at `baud` that never reads, the hub and the
+/// link's settings (heartbeats every 50 ms).
+fn silent_autopilot(baud: u32) -> (tempfile::TempDir, Pty, std::sync::Arc<Hub>, MavlinkSettings) {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("ttyAUTOPILOT");
+    let ap = Pty::plug(&link);
+    let mut s = MavlinkSettings::new(
+        format!("serial:{}:{baud}", link.display()).parse().unwrap(),
+        Site::new(Angle::ZERO, 3.0),
+    );
+    s.heartbeat_period = Duration::from_millis(50);
+    (dir, ap, Hub::new(), s)
+}
+
 /// The autopilot stops reading but stays plugged in (a USB CDC port whose
 /// firmware hangs): once the pty's buffer is full, writes wait forever.
 /// The link is lost within its write bound (1 s at 115200 baud), counted
@@ -161,31 +175,23 @@ fn flood_until(
 /// again a bound after it opened.
 #[test]
 fn a_serial_port_nobody_reads_is_lost_within_the_write_bound() {
-    let dir = tempfile::tempdir().unwrap();
-    let link = dir.path().join("ttyAUTOPILOT");
     // The task is stopped after the device is gone (on a failure too: a
     // write the bound does not end would hold the stop up until then).
     let _running;
-    let _ap = Pty::plug(&link);
-    let hub = Hub::new();
-    let mut s = MavlinkSettings::new(
-        format!("serial:{}:115200", link.display()).parse().unwrap(),
-        Site::new(Angle::ZERO, 3.0),
-    );
-    s.heartbeat_period = Duration::from_millis(50);
+    let (_dir, _ap, hub, mut s) = silent_autopilot(115200);
     s.reopen_max = Duration::from_millis(200);
     let bound = write_bound(115200);
-    assert_eq!(bound, Duration::from_secs(1));
     _running = spawn_mavlink(s, hub.clone());
 
     let st = |hub: &Hub| hub.mavlink.status(Instant::now());
     let mut seq = 0;
-    let lost = flood_until(&hub, &mut seq, Duration::from_secs(10), || {
+    let lost = flood_until(&hub, &mut seq, bound + Duration::from_secs(10), || {
         st(&hub).link_failures >= 1
     });
     assert!(lost, "{:?}", st(&hub));
     let why = st(&hub).last_error.unwrap_or_default();
-    assert!(why.contains("did not go out within 1000 ms"), "{why}");
+    let said = format!("did not go out within {} ms", bound.as_millis());
+    assert!(why.contains(&said), "{why}");
 
     // Reopened (after the back-off) onto the same full buffer: its first
     // heartbeat waits, and the bound ends it.
@@ -197,8 +203,10 @@ fn a_serial_port_nobody_reads_is_lost_within_the_write_bound() {
         st(&hub).link_failures >= 2
     }));
     let took = opened.elapsed();
+    // Seen by polling on a loaded machine: about the bound, not at once
+    // and not never.
     assert!(
-        took >= bound - Duration::from_millis(50) && took <= bound + Duration::from_millis(750),
+        took >= bound / 2 && took <= bound + Duration::from_secs(2),
         "lost {took:?} after the reopen, the bound is {bound:?}"
     );
 }
@@ -207,15 +215,7 @@ fn a_serial_port_nobody_reads_is_lost_within_the_write_bound() {
 /// not after the write bound (68 s at 1200 baud).
 #[test]
 fn a_stop_is_honoured_while_a_serial_write_waits() {
-    let dir = tempfile::tempdir().unwrap();
-    let link = dir.path().join("ttyAUTOPILOT");
-    let ap = Pty::plug(&link);
-    let hub = Hub::new();
-    let mut s = MavlinkSettings::new(
-        format!("serial:{}:1200", link.display()).parse().unwrap(),
-        Site::new(Angle::ZERO, 3.0),
-    );
-    s.heartbeat_period = Duration::from_millis(50);
+    let (_dir, ap, hub, s) = silent_autopilot(1200);
     assert!(write_bound(1200) > Duration::from_secs(60));
     let running = spawn_mavlink(s, hub.clone());
 
@@ -241,13 +241,14 @@ fn a_stop_is_honoured_while_a_serial_write_waits() {
         drop(running);
         let _ = done_tx.send(());
     });
-    let stopped = done_rx.recv_timeout(Duration::from_secs(2));
+    let stopped = done_rx.recv_timeout(Duration::from_secs(10));
     assert!(
         stopped.is_ok(),
-        "the task did not stop within 2 s of the stop while a write waited"
+        "the task did not stop within 10 s of the stop while a write waited"
     );
+    // At once, not after the bound (68 s); a loaded machine's margin.
     assert!(
-        stopping.elapsed() < Duration::from_millis(500),
+        stopping.elapsed() < Duration::from_secs(3),
         "{:?}",
         stopping.elapsed()
     );

@@ -8,7 +8,7 @@
 use crate::guard;
 use anyhow::Context;
 use lightpose_pipeline::calibration::{
-    calibrate_full, CalibrateOptions, ParamEstimate, ScatterFit,
+    calibrate_full, CalibrateOptions, ParamEstimate, PhysicalCalibration, ScatterFit,
 };
 use std::path::PathBuf;
 
@@ -105,44 +105,49 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
         eprintln!("lightpose: warning: no [physical] light model written: {e}");
     }
     if let Some(p) = &cal.physical {
-        let pm = |v: &ParamEstimate| format!("{:.5} ± {:.5}", v.value, v.std);
-        eprintln!(
-            "  light model ({} poses, {} frames, chi2/dof {:.2}):",
-            p.poses, p.frames, p.chi2_per_dof
-        );
-        eprintln!("    V1      = {} V", pm(&p.v1));
-        eprintln!("    sigma_b = {} deg", pm(&p.sigma_b_deg));
-        eprintln!("    sigma_R = {} deg", pm(&p.sigma_r_deg));
-        eprintln!("    K_D     = {} 1/m", pm(&p.k_d));
-        match (&p.omega, &p.sigma_h_deg) {
-            (Some(o), Some(h)) => {
-                eprintln!("    omega   = {}", pm(o));
-                eprintln!("    sigma_h = {} deg", pm(h));
-            }
-            _ => eprintln!("    scattering: not modelled"),
-        }
-        let worst = |v: &[ParamEstimate]| v.iter().map(|g| g.std).fold(0.0, f64::max);
-        let spread = |v: &[ParamEstimate]| {
-            let (lo, hi) = v
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), g| {
-                    (l.min(g.value), h.max(g.value))
-                });
-            format!("{lo:.4}..{hi:.4}")
-        };
-        eprintln!(
-            "    gains   {} (worst ± {:.5}); offsets {} V (worst ± {:.5})",
-            spread(&p.gain),
-            worst(&p.gain),
-            spread(&p.offset_v),
-            worst(&p.offset_v)
-        );
-        eprintln!(
-            "    noise: sigma_e {:.4} V, kappa {:.5} V",
-            p.sigma_e_v, p.kappa_v
-        );
+        print_light_model(p);
     }
     Ok(())
+}
+
+/// The fitted light model, each parameter with its standard error.
+fn print_light_model(p: &PhysicalCalibration) {
+    let pm = |v: &ParamEstimate| format!("{:.5} ± {:.5}", v.value, v.std);
+    eprintln!(
+        "  light model ({} poses, {} frames, chi2/dof {:.2}):",
+        p.poses, p.frames, p.chi2_per_dof
+    );
+    eprintln!("    V1      = {} V", pm(&p.v1));
+    eprintln!("    sigma_b = {} deg", pm(&p.sigma_b_deg));
+    eprintln!("    sigma_R = {} deg", pm(&p.sigma_r_deg));
+    eprintln!("    K_D     = {} 1/m", pm(&p.k_d));
+    match (&p.omega, &p.sigma_h_deg) {
+        (Some(o), Some(h)) => {
+            eprintln!("    omega   = {}", pm(o));
+            eprintln!("    sigma_h = {} deg", pm(h));
+        }
+        _ => eprintln!("    scattering: not modelled"),
+    }
+    let worst = |v: &[ParamEstimate]| v.iter().map(|g| g.std).fold(0.0, f64::max);
+    let spread = |v: &[ParamEstimate]| {
+        let (lo, hi) = v
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), g| {
+                (l.min(g.value), h.max(g.value))
+            });
+        format!("{lo:.4}..{hi:.4}")
+    };
+    eprintln!(
+        "    gains   {} (worst ± {:.5}); offsets {} V (worst ± {:.5})",
+        spread(&p.gain),
+        worst(&p.gain),
+        spread(&p.offset_v),
+        worst(&p.offset_v)
+    );
+    eprintln!(
+        "    noise: sigma_e {:.4} V, kappa {:.5} V",
+        p.sigma_e_v, p.kappa_v
+    );
 }
 
 /// The options are the user's: name them, rather than let the fit say it

@@ -158,6 +158,22 @@ pub struct Link {
     inner: Inner,
 }
 
+impl Drop for Link {
+    /// A serial port's unsent output is discarded before it closes: Linux
+    /// waits up to the tty's `closing_wait` (30 s by default) for output
+    /// to drain, and a far end that stopped reading never drains it, so
+    /// the stop, or the reopen after a stall, would wait that long (a
+    /// review). Poses that did not go out are stale by then anyway.
+    fn drop(&mut self) {
+        if let Inner::Serial { fd, .. } = &self.inner {
+            // SAFETY: the descriptor is the TTYPort's, open until the
+            // AsyncFd (dropped after this) closes it.
+            let borrowed = unsafe { std::os::fd::BorrowedFd::borrow_raw(fd.as_raw_fd()) };
+            let _ = nix::sys::termios::tcflush(borrowed, nix::sys::termios::FlushArg::TCOFLUSH);
+        }
+    }
+}
+
 /// What became of an outgoing frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Sent {
@@ -375,19 +391,30 @@ pub struct WriteStalled {
 }
 
 /// The kernel transmit buffer a live serial link may have to drain before
-/// a frame of ours goes out: a UART's (`UART_XMIT_SIZE`, a page).
-const TX_BUFFER_BYTES: u64 = 4096;
+/// a frame of ours goes out: a UART's is a page (`UART_XMIT_SIZE`), 4 KiB
+/// on most machines but 16 KiB on a Raspberry Pi 5's kernel, and the tty
+/// layer wakes a writer only once it is nearly empty, so a frame may wait
+/// for all of it (a review: a fixed 4 KiB called a healthy 57600-baud
+/// radio lost on 16 KiB pages).
+fn tx_buffer_bytes() -> u64 {
+    let page = nix::unistd::sysconf(nix::unistd::SysconfVar::PAGE_SIZE);
+    page.ok().flatten().map_or(4096, |p| p.max(4096) as u64)
+}
 
 /// How long one frame may take to go out at `baud` before the far end is
 /// taken to have stopped reading: twice the time a full transmit buffer
-/// takes to drain at 10 bits a byte (8N1), and never under 1 s (the
-/// heartbeat period; USB's scheduling). A port that is read drains, one
-/// that is not fills at any rate we send, so the bound only decides how
-/// soon a stall is called lost: 1 s up to 115200 baud (a USB CDC
-/// autopilot, whose nominal baud is ignored), 1.4 s at 57600, 8.5 s at
-/// 9600.
+/// (a page) takes to drain at 10 bits a byte (8N1), and never under 1 s
+/// (the heartbeat period; USB's scheduling). A port that is read drains,
+/// one that is not fills at any rate we send, so the bound only decides
+/// how soon a stall is called lost. With 4 KiB pages: 1 s up to 115200
+/// baud (a USB CDC autopilot, whose nominal baud is ignored), 1.4 s at
+/// 57600, 8.5 s at 9600; with 16 KiB, 2.8 s / 5.7 s / 34 s.
 pub fn write_bound(baud: u32) -> Duration {
-    let drain_us = TX_BUFFER_BYTES * 10 * 1_000_000 / u64::from(baud.max(1));
+    write_bound_for(baud, tx_buffer_bytes())
+}
+
+fn write_bound_for(baud: u32, buffer_bytes: u64) -> Duration {
+    let drain_us = buffer_bytes * 10 * 1_000_000 / u64::from(baud.max(1));
     Duration::from_secs(1).max(Duration::from_micros(2 * drain_us))
 }
 
@@ -438,15 +465,21 @@ mod tests {
 
     #[test]
     fn the_write_bound_is_a_second_or_twice_a_full_buffer_at_the_baud() {
-        assert_eq!(write_bound(921_600), Duration::from_secs(1));
-        assert_eq!(write_bound(115_200), Duration::from_secs(1));
+        let page = 4096;
+        assert_eq!(write_bound_for(921_600, page), Duration::from_secs(1));
+        assert_eq!(write_bound_for(115_200, page), Duration::from_secs(1));
         // 4096 bytes × 10 bits at 57600 baud: 711 ms, twice over.
-        let b = write_bound(57_600);
+        let b = write_bound_for(57_600, page);
         assert!(
             b > Duration::from_millis(1420) && b < Duration::from_millis(1425),
             "{b:?}"
         );
-        assert!(write_bound(9_600) > Duration::from_secs(8));
-        assert!(write_bound(0) >= Duration::from_secs(1));
+        assert!(write_bound_for(9_600, page) > Duration::from_secs(8));
+        assert!(write_bound_for(0, page) >= Duration::from_secs(1));
+        // A Raspberry Pi 5's 16 KiB pages: four times the drain.
+        let b = write_bound_for(57_600, 16_384);
+        assert!(b > Duration::from_millis(5680) && b < Duration::from_millis(5700));
+        // This machine's page, at least 4 KiB.
+        assert!(write_bound(57_600) >= write_bound_for(57_600, page));
     }
 }
