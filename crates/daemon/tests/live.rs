@@ -691,3 +691,90 @@ fn the_daemon_stopping_closes_every_client() {
         assert_eq!(hub.evicted.load(std::sync::atomic::Ordering::Relaxed), 0);
     });
 }
+
+/// Attack audit: a client that sent pings without end and read nothing
+/// grew the daemon by its upload rate (3.4 GB in 17 s): each ping is
+/// "heard", so the silence check never fired, and its pongs queued in a
+/// write buffer without a bound. Now at most a megabyte waits unsent: this
+/// process (the server runs in it) grows by far less than the pongs of
+/// 256 MB of pings, sent as such a client sends them (masked frames, 64 a
+/// write, never a read).
+#[test]
+fn a_client_that_pings_without_end_and_reads_nothing_costs_no_memory() {
+    use tokio::io::AsyncWriteExt;
+    let rss_kb = || {
+        let s = std::fs::read_to_string("/proc/self/status").unwrap();
+        let line = s.lines().find(|l| l.starts_with("VmRSS:")).unwrap();
+        line.split_whitespace()
+            .nth(1)
+            .unwrap()
+            .parse::<u64>()
+            .unwrap()
+    };
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut limits = lightposed::outputs::live::server::Limits::new(16, 1);
+        limits.ping = Duration::from_secs(30);
+        limits.silence = Duration::from_secs(60);
+        let (hub, server) = live_server(limits).await;
+        let mut ws = tiny_buffer_client(hub.listen).await;
+        let mask = [0x12u8, 0x34, 0x56, 0x78];
+        let mut frame = vec![0x89u8, 0x80 | 125];
+        frame.extend_from_slice(&mask);
+        frame.extend((0..125).map(|i| b'p' ^ mask[i % 4]));
+        let burst = frame.repeat(64);
+        let before = rss_kb();
+        let (t0, mut sent) = (Instant::now(), 0usize);
+        while t0.elapsed() < Duration::from_secs(15) && sent < 256 << 20 {
+            let w = ws.get_mut().write_all(&burst);
+            match tokio::time::timeout(Duration::from_secs(1), w).await {
+                Ok(Ok(())) => sent += burst.len(),
+                _ => break,
+            }
+        }
+        let grew_mb = rss_kb().saturating_sub(before) / 1024;
+        // (Other tests run in this process: a margin for what they hold.)
+        assert!(sent >= 128 << 20, "only {sent} bytes of pings sent");
+        assert!(
+            grew_mb < 64,
+            "grew {grew_mb} MB while {} MB of pings were sent",
+            sent >> 20
+        );
+        server.abort();
+    });
+}
+
+/// Attack audit: a client connecting and leaving in a loop wrote a line
+/// or two per connection (267 455 lines in 20 s). The per-connection lines
+/// follow core's rule for repeated lines: 200 connections, a handful of
+/// lines, the last saying how many came since.
+#[test]
+fn a_connect_loop_does_not_flood_the_log() {
+    let mut connections = 0;
+    let log = lightpose_testkit::logs::logged(|| {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        connections = rt.block_on(async {
+            let (hub, server) =
+                live_server(lightposed::outputs::live::server::Limits::new(16, 4)).await;
+            for _ in 0..200 {
+                let tcp = tokio::net::TcpStream::connect(hub.listen).await.unwrap();
+                let (mut ws, _) = tokio_tungstenite::client_async(request(hub.listen), tcp)
+                    .await
+                    .expect("handshake");
+                let _ = ws.close(None).await;
+                while ws.next().await.is_some() {}
+            }
+            wait_for("every client gone", || hub.client_count() == 0).await;
+            server.abort();
+            let _ = server.await;
+            hub.report()["connections"].as_u64().unwrap_or(0)
+        });
+    });
+    assert_eq!(connections, 200);
+    let lines = log.lines().filter(|l| l.contains("foxglove:")).count();
+    assert!(lines <= 8, "{lines} lines for 200 connections:\n{log}");
+    assert!(log.contains("since_last_line"), "{log}");
+}

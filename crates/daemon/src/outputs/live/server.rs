@@ -91,6 +91,13 @@ const BATCH: usize = 64;
 /// about 300 bytes).
 const REQUEST_LIMIT: usize = 64 << 10;
 
+/// Bytes a connection may hold unsent (tungstenite's write buffer, 128 KiB
+/// by default, plus this): more, and the client is not reading. Unbounded
+/// (tungstenite's default), a client that sent pings without end and read
+/// nothing grew the daemon by its upload rate, its pongs queued (an audit:
+/// 3.4 GB in 17 s); the data the daemon sends has its own stall limit.
+const WRITE_BACKLOG: usize = 1 << 20;
+
 /// Queue sizes and limits of the server.
 #[derive(Debug, Clone, Copy)]
 pub struct Limits {
@@ -152,16 +159,15 @@ pub async fn serve(listener: TcpListener, hub: Arc<Hub>, limits: Limits) {
         // Refusals not told yet: wake at least every second for their
         // closing line (accept is cancel-safe); else wait for the next
         // connection as long as it takes.
-        let accepted = if flood.log.pending() > 0 {
+        let pending = || flood.log.pending() > 0 || flood.hub.conn_lines_pending();
+        let accepted = if pending() {
             tokio::time::timeout(Duration::from_secs(1), listener.accept())
                 .await
                 .ok()
         } else {
             Some(listener.accept().await)
         };
-        if flood.log.pending() > 0 {
-            flood.close(std::time::Instant::now(), Close::Over);
-        }
+        flood.close(std::time::Instant::now(), Close::Over);
         let Some(accepted) = accepted else { continue };
         match accepted {
             Ok((stream, addr)) => match handshaking.clone().try_acquire_owned() {
@@ -200,6 +206,14 @@ impl FloodLog {
     /// The closing line of the refusals `when` (core's `RateLog::settle`
     /// once they stopped, `RateLog::flush` at stop).
     fn close(&mut self, now: std::time::Instant, when: Close) {
+        if let Some((k, last)) = self.hub.close_conn_lines(now, when) {
+            tracing::info!(
+                connections = self.hub.connections.load(Relaxed),
+                since_last_line = k,
+                "foxglove: connection events (connected, gone, turned away, a failed handshake): {when}: {k} more since the last line, the last {:.1} s ago",
+                last.as_secs_f64()
+            );
+        }
         if let Some(k) = self.log.close(now, when) {
             tracing::warn!(
                 handshakes_refused = self.hub.handshakes_refused.load(Relaxed),
@@ -252,6 +266,7 @@ async fn handshake(stream: TcpStream) -> Result<WebSocketStream<TcpStream>, Stri
     let limits = WebSocketConfig::default()
         .max_message_size(Some(REQUEST_LIMIT))
         .max_frame_size(Some(REQUEST_LIMIT));
+    let limits = limits.max_write_buffer_size(limits.write_buffer_size + WRITE_BACKLOG);
     let accept = tokio_tungstenite::accept_hdr_async_with_config(stream, callback, Some(limits));
     match tokio::time::timeout(HANDSHAKE, accept).await {
         Ok(Ok(ws)) => Ok(ws),
@@ -397,7 +412,9 @@ async fn client(
     let mut ws = match shaken {
         Ok(ws) => ws,
         Err(e) => {
-            tracing::info!("foxglove: {addr}: {e}");
+            if let Some(k) = hub.conn_line() {
+                tracing::info!(since_last_line = k, "foxglove: {addr}: {e}");
+            }
             return;
         }
     };
@@ -406,7 +423,9 @@ async fn client(
         let _ = tokio::time::timeout(limits.stall, ws.close(None)).await;
         return;
     };
-    tracing::info!("foxglove: {addr} connected");
+    if let Some(k) = hub.conn_line() {
+        tracing::info!(since_last_line = k, "foxglove: {addr} connected");
+    }
     let end = session_loop(&mut ws, &mut rx, &hub, &c, &limits).await;
     hub.leave(c.id);
     let close = limits.stall.min(Duration::from_secs(1));
@@ -428,7 +447,12 @@ async fn client(
             "foxglove: {addr} gone (closed to make room); {sent} messages sent, {dropped} dropped"
         ),
         End::Other(why) => {
-            tracing::info!("foxglove: {addr} gone ({why}); {sent} messages sent, {dropped} dropped")
+            if let Some(k) = hub.conn_line() {
+                tracing::info!(
+                    since_last_line = k,
+                    "foxglove: {addr} gone ({why}); {sent} messages sent, {dropped} dropped"
+                )
+            }
         }
     }
 }
@@ -448,12 +472,15 @@ fn admit(
             tracing::info!("foxglove: {addr} turned away: the daemon stops");
             return None;
         }
-        tracing::warn!(
-            refused = hub.refused.load(Relaxed),
-            "foxglove: {addr} turned away: {max} clients already, none of them \
-             subscribed to nothing for {:.0} s or more",
-            limits.idle_evict.as_secs_f64()
-        );
+        if let Some(k) = hub.conn_line() {
+            tracing::warn!(
+                refused = hub.refused.load(Relaxed),
+                since_last_line = k,
+                "foxglove: {addr} turned away: {max} clients already, none of them \
+                 subscribed to nothing for {:.0} s or more",
+                limits.idle_evict.as_secs_f64()
+            );
+        }
         return None;
     };
     if let Some(gone) = joined.evicted {
