@@ -107,15 +107,9 @@ fn a_biased_depth_is_called_disagreeing_in_status() {
 /// agree.
 #[test]
 fn a_dvl_mounted_backwards_is_refused_by_the_light_in_status() {
-    let r = root();
     for turned in [0.0, 180.0] {
         let (sub, addr) = subscriber();
-        let text = format!(
-            "rate_hz = 10.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"mock\"\nscene = \"{}\"\ntrajectory = \"{}\"\nfaults = {{ dvl_turned_deg = {turned} }}\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 0.2\n",
-            r.join("config/calibration/tank.toml").display(),
-            r.join("tests/data/tank-sensors.toml").display(),
-            r.join("config/trajectories/zigzag.csv").display(),
-        );
+        let text = common::run::dvl_mock_config(turned, addr);
         let cfg = Config::parse(&text, "dvl.toml", None).expect("valid config");
         let h = common::run::run_in_process(cfg, Duration::from_secs(5));
         let mut msgs = Vec::new();

@@ -144,14 +144,8 @@ fn dvl_books(sub: &UdpSocket, d: Duration) -> Option<DvlBooks> {
 #[test]
 fn sighup_keeps_a_dvl_set_up_wrong_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let r = common::root();
     let (sub, addr) = subscriber();
-    let text = format!(
-        "rate_hz = 10.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"mock\"\nscene = \"{}\"\ntrajectory = \"{}\"\nfaults = {{ dvl_turned_deg = 180 }}\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 0.2\n",
-        r.join("config/calibration/tank.toml").display(),
-        r.join("tests/data/tank-sensors.toml").display(),
-        r.join("config/trajectories/zigzag.csv").display(),
-    );
+    let text = common::run::dvl_mock_config(180.0, addr);
     let cfg = dir.path().join("lightposed.toml");
     std::fs::write(&cfg, text).expect("config");
     let log = dir.path().join("stderr.log");

@@ -28,15 +28,11 @@ pub fn summary_of<R: Read + Seek>(src: &mut R, size: u64) -> Option<Vec<u8>> {
     src.seek(SeekFrom::Start(footer_at)).ok()?;
     let mut b = [0u8; FOOTER];
     read_full(src, &mut b).ok().filter(|&n| n == FOOTER)?;
-    let le = |r: std::ops::Range<usize>| {
-        let mut a = [0u8; 8];
-        a.copy_from_slice(&b[r]);
-        u64::from_le_bytes(a)
-    };
-    if b[0] != op::FOOTER || le(1..9) != 20 || b[HEAD + 20..] != mcap::MAGIC[..] {
+    let mut f = Fields::new(&b[1..]);
+    let (len, start, offsets) = (f.u64().ok()?, f.u64().ok()?, f.u64().ok()?);
+    if b[0] != op::FOOTER || len != 20 || b[HEAD + 20..] != mcap::MAGIC[..] {
         return None;
     }
-    let (start, offsets) = (le(9..17), le(17..25));
     let end = if offsets != 0 { offsets } else { footer_at };
     if start < 8 || start >= end || end > footer_at || end - start > RECORD_LIMIT {
         return None;

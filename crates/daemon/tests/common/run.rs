@@ -23,6 +23,19 @@ pub fn sim_config(rate: f64, dests: &[SocketAddr], backend_extra: &str, extra: &
     )
 }
 
+/// A config for the mock backend along the tank zigzag with all three own
+/// sensors at 10 Hz, its DVL turned `dvl_turned_deg`, the tracker, STATUS
+/// every 0.2 s to `dest`.
+pub fn dvl_mock_config(dvl_turned_deg: f64, dest: SocketAddr) -> String {
+    let r = root();
+    format!(
+        "rate_hz = 10.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"mock\"\nscene = \"{}\"\ntrajectory = \"{}\"\nfaults = {{ dvl_turned_deg = {dvl_turned_deg} }}\n[outputs]\ndestinations = [\"{dest}\"]\nstatus_interval_s = 0.2\n",
+        r.join("config/calibration/tank.toml").display(),
+        r.join("tests/data/tank-sensors.toml").display(),
+        r.join("config/trajectories/zigzag.csv").display(),
+    )
+}
+
 /// A config replaying `log` as fast as it goes, sending to `dest`.
 pub fn replay_config(log: &Path, dest: SocketAddr) -> String {
     format!(
