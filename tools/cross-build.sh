@@ -63,13 +63,14 @@ if [ ${#check_args[@]} -gt 0 ]; then
     echo "cross-build: checking $CHECK_ONLY"
     cargo check --release -p lightposed "${check_args[@]}"
 fi
+out=${CARGO_TARGET_DIR:-target}
 for t in "${built[@]}"; do
-    file "target/$t/release/lightposed" 2>/dev/null || ls -l "target/$t/release/lightposed"
+    file "$out/$t/release/lightposed" 2>/dev/null || ls -l "$out/$t/release/lightposed"
 done
 
 # --- armv7 smoke test under qemu-user ---------------------------------------
 case " ${built[*]} " in *" armv7-unknown-linux-gnueabihf "*) ;; *) exit 0 ;; esac
-BIN=target/armv7-unknown-linux-gnueabihf/release/lightposed
+BIN=$out/armv7-unknown-linux-gnueabihf/release/lightposed
 run() { qemu-arm -L /usr/arm-linux-gnueabihf "$BIN" "$@"; }
 
 run --version
