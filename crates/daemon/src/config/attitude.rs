@@ -76,16 +76,49 @@ pub(super) struct RawAttitude {
 }
 
 /// `None` unless the table says `enabled = true`; the heading from
-/// `[site]` (`site_heading_deg`) unless the table gives its own.
+/// `[site]` (`site_heading_deg`) unless the table gives its own. A table
+/// that is off is checked all the same ([`places::when_on`]); only what it
+/// needs of another table (the heading) is asked of it when it is on.
 pub(super) fn validate(
     ctx: &Ctx,
     raw: Option<&Spanned<RawAttitude>>,
     site_heading_deg: Option<f64>,
     at: &mut Places,
 ) -> Result<Option<AttitudeInput>, ConfigError> {
-    let Some(table) = raw.filter(|a| a.get_ref().enabled.unwrap_or(false)) else {
+    let Some(table) = raw else { return Ok(None) };
+    let enabled = table.get_ref().enabled.unwrap_or(false);
+    let Some(checked) = places::when_on(enabled, at, |at| check(ctx, table, site_heading_deg, at))?
+    else {
         return Ok(None);
     };
+    let Some(beacon_axis_heading_deg) = checked.heading else {
+        return Err(ctx.whole(
+            "[site] beacon_heading_deg: missing (the [attitude] input needs it to refer yaw to the beam)",
+        ));
+    };
+    Ok(Some(AttitudeInput {
+        listen: checked.listen,
+        beacon_axis_heading_deg,
+        max_age: checked.max_age,
+        allow_from: checked.allow_from,
+    }))
+}
+
+/// The table's own values, checked; the heading is `None` when neither it
+/// nor `[site]` gives one.
+struct Checked {
+    listen: SocketAddr,
+    heading: Option<f64>,
+    max_age: Duration,
+    allow_from: Option<Vec<Sender>>,
+}
+
+fn check(
+    ctx: &Ctx,
+    table: &Spanned<RawAttitude>,
+    site_heading_deg: Option<f64>,
+    at: &mut Places,
+) -> Result<Checked, ConfigError> {
     let a = table.get_ref();
     // Whether it can be bound shows only on this machine: `wiring::check`.
     at.set(
@@ -112,7 +145,7 @@ pub(super) fn validate(
         }
         None => SocketAddr::from((Ipv4Addr::LOCALHOST, 17151)),
     };
-    let beacon_axis_heading_deg = match (&a.beacon_axis_heading_deg, site_heading_deg) {
+    let heading = match (&a.beacon_axis_heading_deg, site_heading_deg) {
         (Some(h), site_deg) => {
             let own = within(
                 ctx,
@@ -129,26 +162,21 @@ pub(super) fn validate(
                         format!("{own}° conflicts with [site] beacon_heading_deg = {s}°: give the beacon's heading once, in [site]"),
                     ))
                 }
-                _ => own,
+                _ => Some(own),
             }
         }
-        (None, Some(s)) => s,
-        (None, None) => {
-            return Err(ctx.whole(
-                "[site] beacon_heading_deg: missing (the [attitude] input needs it to refer yaw to the beam)",
-            ))
-        }
+        (None, site_deg) => site_deg,
     };
     let max_age = match &a.max_age_s {
         Some(v) => Duration::from_secs_f64(positive_to(ctx, v, "attitude.max_age_s", 60.0, " s")?),
         None => Duration::from_millis(500),
     };
-    Ok(Some(AttitudeInput {
+    Ok(Checked {
         listen,
-        beacon_axis_heading_deg,
+        heading,
         max_age,
         allow_from,
-    }))
+    })
 }
 
 /// `allow_from`: each entry an IP or an IP:port; not empty (that would

@@ -34,15 +34,23 @@ pub(super) struct RawFoxglove {
 pub const DEFAULT_LISTEN: SocketAddr =
     SocketAddr::new(std::net::IpAddr::V4(Ipv4Addr::LOCALHOST), 8765);
 
-/// `None` when the table is absent or not enabled.
+/// `None` when the table is absent or not enabled (checked all the same:
+/// [`places::when_on`]).
 pub(super) fn validate(
     ctx: &Ctx,
     raw: Option<&Spanned<RawFoxglove>>,
     at: &mut Places,
 ) -> Result<Option<Foxglove>, ConfigError> {
-    let Some(table) = raw.filter(|r| r.get_ref().enabled.unwrap_or(true)) else {
-        return Ok(None);
-    };
+    let Some(table) = raw else { return Ok(None) };
+    let enabled = table.get_ref().enabled.unwrap_or(true);
+    places::when_on(enabled, at, |at| check(ctx, table, at))
+}
+
+fn check(
+    ctx: &Ctx,
+    table: &Spanned<RawFoxglove>,
+    at: &mut Places,
+) -> Result<Foxglove, ConfigError> {
     let r = table.get_ref();
     // Whether it can be bound shows only on this machine: `wiring::check`.
     at.set(
@@ -75,11 +83,11 @@ pub(super) fn validate(
         )),
         None => Ok(default),
     };
-    Ok(Some(Foxglove {
+    Ok(Foxglove {
         listen,
         client_queue: count(&r.client_queue, "foxglove.client_queue", 100_000, 256)?,
         max_clients: count(&r.max_clients, "foxglove.max_clients", 64, 4)?,
-    }))
+    })
 }
 
 #[cfg(test)]

@@ -436,6 +436,51 @@ destinations = ["127.0.0.1:9999"]
         assert!(e.starts_with("t.toml:5: backend.kind: missing"), "{e}");
     }
 
+    /// A table switched off is checked as if it were on: its mistake is
+    /// met now, not on the day it is switched on. Only what it would ask of
+    /// another table (the attitude input's heading from `[site]`) waits.
+    #[test]
+    fn a_table_switched_off_is_checked_all_the_same() {
+        for (table, want) in [
+            (
+                "[attitude]\nenabled = false\nmax_age_s = nan\n",
+                "t.toml:15: attitude.max_age_s: ",
+            ),
+            (
+                "[attitude]\nlisten = \"0.0.0.0:17151\"\n",
+                "t.toml:14: attitude.listen: 0.0.0.0:17151 is not a loopback address",
+            ),
+            (
+                "[foxglove]\nenabled = false\nclient_queue = 0\n",
+                "t.toml:15: foxglove.client_queue: 0 is not in 1..=100000",
+            ),
+            (
+                "[recording]\nenabled = false\nrotate_mb = -1\n",
+                "t.toml:15: recording.rotate_mb: ",
+            ),
+            (
+                "[outputs.multicast]\nenabled = false\ngroup = \"10.0.0.1:5600\"\n",
+                "t.toml:15: outputs.multicast.group: 10.0.0.1 is not a multicast address",
+            ),
+        ] {
+            let e = parse(&format!("{MIN}\n{table}")).unwrap_err().to_string();
+            assert!(e.starts_with(want), "{table}: {e}");
+        }
+        let off = "\n[attitude]\nenabled = false\nmax_age_s = 0.2\n[foxglove]\nenabled = false\n[recording]\nenabled = false\ndir = \"/tmp/r\"\n[outputs.multicast]\nenabled = false\ngroup = \"239.1.2.3:5600\"\n";
+        let c = parse(&format!("{MIN}{off}")).expect("well-formed tables that are off");
+        assert_eq!(
+            (c.attitude, c.foxglove, c.recording, c.outputs.multicast),
+            (None, None, None, None)
+        );
+        // The same attitude table switched on needs the beacon's heading.
+        let on = parse(&format!(
+            "{MIN}{}",
+            off.replacen("enabled = false", "enabled = true", 1)
+        ));
+        let e = on.unwrap_err().to_string();
+        assert!(e.contains("[site] beacon_heading_deg: missing"), "{e}");
+    }
+
     /// Issue 16: every number has a range, refused at its key's line.
     #[test]
     fn numbers_out_of_range_are_refused_at_their_line() {

@@ -58,8 +58,8 @@ pub(super) fn validate(
     at: &mut Places,
 ) -> Result<Outputs, ConfigError> {
     let multicast = match raw.and_then(|o| o.multicast.as_ref()) {
-        Some(m) if m.enabled.unwrap_or(true) => Some(multicast(ctx, m, at)?),
-        _ => None,
+        Some(m) => places::when_on(m.enabled.unwrap_or(true), at, |at| multicast(ctx, m, at))?,
+        None => None,
     };
     let destinations = match raw.and_then(|o| o.destinations.as_ref()) {
         Some(list) => destinations(ctx, list, multicast.as_ref(), at)?,

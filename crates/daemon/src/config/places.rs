@@ -60,3 +60,17 @@ impl Places {
         }
     }
 }
+
+/// A table with an `enabled` key: checked whether it is on or off, so that
+/// a mistake in it is met now and not on the day it is switched on, and
+/// kept only when on. The places of a table that is off are not kept:
+/// nothing of it is bound or opened.
+pub(super) fn when_on<T, E>(
+    enabled: bool,
+    at: &mut Places,
+    check: impl FnOnce(&mut Places) -> Result<T, E>,
+) -> Result<Option<T>, E> {
+    let mut off = Places::default();
+    let checked = check(if enabled { at } else { &mut off })?;
+    Ok(enabled.then_some(checked))
+}

@@ -115,15 +115,23 @@ pub(super) struct RawRecording {
     max_total_mb: Option<Spanned<f64>>,
 }
 
-/// `None` when the table is absent or not enabled.
+/// `None` when the table is absent or not enabled (checked all the same:
+/// [`places::when_on`]).
 pub(super) fn validate(
     ctx: &Ctx,
     raw: Option<&Spanned<RawRecording>>,
     at: &mut Places,
 ) -> Result<Option<Recording>, ConfigError> {
-    let Some(table) = raw.filter(|r| r.get_ref().enabled.unwrap_or(true)) else {
-        return Ok(None);
-    };
+    let Some(table) = raw else { return Ok(None) };
+    let enabled = table.get_ref().enabled.unwrap_or(true);
+    places::when_on(enabled, at, |at| check(ctx, table, at))
+}
+
+fn check(
+    ctx: &Ctx,
+    table: &Spanned<RawRecording>,
+    at: &mut Places,
+) -> Result<Recording, ConfigError> {
     let r = table.get_ref();
     // Whether the directory can be (a file is not one): `wiring::check`.
     at.set(
@@ -166,7 +174,7 @@ pub(super) fn validate(
         None => DEFAULT_FLUSH,
     };
     let (keep_free_bytes, max_total_bytes) = limits(ctx, r, rotate_bytes)?;
-    Ok(Some(Recording {
+    Ok(Recording {
         dir,
         rotate_bytes,
         rotate_after,
@@ -175,7 +183,7 @@ pub(super) fn validate(
         flush,
         keep_free_bytes,
         max_total_bytes,
-    }))
+    })
 }
 
 /// `keep_free_mb` and `max_total_mb`, in bytes; the latter needs rotation
