@@ -421,6 +421,11 @@ fn a_client_that_never_reads_its_replies_is_cut_and_its_place_freed() {
         }
         assert_eq!(hub.client_count(), 0, "not cut after {:?}", t0.elapsed());
         assert_eq!(hub.report()["timed_out"], 0, "cut by the stall limit");
+        assert_eq!(
+            hub.report()["not_reading"],
+            1,
+            "counted as cut for not reading"
+        );
         // Its place (max_clients 1) is free: another client is served.
         let mut next = tiny_buffer_client(addr).await;
         next.send(Ws::text(subscribe_all())).await.unwrap();

@@ -223,6 +223,8 @@ pub struct Hub {
     pub timed_out: AtomicU64,
     /// Clients disconnected to make room: subscribed to nothing for long.
     pub evicted: AtomicU64,
+    /// Clients cut for not reading what they were sent (`server::End`).
+    pub not_reading: AtomicU64,
     /// Set by `close`: the daemon stops.
     closing: std::sync::atomic::AtomicBool,
     /// Messages dropped for clients that went before, summed in.
@@ -275,6 +277,7 @@ impl Hub {
             handshakes_refused: AtomicU64::new(0),
             timed_out: AtomicU64::new(0),
             evicted: AtomicU64::new(0),
+            not_reading: AtomicU64::new(0),
             closing: std::sync::atomic::AtomicBool::new(false),
             dropped_gone: AtomicU64::new(0),
             sent_gone: AtomicU64::new(0),
@@ -494,6 +497,7 @@ impl Hub {
             "handshakes_refused": self.handshakes_refused.load(Relaxed),
             "timed_out": self.timed_out.load(Relaxed),
             "evicted": self.evicted.load(Relaxed),
+            "not_reading": self.not_reading.load(Relaxed),
             "sent": sent,
             "dropped": dropped,
             "handoff_dropped": self.handoff_dropped.load(Relaxed),

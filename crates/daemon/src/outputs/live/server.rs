@@ -56,7 +56,7 @@ use tokio_tungstenite::tungstenite::handshake::server::{ErrorResponse, Request, 
 use tokio_tungstenite::tungstenite::http::{HeaderValue, StatusCode};
 use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
 use tokio_tungstenite::tungstenite::protocol::{CloseFrame, WebSocketConfig};
-use tokio_tungstenite::tungstenite::{Bytes, Message as Ws};
+use tokio_tungstenite::tungstenite::{Bytes, Error as WsError, Message as Ws};
 use tokio_tungstenite::WebSocketStream;
 
 /// Subprotocols served, best first: both name protocol v1 with channels
@@ -135,7 +135,10 @@ enum End {
     Silent(Duration),
     /// Closed to make room for a newcomer: it subscribed to nothing.
     Evicted,
-    /// It closed, an error, a stalled write, the daemon stopping.
+    /// Cut for not reading: a write stalled, or what waits unsent for it
+    /// reached `WRITE_BACKLOG` (a client that sends and never reads).
+    NotReading(String),
+    /// It closed, an error, the daemon stopping.
     Other(String),
 }
 
@@ -368,7 +371,7 @@ async fn write_batch(
     c: &Client,
     first: Bytes,
     stall: Duration,
-) -> Result<(), String> {
+) -> Result<(), End> {
     let mut n = 1;
     let write = async {
         ws.feed(Ws::binary(first)).await?;
@@ -379,22 +382,32 @@ async fn write_batch(
         }
         ws.flush().await
     };
-    match tokio::time::timeout(stall, write).await {
-        Ok(Ok(())) => {
-            c.sent.fetch_add(n as u64, Relaxed);
-            Ok(())
-        }
-        Ok(Err(e)) => Err(e.to_string()),
-        Err(_) => Err(format!("not reading: a write took more than {stall:?}")),
+    let written = tokio::time::timeout(stall, write).await;
+    if matches!(written, Ok(Ok(()))) {
+        c.sent.fetch_add(n as u64, Relaxed);
     }
+    ended(written, stall)
 }
 
 /// Send `msg`, bounded by `stall` like every write to a client.
-async fn send(ws: &mut WebSocketStream<TcpStream>, msg: Ws, stall: Duration) -> Result<(), String> {
-    match tokio::time::timeout(stall, ws.send(msg)).await {
+async fn send(ws: &mut WebSocketStream<TcpStream>, msg: Ws, stall: Duration) -> Result<(), End> {
+    ended(tokio::time::timeout(stall, ws.send(msg)).await, stall)
+}
+
+/// How a write bounded by `stall` ended the session, if it did.
+fn ended(
+    written: Result<Result<(), WsError>, tokio::time::error::Elapsed>,
+    stall: Duration,
+) -> Result<(), End> {
+    match written {
         Ok(Ok(())) => Ok(()),
-        Ok(Err(e)) => Err(e.to_string()),
-        Err(_) => Err(format!("not reading: a write took more than {stall:?}")),
+        Ok(Err(WsError::WriteBufferFull(_))) => Err(End::NotReading(format!(
+            "not reading: {WRITE_BACKLOG} bytes wait unsent for it"
+        ))),
+        Ok(Err(e)) => Err(End::Other(e.to_string())),
+        Err(_) => Err(End::NotReading(format!(
+            "not reading: a write took more than {stall:?}"
+        ))),
     }
 }
 
@@ -427,6 +440,10 @@ async fn client(
         tracing::info!(since_last_line = k, "foxglove: {addr} connected");
     }
     let end = session_loop(&mut ws, &mut rx, &hub, &c, &limits).await;
+    if matches!(end, End::NotReading(_)) {
+        // Counted before its place is freed: whoever sees it gone sees why.
+        hub.not_reading.fetch_add(1, Relaxed);
+    }
     hub.leave(c.id);
     let close = limits.stall.min(Duration::from_secs(1));
     let frame = matches!(end, End::Evicted).then(|| CloseFrame {
@@ -446,6 +463,14 @@ async fn client(
         End::Evicted => tracing::info!(
             "foxglove: {addr} gone (closed to make room); {sent} messages sent, {dropped} dropped"
         ),
+        End::NotReading(why) => {
+            if let Some(k) = hub.conn_line() {
+                tracing::warn!(
+                    since_last_line = k,
+                    "foxglove: {addr} cut ({why}); {sent} messages sent, {dropped} dropped"
+                )
+            }
+        }
         End::Other(why) => {
             if let Some(k) = hub.conn_line() {
                 tracing::info!(
@@ -506,7 +531,7 @@ async fn ping(
     if quiet >= limits.silence {
         return Err(End::Silent(quiet));
     }
-    Ok(send(ws, Ws::Ping(Bytes::new()), limits.stall).await?)
+    send(ws, Ws::Ping(Bytes::new()), limits.stall).await
 }
 
 /// Greet, then serve requests, queued messages and pings until the client
@@ -520,7 +545,7 @@ async fn session_loop(
 ) -> End {
     for text in greeting(&hub.session) {
         if let Err(e) = send(ws, Ws::text(text), limits.stall).await {
-            return e.into();
+            return e;
         }
     }
     let mut heard = Instant::now();
@@ -537,7 +562,7 @@ async fn session_loop(
                     Some(Ok(Ws::Text(t))) => {
                         if let Some(reply) = request(hub, c, t.as_str()) {
                             if let Err(e) = send(ws, reply, limits.stall).await {
-                                return e.into();
+                                return e;
                             }
                         }
                     }
@@ -549,7 +574,7 @@ async fn session_loop(
             out = rx.recv() => match out {
                 Some(first) => {
                     if let Err(e) = write_batch(ws, rx, c, first, limits.stall).await {
-                        return e.into();
+                        return e;
                     }
                 }
                 None => return "the daemon stops".to_string().into(),
