@@ -99,7 +99,8 @@ pub struct Closed {
     pub kept: u64,
     /// Frames written to it but cut off after its last whole point.
     pub lost: u64,
-    /// It kept no frame and was removed.
+    /// It kept no frame and is gone: removed here, or (with `error`
+    /// saying so) removed or replaced by someone else while written.
     pub removed: bool,
     /// Why it could not be completed (it is cut back, and sealed in MCAP).
     pub error: Option<String>,
@@ -115,9 +116,11 @@ pub struct RecFile {
     sync: File,
     bytes: Arc<AtomicU64>,
     failed: Arc<AtomicBool>,
-    /// Frames written, and frames known to be on the disk (synced).
+    /// Frames written, and frames known to be on the disk (synced), and
+    /// the file's length at that sync.
     frames: u64,
     synced: u64,
+    synced_len: u64,
     /// The file's length at its last whole point (JSONL: after a line;
     /// MCAP: after a sync, at a chunk's end), and the frames up to it.
     good_len: u64,
@@ -192,7 +195,7 @@ impl RecFile {
             bytes: bytes.clone(),
             failed: failed.clone(),
         };
-        let sink: Box<dyn LogSink + Send> = match format {
+        let mut sink: Box<dyn LogSink + Send> = match format {
             RecFormat::Jsonl => {
                 Box::new(LogWriter::new(counted, header).map_err(|e| named(&path, e))?)
             }
@@ -207,7 +210,14 @@ impl RecFile {
                 Box::new(McapWriter::new(w, header, &opts).map_err(|e| named(&path, e))?)
             }
         };
-        // JSONL: the header line is on the file.
+        if format == RecFormat::Mcap {
+            // The header leaves the buffer, and reaches the disk, now: a
+            // file killed before its first chunk read as no MCAP at all.
+            sink.flush()
+                .map_err(|e| named(&path, crate::error::report(&e)))?;
+            sync.sync_data().map_err(|e| named(&path, e))?;
+        }
+        // The header is on the file.
         let good_len = bytes.load(Relaxed);
         Ok(RecFile {
             path,
@@ -218,6 +228,7 @@ impl RecFile {
             failed,
             frames: 0,
             synced: 0,
+            synced_len: good_len,
             good_len,
             good_frames: 0,
             chunk_bytes: chunk_bytes.max(1),
@@ -276,19 +287,55 @@ impl RecFile {
     /// so far survives a power loss.
     pub fn flush(&mut self) -> Result<(), String> {
         self.sink.flush().map_err(|e| self.err(e))?;
-        self.sync.sync_data().map_err(|e| named(&self.path, e))?;
+        if let Err(e) = self.sync.sync_data() {
+            self.sync_failed();
+            return Err(named(&self.path, e));
+        }
         self.flushes += 1;
         self.synced = self.frames;
         self.good_len = self.bytes();
+        self.synced_len = self.good_len;
         self.good_frames = self.frames;
         Ok(())
+    }
+
+    /// A sync failed (EIO: the device lost pages it had taken): what was
+    /// written since the last good sync is not known to be on the disk,
+    /// and the kernel says so once only (a second sync would succeed), so
+    /// the file ends here, cut back to that sync.
+    fn sync_failed(&mut self) {
+        self.failed.store(true, Relaxed);
+        self.good_len = self.synced_len;
+        self.good_frames = self.synced;
+    }
+
+    /// Why the open file is no longer the recording at its path (removed,
+    /// or its directory; replaced), if it is not: frames written to it
+    /// from then on reach no file anyone can read.
+    pub fn gone(&self) -> Option<String> {
+        use std::os::unix::fs::MetadataExt;
+        let open = match self.sync.metadata() {
+            Ok(m) => m,
+            Err(e) => return Some(named(&self.path, e)),
+        };
+        let why = match std::fs::metadata(&self.path) {
+            _ if open.nlink() == 0 => "removed while being written".to_string(),
+            Ok(m) if (m.dev(), m.ino()) != (open.dev(), open.ino()) => {
+                "replaced by another file while being written".to_string()
+            }
+            Ok(_) => return None,
+            Err(e) => format!("no longer there while being written ({e})"),
+        };
+        Some(named(&self.path, why))
     }
 
     /// Complete the file (MCAP: its summary and footer) and sync it. When
     /// it cannot be (a write failed, now or before), it is cut back to its
     /// last whole point and, in MCAP, sealed there; a file without a frame
-    /// is removed.
+    /// is removed. A file no longer at its path ([`RecFile::gone`]) loses
+    /// every frame written to it.
     pub fn close(self) -> Closed {
+        let gone = self.gone();
         let RecFile {
             path,
             format,
@@ -296,21 +343,41 @@ impl RecFile {
             sync,
             failed,
             frames,
+            synced,
+            synced_len,
             good_len,
             good_frames,
             ..
         } = self;
         let mut error = None;
+        if let Some(why) = gone {
+            // Nothing of it can be read: every frame in it is lost.
+            drop(sink);
+            return Closed {
+                kept: 0,
+                lost: frames,
+                removed: true,
+                error: Some(why),
+            };
+        }
+        let (mut good_len, mut good_frames) = (good_len, good_frames);
         if frames > 0 && !failed.load(Relaxed) {
             let report = |e: WriteError| named(&path, crate::error::report(&e));
-            let done = sink.finish().map_err(report);
-            match done.and_then(|()| sync.sync_all().map_err(|e| named(&path, e))) {
-                Ok(()) => {
-                    return Closed {
-                        kept: frames,
-                        ..Closed::default()
+            match sink.finish().map_err(report) {
+                Ok(()) => match sync.sync_all() {
+                    Ok(()) => {
+                        return Closed {
+                            kept: frames,
+                            ..Closed::default()
+                        }
                     }
-                }
+                    Err(e) => {
+                        // As in `sync_failed`: the last good sync is all
+                        // that is known to be there.
+                        (good_len, good_frames) = (synced_len, synced);
+                        error = Some(named(&path, e));
+                    }
+                },
                 Err(e) => error = Some(e),
             }
         } else {
@@ -363,5 +430,12 @@ impl RecFile {
     #[cfg(test)]
     pub(crate) fn sink_fd(&self) -> std::os::fd::RawFd {
         self.sink_fd
+    }
+
+    /// The descriptor the file is synced through, for tests that make a
+    /// sync fail (dup2).
+    #[cfg(test)]
+    pub(crate) fn sync_fd(&self) -> std::os::fd::RawFd {
+        std::os::fd::AsRawFd::as_raw_fd(&self.sync)
     }
 }

@@ -258,9 +258,16 @@ impl Recorder {
         }
         self.stats.abandoned.store(true, Relaxed);
         let left = self.stats.queued.swap(0, Relaxed) + 1;
-        self.stats.failed.fetch_add(left, Relaxed);
+        // Frames written since the last sync are not known to be on the
+        // disk (an MCAP chunk is still in memory, and goes with the
+        // process): only the synced count as recorded.
+        let frames = self.stats.frames.load(Relaxed);
+        let unsynced = frames.saturating_sub(self.stats.synced.load(Relaxed));
+        self.stats.frames.fetch_sub(unsynced, Relaxed);
+        self.stats.failed.fetch_add(left + unsynced, Relaxed);
         let why = format!(
-            "the disk took nothing for {bound:?} at stop: {left} frames not recorded (the last one mid-write)"
+            "the disk took nothing for {bound:?} at stop: {} frames not known to be recorded ({left} queued or mid-write, {unsynced} written since the last sync)",
+            left + unsynced
         );
         tracing::error!("recording: {why}");
         if let Ok(mut e) = self.stats.error.lock() {

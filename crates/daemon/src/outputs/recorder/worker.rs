@@ -133,7 +133,14 @@ impl Worker {
                 }
             }
         }
-        self.close();
+        if let Some(Err(why)) = self.close() {
+            // The last file could not be completed: said in the last
+            // STATUS, as a refusing disk is.
+            if let Ok(mut e) = self.stats.error.lock() {
+                *e = Some(why);
+            }
+            self.stats.set_state(RecState::Error);
+        }
         self.close_skips(Instant::now(), Close::AtStop);
         // A refusing disk stays visible in the last STATUS.
         if self.stats.state() != RecState::Error {
@@ -303,6 +310,13 @@ impl Worker {
     /// complete the open file while it can be and stop until there is room.
     pub(super) fn check_space(&mut self) {
         self.space_at = Some(Instant::now() + EVERY);
+        // Checked with the room: a file removed with its directory took
+        // writes without a word (and the room of a directory that is gone
+        // is not known).
+        if let Some(why) = self.file.as_ref().and_then(RecFile::gone) {
+            self.fail(why);
+            return;
+        }
         let current = self.file.as_ref().map(|f| f.path.clone());
         if let Err(why) = self.space.make_room(current.as_deref(), &self.stats) {
             self.end_file(false);
@@ -379,21 +393,23 @@ impl Worker {
 
     /// Complete the open file (MCAP: summary and footer) and sync it, so
     /// that a power cut after a clean stop or a rotation loses nothing.
-    pub(super) fn close(&mut self) {
-        let completed = self.end_file(false);
-        if completed && self.probation {
+    /// `None` without an open file, else whether it was completed (why
+    /// not).
+    pub(super) fn close(&mut self) -> Option<Result<(), String>> {
+        let ended = self.end_file(false);
+        if matches!(ended, Some(Ok(()))) && self.probation {
             self.resumed();
         }
+        ended
     }
 
-    /// End the open file, whole if it can be (see [`RecFile::close`]);
-    /// whether it was. Frames cut off it move from `frames` to `failed`.
-    /// `quiet`: while retrying, a file that did not take is not logged.
-    fn end_file(&mut self, quiet: bool) -> bool {
+    /// End the open file, whole if it can be (see [`RecFile::close`]):
+    /// `None` without one, else whether it was completed (why not). Frames
+    /// cut off it move from `frames` to `failed`. `quiet`: while retrying,
+    /// a file that did not take is not logged.
+    fn end_file(&mut self, quiet: bool) -> Option<Result<(), String>> {
         self.flush_at = None;
-        let Some(f) = self.file.take() else {
-            return false;
-        };
+        let f = self.file.take()?;
         let shown = f.path.display().to_string();
         let c = f.close();
         if c.lost > 0 {
@@ -402,18 +418,18 @@ impl Worker {
         }
         let frames = self.stats.frames.load(Relaxed);
         self.stats.synced.store(frames, Relaxed);
-        let completed = c.error.is_none() && !c.removed;
-        if !completed {
-            report_end(&shown, &c, quiet);
+        if c.error.is_none() && !c.removed && c.lost == 0 {
+            return Some(Ok(()));
         }
-        completed
+        Some(Err(report_end(&shown, &c, quiet)))
     }
 }
 
-/// One line on a file that could not be completed.
-fn report_end(shown: &str, c: &Closed, quiet: bool) {
+/// One line on a file that could not be completed; what it says.
+fn report_end(shown: &str, c: &Closed, quiet: bool) -> String {
     let what = match (&c.error, c.removed) {
-        (_, true) => format!("{shown} removed: no frame reached the disk"),
+        (Some(e), true) => format!("{e}: its {} frames are lost", c.lost),
+        (None, true) => format!("{shown} removed: no frame reached the disk"),
         (Some(e), false) => format!(
             "{e}; {shown} cut back to its last whole point: {} frames kept, {} lost",
             c.kept, c.lost
@@ -423,9 +439,10 @@ fn report_end(shown: &str, c: &Closed, quiet: bool) {
             c.kept, c.lost
         ),
     };
-    match (quiet, c.removed) {
+    match (quiet, c.removed && c.error.is_none()) {
         (true, _) => tracing::debug!("recording: {what}"),
         (false, true) => tracing::info!("recording: {what}"),
         (false, false) => tracing::warn!("recording: {what}"),
     }
+    what
 }
