@@ -179,7 +179,9 @@ pub fn one_line(msg: &str) -> String {
     excerpt(&flat, 4 * EXCERPT_CHARS)
 }
 
-/// `s` with its control characters escaped (`\n`, `\u{0}`), cut to at
+/// `s` with its control characters escaped (`\n`, `\u{0}`), and the
+/// line separators and direction overrides that are not controls
+/// (`\u{2028}`, `\u{202e}`), cut to at
 /// most `max` characters of that (never inside an escape), with an
 /// ellipsis when something was cut. An excerpt quotes outside text in a
 /// one-line message, and a JSON or TOML string can hold a newline (the
@@ -190,7 +192,7 @@ pub fn excerpt(s: &str, max: usize) -> String {
     let mut out = String::with_capacity(s.len().min(4 * max) + 3);
     let mut n = 0;
     for c in s.chars() {
-        let w = if c.is_control() {
+        let w = if escaped(c) {
             c.escape_default().count()
         } else {
             1
@@ -208,6 +210,23 @@ pub fn excerpt(s: &str, max: usize) -> String {
         }
     }
     out
+}
+
+/// Characters an excerpt escapes: control characters, and those that
+/// break a line or turn the text's direction without being controls (a
+/// DVL audit forged an ERROR inside a WARN line with U+2028 and U+202E).
+fn escaped(c: char) -> bool {
+    c.is_control()
+        || matches!(
+            c,
+            '\u{2028}'
+                | '\u{2029}'
+                | '\u{061C}'
+                | '\u{200E}'
+                | '\u{200F}'
+                | '\u{202A}'..='\u{202E}'
+                | '\u{2066}'..='\u{2069}'
+        )
 }
 
 /// Where a text a program reads comes from: a file, read when it is needed
@@ -274,6 +293,13 @@ mod tests {
         let long = "x".repeat(1 << 20);
         assert!(one_line(&long).chars().count() <= 4 * EXCERPT_CHARS + 1);
         assert_eq!(one_line("a\nb\r\nc"), "a b  c");
+        // Nor can a line separator or a direction override forge a line
+        // in the log, or turn what follows.
+        assert_eq!(
+            excerpt("ok\u{2028}ERROR forged\u{202e}dekrow", 40),
+            "ok\\u{2028}ERROR forged\\u{202e}dekrow"
+        );
+        assert_eq!(excerpt("a\u{2029}\u{2066}b", 40), "a\\u{2029}\\u{2066}b");
     }
 
     #[test]

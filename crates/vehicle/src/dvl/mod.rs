@@ -35,21 +35,26 @@ pub enum DvlRefusal {
     WaterTrack,
     /// A component larger than the configured maximum speed.
     OutOfRange,
-    /// A covariance that is not 3×3 with finite, non-negative variances.
+    /// A covariance that is not 3×3 with finite, positive variances (a
+    /// velocity known exactly is no measurement).
     BadCovariance,
+    /// `time_of_validity` after `time_of_transmission`, or more than
+    /// [`MAX_LATENCY`] before it: how old the velocity is, is not known.
+    BadTime,
     /// JSON, but not a report this reader understands (no `type`, no
     /// `vx`, …).
     Malformed,
 }
 
 impl DvlRefusal {
-    pub const ALL: [DvlRefusal; 6] = [
+    pub const ALL: [DvlRefusal; 7] = [
         DvlRefusal::Garbage,
         DvlRefusal::Invalid,
         DvlRefusal::WaterTrack,
         DvlRefusal::OutOfRange,
         DvlRefusal::BadCovariance,
         DvlRefusal::Malformed,
+        DvlRefusal::BadTime,
     ];
     pub fn as_str(self) -> &'static str {
         match self {
@@ -59,6 +64,7 @@ impl DvlRefusal {
             DvlRefusal::OutOfRange => "out_of_range",
             DvlRefusal::BadCovariance => "bad_covariance",
             DvlRefusal::Malformed => "malformed",
+            DvlRefusal::BadTime => "bad_time",
         }
     }
     pub fn index(self) -> usize {
@@ -93,10 +99,35 @@ struct Report {
     vz: Option<f64>,
     covariance: Option<Vec<Vec<f64>>>,
     velocity_valid: Option<bool>,
+    #[serde(default, deserialize_with = "lenient_u64")]
     status: Option<u64>,
+    #[serde(default, deserialize_with = "lenient_u64")]
     time_of_validity: Option<u64>,
+    #[serde(default, deserialize_with = "lenient_u64")]
     time_of_transmission: Option<u64>,
     tracking_mode: Option<String>,
+}
+
+/// The longest delay from a velocity's validity to its transmission that
+/// is taken as the DVL's own (tens of ms in practice); a larger one, or a
+/// negative one, says the report's times are wrong.
+pub const MAX_LATENCY: Duration = Duration::from_secs(5);
+
+/// A field the velocity does not need (the status, the times), of the
+/// wrong type or sign, is taken as absent: a firmware that sends its
+/// times as floats, or a status of -1, costs no velocity (an audit: each
+/// such report was refused whole as garbage and the connection dropped
+/// for silence).
+fn lenient_u64<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<u64>, D::Error> {
+    let v = serde_json::Value::deserialize(d)?;
+    let Some(n) = v.as_number() else {
+        return Ok(None);
+    };
+    Ok(n.as_u64().or_else(|| {
+        n.as_f64()
+            .filter(|f| (0.0..1.8e19).contains(f))
+            .map(|f| f.round() as u64)
+    }))
 }
 
 /// 1σ per axis from the covariance's diagonal (off-diagonal terms are
@@ -106,7 +137,7 @@ fn std_of(cov: &[Vec<f64>]) -> Result<BodyVec, DvlRefusal> {
         return Err(DvlRefusal::BadCovariance);
     }
     let d = [cov[0][0], cov[1][1], cov[2][2]];
-    if d.iter().any(|v| !v.is_finite() || *v < 0.0) {
+    if d.iter().any(|v| !v.is_finite() || *v <= 0.0) {
         return Err(DvlRefusal::BadCovariance);
     }
     Ok(BodyVec(d.map(f64::sqrt)))
@@ -142,7 +173,12 @@ pub fn parse_line(line: &[u8], max_speed_mps: f64) -> Result<DvlLine, DvlRefusal
     }
     let std = r.covariance.as_deref().map(std_of).transpose()?;
     let latency = match (r.time_of_validity, r.time_of_transmission) {
-        (Some(v), Some(t)) if t >= v && t - v < 5_000_000 => Some(Duration::from_micros(t - v)),
+        (Some(v), Some(t)) => match t.checked_sub(v).map(Duration::from_micros) {
+            Some(l) if l <= MAX_LATENCY => Some(l),
+            // Taken as just measured, a report that says it is old was
+            // fused as fresh.
+            _ => return Err(DvlRefusal::BadTime),
+        },
         _ => None,
     };
     Ok(DvlLine::Velocity(DvlVelocity {
@@ -167,11 +203,13 @@ pub struct DvlCounters {
     pub(crate) high_temperature: AtomicU64,
     pub(crate) refused: [AtomicU64; DvlRefusal::ALL.len()],
     pub(crate) last_error: Mutex<Option<String>>,
-    /// Core's rule for repeated lines: failed connects, refused lines
-    /// (their closing lines: `client::settle`, between connect attempts
+    /// Core's rule for repeated lines: failed connects, refused lines,
+    /// lost connections (their closing lines: `client::settle`, between connect attempts
     /// and once a second in a session).
     pub(crate) connect_log: Mutex<lightpose_core::ratelog::RateLog>,
     pub(crate) refuse_log: Mutex<lightpose_core::ratelog::RateLog>,
+    /// Connections lost: a DVL that closes each one at once.
+    pub(crate) drop_log: Mutex<lightpose_core::ratelog::RateLog>,
 }
 
 /// STATUS figures of the DVL client.
@@ -273,6 +311,19 @@ mod tests {
                 DvlRefusal::OutOfRange,
             ),
             (with("[[2.4e-08", "[[-2.4e-08"), DvlRefusal::BadCovariance),
+            // Exactly known is no measurement (the tracker refused each
+            // such reading, unseen in the DVL's own counts).
+            (with("[[2.4e-08", "[[0.0"), DvlRefusal::BadCovariance),
+            // Says it is 6 s old, and was taken as just measured.
+            (
+                with("1638191471752336", "1638191477563017"),
+                DvlRefusal::BadTime,
+            ),
+            // Valid after it was sent.
+            (
+                with("1638191471563017", "1638191471852336"),
+                DvlRefusal::BadTime,
+            ),
             (with("\"vy\": 5.7e-05,", ""), DvlRefusal::Malformed),
             ("{}".to_string(), DvlRefusal::Malformed),
         ] {
@@ -285,5 +336,43 @@ mod tests {
             panic!()
         };
         assert_eq!(v.reading.std, None);
+    }
+
+    /// A field the velocity does not need, of the wrong type or sign,
+    /// costs no velocity: it is taken as absent.
+    #[test]
+    fn odd_optional_fields_cost_no_velocity() {
+        let with = |from: &str, to: &str| REPORT.replace(from, to);
+        for (line, latency, hot) in [
+            (
+                with("\"status\": 0", "\"status\": -1"),
+                Some(189_319),
+                false,
+            ),
+            (
+                with("\"status\": 0", "\"status\": \"ok\""),
+                Some(189_319),
+                false,
+            ),
+            (
+                with("\"status\": 0", "\"status\": 1.0"),
+                Some(189_319),
+                true,
+            ),
+            (
+                with("1638191471563017", "1638191471563017.0"),
+                Some(189_319),
+                false,
+            ),
+            (with("1638191471563017", "-5"), None, false),
+            (with("1638191471752336", "null"), None, false),
+        ] {
+            let Ok(DvlLine::Velocity(v)) = parse_line(line.as_bytes(), 5.0) else {
+                panic!("{line}")
+            };
+            assert_eq!(v.latency, latency.map(Duration::from_micros), "{line}");
+            assert_eq!(v.high_temperature, hot, "{line}");
+            assert_eq!(v.reading.v.0[0], -3.7e-05);
+        }
     }
 }
