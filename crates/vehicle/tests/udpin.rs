@@ -396,3 +396,133 @@ fn a_pose_not_sent_does_not_decimate_the_next() {
     assert!(!heard.contains(&POSITION), "{heard:?}");
     assert_eq!(hub.mavlink.sent(0), 1);
 }
+
+/// A datagram of 60 KB (a router that packs frames): every frame in it is
+/// read. The scanner's 16 KiB took the first 61 of 246 frames and the
+/// rest were counted nowhere (an audit).
+#[test]
+fn every_frame_of_a_64_kib_datagram_is_read() {
+    let (mut s, daemon) = listening(|_| {});
+    s.input.autopilot_system = Some(1);
+    let hub = Hub::new();
+    let _task = spawn_mavlink(s, hub.clone());
+    let autopilot = socket();
+    assert!(announce(&autopilot, daemon), "the autopilot is greeted");
+    let frame = attitude(1, 1, 0.1);
+    let n = 60_000 / frame.len();
+    let datagram = frame.repeat(n);
+    assert!(
+        datagram.len() > 4 * 16 * 1024 - 8 * 1024,
+        "{}",
+        datagram.len()
+    );
+    let before = hub.mavlink.status(Instant::now()).frames;
+    autopilot.send_to(&datagram, daemon).expect("send");
+    let all = wait_until(Duration::from_secs(5), || {
+        hub.mavlink.status(Instant::now()).frames >= before + n as u64
+    });
+    let st = hub.mavlink.status(Instant::now());
+    assert!(all, "{} of {n} frames read: {st:?}", st.frames - before);
+    assert_eq!(st.garbage_bytes, 0, "{st:?}");
+}
+
+/// The timestamp of a frame signed with the key, as it is on the wire.
+fn signature_timestamp(frame: &[u8]) -> u64 {
+    let n = frame.len();
+    let mut b = [0u8; 8];
+    b[..6].copy_from_slice(&frame[n - 12..n - 6]);
+    u64::from_le_bytes(b)
+}
+
+/// With signing, our timestamp follows the autopilot's frames only: a
+/// GCS holding the key that stamped one frame 2⁴⁸ − 1 (refused for its
+/// origin) held ours at the end of the 48 bits, so every frame after was a
+/// replay to the autopilot, and the autopilot's own, stamped after ours,
+/// were refused as replays in turn, until a restart (an audit).
+#[test]
+fn a_far_future_frame_of_another_component_does_not_move_our_signing_clock() {
+    use lightpose_vehicle::mav::signing::{timestamp_now, Signer, SigningConfig, SigningKey};
+    use mavlink::MAVLinkV2MessageRaw;
+    let key = SigningKey::from_passphrase("reef");
+    let cfg = |link_id| SigningConfig {
+        key: key.clone(),
+        link_id,
+        allow_unsigned: false,
+    };
+    let (mut s, daemon) = listening(|_| {});
+    s.input.autopilot_system = Some(1);
+    s.signing = Some(cfg(0));
+    let hub = Hub::new();
+    let _task = spawn_mavlink(s, hub.clone());
+    bound(&hub);
+    let signed = |sg: &mut Signer, system: u8, component: u8, msg: &MavMessage, now: u64| {
+        let mut raw = MAVLinkV2MessageRaw::new();
+        let header = mavlink::MavHeader {
+            system_id: system as u32,
+            component_id: component,
+            sequence: 0,
+        };
+        sg.serialize(&mut raw, header, msg, now);
+        raw.raw_bytes().to_vec()
+    };
+    let (mut ap, mut gcs) = (Signer::new(cfg(1)), Signer::new(cfg(7)));
+    let autopilot = socket();
+    let beat_msg = autopilot_heartbeat();
+    let att = MavMessage::ATTITUDE(ATTITUDE_DATA {
+        yaw: 0.2,
+        ..Default::default()
+    });
+    // Greeted: the daemon's signed heartbeats come to the autopilot.
+    let greeted = (0..100).any(|_| {
+        let f = signed(&mut ap, 1, 1, &beat_msg, timestamp_now());
+        autopilot.send_to(&f, daemon).expect("send");
+        hear(&autopilot, Duration::from_millis(60)).contains(&HEARTBEAT)
+    });
+    assert!(greeted, "{:?}", hub.mavlink.status(Instant::now()));
+    // The GCS's one frame from the end of time, from another port.
+    let far = signed(&mut gcs, 255, 190, &gcs_heartbeat(), (1 << 48) - 1);
+    socket().send_to(&far, daemon).expect("send");
+    let refused = wait_until(Duration::from_secs(5), || {
+        hub.mavlink.refused(Refusal::OtherComponent) + hub.mavlink.refused(Refusal::OtherSystem)
+            >= 1
+    });
+    assert!(refused, "{:?}", hub.mavlink.status(Instant::now()));
+    // Ours stays with the clocks (the daemon's and the autopilot's).
+    let mut buf = [0u8; 2048];
+    let mut stamps = Vec::new();
+    let end = Instant::now() + Duration::from_millis(400);
+    while Instant::now() < end {
+        if let Ok(n) = autopilot.recv(&mut buf) {
+            if n > 13 {
+                stamps.push(signature_timestamp(&buf[..n]));
+            }
+        }
+    }
+    let limit = timestamp_now() + 100_000 * 60;
+    assert!(
+        !stamps.is_empty() && stamps.iter().all(|&t| t < limit),
+        "{stamps:?}"
+    );
+    // And the autopilot's frames, stamped by its own clock, are still taken.
+    for _ in 0..5 {
+        let f = signed(&mut ap, 1, 1, &att, timestamp_now());
+        autopilot.send_to(&f, daemon).expect("send");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let taken = wait_until(Duration::from_secs(2), || {
+        hub.readings
+            .attitude(Instant::now(), Duration::from_secs(5))
+            .is_some()
+    });
+    assert!(taken, "{:?}", hub.mavlink.status(Instant::now()));
+    assert_eq!(hub.mavlink.refused(Refusal::Replayed), 0);
+}
+
+/// A GCS's HEARTBEAT message.
+fn gcs_heartbeat() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_GCS,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        ..Default::default()
+    })
+}

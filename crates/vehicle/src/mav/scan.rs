@@ -14,8 +14,10 @@ const STX_V1: u8 = 0xFE;
 const STX_V2: u8 = 0xFD;
 const IFLAG_SIGNED: u8 = 0x01;
 const SIGNATURE_LEN: usize = 13;
-/// Room for many frames: a datagram or a burst of serial bytes.
-const CAPACITY: usize = 16 * 1024;
+/// Room for any UDP datagram (at most 65 507 bytes), whole: a buffer of
+/// 16 KiB cut a 64 KiB datagram's frames past it, counted nowhere (an
+/// audit). A burst of serial or TCP bytes is read in such pieces too.
+pub const CAPACITY: usize = 64 * 1024;
 
 /// One CRC-valid frame of a known message.
 #[derive(Debug, Clone, Copy)]

@@ -214,13 +214,34 @@ impl Signer {
 
     /// Whether `frame` (a whole CRC-valid MAVLink 1 or 2 frame) may be
     /// taken. A good signature moves the stream's timestamp and ours (so a
-    /// computer without the time signs after the autopilot's clock).
+    /// computer without the time signs after the autopilot's clock): for a
+    /// peer that is the autopilot. A daemon that takes frames from others
+    /// too checks with [`Signer::verify`] and follows only the autopilot's.
     pub fn check(&mut self, frame: &[u8]) -> Result<(), Rejected> {
+        if let Some(ts) = self.verify(frame)? {
+            self.follow(ts);
+        }
+        Ok(())
+    }
+
+    /// Our timestamp is at least `ts` from now on: a timestamp of a frame
+    /// taken from the autopilot. (Any key holder's frame moved it, even
+    /// one then refused for its origin: a GCS's frame stamped 2⁴⁸ − 1 held
+    /// ours at the end of the 48 bits, and every frame after was a replay
+    /// to the autopilot.)
+    pub fn follow(&mut self, ts: u64) {
+        self.timestamp = self.timestamp.max(ts);
+    }
+
+    /// As [`Signer::check`], without moving our timestamp: the timestamp
+    /// of a signed frame that may be taken, `None` for an unsigned one
+    /// (when those are allowed).
+    pub fn verify(&mut self, frame: &[u8]) -> Result<Option<u64>, Rejected> {
         let signed =
             frame.len() >= 12 + SIGNATURE_LEN && frame[0] == STX_V2 && frame[2] & IFLAG_SIGNED != 0;
         if !signed {
             return if self.cfg.allow_unsigned {
-                Ok(())
+                Ok(None)
             } else {
                 Err(Rejected::Unsigned)
             };
@@ -265,8 +286,7 @@ impl Signer {
                 };
             }
         }
-        self.timestamp = self.timestamp.max(ts);
-        Ok(())
+        Ok(Some(ts))
     }
 }
 

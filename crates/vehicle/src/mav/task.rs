@@ -442,9 +442,18 @@ fn absorb(
     while let Some(ev) = sc.next_frame() {
         match ev {
             Scanned::Frame(f) => {
-                let checked = signer.as_deref_mut().map_or(Ok(()), |sg| sg.check(f.bytes));
+                let checked = signer
+                    .as_deref_mut()
+                    .map_or(Ok(None), |sg| sg.verify(f.bytes));
                 match checked {
-                    Ok(()) => from_autopilot |= take(&f, s, hub, ap, &from),
+                    Ok(ts) => {
+                        let autopilot = take(&f, s, hub, ap, &from);
+                        from_autopilot |= autopilot;
+                        // Our signing clock follows the autopilot's alone.
+                        if let (true, Some(ts), Some(sg)) = (autopilot, ts, signer.as_deref_mut()) {
+                            sg.follow(ts);
+                        }
+                    }
                     Err(r) => c.drop_frame(refusal_of(r), Some(f.msg_id)),
                 }
             }
