@@ -103,9 +103,21 @@ pub struct RecStats {
     queued: AtomicU64,
     /// Set when a stop gave up waiting: the thread writes no more.
     abandoned: AtomicBool,
+    /// Held while the counts change: a stop that gives up on a blocked
+    /// recorder thread settles them under it, and the thread, unblocked
+    /// later, finds `abandoned` and changes nothing more (else a flush or
+    /// a close that returned counted the same frames off twice).
+    books: Mutex<()>,
 }
 
 impl RecStats {
+    /// The counts, to change, unless a stop gave up on the recorder thread
+    /// (then they are settled and stay so). Never held across I/O.
+    fn book(&self) -> Option<std::sync::MutexGuard<'_, ()>> {
+        let g = self.books.lock().unwrap_or_else(|p| p.into_inner());
+        (!self.abandoned.load(Relaxed)).then_some(g)
+    }
+
     pub fn state(&self) -> RecState {
         RecState::from_u8(self.state.load(Relaxed))
     }
@@ -256,6 +268,7 @@ impl Recorder {
             }
             return;
         }
+        let _settled = self.stats.books.lock().unwrap_or_else(|p| p.into_inner());
         self.stats.abandoned.store(true, Relaxed);
         let left = self.stats.queued.swap(0, Relaxed) + 1;
         // Frames written since the last sync are not known to be on the

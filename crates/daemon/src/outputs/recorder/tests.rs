@@ -246,11 +246,20 @@ fn finish_does_not_wait_for_a_stuck_disk() {
         failed > 0 && recorded + failed >= 1999,
         "{recorded} + {failed}"
     );
-    // Let the writer go: drain the FIFO.
+    // Let the writer go: drain the FIFO. The thread, unblocked, changes
+    // no count the stop settled (its write, then its close, counted the
+    // same frames again: a review).
     let mut rd = File::open(&fifo).unwrap();
     std::thread::spawn(move || {
         let _ = std::io::copy(&mut rd, &mut std::io::sink());
     });
+    std::thread::sleep(Duration::from_millis(500));
+    assert_eq!(
+        (stats.frames.load(Relaxed), stats.failed.load(Relaxed)),
+        (recorded, failed)
+    );
+    assert_eq!(stats.state(), RecState::Error);
+    assert_eq!(stats.error.lock().unwrap().clone().unwrap_or_default(), err);
 }
 
 /// A frame whose t has no MCAP log time (t < 0, a replayed log whose

@@ -154,6 +154,9 @@ impl Worker {
         let first = self.stats.state() != RecState::Error;
         self.end_file(!first);
         self.probation = false;
+        let Some(_books) = self.stats.book() else {
+            return;
+        };
         if first {
             self.backoff = RETRY_FIRST;
             self.stats.outages.fetch_add(1, Relaxed);
@@ -191,16 +194,20 @@ impl Worker {
             return;
         }
         if self.due_for_rotation() {
-            self.close();
+            if let Some(Err(why)) = self.close() {
+                // Not completed (removed while written, a failed sync):
+                // an outage like any refusal of the disk.
+                self.fail(why);
+            }
         }
         if self.file.is_none() {
             if self.retry_at.is_some_and(|t| Instant::now() < t) {
-                self.stats.failed.fetch_add(1, Relaxed);
+                self.count_failed(1);
                 return;
             }
             if let Err(e) = self.open(item) {
                 self.fail(e);
-                self.stats.failed.fetch_add(1, Relaxed);
+                self.count_failed(1);
                 return;
             }
         }
@@ -209,8 +216,13 @@ impl Worker {
         };
         match f.write(&item.frame, &item.est, item.wall_unix) {
             Ok(()) => {
-                self.stats.frames.fetch_add(1, Relaxed);
-                self.stats.bytes.store(f.bytes(), Relaxed);
+                {
+                    let Some(_books) = self.stats.book() else {
+                        return;
+                    };
+                    self.stats.frames.fetch_add(1, Relaxed);
+                    self.stats.bytes.store(f.bytes(), Relaxed);
+                }
                 self.last_t = Some(item.frame.t);
                 if self.flush_at.is_none() {
                     self.flush_at = Some(Instant::now() + self.cfg.flush);
@@ -221,9 +233,16 @@ impl Worker {
             }
             Err(RecError::Skip(e)) => self.skip(&e),
             Err(RecError::Disk(e)) => {
-                self.stats.failed.fetch_add(1, Relaxed);
+                self.count_failed(1);
                 self.fail(e);
             }
+        }
+    }
+
+    /// `n` frames not recorded (unless a stop gave up on this thread).
+    fn count_failed(&self, n: u64) {
+        if let Some(_books) = self.stats.book() {
+            self.stats.failed.fetch_add(n, Relaxed);
         }
     }
 
@@ -295,9 +314,15 @@ impl Worker {
         let Some(f) = self.file.as_mut() else { return };
         match f.flush() {
             Ok(()) => {
-                self.stats.bytes.store(f.bytes(), Relaxed);
-                let synced = self.stats.frames.load(Relaxed) - f.unsynced();
-                self.stats.synced.store(synced, Relaxed);
+                {
+                    let Some(_books) = self.stats.book() else {
+                        return;
+                    };
+                    self.stats.bytes.store(f.bytes(), Relaxed);
+                    let frames = self.stats.frames.load(Relaxed);
+                    let synced = frames.saturating_sub(f.unsynced());
+                    self.stats.synced.store(synced, Relaxed);
+                }
                 if self.probation {
                     self.resumed();
                 }
@@ -360,6 +385,9 @@ impl Worker {
         self.opened = Instant::now();
         self.space_at = Some(self.opened + EVERY);
         self.retry_at = None;
+        let Some(_books) = self.stats.book() else {
+            return Ok(());
+        };
         self.stats.files.fetch_add(1, Relaxed);
         if let Ok(mut c) = self.stats.current.lock() {
             *c = Some(shown.clone());
@@ -379,6 +407,9 @@ impl Worker {
     fn resumed(&mut self) {
         self.probation = false;
         self.backoff = RETRY_FIRST;
+        let Some(_books) = self.stats.book() else {
+            return;
+        };
         if let Ok(mut e) = self.stats.error.lock() {
             *e = None;
         }
@@ -412,6 +443,8 @@ impl Worker {
         let f = self.file.take()?;
         let shown = f.path.display().to_string();
         let c = f.close();
+        // A stop that gave up on this thread has settled the counts.
+        let _books = self.stats.book()?;
         if c.lost > 0 {
             self.stats.frames.fetch_sub(c.lost, Relaxed);
             self.stats.failed.fetch_add(c.lost, Relaxed);
