@@ -19,6 +19,9 @@ cd "$(dirname "$0")/.."
 TARGETS=${CROSS_TARGETS:-"armv7-unknown-linux-gnueabihf aarch64-unknown-linux-gnu"}
 SUDO=""
 if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
+# Without a terminal (CI's background job) sudo must not wait for a
+# password nobody can type: it fails at once, saying why.
+if [ -n "$SUDO" ] && [ ! -t 0 ]; then SUDO="sudo -n"; fi
 
 # --- host packages (Debian/Ubuntu) -----------------------------------------
 pkgs=()
