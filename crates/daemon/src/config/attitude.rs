@@ -87,8 +87,9 @@ pub(super) fn validate(
 ) -> Result<Option<AttitudeInput>, ConfigError> {
     let Some(table) = raw else { return Ok(None) };
     let enabled = table.get_ref().enabled.unwrap_or(false);
-    let Some(checked) = places::when_on(enabled, at, |at| check(ctx, table, site_heading_deg, at))?
-    else {
+    // Off, the table's own heading is checked, not against [site]'s.
+    let site = site_heading_deg.filter(|_| enabled);
+    let Some(checked) = places::when_on(enabled, at, |at| check(ctx, table, site, at))? else {
         return Ok(None);
     };
     let Some(beacon_axis_heading_deg) = checked.heading else {

@@ -472,6 +472,13 @@ destinations = ["127.0.0.1:9999"]
             (c.attitude, c.foxglove, c.recording, c.outputs.multicast),
             (None, None, None, None)
         );
+        // An old heading of its own in a table that is off stops nothing;
+        // on, it conflicts with [site]'s.
+        let site = "\n[site]\nbeacon_heading_deg = 30.0\nbeacon_depth_m = 3.0\n[attitude]\nenabled = false\nbeacon_axis_heading_deg = 10.0\n";
+        let c = parse(&format!("{MIN}{site}")).expect("an attitude table that is off");
+        assert_eq!(c.attitude, None);
+        let e = parse(&format!("{MIN}{}", site.replace("false", "true"))).unwrap_err();
+        assert!(e.to_string().contains("conflicts with [site]"), "{e}");
         // The same attitude table switched on needs the beacon's heading.
         let on = parse(&format!(
             "{MIN}{}",
