@@ -60,7 +60,7 @@ pub use self::bank::WaterBank;
 pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
 use self::counts::CountsInput;
 pub(crate) use self::dvl_check::DvlChecks;
-use self::readings::{gate_thresholds, FrameReadings, PaperReading};
+use self::readings::{gate_thresholds, FrameReadings, PaperReading, Pending};
 use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
 pub use self::water_check::WaterWatch;
 use crate::model::findings::Found;
@@ -263,7 +263,20 @@ impl Tracker {
             Some(_) => None,
             None => self.paper_range(law),
         };
-        match self.start(frame, r, paper.as_ref().map(|p| &p.range)) {
+        let mut started = self.start(frame, r, paper.as_ref().map(|p| &p.range));
+        if started.is_err() && r.depth.ready().is_some() {
+            // A depth the light cannot be fitted with (grossly off: a
+            // wrong beacon depth, a sensor zeroed elsewhere) was the start
+            // fit's tight prior at every restart, so the track never
+            // started (an audit: +5 m gave no pose for a whole minute).
+            // The light alone starts it; the gate judges the depth after.
+            let alone = FrameReadings {
+                depth: Pending::Done(ReadingUse::Refused(Refusal::Light)),
+                ..*r
+            };
+            started = self.start(frame, &alone, paper.as_ref().map(|p| &p.range));
+        }
+        match started {
             Ok((mut s, uses)) => {
                 if let Some(p) = paper {
                     s.push_paper(p);
