@@ -116,7 +116,19 @@ pub struct Tracker {
     /// The DVL judged by the light: its change of range and its track's
     /// direction (about the sensor: kept across restarts).
     dvl: dvl_check::DvlChecks,
+    /// When the last track started, and how many tracks in a row were
+    /// lost within [`QUICK_LOSS_S`] of their start (see `restart`).
+    started_t: Option<f64>,
+    quick_losses: u32,
 }
+
+/// A track lost this soon after its start was started onto something
+/// wrong; [`QUICK_LOSSES`] such in a row and the next starts from the light
+/// alone (an attitude 30° off in pitch or 90° in heading, taken as the
+/// start's prior, started track after track onto itself, each lost at
+/// once: not one `ok` pose in a minute).
+const QUICK_LOSS_S: f64 = 2.0;
+const QUICK_LOSSES: u32 = 2;
 
 impl Tracker {
     pub const NAME: &'static str = "tracker";
@@ -152,6 +164,8 @@ impl Tracker {
             agreement: Default::default(),
             offsets: offsets::Offsets::new(&cfg),
             dvl: Default::default(),
+            started_t: None,
+            quick_losses: 0,
             cfg,
         })
     }
@@ -259,25 +273,47 @@ impl Tracker {
         law: Option<PaperReading>,
     ) -> PoseEstimate {
         self.offsets.start_at(frame.t, &self.cfg);
+        if let Some(t0) = self.started_t.take() {
+            let quick = frame.t - t0 < QUICK_LOSS_S;
+            self.quick_losses = if quick { self.quick_losses + 1 } else { 0 };
+        }
+        let alone;
+        let r = if self.quick_losses >= QUICK_LOSSES {
+            // The gate judges the readings once the light has a track.
+            let refused = ReadingUse::Refused(Refusal::Light);
+            alone = FrameReadings {
+                attitude: Pending::Done(refused),
+                depth: Pending::Done(refused),
+                ..*r
+            };
+            &alone
+        } else {
+            r
+        };
         let paper = match r.attitude.ready() {
             Some(_) => None,
             None => self.paper_range(law),
         };
         let mut started = self.start(frame, r, paper.as_ref().map(|p| &p.range));
-        if started.is_err() && r.depth.ready().is_some() {
+        if let (Err(_), Some(d)) = (&started, r.depth.ready()) {
             // A depth the light cannot be fitted with (grossly off: a
             // wrong beacon depth, a sensor zeroed elsewhere) was the start
             // fit's tight prior at every restart, so the track never
             // started (an audit: +5 m gave no pose for a whole minute).
-            // The light alone starts it; the gate judges the depth after.
+            // The light alone starts it when it puts the depth grossly
+            // wrong; the gate judges the depth after.
             let alone = FrameReadings {
                 depth: Pending::Done(ReadingUse::Refused(Refusal::Light)),
                 ..*r
             };
-            started = self.start(frame, &alone, paper.as_ref().map(|p| &p.range));
+            let retried = self.start(frame, &alone, paper.as_ref().map(|p| &p.range));
+            if matches!(&retried, Ok((s, _)) if self.depth_at_odds(s, d)) {
+                started = retried;
+            }
         }
         match started {
             Ok((mut s, uses)) => {
+                self.started_t = Some(frame.t);
                 if let Some(p) = paper {
                     s.push_paper(p);
                 }
@@ -550,6 +586,7 @@ impl Estimator for Tracker {
 
     fn reset(&mut self) {
         self.state = None;
+        (self.started_t, self.quick_losses) = (None, 0);
         self.init.reset();
         self.agreement = Default::default();
         self.offsets = offsets::Offsets::new(&self.cfg);

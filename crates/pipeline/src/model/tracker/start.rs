@@ -81,6 +81,18 @@ impl Tracker {
 
     /// The dome centre's z for a depth sensor reading `zd` at pitch `theta`
     /// (the lever arm, see the readings' depth model).
+    /// Whether the depth reading `d` is grossly at odds with a state the
+    /// light started alone: more than 5σ from its z, σ the state's and the
+    /// reading's (with its offset's) together. What the light alone can
+    /// say of a wrong depth; a depth merely unlike a first fit is not
+    /// that.
+    pub(super) fn depth_at_odds(&self, s: &State, d: &Checked<1>) -> bool {
+        let (offset, var) = self.offsets.prior(Offset::Depth);
+        let want = self.dome_z_of_depth(d.z[0] - offset, s.x[3]);
+        let sd2 = s.p[(2, 2)] + d.sigma[0] * d.sigma[0] + var;
+        (s.x[2] - want).powi(2) > 25.0 * sd2
+    }
+
     fn dome_z_of_depth(&self, zd: f64, theta: f64) -> f64 {
         let [lf, _, ld] = self.cfg.depth_lever_arm_m;
         let (st, ct) = theta.sin_cos();
