@@ -60,7 +60,7 @@ pub use self::bank::WaterBank;
 pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
 use self::counts::CountsInput;
 pub(crate) use self::dvl_check::DvlChecks;
-use self::readings::{gate_thresholds, FrameReadings, PaperReading, Pending};
+use self::readings::{gate_thresholds, FrameReadings, PaperReading};
 use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
 pub use self::water_check::WaterWatch;
 use crate::model::findings::Found;
@@ -277,18 +277,10 @@ impl Tracker {
             let quick = frame.t - t0 < QUICK_LOSS_S;
             self.quick_losses = if quick { self.quick_losses + 1 } else { 0 };
         }
-        let alone;
-        let r = if self.quick_losses >= QUICK_LOSSES {
-            // The gate judges the readings once the light has a track.
-            let refused = ReadingUse::Refused(Refusal::Light);
-            alone = FrameReadings {
-                attitude: Pending::Done(refused),
-                depth: Pending::Done(refused),
-                ..*r
-            };
-            &alone
+        let r = &if self.quick_losses >= QUICK_LOSSES {
+            r.for_light_alone(true)
         } else {
-            r
+            *r
         };
         let paper = match r.attitude.ready() {
             Some(_) => None,
@@ -302,10 +294,7 @@ impl Tracker {
             // started (an audit: +5 m gave no pose for a whole minute).
             // The light alone starts it when it puts the depth grossly
             // wrong; the gate judges the depth after.
-            let alone = FrameReadings {
-                depth: Pending::Done(ReadingUse::Refused(Refusal::Light)),
-                ..*r
-            };
+            let alone = r.for_light_alone(false);
             let retried = self.start(frame, &alone, paper.as_ref().map(|p| &p.range));
             if matches!(&retried, Ok((s, _)) if self.depth_at_odds(s, d)) {
                 started = retried;

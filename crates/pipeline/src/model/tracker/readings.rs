@@ -95,6 +95,24 @@ pub(super) struct FrameReadings {
     pub velocity: Pending<3>,
 }
 
+impl FrameReadings {
+    /// The same readings for a start from the light alone: the depth
+    /// (and the attitude, with `attitude`) refused as at odds with the
+    /// light; the gate judges them once the light has a track.
+    pub fn for_light_alone(&self, attitude: bool) -> FrameReadings {
+        let refused = ReadingUse::Refused(Refusal::Light);
+        FrameReadings {
+            attitude: if attitude {
+                Pending::Done(refused)
+            } else {
+                self.attitude
+            },
+            depth: Pending::Done(refused),
+            velocity: self.velocity,
+        }
+    }
+}
+
 /// The verdict of a value check: finite values, a positive finite std
 /// where the reading gives one, values within `limit`.
 pub(crate) fn check<const M: usize>(
