@@ -14,6 +14,7 @@ use crate::status::{status_message, StatusCtx};
 use crate::wiring::Running;
 use crate::Summary;
 use lightpose_hal::Stop;
+use lightpose_vehicle::stale::{Change, StaleWatch};
 use std::any::Any;
 use std::future::Future;
 use std::sync::atomic::Ordering::Relaxed;
@@ -32,6 +33,8 @@ struct Ticker {
     taps: Vec<Box<dyn StatusTap>>,
     /// The frame thread's stop, whose waits beat while they wait.
     alive: Stop,
+    /// The vehicle's readings going stale and coming back, told.
+    stale: Option<StaleWatch>,
 }
 
 impl Ticker {
@@ -47,6 +50,9 @@ impl Ticker {
             self.prev_frames = frames;
             self.prev_at = now;
             self.send_status(ctx, fps);
+            if let (Some(w), Some(hub)) = (&mut self.stale, ctx.vehicle) {
+                w.look(&hub.readings.status(now), now, tell_stale);
+            }
             let line = format!(
                 "{} frames, {} late, {} failed, {:.1} fps",
                 frames,
@@ -136,6 +142,7 @@ pub async fn supervise_to_end(
         prev_at: Instant::now(),
         taps: std::mem::take(&mut d.status_taps),
         alive: d.stop.clone(),
+        stale: cfg.vehicle.as_ref().map(|v| StaleWatch::new(v.max_age)),
     };
     // The hub outlives the tasks it is taken from (the last STATUS reads it).
     let vehicle_hub = d.vehicle.as_ref().map(|v| v.hub.clone());
@@ -195,6 +202,33 @@ pub async fn supervise_to_end(
         t.stop();
     }
     (summary(&ctx, &reason), reason)
+}
+
+/// A reading that stopped reaching the frames (a DVL whose reports come
+/// older than their limit, an autopilot that stopped streaming one while
+/// its link is up), or is back: one line each way.
+fn tell_stale(c: Change) {
+    match c {
+        Change::Stale {
+            reading,
+            age_s,
+            max_age_s,
+        } => tracing::warn!(
+            reading,
+            age_s,
+            "{reading} reading stale: the latest was taken {} ago, over its limit of {max_age_s} s; frames go without it until a fresh one comes",
+            age_s.map_or("?".to_string(), |a| format!("{a:.2} s"))
+        ),
+        Change::Back {
+            reading,
+            after_s,
+            frames_without,
+        } => tracing::info!(
+            reading,
+            frames_without,
+            "{reading} reading back after {after_s:.1} s stale: {frames_without} frames went without it"
+        ),
+    }
 }
 
 /// What the supervisor saw of the frame thread's end before joining it.

@@ -100,3 +100,48 @@ fn a_dvl_drives_the_velocity_input_and_its_faults_are_counted() {
         "{with} recorded with a velocity"
     );
 }
+
+/// A DVL whose reports arrive 1.6 s old (within what a DVL may lag, over
+/// the velocity's 1 s limit) for 1.5 s, then fresh ones for 1.5 s.
+fn late_then_fresh(listener: TcpListener) {
+    let (mut s, _) = listener.accept().expect("the daemon connects");
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_millis(1500) {
+        let line = lightpose_testkit::dvl::report(V, true, 1_600_000);
+        s.write_all(line.as_bytes()).expect("write");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    reports(&mut s, Duration::from_millis(1500));
+}
+
+/// Reports that come too old for any frame were only a count in STATUS:
+/// the journal now says once that the velocity went stale, and once that
+/// it is back (the real binary, its stderr read).
+#[test]
+fn a_reading_gone_stale_is_told_once_and_once_back() {
+    use common::run::{signal, spawn_daemon_to, wait_exit};
+    let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let port = listener.local_addr().expect("addr").port();
+    let (sub, dest) = subscriber();
+    let dir = tempfile::tempdir().expect("tmp");
+    let extra = format!("[dvl]\naddress = \"127.0.0.1:{port}\"\n");
+    let text = sim_config(20.0, &[dest], "loop = true", &extra);
+    let server = std::thread::spawn(move || late_then_fresh(listener));
+    let err = dir.path().join("stderr");
+    let file = std::fs::File::create(&err).expect("stderr file");
+    let (mut child, _) = spawn_daemon_to(dir.path(), &text, &sub, file.into());
+    let msgs = collect(&sub, Duration::from_millis(3300));
+    signal(&child, nix::sys::signal::Signal::SIGTERM);
+    assert!(wait_exit(&mut child, Duration::from_secs(5)).success());
+    server.join().expect("the stand-in DVL ran its script");
+    let log = std::fs::read_to_string(&err).expect("stderr");
+    let status = of_class(&msgs, "STATUS");
+    let r = &status.last().expect("STATUS")["vehicle"]["readings"]["velocity"];
+    assert!(r["stale"].as_u64() >= Some(10), "{r}");
+    assert!(r["attached"].as_u64() >= Some(10), "{r}");
+    let stale: Vec<&str> = log.lines().filter(|l| l.contains("velocity reading stale")).collect();
+    let back: Vec<&str> = log.lines().filter(|l| l.contains("velocity reading back")).collect();
+    assert_eq!((stale.len(), back.len()), (1, 1), "{log}");
+    assert!(stale[0].contains("WARN") && stale[0].contains("over its limit of 1 s"), "{}", stale[0]);
+    assert!(back[0].contains("frames went without it"), "{}", back[0]);
+}

@@ -30,6 +30,7 @@ pub mod latest;
 pub mod mav;
 pub mod ned;
 pub mod readings;
+pub mod stale;
 pub mod standin;
 
 pub use config::{ConfigError, DvlTable, MavlinkTable, SiteTable};

@@ -118,14 +118,25 @@ pub fn run_to_end(
 /// Start the real binary with `cfg_text` (written into `dir`); wait until
 /// POSE flows to `sub`, and give the datagrams received until then. The
 /// caller owns the child and waits for it.
-#[allow(clippy::zombie_processes)]
 pub fn spawn_daemon(dir: &Path, cfg_text: &str, sub: &UdpSocket) -> (Child, Vec<Vec<u8>>) {
+    spawn_daemon_to(dir, cfg_text, sub, Stdio::null())
+}
+
+/// As [`spawn_daemon`], its log (stderr) to `stderr`.
+#[allow(clippy::zombie_processes)]
+pub fn spawn_daemon_to(
+    dir: &Path,
+    cfg_text: &str,
+    sub: &UdpSocket,
+    stderr: Stdio,
+) -> (Child, Vec<Vec<u8>>) {
     let cfg = dir.join("lightposed.toml");
     std::fs::write(&cfg, cfg_text).expect("write config");
     let mut child = Command::new(env!("CARGO_BIN_EXE_lightposed"))
         .arg("--config")
         .arg(&cfg)
-        .stderr(Stdio::null())
+        .env_remove("RUST_LOG")
+        .stderr(stderr)
         .spawn()
         .expect("spawn lightposed");
     let mut buf = [0u8; 65536];

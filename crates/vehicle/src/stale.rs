@@ -1,0 +1,175 @@
+//! A reading that stops reaching the frames, told once when it stops and
+//! once when it is back. The hub counts per frame what was attached and
+//! what was found too old ([`ReadingsStatus`]); those counts alone say
+//! nothing in the journal, so a DVL whose reports arrive already older
+//! than `max_age_s`, or an autopilot that stopped streaming ATTITUDE while
+//! its link is up, went unseen but in STATUS. Judged over each STATUS
+//! interval: stale when no frame got the reading and some found it too
+//! old, back when a frame gets it again. A reading that flickers within
+//! an interval (some frames with, some without) is STATUS's to show.
+
+use crate::readings::{MaxAge, ReadingStatus, ReadingsStatus};
+use std::time::{Duration, Instant};
+
+/// The readings, in the order of [`ReadingsStatus`]'s fields.
+pub const NAMES: [&str; 4] = ["attitude", "depth", "temperature", "velocity"];
+
+/// A change of one reading to tell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Change {
+    /// No frame of the interval got it; some found it older than its limit.
+    Stale {
+        reading: &'static str,
+        /// How long before the look the latest was taken.
+        age_s: Option<f64>,
+        max_age_s: f64,
+    },
+    /// Frames get it again.
+    Back {
+        reading: &'static str,
+        /// How long it was stale (from the look that found it so).
+        after_s: f64,
+        /// Frames that found it too old meanwhile.
+        frames_without: u64,
+    },
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct One {
+    attached: u64,
+    stale: u64,
+    /// Since when it is stale, and the frames without it since.
+    stale_since: Option<(Instant, u64)>,
+}
+
+/// Per reading: the counts at the last look and whether it is stale.
+#[derive(Debug, Clone, Default)]
+pub struct StaleWatch {
+    max_age: MaxAge,
+    ones: [One; 4],
+}
+
+impl StaleWatch {
+    pub fn new(max_age: MaxAge) -> Self {
+        StaleWatch {
+            max_age,
+            ones: Default::default(),
+        }
+    }
+
+    /// Compare `now`'s counts with the last look's; each change to `tell`.
+    pub fn look(&mut self, st: &ReadingsStatus, now: Instant, mut tell: impl FnMut(Change)) {
+        let m = &self.max_age;
+        let all: [(&ReadingStatus, Duration); 4] = [
+            (&st.attitude, m.attitude),
+            (&st.depth, m.depth),
+            (&st.temperature, m.temperature),
+            (&st.velocity, m.velocity),
+        ];
+        for ((one, (r, limit)), reading) in self.ones.iter_mut().zip(all).zip(NAMES) {
+            let got = r.attached.saturating_sub(one.attached);
+            let without = r.stale.saturating_sub(one.stale);
+            one.attached = r.attached;
+            one.stale = r.stale;
+            match one.stale_since {
+                None if got == 0 && without > 0 => {
+                    one.stale_since = Some((now, without));
+                    tell(Change::Stale {
+                        reading,
+                        age_s: r.age_s,
+                        max_age_s: limit.as_secs_f64(),
+                    });
+                }
+                None => {}
+                Some((since, n)) if got > 0 => {
+                    one.stale_since = None;
+                    tell(Change::Back {
+                        reading,
+                        after_s: now.saturating_duration_since(since).as_secs_f64(),
+                        frames_without: n + without,
+                    });
+                }
+                Some((since, n)) => one.stale_since = Some((since, n + without)),
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn status(att: (u64, u64), vel: (u64, u64), vel_age: f64) -> ReadingsStatus {
+        let r = |(attached, stale): (u64, u64), age: f64| ReadingStatus {
+            age_s: Some(age),
+            stored: attached,
+            attached,
+            stale,
+        };
+        ReadingsStatus {
+            attitude: r(att, 0.01),
+            depth: r((0, 0), 0.0),
+            temperature: r((0, 0), 0.0),
+            velocity: r(vel, vel_age),
+        }
+    }
+
+    fn looks(w: &mut StaleWatch, st: &ReadingsStatus, at: Instant) -> Vec<Change> {
+        let mut out = Vec::new();
+        w.look(st, at, |c| out.push(c));
+        out
+    }
+
+    #[test]
+    fn a_reading_is_told_once_stale_and_once_back() {
+        let t0 = Instant::now();
+        let s = Duration::from_secs(1);
+        let mut w = StaleWatch::new(MaxAge::default());
+        // Both readings on every frame: nothing to tell.
+        assert!(looks(&mut w, &status((10, 0), (10, 0), 0.2), t0).is_empty());
+        // The DVL's reports come 1.6 s old: no frame gets one.
+        let c = looks(&mut w, &status((20, 0), (10, 10), 1.6), t0 + s);
+        assert_eq!(
+            c,
+            vec![Change::Stale {
+                reading: "velocity",
+                age_s: Some(1.6),
+                max_age_s: 1.0
+            }]
+        );
+        // Still stale: not told again.
+        assert!(looks(&mut w, &status((30, 0), (10, 20), 1.6), t0 + 2 * s).is_empty());
+        // A fresh one: back, with the frames that went without.
+        let c = looks(&mut w, &status((40, 0), (12, 28), 0.1), t0 + 3 * s);
+        assert_eq!(
+            c,
+            vec![Change::Back {
+                reading: "velocity",
+                after_s: 2.0,
+                frames_without: 28
+            }]
+        );
+        // Flicker within an interval (some frames with, some without) and
+        // a reading that never came (no counts) are not told.
+        assert!(looks(&mut w, &status((50, 0), (17, 33), 0.9), t0 + 4 * s).is_empty());
+        assert!(looks(&mut w, &status((60, 0), (17, 33), 0.9), t0 + 5 * s).is_empty());
+    }
+
+    #[test]
+    fn each_reading_has_its_own_limit_and_state() {
+        let t0 = Instant::now();
+        let mut w = StaleWatch::new(MaxAge::default());
+        let mut st = status((10, 0), (10, 0), 0.2);
+        assert!(looks(&mut w, &st, t0).is_empty());
+        st.attitude.stale = 10;
+        st.velocity.stale = 5;
+        st.attitude.age_s = Some(0.4);
+        let c = looks(&mut w, &st, t0 + Duration::from_secs(1));
+        assert_eq!(c.len(), 2, "{c:?}");
+        assert!(matches!(c[0], Change::Stale { reading: "attitude", max_age_s, .. } if (max_age_s - 0.25).abs() < 1e-12));
+        assert!(matches!(c[1], Change::Stale { reading: "velocity", max_age_s, .. } if (max_age_s - 1.0).abs() < 1e-12));
+        st.attitude.attached = 11;
+        let c = looks(&mut w, &st, t0 + Duration::from_secs(2));
+        assert!(matches!(c[..], [Change::Back { reading: "attitude", frames_without: 10, .. }]), "{c:?}");
+    }
+}
