@@ -725,6 +725,35 @@ mod tests {
         assert_eq!(trunc, Some(4));
     }
 
+    /// Counts a writer kept in floats (46.0) are the integers they are;
+    /// one with a fraction, negative or over full scale is refused as before.
+    #[test]
+    fn whole_float_counts_are_integers() {
+        let mut bytes = write(&[]);
+        let line = |seq: u64, last: &str| {
+            let c: Vec<String> = (1..NDET).map(|k| format!("{k}.0")).collect();
+            format!(
+                "{{\"class\":\"FRAME\",\"seq\":{seq},\"t\":{seq}.0,\"counts\":[{},{last}]}}\n",
+                c.join(",")
+            )
+        };
+        for (seq, last) in [(0, "25.0"), (1, "1e3"), (2, "25.5"), (3, "-1.0"), (4, "1024.0")] {
+            bytes.extend_from_slice(line(seq, last).as_bytes());
+        }
+        let got: Vec<_> = LogReader::new(&bytes[..], "f.jsonl").unwrap().collect();
+        let ok: Vec<&Frame> = got.iter().filter_map(|g| g.as_ref().ok()).collect();
+        assert_eq!(ok.len(), 2, "{got:?}");
+        assert_eq!(ok[0].counts[..3], [1, 2, 3]);
+        assert_eq!((ok[0].counts[24], ok[1].counts[24]), (25, 1000));
+        let errs: Vec<String> = got
+            .iter()
+            .filter_map(|g| g.as_ref().err().map(|e| e.to_string()))
+            .collect();
+        assert!(errs[0].starts_with("f.jsonl:4: counts[24] = 25.5 is not an integer"), "{errs:?}");
+        assert!(errs[1].starts_with("f.jsonl:5: counts[24] = -1.0"), "{errs:?}");
+        assert!(errs[2].starts_with("f.jsonl:6: counts[24] = 1024"), "{errs:?}");
+    }
+
     #[test]
     fn bad_lines_are_named_and_reading_goes_on() {
         let mut bytes = write(&[frame(0)]);

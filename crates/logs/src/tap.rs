@@ -45,6 +45,13 @@ impl<R: BufRead> Read for LineTap<R> {
 impl<R: BufRead> BufRead for LineTap<R> {
     fn fill_buf(&mut self) -> io::Result<&[u8]> {
         if self.pos >= self.line.len() {
+            // At the end the last line stays what `line` gives: a log whose
+            // last line has no newline is asked once more for a newline
+            // after it, and that look must not take the line away (its
+            // frame was converted as an empty message).
+            if self.src.fill_buf()?.is_empty() {
+                return Ok(&[]);
+            }
             self.line.clear();
             self.pos = 0;
             (&mut self.src)
@@ -56,5 +63,21 @@ impl<R: BufRead> BufRead for LineTap<R> {
 
     fn consume(&mut self, n: usize) {
         self.pos = (self.pos + n).min(self.line.len());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_last_line_stays_after_the_end_is_seen() {
+        for text in ["a\nlast", "a\nlast\n", "a\r\nlast\r\n"] {
+            let mut t = LineTap::new(text.as_bytes());
+            let mut s = String::new();
+            while t.read_line(&mut s).expect("read") > 0 {}
+            assert!(t.line().starts_with(b"last"), "{text:?}: {:?}", t.line());
+            assert_eq!(s, text);
+        }
     }
 }

@@ -61,6 +61,36 @@ fn regression_logs_round_trip_byte_for_byte_with_their_poses() {
     }
 }
 
+/// A log from elsewhere whose last line has no newline (LF or CRLF): its
+/// last frame went into MCAP as an empty message, counted converted, and
+/// was lost on the way back. Now every frame comes back, the text as it was.
+#[test]
+fn a_last_line_without_newline_is_converted_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = fs::read_to_string(data("dive.jsonl")).unwrap();
+    let lf = text.trim_end_matches('\n').to_string();
+    let crlf = lf.replace('\n', "\r\n");
+    for (name, body) in [("lf", lf), ("crlf", crlf)] {
+        let log = dir.path().join(format!("{name}.jsonl"));
+        fs::write(&log, &body).unwrap();
+        let mcap = dir.path().join(format!("{name}.mcap"));
+        let back = dir.path().join(format!("{name}.back.jsonl"));
+        let s = convert(&log, &mcap, None, &opts(), |e| panic!("{e}")).unwrap();
+        assert_eq!(s.frames, 41, "{name}");
+        let s = convert(&mcap, &back, None, &opts(), |e| panic!("{e}")).unwrap();
+        assert_eq!((s.frames, s.skipped), (41, 0), "{name}");
+        let frames: Vec<_> = LogReader::open(&back)
+            .unwrap()
+            .map(|f| f.unwrap())
+            .collect();
+        assert_eq!(frames.len(), 41, "{name}");
+        let last_in = body.lines().last().unwrap().trim_end_matches('\r');
+        let last_out = fs::read_to_string(&back).unwrap();
+        let last_out = last_out.lines().last().unwrap().trim_end_matches('\r').to_string();
+        assert_eq!(last_in, last_out, "{name}");
+    }
+}
+
 #[test]
 fn a_refused_line_is_named_and_skipped() {
     let dir = tempfile::tempdir().unwrap();

@@ -66,7 +66,7 @@ impl<'de: 'a, 'a> Deserialize<'de> for Text<'a> {
 }
 
 /// The `counts` array: how many values it held, the first [`NDET`] as
-/// non-negative integers where they are, and the first of those that is
+/// non-negative integers where they are (whole floats too), and the first of those that is
 /// not one (for the refusal to quote).
 pub(super) struct Counts {
     pub len: usize,
@@ -92,7 +92,14 @@ impl<'de> Deserialize<'de> for Counts {
                 // A number is a `Value` without the heap.
                 while let Some(v) = seq.next_element::<serde_json::Value>()? {
                     if let Some(slot) = c.values.get_mut(c.len) {
-                        *slot = v.as_u64();
+                        // A whole number written as a float (46.0, as a
+                        // writer that keeps counts in floats writes them)
+                        // is that integer; 46.5 is not.
+                        *slot = v.as_u64().or_else(|| {
+                            v.as_f64()
+                                .filter(|f| *f >= 0.0 && f.fract() == 0.0 && *f <= 65535.0)
+                                .map(|f| f as u64)
+                        });
                         if slot.is_none() && c.first_other.is_none() {
                             c.first_other = Some(v);
                         }
