@@ -737,7 +737,13 @@ mod tests {
                 c.join(",")
             )
         };
-        for (seq, last) in [(0, "25.0"), (1, "1e3"), (2, "25.5"), (3, "-1.0"), (4, "1024.0")] {
+        for (seq, last) in [
+            (0, "25.0"),
+            (1, "1e3"),
+            (2, "25.5"),
+            (3, "-1.0"),
+            (4, "1024.0"),
+        ] {
             bytes.extend_from_slice(line(seq, last).as_bytes());
         }
         let got: Vec<_> = LogReader::new(&bytes[..], "f.jsonl").unwrap().collect();
@@ -749,9 +755,18 @@ mod tests {
             .iter()
             .filter_map(|g| g.as_ref().err().map(|e| e.to_string()))
             .collect();
-        assert!(errs[0].starts_with("f.jsonl:4: counts[24] = 25.5 is not an integer"), "{errs:?}");
-        assert!(errs[1].starts_with("f.jsonl:5: counts[24] = -1.0"), "{errs:?}");
-        assert!(errs[2].starts_with("f.jsonl:6: counts[24] = 1024"), "{errs:?}");
+        assert!(
+            errs[0].starts_with("f.jsonl:4: counts[24] = 25.5 is not an integer"),
+            "{errs:?}"
+        );
+        assert!(
+            errs[1].starts_with("f.jsonl:5: counts[24] = -1.0"),
+            "{errs:?}"
+        );
+        assert!(
+            errs[2].starts_with("f.jsonl:6: counts[24] = 1024"),
+            "{errs:?}"
+        );
     }
 
     #[test]

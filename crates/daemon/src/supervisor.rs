@@ -14,7 +14,9 @@ use crate::status::{status_message, StatusCtx};
 use crate::wiring::Running;
 use crate::Summary;
 use lightpose_hal::Stop;
+use lightpose_vehicle::readings::ReadingsStatus;
 use lightpose_vehicle::stale::{Change, StaleWatch};
+use lightpose_vehicle::MaxAge;
 use std::any::Any;
 use std::future::Future;
 use std::sync::atomic::Ordering::Relaxed;
@@ -33,8 +35,10 @@ struct Ticker {
     taps: Vec<Box<dyn StatusTap>>,
     /// The frame thread's stop, whose waits beat while they wait.
     alive: Stop,
-    /// The vehicle's readings going stale and coming back, told.
+    /// The vehicle's readings going stale and coming back, told; the
+    /// attitude input's apart.
     stale: Option<StaleWatch>,
+    stale_input: Option<StaleWatch>,
 }
 
 impl Ticker {
@@ -51,7 +55,11 @@ impl Ticker {
             self.prev_at = now;
             self.send_status(ctx, fps);
             if let (Some(w), Some(hub)) = (&mut self.stale, ctx.vehicle) {
-                w.look(&hub.readings.status(now), now, tell_stale);
+                w.look(&hub.readings.status(now), now, |c| tell_stale("vehicle", c));
+            }
+            if let (Some(w), Some(att)) = (&mut self.stale_input, ctx.att) {
+                let st = ReadingsStatus::only_attitude(att.status(now));
+                w.look(&st, now, |c| tell_stale("attitude input", c));
             }
             let line = format!(
                 "{} frames, {} late, {} failed, {:.1} fps",
@@ -143,6 +151,12 @@ pub async fn supervise_to_end(
         taps: std::mem::take(&mut d.status_taps),
         alive: d.stop.clone(),
         stale: cfg.vehicle.as_ref().map(|v| StaleWatch::new(v.max_age)),
+        stale_input: cfg.attitude.as_ref().map(|a| {
+            StaleWatch::new(MaxAge {
+                attitude: a.max_age,
+                ..MaxAge::default()
+            })
+        }),
     };
     // The hub outlives the tasks it is taken from (the last STATUS reads it).
     let vehicle_hub = d.vehicle.as_ref().map(|v| v.hub.clone());
@@ -207,7 +221,7 @@ pub async fn supervise_to_end(
 /// A reading that stopped reaching the frames (a DVL whose reports come
 /// older than their limit, an autopilot that stopped streaming one while
 /// its link is up), or is back: one line each way.
-fn tell_stale(c: Change) {
+fn tell_stale(input: &str, c: Change) {
     match c {
         Change::Stale {
             reading,
@@ -216,7 +230,7 @@ fn tell_stale(c: Change) {
         } => tracing::warn!(
             reading,
             age_s,
-            "{reading} reading stale: the latest was taken {} ago, over its limit of {max_age_s} s; frames go without it until a fresh one comes",
+            "{input}: {reading} reading stale: the latest was taken {} ago, over its limit of {max_age_s} s; frames go without it until a fresh one comes",
             age_s.map_or("?".to_string(), |a| format!("{a:.2} s"))
         ),
         Change::Back {
@@ -226,7 +240,7 @@ fn tell_stale(c: Change) {
         } => tracing::info!(
             reading,
             frames_without,
-            "{reading} reading back after {after_s:.1} s stale: {frames_without} frames went without it"
+            "{input}: {reading} reading back after {after_s:.1} s stale: {frames_without} frames went without it"
         ),
     }
 }

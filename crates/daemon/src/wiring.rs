@@ -373,10 +373,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     };
     if let (Some(cell), Some(a)) = (&attitude, &cfg.attitude) {
         let max_age = a.max_age;
-        engine = engine.input(Box::new(LatestAttitude {
-            cell: cell.clone(),
-            max_age,
-        }));
+        engine = engine.input(Box::new(LatestAttitude::new(cell.clone(), max_age)));
     }
 
     publisher.send(&version_message(cfg, &source_desc, est_name));

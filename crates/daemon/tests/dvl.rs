@@ -139,9 +139,19 @@ fn a_reading_gone_stale_is_told_once_and_once_back() {
     let r = &status.last().expect("STATUS")["vehicle"]["readings"]["velocity"];
     assert!(r["stale"].as_u64() >= Some(10), "{r}");
     assert!(r["attached"].as_u64() >= Some(10), "{r}");
-    let stale: Vec<&str> = log.lines().filter(|l| l.contains("velocity reading stale")).collect();
-    let back: Vec<&str> = log.lines().filter(|l| l.contains("velocity reading back")).collect();
+    let stale: Vec<&str> = log
+        .lines()
+        .filter(|l| l.contains("vehicle: velocity reading stale"))
+        .collect();
+    let back: Vec<&str> = log
+        .lines()
+        .filter(|l| l.contains("vehicle: velocity reading back"))
+        .collect();
     assert_eq!((stale.len(), back.len()), (1, 1), "{log}");
-    assert!(stale[0].contains("WARN") && stale[0].contains("over its limit of 1 s"), "{}", stale[0]);
+    assert!(
+        stale[0].contains("WARN") && stale[0].contains("over its limit of 1 s"),
+        "{}",
+        stale[0]
+    );
     assert!(back[0].contains("frames went without it"), "{}", back[0]);
 }

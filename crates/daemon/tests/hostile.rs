@@ -191,12 +191,19 @@ fn bad_attitude_datagrams_are_counted_by_reason() {
     let h = run_in_process(cfg, Duration::from_millis(1500));
     std::thread::sleep(Duration::from_millis(300));
     let ahrs = UdpSocket::bind("127.0.0.1:0").expect("ahrs");
+    // A good object, then past byte 2048 (the buffer's size before) garbage.
+    let mut long = br#"{"class":"ATTITUDE","t":2,"pitch":3,"yaw":10}"#.to_vec();
+    long.resize(2048, b' ');
+    long.extend_from_slice(&[0xff; 3000]);
     for d in [
         &br#"{"class":"ATTITUDE","t":1e12,"pitch":0,"yaw":0}"#[..],
         br#"{"class":"ATTITUDE","t":"yesterday","pitch":0,"yaw":0}"#,
         br#"{"class":"ATTITUDE","t":1,"pitch":0,"yaw":1e308}"#,
         br#"{"class":"POSE","t":1,"pitch":0,"yaw":0}"#,
         b"garbage",
+        br#"["ATTITUDE",1,42,20]"#,
+        &long,
+        br#"{"class":"ATTITUDE","t":1,"pitch":3,"yaw":10}"#,
         br#"{"class":"ATTITUDE","t":1,"pitch":3,"yaw":10}"#,
     ] {
         ahrs.send_to(d, ("127.0.0.1", port)).expect("send");
@@ -205,16 +212,17 @@ fn bad_attitude_datagrams_are_counted_by_reason() {
     h.join().expect("daemon");
     let att = &last_status(&msgs)["attitude"];
     assert_eq!(att["received"], 1, "{att}");
-    assert_eq!(att["rejected"], 5, "{att}");
+    assert_eq!(att["rejected"], 8, "{att}");
     let by = &att["rejected_by"];
     assert_eq!(
         (
             by["time"].as_u64(),
             by["angle"].as_u64(),
             by["class"].as_u64(),
-            by["malformed"].as_u64()
+            by["malformed"].as_u64(),
+            by["repeated"].as_u64()
         ),
-        (Some(2), Some(1), Some(1), Some(1)),
+        (Some(2), Some(1), Some(1), Some(3), Some(1)),
         "{att}"
     );
 }
@@ -259,8 +267,9 @@ fn attitude_from_a_sender_not_allowed_is_refused_and_not_attached() {
     let t0 = Instant::now();
     while t0.elapsed() < Duration::from_millis(800) {
         let to = ("127.0.0.1", port);
-        let good = br#"{"class":"ATTITUDE","t":1,"pitch":3,"yaw":180}"#;
-        sent_ahrs += u64::from(ahrs.send_to(good, to).is_ok());
+        // t advances: a datagram the same as the last, t too, is a re-send.
+        let good = format!(r#"{{"class":"ATTITUDE","t":{sent_ahrs},"pitch":3,"yaw":180}}"#);
+        sent_ahrs += u64::from(ahrs.send_to(good.as_bytes(), to).is_ok());
         for _ in 0..5 {
             let evil = br#"{"class":"ATTITUDE","t":1,"pitch":30,"yaw":90}"#;
             sent_stranger += u64::from(stranger.send_to(evil, to).is_ok());

@@ -95,10 +95,7 @@ fn allocations(frames: u64, sink: &UdpSocket, estimator: &str, scene: &str, vehi
     )
     .period(Some(Duration::from_millis(20)))
     .max_frames(frames)
-    .input(Box::new(LatestAttitude {
-        cell,
-        max_age: Duration::from_secs(1),
-    }))
+    .input(Box::new(LatestAttitude::new(cell, Duration::from_secs(1))))
     .output(Box::new(PoseDatagrams::new(publisher)));
     if vehicle {
         let hub = vehicle_hub();

@@ -86,7 +86,12 @@ fn a_last_line_without_newline_is_converted_whole() {
         assert_eq!(frames.len(), 41, "{name}");
         let last_in = body.lines().last().unwrap().trim_end_matches('\r');
         let last_out = fs::read_to_string(&back).unwrap();
-        let last_out = last_out.lines().last().unwrap().trim_end_matches('\r').to_string();
+        let last_out = last_out
+            .lines()
+            .last()
+            .unwrap()
+            .trim_end_matches('\r')
+            .to_string();
         assert_eq!(last_in, last_out, "{name}");
     }
 }

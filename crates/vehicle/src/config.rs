@@ -46,7 +46,13 @@ fn within(
     if v.is_finite() && (lo..=hi).contains(&v) {
         Ok(v)
     } else {
-        Err(err(table, key, format!("{v} is not within {lo}..{hi}")))
+        // 1e-300 written out is 300 digits: a line to read, not to scroll.
+        let shown = if v != 0.0 && v.is_finite() && !(1e-3..1e9).contains(&v.abs()) {
+            format!("{v:e}")
+        } else {
+            format!("{v}")
+        };
+        Err(err(table, key, format!("{shown} is not within {lo}..{hi}")))
     }
 }
 
@@ -346,7 +352,9 @@ impl MavlinkTable {
         };
         let hz = within(M, "heartbeat_hz", self.heartbeat_hz, 1.0, 0.1, 10.0)?;
         s.heartbeat_period = Duration::from_secs_f64(1.0 / hz);
-        let age = |key, v, d| within(M, key, v, d, 0.0, 3600.0).map(Duration::from_secs_f64);
+        // Below a millisecond no reading is fresh at any frame: the input
+        // would be off without a word.
+        let age = |key, v, d| within(M, key, v, d, 0.001, 3600.0).map(Duration::from_secs_f64);
         let max_age = MaxAge {
             attitude: age("attitude_max_age_s", self.attitude_max_age_s, 0.25)?,
             depth: age("depth_max_age_s", self.depth_max_age_s, 0.5)?,
@@ -404,7 +412,7 @@ impl DvlTable {
             0.1,
             600.0,
         )?);
-        let age = within(D, "max_age_s", self.max_age_s, 1.0, 0.0, 3600.0)?;
+        let age = within(D, "max_age_s", self.max_age_s, 1.0, 0.001, 3600.0)?;
         Ok((s, Duration::from_secs_f64(age)))
     }
 }

@@ -340,6 +340,24 @@ pub struct ReadingsStatus {
     pub velocity: ReadingStatus,
 }
 
+impl ReadingsStatus {
+    /// One attitude's figures (an input of its own), the rest empty.
+    pub fn only_attitude(attitude: ReadingStatus) -> Self {
+        let none = ReadingStatus {
+            age_s: None,
+            stored: 0,
+            attached: 0,
+            stale: 0,
+        };
+        ReadingsStatus {
+            attitude,
+            depth: none,
+            temperature: none,
+            velocity: none,
+        }
+    }
+}
+
 impl Readings {
     fn stamp(&self, at: Instant) -> u64 {
         at.saturating_duration_since(self.epoch).as_nanos() as u64

@@ -166,10 +166,24 @@ mod tests {
         st.attitude.age_s = Some(0.4);
         let c = looks(&mut w, &st, t0 + Duration::from_secs(1));
         assert_eq!(c.len(), 2, "{c:?}");
-        assert!(matches!(c[0], Change::Stale { reading: "attitude", max_age_s, .. } if (max_age_s - 0.25).abs() < 1e-12));
-        assert!(matches!(c[1], Change::Stale { reading: "velocity", max_age_s, .. } if (max_age_s - 1.0).abs() < 1e-12));
+        assert!(
+            matches!(c[0], Change::Stale { reading: "attitude", max_age_s, .. } if (max_age_s - 0.25).abs() < 1e-12)
+        );
+        assert!(
+            matches!(c[1], Change::Stale { reading: "velocity", max_age_s, .. } if (max_age_s - 1.0).abs() < 1e-12)
+        );
         st.attitude.attached = 11;
         let c = looks(&mut w, &st, t0 + Duration::from_secs(2));
-        assert!(matches!(c[..], [Change::Back { reading: "attitude", frames_without: 10, .. }]), "{c:?}");
+        assert!(
+            matches!(
+                c[..],
+                [Change::Back {
+                    reading: "attitude",
+                    frames_without: 10,
+                    ..
+                }]
+            ),
+            "{c:?}"
+        );
     }
 }

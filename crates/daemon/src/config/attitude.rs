@@ -1,7 +1,7 @@
 //! `[attitude]`: the optional input of the vehicle's AHRS readings.
 //!
 //! Ranges: `listen` not on port 0; `beacon_axis_heading_deg` -360..=360;
-//! `max_age_s` (0, 60] s; `allow_from` a non-empty list of sender
+//! `max_age_s` 0.001..=60 s; `allow_from` a non-empty list of sender
 //! addresses, each an IP (any port) or an IP:port.
 //!
 //! The datagrams carry no authentication, so whoever reaches the port
@@ -14,7 +14,7 @@
 //! still accepted alone. Both at once must agree: two headings for one
 //! beacon would make the two inputs disagree about yaw.
 
-use super::locate::{positive_to, socket_addr, within, AddrUse, Ctx};
+use super::locate::{socket_addr, within, AddrUse, Ctx};
 use super::places::{self, Places};
 use super::ConfigError;
 use lightpose_core::textfile::excerpt;
@@ -133,6 +133,13 @@ fn check(
     let listen = match &a.listen {
         Some(l) => {
             let addr = socket_addr(ctx, l, "attitude.listen", AddrUse::Listen)?;
+            if addr.ip().is_multicast() || addr.ip() == Ipv4Addr::BROADCAST {
+                return Err(ctx.err(
+                    l.span(),
+                    "attitude.listen",
+                    format!("{addr} is a multicast or broadcast address: the input binds it without joining a group, so nothing would arrive; listen on this host's address (or 0.0.0.0) and have the AHRS send to it"),
+                ));
+            }
             // Beyond this host anyone who reaches the port sets the
             // vehicle's pitch and yaw in the estimate: a decision, said.
             if !addr.ip().is_loopback() && allow_from.is_none() && a.allow_remote != Some(true) {
@@ -169,7 +176,11 @@ fn check(
         (None, site_deg) => site_deg,
     };
     let max_age = match &a.max_age_s {
-        Some(v) => Duration::from_secs_f64(positive_to(ctx, v, "attitude.max_age_s", 60.0, " s")?),
+        // Below a millisecond no reading is fresh at any frame (1e-300
+        // rounded to a zero Duration turned the input off unsaid).
+        Some(v) => {
+            Duration::from_secs_f64(within(ctx, v, "attitude.max_age_s", (0.001, 60.0), " s")?)
+        }
         None => Duration::from_millis(500),
     };
     Ok(Checked {
@@ -230,6 +241,43 @@ mod tests {
 
     fn from(a: &str) -> SocketAddr {
         a.parse().expect("test address")
+    }
+
+    /// Audit: a max age that rounds to nothing, and a multicast listen
+    /// (bound without joining: nothing arrives), were taken and turned
+    /// the input off unsaid.
+    #[test]
+    fn a_listen_and_a_max_age_that_get_nothing_are_refused() {
+        for (extra, key, what) in [
+            (
+                "max_age_s = 1e-300\n",
+                "attitude.max_age_s",
+                "not in 0.001..=60",
+            ),
+            (
+                "max_age_s = 0.0009\n",
+                "attitude.max_age_s",
+                "not in 0.001..=60",
+            ),
+            (
+                "listen = \"239.1.2.3:27151\"\nallow_remote = true\n",
+                "attitude.listen",
+                "multicast or broadcast",
+            ),
+            (
+                "listen = \"255.255.255.255:27151\"\nallow_remote = true\n",
+                "attitude.listen",
+                "multicast or broadcast",
+            ),
+        ] {
+            let e = parse(extra).unwrap_err();
+            assert!(
+                e.contains(key) && e.contains(what) && !e.contains('\n'),
+                "{extra}: {e}"
+            );
+        }
+        let c = parse("max_age_s = 0.001\n").unwrap().attitude.unwrap();
+        assert_eq!(c.max_age, std::time::Duration::from_millis(1));
     }
 
     /// Audit: a listen beyond loopback is a decision (allow_from or

@@ -318,5 +318,17 @@ mod tests {
         assert!(e.starts_with("t.toml:7: dvl.address: "), "{e}");
         let e = parse("[dvl]\naddress = \"h:1\"\nmax_age_s = \"x\"\n").unwrap_err();
         assert!(e.starts_with("t.toml:8: dvl.max_age_s: "), "{e}");
+        // Audit: an age no reading can be younger than turned a reading
+        // off unsaid.
+        let e = parse("[dvl]\naddress = \"h:1\"\nmax_age_s = 0.0\n").unwrap_err();
+        assert!(
+            e.contains("dvl") && e.contains("max_age_s") && e.contains("0.001"),
+            "{e}"
+        );
+        let e = parse(&format!("{SITE}[mavlink]\nconnection = \"udpout:127.0.0.1:14550\"\nattitude_max_age_s = 1e-300\n")).unwrap_err();
+        assert!(
+            e.contains("attitude_max_age_s") && e.contains("0.001"),
+            "{e}"
+        );
     }
 }

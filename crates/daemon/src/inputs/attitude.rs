@@ -8,7 +8,10 @@
 //! and logged (the first, then every 100th) when it is not a JSON object of
 //! numbers (`malformed`), not of class ATTITUDE (`class`), has no `t` that
 //! is a time in seconds (|t| ≤ 1e10, the rule of core's `FrameOrder`:
-//! `time`), or a pitch outside ±90° or a heading outside ±360° (`angle`).
+//! `time`), or a pitch outside ±90° or a heading outside ±360° (`angle`),
+//! or when it repeats the last one taken, `t`, pitch and yaw to the bit
+//! (`repeated`: a bridge re-sending the AHRS's last reading after the AHRS
+//! stopped would keep it fresh for good; the reading goes stale instead).
 //! With `allow_from`, a datagram from any other sender is refused unread
 //! (`sender`), its refusals logged apart so that a stranger's flood cannot
 //! crowd out the lines about the AHRS's own.
@@ -19,6 +22,7 @@ use lightpose_core::log::plausible_t;
 use lightpose_core::ratelog::{Close, RateLog};
 use lightpose_core::textfile::excerpt;
 use lightpose_core::{Angle, AttitudeReading, Frame};
+use lightpose_vehicle::readings::ReadingStatus;
 use lightpose_vehicle::Readings;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -32,15 +36,17 @@ pub enum Reason {
     Time = 2,
     Angle = 3,
     Sender = 4,
+    Repeated = 5,
 }
 
 impl Reason {
-    pub const ALL: [Reason; 5] = [
+    pub const ALL: [Reason; 6] = [
         Reason::Malformed,
         Reason::Class,
         Reason::Time,
         Reason::Angle,
         Reason::Sender,
+        Reason::Repeated,
     ];
     pub fn as_str(self) -> &'static str {
         match self {
@@ -49,6 +55,7 @@ impl Reason {
             Reason::Time => "time",
             Reason::Angle => "angle",
             Reason::Sender => "sender",
+            Reason::Repeated => "repeated",
         }
     }
 }
@@ -70,23 +77,18 @@ impl std::fmt::Display for Rejected {
 /// the vehicle's own lock-free attitude slot ([`Readings`]), so that under
 /// a flood of valid datagrams the frame thread never waits on the
 /// receiver; with this input's counts.
+#[derive(Default)]
 pub struct AttitudeCell {
     latest: Readings,
     pub received: AtomicU64,
     pub rejected: AtomicU64,
     /// Refusals by [`Reason`], in the order of [`Reason::ALL`].
     pub rejected_by: [AtomicU64; Reason::ALL.len()],
-}
-
-impl Default for AttitudeCell {
-    fn default() -> Self {
-        AttitudeCell {
-            latest: Readings::default(),
-            received: AtomicU64::new(0),
-            rejected: AtomicU64::new(0),
-            rejected_by: Default::default(),
-        }
-    }
+    /// Frames that got this input's reading.
+    pub attached: AtomicU64,
+    /// Frames that carried their own attitude (the simulator's sensor, a
+    /// replayed log's) while this input had a fresh one: theirs won.
+    pub superseded: AtomicU64,
 }
 
 impl AttitudeCell {
@@ -112,6 +114,16 @@ impl AttitudeCell {
     pub fn age(&self, now: Instant) -> Option<Duration> {
         self.latest.attitude_age(now)
     }
+
+    /// This input's figures as a hub reading's, for STATUS and the stale
+    /// watch: frames that got it, and that found only an old one.
+    pub fn status(&self, now: Instant) -> ReadingStatus {
+        let s = self.latest.status(now).attitude;
+        ReadingStatus {
+            attached: self.attached.load(Relaxed),
+            ..s
+        }
+    }
 }
 
 /// The engine's end of the cell: the latest reading, attached to a frame
@@ -119,17 +131,42 @@ impl AttitudeCell {
 pub struct LatestAttitude {
     pub cell: std::sync::Arc<AttitudeCell>,
     pub max_age: Duration,
+    /// Whether the first superseded reading was told.
+    told_superseded: bool,
+}
+
+impl LatestAttitude {
+    pub fn new(cell: std::sync::Arc<AttitudeCell>, max_age: Duration) -> Self {
+        LatestAttitude {
+            cell,
+            max_age,
+            told_superseded: false,
+        }
+    }
 }
 
 impl Input for LatestAttitude {
     #[inline]
     fn attach(&mut self, frame: &mut Frame, capture: Instant) {
-        // Frames with their own reading (a replayed log) keep it; those
-        // that carry one are counted by the engine (STATUS frames_with).
         // No rates come with it: attached as received, if fresh at the
         // capture.
         if frame.attitude.is_none() {
             frame.attitude = self.cell.fresh(capture, self.max_age);
+            if frame.attitude.is_some() {
+                self.cell.attached.fetch_add(1, Relaxed);
+            }
+            return;
+        }
+        // Frames with their own reading (a replayed log, a scene with an
+        // [attitude] sensor) keep it. The input's readings then go unused:
+        // counted, and told once, or STATUS would look healthy while the
+        // AHRS's pitch and yaw reach no estimate.
+        if self.cell.fresh(capture, self.max_age).is_some() {
+            self.cell.superseded.fetch_add(1, Relaxed);
+            if !self.told_superseded {
+                self.told_superseded = true;
+                tracing::warn!("attitude input: the frames carry an attitude of their own (the simulator's sensor or the replayed log's), which wins over this input's: its readings go unused, counted in STATUS attitude.superseded");
+            }
         }
     }
 }
@@ -159,6 +196,14 @@ pub fn parse(datagram: &[u8], beacon_axis_heading_deg: f64) -> Result<AttitudeRe
         yaw: f64,
     }
     let no = |reason, msg: String| Rejected { reason, msg };
+    // serde takes a struct from an array too (["ATTITUDE", t, pitch, yaw]
+    // was read as one): an object or nothing.
+    if datagram.trim_ascii_start().first() != Some(&b'{') {
+        return Err(no(
+            Reason::Malformed,
+            "not an ATTITUDE message: not a JSON object".into(),
+        ));
+    }
     let m: Msg = serde_json::from_slice(datagram).map_err(|e| {
         let e = excerpt(&e.to_string(), 120);
         no(Reason::Malformed, format!("not an ATTITUDE message: {e}"))
@@ -214,7 +259,11 @@ pub async fn listen(
     cfg: AttitudeInput,
     cell: std::sync::Arc<AttitudeCell>,
 ) {
-    let mut buf = [0u8; 2048];
+    // Any UDP datagram whole: a longer one cut to a smaller buffer had its
+    // tail unread (garbage past byte 2048 went unseen).
+    let mut buf = vec![0u8; 1 << 16];
+    // The last datagram taken, for `repeated`.
+    let mut last = Repeats::default();
     // A peer sending garbage at any rate costs lines by core's rule, not
     // one per 100 datagrams; strangers have their own log so that their
     // flood does not hide the AHRS's refusals. Dropped with the task
@@ -257,7 +306,8 @@ pub async fn listen(
             }
             continue;
         }
-        match parse(&buf[..n], cfg.beacon_axis_heading_deg) {
+        let datagram = &buf[..n];
+        match parse(datagram, cfg.beacon_axis_heading_deg).and_then(|r| last.admit(datagram, r)) {
             Ok(r) => cell.store(Instant::now(), r),
             Err(e) => {
                 let k = cell.reject(e.reason);
@@ -266,6 +316,29 @@ pub async fn listen(
                 }
             }
         }
+    }
+}
+
+/// The last datagram taken: one the same byte for byte (its `t` too) is
+/// a re-send, not a reading, and must not keep the reading fresh.
+#[derive(Default)]
+struct Repeats {
+    last: Vec<u8>,
+}
+
+impl Repeats {
+    /// `r`, parsed from `datagram`, unless `datagram` repeats the last one
+    /// taken. Allocates only while datagrams grow longer than any before.
+    fn admit(&mut self, datagram: &[u8], r: AttitudeReading) -> Result<AttitudeReading, Rejected> {
+        if self.last == datagram {
+            return Err(Rejected {
+                reason: Reason::Repeated,
+                msg: "the same datagram as the last one taken, t included: a re-sent reading does not keep it fresh".into(),
+            });
+        }
+        self.last.clear();
+        self.last.extend_from_slice(datagram);
+        Ok(r)
     }
 }
 
@@ -500,6 +573,55 @@ mod tests {
             .is_none());
         assert_eq!(wrap180(190.0), -170.0);
         assert_eq!(wrap180(-180.0), 180.0);
+    }
+
+    /// Audit: an array with the fields in order was read as a message,
+    /// and a datagram re-sent whole kept its reading fresh.
+    #[test]
+    fn arrays_and_repeats_are_refused() {
+        let e = parse(br#" ["ATTITUDE", 1.7e9, 42.0, 200.0]"#, 0.0).unwrap_err();
+        assert!(
+            e.reason == Reason::Malformed && e.msg.contains("not a JSON object"),
+            "{e}"
+        );
+        let mut last = Repeats::default();
+        let d1 = br#"{"class":"ATTITUDE","t":1,"pitch":3,"yaw":10}"#;
+        let d2 = br#"{"class":"ATTITUDE","t":2,"pitch":3,"yaw":10}"#;
+        let take = |last: &mut Repeats, d: &[u8]| parse(d, 0.0).and_then(|r| last.admit(d, r));
+        assert!(take(&mut last, d1).is_ok());
+        assert_eq!(take(&mut last, d1).unwrap_err().reason, Reason::Repeated);
+        // Same angles, t on: a reading.
+        assert!(take(&mut last, d2).is_ok());
+        assert!(take(&mut last, d1).is_ok());
+    }
+
+    /// Audit: with frames that carry their own attitude (a scene with an
+    /// [attitude] sensor), the input's fresh readings were counted received
+    /// and went nowhere unsaid; they are counted superseded, the frame's
+    /// kept, and a frame without one gets the input's, counted attached.
+    #[test]
+    fn a_frame_s_own_attitude_supersedes_the_input_s() {
+        let cell = std::sync::Arc::new(AttitudeCell::default());
+        let mut input = LatestAttitude::new(cell.clone(), Duration::from_secs(1));
+        let t0 = Instant::now();
+        cell.store(t0, reading(5.0, 1.0, None));
+        let mut own = Frame::new(0, 0.0, 10, [0; lightpose_core::NDET]);
+        own.attitude = Some(reading(2.0, 0.0, None));
+        input.attach(&mut own, t0);
+        input.attach(&mut own, t0);
+        assert_eq!(own.attitude.map(|a| a.pitch.deg()), Some(2.0));
+        let mut bare = Frame::new(1, 0.1, 10, [0; lightpose_core::NDET]);
+        input.attach(&mut bare, t0);
+        assert_eq!(bare.attitude.map(|a| a.pitch.deg()), Some(5.0));
+        assert_eq!(
+            (cell.superseded.load(Relaxed), cell.attached.load(Relaxed)),
+            (2, 1)
+        );
+        // Stale: counted so, neither attached nor superseded.
+        let mut late = Frame::new(2, 2.0, 10, [0; lightpose_core::NDET]);
+        input.attach(&mut late, t0 + Duration::from_secs(2));
+        let st = cell.status(t0 + Duration::from_secs(2));
+        assert_eq!((st.attached, st.stale, late.attitude), (1, 1, None));
     }
 
     /// Refusals whose end the stop cuts: the listener's task is aborted
