@@ -86,6 +86,26 @@ impl std::fmt::Display for TextError {
 
 impl std::error::Error for TextError {}
 
+/// `path` opened for reading without waiting in `open` for a FIFO's
+/// writer: a calibration replaced by a FIFO no one writes had hung the
+/// daemon's reload, its start and `--check-config` in `open(2)`. Opened
+/// non-blocking, then a FIFO is made blocking again, so that a writer
+/// there (`--config <(…)`) is read to its end, and one not there reads as
+/// an empty file (refused as such). Regular files are as before.
+fn open_never_waiting(path: &Path) -> std::io::Result<std::fs::File> {
+    use nix::fcntl::{fcntl, FcntlArg, OFlag};
+    use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
+    use std::os::unix::io::AsRawFd;
+    let f = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(OFlag::O_NONBLOCK.bits())
+        .open(path)?;
+    if f.metadata()?.file_type().is_fifo() {
+        fcntl(f.as_raw_fd(), FcntlArg::F_SETFL(OFlag::empty())).map_err(std::io::Error::from)?;
+    }
+    Ok(f)
+}
+
 /// The whole text of `path`, refusing files over [`MAX_TEXT_BYTES`] without
 /// reading them.
 pub fn read_text(path: &Path) -> Result<String, TextError> {
@@ -94,7 +114,7 @@ pub fn read_text(path: &Path) -> Result<String, TextError> {
         file: file.clone(),
         source,
     };
-    let f = std::fs::File::open(path).map_err(io)?;
+    let f = open_never_waiting(path).map_err(io)?;
     let size = f.metadata().map_err(io)?.len();
     if size > MAX_TEXT_BYTES {
         return Err(TextError::TooLarge {
@@ -280,6 +300,35 @@ impl TextSource {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Audit: a calibration replaced by a FIFO with no writer hung the
+    /// daemon in open(2) at SIGHUP and at start. It reads as empty now; a
+    /// FIFO with a writer is read to the writer's end.
+    #[test]
+    fn a_fifo_is_read_without_waiting_for_a_writer() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cal.toml");
+        nix::unistd::mkfifo(&p, nix::sys::stat::Mode::S_IRWXU).unwrap();
+        assert_eq!(read_text(&p).unwrap(), "");
+        // A writer holding it open (read-write: open does not wait), which
+        // closes a moment after writing.
+        let mut w = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&p)
+            .unwrap();
+        std::io::Write::write_all(&mut w, b"a = 1\n").unwrap();
+        let closer = std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_millis(500));
+            drop(w);
+        });
+        let got = std::thread::spawn({
+            let p = p.clone();
+            move || read_text(&p)
+        });
+        closer.join().unwrap();
+        assert_eq!(got.join().unwrap().unwrap(), "a = 1\n");
+    }
 
     #[test]
     fn excerpts_are_bounded_and_cut_on_characters() {

@@ -37,9 +37,10 @@ pub enum DaemonError {
     /// The backend's frames are of another ADC than the calibration's
     /// light model: said at the config's `calibration` key, the file to
     /// change (or the estimator).
-    #[error("{at}: calibration: backend {backend}: {msg}")]
+    #[error("{at}: calibration {file}: backend {backend}: {msg}")]
     AdcMismatch {
         at: KeyAt,
+        file: String,
         backend: &'static str,
         msg: String,
     },

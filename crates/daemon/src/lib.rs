@@ -25,6 +25,7 @@ pub mod error;
 pub mod inputs;
 pub mod notify;
 pub mod outputs;
+pub mod reload;
 pub mod stats;
 pub mod status;
 pub mod supervisor;

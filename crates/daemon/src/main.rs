@@ -13,6 +13,7 @@ use lightposed::config::LogFormat;
 use lightposed::engine::EndReason;
 use lightposed::error::report;
 use lightposed::{Config, DaemonError, Publisher};
+use nix::sys::signal::{SigSet, Signal};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -196,10 +197,15 @@ async fn serve(cfg: Config) -> anyhow::Result<EndReason> {
     let mut term = signal(SignalKind::terminate()).context("SIGTERM handler")?;
     let mut int = signal(SignalKind::interrupt()).context("SIGINT handler")?;
     let mut hup = signal(SignalKind::hangup()).context("SIGHUP handler")?;
+    // Blocked since main began (see there): one that came meanwhile is
+    // delivered now, to the handler. This thread runs the runtime; the
+    // threads started since keep it blocked, so it comes here.
+    let _ = SigSet::from(Signal::SIGHUP).thread_unblock();
     let (reload_tx, reload_rx) = tokio::sync::mpsc::channel(4);
     tokio::spawn(async move {
+        // Told by the supervisor's reloads (merged, by the rule for
+        // repeated lines); a full queue already holds a reload to come.
         while hup.recv().await.is_some() {
-            tracing::info!("SIGHUP: reloading the calibration");
             let _ = reload_tx.try_send(());
         }
     });
@@ -296,7 +302,17 @@ fn frames_refused(frames: Option<u64>, measuring: bool) -> Option<&'static str> 
 }
 
 fn main() -> ExitCode {
+    // SIGHUP's default is to end the process, and its handler is set only
+    // once the runtime runs: a `systemctl reload` in the first milliseconds
+    // killed the daemon without a line. Held until then (every thread
+    // started from here inherits the mask); a measuring run (--soak,
+    // --bench, --check-config) lets it end the run as usual.
+    let hup = SigSet::from(Signal::SIGHUP);
+    let _ = hup.thread_block();
     let args = Args::parse();
+    if args.check_config.is_some() || args.soak || args.bench {
+        let _ = hup.thread_unblock();
+    }
     if let Some(p) = &args.check_config {
         return check_config(p);
     }

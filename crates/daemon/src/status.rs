@@ -310,6 +310,7 @@ fn attitude(c: &StatusCtx) -> Value {
                 .map(|r| (r.as_str().to_string(), a.rejected_by[*r as usize].load(Relaxed).into()))
                 .collect::<serde_json::Map<String, Value>>(),
             "age": a.age(Instant::now()).map(|d| d.as_secs_f64()),
+            "repeated": a.repeated.load(Relaxed),
             "attached": a.attached.load(Relaxed),
             "stale": a.status(Instant::now()).stale,
             "superseded": a.superseded.load(Relaxed),

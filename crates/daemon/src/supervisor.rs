@@ -7,12 +7,13 @@
 
 use crate::config::Config;
 use crate::engine::EndReason;
-use crate::error::report;
 use crate::notify::{notify, watchdog, NotifyState};
 use crate::outputs::StatusTap;
+use crate::reload::Reloads;
 use crate::status::{status_message, StatusCtx};
 use crate::wiring::Running;
 use crate::Summary;
+use lightpose_core::ratelog::Close;
 use lightpose_hal::Stop;
 use lightpose_vehicle::readings::ReadingsStatus;
 use lightpose_vehicle::stale::{Change, StaleWatch};
@@ -100,23 +101,6 @@ impl Ticker {
     }
 }
 
-/// A new estimator for the frame thread, or why the running one is kept:
-/// a calibration that does not load, or whose light model is of another
-/// ADC than the frames (the start refuses both).
-fn reload(cfg: &Config, d: &Running) {
-    let file = cfg.calibration.describe();
-    match crate::wiring::reload_estimator(cfg, d) {
-        Ok(e) => {
-            tracing::info!("reloading calibration {file}");
-            let _ = d.reload.send(e);
-        }
-        Err(why) => tracing::error!(
-            "reload of calibration {file} refused, keeping the running calibration: {}",
-            report(&why)
-        ),
-    }
-}
-
 /// Watch `d` until `shutdown` completes or the frame thread ends; each
 /// message on `reloads` reloads the calibration.
 pub async fn supervise(
@@ -174,7 +158,9 @@ pub async fn supervise_to_end(
     };
     tokio::pin!(shutdown);
     let mut reload_open = true;
+    let mut rl = Reloads::new(cfg, &d);
     let end = loop {
+        let wake = rl.wake_at();
         tokio::select! {
             _ = &mut shutdown => {
                 tracing::info!("shutdown requested");
@@ -185,11 +171,17 @@ pub async fn supervise_to_end(
             r = &mut d.done => break r.map_or(Seen::Vanished, Seen::Ended),
             msg = reloads.recv(), if reload_open => match msg {
                 None => reload_open = false,
-                Some(()) => reload(cfg, &d),
+                Some(()) => rl.ask(),
             },
-            _ = tick.tick() => ticker.tick(&ctx),
+            () = rl.finished() => rl.start(),
+            () = tokio::time::sleep_until(wake.unwrap_or_else(tokio::time::Instant::now)), if wake.is_some() => rl.start(),
+            _ = tick.tick() => {
+                ticker.tick(&ctx);
+                rl.close(Close::Over);
+            }
         }
     };
+    rl.close(Close::AtStop);
     // Aborted, and awaited (an abort ends them at their next poll; bounded
     // all the same, as the vehicle's stop is): their logs tell what is
     // pending as they are dropped (at stop), before the summary.

@@ -67,7 +67,7 @@ pub fn build_estimator_for(cfg: &Config, adc_bits: u8) -> Result<Box<dyn Estimat
     estimator_and_calibration(cfg, adc_bits).map(|(est, _)| est)
 }
 
-fn estimator_and_calibration(
+pub(crate) fn estimator_and_calibration(
     cfg: &Config,
     adc_bits: u8,
 ) -> Result<(Box<dyn Estimator>, Calibration), DaemonError> {
@@ -77,24 +77,14 @@ fn estimator_and_calibration(
     Ok((est, cal))
 }
 
-/// A reload's estimator for `d` ([`build_estimator_for`]), its σ for a
-/// reading without a std told to the vehicle readings (the reloaded
-/// calibration's `[estimator.tracker]` may have changed it). Told before
-/// the frame thread takes the estimator: a frame between gets the new σ.
-pub fn reload_estimator(cfg: &Config, d: &Running) -> Result<Box<dyn Estimator>, DaemonError> {
-    let (est, cal) = estimator_and_calibration(cfg, d.adc_bits)?;
-    assume_std(d.vehicle.as_ref(), est.name(), &cal);
-    Ok(est)
-}
-
 /// Tell the vehicle readings the σ the estimator named `est` assumes for
 /// a reading without a std (computed here, once: the frame thread only
 /// reads it), so that a carried MAVLink reading goes on the frame with it
 /// widened (`inputs::vehicle::assumed_std`).
-fn assume_std(vehicle: Option<&VehicleLink>, est: &str, cal: &Calibration) {
-    if let Some(v) = vehicle {
+pub(crate) fn assume_std(hub: Option<&lightpose_vehicle::Hub>, est: &str, cal: &Calibration) {
+    if let Some(h) = hub {
         let s = crate::inputs::vehicle::assumed_std(est, cal.estimator.as_ref());
-        v.hub.readings.assume_std(Some(s));
+        h.readings.assume_std(Some(s));
     }
 }
 
@@ -109,6 +99,7 @@ fn reads_frames(
     lightpose_pipeline::reads_frames_of(est, cal, adc_bits).map_err(|msg| {
         DaemonError::AdcMismatch {
             at: cfg.calibration_at.clone(),
+            file: cfg.calibration.describe(),
             backend: cfg.backend.kind(),
             msg,
         }
@@ -304,6 +295,9 @@ pub struct Running {
     pub stop: Stop,
     /// New estimators for the frame thread (calibration reloads).
     pub reload: std::sync::mpsc::Sender<Box<dyn Estimator>>,
+    /// The calibration the running estimator was built from (a reload
+    /// of the same is no reload).
+    pub calibration: Option<Calibration>,
     /// The frame thread; taken when it is joined.
     pub frames: Option<std::thread::JoinHandle<EndReason>>,
     /// Says when the frame thread has ended by itself.
@@ -330,7 +324,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         None => (None, None),
     };
     let vehicle = start_vehicle(cfg).await?;
-    assume_std(vehicle.as_ref(), est_name, &cal);
+    assume_std(vehicle.as_ref().map(|v| &*v.hub), est_name, &cal);
     let header = log_header(cfg, source.as_ref(), &source_desc);
     // What the recording's clock record says its log time counts from.
     let epoch = Epoch::of(source.t_is_monotonic());
@@ -396,6 +390,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         estimator: est_name,
         stop,
         reload: reload_tx,
+        calibration: Some(cal),
         frames: Some(frames),
         done,
     })

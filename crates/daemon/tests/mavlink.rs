@@ -462,7 +462,9 @@ fn sighup_keeps_the_link_and_sigterm_ends_it() {
         ap.local_addr().expect("addr")
     );
     let text = common::run::sim_config(20.0, &[dest], "", &extra);
+    let (cal, text, good) = common::calibration_copy(dir.path(), &text);
     let (mut child, _) = spawn_daemon(dir.path(), &text, &sub);
+    std::fs::write(&cal, common::other_calibration(&good)).expect("another calibration");
     signal(&child, Signal::SIGHUP);
     let msgs = collect(&sub, Duration::from_millis(800));
     let mut buf = [0u8; 2048];

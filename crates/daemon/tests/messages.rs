@@ -204,8 +204,9 @@ fn a_log_of_another_adc_than_the_light_models_is_refused_at_start() {
     refused_at(
         &p,
         &format!(
-            "lightposed: {}:3: calibration: backend replay: ",
-            p.display()
+            "lightposed: {}:3: calibration {}: backend replay: ",
+            p.display(),
+            cal.display()
         ),
         "frames of a 12-bit ADC, and the calibration's light model is of a 10-bit one",
     );

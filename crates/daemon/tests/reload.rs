@@ -4,7 +4,7 @@
 
 mod common;
 use common::run::{collect, of_class, signal, sim_config, wait_exit};
-use common::{shipped, subscriber};
+use common::{calibration_copy, other_calibration, shipped, subscriber};
 
 use nix::sys::signal::Signal;
 use serde_json::Value;
@@ -93,8 +93,17 @@ fn sighup_refuses_a_calibration_of_another_adc() {
     }
     assert_eq!(reloads(&sub, Duration::from_millis(600)), Some(0));
 
-    // The daemon runs on, and a good calibration reloads.
+    // The daemon runs on. The calibration it runs, written back, is no
+    // reload (the track is kept); another good one reloads.
     std::fs::write(&cal, &good).expect("calibration again");
+    signal(&child, Signal::SIGHUP);
+    let t0 = Instant::now();
+    while !read(&log).contains("unchanged") {
+        assert!(t0.elapsed() < Duration::from_secs(10), "{}", read(&log));
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert_eq!(reloads(&sub, Duration::from_millis(300)), Some(0));
+    std::fs::write(&cal, other_calibration(&good)).expect("another calibration");
     signal(&child, Signal::SIGHUP);
     let t0 = Instant::now();
     while reloads(&sub, Duration::from_millis(300)) != Some(1) {
@@ -145,7 +154,8 @@ fn dvl_books(sub: &UdpSocket, d: Duration) -> Option<DvlBooks> {
 fn sighup_keeps_a_dvl_set_up_wrong_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (sub, addr) = subscriber();
-    let text = common::run::dvl_mock_config(180.0, addr);
+    let (cal, text, good) =
+        calibration_copy(dir.path(), &common::run::dvl_mock_config(180.0, addr));
     let cfg = dir.path().join("lightposed.toml");
     std::fs::write(&cfg, text).expect("config");
     let log = dir.path().join("stderr.log");
@@ -167,6 +177,7 @@ fn sighup_keeps_a_dvl_set_up_wrong_refused() {
         panic!("{e}")
     });
     assert_eq!(refused.0, 0);
+    std::fs::write(&cal, other_calibration(&good)).expect("another calibration");
     signal(&child, Signal::SIGHUP);
     let reloaded = wait_for("the reload", &|b| b.0 == 1).unwrap_or_else(|e| {
         let _ = child.kill();
@@ -190,4 +201,140 @@ fn sighup_keeps_a_dvl_set_up_wrong_refused() {
             .any(|l| l.contains("calibration reloaded") && l.contains("kept")),
         "{log}"
     );
+}
+
+/// A config on a copy of the shipped calibration in `dir` (the tracker, 20
+/// Hz, STATUS every 0.2 s to `addr`); the copy's path and text.
+fn on_a_copy(
+    dir: &Path,
+    addr: std::net::SocketAddr,
+) -> (std::path::PathBuf, std::path::PathBuf, String) {
+    let text = sim_config(20.0, &[addr], "", "")
+        .replace("estimator = \"moments\"", "estimator = \"tracker\"");
+    let (cal, text, good) = calibration_copy(dir, &text);
+    let cfg = dir.join("lightposed.toml");
+    std::fs::write(&cfg, text).expect("config");
+    (cfg, cal, good)
+}
+
+/// Audit: a SIGHUP every 5 ms made a reload each (lines without bound,
+/// estimators piling up in memory, the track restarted at every frame).
+/// Now a storm is a reload at most a second, its SIGHUPs told by the rule
+/// for repeated lines, and the track runs on (`ok` poses during it).
+#[test]
+fn a_sighup_storm_is_a_reload_a_second() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (sub, addr) = subscriber();
+    let (cfg, cal, good) = on_a_copy(dir.path(), addr);
+    let log = dir.path().join("stderr.log");
+    let mut child = start(&cfg, &log, &sub);
+    std::fs::write(&cal, other_calibration(&good)).expect("another calibration");
+    let pid = nix::unistd::Pid::from_raw(child.id() as i32);
+    let storm = std::thread::spawn(move || {
+        let t0 = Instant::now();
+        let mut sent = 0;
+        while t0.elapsed() < Duration::from_millis(2500) {
+            sent += u32::from(nix::sys::signal::kill(pid, Signal::SIGHUP).is_ok());
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        sent
+    });
+    let msgs = collect(&sub, Duration::from_millis(4000));
+    let sent = storm.join().expect("storm");
+    signal(&child, Signal::SIGTERM);
+    let status = wait_exit(&mut child, Duration::from_secs(5));
+    assert_eq!(status.code(), Some(0), "{}", read(&log));
+    let log = read(&log);
+    let last = of_class(&msgs, "STATUS")
+        .last()
+        .map(|v| v["estimator"]["reloads"].clone());
+    // One replaced (the changed file), the rest the same file: unchanged.
+    assert_eq!(last, Some(Value::from(1)), "{log}");
+    let lines = log.lines().filter(|l| l.contains("SIGHUP")).count();
+    let unchanged = log.lines().filter(|l| l.contains("unchanged")).count();
+    assert!(
+        sent > 200 && lines <= 6,
+        "{sent} SIGHUPs, {lines} lines: {log}"
+    );
+    assert!(
+        (1..=4).contains(&unchanged),
+        "{unchanged} reloads of the same file: {log}"
+    );
+    let ok_after = of_class(&msgs, "POSE")
+        .iter()
+        .skip(40)
+        .filter(|p| p["status"] == "ok")
+        .count();
+    assert!(ok_after > 20, "{ok_after} ok poses during the storm");
+}
+
+/// Audit: a calibration replaced by a FIFO that no one writes, then a
+/// SIGHUP, hung the reload in open(2) on the supervisor's thread: no
+/// STATUS, no watchdog, SIGTERM unheard. Now it is refused (it reads as
+/// empty), STATUS goes on and SIGTERM ends the daemon at once.
+#[test]
+fn a_calibration_that_is_a_fifo_hangs_nothing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (sub, addr) = subscriber();
+    let (cfg, cal, _) = on_a_copy(dir.path(), addr);
+    let log = dir.path().join("stderr.log");
+    let mut child = start(&cfg, &log, &sub);
+    std::fs::remove_file(&cal).expect("rm");
+    nix::unistd::mkfifo(&cal, nix::sys::stat::Mode::S_IRWXU).expect("mkfifo");
+    signal(&child, Signal::SIGHUP);
+    let statuses = of_class(&collect(&sub, Duration::from_millis(1500)), "STATUS").len();
+    signal(&child, Signal::SIGTERM);
+    let status = wait_exit(&mut child, Duration::from_secs(3));
+    assert_eq!(status.code(), Some(0), "{}", read(&log));
+    assert!(statuses >= 5, "{statuses} STATUS in 1.5 s: {}", read(&log));
+    let log = read(&log);
+    assert!(
+        log.lines()
+            .any(|l| l.contains("ERROR") && l.contains("refused") && l.contains("cal.toml")),
+        "{log}"
+    );
+}
+
+/// Audit: a SIGHUP in the first milliseconds, before the handler was set,
+/// ended the daemon without a line. It is held until then, and asks for a
+/// reload.
+#[test]
+fn a_sighup_at_start_is_held_not_fatal() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (sub, addr) = subscriber();
+    let (cfg, _, _) = on_a_copy(dir.path(), addr);
+    let log = dir.path().join("stderr.log");
+    let err = std::fs::File::create(&log).expect("log file");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lightposed"));
+    cmd.arg("--config")
+        .arg(&cfg)
+        .env_remove("RUST_LOG")
+        .stdout(Stdio::null())
+        .stderr(Stdio::from(err));
+    // The child starts with SIGHUP blocked, so that the one sent at once
+    // is pending whenever the child gets to main (before main it cannot
+    // be helped): it must reach the handler, not end the daemon.
+    unsafe {
+        use std::os::unix::process::CommandExt;
+        cmd.pre_exec(|| {
+            nix::sys::signal::SigSet::from(Signal::SIGHUP)
+                .thread_block()
+                .map_err(std::io::Error::from)
+        });
+    }
+    let mut child = cmd.spawn().expect("spawn lightposed");
+    signal(&child, Signal::SIGHUP);
+    let poses = of_class(&collect(&sub, Duration::from_millis(1500)), "POSE").len();
+    let alive = child.try_wait().expect("wait").is_none();
+    if alive {
+        signal(&child, Signal::SIGTERM);
+    }
+    let status = wait_exit(&mut child, Duration::from_secs(5));
+    assert!(
+        alive && poses > 5,
+        "{status:?}, {poses} POSE: {}",
+        read(&log)
+    );
+    assert_eq!(status.code(), Some(0), "{}", read(&log));
+    assert!(read(&log).contains("SIGHUP"), "{}", read(&log));
 }

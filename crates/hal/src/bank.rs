@@ -531,6 +531,12 @@ impl<B: Bank> FrameSource for BoardSource<B> {
     fn t_is_monotonic(&self) -> bool {
         true
     }
+    /// The pace it reads at: the daemon's deadlines (`late`) judge board
+    /// frames too. Without it a bus stalled for seconds, or the process
+    /// stopped, showed only as a dip in fps.
+    fn period(&self) -> Option<Duration> {
+        self.pacer.period()
+    }
     fn health(&self) -> SourceHealth {
         let mut h = SourceHealth {
             temp: Some(self.temp.health().clone()),
@@ -584,6 +590,23 @@ mod tests {
             TempReader::new(TempKind::None, 0.0),
             Pacer::new(None),
         )
+    }
+
+    /// Audit: board frames had no period, so the daemon never judged them
+    /// late (a 5 s stop showed only as fps). The pace read at is theirs.
+    #[test]
+    fn a_paced_board_source_has_its_period() {
+        assert_eq!(slow_source(Duration::ZERO).period(), None);
+        let paced = BoardSource::new(
+            SlowBank {
+                read: Duration::ZERO,
+            },
+            ChannelMap::sequential(16),
+            TempReader::new(TempKind::None, 0.0),
+            Pacer::from_rate(Some(20.0)),
+        );
+        assert_eq!(paced.period(), Some(Duration::from_millis(50)));
+        assert_eq!(paced.rate_hz(), Some(20.0));
     }
 
     /// The middle of the read, on CLOCK_MONOTONIC (seconds since boot).

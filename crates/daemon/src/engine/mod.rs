@@ -272,7 +272,10 @@ impl Engine {
         {
             return Some(EndReason::FrameLimit);
         }
-        if let Some(mut e) = self.reload.as_ref().and_then(|rx| rx.try_recv().ok()) {
+        // The newest of those waiting: one replaced per frame, reloads
+        // faster than frames had piled up without bound (a SIGHUP storm,
+        // 10 MB → 487 MB) and restarted the track at every frame.
+        if let Some(mut e) = self.reload.as_ref().and_then(|rx| rx.try_iter().last()) {
             // A stuck channel or a DVL set up wrong is still so under the
             // new calibration (pipeline's model/findings.rs).
             let found = self.estimator.findings();

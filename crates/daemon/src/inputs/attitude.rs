@@ -8,10 +8,12 @@
 //! and logged (the first, then every 100th) when it is not a JSON object of
 //! numbers (`malformed`), not of class ATTITUDE (`class`), has no `t` that
 //! is a time in seconds (|t| ≤ 1e10, the rule of core's `FrameOrder`:
-//! `time`), or a pitch outside ±90° or a heading outside ±360° (`angle`),
-//! or when it repeats the last one taken, `t`, pitch and yaw to the bit
-//! (`repeated`: a bridge re-sending the AHRS's last reading after the AHRS
-//! stopped would keep it fresh for good; the reading goes stale instead).
+//! `time`), or a pitch outside ±90° or a heading outside ±360° (`angle`).
+//! A datagram the same byte for byte as the one before, `t` included, is
+//! taken (an AHRS at rest behind a sender that leaves `t` alone sends
+//! just that) but counted `repeated`, and told once it has lasted
+//! [`FROZEN_AFTER`]: a bridge that re-sends a stopped AHRS's last reading
+//! looks the same, and keeps that reading fresh.
 //! With `allow_from`, a datagram from any other sender is refused unread
 //! (`sender`), its refusals logged apart so that a stranger's flood cannot
 //! crowd out the lines about the AHRS's own.
@@ -36,17 +38,15 @@ pub enum Reason {
     Time = 2,
     Angle = 3,
     Sender = 4,
-    Repeated = 5,
 }
 
 impl Reason {
-    pub const ALL: [Reason; 6] = [
+    pub const ALL: [Reason; 5] = [
         Reason::Malformed,
         Reason::Class,
         Reason::Time,
         Reason::Angle,
         Reason::Sender,
-        Reason::Repeated,
     ];
     pub fn as_str(self) -> &'static str {
         match self {
@@ -55,7 +55,6 @@ impl Reason {
             Reason::Time => "time",
             Reason::Angle => "angle",
             Reason::Sender => "sender",
-            Reason::Repeated => "repeated",
         }
     }
 }
@@ -84,6 +83,8 @@ pub struct AttitudeCell {
     pub rejected: AtomicU64,
     /// Refusals by [`Reason`], in the order of [`Reason::ALL`].
     pub rejected_by: [AtomicU64; Reason::ALL.len()],
+    /// Datagrams taken that were the same as the one before, `t` too.
+    pub repeated: AtomicU64,
     /// Frames that got this input's reading.
     pub attached: AtomicU64,
     /// Frames that carried their own attitude (the simulator's sensor, a
@@ -264,6 +265,7 @@ pub async fn listen(
     let mut buf = vec![0u8; 1 << 16];
     // The last datagram taken, for `repeated`.
     let mut last = Repeats::default();
+    let repeated = &cell.repeated;
     // A peer sending garbage at any rate costs lines by core's rule, not
     // one per 100 datagrams; strangers have their own log so that their
     // flood does not hide the AHRS's refusals. Dropped with the task
@@ -307,8 +309,14 @@ pub async fn listen(
             continue;
         }
         let datagram = &buf[..n];
-        match parse(datagram, cfg.beacon_axis_heading_deg).and_then(|r| last.admit(datagram, r)) {
-            Ok(r) => cell.store(Instant::now(), r),
+        match parse(datagram, cfg.beacon_axis_heading_deg) {
+            Ok(r) => {
+                let now = Instant::now();
+                if last.same(datagram, now) {
+                    repeated.fetch_add(1, Relaxed);
+                }
+                cell.store(now, r);
+            }
             Err(e) => {
                 let k = cell.reject(e.reason);
                 if let Some(since) = logs.ahrs.tick(Instant::now()) {
@@ -319,26 +327,45 @@ pub async fn listen(
     }
 }
 
-/// The last datagram taken: one the same byte for byte (its `t` too) is
-/// a re-send, not a reading, and must not keep the reading fresh.
+/// How long the same datagram, `t` included, may come before it is told.
+pub const FROZEN_AFTER: Duration = Duration::from_secs(10);
+
+/// The last datagram taken, and since when the same one comes.
 #[derive(Default)]
 struct Repeats {
     last: Vec<u8>,
+    since: Option<Instant>,
+    told: bool,
 }
 
 impl Repeats {
-    /// `r`, parsed from `datagram`, unless `datagram` repeats the last one
-    /// taken. Allocates only while datagrams grow longer than any before.
-    fn admit(&mut self, datagram: &[u8], r: AttitudeReading) -> Result<AttitudeReading, Rejected> {
+    /// Whether `datagram` (taken at `now`) is the same as the last one;
+    /// told once the same has come for [`FROZEN_AFTER`], and when it
+    /// changes after that. Allocates only while datagrams grow longer
+    /// than any before.
+    fn same(&mut self, datagram: &[u8], now: Instant) -> bool {
         if self.last == datagram {
-            return Err(Rejected {
-                reason: Reason::Repeated,
-                msg: "the same datagram as the last one taken, t included: a re-sent reading does not keep it fresh".into(),
-            });
+            let since = *self.since.get_or_insert(now);
+            if !self.told && now.saturating_duration_since(since) >= FROZEN_AFTER {
+                self.told = true;
+                tracing::warn!(
+                    "attitude input: the same datagram, t included, for {} s: a bridge re-sending a stopped AHRS's last reading keeps it fresh; have the sender stamp t with each reading (STATUS attitude.repeated)",
+                    FROZEN_AFTER.as_secs()
+                );
+            }
+            return true;
         }
+        if self.told {
+            let s = self
+                .since
+                .map_or(0.0, |s| now.saturating_duration_since(s).as_secs_f64());
+            tracing::info!("attitude input: datagrams change again after {s:.1} s of the same one");
+        }
+        self.since = None;
+        self.told = false;
         self.last.clear();
         self.last.extend_from_slice(datagram);
-        Ok(r)
+        false
     }
 }
 
@@ -575,24 +602,43 @@ mod tests {
         assert_eq!(wrap180(-180.0), 180.0);
     }
 
-    /// Audit: an array with the fields in order was read as a message,
-    /// and a datagram re-sent whole kept its reading fresh.
+    /// Audit: an array with the fields in order was read as a message.
     #[test]
-    fn arrays_and_repeats_are_refused() {
+    fn arrays_are_refused() {
         let e = parse(br#" ["ATTITUDE", 1.7e9, 42.0, 200.0]"#, 0.0).unwrap_err();
         assert!(
             e.reason == Reason::Malformed && e.msg.contains("not a JSON object"),
             "{e}"
         );
-        let mut last = Repeats::default();
+    }
+
+    /// Audit: a datagram re-sent whole kept its reading fresh unsaid. It
+    /// is still taken (an AHRS at rest behind a sender that leaves t alone
+    /// sends the same), counted, and told once after FROZEN_AFTER.
+    #[test]
+    fn repeats_are_counted_and_a_frozen_sender_told() {
         let d1 = br#"{"class":"ATTITUDE","t":1,"pitch":3,"yaw":10}"#;
         let d2 = br#"{"class":"ATTITUDE","t":2,"pitch":3,"yaw":10}"#;
-        let take = |last: &mut Repeats, d: &[u8]| parse(d, 0.0).and_then(|r| last.admit(d, r));
-        assert!(take(&mut last, d1).is_ok());
-        assert_eq!(take(&mut last, d1).unwrap_err().reason, Reason::Repeated);
-        // Same angles, t on: a reading.
-        assert!(take(&mut last, d2).is_ok());
-        assert!(take(&mut last, d1).is_ok());
+        let t0 = Instant::now();
+        let text = lightpose_testkit::logs::logged(|| {
+            let mut r = Repeats::default();
+            assert!(!r.same(d1, t0));
+            assert!(r.same(d1, t0 + Duration::from_secs(1)));
+            // t on, same angles: no repeat.
+            assert!(!r.same(d2, t0 + Duration::from_secs(2)));
+            for k in 0..=12 {
+                assert!(r.same(d2, t0 + Duration::from_secs(3 + k)));
+            }
+            assert!(!r.same(d1, t0 + Duration::from_secs(16)));
+        });
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 2, "{text}");
+        assert!(
+            lines[0].contains("WARN")
+                && lines[0].contains("the same datagram, t included, for 10 s"),
+            "{text}"
+        );
+        assert!(lines[1].contains("change again after 13.0 s"), "{text}");
     }
 
     /// Audit: with frames that carry their own attitude (a scene with an

@@ -32,6 +32,32 @@ pub fn shipped() -> (PathBuf, PathBuf, PathBuf) {
     files
 }
 
+/// A copy in `dir` of the shipped calibration that `cfg_text` names, and
+/// `cfg_text` naming the copy: a test that reloads writes
+/// [`other_calibration`] there first (a reload of the running calibration
+/// is no reload).
+pub fn calibration_copy(dir: &Path, cfg_text: &str) -> (PathBuf, String, String) {
+    let (_, _, shipped_cal) = shipped();
+    let good = std::fs::read_to_string(&shipped_cal).expect("calibration");
+    let cal = dir.join("cal.toml");
+    std::fs::write(&cal, &good).expect("calibration copy");
+    let shipped_s = shipped_cal.display().to_string();
+    assert!(
+        cfg_text.contains(&shipped_s),
+        "the config names the shipped calibration"
+    );
+    let text = cfg_text.replace(&shipped_s, &cal.display().to_string());
+    (cal, text, good)
+}
+
+/// `cal` (a calibration's text) with a field changed that no estimate
+/// reads: a calibration other than the running one.
+pub fn other_calibration(cal: &str) -> String {
+    let changed = cal.replacen("bad_lines = 0\n", "bad_lines = 1\n", 1);
+    assert_ne!(changed, cal, "[meta] bad_lines");
+    changed
+}
+
 /// A TCP port free a moment ago: the config refuses port 0 (a listener
 /// there gets a port nobody knows), so a test asks the kernel for one.
 pub fn free_tcp_port() -> u16 {

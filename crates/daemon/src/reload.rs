@@ -1,0 +1,183 @@
+//! Calibration reloads (SIGHUP), off the async thread and never more than
+//! one at a time. The supervisor's thread also sends STATUS, pings the
+//! watchdog and handles SIGTERM: a reload read there (a calibration that
+//! is a FIFO, a slow network mount) had stopped all three. And a reload
+//! restarts the track, so a storm of SIGHUPs must not become a storm of
+//! reloads: those that come while one runs, or within [`MIN_INTERVAL`] of
+//! the last, make one more reload after it; a calibration that parses to
+//! the one running is left running (the track is kept); and the SIGHUP
+//! lines follow core's rule for repeated lines.
+
+use crate::config::Config;
+use crate::error::report;
+use crate::wiring::Running;
+use lightpose_core::ratelog::{Close, RateLog};
+use lightpose_core::Estimator;
+use lightpose_pipeline::Calibration;
+use std::sync::mpsc::Sender;
+use std::sync::Arc;
+use tokio::sync::oneshot;
+use tokio::time::{Duration, Instant};
+
+/// Reloads start at least this far apart.
+pub const MIN_INTERVAL: Duration = Duration::from_secs(1);
+
+/// What one reload needs, moved to its thread and back.
+struct Job {
+    cfg: Config,
+    adc_bits: u8,
+    hub: Option<Arc<lightpose_vehicle::Hub>>,
+    tx: Sender<Box<dyn Estimator>>,
+    /// The calibration the running estimator was built from.
+    running: Option<Calibration>,
+}
+
+/// What a reload did.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outcome {
+    /// A new estimator went to the frame thread.
+    Replaced,
+    /// The calibration is the running one's: nothing replaced.
+    Unchanged,
+    /// Refused, and why; the running calibration is kept.
+    Refused(String),
+}
+
+impl Job {
+    /// Read and build (blocking), hand a new estimator to the frame thread.
+    fn run(&mut self) -> Outcome {
+        let file = self.cfg.calibration.describe();
+        let (est, cal) = match crate::wiring::estimator_and_calibration(&self.cfg, self.adc_bits) {
+            Ok(x) => x,
+            Err(why) => {
+                let why = report(&why);
+                tracing::error!(
+                    "reload of calibration {file} refused, keeping the running calibration: {why}"
+                );
+                return Outcome::Refused(why);
+            }
+        };
+        if self.running.as_ref() == Some(&cal) {
+            tracing::info!(
+                "calibration {file} unchanged: the running estimator and its track are kept"
+            );
+            return Outcome::Unchanged;
+        }
+        // Told before the frame thread takes the estimator: a frame between
+        // gets the new σ.
+        crate::wiring::assume_std(self.hub.as_deref(), est.name(), &cal);
+        tracing::info!("reloading calibration {file}");
+        let _ = self.tx.send(est);
+        self.running = Some(cal);
+        Outcome::Replaced
+    }
+}
+
+/// The supervisor's end: SIGHUPs in, at most one reload running.
+pub struct Reloads {
+    /// The job, home while no reload runs.
+    job: Option<Job>,
+    /// The running reload's thread gives the job back with its outcome.
+    running: Option<oneshot::Receiver<(Job, Outcome)>>,
+    /// A SIGHUP not acted on yet.
+    asked: bool,
+    next_at: Instant,
+    log: RateLog,
+    /// Outcomes, for tests and the summary.
+    pub done: Vec<Outcome>,
+}
+
+impl Reloads {
+    pub fn new(cfg: &Config, d: &Running) -> Self {
+        Reloads {
+            job: Some(Job {
+                cfg: cfg.clone(),
+                adc_bits: d.adc_bits,
+                hub: d.vehicle.as_ref().map(|v| v.hub.clone()),
+                tx: d.reload.clone(),
+                running: d.calibration.clone(),
+            }),
+            running: None,
+            asked: false,
+            next_at: Instant::now(),
+            log: RateLog::new(),
+            done: Vec::new(),
+        }
+    }
+
+    /// A SIGHUP: a reload now, or once the running one is done and
+    /// [`MIN_INTERVAL`] has passed.
+    pub fn ask(&mut self) {
+        if let Some(k) = self.log.tick(std::time::Instant::now()) {
+            tracing::info!(
+                sighups_since_last_line = k,
+                "SIGHUP: reloading the calibration (SIGHUPs while a reload runs, or within {} s of the last, make one more after it)",
+                MIN_INTERVAL.as_secs_f64()
+            );
+        }
+        self.asked = true;
+        self.start();
+    }
+
+    /// When the supervisor should call [`Reloads::poll`] again: the next
+    /// moment a reload asked for may start (`None`: nothing waits on time).
+    pub fn wake_at(&self) -> Option<Instant> {
+        (self.asked && self.running.is_none()).then_some(self.next_at)
+    }
+
+    /// Wait for the running reload's end (pending forever when none runs).
+    pub async fn finished(&mut self) {
+        match self.running.as_mut() {
+            Some(rx) => {
+                let got = rx.await;
+                self.running = None;
+                match got {
+                    Ok((job, outcome)) => {
+                        self.job = Some(job);
+                        self.done.push(outcome);
+                    }
+                    // The thread died (a panic in a build): no more reloads.
+                    Err(_) => tracing::error!("calibration reload thread ended without a word: reloads are off until a restart"),
+                }
+            }
+            None => std::future::pending().await,
+        }
+    }
+
+    /// Start the reload asked for, if it may start now.
+    pub fn start(&mut self) {
+        let now = Instant::now();
+        if !self.asked || self.running.is_some() || now < self.next_at {
+            return;
+        }
+        let Some(mut job) = self.job.take() else {
+            return;
+        };
+        self.asked = false;
+        self.next_at = now + MIN_INTERVAL;
+        let (tx, rx) = oneshot::channel();
+        // A thread of its own, not tokio's blocking pool: a read that never
+        // returns must not hold the runtime's shutdown at exit.
+        let spawned = std::thread::Builder::new()
+            .name("reload".into())
+            .spawn(move || {
+                let outcome = job.run();
+                let _ = tx.send((job, outcome));
+            });
+        match spawned {
+            Ok(_) => self.running = Some(rx),
+            Err(e) => tracing::error!("calibration reload: cannot start its thread: {e}"),
+        }
+    }
+
+    /// The closing line of SIGHUPs not told yet: once they stopped
+    /// (`Close::Over`, at each STATUS), or at stop (`Close::AtStop`).
+    pub fn close(&mut self, when: Close) {
+        if let Some(k) = self.log.close(std::time::Instant::now(), when) {
+            tracing::info!(
+                sighups_since_last_line = k,
+                "SIGHUP: {when}: {k} more since the last line"
+            );
+        }
+    }
+}
