@@ -199,7 +199,7 @@ pub fn parse(datagram: &[u8], beacon_axis_heading_deg: f64) -> Result<AttitudeRe
     let no = |reason, msg: String| Rejected { reason, msg };
     // serde takes a struct from an array too (["ATTITUDE", t, pitch, yaw]
     // was read as one): an object or nothing.
-    if datagram.trim_ascii_start().first() != Some(&b'{') {
+    if !datagram.trim_ascii_start().starts_with(b"{") {
         return Err(no(
             Reason::Malformed,
             "not an ATTITUDE message: not a JSON object".into(),

@@ -80,6 +80,15 @@ impl Estimator for WaterWatch {
         let Some(median) = self.tracker.water_misfit() else {
             return e;
         };
+        // A reading the light disagrees with (the reading check's suspect:
+        // a depth sensor biased from mid-run) explains the misfit as well
+        // as another water does, and a bank that learns the water then
+        // takes the bias into range for good: a depth 0.3 m off, switched
+        // on mid-run, left the harbour's track 2.3 m short with K_D learned
+        // at 0.9 (true 0.2), `out_of_range` to the end.
+        if e.agreement.suspect != 0 {
+            return e;
+        }
         // The bank starts from this frame: its members, each in its own
         // water, fit the start afresh (`initialising` for a second), since
         // the tracker's state is the wrong water's.
