@@ -16,7 +16,7 @@ use crate::Summary;
 use lightpose_core::ratelog::Close;
 use lightpose_hal::Stop;
 use lightpose_vehicle::readings::ReadingsStatus;
-use lightpose_vehicle::stale::{Change, StaleWatch};
+use lightpose_vehicle::stale::{Change, SilenceWatch, StaleWatch, Voice};
 use lightpose_vehicle::MaxAge;
 use std::any::Any;
 use std::future::Future;
@@ -40,6 +40,8 @@ struct Ticker {
     /// attitude input's apart.
     stale: Option<StaleWatch>,
     stale_input: Option<StaleWatch>,
+    /// The autopilot's heartbeat (with a MAVLink link).
+    autopilot: Option<SilenceWatch>,
 }
 
 impl Ticker {
@@ -57,6 +59,12 @@ impl Ticker {
             self.send_status(ctx, fps);
             if let (Some(w), Some(hub)) = (&mut self.stale, ctx.vehicle) {
                 w.look(&hub.readings.status(now), now, |c| tell_stale("vehicle", c));
+            }
+            if let (Some(w), Some(hub)) = (&mut self.autopilot, ctx.vehicle) {
+                let age = hub.status(now).mavlink.autopilot_heartbeat_age_s;
+                if let Some(v) = w.look(age, now.duration_since(ctx.started), now) {
+                    tell_voice(v);
+                }
             }
             if let (Some(w), Some(att)) = (&mut self.stale_input, ctx.att) {
                 let st = ReadingsStatus::only_attitude(att.status(now));
@@ -135,6 +143,11 @@ pub async fn supervise_to_end(
         taps: std::mem::take(&mut d.status_taps),
         alive: d.stop.clone(),
         stale: cfg.vehicle.as_ref().map(|v| StaleWatch::new(v.max_age)),
+        autopilot: cfg
+            .vehicle
+            .as_ref()
+            .and_then(|v| v.mavlink.as_ref())
+            .map(|_| SilenceWatch::new(AUTOPILOT_SILENT)),
         stale_input: cfg.attitude.as_ref().map(|a| {
             StaleWatch::new(MaxAge {
                 attitude: a.max_age,
@@ -234,6 +247,25 @@ fn tell_stale(input: &str, c: Change) {
             frames_without,
             "{input}: {reading} reading back after {after_s:.1} s stale: {frames_without} frames went without it"
         ),
+    }
+}
+
+/// The autopilot is silent once three heartbeats (1 Hz) are missed.
+const AUTOPILOT_SILENT: Duration = Duration::from_secs(3);
+
+/// The autopilot falling silent, or heard again: one line each way.
+fn tell_voice(v: Voice) {
+    match v {
+        Voice::Silent { age_s: Some(a), limit_s } => tracing::warn!(
+            age_s = a,
+            "MAVLink: no HEARTBEAT from the autopilot for {a:.1} s (over {limit_s} s): poses go on being sent; readings from it go stale"
+        ),
+        Voice::Silent { age_s: None, limit_s } => tracing::warn!(
+            "MAVLink: no HEARTBEAT from the autopilot in the {limit_s} s since the start: check the connection and autopilot_system_id; poses go on being sent"
+        ),
+        Voice::Back { after_s } => {
+            tracing::info!("MAVLink: the autopilot's HEARTBEAT is back, {after_s:.1} s after it was told silent")
+        }
     }
 }
 

@@ -487,3 +487,40 @@ fn sighup_keeps_the_link_and_sigterm_ends_it() {
     );
     assert!(after >= 1, "MAVLink 2 frames after the reload: {after}");
 }
+
+/// Audit: an autopilot away for a minute (its heartbeat age growing, every
+/// send refused by ICMP) left STATUS counting and the journal silent. Now
+/// its silence is told once, its return once, and the send errors by the
+/// rule for repeated lines (the real binary's log).
+#[test]
+fn an_autopilot_away_and_back_is_told() {
+    use common::run::{signal, spawn_daemon_to, wait_exit};
+    let dir = tempfile::tempdir().expect("tmp");
+    let log = dir.path().join("bare.jsonl");
+    let truth = common::vehicle::write_bare_log(&log, 10.0, 30.0);
+    let port = common::vehicle::free_port();
+    let (sub, dest) = subscriber();
+    let text = common::vehicle::mavlink_config(&log, dest, &format!("udpout:127.0.0.1:{port}"), "");
+    let err = dir.path().join("stderr");
+    let file = std::fs::File::create(&err).expect("stderr file");
+    let (mut child, _) = spawn_daemon_to(dir.path(), &text, &sub, file.into());
+    // Nobody at the port for 4 s: sends refused, no heartbeat heard.
+    std::thread::sleep(Duration::from_secs(4));
+    let sock = UdpSocket::bind(("127.0.0.1", port)).expect("the autopilot's port");
+    let heard = common::vehicle::stand_in(
+        &sock,
+        None,
+        &truth,
+        Duration::from_millis(1500),
+        Duration::from_secs(3),
+    );
+    signal(&child, nix::sys::signal::Signal::SIGTERM);
+    assert!(wait_exit(&mut child, Duration::from_secs(5)).success());
+    let text = std::fs::read_to_string(&err).expect("stderr");
+    let count = |s: &str| text.lines().filter(|l| l.contains(s)).count();
+    assert!(heard.heartbeats >= 1, "the stand-in heard the daemon");
+    assert_eq!(count("no HEARTBEAT from the autopilot"), 1, "{text}");
+    assert_eq!(count("HEARTBEAT is back"), 1, "{text}");
+    let sends = count("mavlink: send failed");
+    assert!((1..=3).contains(&sends), "{sends} lines: {text}");
+}

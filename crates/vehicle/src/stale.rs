@@ -95,6 +95,60 @@ impl StaleWatch {
     }
 }
 
+/// The autopilot falling silent (its HEARTBEAT, 1 Hz), told once, and
+/// once when it is heard again. STATUS showed `autopilot_heartbeat_age_s`
+/// growing and `send_errors` counting while an autopilot was away for a
+/// minute, and the journal said nothing (an audit: ten such minutes).
+#[derive(Debug, Clone)]
+pub struct SilenceWatch {
+    limit: Duration,
+    /// When the silence was told (the look's moment).
+    told: Option<Instant>,
+}
+
+/// A change of the autopilot's voice to tell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Voice {
+    /// Not heard for longer than the limit: how long ago it was (`None`:
+    /// never since the start).
+    Silent { age_s: Option<f64>, limit_s: f64 },
+    /// Heard again after being told silent that long ago.
+    Back { after_s: f64 },
+}
+
+impl SilenceWatch {
+    /// Silent past `limit` (3 s: three heartbeats missed).
+    pub fn new(limit: Duration) -> Self {
+        SilenceWatch { limit, told: None }
+    }
+
+    /// Judge the heartbeat's `age_s` (`None`: never heard) at `now`,
+    /// `running` after the start.
+    pub fn look(&mut self, age_s: Option<f64>, running: Duration, now: Instant) -> Option<Voice> {
+        let limit = self.limit.as_secs_f64();
+        let silent = match age_s {
+            Some(a) => a > limit,
+            None => running > self.limit,
+        };
+        match (silent, self.told) {
+            (true, None) => {
+                self.told = Some(now);
+                Some(Voice::Silent {
+                    age_s,
+                    limit_s: limit,
+                })
+            }
+            (false, Some(at)) => {
+                self.told = None;
+                Some(Voice::Back {
+                    after_s: now.saturating_duration_since(at).as_secs_f64(),
+                })
+            }
+            _ => None,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -185,5 +239,33 @@ mod tests {
             ),
             "{c:?}"
         );
+    }
+
+    #[test]
+    fn an_autopilot_is_told_silent_once_and_back_once() {
+        let t0 = Instant::now();
+        let s = |k: u64| Duration::from_secs(k);
+        let mut w = SilenceWatch::new(s(3));
+        // Not heard yet, 2 s after the start: nothing; 4 s: silent.
+        assert_eq!(w.look(None, s(2), t0), None);
+        assert_eq!(
+            w.look(None, s(4), t0 + s(2)),
+            Some(Voice::Silent {
+                age_s: None,
+                limit_s: 3.0
+            })
+        );
+        // Heard: back; heard on: nothing.
+        assert_eq!(
+            w.look(Some(0.5), s(6), t0 + s(4)),
+            Some(Voice::Back { after_s: 2.0 })
+        );
+        assert_eq!(w.look(Some(0.9), s(7), t0 + s(5)), None);
+        // Away: told once, however long.
+        assert!(matches!(
+            w.look(Some(3.5), s(10), t0 + s(8)),
+            Some(Voice::Silent { .. })
+        ));
+        assert_eq!(w.look(Some(60.0), s(67), t0 + s(65)), None);
     }
 }

@@ -177,6 +177,14 @@ fn close(
     tx.pos_skips.close(&hub.mavlink.skipped, now, when);
     tx.speed_skips.close(&hub.mavlink.speed_skipped, now, when);
     ap.close(now, when);
+    if let Some(k) = tx.send_log.close(now, when) {
+        tracing::warn!(
+            send_errors = hub.mavlink.send_errors.load(Relaxed),
+            since_last_line = k,
+            "mavlink: send errors: {when}: {k} more since the last line, the last {:.1} s ago",
+            tx.send_log.since_last(now).as_secs_f64()
+        );
+    }
     if let Some(k) = open_log.close(now, when) {
         tracing::warn!(
             attempts = hub.mavlink.link_failures.load(Relaxed),
@@ -539,6 +547,9 @@ struct Sender {
     last_sent: Option<Instant>,
     pos_skips: SkipLog,
     speed_skips: SkipLog,
+    /// UDP send errors (an autopilot gone: ICMP port unreachable), by the
+    /// rule for repeated lines; before, counted in STATUS alone.
+    send_log: RateLog,
 }
 
 impl Sender {
@@ -550,6 +561,7 @@ impl Sender {
             last_sent: None,
             pos_skips: SkipLog::new(false),
             speed_skips: SkipLog::new(true),
+            send_log: RateLog::new(),
         }
     }
 
@@ -630,8 +642,15 @@ impl Sender {
             }
             Err(e) if framing == Framing::Stream => Err(e),
             Err(e) => {
-                c.send_errors.fetch_add(1, Relaxed);
+                let n = c.send_errors.fetch_add(1, Relaxed) + 1;
                 c.set_error(LastError::net(NetOp::Send, &e));
+                if let Some(k) = self.send_log.tick(Instant::now()) {
+                    tracing::warn!(
+                        send_errors = n,
+                        since_last_line = k,
+                        "mavlink: send failed: {e}"
+                    );
+                }
                 Ok(false)
             }
         }
