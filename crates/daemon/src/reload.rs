@@ -19,6 +19,9 @@ use std::sync::Arc;
 use tokio::sync::oneshot;
 use tokio::time::{Duration, Instant};
 
+/// A reload still reading after this is told.
+const SLOW: Duration = Duration::from_secs(5);
+
 /// Reloads start at least this far apart.
 pub const MIN_INTERVAL: Duration = Duration::from_secs(1);
 
@@ -45,28 +48,18 @@ pub enum Outcome {
 
 impl Job {
     /// Read and build (blocking), hand a new estimator to the frame thread.
+    /// Said by the supervisor ([`Reloads::finished`]).
     fn run(&mut self) -> Outcome {
-        let file = self.cfg.calibration.describe();
         let (est, cal) = match crate::wiring::estimator_and_calibration(&self.cfg, self.adc_bits) {
             Ok(x) => x,
-            Err(why) => {
-                let why = report(&why);
-                tracing::error!(
-                    "reload of calibration {file} refused, keeping the running calibration: {why}"
-                );
-                return Outcome::Refused(why);
-            }
+            Err(why) => return Outcome::Refused(report(&why)),
         };
         if self.running.as_ref() == Some(&cal) {
-            tracing::info!(
-                "calibration {file} unchanged: the running estimator and its track are kept"
-            );
             return Outcome::Unchanged;
         }
         // Told before the frame thread takes the estimator: a frame between
         // gets the new σ.
         crate::wiring::assume_std(self.hub.as_deref(), est.name(), &cal);
-        tracing::info!("reloading calibration {file}");
         let _ = self.tx.send(est);
         self.running = Some(cal);
         Outcome::Replaced
@@ -82,7 +75,14 @@ pub struct Reloads {
     /// A SIGHUP not acted on yet.
     asked: bool,
     next_at: Instant,
+    /// When the running reload began, and whether its slowness was told.
+    began: Option<(std::time::Instant, bool)>,
+    /// The calibration's name, for the lines.
+    file: String,
     log: RateLog,
+    /// Outcomes by the rule for repeated lines: loaded, unchanged,
+    /// refused (a storm is a reload a second, still 60 lines a minute).
+    said: [RateLog; 3],
     /// Outcomes, for tests and the summary.
     pub done: Vec<Outcome>,
 }
@@ -100,7 +100,10 @@ impl Reloads {
             running: None,
             asked: false,
             next_at: Instant::now(),
+            began: None,
+            file: cfg.calibration.describe(),
             log: RateLog::new(),
+            said: [RateLog::new(); 3],
             done: Vec::new(),
         }
     }
@@ -134,6 +137,8 @@ impl Reloads {
                 match got {
                     Ok((job, outcome)) => {
                         self.job = Some(job);
+                        self.began = None;
+                        self.say(&outcome);
                         self.done.push(outcome);
                     }
                     // The thread died (a panic in a build): no more reloads.
@@ -165,15 +170,71 @@ impl Reloads {
                 let _ = tx.send((job, outcome));
             });
         match spawned {
-            Ok(_) => self.running = Some(rx),
+            Ok(_) => {
+                self.running = Some(rx);
+                self.began = Some((std::time::Instant::now(), false));
+            }
             Err(e) => tracing::error!("calibration reload: cannot start its thread: {e}"),
+        }
+    }
+
+    /// One reload's outcome, by the rule for repeated lines of its kind.
+    fn say(&mut self, outcome: &Outcome) {
+        let file = &self.file;
+        let i = match outcome {
+            Outcome::Replaced => 0,
+            Outcome::Unchanged => 1,
+            Outcome::Refused(_) => 2,
+        };
+        let Some(k) = self.said[i].tick(std::time::Instant::now()) else {
+            return;
+        };
+        match outcome {
+            Outcome::Replaced => tracing::info!(
+                reloads_since_last_line = k,
+                "calibration {file} loaded: its estimator replaces the running one"
+            ),
+            Outcome::Unchanged => tracing::info!(
+                reloads_since_last_line = k,
+                "calibration {file} unchanged: the running estimator and its track are kept"
+            ),
+            Outcome::Refused(why) => tracing::error!(
+                reloads_since_last_line = k,
+                "reload of calibration {file} refused, keeping the running calibration: {why}"
+            ),
+        }
+    }
+
+    /// A reload still reading after [`SLOW`] (a FIFO whose writer never
+    /// writes, a hung network mount): told once, since the SIGHUPs after
+    /// it wait for it.
+    pub fn check_slow(&mut self) {
+        if let Some((at, told @ false)) = &mut self.began {
+            let took = at.elapsed();
+            if took >= SLOW {
+                *told = true;
+                tracing::warn!(
+                    "calibration reload still reading {} after {:.0} s (a FIFO no one writes? a hung mount?): the running calibration stays, and SIGHUPs wait for this reload",
+                    self.file,
+                    took.as_secs_f64()
+                );
+            }
         }
     }
 
     /// The closing line of SIGHUPs not told yet: once they stopped
     /// (`Close::Over`, at each STATUS), or at stop (`Close::AtStop`).
     pub fn close(&mut self, when: Close) {
-        if let Some(k) = self.log.close(std::time::Instant::now(), when) {
+        let now = std::time::Instant::now();
+        for (log, what) in self.said.iter_mut().zip(["loaded", "unchanged", "refused"]) {
+            if let Some(k) = log.close(now, when) {
+                tracing::info!(
+                    reloads_since_last_line = k,
+                    "calibration reloads {what}: {when}: {k} more since the last line"
+                );
+            }
+        }
+        if let Some(k) = self.log.close(now, when) {
             tracing::info!(
                 sighups_since_last_line = k,
                 "SIGHUP: {when}: {k} more since the last line"

@@ -59,16 +59,21 @@ impl Ticker {
             self.send_status(ctx, fps);
             if let (Some(w), Some(hub)) = (&mut self.stale, ctx.vehicle) {
                 w.look(&hub.readings.status(now), now, |c| tell_stale("vehicle", c));
+                w.close(now, Close::Over, |c| tell_stale("vehicle", c));
             }
             if let (Some(w), Some(hub)) = (&mut self.autopilot, ctx.vehicle) {
                 let age = hub.status(now).mavlink.autopilot_heartbeat_age_s;
                 if let Some(v) = w.look(age, now.duration_since(ctx.started), now) {
                     tell_voice(v);
                 }
+                if let Some(v) = w.close(now, Close::Over) {
+                    tell_voice(v);
+                }
             }
             if let (Some(w), Some(att)) = (&mut self.stale_input, ctx.att) {
                 let st = ReadingsStatus::only_attitude(att.status(now));
                 w.look(&st, now, |c| tell_stale("attitude input", c));
+                w.close(now, Close::Over, |c| tell_stale("attitude input", c));
             }
             let line = format!(
                 "{} frames, {} late, {} failed, {:.1} fps",
@@ -91,6 +96,24 @@ impl Ticker {
             } else {
                 tracing::error!("frame thread silent for {silent:?}: withholding the watchdog");
             }
+        }
+    }
+
+    /// At stop: the stale and silent episodes not told yet.
+    fn close_watches(&mut self) {
+        let now = Instant::now();
+        if let Some(w) = &mut self.stale {
+            w.close(now, Close::AtStop, |c| tell_stale("vehicle", c));
+        }
+        if let Some(w) = &mut self.stale_input {
+            w.close(now, Close::AtStop, |c| tell_stale("attitude input", c));
+        }
+        if let Some(v) = self
+            .autopilot
+            .as_mut()
+            .and_then(|w| w.close(now, Close::AtStop))
+        {
+            tell_voice(v);
         }
     }
 
@@ -191,10 +214,12 @@ pub async fn supervise_to_end(
             _ = tick.tick() => {
                 ticker.tick(&ctx);
                 rl.close(Close::Over);
+                rl.check_slow();
             }
         }
     };
     rl.close(Close::AtStop);
+    ticker.close_watches();
     // Aborted, and awaited (an abort ends them at their next poll; bounded
     // all the same, as the vehicle's stop is): their logs tell what is
     // pending as they are dropped (at stop), before the summary.
@@ -232,9 +257,11 @@ fn tell_stale(input: &str, c: Change) {
             reading,
             age_s,
             max_age_s,
+            episodes,
         } => tracing::warn!(
             reading,
             age_s,
+            stale_episodes_since_last_line = episodes,
             "{input}: {reading} reading stale: the latest was taken {} ago, over its limit of {max_age_s} s; frames go without it until a fresh one comes",
             age_s.map_or("?".to_string(), |a| format!("{a:.2} s"))
         ),
@@ -247,6 +274,15 @@ fn tell_stale(input: &str, c: Change) {
             frames_without,
             "{input}: {reading} reading back after {after_s:.1} s stale: {frames_without} frames went without it"
         ),
+        Change::Untold {
+            reading,
+            episodes,
+            when,
+        } => tracing::warn!(
+            reading,
+            stale_episodes_since_last_line = episodes,
+            "{input}: {reading} reading went stale and back: {when}: {episodes} more times since the last line"
+        ),
     }
 }
 
@@ -256,12 +292,25 @@ const AUTOPILOT_SILENT: Duration = Duration::from_secs(3);
 /// The autopilot falling silent, or heard again: one line each way.
 fn tell_voice(v: Voice) {
     match v {
-        Voice::Silent { age_s: Some(a), limit_s } => tracing::warn!(
+        Voice::Silent {
+            age_s: Some(a),
+            limit_s,
+            episodes,
+        } => tracing::warn!(
             age_s = a,
+            silences_since_last_line = episodes,
             "MAVLink: no HEARTBEAT from the autopilot for {a:.1} s (over {limit_s} s): poses go on being sent; readings from it go stale"
         ),
-        Voice::Silent { age_s: None, limit_s } => tracing::warn!(
+        Voice::Silent {
+            age_s: None,
+            limit_s,
+            ..
+        } => tracing::warn!(
             "MAVLink: no HEARTBEAT from the autopilot in the {limit_s} s since the start: check the connection and autopilot_system_id; poses go on being sent"
+        ),
+        Voice::Untold { episodes, when } => tracing::warn!(
+            silences_since_last_line = episodes,
+            "MAVLink: the autopilot's HEARTBEAT went silent and back: {when}: {episodes} more times since the last line"
         ),
         Voice::Back { after_s } => {
             tracing::info!("MAVLink: the autopilot's HEARTBEAT is back, {after_s:.1} s after it was told silent")

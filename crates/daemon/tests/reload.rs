@@ -338,3 +338,49 @@ fn a_sighup_at_start_is_held_not_fatal() {
     assert_eq!(status.code(), Some(0), "{}", read(&log));
     assert!(read(&log).contains("SIGHUP"), "{}", read(&log));
 }
+
+/// Re-audit: a calibration refused at every SIGHUP of a storm wrote an
+/// ERROR a second (a reload a second), and a FIFO whose writer holds it
+/// open without writing kept a reload reading for good without a word.
+/// Now the refusals follow the rule for repeated lines, and the stuck
+/// reload is told after 5 s; SIGTERM still ends the daemon at once.
+#[test]
+fn refusals_in_a_storm_are_rate_limited_and_a_stuck_reload_is_told() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (sub, addr) = subscriber();
+    let (cfg, cal, _) = on_a_copy(dir.path(), addr);
+    let log = dir.path().join("stderr.log");
+    let mut child = start(&cfg, &log, &sub);
+    std::fs::write(&cal, "not a calibration").expect("bad calibration");
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(5) {
+        signal(&child, Signal::SIGHUP);
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // A FIFO held open by a writer that never writes.
+    std::fs::remove_file(&cal).expect("rm");
+    nix::unistd::mkfifo(&cal, nix::sys::stat::Mode::S_IRWXU).expect("mkfifo");
+    let holder = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&cal)
+        .expect("hold the FIFO");
+    std::thread::sleep(Duration::from_millis(1200));
+    signal(&child, Signal::SIGHUP);
+    let statuses = of_class(&collect(&sub, Duration::from_millis(6500)), "STATUS").len();
+    signal(&child, Signal::SIGTERM);
+    let status = wait_exit(&mut child, Duration::from_secs(3));
+    drop(holder);
+    assert_eq!(status.code(), Some(0), "{}", read(&log));
+    assert!(statuses >= 25, "{statuses} STATUS in 6.5 s");
+    let log = read(&log);
+    let errors = log
+        .lines()
+        .filter(|l| l.contains("ERROR") && l.contains("refused"))
+        .count();
+    assert!(
+        (1..=3).contains(&errors),
+        "{errors} refusal lines for 5 s of SIGHUPs: {log}"
+    );
+    assert!(log.contains("calibration reload still reading"), "{log}");
+}

@@ -6,9 +6,13 @@
 //! its link is up, went unseen but in STATUS. Judged over each STATUS
 //! interval: stale when no frame got the reading and some found it too
 //! old, back when a frame gets it again. A reading that flickers within
-//! an interval (some frames with, some without) is STATUS's to show.
+//! an interval (some frames with, some without) is STATUS's to show; one
+//! that goes stale and back again and again (a sender every 2 s against a
+//! 1 s limit) has its episodes told by core's rule for repeated lines,
+//! with a count, a "back" only after a "stale" that was told.
 
 use crate::readings::{MaxAge, ReadingStatus, ReadingsStatus};
+use lightpose_core::ratelog::{Close, RateLog};
 use std::time::{Duration, Instant};
 
 /// The readings, in the order of [`ReadingsStatus`]'s fields.
@@ -23,6 +27,15 @@ pub enum Change {
         /// How long before the look the latest was taken.
         age_s: Option<f64>,
         max_age_s: f64,
+        /// Times it went stale since the last line (this one included).
+        episodes: u64,
+    },
+    /// Times it went stale, not told yet, when they stopped coming
+    /// (`Close::Over`) or at stop.
+    Untold {
+        reading: &'static str,
+        episodes: u64,
+        when: Close,
     },
     /// Frames get it again.
     Back {
@@ -40,6 +53,9 @@ struct One {
     stale: u64,
     /// Since when it is stale, and the frames without it since.
     stale_since: Option<(Instant, u64)>,
+    /// Whether this stale episode was told (its "back" is told then).
+    told: bool,
+    log: RateLog,
 }
 
 /// Per reading: the counts at the last look and whether it is stale.
@@ -71,25 +87,49 @@ impl StaleWatch {
             let without = r.stale.saturating_sub(one.stale);
             one.attached = r.attached;
             one.stale = r.stale;
+            // Old at the look too: one that came since the last frame is
+            // no stale reading ("taken 0.00 s ago, over its limit").
+            let old = r.age_s.is_none_or(|a| a > limit.as_secs_f64());
             match one.stale_since {
-                None if got == 0 && without > 0 => {
+                None if got == 0 && without > 0 && old => {
                     one.stale_since = Some((now, without));
-                    tell(Change::Stale {
-                        reading,
-                        age_s: r.age_s,
-                        max_age_s: limit.as_secs_f64(),
-                    });
+                    one.told = false;
+                    if let Some(episodes) = one.log.tick(now) {
+                        one.told = true;
+                        tell(Change::Stale {
+                            reading,
+                            age_s: r.age_s,
+                            max_age_s: limit.as_secs_f64(),
+                            episodes,
+                        });
+                    }
                 }
                 None => {}
                 Some((since, n)) if got > 0 => {
                     one.stale_since = None;
-                    tell(Change::Back {
-                        reading,
-                        after_s: now.saturating_duration_since(since).as_secs_f64(),
-                        frames_without: n + without,
-                    });
+                    if one.told {
+                        tell(Change::Back {
+                            reading,
+                            after_s: now.saturating_duration_since(since).as_secs_f64(),
+                            frames_without: n + without,
+                        });
+                    }
                 }
                 Some((since, n)) => one.stale_since = Some((since, n + without)),
+            }
+        }
+    }
+
+    /// The episodes not told yet `when`: once they stopped coming (at each
+    /// STATUS), or at stop.
+    pub fn close(&mut self, now: Instant, when: Close, mut tell: impl FnMut(Change)) {
+        for (one, reading) in self.ones.iter_mut().zip(NAMES) {
+            if let Some(episodes) = one.log.close(now, when) {
+                tell(Change::Untold {
+                    reading,
+                    episodes,
+                    when,
+                });
             }
         }
     }
@@ -102,8 +142,9 @@ impl StaleWatch {
 #[derive(Debug, Clone)]
 pub struct SilenceWatch {
     limit: Duration,
-    /// When the silence was told (the look's moment).
-    told: Option<Instant>,
+    /// Since when it is silent, and whether that was told.
+    silent: Option<(Instant, bool)>,
+    log: RateLog,
 }
 
 /// A change of the autopilot's voice to tell.
@@ -111,15 +152,26 @@ pub struct SilenceWatch {
 pub enum Voice {
     /// Not heard for longer than the limit: how long ago it was (`None`:
     /// never since the start).
-    Silent { age_s: Option<f64>, limit_s: f64 },
+    Silent {
+        age_s: Option<f64>,
+        limit_s: f64,
+        /// Silences since the last line, this one included.
+        episodes: u64,
+    },
     /// Heard again after being told silent that long ago.
     Back { after_s: f64 },
+    /// Silences not told yet, when they stopped coming or at stop.
+    Untold { episodes: u64, when: Close },
 }
 
 impl SilenceWatch {
     /// Silent past `limit` (3 s: three heartbeats missed).
     pub fn new(limit: Duration) -> Self {
-        SilenceWatch { limit, told: None }
+        SilenceWatch {
+            limit,
+            silent: None,
+            log: RateLog::new(),
+        }
     }
 
     /// Judge the heartbeat's `age_s` (`None`: never heard) at `now`,
@@ -130,22 +182,31 @@ impl SilenceWatch {
             Some(a) => a > limit,
             None => running > self.limit,
         };
-        match (silent, self.told) {
+        match (silent, self.silent) {
             (true, None) => {
-                self.told = Some(now);
-                Some(Voice::Silent {
+                let told = self.log.tick(now);
+                self.silent = Some((now, told.is_some()));
+                told.map(|episodes| Voice::Silent {
                     age_s,
                     limit_s: limit,
+                    episodes,
                 })
             }
-            (false, Some(at)) => {
-                self.told = None;
-                Some(Voice::Back {
+            (false, Some((at, told))) => {
+                self.silent = None;
+                told.then(|| Voice::Back {
                     after_s: now.saturating_duration_since(at).as_secs_f64(),
                 })
             }
             _ => None,
         }
+    }
+
+    /// The silences not told yet `when` (at each STATUS, or at stop).
+    pub fn close(&mut self, now: Instant, when: Close) -> Option<Voice> {
+        self.log
+            .close(now, when)
+            .map(|episodes| Voice::Untold { episodes, when })
     }
 }
 
@@ -188,7 +249,8 @@ mod tests {
             vec![Change::Stale {
                 reading: "velocity",
                 age_s: Some(1.6),
-                max_age_s: 1.0
+                max_age_s: 1.0,
+                episodes: 1
             }]
         );
         // Still stale: not told again.
@@ -218,6 +280,7 @@ mod tests {
         st.attitude.stale = 10;
         st.velocity.stale = 5;
         st.attitude.age_s = Some(0.4);
+        st.velocity.age_s = Some(1.5);
         let c = looks(&mut w, &st, t0 + Duration::from_secs(1));
         assert_eq!(c.len(), 2, "{c:?}");
         assert!(
@@ -252,7 +315,8 @@ mod tests {
             w.look(None, s(4), t0 + s(2)),
             Some(Voice::Silent {
                 age_s: None,
-                limit_s: 3.0
+                limit_s: 3.0,
+                episodes: 1
             })
         );
         // Heard: back; heard on: nothing.
@@ -267,5 +331,50 @@ mod tests {
             Some(Voice::Silent { .. })
         ));
         assert_eq!(w.look(Some(60.0), s(67), t0 + s(65)), None);
+        // Back, then away and back every 2 s (a heartbeat every 3.5 s):
+        // the rule for repeated lines, a "back" only after a told "silent".
+        assert!(matches!(
+            w.look(Some(0.1), s(68), t0 + s(66)),
+            Some(Voice::Back { .. })
+        ));
+        let mut lines = 0;
+        for k in 0..60u64 {
+            let at = t0 + s(70 + 2 * k);
+            lines += usize::from(w.look(Some(3.5), s(80), at).is_some());
+            lines += usize::from(w.look(Some(0.1), s(80), at + s(1)).is_some());
+        }
+        assert!(lines <= 8, "{lines} lines in 2 min");
+        assert!(matches!(
+            w.close(t0 + s(400), Close::AtStop),
+            Some(Voice::Untold { episodes, .. }) if episodes > 10
+        ));
+    }
+
+    #[test]
+    fn a_reading_stale_and_back_every_other_second_is_told_by_the_rule() {
+        let t0 = Instant::now();
+        let mut w = StaleWatch::new(MaxAge::default());
+        let mut lines = 0;
+        let (mut att, mut st) = (0, 0);
+        for k in 0..60u64 {
+            let at = t0 + Duration::from_secs(k);
+            if k % 2 == 0 {
+                att += 5;
+            } else {
+                st += 5;
+            }
+            let mut now = status((att, st), (0, 0), 0.5);
+            now.attitude.age_s = Some(if k % 2 == 0 { 0.1 } else { 0.6 });
+            lines += looks(&mut w, &now, at).len();
+        }
+        assert!(lines <= 8, "{lines} lines in a minute");
+        let mut untold = Vec::new();
+        w.close(t0 + Duration::from_secs(61), Close::AtStop, |c| {
+            untold.push(c)
+        });
+        assert!(
+            matches!(untold[..], [Change::Untold { reading: "attitude", episodes, .. }] if episodes > 20),
+            "{untold:?}"
+        );
     }
 }

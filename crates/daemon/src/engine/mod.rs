@@ -122,6 +122,8 @@ struct Books {
     fail_log: RateLog,
     lost_log: RateLog,
     glitch_log: RateLog,
+    /// Estimators replaced (calibration reloads: at most one a second).
+    reload_log: RateLog,
     /// The last failure's kind and place: STATUS's `last_error` is
     /// written when they change, not on every failed frame.
     failure: LastFailure,
@@ -214,6 +216,7 @@ impl Engine {
             fail_log: RateLog::new(),
             lost_log: RateLog::new(),
             glitch_log: RateLog::new(),
+            reload_log: RateLog::new(),
             failure: LastFailure::default(),
             health_at: Instant::now(),
             health_log: health::HealthLog::default(),
@@ -282,15 +285,18 @@ impl Engine {
             if let Some(f) = &found {
                 e.take_findings(f.as_ref());
             }
-            tracing::info!(
-                "calibration reloaded: estimator {} replaced{}",
-                e.name(),
-                if found.is_some() {
-                    "; what it found of the hardware (stuck channels, the DVL's checks) kept"
-                } else {
-                    ""
-                }
-            );
+            if let Some(k) = books.reload_log.tick(Instant::now()) {
+                tracing::info!(
+                    replaced_since_last_line = k,
+                    "calibration reloaded: estimator {} replaced{}",
+                    e.name(),
+                    if found.is_some() {
+                        "; what it found of the hardware (stuck channels, the DVL's checks) kept"
+                    } else {
+                        ""
+                    }
+                );
+            }
             self.estimator = e;
             // A new track: the autopilot is told (MAVLink reset_counter).
             self.outputs.iter_mut().for_each(|o| o.estimator_replaced());
@@ -345,6 +351,12 @@ impl Engine {
                 gaps_since_last_line = k,
                 "seq gaps (frames lost at the source): {when}: {k} more since the last line, the last {:.1} s ago",
                 ago(&books.lost_log)
+            );
+        }
+        if let Some(k) = books.reload_log.close(now, when) {
+            tracing::info!(
+                replaced_since_last_line = k,
+                "calibration reloaded: {when}: {k} more estimators replaced since the last line"
             );
         }
         if let Some(k) = books.glitch_log.close(now, when) {

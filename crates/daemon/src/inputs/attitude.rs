@@ -162,7 +162,10 @@ impl Input for LatestAttitude {
         // [attitude] sensor) keep it. The input's readings then go unused:
         // counted, and told once, or STATUS would look healthy while the
         // AHRS's pitch and yaw reach no estimate.
-        if self.cell.fresh(capture, self.max_age).is_some() {
+        // Its age, not `fresh`, which would count it stale when old: the
+        // frame has an attitude, and the stale watch would say it went
+        // without.
+        if self.cell.age(capture).is_some_and(|a| a <= self.max_age) {
             self.cell.superseded.fetch_add(1, Relaxed);
             if !self.told_superseded {
                 self.told_superseded = true;
@@ -668,6 +671,13 @@ mod tests {
         input.attach(&mut late, t0 + Duration::from_secs(2));
         let st = cell.status(t0 + Duration::from_secs(2));
         assert_eq!((st.attached, st.stale, late.attitude), (1, 1, None));
+        // A frame with its own attitude and the input's reading old:
+        // neither superseded nor stale (a re-audit: the stale watch then
+        // said frames went without an attitude they had).
+        own.seq = 3;
+        input.attach(&mut own, t0 + Duration::from_secs(3));
+        let st = cell.status(t0 + Duration::from_secs(3));
+        assert_eq!((st.stale, cell.superseded.load(Relaxed)), (1, 2));
     }
 
     /// Refusals whose end the stop cuts: the listener's task is aborted
