@@ -83,8 +83,6 @@ pub struct Reloads {
     /// Outcomes by the rule for repeated lines: loaded, unchanged,
     /// refused (a storm is a reload a second, still 60 lines a minute).
     said: [RateLog; 3],
-    /// Outcomes, for tests and the summary.
-    pub done: Vec<Outcome>,
 }
 
 impl Reloads {
@@ -104,7 +102,6 @@ impl Reloads {
             file: cfg.calibration.describe(),
             log: RateLog::new(),
             said: [RateLog::new(); 3],
-            done: Vec::new(),
         }
     }
 
@@ -139,7 +136,6 @@ impl Reloads {
                         self.job = Some(job);
                         self.began = None;
                         self.say(&outcome);
-                        self.done.push(outcome);
                     }
                     // The thread died (a panic in a build): no more reloads.
                     Err(_) => tracing::error!("calibration reload thread ended without a word: reloads are off until a restart"),

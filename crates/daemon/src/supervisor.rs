@@ -45,6 +45,33 @@ struct Ticker {
 }
 
 impl Ticker {
+    /// STATUS every `interval`, the watchdog pinged within `watchdog`, the
+    /// taps taken from `d`, and a watch on each reading source `cfg` has.
+    fn new(cfg: &Config, d: &mut Running, interval: Duration, watchdog: Option<Duration>) -> Self {
+        Ticker {
+            interval,
+            watchdog,
+            last_status: Instant::now() - interval,
+            seq: 0,
+            prev_frames: 0,
+            prev_at: Instant::now(),
+            taps: std::mem::take(&mut d.status_taps),
+            alive: d.stop.clone(),
+            stale: cfg.vehicle.as_ref().map(|v| StaleWatch::new(v.max_age)),
+            autopilot: cfg
+                .vehicle
+                .as_ref()
+                .and_then(|v| v.mavlink.as_ref())
+                .map(|_| SilenceWatch::new(AUTOPILOT_SILENT)),
+            stale_input: cfg.attitude.as_ref().map(|a| {
+                StaleWatch::new(MaxAge {
+                    attitude: a.max_age,
+                    ..MaxAge::default()
+                })
+            }),
+        }
+    }
+
     /// A STATUS when its interval has passed; the watchdog ping while the
     /// frame thread's heartbeat moves.
     fn tick(&mut self, ctx: &StatusCtx) {
@@ -156,28 +183,7 @@ pub async fn supervise_to_end(
     // STATUS at its interval; the watchdog at half its timeout if shorter.
     let mut tick = tokio::time::interval(watchdog.map_or(interval, |w| interval.min(w / 2)));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let mut ticker = Ticker {
-        interval,
-        watchdog,
-        last_status: Instant::now() - interval,
-        seq: 0,
-        prev_frames: 0,
-        prev_at: Instant::now(),
-        taps: std::mem::take(&mut d.status_taps),
-        alive: d.stop.clone(),
-        stale: cfg.vehicle.as_ref().map(|v| StaleWatch::new(v.max_age)),
-        autopilot: cfg
-            .vehicle
-            .as_ref()
-            .and_then(|v| v.mavlink.as_ref())
-            .map(|_| SilenceWatch::new(AUTOPILOT_SILENT)),
-        stale_input: cfg.attitude.as_ref().map(|a| {
-            StaleWatch::new(MaxAge {
-                attitude: a.max_age,
-                ..MaxAge::default()
-            })
-        }),
-    };
+    let mut ticker = Ticker::new(cfg, &mut d, interval, watchdog);
     // The hub outlives the tasks it is taken from (the last STATUS reads it).
     let vehicle_hub = d.vehicle.as_ref().map(|v| v.hub.clone());
     let ctx = StatusCtx {

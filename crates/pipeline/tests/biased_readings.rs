@@ -206,21 +206,11 @@ fn an_attitude_grossly_off_does_not_keep_the_track_from_starting() {
 /// A minute's slow approach (8.3 → 4.8 m, weaving) in the harbour's
 /// water (K_D 0.2) with all three sensors, simulated with `seed`.
 fn harbour_approach(seed: u64) -> Vec<Frame> {
-    use lightpose_sim::{Scene, Simulator, Trajectory};
-    let text = std::fs::read_to_string(root().join("config/scenes/harbour.toml")).expect("scene");
-    let scene = Scene::parse(
-        &(text + "\n[attitude]\n\n[depth]\n\n[dvl]\n"),
-        "harbour+sensors",
+    common::with_sensors(
+        "config/scenes/harbour.toml",
+        "tests/data/slow-approach.csv",
+        seed,
     )
-    .expect("scene with sensors");
-    let traj = Trajectory::load(&root().join("tests/data/slow-approach.csv")).expect("trajectory");
-    let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
-    let mut sim = Simulator::new(scene, seed);
-    times
-        .iter()
-        .enumerate()
-        .map(|(j, &t)| sim.frame_moving(j as u64, t, &traj.kinematics(t)))
-        .collect()
 }
 
 /// Audit: a depth 0.3 m off from 30 s in (a sensor re-zeroed mid-dive)

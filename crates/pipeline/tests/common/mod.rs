@@ -16,13 +16,20 @@ pub fn root() -> PathBuf {
 /// tank with the attitude sensor, depth and a DVL, MODEL.md's noise
 /// (tests/data/to-and-fro.csv, 301 frames at 5 Hz).
 pub fn minute(seed: u64) -> Vec<Frame> {
-    let text = std::fs::read_to_string(root().join("config/scenes/tank.toml")).expect("scene");
+    with_sensors("config/scenes/tank.toml", "tests/data/to-and-fro.csv", seed)
+}
+
+/// The frames of the shipped `scene` (a path from the root) with the
+/// attitude sensor, depth and a DVL added, along `trajectory`, simulated
+/// with `seed`.
+pub fn with_sensors(scene: &str, trajectory: &str, seed: u64) -> Vec<Frame> {
+    let text = std::fs::read_to_string(root().join(scene)).expect("scene");
     let scene = Scene::parse(
         &(text + "\n[attitude]\n\n[depth]\n\n[dvl]\n"),
-        "tank+sensors",
+        "scene+sensors",
     )
     .expect("scene with sensors");
-    let traj = Trajectory::load(&root().join("tests/data/to-and-fro.csv")).expect("trajectory");
+    let traj = Trajectory::load(&root().join(trajectory)).expect("trajectory");
     let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
     let mut sim = Simulator::new(scene, seed);
     times
