@@ -89,7 +89,9 @@ impl Ticker {
                 w.close(now, Close::Over, |c| tell_stale("vehicle", c));
             }
             if let (Some(w), Some(hub)) = (&mut self.autopilot, ctx.vehicle) {
-                let age = hub.status(now).mavlink.autopilot_heartbeat_age_s;
+                // The age alone: a whole `status` (tables, strings) was
+                // built for it, beside the one STATUS builds.
+                let age = hub.mavlink.autopilot_heartbeat_age_s(now);
                 if let Some(v) = w.look(age, now.duration_since(ctx.started), now) {
                     tell_voice(v);
                 }

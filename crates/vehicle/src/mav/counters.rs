@@ -303,6 +303,15 @@ impl MavCounters {
         self.sent.get(k).map_or(0, |c| c.load(Relaxed))
     }
 
+    /// Seconds since the autopilot's last HEARTBEAT (`None`: none yet).
+    pub fn autopilot_heartbeat_age_s(&self, now: Instant) -> Option<f64> {
+        self.autopilot_seen
+            .lock()
+            .ok()
+            .and_then(|g| *g)
+            .map(|t| now.saturating_duration_since(t).as_secs_f64())
+    }
+
     pub fn status(&self, now: Instant) -> MavlinkStatus {
         let nz = |v: Vec<(&'static str, u64)>| v.into_iter().filter(|(_, n)| *n > 0).collect();
         MavlinkStatus {
@@ -319,12 +328,7 @@ impl MavCounters {
             recv_errors: self.recv_errors.load(Relaxed),
             link_opens: self.link_opens.load(Relaxed),
             link_failures: self.link_failures.load(Relaxed),
-            autopilot_heartbeat_age_s: self
-                .autopilot_seen
-                .lock()
-                .ok()
-                .and_then(|g| *g)
-                .map(|t| now.saturating_duration_since(t).as_secs_f64()),
+            autopilot_heartbeat_age_s: self.autopilot_heartbeat_age_s(now),
             autopilot: self.autopilot(),
             peer: self.peer().map(|a| a.to_string()),
             peer_changes: self.peer_changes(),
