@@ -405,6 +405,21 @@ pub struct TrackerConfig {
     /// within this angle (1σ, degrees) of the beam axis, i.e. y, z ~
     /// N(0, (x·tan σ)²) (a depth reading replaces it on z). Absent: none.
     pub init_lateral_sigma_deg: Option<f64>,
+    /// While no attitude reading is fused: pitch and yaw (about level and
+    /// the beam axis) are held within this angle (1σ, degrees). On a frame
+    /// where the filter's σ of either is larger, that angle is read as 0
+    /// with the variance that takes its σ back to the setting; within it,
+    /// nothing is done, so a run whose σ stays within is untouched. Why:
+    /// near the beam axis the light says nothing, to first order, of how a
+    /// spot off the dome's centre splits between yaw and y (or pitch and
+    /// z), and the filter's σ of both angles grew by about 0.8°/s, past
+    /// 40° within a minute. The counts' sigma points (±√3σ) then reached
+    /// past the dome's span, an update ran off along the ridge (yaw 48°
+    /// off) and the track was lost near 50 s on every minute-long run
+    /// without sensors. A vehicle that sees the beacon on its dome faces
+    /// it within the detectors' span, ±2Δ = ±30°, taken as 2σ: 15°.
+    /// 0: off.
+    pub unmeasured_attitude_sigma_deg: f64,
     /// Frames whose attitude no reading pins: take the paper's range (its
     /// on-axis brightness law, eqs. 2–3, from the same calibration) as a
     /// measurement of x, with 1σ = `paper_range_sigma_scale` times the
@@ -505,6 +520,7 @@ impl Default for TrackerConfig {
             side_sigma: 0.25,
             side_tau_s: 2.0,
             side_tau_with_attitude_s: 10.0,
+            unmeasured_attitude_sigma_deg: 15.0,
             surge_max_sigma: 0.15,
             init_velocity_sigma: 0.7,
             init_rate_sigma_deg: 10.0,
@@ -667,6 +683,12 @@ impl TrackerConfig {
             return bad(format!(
                 "tracker depth_offset_sigma_m = {} must be 0 (off) to 100 m",
                 self.depth_offset_sigma_m
+            ));
+        }
+        if !(0.0..=90.0).contains(&self.unmeasured_attitude_sigma_deg) {
+            return bad(format!(
+                "tracker unmeasured_attitude_sigma_deg = {} must be 0 (off) to 90°",
+                self.unmeasured_attitude_sigma_deg
             ));
         }
         if !(0.0..=30.0).contains(&self.pitch_offset_sigma_deg) {

@@ -300,6 +300,20 @@ impl Tracker {
                 started = retried;
             }
         }
+        if let (Err(_), Some(_)) = (&started, r.attitude.ready()) {
+            // Likewise an attitude the light cannot be fitted with at all
+            // (a heading 90° off: a compass beside a thruster). A start
+            // that fails is no track to count as lost quickly, so the
+            // rule of quick losses never came: in the tank minute with
+            // such a heading the track stayed lost for 18 s after one
+            // that lasted 4 s. The light alone starts it; the gate judges
+            // the attitude after.
+            let alone = r.for_light_alone(true);
+            let retried = self.start(frame, &alone, paper.as_ref().map(|p| &p.range));
+            if retried.is_ok() {
+                started = retried;
+            }
+        }
         match started {
             Ok((mut s, uses)) => {
                 self.started_t = Some(frame.t);
@@ -658,6 +672,9 @@ impl Tracker {
         let (uses, innov) = self.update_readings(&mut s, &readings);
         self.agreement.push(&innov, &uses, frame.t);
         s.attitude_fused = uses[0] == ReadingUse::Used;
+        if !s.attitude_fused {
+            self.bound_unmeasured_attitude(&mut s);
+        }
         // A DVL ties successive ranges together independently of the
         // light, so the brightness along the track measures K_D (Beer's
         // law): optionally, from the first velocity reading on, K_D is

@@ -316,6 +316,40 @@ fn fuse_with<const M: usize>(
 }
 
 impl Tracker {
+    /// On a frame whose attitude no reading pinned: pitch and yaw are
+    /// read as 0 (level, along the beam axis) with the variance that
+    /// leaves each at `unmeasured_attitude_sigma_deg`² when its own is
+    /// larger, and not at all when it is within (see the setting). A
+    /// bound, not a reading that adds up: frame after frame it holds the
+    /// σ at the setting, where the same reading each frame would shrink
+    /// it without end.
+    pub(super) fn bound_unmeasured_attitude(&self, s: &mut State) {
+        let bound = self.cfg.unmeasured_attitude_sigma_deg.to_radians();
+        if bound <= 0.0 {
+            return;
+        }
+        let b2 = bound * bound;
+        for i in [3, 4] {
+            let v = s.p[(i, i)];
+            if !(v > b2) {
+                continue;
+            }
+            // 1/b² = 1/v + 1/r: the reading's variance r that takes v to b².
+            let r = b2 * v / (v - b2);
+            let mut jac = SMatrix::<f64, 1, NS>::zeros();
+            jac[(0, i)] = 1.0;
+            let lin = Linear {
+                h: SVector::<f64, 1>::new(s.x[i]),
+                jac,
+            };
+            let c = Checked {
+                z: SVector::<f64, 1>::new(0.0),
+                sigma: SVector::<f64, 1>::new(r.sqrt()),
+            };
+            fuse(s, &c, &lin, [true], f64::INFINITY);
+        }
+    }
+
     /// (θ, ψ) of the state as the attitude sensor reads them: its pitch
     /// offset added (0 with no doubt unless `pitch_offset_sigma_deg` asks
     /// for it).

@@ -573,3 +573,63 @@ fn a_doubt_of_half_k_d_is_already_a_bank() {
     let (_, mc, _) = told(0.015);
     assert!(!WaterBank::wanted(&mc));
 }
+
+/// On a frame without an attitude reading, an angle whose σ is past
+/// `unmeasured_attitude_sigma_deg` is taken back to it: pulled toward 0
+/// by the share that takes, and y along the ridge with yaw through their
+/// covariance. An angle within the setting is left alone, and frame after
+/// frame the bound holds the σ at the setting, with no further pull (it
+/// does not add up as a reading would). At 0 it is off.
+#[test]
+fn unmeasured_pitch_and_yaw_are_held_within_their_setting() {
+    use super::state::{Ms, Vs};
+    let tr = Tracker::new(SensorModel::default(), TrackerConfig::default()).unwrap();
+    let b = tr.config().unmeasured_attitude_sigma_deg.to_radians();
+    assert!(b > 0.0);
+    let mut x = Vs::zeros();
+    x[0] = 8.0;
+    x[1] = 0.5;
+    x[3] = 0.1;
+    x[4] = -0.3;
+    let mut p = Ms::identity() * 1e-2;
+    p[(3, 3)] = (0.5 * b).powi(2);
+    p[(4, 4)] = (2.0 * b).powi(2);
+    // The ridge: y + x·ψ known far better than either.
+    p[(1, 1)] = (8.0 * 2.0 * b).powi(2);
+    p[(1, 4)] = -0.99 * (p[(1, 1)] * p[(4, 4)]).sqrt();
+    p[(4, 1)] = p[(1, 4)];
+    let s0 = State::new(x, p, 0.0);
+    let mut s = s0;
+    tr.bound_unmeasured_attitude(&mut s);
+    assert!(
+        (s.p[(4, 4)] - b * b).abs() < 1e-12,
+        "{} {}",
+        s.p[(4, 4)],
+        b * b
+    );
+    let want = x[4] * b * b / p[(4, 4)];
+    assert!((s.x[4] - want).abs() < 1e-12, "{} {want}", s.x[4]);
+    assert!(
+        s.x[1] < x[1],
+        "y {} stays on the ridge as yaw rises",
+        s.x[1]
+    );
+    assert_eq!((s.x[3], s.p[(3, 3)]), (x[3], p[(3, 3)]));
+    let once = s;
+    for _ in 0..10 {
+        tr.bound_unmeasured_attitude(&mut s);
+    }
+    assert!((s.p[(4, 4)] - b * b).abs() < 1e-12);
+    assert!((s.x[4] - once.x[4]).abs() < 1e-12 && (s.x[1] - once.x[1]).abs() < 1e-12);
+    let off = Tracker::new(
+        SensorModel::default(),
+        TrackerConfig {
+            unmeasured_attitude_sigma_deg: 0.0,
+            ..TrackerConfig::default()
+        },
+    )
+    .unwrap();
+    let mut s = s0;
+    off.bound_unmeasured_attitude(&mut s);
+    assert_eq!((s.x, s.p), (s0.x, s0.p));
+}
