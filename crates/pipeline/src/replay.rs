@@ -163,8 +163,11 @@ pub struct ReplaySummary {
     pub bad_lines: u64,
     /// Estimates by status, in the order of [`Status::ALL`].
     pub status: [u64; Status::ALL.len()],
-    /// Error against truth, when the log carried any.
+    /// Error against truth, when the log carried any and an estimate had
+    /// a value to compare.
     pub report: Option<ErrorReport>,
+    /// Frames that carried truth.
+    pub truth_frames: u64,
     /// Where the log was cut short, if it ended so.
     pub cut: Option<Cut>,
     /// Gaps in `seq` and the frames they lost.
@@ -284,6 +287,7 @@ pub fn replay<W: Write>(
         bad_lines: 0,
         status: [0; Status::ALL.len()],
         report: None,
+        truth_frames: 0,
         cut: None,
         seq_gaps: (0, 0),
         readings: [[0; ReadingUse::COUNT]; 3],
@@ -346,6 +350,7 @@ pub fn replay<W: Write>(
             s.dvl_refused_last = Some(*a);
         }
         if let Some(t) = &frame.truth {
+            s.truth_frames += 1;
             errors.add(&pose, t);
         }
     }

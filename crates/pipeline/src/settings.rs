@@ -6,12 +6,14 @@
 //! the estimators are built from them, so both must reach them; kept here,
 //! apart from both, neither has to import the other to get them. A new
 //! setting of an estimator goes into its table here, with its default and
-//! its check in that table's `validate`.
+//! its check in that table's `validate` (the tracker's: `settings/checks.rs`).
 
 // `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use serde::{Deserialize, Serialize};
+
+mod checks;
 
 /// The `[estimator]` table: what the model-based estimators model for this
 /// scene. Every key is optional. Scattering is not here: it is modelled
@@ -135,12 +137,29 @@ pub enum ModelError {
     Config(String),
 }
 
+/// The most a doubt of K_D may be, m⁻¹: a harbour's own K_D is about 1.
+pub const MAX_K_D_DOUBT: f64 = 10.0;
+
+/// A setting's value as a message shows it: in full where that is short,
+/// else in exponent form (1e-300 had printed 300 digits).
+pub(crate) fn num(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e9).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 impl ModelConfig {
     pub fn validate(&self) -> Result<(), ModelError> {
         let bad = |m: String| Err(ModelError::Config(m));
         let [lo, hi] = self.x_range;
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
-            return bad(format!("x_range = [{lo}, {hi}] must be 0 < lo < hi"));
+            return bad(format!(
+                "x_range = [{}, {}] must be 0 < lo < hi",
+                num(lo),
+                num(hi)
+            ));
         }
         for (name, v) in [
             ("attitude_sigma_pitch_deg", self.attitude_sigma_pitch_deg),
@@ -150,14 +169,18 @@ impl ModelConfig {
             ("max_angle_deg", self.max_angle_deg),
             ("max_reduced_chi2", self.max_reduced_chi2),
             ("max_gap_s", self.max_gap_s),
+            ("min_signal_sigma", self.min_signal_sigma),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return bad(format!("{name} = {v} must be positive"));
+                return bad(format!("{name} = {} must be positive", num(v)));
             }
         }
         if let Some(v) = self.k_d_sigma {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(format!("k_d_sigma = {v} must be ≥ 0"));
+            if !(v.is_finite() && (0.0..=MAX_K_D_DOUBT).contains(&v)) {
+                return bad(format!(
+                    "k_d_sigma = {} must be 0 to {MAX_K_D_DOUBT} m⁻¹",
+                    num(v)
+                ));
             }
         }
         if let Some(v) = self.attitude_envelope_deg {
@@ -165,8 +188,14 @@ impl ModelConfig {
                 return bad(format!("attitude_envelope_deg = {v} must be positive"));
             }
         }
-        if !(self.fixed_pitch_deg.is_finite() && self.fixed_yaw_deg.is_finite()) {
-            return bad("fixed_pitch_deg and fixed_yaw_deg must be finite".into());
+        // Angles as the poses give them (a pitch of 370° had diverged on
+        // every frame without a word).
+        if !(self.fixed_pitch_deg.abs() <= 90.0 && self.fixed_yaw_deg.abs() <= 180.0) {
+            return bad(format!(
+                "fixed_pitch_deg = {} must be within ±90° and fixed_yaw_deg = {} within ±180°",
+                num(self.fixed_pitch_deg),
+                num(self.fixed_yaw_deg)
+            ));
         }
         if self.search_margin < 1.0 {
             return bad("search_margin must be at least 1".into());
@@ -575,134 +604,5 @@ impl TrackerConfig {
         self.k_d_sigma.get_or_insert(sigma_k_d);
         self.temp_sigma_c.get_or_insert(sigma_temp_c);
         self
-    }
-
-    pub fn validate(&self) -> Result<(), ModelError> {
-        let bad = |m: String| Err(ModelError::Config(m));
-        for (name, v) in [
-            ("accel_psd", self.accel_psd),
-            ("ang_accel_psd_deg", self.ang_accel_psd_deg),
-            ("k_d_walk_psd", self.k_d_walk_psd),
-            ("init_velocity_sigma", self.init_velocity_sigma),
-            ("init_rate_sigma_deg", self.init_rate_sigma_deg),
-            ("init_attitude_sigma_deg", self.init_attitude_sigma_deg),
-            ("attitude_sigma_pitch_deg", self.attitude_sigma_pitch_deg),
-            ("attitude_sigma_yaw_deg", self.attitude_sigma_yaw_deg),
-            ("nis_gate", self.nis_gate),
-            ("max_gap_s", self.max_gap_s),
-            ("side_sigma", self.side_sigma),
-            ("side_tau_s", self.side_tau_s),
-            ("side_tau_with_attitude_s", self.side_tau_with_attitude_s),
-            ("depth_sigma_m", self.depth_sigma_m),
-            ("velocity_sigma_mps", self.velocity_sigma_mps),
-            ("depth_limit_m", self.depth_limit_m),
-            ("velocity_limit_mps", self.velocity_limit_mps),
-            ("paper_range_sigma_scale", self.paper_range_sigma_scale),
-            ("paper_rate_drift_mps", self.paper_rate_drift_mps),
-            ("surge_max_sigma", self.surge_max_sigma),
-            ("water_check_doubt", self.water_check_doubt),
-            ("reading_check_limit", self.reading_check_limit),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return bad(format!("tracker {name} = {v} must be positive"));
-            }
-        }
-        // 0 means "K_D known exactly", possible only when it is not
-        // estimated (the filter's prior on it must be positive).
-        if let Some(v) = self.k_d_sigma {
-            if !(v.is_finite() && v >= 0.0) || (self.estimate_k_d && v == 0.0) {
-                return bad(format!(
-                    "tracker k_d_sigma = {v} must be positive (≥ 0 without estimate_k_d)"
-                ));
-            }
-        }
-        if let Some(v) = self.temp_sigma_c {
-            if !(v.is_finite() && (0.0..=50.0).contains(&v)) {
-                return bad(format!("tracker temp_sigma_c = {v} must be in [0, 50] °C"));
-            }
-        }
-        let [lo, hi] = self.x_range;
-        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
-            return bad(format!(
-                "tracker x_range = [{lo}, {hi}] must be 0 < lo < hi"
-            ));
-        }
-        if self.update_iterations == 0 {
-            return bad("tracker update_iterations must be at least 1".into());
-        }
-        if !(self.reading_gate_p > 0.0 && self.reading_gate_p < 0.5) {
-            return bad(format!(
-                "tracker reading_gate_p = {} must be in (0, 0.5)",
-                self.reading_gate_p
-            ));
-        }
-        if self.reading_gate_restart == 0 {
-            return bad("tracker reading_gate_restart must be at least 1".into());
-        }
-        if !(1..=PAPER_RATE_MAX_FRAMES).contains(&self.paper_rate_frames) {
-            return bad(format!(
-                "tracker paper_rate_frames = {} must be 1 to {PAPER_RATE_MAX_FRAMES}",
-                self.paper_rate_frames
-            ));
-        }
-        if self.water_check_frames > WATER_CHECK_MAX_FRAMES {
-            return bad(format!(
-                "tracker water_check_frames = {} must be 0 (off) to {WATER_CHECK_MAX_FRAMES}",
-                self.water_check_frames
-            ));
-        }
-        if !(0.0..=READING_CHECK_MAX_S).contains(&self.reading_check_s) {
-            return bad(format!(
-                "tracker reading_check_s = {} must be 0 (off) to {READING_CHECK_MAX_S}",
-                self.reading_check_s
-            ));
-        }
-        if !(self.water_check_nis.is_finite() && self.water_check_nis > 1.0) {
-            return bad(format!(
-                "tracker water_check_nis = {} must be above 1 (its median in the calibrated water)",
-                self.water_check_nis
-            ));
-        }
-        if let Some(v) = self.init_lateral_sigma_deg {
-            if !(v.is_finite() && v > 0.0 && v < 80.0) {
-                return bad(format!(
-                    "tracker init_lateral_sigma_deg = {v} must be in (0, 80)"
-                ));
-            }
-        }
-        self.validate_sensor_models()
-    }
-
-    /// The own sensors' lever arm and offsets (part of `validate`).
-    fn validate_sensor_models(&self) -> Result<(), ModelError> {
-        let bad = |m: String| Err(ModelError::Config(m));
-        if let Some(v) = self.depth_lever_arm_m.iter().find(|v| !v.is_finite()) {
-            return bad(format!("tracker depth_lever_arm_m has {v}: must be finite"));
-        }
-        if !(0.0..=100.0).contains(&self.depth_offset_sigma_m) {
-            return bad(format!(
-                "tracker depth_offset_sigma_m = {} must be 0 (off) to 100 m",
-                self.depth_offset_sigma_m
-            ));
-        }
-        if !(0.0..=90.0).contains(&self.unmeasured_attitude_sigma_deg) {
-            return bad(format!(
-                "tracker unmeasured_attitude_sigma_deg = {} must be 0 (off) to 90°",
-                self.unmeasured_attitude_sigma_deg
-            ));
-        }
-        if !(0.0..=30.0).contains(&self.pitch_offset_sigma_deg) {
-            return bad(format!(
-                "tracker pitch_offset_sigma_deg = {} must be 0 (off) to 30°",
-                self.pitch_offset_sigma_deg
-            ));
-        }
-        if !(self.depth_offset_walk_psd.is_finite() && self.depth_offset_walk_psd >= 0.0) {
-            return bad(format!(
-                "tracker depth_offset_walk_psd = {} must be 0 or more (m²/s)",
-                self.depth_offset_walk_psd
-            ));
-        }
-        Ok(())
     }
 }

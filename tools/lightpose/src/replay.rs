@@ -71,6 +71,12 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     if a.report {
         match &s.report {
             Some(r) => out!("{r}"),
+            None if s.truth_frames > 0 => eprintln!(
+                "lightpose: {}: {} frames carry truth but no estimate gave a value to \
+                 compare, no error report",
+                a.log.display(),
+                s.truth_frames
+            ),
             None => eprintln!(
                 "lightpose: {}: no truth in the log, no error report",
                 a.log.display()

@@ -202,3 +202,56 @@ fn case_names_are_aliases_and_the_crb_note_names_the_set() {
         assert!(help.contains(alias), "{cmd}: {help}");
     }
 }
+
+/// A replay whose every pose is null (here a start-up σ so small that the
+/// start fit cannot be made) of a log with truth says so: it had said "no
+/// truth in the log".
+#[test]
+fn a_replay_without_a_value_to_compare_says_why_there_is_no_report() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let cal = d.join("cal.toml");
+    let text = std::fs::read_to_string(config("calibration/tank.toml")).expect("calibration");
+    std::fs::write(
+        &cal,
+        text + "\n[estimator.tracker]\ninit_attitude_sigma_deg = 1e-300\n",
+    )
+    .expect("write calibration");
+    let log = d.join("dive.jsonl");
+    let (ok, _, err) = lightpose_in(
+        d,
+        &[
+            "simulate",
+            "--scene",
+            &config("scenes/tank.toml"),
+            "--trajectory",
+            &config("trajectories/dive.csv"),
+            "--seed",
+            "1",
+            "--out",
+            log.to_str().unwrap(),
+        ],
+    );
+    assert!(ok, "{err}");
+    let (ok, _, err) = lightpose_in(
+        d,
+        &[
+            "replay",
+            "--calibration",
+            cal.to_str().unwrap(),
+            "--log",
+            log.to_str().unwrap(),
+            "--out",
+            d.join("poses.jsonl").to_str().unwrap(),
+            "--estimator",
+            "tracker",
+            "--report",
+        ],
+    );
+    assert!(ok, "{err}");
+    assert!(
+        err.contains("41 frames carry truth but no estimate gave a value to compare"),
+        "{err}"
+    );
+    assert!(!err.contains("no truth in the log"), "{err}");
+}
