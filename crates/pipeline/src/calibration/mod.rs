@@ -18,6 +18,26 @@
 //! the numbers.
 
 pub mod file;
+
+/// How far apart two truth values may be and still be the same pose of a
+/// sweep, and how near zero a value is zero: a tank carriage's read-back
+/// precision, 1 mm and 0.05°. A sweep recorded elsewhere carries its
+/// truth as measured; compared to 1e-9 (as a simulated sweep's exact
+/// values allow), noise of 1e-6 on it refused the whole sweep as "mixed
+/// pose" and a pose's frames fell into groups of one.
+pub(crate) const TRUTH_TOL_M: f64 = 1e-3;
+pub(crate) const TRUTH_TOL_DEG: f64 = 0.05;
+
+/// Whether two truth poses are the same pose of a sweep (`TRUTH_TOL_M`,
+/// `TRUTH_TOL_DEG`).
+pub(crate) fn same_pose(a: &lightpose_core::Pose, b: &lightpose_core::Pose) -> bool {
+    [a.x - b.x, a.y - b.y, a.z - b.z]
+        .iter()
+        .all(|d| d.abs() <= TRUTH_TOL_M)
+        && [a.pitch.deg() - b.pitch.deg(), a.yaw.deg() - b.yaw.deg()]
+            .iter()
+            .all(|d| d.abs() <= TRUTH_TOL_DEG)
+}
 pub mod least_squares;
 pub mod paper_fit;
 pub mod physical_fit;

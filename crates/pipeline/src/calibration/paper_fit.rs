@@ -148,9 +148,14 @@ fn widen(r: &mut Option<[f64; 2]>, v: f64) {
     });
 }
 
-/// A truth value of zero, to the precision a log carries it.
-fn zero(v: f64) -> bool {
-    v.abs() < 1e-9
+/// A truth position of zero, to a carriage's precision (`TRUTH_TOL_M`).
+fn zero_m(v: f64) -> bool {
+    v.abs() <= super::TRUTH_TOL_M
+}
+
+/// A truth angle of zero, to a carriage's precision (`TRUTH_TOL_DEG`).
+fn zero_deg(v: f64) -> bool {
+    v.abs() <= super::TRUTH_TOL_DEG
 }
 
 impl Accs {
@@ -175,8 +180,8 @@ impl Accs {
         };
         let pose = truth.pose;
         let (pitch, yaw) = (pose.pitch.deg(), pose.yaw.deg());
-        let level = zero(pitch) && zero(yaw);
-        let centred = zero(pose.y) && zero(pose.z);
+        let level = zero_deg(pitch) && zero_deg(yaw);
+        let centred = zero_m(pose.y) && zero_m(pose.z);
         if !level && !centred {
             // Neither a translation nor an orientation calibration pose.
             *self.skipped.entry("mixed pose").or_default() += 1;

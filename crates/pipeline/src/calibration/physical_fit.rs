@@ -194,6 +194,11 @@ impl Default for FitOptions {
 pub enum CalibError {
     #[error("sweep has no frames with a truth pose")]
     NoTruth,
+    #[error(
+        "no pose of the sweep has {0} frames in a row, which each pose needs for its noise \
+         (the sweep's {1} frames change pose more often)"
+    )]
+    NoRepeatedPose(u64, u64),
     #[error("frames differ in ADC resolution ({0} and {1} bits)")]
     MixedBits(u8, u8),
     #[error("only {0} usable poses; the fit has {1} parameters")]
@@ -270,7 +275,10 @@ impl PhysicalFitter {
         let Some(truth) = f.truth else { return Ok(()) };
         self.check_bits(f)?;
         self.frames += 1;
-        let same = self.groups.last().is_some_and(|g| g.pose == truth.pose);
+        let same = self
+            .groups
+            .last()
+            .is_some_and(|g| super::same_pose(&g.pose, &truth.pose));
         if !same {
             self.groups.push(Group::new(truth.pose));
         }

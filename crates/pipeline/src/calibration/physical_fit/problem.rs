@@ -95,7 +95,11 @@ impl Data {
             var.push(v);
         }
         if poses.is_empty() {
-            return Err(CalibError::NoTruth);
+            let frames: u64 = fitter.groups.iter().map(|g| g.n).sum();
+            return Err(match frames {
+                0 => CalibError::NoTruth,
+                n => CalibError::NoRepeatedPose(o.min_samples, n),
+            });
         }
         let (dark, dark_var) = match &fitter.dark {
             Some(g) if g.n >= o.min_samples => {
