@@ -436,6 +436,17 @@ fn dark_levels(dark: &DarkAcc, sources: &[String]) -> Result<DarkLevels, Calibra
             .map(|m| (m / (dark.n - 1) as f64).sqrt())
             .collect();
         let worst = sig.iter().cloned().fold(0.0, f64::max);
+        if worst == 0.0 {
+            // A real ADC's dark frames always differ by a count somewhere;
+            // a stuck one's set the no-light level at two LSB, and beacon-
+            // off frames then read as `out_of_range` instead of `no_light`.
+            return Err(CalibrateError::Refused(format!(
+                "dark log {}: every channel reads the same count on all {} frames (a \
+                 stuck ADC?): no noise to set the no-light level from",
+                sources.join(", "),
+                dark.n
+            )));
+        }
         // At least two LSB, so that a noise-free scene is not "lit" by one
         // count of rounding.
         let thr = (NO_LIGHT_SIGMAS * worst).max(2.0 * dark.lsb);
@@ -449,6 +460,14 @@ fn dark_levels(dark: &DarkAcc, sources: &[String]) -> Result<DarkLevels, Calibra
         Err(CalibrateError::Refused(
             "only one dark frame: the offsets need several to average the noise".into(),
         ))
+    } else if !sources.is_empty() {
+        // Asked for, but empty: the nominal levels would stand in for
+        // what the user meant to measure, without a word.
+        Err(CalibrateError::Refused(format!(
+            "dark log {} has no frames: record the dark sweep, or leave --dark out for \
+             MODEL.md's nominal offsets",
+            sources.join(", ")
+        )))
     } else {
         Ok(DarkLevels {
             offsets: [NOMINAL_OFFSET_V; NDET],
