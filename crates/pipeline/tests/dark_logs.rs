@@ -4,15 +4,14 @@
 //! read the same count on every frame (a stuck ADC) set the no-light level
 //! at two LSB, so that beacon-off frames read as `out_of_range`.
 
+mod common;
+
+use common::root;
 use lightpose_pipeline::calibration::{calibrate, CalibrateError, CalibrateOptions};
 use lightpose_sim::{Scene, SweepKind, SweepPlan};
 use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Write};
-use std::path::{Path, PathBuf};
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
+use std::path::Path;
 
 fn write_sweep(kind: SweepKind, samples: u32, seed: u64, path: &Path) {
     let scene = Scene::load(&root().join("config/scenes/tank.toml")).expect("tank scene");

@@ -6,27 +6,14 @@
 //! frame, so the light model was left out with "sweep has no frames with
 //! a truth pose".
 
+mod common;
+
+use common::{root, Lcg};
 use lightpose_pipeline::calibration::{calibrate, calibrate_full, CalibrateOptions};
 use lightpose_sim::{Scene, SweepKind, SweepPlan};
 use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Write};
-use std::path::{Path, PathBuf};
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// A deterministic draw in [−1, 1) (an LCG: the test needs no RNG crate).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-    }
-}
+use std::path::Path;
 
 /// `from` with every frame's truth moved by up to ±`m` metres and ±`deg`
 /// degrees, as a carriage reads it back.
@@ -38,7 +25,7 @@ fn measured(from: &Path, to: &Path, m: f64, deg: f64) {
         if let Some(t) = v.get_mut("truth").and_then(|t| t.as_object_mut()) {
             for (k, s) in [("x", m), ("y", m), ("z", m), ("pitch", deg), ("yaw", deg)] {
                 if let Some(x) = t.get(k).and_then(|x| x.as_f64()) {
-                    t.insert(k.into(), (x + s * rng.next()).into());
+                    t.insert(k.into(), (x + s * (2.0 * rng.uniform() - 1.0)).into());
                 }
             }
         }

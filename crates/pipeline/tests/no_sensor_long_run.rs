@@ -13,22 +13,12 @@
 //! 1.0–2.8× the paper's in x. `unmeasured_attitude_sigma_deg` bounds
 //! their σ (15°).
 
+mod common;
+
+use common::{p95, root};
 use lightpose_core::Status;
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{Scene, Simulator, Trajectory};
-use std::path::{Path, PathBuf};
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// 95th percentile (nearest rank, as `replay --report` ranks it) of `v`.
-fn p95(mut v: Vec<f64>) -> f64 {
-    assert!(!v.is_empty(), "no frames to rank");
-    v.sort_by(f64::total_cmp);
-    let k = ((0.95 * v.len() as f64).ceil() as usize).clamp(1, v.len());
-    v[k - 1]
-}
 
 /// One run: how many frames `auto` called `diverged`, and per axis (x, y,
 /// z) the p95 of |error| of `auto` and of the paper's method.

@@ -10,23 +10,12 @@
 //! whole residual; the surge then lagged the slowing vehicle by 0.1–0.2
 //! m/s (1.28× the paper's on the median, 3/20 seeds within the bar).
 
+mod common;
+
+use common::{p95, root};
 use lightpose_core::Estimator;
 use lightpose_pipeline::{build_estimator, Calibration};
 use lightpose_sim::{Scene, Simulator, Trajectory};
-use std::path::{Path, PathBuf};
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// 95th percentile (nearest rank, as `replay --report` ranks it) of `v`;
-/// the replay's own running quantile is internal to the pipeline.
-fn p95(mut v: Vec<f64>) -> f64 {
-    assert!(!v.is_empty(), "no frames to rank");
-    v.sort_by(f64::total_cmp);
-    let k = ((0.95 * v.len() as f64).ceil() as usize).clamp(1, v.len());
-    v[k - 1]
-}
 
 /// What one estimator did over the seeds: per seed the p95 of |surge
 /// error| after 1 s of `est` and of the paper's method over the frames

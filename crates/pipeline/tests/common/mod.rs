@@ -12,6 +12,15 @@ pub fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// 95th percentile (nearest rank, as `replay --report` ranks it) of `v`;
+/// the replay's own running quantile is internal to the pipeline.
+pub fn p95(mut v: Vec<f64>) -> f64 {
+    assert!(!v.is_empty(), "no frames to rank");
+    v.sort_by(f64::total_cmp);
+    let k = ((0.95 * v.len() as f64).ceil() as usize).clamp(1, v.len());
+    v[k - 1]
+}
+
 /// The frames of a minute of coming and going between 4 and 6 m in the
 /// tank with the attitude sensor, depth and a DVL, MODEL.md's noise
 /// (tests/data/to-and-fro.csv, 301 frames at 5 Hz).
