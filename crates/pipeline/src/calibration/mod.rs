@@ -17,6 +17,7 @@
 //! [`crate::settings`], so that the estimators need nothing from here but
 //! the numbers.
 
+mod dark;
 pub mod file;
 
 /// How far apart two truth values may be and still be the same pose of a

@@ -41,6 +41,53 @@ impl TrackerConfig {
                 return bad(format!("tracker {name} = {} must be positive", num(v)));
             }
         }
+        self.validate_water()?;
+        let [lo, hi] = self.x_range;
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
+            return bad(format!(
+                "tracker x_range = [{}, {}] must be 0 < lo < hi",
+                num(lo),
+                num(hi)
+            ));
+        }
+        if self.update_iterations == 0 {
+            return bad("tracker update_iterations must be at least 1".into());
+        }
+        if !(self.reading_gate_p > 0.0 && self.reading_gate_p < 0.5) {
+            return bad(format!(
+                "tracker reading_gate_p = {} must be in (0, 0.5)",
+                self.reading_gate_p
+            ));
+        }
+        if self.reading_gate_restart == 0 {
+            return bad("tracker reading_gate_restart must be at least 1".into());
+        }
+        if !(1..=PAPER_RATE_MAX_FRAMES).contains(&self.paper_rate_frames) {
+            return bad(format!(
+                "tracker paper_rate_frames = {} must be 1 to {PAPER_RATE_MAX_FRAMES}",
+                self.paper_rate_frames
+            ));
+        }
+        if !(0.0..=READING_CHECK_MAX_S).contains(&self.reading_check_s) {
+            return bad(format!(
+                "tracker reading_check_s = {} must be 0 (off) to {READING_CHECK_MAX_S}",
+                self.reading_check_s
+            ));
+        }
+        if let Some(v) = self.init_lateral_sigma_deg {
+            if !(v.is_finite() && v > 0.0 && v < 80.0) {
+                return bad(format!(
+                    "tracker init_lateral_sigma_deg = {v} must be in (0, 80)"
+                ));
+            }
+        }
+        self.validate_sensor_models()
+    }
+
+    /// The water's settings: K_D's doubt, the temperature's, and the water
+    /// check's (part of `validate`).
+    fn validate_water(&self) -> Result<(), ModelError> {
+        let bad = |m: String| Err(ModelError::Config(m));
         // A doubt of K_D past any water's own K_D (a harbour's is about 1
         // m⁻¹) is no doubt but a mistake, and the water bank's members at
         // e^(±3σ/K_D) overflowed: the error then named k_d_sigma = 0.
@@ -68,42 +115,10 @@ impl TrackerConfig {
                 return bad(format!("tracker temp_sigma_c = {v} must be in [0, 50] °C"));
             }
         }
-        let [lo, hi] = self.x_range;
-        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
-            return bad(format!(
-                "tracker x_range = [{}, {}] must be 0 < lo < hi",
-                num(lo),
-                num(hi)
-            ));
-        }
-        if self.update_iterations == 0 {
-            return bad("tracker update_iterations must be at least 1".into());
-        }
-        if !(self.reading_gate_p > 0.0 && self.reading_gate_p < 0.5) {
-            return bad(format!(
-                "tracker reading_gate_p = {} must be in (0, 0.5)",
-                self.reading_gate_p
-            ));
-        }
-        if self.reading_gate_restart == 0 {
-            return bad("tracker reading_gate_restart must be at least 1".into());
-        }
-        if !(1..=PAPER_RATE_MAX_FRAMES).contains(&self.paper_rate_frames) {
-            return bad(format!(
-                "tracker paper_rate_frames = {} must be 1 to {PAPER_RATE_MAX_FRAMES}",
-                self.paper_rate_frames
-            ));
-        }
         if self.water_check_frames > WATER_CHECK_MAX_FRAMES {
             return bad(format!(
                 "tracker water_check_frames = {} must be 0 (off) to {WATER_CHECK_MAX_FRAMES}",
                 self.water_check_frames
-            ));
-        }
-        if !(0.0..=READING_CHECK_MAX_S).contains(&self.reading_check_s) {
-            return bad(format!(
-                "tracker reading_check_s = {} must be 0 (off) to {READING_CHECK_MAX_S}",
-                self.reading_check_s
             ));
         }
         if !(self.water_check_nis.is_finite() && self.water_check_nis > 1.0) {
@@ -112,14 +127,7 @@ impl TrackerConfig {
                 self.water_check_nis
             ));
         }
-        if let Some(v) = self.init_lateral_sigma_deg {
-            if !(v.is_finite() && v > 0.0 && v < 80.0) {
-                return bad(format!(
-                    "tracker init_lateral_sigma_deg = {v} must be in (0, 80)"
-                ));
-            }
-        }
-        self.validate_sensor_models()
+        Ok(())
     }
 
     /// The own sensors' lever arm and offsets (part of `validate`).
