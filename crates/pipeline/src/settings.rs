@@ -364,10 +364,12 @@ pub struct TrackerConfig {
     /// the start's guess (held-out dive: p95 0.24 m/s against the paper's
     /// 0.15 over each one's own frames).
     pub surge_max_sigma: f64,
-    /// Start-up 1σ of velocity (m/s) and of angular rates (°/s).
+    /// Start-up 1σ of velocity (m/s, 0.001–10) and of angular rates (°/s,
+    /// 0.001–1000).
     pub init_velocity_sigma: f64,
     pub init_rate_sigma_deg: f64,
-    /// Start-up attitude envelope without a sensor: pitch = yaw = 0 ± this.
+    /// Start-up attitude envelope without a sensor: pitch = yaw = 0 ± this
+    /// (0.001–90°).
     pub init_attitude_sigma_deg: f64,
     /// Use `Frame.attitude` when present, with these 1σ unless the reading
     /// gives its own `std` (MODEL.md's sensor: 0.3° pitch, 1.5° yaw).

@@ -10,6 +10,10 @@ use super::{
     WATER_CHECK_MAX_FRAMES,
 };
 
+/// The smallest start-up 1σ taken (m/s, °/s, °): a thousandth of a unit
+/// is already a start that knows more than any sensor.
+const INIT_SIGMA_MIN: f64 = 1e-3;
+
 impl TrackerConfig {
     pub fn validate(&self) -> Result<(), ModelError> {
         let bad = |m: String| Err(ModelError::Config(m));
@@ -42,6 +46,21 @@ impl TrackerConfig {
             }
         }
         self.validate_water()?;
+        // The start-up's doubts past what any vehicle does (or so small
+        // that the covariance underflows) made every pose `diverged`,
+        // without a word (an audit: 1e300 and 1e-300).
+        for (name, v, hi, unit) in [
+            ("init_velocity_sigma", self.init_velocity_sigma, 10.0, "m/s"),
+            ("init_rate_sigma_deg", self.init_rate_sigma_deg, 1000.0, "°/s"),
+            ("init_attitude_sigma_deg", self.init_attitude_sigma_deg, 90.0, "°"),
+        ] {
+            if !(INIT_SIGMA_MIN..=hi).contains(&v) {
+                return bad(format!(
+                    "tracker {name} = {} must be {INIT_SIGMA_MIN} to {hi} {unit}",
+                    num(v)
+                ));
+            }
+        }
         let [lo, hi] = self.x_range;
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
             return bad(format!(
@@ -208,6 +227,20 @@ mod tests {
         let e = tracker(|c| c.depth_lever_arm_m = [0.0, 0.0, 1e300]).unwrap_err();
         assert!(e.contains("depth_lever_arm_m has 1e300"), "{e}");
         tracker(|c| c.depth_lever_arm_m = [0.3, -0.1, 0.2]).unwrap();
+        let e = tracker(|c| c.init_velocity_sigma = 1e300).unwrap_err();
+        assert!(e.contains("init_velocity_sigma = 1e300 must be"), "{e}");
+        let e = tracker(|c| c.init_rate_sigma_deg = 1e-300).unwrap_err();
+        assert!(e.contains("init_rate_sigma_deg = 1e-300 must be"), "{e}");
+        for v in [1e-300, 90.5, f64::NAN] {
+            let e = tracker(|c| c.init_attitude_sigma_deg = v).unwrap_err();
+            assert!(e.contains("init_attitude_sigma_deg"), "{e}");
+        }
+        tracker(|c| {
+            c.init_velocity_sigma = 10.0;
+            c.init_rate_sigma_deg = 0.001;
+            c.init_attitude_sigma_deg = 90.0;
+        })
+        .unwrap();
         let e = tracker(|c| c.accel_psd = -1e-300).unwrap_err();
         assert!(e.contains("accel_psd = -1e-300 must"), "{e}");
         for v in [f64::NAN, f64::INFINITY, -1.0] {

@@ -78,6 +78,14 @@ impl<const M: usize> Pending<M> {
         }
     }
 
+    /// Held back as at odds with the light, if it was ready to fuse.
+    fn refused_by_light(&self) -> Pending<M> {
+        match self {
+            Pending::Ready(_) => Pending::Done(ReadingUse::Refused(Refusal::Light)),
+            done => *done,
+        }
+    }
+
     /// The verdict if the reading, when ready, was fused as it is.
     pub fn if_fused(&self) -> ReadingUse {
         match self {
@@ -99,15 +107,18 @@ impl FrameReadings {
     /// The same readings for a start from the light alone: the depth
     /// (and the attitude, with `attitude`) refused as at odds with the
     /// light; the gate judges them once the light has a track.
+    ///
+    /// Only a reading ready to fuse is refused: one absent or already
+    /// refused keeps its verdict (an audit: a frame without a depth was
+    /// counted `refused_light` on such a start).
     pub fn for_light_alone(&self, attitude: bool) -> FrameReadings {
-        let refused = ReadingUse::Refused(Refusal::Light);
         FrameReadings {
             attitude: if attitude {
-                Pending::Done(refused)
+                self.attitude.refused_by_light()
             } else {
                 self.attitude
             },
-            depth: Pending::Done(refused),
+            depth: self.depth.refused_by_light(),
             velocity: self.velocity,
         }
     }
@@ -741,6 +752,32 @@ mod tests {
         for (a, b) in g.iter().zip([23.928, 27.631, 30.664]) {
             assert!((a - b).abs() < 2e-2, "{g:?}");
         }
+    }
+
+    #[test]
+    fn a_start_from_the_light_alone_refuses_only_readings_it_had() {
+        let depth = Pending::Ready(Checked {
+            z: SVector::from([3.0]),
+            sigma: SVector::from([0.02]),
+        });
+        let not_finite = Pending::Done(ReadingUse::Refused(Refusal::NotFinite));
+        let r = FrameReadings {
+            attitude: Pending::Done(ReadingUse::Absent),
+            depth,
+            velocity: Pending::Done(ReadingUse::Absent),
+        };
+        let alone = r.for_light_alone(true);
+        assert_eq!(alone.attitude, Pending::Done(ReadingUse::Absent));
+        assert_eq!(alone.depth, Pending::Done(ReadingUse::Refused(Refusal::Light)));
+        assert_eq!(alone.velocity, r.velocity);
+        let r = FrameReadings {
+            attitude: not_finite,
+            depth: Pending::Done(ReadingUse::Absent),
+            ..r
+        };
+        let alone = r.for_light_alone(true);
+        assert_eq!(alone.attitude, not_finite);
+        assert_eq!(alone.depth, Pending::Done(ReadingUse::Absent));
     }
 
     /// The tracker with the shipped tank calibration's light model and
