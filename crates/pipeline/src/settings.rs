@@ -399,7 +399,7 @@ pub struct TrackerConfig {
     /// How fast that offset drifts, a random walk's density (m²/s): the
     /// tide over the beacon moves a pressure depth by up to 1–2 cm a
     /// minute where it is large. Default 1e-6: 1σ 0.008 m in a minute,
-    /// 0.06 m in an hour. Only with `depth_offset_sigma_m` above 0.
+    /// 0.06 m in an hour; at most 1. Only with `depth_offset_sigma_m` above 0.
     pub depth_offset_walk_psd: f64,
     /// How far off the attitude sensor's pitch may be as a whole, 1σ (°):
     /// an AHRS mounted askew of the dome, a level calibration taken on a

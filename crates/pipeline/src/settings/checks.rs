@@ -51,8 +51,18 @@ impl TrackerConfig {
         // without a word (an audit: 1e300 and 1e-300).
         for (name, v, hi, unit) in [
             ("init_velocity_sigma", self.init_velocity_sigma, 10.0, "m/s"),
-            ("init_rate_sigma_deg", self.init_rate_sigma_deg, 1000.0, "°/s"),
-            ("init_attitude_sigma_deg", self.init_attitude_sigma_deg, 90.0, "°"),
+            (
+                "init_rate_sigma_deg",
+                self.init_rate_sigma_deg,
+                1000.0,
+                "°/s",
+            ),
+            (
+                "init_attitude_sigma_deg",
+                self.init_attitude_sigma_deg,
+                90.0,
+                "°",
+            ),
         ] {
             if !(INIT_SIGMA_MIN..=hi).contains(&v) {
                 return bad(format!(
@@ -75,7 +85,7 @@ impl TrackerConfig {
         if !(self.reading_gate_p > 0.0 && self.reading_gate_p < 0.5) {
             return bad(format!(
                 "tracker reading_gate_p = {} must be in (0, 0.5)",
-                self.reading_gate_p
+                num(self.reading_gate_p)
             ));
         }
         if self.reading_gate_restart == 0 {
@@ -90,13 +100,14 @@ impl TrackerConfig {
         if !(0.0..=READING_CHECK_MAX_S).contains(&self.reading_check_s) {
             return bad(format!(
                 "tracker reading_check_s = {} must be 0 (off) to {READING_CHECK_MAX_S}",
-                self.reading_check_s
+                num(self.reading_check_s)
             ));
         }
         if let Some(v) = self.init_lateral_sigma_deg {
             if !(v.is_finite() && v > 0.0 && v < 80.0) {
                 return bad(format!(
-                    "tracker init_lateral_sigma_deg = {v} must be in (0, 80)"
+                    "tracker init_lateral_sigma_deg = {} must be in (0, 80)",
+                    num(v)
                 ));
             }
         }
@@ -162,7 +173,7 @@ impl TrackerConfig {
         if !(0.0..=100.0).contains(&self.depth_offset_sigma_m) {
             return bad(format!(
                 "tracker depth_offset_sigma_m = {} must be 0 (off) to 100 m",
-                self.depth_offset_sigma_m
+                num(self.depth_offset_sigma_m)
             ));
         }
         // Under 1° the bound would pin pitch and yaw as a reading does
@@ -178,13 +189,15 @@ impl TrackerConfig {
         if !(0.0..=30.0).contains(&self.pitch_offset_sigma_deg) {
             return bad(format!(
                 "tracker pitch_offset_sigma_deg = {} must be 0 (off) to 30°",
-                self.pitch_offset_sigma_deg
+                num(self.pitch_offset_sigma_deg)
             ));
         }
-        if !(self.depth_offset_walk_psd.is_finite() && self.depth_offset_walk_psd >= 0.0) {
+        // An offset that wanders a metre in a second is a broken sensor, not
+        // an offset; at 1e300 the report printed its σ with 130 digits.
+        if !(0.0..=1.0).contains(&self.depth_offset_walk_psd) {
             return bad(format!(
-                "tracker depth_offset_walk_psd = {} must be 0 or more (m²/s)",
-                self.depth_offset_walk_psd
+                "tracker depth_offset_walk_psd = {} must be 0 to 1 m²/s",
+                num(self.depth_offset_walk_psd)
             ));
         }
         Ok(())
@@ -227,6 +240,8 @@ mod tests {
         let e = tracker(|c| c.depth_lever_arm_m = [0.0, 0.0, 1e300]).unwrap_err();
         assert!(e.contains("depth_lever_arm_m has 1e300"), "{e}");
         tracker(|c| c.depth_lever_arm_m = [0.3, -0.1, 0.2]).unwrap();
+        let e = tracker(|c| c.depth_offset_walk_psd = 1e300).unwrap_err();
+        assert!(e.contains("depth_offset_walk_psd = 1e300 must be"), "{e}");
         let e = tracker(|c| c.init_velocity_sigma = 1e300).unwrap_err();
         assert!(e.contains("init_velocity_sigma = 1e300 must be"), "{e}");
         let e = tracker(|c| c.init_rate_sigma_deg = 1e-300).unwrap_err();

@@ -768,7 +768,10 @@ mod tests {
         };
         let alone = r.for_light_alone(true);
         assert_eq!(alone.attitude, Pending::Done(ReadingUse::Absent));
-        assert_eq!(alone.depth, Pending::Done(ReadingUse::Refused(Refusal::Light)));
+        assert_eq!(
+            alone.depth,
+            Pending::Done(ReadingUse::Refused(Refusal::Light))
+        );
         assert_eq!(alone.velocity, r.velocity);
         let r = FrameReadings {
             attitude: not_finite,
