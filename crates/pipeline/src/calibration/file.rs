@@ -1047,8 +1047,8 @@ pub(crate) mod tests {
             ("depth_offset_sigma_m", "nan", "0 (off) to 100 m"),
             ("pitch_offset_sigma_deg", "31.0", "0 (off) to 30°"),
             ("pitch_offset_sigma_deg", "nan", "0 (off) to 30°"),
-            ("depth_offset_walk_psd", "-1e-6", "must be 0 or more"),
-            ("depth_offset_walk_psd", "inf", "must be 0 or more"),
+            ("depth_offset_walk_psd", "-1e-6", "must be 0 to 1 m²/s"),
+            ("depth_offset_walk_psd", "inf", "must be 0 to 1 m²/s"),
         ] {
             let mut text = sample().to_toml().unwrap();
             text.push_str(&format!("\n[estimator.tracker]\n{key} = {bad}\n"));
