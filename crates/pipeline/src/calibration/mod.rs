@@ -39,6 +39,36 @@ pub(crate) fn same_pose(a: &lightpose_core::Pose, b: &lightpose_core::Pose) -> b
             .iter()
             .all(|d| d.abs() <= TRUTH_TOL_DEG)
 }
+/// How far from the beacon a sweep's truth may put the array: past 500 m
+/// no beacon's light reaches a photodiode even in the clearest water (a
+/// K_D of 0.02 m⁻¹ and the inverse square leave 1e-8 of the light at 4
+/// m), so such a truth is a typing error (mm for m), not a pose.
+pub(crate) const MAX_TRUTH_M: f64 = 500.0;
+
+/// Why a lit sweep frame is fit by neither the paper's fits nor the light
+/// model, or `None` when it can be: the frame's water temperature and its
+/// truth pose must be possible. One absurd truth (x = 1e9 m) had widened
+/// the calibration's coverage to 1e9 m and, in the light model, given `ok`
+/// poses with σx 2e7 m; a temperature of 500 °C reached the light model's
+/// temperature gain while the paper's fits skipped the frame.
+pub(crate) fn sweep_frame_fault(f: &lightpose_core::Frame) -> Option<&'static str> {
+    use lightpose_core::light::WATER_TEMP_C;
+    let truth = f.truth?.pose;
+    if f.temp_c.is_some_and(|t| !WATER_TEMP_C.contains(&t)) {
+        return Some("temperature not water's (-10 to 60 °C)");
+    }
+    let within = |v: f64, lim: f64| v.abs() <= lim;
+    let plausible = truth.x > 0.0
+        && [truth.x, truth.y, truth.z]
+            .iter()
+            .all(|v| within(*v, MAX_TRUTH_M))
+        && within(truth.pitch.deg(), 90.0)
+        && within(truth.yaw.deg(), 180.0);
+    (!plausible).then_some(
+        "truth beyond any lit pose (x in (0, 500] m, |y| and |z| up to 500 m, |pitch| up to 90°, |yaw| up to 180°)",
+    )
+}
+
 pub mod least_squares;
 pub mod paper_fit;
 pub mod physical_fit;
