@@ -273,6 +273,22 @@ pub fn convert(
             input.display()
         )));
     }
+    // `--poses` is written when the output is JSONL (the poses of an MCAP
+    // recording), else read: written as the input, it had truncated the
+    // recording being read (an audit: the input MCAP left at 0 bytes,
+    // exit 0); as the output, two writers' lines interleaved, or the
+    // output truncated the poses before they were read.
+    if let Some(p) = poses {
+        let written = out_format == Format::Jsonl;
+        for (flag, other, clash) in [("--in", input, written), ("--out", output, true)] {
+            if clash && crate::same_place(p, other) {
+                return Err(ConvertError::Usage(format!(
+                    "{}: --poses and {flag} are the same file",
+                    p.display()
+                )));
+            }
+        }
+    }
     let mut log = LogFile::open(input)?;
     let mut poses = route_poses(&mut log, out_format, poses)?;
     let mut out = create_output(&log, output, out_format, opts)?;

@@ -73,6 +73,20 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
+/// Whether `a` and `b` name one file, or one place for a file not yet
+/// written (the same name in the same folder): two outputs given the same
+/// name would each truncate the other's lines.
+pub fn same_place(a: &Path, b: &Path) -> bool {
+    let resolved = |p: &Path| {
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        Some(dir.canonicalize().ok()?.join(p.file_name()?))
+    };
+    same_file(a, b) || resolved(a).is_some_and(|x| Some(x) == resolved(b))
+}
+
 /// The containers of an intensity log.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Format {

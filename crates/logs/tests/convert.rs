@@ -276,6 +276,24 @@ fn conversion_refuses_what_it_cannot_do() {
             .to_string();
         assert!(e.contains(want), "{e}");
     }
+    // --poses named as the input or the output: refused before anything
+    // is written (the input MCAP had been truncated to 0 bytes, exit 0).
+    let mcap = dir.path().join("rec.mcap");
+    convert(&log, &mcap, None, &opts(), |_| {}).unwrap();
+    let before = fs::read(&mcap).unwrap();
+    let out = dir.path().join("o.jsonl");
+    let same_as_out = dir.path().join(".").join("o.jsonl");
+    for (poses, flag) in [(&mcap, "--in"), (&same_as_out, "--out")] {
+        let e = convert(&mcap, &out, Some(poses), &opts(), |_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("--poses and {flag} are the same file")),
+            "{e}"
+        );
+    }
+    assert_eq!(fs::read(&mcap).unwrap(), before, "the input is untouched");
+    assert!(!out.exists(), "nothing written");
     // A bad POSE line is named by file and line.
     let poses = dir.path().join("bad.poses.jsonl");
     fs::write(
