@@ -30,6 +30,16 @@ impl Angle {
     pub fn sin_cos(self) -> (f64, f64) {
         self.0.sin_cos()
     }
+    /// The same direction within (−180°, 180°]: a heading as a sensor
+    /// reports it.
+    pub fn wrapped(self) -> Angle {
+        use std::f64::consts::{PI, TAU};
+        if self.0 > -PI && self.0 <= PI {
+            return self; // bit for bit: no rounding through the wrap
+        }
+        let r = (self.0 + PI).rem_euclid(TAU) - PI;
+        Angle(if r == -PI { PI } else { r })
+    }
 }
 
 impl Add for Angle {
@@ -54,6 +64,16 @@ impl Neg for Angle {
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[test]
+    fn wrapped_keeps_the_direction_within_a_half_turn() {
+        for (d, w) in [(0.0, 0.0), (179.0, 179.0), (181.0, -179.0), (-181.0, 179.0)] {
+            let got = Angle::from_deg(d).wrapped().deg();
+            assert!((got - w).abs() < 1e-9, "{d}: {got}");
+        }
+        assert!((Angle::from_deg(-180.0).wrapped().deg() - 180.0).abs() < 1e-9);
+        assert!((Angle::from_deg(607.0).wrapped().deg() - (-113.0)).abs() < 1e-9);
+    }
+
     #[test]
     fn degrees_round_trip() {
         let a = Angle::from_deg(15.0);

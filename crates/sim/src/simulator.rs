@@ -131,7 +131,9 @@ impl Simulator {
                 }),
                 ..AttitudeReading::new(
                     pose.pitch + Angle::from_rad(dp),
-                    pose.yaw + Angle::from_rad(dy),
+                    // A heading as a sensor reports it: a wide noise
+                    // had written readings of −219°, refused by replay.
+                    (pose.yaw + Angle::from_rad(dy)).wrapped(),
                 )
             }
         });

@@ -189,6 +189,7 @@ impl Trajectory {
             return Err(csv.err(hl, msg));
         }
         let mut knots: Vec<Knot> = Vec::new();
+        let mut lines = Vec::new();
         let mut last_line = hl;
         while let Some((ln, l)) = csv.next()? {
             let err = |msg| TrajectoryError::Invalid {
@@ -207,6 +208,7 @@ impl Trajectory {
                 return Err(csv.err(ln, format!("more than {MAX_KNOTS} knots")));
             }
             knots.push(k);
+            lines.push(ln);
             last_line = ln;
         }
         if knots.len() < 2 {
@@ -215,7 +217,38 @@ impl Trajectory {
                 format!("a trajectory needs at least 2 knots, found {}", knots.len()),
             ));
         }
-        Ok(Self::from_knots(knots))
+        let tr = Self::from_knots(knots);
+        if let Some((i, msg)) = tr.angles_beyond_range() {
+            return Err(csv.err(lines[i + 1], msg));
+        }
+        Ok(tr)
+    }
+
+    /// The first span between knots (its index) where the spline takes
+    /// pitch to ±90° or yaw past ±180°, with what it reaches. The knots are
+    /// checked, but a natural cubic overshoots them: pitch 0 → 89.9 → 89.9
+    /// → 0 one second apart reached 123.6°, a truth no vehicle has and
+    /// attitude readings the estimators refuse.
+    fn angles_beyond_range(&self) -> Option<(usize, String)> {
+        const SAMPLES: usize = 64;
+        for i in 0..self.knots.len() - 1 {
+            let (t0, t1) = (self.knots[i].t, self.knots[i + 1].t);
+            for k in 1..SAMPLES {
+                let t = t0 + (t1 - t0) * k as f64 / SAMPLES as f64;
+                for (col, name, limit) in [(3, "pitch", 90.0), (4, "yaw", 180.0)] {
+                    let deg = self.cols[col].eval(t).0.to_degrees();
+                    if deg.abs() >= limit {
+                        return Some((
+                            i,
+                            format!(
+                                "between t = {t0} and {t1} s the spline through the knots (MODEL.md) takes {name} to {deg:.1}°, beyond ±{limit}°: add a knot or ease the turn"
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
+        None
     }
 
     /// Build from knots already checked: at least two, `t` increasing.
@@ -351,6 +384,14 @@ mod tests {
                 "dive.csv:3: t = 0 does not increase",
             ),
             ("t,x,y,z,pitch,yaw\n0,1,0,0,0,0\n", "at least 2 knots"),
+            (
+                "t,x,y,z,pitch,yaw\n0,8,0,0,0,0\n1,7,0,0,89.9,0\n3,6,0,0,89.9,0\n4,5,0,0,0,0\n",
+                "dive.csv:4: between t = 1 and 3 s the spline through the knots (MODEL.md) takes pitch to",
+            ),
+            (
+                "t,x,y,z,pitch,yaw\n0,8,0,0,0,0\n1,7,0,0,0,170\n2,6,0,0,0,170\n3,5,0,0,0,0\n",
+                "dive.csv:4: between t = 1 and 2 s the spline through the knots (MODEL.md) takes yaw to",
+            ),
         ] {
             let e = Trajectory::parse(text, "dive.csv").unwrap_err().to_string();
             assert!(e.contains(want), "{e} lacks {want}");
