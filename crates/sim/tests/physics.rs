@@ -278,6 +278,20 @@ fn attitude_sensor_only_when_the_scene_has_one() {
     assert!(((sy / n as f64).sqrt() / 1.5 - 1.0).abs() < 0.05);
 }
 
+/// A heading read near ±180° is reported within ±180°, as a sensor does
+/// (a noise of 180° had written yaw readings of −219°, which replay
+/// refused as no attitude at all).
+#[test]
+fn the_attitude_sensor_reports_its_heading_within_a_half_turn() {
+    let p = pose(6.0, 0.0, 0.0, 4.0, 170.0);
+    let s = Scene::parse("[attitude]\nsigma_yaw_deg = 180\n", "a.toml").unwrap();
+    let mut sim = Simulator::new(s, 2);
+    for i in 0..2000 {
+        let yaw = sim.frame(i, 0.0, &p, None).attitude.unwrap().yaw.deg();
+        assert!(yaw > -180.0 && yaw <= 180.0, "frame {i}: {yaw}");
+    }
+}
+
 /// Spec v2: the depth sensor reads z, the DVL reads the velocity over the
 /// ground in V (sideslip and heave included), each with its own noise, and
 /// neither changes the counts of a frame.
