@@ -290,7 +290,12 @@ fn realization(
     let n1: f64 = StandardNormal.sample(&mut rng);
     let n2: f64 = StandardNormal.sample(&mut rng);
     let draw = Draw {
-        temp_c: nominal.temp_c + spread.sigma_temp_c * n1,
+        // Liquid water as the estimators take it: a wide spread had drawn
+        // 26.65 ± 45.49 °C, a third of the runs in no water at all.
+        temp_c: (nominal.temp_c + spread.sigma_temp_c * n1).clamp(
+            *lightpose_core::light::WATER_TEMP_C.start(),
+            *lightpose_core::light::WATER_TEMP_C.end(),
+        ),
         // Water cannot amplify light: a (very unlikely) negative draw is
         // clear water, not a gain.
         k_d: (nominal.light.k_d + spread.sigma_k_d * n2).max(0.0),

@@ -16,6 +16,12 @@ pub const MAX_V_REF: f64 = 50.0;
 pub const MAX_V1_PER_V_REF: f64 = 1e6;
 /// Murkiest water, m⁻¹: the muddiest estuaries reach ~10; at 100 light dies within centimetres.
 pub const MAX_K_D: f64 = 100.0;
+/// The most a doubt of K_D may be, m⁻¹ (an estimator's setting, a Monte
+/// Carlo's spread): a harbour's own K_D is about 1, so past 10 it is a
+/// mistake, and a bank of waters at e^(±3σ/K_D) overflows.
+pub const MAX_K_D_DOUBT: f64 = 10.0;
+/// The most a doubt of the water temperature may be, °C (likewise).
+pub const MAX_TEMP_DOUBT_C: f64 = 50.0;
 /// Largest ω: ω·K_D is a scattering coefficient, at most tens of times K_D even in turbid water.
 pub const MAX_OMEGA: f64 = 1e3;
 /// Largest dome radius, m: bigger than any vehicle that could carry the dome.

@@ -137,8 +137,7 @@ pub enum ModelError {
     Config(String),
 }
 
-/// The most a doubt of K_D may be, m⁻¹: a harbour's own K_D is about 1.
-pub const MAX_K_D_DOUBT: f64 = 10.0;
+pub use lightpose_core::bounds::{MAX_K_D_DOUBT, MAX_TEMP_DOUBT_C};
 
 /// A setting's value as a message shows it: in full where that is short,
 /// else in exponent form (1e-300 had printed 300 digits).

@@ -106,14 +106,14 @@ fn each_rule_names_its_key_and_bound() {
             "in [0, 65] °C",
         ),
         (
-            "[montecarlo]\nsigma_temp_c = 70\n",
+            "[montecarlo]\nsigma_temp_c = 51\n",
             "[montecarlo] sigma_temp_c",
-            "in [0, 65] °C",
+            "in [0, 50] °C",
         ),
         (
-            "[montecarlo]\nsigma_k_d = 101\n",
+            "[montecarlo]\nsigma_k_d = 10.5\n",
             "[montecarlo] sigma_k_d",
-            "in [0, 100] m⁻¹",
+            "in [0, 10] m⁻¹",
         ),
         // vehicle sensors below generous physical bounds
         (

@@ -6,8 +6,8 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use super::{
-    num, ModelError, TrackerConfig, MAX_K_D_DOUBT, PAPER_RATE_MAX_FRAMES, READING_CHECK_MAX_S,
-    WATER_CHECK_MAX_FRAMES,
+    num, ModelError, TrackerConfig, MAX_K_D_DOUBT, MAX_TEMP_DOUBT_C, PAPER_RATE_MAX_FRAMES,
+    READING_CHECK_MAX_S, WATER_CHECK_MAX_FRAMES,
 };
 
 /// The smallest start-up 1σ taken (m/s, °/s, °): a thousandth of a unit
@@ -141,8 +141,11 @@ impl TrackerConfig {
             }
         }
         if let Some(v) = self.temp_sigma_c {
-            if !(v.is_finite() && (0.0..=50.0).contains(&v)) {
-                return bad(format!("tracker temp_sigma_c = {v} must be in [0, 50] °C"));
+            if !(v.is_finite() && (0.0..=MAX_TEMP_DOUBT_C).contains(&v)) {
+                return bad(format!(
+                    "tracker temp_sigma_c = {} must be in [0, {MAX_TEMP_DOUBT_C}] °C",
+                    num(v)
+                ));
             }
         }
         if self.water_check_frames > WATER_CHECK_MAX_FRAMES {

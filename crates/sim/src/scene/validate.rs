@@ -6,8 +6,8 @@
 
 use super::{Adc, AttitudeNoise, DepthNoise, DvlNoise, McSpread, Noise, Scene, SceneError};
 use lightpose_core::bounds::{
-    shown, Within, MAX_GAIN, MAX_K_D, MAX_OMEGA, MAX_RADIUS_M, MAX_SPACING_DEG, MAX_V1_PER_V_REF,
-    MAX_V_REF, MIN_V_REF, WIDTH_DEG,
+    shown, Within, MAX_GAIN, MAX_K_D, MAX_K_D_DOUBT, MAX_OMEGA, MAX_RADIUS_M, MAX_SPACING_DEG,
+    MAX_TEMP_DOUBT_C, MAX_V1_PER_V_REF, MAX_V_REF, MIN_V_REF, WIDTH_DEG,
 };
 use lightpose_core::textfile::parse_toml;
 use lightpose_core::textpos::line_of_key;
@@ -327,8 +327,11 @@ impl RawNoise {
 impl RawMc {
     /// `[montecarlo]`: the spreads drawn per realization.
     fn validate(self, c: &Checker) -> Result<McSpread, SceneError> {
-        let temp = Within::closed(0.0, MAX_SIGMA_TEMP_C, " °C");
-        let k_d = Within::closed(0.0, MAX_K_D, " m⁻¹");
+        // The estimators' own limits for these doubts, which a Monte Carlo
+        // hands them: a scene that passed here had failed there, naming
+        // the estimator's setting instead of this table.
+        let temp = Within::closed(0.0, MAX_TEMP_DOUBT_C, " °C");
+        let k_d = Within::closed(0.0, MAX_K_D_DOUBT, " m⁻¹");
         Ok(McSpread {
             sigma_temp_c: c.num("montecarlo", "sigma_temp_c", self.sigma_temp_c, 3.0, temp)?,
             sigma_k_d: c.num("montecarlo", "sigma_k_d", self.sigma_k_d, 0.015, k_d)?,
