@@ -21,10 +21,10 @@ pub struct BenchArgs {
     runs: usize,
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Cases: all, or any of dive-tank, zigzag-tank, zigzag-harbour
-    /// (aliases: dive-clear, zigzag-clear, zigzag-turbid, as `montecarlo
-    /// --case` names them).
-    #[arg(long = "case", default_value = "all")]
+    /// Cases, comma separated (or the flag repeated): all, or any of
+    /// dive-tank, zigzag-tank, zigzag-harbour (aliases: dive-clear,
+    /// zigzag-clear, zigzag-turbid, as `montecarlo --case` names them).
+    #[arg(long = "case", default_value = "all", value_delimiter = ',')]
     cases: Vec<String>,
     /// Estimators, comma separated.
     #[arg(long, default_value = "moments,model,tracker", value_delimiter = ',')]
@@ -48,6 +48,17 @@ pub struct BenchArgs {
     /// Also write the tables (Markdown) here.
     #[arg(long)]
     out: Option<PathBuf>,
+}
+
+/// `v` with each item's later repeats left out, in order.
+fn once_each<T>(v: Vec<T>, same: impl Fn(&T, &T) -> bool) -> Vec<T> {
+    let mut out: Vec<T> = Vec::with_capacity(v.len());
+    for x in v {
+        if !out.iter().any(|y| same(y, &x)) {
+            out.push(x);
+        }
+    }
+    out
 }
 
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
@@ -82,11 +93,22 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
             })
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
+    // A case, set or estimator named twice (an alias beside its name,
+    // `all` beside `attitude+depth+dvl`) is run once.
+    let (cases, sets, estimators) = (
+        once_each(cases, |a, b| std::ptr::eq(*a, *b)),
+        once_each(sets, |a, b| a == b),
+        once_each(a.estimators.clone(), |a, b| a == b),
+    );
+    // Where the tables go is checked before the runs, not after them.
+    if let Some(p) = &a.out {
+        guard::writable_file(p)?;
+    }
     let o = TradeOptions {
         runs: a.runs,
         seed: a.seed,
         timing_runs: a.timing_runs,
-        estimators: a.estimators.clone(),
+        estimators,
     };
     let mut text = String::new();
     let mut sections = Vec::new();

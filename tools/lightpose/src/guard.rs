@@ -2,7 +2,7 @@
 //! allocated: an output that is one of the inputs, and sizes that would
 //! fill the memory or the disk.
 
-use anyhow::bail;
+use anyhow::{bail, Context};
 use std::fmt::Display;
 use std::path::Path;
 
@@ -52,6 +52,22 @@ pub fn run_frames(what: impl Display, runs: usize, frames: u64) -> anyhow::Resul
 pub fn max_frames(what: impl Display, frames: u64, max: u64) -> anyhow::Result<()> {
     if frames > max {
         bail!("{what} is {frames} frames, more than --max-frames {max} (raise it to write them)");
+    }
+    Ok(())
+}
+
+/// `path` can be written as a file, checked without truncating one that
+/// is there: a folder, a missing folder or no permission fails now, not
+/// after the work whose results it was to hold.
+pub fn writable_file(path: &Path) -> anyhow::Result<()> {
+    let existed = path.exists();
+    std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .open(path)
+        .with_context(|| format!("--out {}: cannot be written", path.display()))?;
+    if !existed {
+        let _ = std::fs::remove_file(path);
     }
     Ok(())
 }

@@ -186,6 +186,45 @@ fn bench_runs_every_estimator_on_one_case() {
     assert!(err.contains("--sensors gps"), "{err}");
 }
 
+/// A case, set or estimator named twice is run once (an alias beside its
+/// name, `all` beside `attitude+depth+dvl`: each had run, and been
+/// tabled, twice); cases take a comma list like the other flags; and an
+/// --out that cannot be written fails before the runs, not after them.
+#[test]
+fn bench_runs_each_thing_named_once_and_checks_its_out_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bench.md");
+    let args = |out: &str| {
+        vec![
+            "bench".to_string(),
+            "--runs=2".into(),
+            "--timing-runs=1".into(),
+            "--case=dive-tank,dive-clear".into(),
+            "--sensors=all,attitude+depth+dvl".into(),
+            "--estimators=moments,moments".into(),
+            format!("--root={}", s(&root())),
+            format!("--out={out}"),
+        ]
+    };
+    let a = args(s(&out));
+    let (ok, stdout, err) = lightpose(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(ok, "{err}");
+    assert_eq!(
+        stdout.matches("| dive-tank | all | moments |").count(),
+        1,
+        "{stdout}"
+    );
+    assert_eq!(stdout.matches("### dive-tank").count(), 1, "{stdout}");
+    let a = args(s(dir.path()));
+    let (ok, stdout, err) = lightpose(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(!ok && err.contains("cannot be written"), "{err}");
+    assert!(
+        !err.contains("bench: dive-tank"),
+        "ran before failing: {err}"
+    );
+    assert!(stdout.is_empty(), "{stdout}");
+}
+
 /// `lightpose crb` prints the bound at every frame of the trajectory: the
 /// y/yaw ridge without the attitude sensor, pinned with it (MODEL.md);
 /// depth pins z.
