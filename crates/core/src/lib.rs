@@ -18,6 +18,7 @@ pub mod pose;
 pub mod ratelog;
 pub mod textfile;
 pub mod textpos;
+pub mod udp;
 
 pub use angle::Angle;
 pub use array::{ArrayGeometry, COLS, NDET, ROWS};

@@ -14,7 +14,8 @@
 //! does) — but not a datagram lost silently on the way (a host that does
 //! not answer at all): UDP has no acknowledgement. A destination that
 //! cannot be connected yet (no route at boot) is counted and connected
-//! again on each send until it can.
+//! again on each send until it can; so is one whose source address has
+//! gone (`lightpose_core::udp`: the vehicle renumbered).
 
 use super::Output;
 use crate::config::Outputs;
@@ -146,7 +147,17 @@ impl Destination {
             self.sock.connect(self.addr)?;
             self.connected.store(true, Relaxed);
         }
-        self.sock.send(msg)
+        let sent = self.sock.send(msg);
+        if let Err(e) = &sent {
+            if lightpose_core::udp::source_gone(e) {
+                // The vehicle's own address changed under the socket: the
+                // next send connects from the new one.
+                if lightpose_core::udp::disconnect(&self.sock).is_ok() {
+                    self.connected.store(false, Relaxed);
+                }
+            }
+        }
+        sent
     }
 }
 

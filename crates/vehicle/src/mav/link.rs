@@ -136,7 +136,12 @@ pub enum PeerChange {
 }
 
 enum Inner {
-    UdpOut(UdpSocket),
+    UdpOut {
+        sock: UdpSocket,
+        /// Where it is connected: connected again from a new source
+        /// address when the vehicle's own changed (`lightpose_core::udp`).
+        to: SocketAddr,
+    },
     UdpIn {
         sock: UdpSocket,
         /// Where frames go: set only by `accept_sender`.
@@ -211,7 +216,7 @@ impl Link {
                 };
                 let sock = UdpSocket::bind(any).await.map_err(sock_err(ep))?;
                 sock.connect(to).await.map_err(sock_err(ep))?;
-                Inner::UdpOut(sock)
+                Inner::UdpOut { sock, to }
             }
             Endpoint::UdpIn(addr) => Inner::UdpIn {
                 sock: UdpSocket::bind(addr).await.map_err(sock_err(ep))?,
@@ -241,7 +246,7 @@ impl Link {
     /// The local UDP address (for tests and logs).
     pub fn local_addr(&self) -> Option<SocketAddr> {
         match &self.inner {
-            Inner::UdpOut(s) | Inner::UdpIn { sock: s, .. } => s.local_addr().ok(),
+            Inner::UdpOut { sock: s, .. } | Inner::UdpIn { sock: s, .. } => s.local_addr().ok(),
             Inner::Serial { .. } => None,
         }
     }
@@ -318,7 +323,7 @@ impl Link {
     /// Receive a datagram or a burst of serial bytes. Cancel-safe.
     pub async fn recv(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         match &mut self.inner {
-            Inner::UdpOut(s) => s.recv(buf).await,
+            Inner::UdpOut { sock: s, .. } => s.recv(buf).await,
             Inner::UdpIn { sock, sender, .. } => {
                 let (n, from) = sock.recv_from(buf).await?;
                 *sender = Some(from);
@@ -348,7 +353,22 @@ impl Link {
     /// `TimedOut`): the far end stopped reading, and the link is lost.
     pub async fn send(&mut self, bytes: &[u8]) -> io::Result<Sent> {
         match &mut self.inner {
-            Inner::UdpOut(s) => s.send(bytes).await.map(|_| Sent::Yes),
+            Inner::UdpOut { sock, to } => match sock.send(bytes).await {
+                Ok(_) => Ok(Sent::Yes),
+                Err(e) => {
+                    if lightpose_core::udp::source_gone(&e)
+                        && lightpose_core::udp::disconnect(sock).is_ok()
+                    {
+                        // Counted as this send's error; the next one goes
+                        // from the new address (or fails to connect, and
+                        // is counted, until the network is back).
+                        if let Err(c) = sock.connect(*to).await {
+                            return Err(c);
+                        }
+                    }
+                    Err(e)
+                }
+            },
             Inner::UdpIn { sock, peer, .. } => match peer {
                 Some(p) => sock.send_to(bytes, *p).await.map(|_| Sent::Yes),
                 None => Ok(Sent::NoPeer),
