@@ -362,9 +362,7 @@ impl Link {
                         // Counted as this send's error; the next one goes
                         // from the new address (or fails to connect, and
                         // is counted, until the network is back).
-                        if let Err(c) = sock.connect(*to).await {
-                            return Err(c);
-                        }
+                        sock.connect(*to).await?;
                     }
                     Err(e)
                 }
