@@ -407,6 +407,16 @@ pub struct TrackerConfig {
     /// known z), constant; reported in STATUS and the replay summary
     /// (docs/estimators.md, "Sensor offsets").
     pub pitch_offset_sigma_deg: f64,
+    /// The depth offset's prior (1σ, m) from the frame the reading check
+    /// calls depth or pitch disagreeing, when `depth_offset_sigma_m` is
+    /// 0: the filter then estimates the offset from there on, as if told
+    /// this. Only while depth and attitude readings both come (the light
+    /// tells a depth offset from z only at a known pitch). 0: a call only
+    /// reports (docs/estimators.md, "Offsets learned when the check calls").
+    pub called_depth_offset_sigma_m: f64,
+    /// The same for the pitch offset (1σ, °), when
+    /// `pitch_offset_sigma_deg` is 0.
+    pub called_pitch_offset_sigma_deg: f64,
     /// Use `Frame.velocity` (DVL, body frame) when present, with this 1σ
     /// per component (m/s) unless the reading gives its own (MODEL.md's
     /// DVL: 0.02 m/s).
@@ -564,6 +574,8 @@ impl Default for TrackerConfig {
             depth_offset_sigma_m: 0.0,
             depth_offset_walk_psd: 1e-6,
             pitch_offset_sigma_deg: 0.0,
+            called_depth_offset_sigma_m: 0.3,
+            called_pitch_offset_sigma_deg: 2.0,
             use_velocity: true,
             velocity_sigma_mps: 0.02,
             reading_gate_p: 1e-6,

@@ -1,7 +1,8 @@
 //! Own-sensor readings that are biased, not noisy: a depth sensor zeroed on
 //! another day or a mis-surveyed beacon depth. The tracker believes each
-//! reading's σ, so a bias goes into the pose; what it can do is say so
-//! (the reading check, `PoseEstimate::agreement`) and not make it worse:
+//! reading's σ, so a bias goes into the pose until the reading check says
+//! so (`PoseEstimate::agreement`) and its offset is learned
+//! (`which_offset`; tests/sensor_offsets.rs), and it must not make it worse:
 //! a depth the gate refuses frame after frame no longer restarts the
 //! filter while the light still fits the state (a restart took the biased
 //! depth into its start fit as a prior).
@@ -91,11 +92,21 @@ fn a_biased_depth_is_told_and_a_large_one_no_longer_restarts_the_filter_onto_its
                 "seed {seed} depth {bias:+}: {} ok, x p95 {:.3}, z p95 {:.3}, {} beyond 3σ, disagreed {:?}",
                 r.ok, r.x95, r.z95, r.beyond_3sigma, r.disagreed
             );
-            // Told: depth disagrees on most of the minute.
+            // Told: depth called disagreeing (until its offset is learned).
             assert!(
-                r.disagreed[depth] > 150,
+                r.disagreed[depth] > 0,
                 "seed {seed} depth {bias:+}: {:?}",
                 r.disagreed
+            );
+            // Not taken whole: a bias the gate lets through is learned as
+            // the sensor's offset once called (`which_offset`), one it
+            // refuses leaves z to the light. Believed, every `ok` pose was
+            // beyond 3σ at +0.1 m.
+            assert!(
+                r.beyond_3sigma * 50 <= r.ok,
+                "seed {seed} depth {bias:+}: {} of {} beyond 3σ",
+                r.beyond_3sigma,
+                r.ok
             );
             // Past the gate (0.2 m and more), not made worse: x stays the
             // light's (0.14–0.72 m p95 when a restart took the biased
@@ -110,12 +121,6 @@ fn a_biased_depth_is_told_and_a_large_one_no_longer_restarts_the_filter_onto_its
                     r.x95 < 0.12,
                     "seed {seed} depth {bias:+}: x p95 {:.3}",
                     r.x95
-                );
-                assert!(
-                    r.beyond_3sigma * 5 < r.ok,
-                    "seed {seed} depth {bias:+}: {} of {} beyond 3σ",
-                    r.beyond_3sigma,
-                    r.ok
                 );
             }
         }

@@ -6,8 +6,11 @@
 //! at a known z; both at once apart by how the elevation changes with
 //! range), so the pose stays on the truth and within its σ whatever the
 //! offset, and STATUS / the replay summary say what the offset is.
-//! Without the settings the readings are taken as unbiased, as before (the
-//! regression logs are unchanged).
+//! Without the settings the readings are taken as unbiased until the
+//! reading check calls depth or pitch disagreeing; the tracker then learns
+//! the offset of whichever sensor explains the frames (`which_offset`).
+//! With `called_*` at 0 as well they are believed whatever the check says,
+//! as before that (the regression logs are unchanged either way).
 //!
 //! Measured on a minute of coming and going in the tank (to-and-fro, 301
 //! frames, all three sensors) and on the held-out runs: docs/estimators.md,
@@ -28,10 +31,25 @@ fn tracker(sigma: f64) -> Box<dyn Estimator> {
 /// The same told a depth offset doubt of `depth` (m) and a pitch offset
 /// doubt of `pitch` (°).
 fn told(depth: f64, pitch: f64) -> Box<dyn Estimator> {
+    with(|t| {
+        t.depth_offset_sigma_m = depth;
+        t.pitch_offset_sigma_deg = pitch;
+    })
+}
+
+/// Told nothing, and the reading check's calls not answered either: the
+/// readings believed whatever the light says.
+fn believed() -> Box<dyn Estimator> {
+    with(|t| {
+        t.called_depth_offset_sigma_m = 0.0;
+        t.called_pitch_offset_sigma_deg = 0.0;
+    })
+}
+
+/// The shipped tank calibration's `auto`, its tracker's settings `set`.
+fn with(set: impl FnOnce(&mut lightpose_pipeline::settings::TrackerConfig)) -> Box<dyn Estimator> {
     let mut cal = Calibration::load(&root().join("config/calibration/tank.toml")).expect("cal");
-    let t = &mut cal.estimator.get_or_insert_with(Default::default).tracker;
-    t.depth_offset_sigma_m = depth;
-    t.pitch_offset_sigma_deg = pitch;
+    set(&mut cal.estimator.get_or_insert_with(Default::default).tracker);
     build_estimator("auto", &cal).expect("auto")
 }
 
@@ -122,7 +140,7 @@ fn a_doubted_pitch_offset_is_estimated_and_the_pose_stays_true() {
             r.z95,
             r.beyond_3sigma
         );
-        let (untold, p) = run_biased(told(0.0, 0.0), &frames, 0.0, bias);
+        let (untold, p) = run_biased(believed(), &frames, 0.0, bias);
         assert_eq!(p, None);
         assert!(
             untold.beyond_3sigma * 10 >= untold.ok * 9,
@@ -184,8 +202,8 @@ fn a_doubted_depth_offset_is_estimated_and_the_pose_stays_true() {
             // Without the doubt a bias the gate lets through goes into z
             // (one it refuses throughout, as 0.4 m, costs the depth).
             if bias.abs() < 0.3 {
-                let untold = run(tracker(0.0), &frames, bias);
-                assert_eq!(untold.offset, None, "nothing estimated by default");
+                let untold = run(believed(), &frames, bias);
+                assert_eq!(untold.offset, None, "nothing estimated when believed");
                 assert!(
                     untold.z95 > 3.0 * told.z95,
                     "the bias in z without the doubt: {} (told: {})",
@@ -256,7 +274,8 @@ fn the_offset_learned_outlives_a_restart() {
 }
 
 /// `replay`'s summary carries the offset as the estimator left it (what
-/// `lightpose replay` prints), and none when not told.
+/// `lightpose replay` prints): told, or learned after the reading check
+/// called the depth; none when believed.
 #[test]
 fn the_replay_summary_says_the_offset() {
     use lightpose_core::{LogHeader, LogReader, LogWriter};
@@ -274,15 +293,15 @@ fn the_replay_summary_says_the_offset() {
         w.write_frame(&f).expect("frame");
     }
     w.flush().expect("flush");
-    for (sigma, want) in [(0.3, true), (0.0, false)] {
-        let mut est = tracker(sigma);
+    for (sigma, want) in [(Some(0.3), true), (Some(0.0), true), (None, false)] {
+        let mut est = sigma.map_or_else(believed, tracker);
         let mut log = LogReader::open(&path).expect("log");
         let s = lightpose_pipeline::replay(est.as_mut(), &mut log, &mut Vec::new(), |_| {})
             .expect("replay");
         match (s.depth_offset, want) {
             (Some((m, sd)), true) => assert!((m + 0.15).abs() <= 3.0 * sd, "{m} ± {sd}"),
             (None, false) => {}
-            (got, _) => panic!("told {sigma}: {got:?}"),
+            (got, _) => panic!("told {sigma:?}: {got:?}"),
         }
     }
 }
@@ -325,4 +344,47 @@ fn a_lost_filter_restarts_doubting_the_offsets() {
         (m - 1.5).abs() <= (3.0 * sd).max(0.1) && sd < 0.1,
         "{m} ± {sd}"
     );
+}
+
+/// Told nothing, a sensor off by a constant is called by the reading check
+/// (depth or pitch disagreeing), and the tracker then learns the offset of
+/// the one that is off, found by weighing both hypotheses: a depth 0.1 m
+/// off is learned as a depth offset (no pitch offset), an AHRS 2° off as a
+/// pitch offset (no depth offset), each within 3σ, and the poses after
+/// 10 s are honest (at most 2 % beyond 3σ; believed, 80–100 % were).
+/// Either learned alone in place of the other doubled z's error with every
+/// pose beyond 3σ, so the hypotheses must pick the right one.
+#[test]
+fn told_nothing_the_offset_of_the_sensor_called_is_learned() {
+    for seed in [11, 12] {
+        let frames = minute(seed);
+        for (depth, pitch) in [(0.1, 0.0), (0.0, 2.0), (0.0, -2.0)] {
+            let (r, p) = run_biased(told(0.0, 0.0), &frames, depth, pitch);
+            let (b, _) = run_biased(believed(), &frames, depth, pitch);
+            eprintln!(
+                "seed {seed} depth {depth:+} m, pitch {pitch:+}°: depth offset {:?}, pitch offset {p:?}, z p95 {:.3} m, {} of {} ok beyond 3σ (believed: {:.3} m, {})",
+                r.offset, r.z95, r.beyond_3sigma, r.ok, b.z95, b.beyond_3sigma
+            );
+            assert!(
+                b.beyond_3sigma * 10 >= b.ok * 8,
+                "believed: {}",
+                b.beyond_3sigma
+            );
+            assert!(
+                r.beyond_3sigma * 50 <= r.ok && r.ok > 240,
+                "{} of {} beyond 3σ",
+                r.beyond_3sigma,
+                r.ok
+            );
+            if depth != 0.0 {
+                let (m, sd) = r.offset.expect("the depth offset is learned");
+                assert!((m - depth).abs() <= 3.0 * sd && sd < 0.03, "{m} ± {sd}");
+                assert_eq!(p, None, "the pitch hypothesis lost");
+            } else {
+                let (m, sd) = p.expect("the pitch offset is learned");
+                assert!((m - pitch).abs() <= 3.0 * sd && sd < 0.5, "{m} ± {sd}°");
+                assert_eq!(r.offset, None, "the depth hypothesis lost");
+            }
+        }
+    }
 }

@@ -173,11 +173,19 @@ impl TrackerConfig {
                 num(*v)
             ));
         }
-        if !(0.0..=100.0).contains(&self.depth_offset_sigma_m) {
-            return bad(format!(
-                "tracker depth_offset_sigma_m = {} must be 0 (off) to 100 m",
-                num(self.depth_offset_sigma_m)
-            ));
+        for (name, v) in [
+            ("depth_offset_sigma_m", self.depth_offset_sigma_m),
+            (
+                "called_depth_offset_sigma_m",
+                self.called_depth_offset_sigma_m,
+            ),
+        ] {
+            if !(0.0..=100.0).contains(&v) {
+                return bad(format!(
+                    "tracker {name} = {} must be 0 (off) to 100 m",
+                    num(v)
+                ));
+            }
         }
         // Under 1° the bound would pin pitch and yaw as a reading does
         // (at 1e-9° every pose had them at 0 ± 1e-9°, pitch's ±2σ covering
@@ -189,11 +197,19 @@ impl TrackerConfig {
                 num(v)
             ));
         }
-        if !(0.0..=30.0).contains(&self.pitch_offset_sigma_deg) {
-            return bad(format!(
-                "tracker pitch_offset_sigma_deg = {} must be 0 (off) to 30°",
-                num(self.pitch_offset_sigma_deg)
-            ));
+        for (name, v) in [
+            ("pitch_offset_sigma_deg", self.pitch_offset_sigma_deg),
+            (
+                "called_pitch_offset_sigma_deg",
+                self.called_pitch_offset_sigma_deg,
+            ),
+        ] {
+            if !(0.0..=30.0).contains(&v) {
+                return bad(format!(
+                    "tracker {name} = {} must be 0 (off) to 30°",
+                    num(v)
+                ));
+            }
         }
         // An offset that wanders a metre in a second is a broken sensor, not
         // an offset; at 1e300 the report printed its σ with 130 digits.
@@ -243,6 +259,21 @@ mod tests {
         let e = tracker(|c| c.depth_lever_arm_m = [0.0, 0.0, 1e300]).unwrap_err();
         assert!(e.contains("depth_lever_arm_m has 1e300"), "{e}");
         tracker(|c| c.depth_lever_arm_m = [0.3, -0.1, 0.2]).unwrap();
+        let e = tracker(|c| c.called_depth_offset_sigma_m = f64::NAN).unwrap_err();
+        assert!(
+            e.contains("called_depth_offset_sigma_m = NaN must be 0"),
+            "{e}"
+        );
+        let e = tracker(|c| c.called_pitch_offset_sigma_deg = 45.0).unwrap_err();
+        assert!(
+            e.contains("called_pitch_offset_sigma_deg = 45 must be 0"),
+            "{e}"
+        );
+        tracker(|c| {
+            c.called_depth_offset_sigma_m = 0.0;
+            c.called_pitch_offset_sigma_deg = 30.0;
+        })
+        .unwrap();
         let e = tracker(|c| c.depth_offset_walk_psd = 1e300).unwrap_err();
         assert!(e.contains("depth_offset_walk_psd = 1e300 must be"), "{e}");
         let e = tracker(|c| c.init_velocity_sigma = 1e300).unwrap_err();

@@ -145,48 +145,53 @@ impl WaterBank {
         self.members.get(k)
     }
 
-    /// The mixture of the members' estimates: each field's weighted mean
-    /// over the members that give it, and a σ that holds their spread;
-    /// status and readings' verdicts of the heaviest member.
+    /// The mixture of the members' estimates ([`mix_estimates`]).
     fn mixture(&self) -> PoseEstimate {
-        let heaviest = (0..self.last.len())
-            .max_by(|&a, &b| self.weight[a].total_cmp(&self.weight[b]))
-            .unwrap_or(0);
-        let mut out = self.last[heaviest];
-        // Angles about the heaviest member's (no wrap at ±180°).
-        let centre = out.values().map(|v| v.unwrap_or(0.0));
-        // Per field: Σw, Σw·d, Σw·(σ² + d²) over the members that give it.
-        let mut sums = [[0.0; 3]; 6];
-        for (e, w) in self.last.iter().zip(&self.weight) {
-            for (f, (v, s)) in e.values().into_iter().zip(e.std.values()).enumerate() {
-                if let (Some(v), Some(s)) = (v, s) {
-                    let d = v - centre[f];
-                    sums[f][0] += w;
-                    sums[f][1] += w * d;
-                    sums[f][2] += w * (s * s + d * d);
-                }
-            }
-        }
-        let mut vals = [None; 6];
-        let mut sds = [None; 6];
-        for (f, [sw, m1, m2]) in sums.into_iter().enumerate() {
-            if sw > 0.0 {
-                let mean = m1 / sw;
-                vals[f] = Some(centre[f] + mean);
-                sds[f] = Some((m2 / sw - mean * mean).max(0.0).sqrt());
-            }
-        }
-        [out.x, out.y, out.z, out.pitch_deg, out.yaw_deg, out.surge] = vals;
-        out.std = StdDev {
-            x: sds[0],
-            y: sds[1],
-            z: sds[2],
-            pitch: sds[3],
-            yaw: sds[4],
-            surge: sds[5],
-        };
-        out
+        mix_estimates(&self.last, &self.weight)
     }
+}
+
+/// The mixture of estimates `ests` weighed by `weight`: each field's
+/// weighted mean over the estimates that give it, and a σ that holds their
+/// spread; status and readings' verdicts of the heaviest. `ests` not empty.
+pub(super) fn mix_estimates(ests: &[PoseEstimate], weight: &[f64]) -> PoseEstimate {
+    let heaviest = (0..ests.len())
+        .max_by(|&a, &b| weight[a].total_cmp(&weight[b]))
+        .unwrap_or(0);
+    let mut out = ests[heaviest];
+    // Angles about the heaviest's (no wrap at ±180°).
+    let centre = out.values().map(|v| v.unwrap_or(0.0));
+    // Per field: Σw, Σw·d, Σw·(σ² + d²) over the estimates that give it.
+    let mut sums = [[0.0; 3]; 6];
+    for (e, w) in ests.iter().zip(weight) {
+        for (f, (v, s)) in e.values().into_iter().zip(e.std.values()).enumerate() {
+            if let (Some(v), Some(s)) = (v, s) {
+                let d = v - centre[f];
+                sums[f][0] += w;
+                sums[f][1] += w * d;
+                sums[f][2] += w * (s * s + d * d);
+            }
+        }
+    }
+    let mut vals = [None; 6];
+    let mut sds = [None; 6];
+    for (f, [sw, m1, m2]) in sums.into_iter().enumerate() {
+        if sw > 0.0 {
+            let mean = m1 / sw;
+            vals[f] = Some(centre[f] + mean);
+            sds[f] = Some((m2 / sw - mean * mean).max(0.0).sqrt());
+        }
+    }
+    [out.x, out.y, out.z, out.pitch_deg, out.yaw_deg, out.surge] = vals;
+    out.std = StdDev {
+        x: sds[0],
+        y: sds[1],
+        z: sds[2],
+        pitch: sds[3],
+        yaw: sds[4],
+        surge: sds[5],
+    };
+    out
 }
 
 impl Estimator for WaterBank {

@@ -46,6 +46,7 @@ mod tests;
 #[cfg(test)]
 mod tests_fusion;
 mod water_check;
+mod which_offset;
 mod window;
 
 use std::any::Any;
@@ -120,6 +121,11 @@ pub struct Tracker {
     /// lost within [`QUICK_LOSS_S`] of their start (see `restart`).
     started_t: Option<f64>,
     quick_losses: u32,
+    /// Whether the reading check's call has been answered (offsets woken,
+    /// or hypotheses made): once a log (`which_offset`).
+    offsets_decided: bool,
+    /// The two hypotheses of which sensor is off, while they are weighed.
+    which: Option<Box<which_offset::WhichOffset>>,
 }
 
 /// A track lost this soon after its start was started onto something
@@ -166,6 +172,8 @@ impl Tracker {
             dvl: Default::default(),
             started_t: None,
             quick_losses: 0,
+            offsets_decided: false,
+            which: None,
             cfg,
         })
     }
@@ -175,9 +183,11 @@ impl Tracker {
     /// otherwise learn again (a frozen channel read as data for 20 frames,
     /// a biased depth unreported for 5 s, during the bank's start fits).
     pub(crate) fn inherit_checks(&mut self, from: &Tracker) {
+        let from = from.active();
         self.init.inherit_channels(&from.init);
         self.agreement = from.agreement;
         self.offsets = from.offsets;
+        self.offsets_decided = from.offsets_decided;
         self.dvl = from.dvl;
     }
 
@@ -230,7 +240,7 @@ impl Tracker {
     /// water (see `water_check`).
     pub fn water_misfit(&self) -> Option<f64> {
         let span = self.cfg.water_check_frames;
-        let s = self.state.as_ref()?;
+        let s = self.active().state.as_ref()?;
         s.water_nis
             .median(span)
             .filter(|m| *m > self.cfg.water_check_nis)
@@ -249,7 +259,7 @@ impl Tracker {
     /// Current K_D of the filter and its 1σ (when it is estimated; the
     /// state's σ of ln K_D times K_D).
     pub fn k_d(&self) -> Option<(f64, f64)> {
-        self.state.as_ref().map(|s| {
+        self.active().state.as_ref().map(|s| {
             let k = state::k_d_of(&s.x);
             (k, k * s.sd(KD))
         })
@@ -259,10 +269,20 @@ impl Tracker {
     /// the frame at time `t`, if the state's last step fused that frame's
     /// counts: what a bank of trackers in different waters weighs them by.
     pub fn counts_log_likelihood(&self, t: f64) -> Option<f64> {
-        self.state
+        self.active()
+            .state
             .as_ref()
             .filter(|s| s.t == t)
             .and_then(|s| s.counts_ll)
+    }
+
+    /// [`Self::counts_log_likelihood`] plus the fused readings' of the
+    /// same frame: how well the state explained all of it.
+    pub(super) fn frame_log_likelihood(&self, t: f64) -> Option<f64> {
+        self.state
+            .as_ref()
+            .filter(|s| s.t == t)
+            .and_then(|s| s.counts_ll.map(|c| c + s.readings_ll))
     }
 
     /// Start from `frame` (first frame, after a gap, or when lost).
@@ -570,12 +590,9 @@ fn verdicts(u: [ReadingUse; 3]) -> ReadingUses {
     }
 }
 
-impl Estimator for Tracker {
-    fn name(&self) -> &'static str {
-        Self::NAME
-    }
-
-    fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
+impl Tracker {
+    /// One frame through this tracker alone (see `which_offset` for two).
+    fn estimate_one(&mut self, frame: &Frame) -> PoseEstimate {
         // Once per frame: the counts update and the report share it.
         self.init.observe_channels(frame);
         let kinds = Censoring::classify(&self.model, &frame.counts, self.init.frozen_mask());
@@ -584,7 +601,30 @@ impl Estimator for Tracker {
         let span = (self.cfg.reading_check_s / READING_CHECK_SLOT_S).round() as usize;
         e.agreement = self.agreement.report(span, self.cfg.reading_check_limit);
         self.dvl.report(&mut e.agreement);
+        self.after_frame_checks(&e);
         e
+    }
+
+    /// The tracker whose state stands for this one's: itself, or while
+    /// two hypotheses of which sensor is off are weighed, the heavier.
+    fn active(&self) -> &Tracker {
+        match &self.which {
+            Some(w) => w.heavier(),
+            None => self,
+        }
+    }
+}
+
+impl Estimator for Tracker {
+    fn name(&self) -> &'static str {
+        Self::NAME
+    }
+
+    fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
+        if self.which.is_some() {
+            return self.estimate_both(frame);
+        }
+        self.estimate_one(frame)
     }
 
     fn reset(&mut self) {
@@ -594,12 +634,14 @@ impl Estimator for Tracker {
         self.agreement = Default::default();
         self.offsets = offsets::Offsets::new(&self.cfg);
         self.dvl = Default::default();
+        (self.offsets_decided, self.which) = (false, None);
     }
 
     /// K_D while it is estimated (`estimate_k_d`, or from the first DVL
     /// reading with `estimate_k_d_with_velocity`).
     fn water_k_d(&self) -> Option<f64> {
-        self.state
+        self.active()
+            .state
             .as_ref()
             .filter(|s| s.k_d_free)
             .map(|s| state::k_d_of(&s.x))
@@ -615,14 +657,18 @@ impl Estimator for Tracker {
 
     /// The channels' histories and the DVL checks' verdicts.
     fn findings(&self) -> Option<Findings> {
+        let t = self.active();
         Found {
-            channels: self.init.channels(),
-            dvl: Some(self.dvl.verdicts()),
+            channels: t.init.channels(),
+            dvl: Some(t.dvl.verdicts()),
         }
         .boxed()
     }
 
     fn take_findings(&mut self, found: &(dyn Any + Send)) {
+        if let Some(w) = self.which.as_mut() {
+            w.take_findings(found);
+        }
         if let Some(f) = Found::of(found) {
             self.init.take_channels(f);
             // With the checks off nothing would update a verdict taken
@@ -669,6 +715,7 @@ impl Tracker {
         };
         s.counts_ll = None;
         s.counts_nis = None;
+        s.readings_ll = 0.0;
         let (uses, innov) = self.update_readings(&mut s, &readings);
         self.agreement.push(&innov, &uses, frame.t);
         s.attitude_fused = uses[0] == ReadingUse::Used;
@@ -781,8 +828,8 @@ impl Tracker {
     fn doubt_offsets_of_refused(&mut self, s: &mut State) {
         let limit = self.cfg.reading_gate_restart;
         for o in offsets::Offset::ALL {
-            if s.gated[o.reading()] >= limit && o.told(&self.cfg) {
-                let (i, full) = (o.index(), o.sigma(&self.cfg).powi(2));
+            if s.gated[o.reading()] >= limit && self.offsets.told(o, &self.cfg) {
+                let (i, full) = (o.index(), self.offsets.sigma(o, &self.cfg).powi(2));
                 // More variance on the diagonal keeps P positive.
                 s.p[(i, i)] = s.p[(i, i)].max(full);
                 self.offsets.doubt(o, &self.cfg);
@@ -795,7 +842,7 @@ impl Tracker {
     /// otherwise take them as known (with no walk, a pitch offset for good).
     fn doubt_all_offsets(&mut self) {
         for o in offsets::Offset::ALL {
-            if o.told(&self.cfg) {
+            if self.offsets.told(o, &self.cfg) {
                 self.offsets.doubt(o, &self.cfg);
             }
         }
@@ -812,14 +859,16 @@ impl Tracker {
     /// (`depth_offset_sigma_m` above 0): what STATUS and the replay
     /// summary report.
     pub fn depth_offset(&self) -> Option<(f64, f64)> {
-        self.offsets.report(offsets::Offset::Depth, &self.cfg)
+        let t = self.active();
+        t.offsets.report(offsets::Offset::Depth, &t.cfg)
     }
 
     /// The attitude sensor's pitch offset and its 1σ (°), while it is
     /// estimated (`pitch_offset_sigma_deg` above 0).
     pub fn pitch_offset_deg(&self) -> Option<(f64, f64)> {
-        self.offsets
-            .report(offsets::Offset::Pitch, &self.cfg)
+        let t = self.active();
+        t.offsets
+            .report(offsets::Offset::Pitch, &t.cfg)
             .map(|(m, sd)| (m.to_degrees(), sd.to_degrees()))
     }
 }

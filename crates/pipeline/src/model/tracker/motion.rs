@@ -28,7 +28,7 @@ impl Tracker {
             s.p[(KD, KD)] += self.cfg.k_d_walk_psd * dt / (k * k).max(1e-18);
         }
         for o in Offset::ALL {
-            if o.told(&self.cfg) {
+            if self.offsets.told(o, &self.cfg) {
                 let i = o.index();
                 s.p[(i, i)] += o.walk(&self.cfg) * dt;
             }

@@ -15,6 +15,9 @@
 //!
 //! Each offset is about its sensor, not the pose: what the last state knew
 //! of it is kept across restarts and starts the next state.
+//!
+//! Untold, an offset is woken when the reading check calls depth or pitch
+//! disagreeing while both readings come (`which_offset`).
 
 use super::readings::FrameReadings;
 use super::state::{Ms, State, Vs, DOFF, POFF};
@@ -58,11 +61,20 @@ impl Offset {
         }
     }
 
-    /// Its prior's 1σ (state units; 0: not estimated).
-    pub fn sigma(self, cfg: &TrackerConfig) -> f64 {
+    /// Its setting's prior 1σ (state units; 0: not told).
+    pub fn setting(self, cfg: &TrackerConfig) -> f64 {
         match self {
             Offset::Depth => cfg.depth_offset_sigma_m,
             Offset::Pitch => cfg.pitch_offset_sigma_deg.to_radians(),
+        }
+    }
+
+    /// The prior 1σ it is woken with when the reading check calls (state
+    /// units; 0: never).
+    pub fn called(self, cfg: &TrackerConfig) -> f64 {
+        match self {
+            Offset::Depth => cfg.called_depth_offset_sigma_m,
+            Offset::Pitch => cfg.called_pitch_offset_sigma_deg.to_radians(),
         }
     }
 
@@ -75,9 +87,12 @@ impl Offset {
         }
     }
 
-    /// Whether it is estimated.
-    pub fn told(self, cfg: &TrackerConfig) -> bool {
-        self.sigma(cfg) > 0.0
+    /// Its component's bit in `Agreement::suspect` (CHECKED's order).
+    pub fn suspect_bit(self) -> u8 {
+        match self {
+            Offset::Pitch => 1 << 0,
+            Offset::Depth => 1 << 2,
+        }
     }
 }
 
@@ -90,12 +105,13 @@ struct Memory {
     t: Option<f64>,
 }
 
-/// Both offsets: what the last state knew, and the prior of the start
-/// being made.
+/// Both offsets: what the last state knew, the prior of the start being
+/// made, and the 1σ each was woken with.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Offsets {
     mem: [Memory; 2],
     prior: [(f64, f64); 2],
+    woken: [f64; 2],
 }
 
 impl Offsets {
@@ -103,11 +119,34 @@ impl Offsets {
         Offsets {
             mem: Offset::ALL.map(|o| Memory {
                 mean: 0.0,
-                var: o.sigma(cfg).powi(2),
+                var: o.setting(cfg).powi(2),
                 t: None,
             }),
             prior: [(0.0, 0.0); 2],
+            woken: [0.0; 2],
         }
+    }
+
+    /// The prior 1σ `o` is estimated with: its setting's, else the one it
+    /// was woken with; 0 while it is held at 0.
+    pub fn sigma(&self, o: Offset, cfg: &TrackerConfig) -> f64 {
+        let told = o.setting(cfg);
+        if told > 0.0 {
+            told
+        } else {
+            self.woken[o as usize]
+        }
+    }
+
+    /// Whether `o` is estimated.
+    pub fn told(&self, o: Offset, cfg: &TrackerConfig) -> bool {
+        self.sigma(o, cfg) > 0.0
+    }
+
+    /// `o` estimated from now on with prior 1σ `sigma` (the reading check
+    /// called it: `which_offset`).
+    pub fn wake(&mut self, o: Offset, sigma: f64) {
+        self.woken[o as usize] = sigma;
     }
 
     /// Set the priors of a start at time `t`: each variance grown by its
@@ -115,7 +154,7 @@ impl Offsets {
     /// time went back); 0 and 0 for an offset not told.
     pub fn start_at(&mut self, t: f64, cfg: &TrackerConfig) {
         for (k, o) in Offset::ALL.into_iter().enumerate() {
-            let full = o.sigma(cfg).powi(2);
+            let full = self.sigma(o, cfg).powi(2);
             let m = self.mem[k];
             self.prior[k] = match m.t {
                 Some(t0) if t >= t0 => (m.mean, (m.var + o.walk(cfg) * (t - t0)).min(full)),
@@ -133,7 +172,7 @@ impl Offsets {
     /// Remember what state `s` knows of the told offsets.
     pub fn keep(&mut self, s: &State, cfg: &TrackerConfig) {
         for (k, o) in Offset::ALL.into_iter().enumerate() {
-            if o.told(cfg) {
+            if self.told(o, cfg) {
                 let i = o.index();
                 self.mem[k] = Memory {
                     mean: s.x[i],
@@ -147,14 +186,15 @@ impl Offsets {
     /// `o`'s memory back to the setting's doubt (its mean kept): a start
     /// takes it as weakly as it took the first.
     pub fn doubt(&mut self, o: Offset, cfg: &TrackerConfig) {
+        let full = self.sigma(o, cfg).powi(2);
         let m = &mut self.mem[o as usize];
-        m.var = m.var.max(o.sigma(cfg).powi(2));
+        m.var = m.var.max(full);
     }
 
     /// `o` and its 1σ while it is estimated and a state has known it.
     pub fn report(&self, o: Offset, cfg: &TrackerConfig) -> Option<(f64, f64)> {
         let m = self.mem[o as usize];
-        (o.told(cfg) && m.t.is_some()).then(|| (m.mean, m.var.max(0.0).sqrt()))
+        (self.told(o, cfg) && m.t.is_some()).then(|| (m.mean, m.var.max(0.0).sqrt()))
     }
 }
 

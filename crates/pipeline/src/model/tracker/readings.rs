@@ -319,7 +319,9 @@ fn fuse_with<const M: usize>(
     let ikh = Ms::identity() - k * lin.jac;
     let p = ikh * s.p * ikh.transpose() + k * rm * k.transpose();
     let x = s.x + k * y;
+    let log_det: f64 = (0..M).map(|i| 2.0 * ch.l()[(i, i)].ln()).sum();
     if commit(s, x, p) {
+        s.readings_ll -= 0.5 * (nis + log_det);
         ReadingUse::Used
     } else {
         ReadingUse::Refused(Refusal::Gate)

@@ -107,6 +107,10 @@ pub(super) struct State {
     /// This frame's counts' normalized innovation squared per channel,
     /// when they were fused.
     pub counts_nis: Option<f64>,
+    /// ln of the fused readings' densities at their innovations this frame
+    /// (less the constants), summed: with `counts_ll`, how well the state
+    /// explains the whole frame (`Tracker::frame_log_likelihood`).
+    pub readings_ll: f64,
     /// The last frames' `counts_nis` with a DVL reading fused (the water
     /// check, `water_check_frames`).
     pub water_nis: super::window::FrameWindow,
@@ -129,6 +133,7 @@ impl State {
             paper_head: 0,
             counts_ll: None,
             counts_nis: None,
+            readings_ll: 0.0,
             water_nis: Default::default(),
         }
     }

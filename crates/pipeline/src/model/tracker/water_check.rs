@@ -67,6 +67,19 @@ impl WaterWatch {
     }
 }
 
+/// Whether `e` has a depth or attitude reading whose check has not yet a
+/// full window to judge it by: the water check waits for that verdict
+/// too. Both windows span 5 s, and when a biased depth came from the start
+/// the water check could fire a frame before the reading check called it:
+/// the bank then took the bias for water, and x stayed 0.1 m off at 3σ
+/// for 20 s after the depth's offset was learned.
+fn unjudged(e: &PoseEstimate) -> bool {
+    use lightpose_core::ReadingUse;
+    let had = |u: ReadingUse| u != ReadingUse::Absent;
+    (had(e.readings.attitude) && (e.agreement.mean[0].is_none() || e.agreement.mean[1].is_none()))
+        || (had(e.readings.depth) && e.agreement.mean[2].is_none())
+}
+
 impl Estimator for WaterWatch {
     fn name(&self) -> &'static str {
         Tracker::NAME
@@ -86,7 +99,7 @@ impl Estimator for WaterWatch {
         // takes the bias into range for good: a depth 0.3 m off, switched
         // on mid-run, left the harbour's track 2.3 m short with K_D learned
         // at 0.9 (true 0.2), `out_of_range` to the end.
-        if e.agreement.suspect != 0 {
+        if e.agreement.suspect != 0 || unjudged(&e) {
             return e;
         }
         // The bank starts from this frame: its members, each in its own
@@ -287,6 +300,27 @@ mod tests {
             let tr = Tracker::new(calibrated.clone(), cfg).unwrap();
             assert!(!WaterWatch::wanted(&tr), "{:?}", tr.config());
         }
+    }
+
+    /// The water check waits while a reading the frame has has no full
+    /// window in the reading check yet, and not for one it does not have.
+    #[test]
+    fn the_water_check_waits_for_the_reading_check() {
+        use lightpose_core::ReadingUse;
+        let mut e = PoseEstimate::empty(0, 0.0, Status::Ok, "tracker");
+        assert!(!unjudged(&e), "no readings: nothing to wait for");
+        e.readings.depth = ReadingUse::Used;
+        assert!(unjudged(&e), "depth, its window not full");
+        e.agreement.mean[2] = Some(0.1);
+        assert!(!unjudged(&e));
+        e.readings.attitude = ReadingUse::Used;
+        e.agreement.mean[0] = Some(0.0);
+        assert!(unjudged(&e), "yaw's window not full");
+        e.agreement.mean[1] = Some(0.0);
+        assert!(!unjudged(&e));
+        e.agreement.mean[2] = None;
+        e.readings.depth = ReadingUse::Absent;
+        assert!(!unjudged(&e), "no depth this frame");
     }
 
     proptest::proptest! {
