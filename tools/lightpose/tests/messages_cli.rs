@@ -203,9 +203,10 @@ fn case_names_are_aliases_and_the_crb_note_names_the_set() {
     }
 }
 
-/// A replay whose every pose is null (here a start-up σ so small that the
-/// start fit cannot be made) of a log with truth says so: it had said "no
-/// truth in the log".
+/// A replay whose every pose is null (here the single-frame estimator told
+/// a light threshold no frame reaches: every frame `no_light`) of a log
+/// with truth says so: it had said "no truth in the log". (It used a
+/// start-up σ of 1e-300, which the settings' checks now refuse.)
 #[test]
 fn a_replay_without_a_value_to_compare_says_why_there_is_no_report() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -214,7 +215,7 @@ fn a_replay_without_a_value_to_compare_says_why_there_is_no_report() {
     let text = std::fs::read_to_string(config("calibration/tank.toml")).expect("calibration");
     std::fs::write(
         &cal,
-        text + "\n[estimator.tracker]\ninit_attitude_sigma_deg = 1e-300\n",
+        text + "\n[estimator.model]\nmin_signal_sigma = 1e6\n",
     )
     .expect("write calibration");
     let log = d.join("dive.jsonl");
@@ -244,7 +245,7 @@ fn a_replay_without_a_value_to_compare_says_why_there_is_no_report() {
             "--out",
             d.join("poses.jsonl").to_str().unwrap(),
             "--estimator",
-            "tracker",
+            "model",
             "--report",
         ],
     );
