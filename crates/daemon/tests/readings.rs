@@ -197,3 +197,79 @@ fn a_dvl_turned_45_degrees_is_refused_and_its_turn_told_in_status() {
     assert!(refused > 150, "{vel}");
     assert!((turned - 45.0).abs() < 6.0, "{dvl}");
 }
+
+/// A depth sensor 0.1 m off, or an AHRS pitched 2° up, under the gate
+/// (mock `faults.depth_bias_m`, `faults.pitch_bias_deg`; a minute of
+/// coming and going in the tank with all three sensors, as fast as it
+/// goes): the reading check calls it, and the tracker learns the offset of
+/// the sensor that is off, the other's not reported (STATUS
+/// `estimator.depth_offset`, `pitch_offset`). Before, the bias went into
+/// every pose and only the check said so, as it still does with the
+/// calls unanswered (`called_*_sigma` 0: neither offset reported).
+#[test]
+fn a_biased_sensor_s_offset_is_learned_and_told_in_status() {
+    let r = root();
+    let dir = tempfile::tempdir().expect("tempdir");
+    // The same calibration with the check's calls not answered (the
+    // behaviour before): the bias is believed, nothing learned.
+    let believed = dir.path().join("believed.toml");
+    let cal = std::fs::read_to_string(r.join("config/calibration/tank.toml")).expect("cal");
+    std::fs::write(
+        &believed,
+        cal + "\n[estimator.tracker]\ncalled_depth_offset_sigma_m = 0.0\ncalled_pitch_offset_sigma_deg = 0.0\n",
+    )
+    .expect("write");
+    for (fault, depth_bias, pitch_bias, cal) in [
+        (
+            "depth_bias_m = 0.1",
+            0.1,
+            0.0,
+            r.join("config/calibration/tank.toml"),
+        ),
+        (
+            "pitch_bias_deg = 2.0",
+            0.0,
+            2.0,
+            r.join("config/calibration/tank.toml"),
+        ),
+        ("depth_bias_m = 0.1", 0.0, 0.0, believed),
+    ] {
+        let (sub, addr) = subscriber();
+        let text = format!(
+            "rate_hz = 5.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"mock\"\nscene = \"{}\"\ntrajectory = \"{}\"\nrate_hz = 0\nloop = false\nseed = 11\nfaults = {{ {fault} }}\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 0.2\n",
+            cal.display(),
+            r.join("tests/data/tank-sensors.toml").display(),
+            r.join("tests/data/to-and-fro.csv").display(),
+        );
+        let cfg = Config::parse(&text, "biased.toml", None).expect("valid config");
+        let (summary, msgs) = run_to_end(cfg, Duration::from_secs(60), &sub);
+        assert!(summary.frames > 290, "{fault}: {summary:?}");
+        let st = *of_class(&msgs, "STATUS").last().expect("a STATUS");
+        let est = &st["estimator"];
+        let check = &st["readings"]["check"];
+        let called = |c: &str| check[c]["frames"].as_u64().unwrap_or(0);
+        assert!(
+            called("depth") + called("pitch") > 0,
+            "{fault}: never called: {check}"
+        );
+        if depth_bias == 0.0 && pitch_bias == 0.0 {
+            assert!(
+                est["depth_offset"].is_null() && est["pitch_offset"].is_null(),
+                "believed: {est}"
+            );
+            continue;
+        }
+        let (learned, other, want) = if depth_bias != 0.0 {
+            (&est["depth_offset"], &est["pitch_offset"], depth_bias)
+        } else {
+            (&est["pitch_offset"], &est["depth_offset"], pitch_bias)
+        };
+        let m = learned["m"].as_f64().or(learned["deg"].as_f64());
+        let sd = learned["std"].as_f64();
+        let (Some(m), Some(sd)) = (m, sd) else {
+            panic!("{fault}: no offset learned: {est}");
+        };
+        assert!((m - want).abs() <= 3.0 * sd, "{fault}: {m} ± {sd}: {est}");
+        assert!(other.is_null(), "{fault}: the other sensor blamed: {est}");
+    }
+}

@@ -191,6 +191,12 @@ impl FrameSource for SimSource {
                     sd.0 = [turn(f, ri), turn(ri, f), d];
                 }
             }
+            if let Some(d) = f.depth.as_mut() {
+                d.z += self.faults.depth_bias;
+            }
+            if let Some(a) = f.attitude.as_mut() {
+                a.pitch = lightpose_core::Angle::from_rad(a.pitch.rad() + self.faults.pitch_bias);
+            }
             return Ok(f);
         }
     }
@@ -229,13 +235,12 @@ mod tests {
     }
 
     fn src(looping: bool, faults: Faults) -> SimSource {
-        SimSource::new(
-            Simulator::new(Scene::default(), 7),
-            traj(),
-            None,
-            looping,
-            faults,
-        )
+        src_in(Scene::default(), looping, faults)
+    }
+
+    /// The source over `traj()` in `scene`, seed 7.
+    fn src_in(scene: Scene, looping: bool, faults: Faults) -> SimSource {
+        SimSource::new(Simulator::new(scene, 7), traj(), None, looping, faults)
     }
 
     #[test]
@@ -324,13 +329,7 @@ mod tests {
                 dvl_turned: deg.to_radians(),
                 ..Faults::default()
             };
-            let mut s = SimSource::new(
-                Simulator::new(scene.clone(), 7),
-                traj(),
-                None,
-                false,
-                faults,
-            );
+            let mut s = src_in(scene.clone(), false, faults);
             s.next_frame().unwrap().velocity.expect("a DVL reading").v.0
         };
         let (v, back, across) = (frame(0.0), frame(180.0), frame(90.0));
@@ -340,6 +339,35 @@ mod tests {
         }
         assert!((back[2] - v[2]).abs() < 1e-12);
         assert!((across[1] - v[0]).abs() < 1e-9 && (across[0] + v[1]).abs() < 1e-9);
+    }
+
+    /// A depth sensor and an AHRS off by a constant read their truth plus
+    /// the bias, the rest of the frame untouched.
+    #[test]
+    fn biased_depth_and_pitch_read_biased() {
+        let scene = Scene {
+            attitude: Some(lightpose_sim::AttitudeNoise {
+                sigma_pitch: lightpose_core::Angle::from_deg(0.0),
+                sigma_yaw: lightpose_core::Angle::from_deg(0.0),
+            }),
+            depth: Some(lightpose_sim::DepthNoise { sigma_m: 0.0 }),
+            ..Scene::default()
+        };
+        let frame = |depth_bias: f64, pitch_bias_deg: f64| {
+            let faults = Faults {
+                depth_bias,
+                pitch_bias: pitch_bias_deg.to_radians(),
+                ..Faults::default()
+            };
+            src_in(scene.clone(), false, faults).next_frame().unwrap()
+        };
+        let (clean, biased) = (frame(0.0, 0.0), frame(0.1, 2.0));
+        let d = |f: &lightpose_core::Frame| f.depth.expect("a depth reading").z;
+        let a = |f: &lightpose_core::Frame| f.attitude.expect("an attitude reading");
+        assert!((d(&biased) - d(&clean) - 0.1).abs() < 1e-12);
+        assert!((a(&biased).pitch.deg() - a(&clean).pitch.deg() - 2.0).abs() < 1e-9);
+        assert_eq!(a(&biased).yaw, a(&clean).yaw);
+        assert_eq!(biased.counts, clean.counts);
     }
 
     #[test]

@@ -208,6 +208,19 @@ fn serial_and_sim_configs() {
     )
     .unwrap_err();
     assert!(e.contains("faults.stuck[0]"), "{e}");
+    for (key, v) in [
+        ("depth_bias_m", "1e300"),
+        ("depth_bias_m", "nan"),
+        ("pitch_bias_deg", "91.0"),
+    ] {
+        let e = validate(&format!(
+            "kind = \"mock\"\ntrajectory = \"t.csv\"\n[faults]\n{key} = {v}\n"
+        ))
+        .unwrap_err();
+        assert!(e.contains(&format!("faults.{key}")), "{e}");
+    }
+    validate("kind = \"mock\"\ntrajectory = \"t.csv\"\n[faults]\ndepth_bias_m = -0.3\npitch_bias_deg = 2.5\n")
+        .unwrap();
 }
 
 #[test]

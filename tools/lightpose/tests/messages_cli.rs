@@ -213,11 +213,8 @@ fn a_replay_without_a_value_to_compare_says_why_there_is_no_report() {
     let d = dir.path();
     let cal = d.join("cal.toml");
     let text = std::fs::read_to_string(config("calibration/tank.toml")).expect("calibration");
-    std::fs::write(
-        &cal,
-        text + "\n[estimator.model]\nmin_signal_sigma = 1e6\n",
-    )
-    .expect("write calibration");
+    std::fs::write(&cal, text + "\n[estimator.model]\nmin_signal_sigma = 1e6\n")
+        .expect("write calibration");
     let log = d.join("dive.jsonl");
     let (ok, _, err) = lightpose_in(
         d,

@@ -112,7 +112,7 @@ fn agreement(stats: &Stats, est: &PoseEstimate, seq: u64) {
     if now & !before != 0 {
         tracing::warn!(
             seq,
-            "own-sensor reading(s) {} disagree with the light: their innovations keep one sign (window mean of ν/√S); a bias, not noise: check the sensor's zero and mounting, and beacon_depth_m, or let the tracker estimate it (the calibration's [estimator.tracker] depth_offset_sigma_m, pitch_offset_sigma_deg; docs/estimators.md \"Sensor offsets\") (STATUS readings.check)",
+            "own-sensor reading(s) {} disagree with the light: their innovations keep one sign (window mean of ν/√S); a bias, not noise: with depth and attitude both read, the tracker learns the offset of the one the light finds off (STATUS estimator.depth_offset, pitch_offset); check the sensor's zero and mounting, and beacon_depth_m (docs/estimators.md \"Sensor offsets\") (STATUS readings.check)",
             names(now & !before)
         );
     }

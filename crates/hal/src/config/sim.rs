@@ -93,6 +93,14 @@ pub struct FaultConfig {
     /// Needs a scene with `[dvl]`.
     #[serde(default)]
     pub dvl_turned_deg: f64,
+    /// Added to every depth reading (m): a beacon depth surveyed wrong, a
+    /// pressure sensor zeroed elsewhere. Needs a scene with `[depth]`.
+    #[serde(default)]
+    pub depth_bias_m: f64,
+    /// Added to every attitude reading's pitch (°): an AHRS mounted askew
+    /// of the dome. Needs a scene with `[attitude]`.
+    #[serde(default)]
+    pub pitch_bias_deg: f64,
     /// Seed of the fault draws (apart from the simulator's).
     #[serde(default)]
     pub seed: u64,
@@ -117,6 +125,10 @@ pub struct Faults {
     pub stuck: Vec<(usize, u16)>,
     /// Radians; 0 for none.
     pub dvl_turned: f64,
+    /// Metres added to each depth reading; 0 for none.
+    pub depth_bias: f64,
+    /// Radians added to each attitude reading's pitch; 0 for none.
+    pub pitch_bias: f64,
     pub seed: u64,
 }
 
@@ -215,6 +227,20 @@ fn faults(f: &FaultConfig) -> Result<Faults, HalError> {
             format!("{} is not an angle within ±360°", f.dvl_turned_deg),
         ));
     }
+    // A bias past these is a sensor unplugged or a wrong unit, not an
+    // offset (the tracker's own limits on the readings: 20 m of depth).
+    if !(f.depth_bias_m.is_finite() && f.depth_bias_m.abs() <= 100.0) {
+        return Err(err(
+            "faults.depth_bias_m",
+            format!("{} is not a depth bias within ±100 m", f.depth_bias_m),
+        ));
+    }
+    if !(f.pitch_bias_deg.is_finite() && f.pitch_bias_deg.abs() <= 90.0) {
+        return Err(err(
+            "faults.pitch_bias_deg",
+            format!("{} is not a pitch bias within ±90°", f.pitch_bias_deg),
+        ));
+    }
     Ok(Faults {
         bus_error_every: f.bus_error_every,
         bus_error_prob: f.bus_error_prob,
@@ -222,6 +248,8 @@ fn faults(f: &FaultConfig) -> Result<Faults, HalError> {
         drop_prob: f.drop_prob,
         stuck,
         dvl_turned: f.dvl_turned_deg.to_radians(),
+        depth_bias: f.depth_bias_m,
+        pitch_bias: f.pitch_bias_deg.to_radians(),
         seed: f.seed,
     })
 }
