@@ -717,7 +717,9 @@ fn tells_systemd_ready_status_and_watchdog() {
 /// (`depth_offset_sigma_m`, `pitch_offset_sigma_deg`), the daemon's STATUS
 /// says by how much the tracker found each off: a minute of coming and
 /// going with all three sensors, replayed from a log whose depth readings
-/// are 0.2 m off and pitch readings 1° off; told nothing, it says null.
+/// are 0.2 m off and pitch readings 1° off. Told nothing it finds them
+/// too, once the reading check calls (`which_offset`); with the calls
+/// unanswered as well it says null.
 #[test]
 fn status_reports_the_sensor_offsets_the_tracker_learned() {
     use lightpose_core::{LogHeader, LogWriter};
@@ -748,7 +750,11 @@ fn status_reports_the_sensor_offsets_the_tracker_learned() {
     let mut cal = std::fs::read_to_string(&untold).unwrap();
     cal += "\n[estimator.tracker]\ndepth_offset_sigma_m = 0.3\npitch_offset_sigma_deg = 2.0\n";
     std::fs::write(&told, cal).unwrap();
-    for (cal, want) in [(&told, true), (&untold, false)] {
+    let believed = dir.path().join("believed.toml");
+    let mut cal = std::fs::read_to_string(&untold).unwrap();
+    cal += "\n[estimator.tracker]\ncalled_depth_offset_sigma_m = 0.0\ncalled_pitch_offset_sigma_deg = 0.0\n";
+    std::fs::write(&believed, cal).unwrap();
+    for (cal, want) in [(&told, true), (&untold, true), (&believed, false)] {
         let (sub, addr) = subscriber();
         let text = format!(
             "rate_hz = 5.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"replay\"\nlog = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 1.0\n",

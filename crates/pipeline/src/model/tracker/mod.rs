@@ -121,9 +121,9 @@ pub struct Tracker {
     /// lost within [`QUICK_LOSS_S`] of their start (see `restart`).
     started_t: Option<f64>,
     quick_losses: u32,
-    /// Whether the reading check's call has been answered (offsets woken,
-    /// or hypotheses made): once a log (`which_offset`).
-    offsets_decided: bool,
+    /// This tracker is one hypothesis of which sensor is off, being
+    /// weighed: it wakes no offset of its own (`which_offset`).
+    weighing: bool,
     /// The two hypotheses of which sensor is off, while they are weighed.
     which: Option<Box<which_offset::WhichOffset>>,
 }
@@ -172,7 +172,7 @@ impl Tracker {
             dvl: Default::default(),
             started_t: None,
             quick_losses: 0,
-            offsets_decided: false,
+            weighing: false,
             which: None,
             cfg,
         })
@@ -187,7 +187,6 @@ impl Tracker {
         self.init.inherit_channels(&from.init);
         self.agreement = from.agreement;
         self.offsets = from.offsets;
-        self.offsets_decided = from.offsets_decided;
         self.dvl = from.dvl;
     }
 
@@ -634,7 +633,7 @@ impl Estimator for Tracker {
         self.agreement = Default::default();
         self.offsets = offsets::Offsets::new(&self.cfg);
         self.dvl = Default::default();
-        (self.offsets_decided, self.which) = (false, None);
+        (self.weighing, self.which) = (false, None);
     }
 
     /// K_D while it is estimated (`estimate_k_d`, or from the first DVL

@@ -11,13 +11,12 @@
 //! known z, and a depth offset moves the elevation as b/x with range where
 //! a pitch offset does not, so with both told the range's change tells
 //! them apart (docs/estimators.md, "Sensor offsets"). Untold, an offset is
-//! held at 0 with no doubt and nothing changes.
+//! held at 0, a consider state of variance [`HELD_VAR`] that nothing moves
+//! and no reported σ feels, until the reading check calls depth or pitch
+//! while both readings come (`which_offset`).
 //!
 //! Each offset is about its sensor, not the pose: what the last state knew
 //! of it is kept across restarts and starts the next state.
-//!
-//! Untold, an offset is woken when the reading check calls depth or pitch
-//! disagreeing while both readings come (`which_offset`).
 
 use super::readings::FrameReadings;
 use super::state::{Ms, State, Vs, DOFF, POFF};
@@ -96,6 +95,13 @@ impl Offset {
     }
 }
 
+/// The variance an offset not estimated is held at, as a consider state
+/// (state units²: (1 µm)², (1 µrad)²): small enough to move no σ the
+/// tracker reports (P's relative change under 1e-8), large enough for f64
+/// to carry the state's covariance with it, which is the state's
+/// sensitivity to the offset times this.
+pub(super) const HELD_VAR: f64 = 1e-12;
+
 /// One offset as the filter last knew it: mean, variance and when. Before
 /// any state, the setting's prior.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -161,6 +167,9 @@ impl Offsets {
                 Some(_) => (m.mean, full),
                 None => (0.0, full),
             };
+            if !(self.prior[k].1 > HELD_VAR) {
+                self.prior[k].1 = HELD_VAR;
+            }
         }
     }
 
@@ -213,9 +222,17 @@ impl Tracker {
     /// coordinate, the offsets' errors are independent, and the Schur
     /// complement is P_fit·(A + Σ_c σ_c²/R_c²·e_c·e_cᵀ)·P_fit ≥ 0 (A the
     /// fit's other information).
-    pub(super) fn start_offsets(&self, x: &mut Vs, p: &mut Ms, p_fit: &Ms, r: &FrameReadings) {
+    pub(super) fn start_offsets(
+        &self,
+        x: &mut Vs,
+        p: &mut Ms,
+        free: &mut [bool; 2],
+        p_fit: &Ms,
+        r: &FrameReadings,
+    ) {
         for o in Offset::ALL {
             let (mean, var) = self.offsets.prior(o);
+            free[o as usize] = self.offsets.told(o, &self.cfg);
             if !(var > 0.0) {
                 continue;
             }

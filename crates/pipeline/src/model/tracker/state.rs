@@ -85,6 +85,12 @@ pub(super) struct State {
     /// σ includes what K_D's doubt does to it, but no update moves K_D away
     /// from the calibration's value.
     pub k_d_free: bool,
+    /// Per offset (depth, pitch: `offsets::Offset` order), estimated. An
+    /// offset not estimated is a consider state of variance
+    /// `offsets::HELD_VAR`: never moved, but its covariance with the rest
+    /// carries how the state would move with it, so that waking it later
+    /// (`which_offset`) gives the state's true doubt.
+    pub offset_free: [bool; 2],
     /// The paper's range went into this frame's x, with this 1σ of its
     /// error (the law's residual over the calibration grid): see
     /// `Tracker::to_estimate`.
@@ -126,6 +132,7 @@ impl State {
             rejected: 0,
             gated: [0; 3],
             k_d_free: false,
+            offset_free: [false; 2],
             paper_x: None,
             paper_rate_used: false,
             attitude_fused: false,
@@ -167,11 +174,17 @@ impl State {
         self.p[(KD, 0)] = g * sk2;
     }
 
-    /// A Kalman gain as this state may apply it: with K_D a consider state,
-    /// its row is zero (K_D stays; the Joseph form then keeps P honest).
+    /// A Kalman gain as this state may apply it: with K_D, or an offset, a
+    /// consider state, its row is zero (it stays; the Joseph form then keeps
+    /// P honest).
     pub fn consider<const M: usize>(&self, k: &mut SMatrix<f64, NS, M>) {
         if !self.k_d_free {
             k.row_mut(KD).fill(0.0);
+        }
+        for (i, free) in [DOFF, POFF].into_iter().zip(self.offset_free) {
+            if !free {
+                k.row_mut(i).fill(0.0);
+            }
         }
     }
 

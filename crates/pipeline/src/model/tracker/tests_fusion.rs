@@ -334,19 +334,25 @@ fn readings_keep_the_filter_going_in_the_dark() {
 /// dome's z − 0.4·cos θ; told the lever arm, the tracker recovers the
 /// dome's z; not told, it is pulled most of the way (the light disagrees
 /// and holds it back a little: measured −0.30 m).
-/// Off by default: the sensors' offsets stay exactly 0 with no doubt and
-/// no covariance with anything, through starts, readings and counts
-/// updates, so the other states move as they did with 11.
+/// Off by default: the sensors' offsets stay exactly 0, consider states of
+/// the held variance (1e-12) that no update moves, through starts,
+/// readings and counts updates; their covariance with the rest is the
+/// state's sensitivity to them times that variance (of order one: a
+/// depth offset moves z as much as itself), which moves no reported σ.
 #[test]
 fn the_sensor_offsets_are_held_at_zero_unless_told() {
+    use super::offsets::HELD_VAR;
     use super::state::{DOFF, POFF};
     let (tr, _) = warmed([true, true, true], 30, 7);
     let s = tr.state.as_ref().expect("a state");
-    for i in [DOFF, POFF] {
+    for (i, c) in [(DOFF, 2), (POFF, 3)] {
         assert_eq!(s.x[i], 0.0);
-        let row = s.p.row(i);
-        assert!(row.iter().chain(s.p.column(i).iter()).all(|v| *v == 0.0));
+        assert_eq!(s.p[(i, i)], HELD_VAR);
+        let sens = s.p[(c, i)] / HELD_VAR;
+        assert!(sens.abs() > 0.05 && sens.abs() < 2.0, "sensitivity {sens}");
+        assert!(s.p.column(i).iter().all(|v| v.abs() <= 2.0 * HELD_VAR));
     }
+    assert_eq!(s.offset_free, [false, false]);
     assert_eq!(Estimator::depth_offset(&tr), None);
     assert_eq!(Estimator::pitch_offset_deg(&tr), None);
 }
@@ -395,7 +401,9 @@ fn the_start_s_offset_ties_keep_the_covariance_positive() {
                     p[(i, i)] = p[(i, i)].max(1e-4);
                 }
                 let mut x = Vs::zeros();
-                tr.start_offsets(&mut x, &mut p, &p_fit, &r);
+                let mut free = [false; 2];
+                tr.start_offsets(&mut x, &mut p, &mut free, &p_fit, &r);
+                assert_eq!(free, [true, true]);
                 assert_eq!((p[(DOFF, DOFF)], p[(POFF, POFF)]), (vd, vp));
                 let least = p.symmetric_eigen().eigenvalues.min();
                 assert!(
