@@ -621,7 +621,7 @@ impl Estimator for Tracker {
 
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
         if self.which.is_some() {
-            return self.estimate_both(frame);
+            return self.estimate_weighing(frame);
         }
         self.estimate_one(frame)
     }

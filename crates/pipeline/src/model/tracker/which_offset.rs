@@ -165,9 +165,9 @@ impl Tracker {
         self.offsets.keep(s, &self.cfg);
     }
 
-    /// One frame through both hypotheses, their mixture reported; the
+    /// One frame through every hypothesis, their mixture reported; the
     /// tracker becomes the winner once the weights decide.
-    pub(super) fn estimate_both(&mut self, frame: &Frame) -> PoseEstimate {
+    pub(super) fn estimate_weighing(&mut self, frame: &Frame) -> PoseEstimate {
         let Some(mut w) = self.which.take() else {
             return self.estimate_one(frame);
         };
