@@ -281,3 +281,38 @@ fn a_biased_sensor_s_offset_is_learned_and_told_in_status() {
         assert!(other.is_null(), "{fault}: the other sensor blamed: {est}");
     }
 }
+
+/// The real binary's log on a sensor off by a constant: the reading
+/// check's WARN, then one line (not one per change of lead while the
+/// hypotheses are weighed) saying which offset the estimator now
+/// estimates.
+#[test]
+fn the_log_says_once_which_offset_is_estimated() {
+    let r = root();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cfg = dir.path().join("biased.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "rate_hz = 5.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"mock\"\nscene = \"{}\"\ntrajectory = \"{}\"\nrate_hz = 0\nloop = false\nseed = 11\nfaults = {{ depth_bias_m = 0.1 }}\n[outputs]\ndestinations = [\"127.0.0.1:9\"]\n",
+            r.join("config/calibration/tank.toml").display(),
+            r.join("tests/data/tank-sensors.toml").display(),
+            r.join("tests/data/to-and-fro.csv").display(),
+        ),
+    )
+    .expect("config");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lightposed"))
+        .arg("--config")
+        .arg(&cfg)
+        .env_remove("RUST_LOG")
+        .output()
+        .expect("run lightposed");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(err.contains("disagree with the light"), "{err}");
+    let said = err
+        .lines()
+        .filter(|l| l.contains("the estimator estimates the depth sensor's offset"))
+        .count();
+    assert_eq!(said, 1, "{err}");
+}

@@ -110,6 +110,11 @@ pub struct Engine {
     late_tolerance: f64,
     fallback_temp_c: Option<f64>,
     max_frames: Option<u64>,
+    /// Whether the log was told that the estimator estimates the depth
+    /// sensor's offset, and the attitude's pitch offset: once a run (the
+    /// hypotheses of which sensor is off may hand the lead back and forth
+    /// while they are weighed).
+    offsets_said: [bool; 2],
 }
 
 /// What the loop keeps from one frame to the next.
@@ -161,6 +166,7 @@ impl Engine {
             late_tolerance: 0.5,
             fallback_temp_c: None,
             max_frames: None,
+            offsets_said: [false; 2],
         }
     }
 
@@ -537,9 +543,33 @@ impl Engine {
             );
         }
         self.stats.set_water_k_d(water);
-        self.stats.set_depth_offset(self.estimator.depth_offset());
-        self.stats
-            .set_pitch_offset_deg(self.estimator.pitch_offset_deg());
+        let depth = self.estimator.depth_offset();
+        let pitch = self.estimator.pitch_offset_deg();
+        let [d_said, p_said] = &mut self.offsets_said;
+        for (said, now, what) in [
+            (
+                d_said,
+                depth.map(|d| (d.0, "m")),
+                "the depth sensor's offset",
+            ),
+            (
+                p_said,
+                pitch.map(|p| (p.0, "°")),
+                "the attitude's pitch offset",
+            ),
+        ] {
+            if let (Some((v, unit)), false) = (now, *said) {
+                // Told in the calibration, or learned once the reading
+                // check called a reading disagreeing.
+                *said = true;
+                tracing::info!(
+                    t = frame.t,
+                    "the estimator estimates {what} ({v:+.3} {unit} so far): STATUS estimator.depth_offset, pitch_offset"
+                );
+            }
+        }
+        self.stats.set_depth_offset(depth);
+        self.stats.set_pitch_offset_deg(pitch);
         est
     }
 
