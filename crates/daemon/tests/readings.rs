@@ -206,6 +206,19 @@ fn a_dvl_turned_45_degrees_is_refused_and_its_turn_told_in_status() {
     assert!((turned - 45.0).abs() < 6.0, "{dvl}");
 }
 
+/// The mock flying a minute of coming and going in the tank with all three
+/// sensors as fast as it goes, with `fault` (a `faults` table's keys),
+/// the tracker on calibration `cal`, sending to `dest`.
+fn biased_minute_config(cal: &std::path::Path, fault: &str, dest: &str) -> String {
+    let r = root();
+    format!(
+        "rate_hz = 5.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"mock\"\nscene = \"{}\"\ntrajectory = \"{}\"\nrate_hz = 0\nloop = false\nseed = 11\nfaults = {{ {fault} }}\n[outputs]\ndestinations = [\"{dest}\"]\nstatus_interval_s = 0.2\n",
+        cal.display(),
+        r.join("tests/data/tank-sensors.toml").display(),
+        r.join("tests/data/to-and-fro.csv").display(),
+    )
+}
+
 /// A depth sensor 0.1 m off, or an AHRS pitched 2° up, under the gate
 /// (mock `faults.depth_bias_m`, `faults.pitch_bias_deg`; a minute of
 /// coming and going in the tank with all three sensors, as fast as it
@@ -243,12 +256,7 @@ fn a_biased_sensor_s_offset_is_learned_and_told_in_status() {
         ("depth_bias_m = 0.1", 0.0, 0.0, believed),
     ] {
         let (sub, addr) = subscriber();
-        let text = format!(
-            "rate_hz = 5.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"mock\"\nscene = \"{}\"\ntrajectory = \"{}\"\nrate_hz = 0\nloop = false\nseed = 11\nfaults = {{ {fault} }}\n[outputs]\ndestinations = [\"{addr}\"]\nstatus_interval_s = 0.2\n",
-            cal.display(),
-            r.join("tests/data/tank-sensors.toml").display(),
-            r.join("tests/data/to-and-fro.csv").display(),
-        );
+        let text = biased_minute_config(&cal, fault, &addr.to_string());
         let cfg = Config::parse(&text, "biased.toml", None).expect("valid config");
         let (summary, msgs) = run_to_end(cfg, Duration::from_secs(60), &sub);
         assert!(summary.frames > 290, "{fault}: {summary:?}");
@@ -293,11 +301,10 @@ fn the_log_says_once_which_offset_is_estimated() {
     let cfg = dir.path().join("biased.toml");
     std::fs::write(
         &cfg,
-        format!(
-            "rate_hz = 5.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"mock\"\nscene = \"{}\"\ntrajectory = \"{}\"\nrate_hz = 0\nloop = false\nseed = 11\nfaults = {{ depth_bias_m = 0.1 }}\n[outputs]\ndestinations = [\"127.0.0.1:9\"]\n",
-            r.join("config/calibration/tank.toml").display(),
-            r.join("tests/data/tank-sensors.toml").display(),
-            r.join("tests/data/to-and-fro.csv").display(),
+        biased_minute_config(
+            &r.join("config/calibration/tank.toml"),
+            "depth_bias_m = 0.1",
+            "127.0.0.1:9",
         ),
     )
     .expect("config");

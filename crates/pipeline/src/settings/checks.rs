@@ -173,16 +173,36 @@ impl TrackerConfig {
                 num(*v)
             ));
         }
-        for (name, v) in [
-            ("depth_offset_sigma_m", self.depth_offset_sigma_m),
+        // The offsets' priors, told or for when the reading check calls.
+        for (name, v, hi, unit) in [
+            (
+                "depth_offset_sigma_m",
+                self.depth_offset_sigma_m,
+                100.0,
+                " m",
+            ),
             (
                 "called_depth_offset_sigma_m",
                 self.called_depth_offset_sigma_m,
+                100.0,
+                " m",
+            ),
+            (
+                "pitch_offset_sigma_deg",
+                self.pitch_offset_sigma_deg,
+                30.0,
+                "°",
+            ),
+            (
+                "called_pitch_offset_sigma_deg",
+                self.called_pitch_offset_sigma_deg,
+                30.0,
+                "°",
             ),
         ] {
-            if !(0.0..=100.0).contains(&v) {
+            if !(0.0..=hi).contains(&v) {
                 return bad(format!(
-                    "tracker {name} = {} must be 0 (off) to 100 m",
+                    "tracker {name} = {} must be 0 (off) to {hi}{unit}",
                     num(v)
                 ));
             }
@@ -196,20 +216,6 @@ impl TrackerConfig {
                 "tracker unmeasured_attitude_sigma_deg = {} must be 0 (off) or 1 to 90°",
                 num(v)
             ));
-        }
-        for (name, v) in [
-            ("pitch_offset_sigma_deg", self.pitch_offset_sigma_deg),
-            (
-                "called_pitch_offset_sigma_deg",
-                self.called_pitch_offset_sigma_deg,
-            ),
-        ] {
-            if !(0.0..=30.0).contains(&v) {
-                return bad(format!(
-                    "tracker {name} = {} must be 0 (off) to 30°",
-                    num(v)
-                ));
-            }
         }
         // An offset that wanders a metre in a second is a broken sensor, not
         // an offset; at 1e300 the report printed its σ with 130 digits.

@@ -124,7 +124,7 @@ pub struct Tracker {
     /// This tracker is one hypothesis of which sensor is off, being
     /// weighed: it wakes no offset of its own (`which_offset`).
     weighing: bool,
-    /// The two hypotheses of which sensor is off, while they are weighed.
+    /// The hypotheses of which sensor is off, while they are weighed.
     which: Option<Box<which_offset::WhichOffset>>,
 }
 
@@ -268,20 +268,19 @@ impl Tracker {
     /// the frame at time `t`, if the state's last step fused that frame's
     /// counts: what a bank of trackers in different waters weighs them by.
     pub fn counts_log_likelihood(&self, t: f64) -> Option<f64> {
-        self.active()
-            .state
-            .as_ref()
-            .filter(|s| s.t == t)
-            .and_then(|s| s.counts_ll)
+        self.active().state_at(t).and_then(|s| s.counts_ll)
     }
 
     /// [`Self::counts_log_likelihood`] plus the fused readings' of the
     /// same frame: how well the state explained all of it.
     pub(super) fn frame_log_likelihood(&self, t: f64) -> Option<f64> {
-        self.state
-            .as_ref()
-            .filter(|s| s.t == t)
+        self.state_at(t)
             .and_then(|s| s.counts_ll.map(|c| c + s.readings_ll))
+    }
+
+    /// The state, if its last step was the frame at time `t`.
+    fn state_at(&self, t: f64) -> Option<&State> {
+        self.state.as_ref().filter(|s| s.t == t)
     }
 
     /// Start from `frame` (first frame, after a gap, or when lost).
@@ -590,7 +589,8 @@ fn verdicts(u: [ReadingUse; 3]) -> ReadingUses {
 }
 
 impl Tracker {
-    /// One frame through this tracker alone (see `which_offset` for two).
+    /// One frame through this tracker alone (see `which_offset` for the
+    /// hypotheses of which sensor is off).
     fn estimate_one(&mut self, frame: &Frame) -> PoseEstimate {
         // Once per frame: the counts update and the report share it.
         self.init.observe_channels(frame);
@@ -605,7 +605,7 @@ impl Tracker {
     }
 
     /// The tracker whose state stands for this one's: itself, or while
-    /// two hypotheses of which sensor is off are weighed, the heavier.
+    /// the hypotheses of which sensor is off are weighed, the heaviest.
     fn active(&self) -> &Tracker {
         match &self.which {
             Some(w) => w.heavier(),

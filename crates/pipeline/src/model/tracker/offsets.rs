@@ -222,17 +222,9 @@ impl Tracker {
     /// coordinate, the offsets' errors are independent, and the Schur
     /// complement is P_fit·(A + Σ_c σ_c²/R_c²·e_c·e_cᵀ)·P_fit ≥ 0 (A the
     /// fit's other information).
-    pub(super) fn start_offsets(
-        &self,
-        x: &mut Vs,
-        p: &mut Ms,
-        free: &mut [bool; 2],
-        p_fit: &Ms,
-        r: &FrameReadings,
-    ) {
+    pub(super) fn start_offsets(&self, x: &mut Vs, p: &mut Ms, p_fit: &Ms, r: &FrameReadings) {
         for o in Offset::ALL {
             let (mean, var) = self.offsets.prior(o);
-            free[o as usize] = self.offsets.told(o, &self.cfg);
             if !(var > 0.0) {
                 continue;
             }

@@ -206,10 +206,9 @@ impl Tracker {
             p[(i, i)] = c.init_rate_sigma_deg.to_radians().powi(2);
         }
         x[KD] = super::state::ln_k_d(self.model.light.k_d);
-        let mut free = [false; 2];
-        self.start_offsets(&mut x, &mut p, &mut free, &p_fit, r);
+        self.start_offsets(&mut x, &mut p, &p_fit, r);
         let mut s = State::new(x, p, frame.t);
-        s.offset_free = free;
+        s.offset_free = Offset::ALL.map(|o| self.offsets.told(o, &self.cfg));
         s.paper_x = paper_x.and(self.paper_bias());
         s.doubt_k_d(self.k_d_sigma);
         let with_velocity = c.estimate_k_d_with_velocity && r.velocity.ready().is_some();

@@ -401,9 +401,7 @@ fn the_start_s_offset_ties_keep_the_covariance_positive() {
                     p[(i, i)] = p[(i, i)].max(1e-4);
                 }
                 let mut x = Vs::zeros();
-                let mut free = [false; 2];
-                tr.start_offsets(&mut x, &mut p, &mut free, &p_fit, &r);
-                assert_eq!(free, [true, true]);
+                tr.start_offsets(&mut x, &mut p, &p_fit, &r);
                 assert_eq!((p[(DOFF, DOFF)], p[(POFF, POFF)]), (vd, vp));
                 let least = p.symmetric_eigen().eigenvalues.min();
                 assert!(
