@@ -93,14 +93,14 @@ fn draw<DB: DrawingBackend>(
     .map_err(|e| e.to_string())?;
     let panels = body.split_evenly((4, 2));
     path_panel(&panels[0], r, "(a) side view: z against x", Axis::Z)?;
-    path_panel(&panels[1], r, "(a) top view: y against x", Axis::Y)?;
+    path_panel(&panels[1], r, "(b) top view: y against x", Axis::Y)?;
     let axes = [
-        (Axis::X, "(b) x (m)"),
-        (Axis::Y, "(c) y (m)"),
-        (Axis::Z, "(d) z (m)"),
-        (Axis::Yaw, "(e) yaw (°)"),
-        (Axis::Pitch, "(f) pitch (°)"),
-        (Axis::Surge, "(g) surge (m/s)"),
+        (Axis::X, "(c) x (m)"),
+        (Axis::Y, "(d) y (m)"),
+        (Axis::Z, "(e) z (m)"),
+        (Axis::Yaw, "(f) yaw (°)"),
+        (Axis::Pitch, "(g) pitch (°)"),
+        (Axis::Surge, "(h) surge (m/s)"),
     ];
     for (i, (a, caption)) in axes.into_iter().enumerate() {
         series_panel(&panels[i + 2], r, a, caption, i == 0)?;

@@ -122,12 +122,19 @@ fn plots_render_to_png_and_svg_with_the_bundled_font() {
     // Title, panel captions and legend are there as text.
     for want in [
         "test plot",
-        "(b) x (m)",
-        "(g) surge (m/s)",
+        "(b) top view",
+        "(c) x (m)",
+        "(h) surge (m/s)",
         "95 % band",
         "truth",
     ] {
         assert!(text.contains(want), "SVG lacks {want:?}");
+    }
+    // Each panel its own letter, once (an audit found two "(a)").
+    for letter in 'a'..='h' {
+        let label = format!("({letter}) ");
+        let n = text.matches(&label).count();
+        assert_eq!(n, 1, "panel ({letter}) labelled {n} times");
     }
     // A directory that does not exist is an error naming the path, not a panic.
     let bad = dir.path().join("no/such/dir/p.png");

@@ -21,6 +21,14 @@ pub trait Estimator: Send {
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate;
     /// Forget all state (a new run, or a jump in time).
     fn reset(&mut self);
+    /// Whether every `ok` pose it gives carries a std of each of its five
+    /// fields (x, y, z, pitch, yaw). What the autopilot is sent needs one
+    /// (`[mavlink] missing_std = "skip"` sends nothing without), so
+    /// `--check-config` refuses a MAVLink configuration whose estimator
+    /// never gives them. False by default: an estimator says so itself.
+    fn std_with_every_ok_pose(&self) -> bool {
+        false
+    }
     /// The water's K_D (m⁻¹) as the estimator has learned it from the
     /// frames so far, if it learns it; None when it takes the
     /// calibration's (the default). What STATUS and the replay summary

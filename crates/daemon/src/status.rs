@@ -298,11 +298,18 @@ fn readings(s: &Stats) -> Value {
     Value::Object(v)
 }
 
+/// The frames' attitude and the UDP JSON input's counters. `enabled`
+/// says whether the frames have an attitude at all, from anywhere (the
+/// input, the autopilot, or the backend's own: a simulated AHRS, a
+/// replayed log's): an audit read `false` beside a scene's AHRS in use.
+/// `input` says whether the UDP JSON input is configured.
 fn attitude(c: &StatusCtx) -> Value {
+    let frames_with = c.stats.frames_with_attitude.load(Relaxed);
     match c.att {
-        None => json!({"enabled": false}),
+        None => json!({"enabled": frames_with > 0, "input": false, "frames_with": frames_with}),
         Some(a) => json!({
             "enabled": true,
+            "input": true,
             "received": a.received.load(Relaxed),
             "rejected": a.rejected.load(Relaxed),
             "rejected_by": Reason::ALL
@@ -314,7 +321,7 @@ fn attitude(c: &StatusCtx) -> Value {
             "attached": a.attached.load(Relaxed),
             "stale": a.status(Instant::now()).stale,
             "superseded": a.superseded.load(Relaxed),
-            "frames_with": c.stats.frames_with_attitude.load(Relaxed),
+            "frames_with": frames_with,
         }),
     }
 }

@@ -21,7 +21,7 @@ use lightpose_core::{Estimator, LogHeader};
 use lightpose_hal::{FrameSource, HalError, Stop, ValidBackend};
 use lightpose_pipeline::Calibration;
 use lightpose_vehicle::mav::link::LinkError;
-use lightpose_vehicle::Endpoint;
+use lightpose_vehicle::{Endpoint, MissingStd};
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Instant;
@@ -119,10 +119,34 @@ pub fn check(cfg: &Config) -> Result<(), DaemonError> {
     let cal = load_calibration(cfg)?;
     let est = estimator_of(cfg, &cal)?;
     reads_frames(cfg, est.as_ref(), &cal, checked_adc_bits(cfg)?)?;
+    sends_what_mavlink_asks(cfg, est.as_ref())?;
     if let Some(r) = &cfg.recording {
         machine::recording_dir(&r.dir, &cfg.places.of(places::RECORDING_DIR))?;
     }
     check_binds(cfg)
+}
+
+/// With `[mavlink]` and `missing_std = "skip"` (the default) only a pose
+/// with a std of each field is sent: an estimator that never gives them
+/// would send the autopilot nothing, each pose counted `no_std`, while
+/// everything else looked well. Refused at the estimator's line.
+fn sends_what_mavlink_asks(cfg: &Config, est: &dyn Estimator) -> Result<(), DaemonError> {
+    let Some(m) = cfg.vehicle.as_ref().and_then(|v| v.mavlink.as_ref()) else {
+        return Ok(());
+    };
+    if est.std_with_every_ok_pose() || m.output.missing_std != MissingStd::Skip {
+        return Ok(());
+    }
+    let msg = format!(
+        "estimator {:?} gives no std with its poses, so [mavlink] would never send \
+         VISION_POSITION_ESTIMATE (missing_std = \"skip\"): use estimator = \"auto\" or \
+         \"tracker\" with a calibration that has a [physical] light model, or set \
+         [mavlink] missing_std = \"assume\"",
+        est.name()
+    );
+    Err(DaemonError::Config(
+        cfg.estimator_at.refuse("estimator", msg),
+    ))
 }
 
 /// The ADC of the frames the backend would give, without a device: a

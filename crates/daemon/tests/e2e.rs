@@ -284,6 +284,29 @@ fn record_then_replay_gives_the_same_poses_with_own_sensors() {
     live_then_replay("tracker", &scene);
 }
 
+/// STATUS `attitude.enabled` says whether the frames have an attitude,
+/// from anywhere: the simulated AHRS of the default scene without the UDP
+/// input (`input` false) is enabled; the tank without one is not. (An
+/// audit read `enabled: false` while the scene's attitude was used.)
+#[test]
+fn status_says_the_frames_have_an_attitude_from_the_backend() {
+    for (scene, with) in [("tank-ahrs.toml", true), ("tank.toml", false)] {
+        let (sub, addr) = subscriber();
+        let scene = root().join("config/scenes").join(scene);
+        let text = sim_config_for("tracker", &scene, 50.0, &[addr], "", "");
+        let cfg = Config::parse(&text, "t.toml", None).expect("valid");
+        let h = run_in_process(cfg, Duration::from_millis(800));
+        let msgs = collect(&sub, Duration::from_millis(1200));
+        h.join().expect("daemon");
+        let st = &of_class(&msgs, "STATUS").last().expect("STATUS").1;
+        let att = &st["attitude"];
+        assert_eq!(att["enabled"], with, "{}: {att}", scene.display());
+        assert_eq!(att["input"], false, "{att}");
+        let n = att["frames_with"].as_u64().expect("frames_with");
+        assert_eq!(n > 0, with, "{att}");
+    }
+}
+
 /// The whole zigzag live, recorded, then replayed: the same POSE messages.
 /// Both runs record MCAP, which keeps every POSE: the comparison is of all
 /// 401, which UDP at pace "fast" cannot promise on a loaded machine (346
@@ -606,6 +629,70 @@ fn shipped_configs_validate_and_version_prints() {
             String::from_utf8_lossy(&out.stderr)
         );
     }
+}
+
+/// Each shipped example with `[mavlink]` added: `--check-config` passes
+/// with the estimator it ships (the one a vehicle should run: the tracker,
+/// which gives a std with every `ok` pose), and refuses, at the estimator's
+/// line, the paper's moments, which give none, so that no
+/// VISION_POSITION_ESTIMATE would ever be sent (an audit found every
+/// board example so, `--check-config` saying ok).
+#[test]
+fn a_configuration_that_could_never_send_the_autopilot_a_pose_is_refused() {
+    let examples = root().join("config/examples");
+    for name in ["mcp3008", "ads1115", "ads7828", "serial", "sim"] {
+        let text = std::fs::read_to_string(examples.join(format!("{name}.toml"))).expect("read");
+        let est: toml::Table = toml::from_str(&text).expect("toml");
+        let est = est.get("estimator").and_then(|v| v.as_str());
+        assert!(
+            matches!(est, Some("auto" | "tracker")),
+            "{name}.toml ships estimator {est:?}"
+        );
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let sim = std::fs::read_to_string(examples.join("sim.toml")).expect("read sim.toml");
+    let port = std::net::UdpSocket::bind("127.0.0.1:0")
+        .and_then(|s| s.local_addr())
+        .expect("a free port")
+        .port();
+    // sim.toml's paths are relative to its own folder; the copy's are made
+    // absolute so that it checks from the test's own folder.
+    let config = root().join("config");
+    let sim = sim.replace("\"../", &format!("\"{}/", config.display()));
+    let at = |text: &str| {
+        let f = dir.path().join("with-mavlink.toml");
+        std::fs::write(&f, text).expect("write");
+        bin().arg("--check-config").arg(&f).output().expect("run")
+    };
+    let with_mavlink = format!(
+        "{sim}\n[site]\nbeacon_heading_deg = 0.0\nbeacon_depth_m = 5.0\n[mavlink]\nconnection = \"udpout:127.0.0.1:{port}\"\n"
+    );
+    let out = at(&with_mavlink);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let moments = with_mavlink.replace("estimator = \"auto\"", "estimator = \"moments\"");
+    assert_ne!(moments, with_mavlink, "sim.toml names its estimator");
+    let out = at(&moments);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(err.lines().count(), 1, "one line: {err}");
+    assert!(
+        err.contains(": estimator: ")
+            && err.contains("\"moments\" gives no std")
+            && err.contains("VISION_POSITION_ESTIMATE"),
+        "{err}"
+    );
+    // Told to assume a std, it sends: not refused.
+    let assume = format!("{moments}missing_std = \"assume\"\n");
+    let out = at(&assume);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 #[test]

@@ -19,6 +19,7 @@ pub struct BenchArgs {
     /// 2000; at most 1000000: each one's results are kept in memory).
     #[arg(long, default_value_t = 200)]
     runs: usize,
+    /// Seed of the realizations.
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Cases, comma separated (or the flag repeated): all, or any of

@@ -45,23 +45,28 @@ pub struct FakeAutopilotArgs {
     /// Depth of the beacon, as the daemon's [site].
     #[arg(long, default_value_t = 3.0)]
     beacon_depth_m: f64,
-    /// Sets of messages per second, 0.01 to 1000 (default: the scene's
-    /// frame rate).
-    #[arg(long)]
-    rate: Option<f64>,
+    /// Sets of messages per second, 0.01 to 1000 (default 10: the
+    /// ATTITUDE stream the README asks of an autopilot; an autopilot's
+    /// streams do not follow the array's frame rate).
+    #[arg(long, default_value_t = DEFAULT_RATE_HZ)]
+    rate: f64,
     /// The depth message, as the daemon's `[mavlink] depth` (default
     /// global_position_int: relative_alt, mm, below the surface negative).
     #[arg(long, default_value = "global_position_int", value_parser = ["global_position_int", "vfr_hud"])]
     depth_source: String,
-    /// 1σ noise of pitch and heading (degrees, 0 to 180) and depth (m, 0
-    /// to 1000); default: the scene's attitude and depth sensors, else
-    /// none.
+    /// 1σ noise of the pitch, degrees, 0 to 180 (default: the scene's
+    /// attitude sensor's pitch, else none).
     #[arg(long)]
     pitch_noise_deg: Option<f64>,
+    /// 1σ noise of the heading, degrees, 0 to 180 (default: the scene's
+    /// attitude sensor's yaw, else none).
     #[arg(long)]
     yaw_noise_deg: Option<f64>,
+    /// 1σ noise of the depth, m, 0 to 1000 (default: the scene's depth
+    /// sensor, else none).
     #[arg(long)]
     depth_noise_m: Option<f64>,
+    /// Seed of the noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Stop after this many seconds (at most a year; default: until
@@ -144,6 +149,8 @@ const MAX_DEPTH_NOISE_M: f64 = 1000.0;
 /// (and 1e-20 Hz made a period no `Duration` holds: a panic); above, the
 /// tick is under a millisecond.
 const MIN_RATE_HZ: f64 = 0.01;
+/// `--rate`'s default: README, "Streams": ATTITUDE at 10 Hz or more.
+const DEFAULT_RATE_HZ: f64 = 10.0;
 const MAX_RATE_HZ: f64 = 1000.0;
 
 /// The rate, if within [`MIN_RATE_HZ`]..=[`MAX_RATE_HZ`].
@@ -155,12 +162,11 @@ fn rate_ok(r: f64) -> bool {
 /// nonsense (a negative or NaN 1σ, a beacon 20 km deep), before any file
 /// is read or socket opened.
 fn check_numbers(a: &FakeAutopilotArgs) -> anyhow::Result<Site> {
-    if let Some(r) = a.rate {
-        if !rate_ok(r) {
-            return Err(anyhow!(
-                "--rate {r}: must be {MIN_RATE_HZ} to {MAX_RATE_HZ} Hz (leave it out for the scene's frame rate)"
-            ));
-        }
+    let r = a.rate;
+    if !rate_ok(r) {
+        return Err(anyhow!(
+            "--rate {r}: must be {MIN_RATE_HZ} to {MAX_RATE_HZ} Hz (default {DEFAULT_RATE_HZ})"
+        ));
     }
     if let Some(d) = a.duration {
         if !(d.is_finite() && d > 0.0 && d <= MAX_DURATION_S) {
@@ -201,13 +207,7 @@ pub fn run(a: FakeAutopilotArgs) -> anyhow::Result<()> {
     let traj = Trajectory::load(&a.trajectory)?;
     let signing = signing(&a)?;
     let endpoint: Endpoint = a.connect.parse().map_err(|e| anyhow!("--connect: {e}"))?;
-    let rate = a.rate.unwrap_or(scene.adc.rate_hz);
-    if !rate_ok(rate) {
-        return Err(anyhow!(
-            "{}: its frame rate {rate} Hz is not {MIN_RATE_HZ} to {MAX_RATE_HZ} Hz; give --rate",
-            a.scene.display()
-        ));
-    }
+    let rate = a.rate;
     let att = scene
         .attitude
         .unwrap_or(lightpose_sim::scene::AttitudeNoise {

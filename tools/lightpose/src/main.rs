@@ -118,4 +118,29 @@ mod tests {
         let e = Err::<(), _>(io()).context("replaying x").unwrap_err();
         assert_eq!(one_line(&e), "replaying x: gone");
     }
+
+    /// Every option of every command says what it is in `--help` (an
+    /// audit found `sweep --scene`, `--out` and two of fake-autopilot's
+    /// with an empty line).
+    #[test]
+    fn every_option_has_its_help_line() {
+        use clap::CommandFactory;
+        fn walk(cmd: &clap::Command, path: &str, bare: &mut Vec<String>) {
+            for a in cmd.get_arguments() {
+                let builtin = matches!(a.get_id().as_str(), "help" | "version");
+                if !builtin && a.get_help().is_none() && a.get_long_help().is_none() {
+                    bare.push(format!("{path} --{}", a.get_id()));
+                }
+            }
+            for sub in cmd.get_subcommands() {
+                if sub.get_about().is_none() && sub.get_name() != "help" {
+                    bare.push(format!("{path} {}", sub.get_name()));
+                }
+                walk(sub, &format!("{path} {}", sub.get_name()), bare);
+            }
+        }
+        let mut bare = Vec::new();
+        walk(&super::Cli::command(), "lightpose", &mut bare);
+        assert!(bare.is_empty(), "without a help line: {bare:?}");
+    }
 }

@@ -34,6 +34,7 @@ pub struct MontecarloArgs {
     /// Estimator, any name the pipeline knows (the paper's is "moments").
     #[arg(long, default_value = "moments")]
     estimator: String,
+    /// Seed of the realizations (each run's water, temperature and noise).
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Directory for steps.csv, summary.md and the plots.

@@ -20,6 +20,7 @@ pub struct SimulateArgs {
     /// Intensity log to write.
     #[arg(long)]
     out: PathBuf,
+    /// Seed of the noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Refuse a trajectory that would give more frames than this (its
@@ -31,8 +32,11 @@ pub struct SimulateArgs {
 
 #[derive(clap::Args)]
 pub struct SweepArgs {
+    /// Scene file (TOML, see scene-example.toml): the tank swept.
     #[arg(long)]
     scene: PathBuf,
+    /// The sweep's intensity log (JSON Lines), every frame with its true
+    /// pose.
     #[arg(long)]
     out: PathBuf,
     /// Frames per pose (per sweep for dark frames).
@@ -41,6 +45,7 @@ pub struct SweepArgs {
     /// all (translation + orientation), translation, orientation or dark.
     #[arg(long, default_value = "all")]
     kind: String,
+    /// Seed of the noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Refuse a sweep of more frames than this (its poses × --samples): a

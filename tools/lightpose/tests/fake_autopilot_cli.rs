@@ -210,6 +210,13 @@ fn numbers_out_of_range_are_refused_with_their_bound() {
         let r = lightpose(&a, Duration::from_secs(20));
         assert_eq!(r.code, Some(0), "{arg}: {}", r.err);
     }
+    // Without --rate: 10 Hz, the ATTITUDE stream the README asks of an
+    // autopilot, not the tank scene's 5 Hz frame rate (an audit).
+    let mut a = base.to_vec();
+    a.extend(["--duration", "0.2"]);
+    let r = lightpose(&a, Duration::from_secs(20));
+    assert_eq!(r.code, Some(0), "{}", r.err);
+    assert!(r.err.contains(", 10 Hz,"), "{}", r.err);
 }
 
 /// With `--signing-passphrase-file` every frame it sends carries a good

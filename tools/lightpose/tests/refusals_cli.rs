@@ -549,3 +549,30 @@ fn calibrate_names_its_options_and_an_empty_sweep() {
     );
     assert!(!out.exists());
 }
+
+/// A log given where the calibration goes is said to be a log, with what
+/// to do with it (an audit got only TOML's `invalid key`).
+#[test]
+fn a_log_given_as_the_calibration_is_named_a_log() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let log = root().join("tests/data/dive.jsonl");
+    let out = dir.path().join("poses.jsonl");
+    let err = refused(
+        &[
+            "replay",
+            "--calibration",
+            s(&log),
+            "--log",
+            s(&log),
+            "--out",
+            s(&out),
+        ],
+        &[
+            "dive.jsonl: an intensity log (JSON Lines)",
+            "lightpose calibrate --sweep",
+            "not a calibration",
+        ],
+    );
+    assert!(!err.contains("invalid key"), "{err}");
+    assert!(!out.exists(), "nothing written");
+}

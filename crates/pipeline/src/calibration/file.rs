@@ -50,6 +50,24 @@ pub enum CalError {
     },
     #[error("{file}: cannot serialize calibration: {msg}")]
     Serialize { file: String, msg: String },
+    /// Something else given where a calibration goes (an intensity log,
+    /// whose TOML error would only say `invalid key`).
+    #[error("{file}: {what}, not a calibration (the TOML that `lightpose calibrate` writes)")]
+    NotACalibration { file: String, what: &'static str },
+}
+
+/// What a file given as a calibration is instead, when its first line
+/// says so: JSON where TOML should be.
+fn not_a_calibration(text: &str) -> Option<&'static str> {
+    let first = text.lines().map(str::trim).find(|l| !l.is_empty())?;
+    if !first.starts_with('{') {
+        return None;
+    }
+    Some(if first.contains("\"lightpose-intensity\"") {
+        "an intensity log (JSON Lines): calibrate from it with `lightpose calibrate --sweep`, or replay it with --log"
+    } else {
+        "JSON"
+    })
 }
 
 /// Where a moment is taken about.
@@ -538,6 +556,12 @@ impl Calibration {
 
     /// Parse and check calibration text; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<Calibration, CalError> {
+        if let Some(what) = not_a_calibration(text) {
+            return Err(CalError::NotACalibration {
+                file: file.to_string(),
+                what,
+            });
+        }
         let cal: Calibration = parse_toml(text, file)?;
         cal.check().map_err(|(table, key, msg)| CalError::Invalid {
             file: file.to_string(),

@@ -520,6 +520,9 @@ impl Estimator for ModelEstimator {
     fn name(&self) -> &'static str {
         Self::NAME
     }
+    fn std_with_every_ok_pose(&self) -> bool {
+        true
+    }
 
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
         self.observe_channels(frame);

@@ -198,6 +198,9 @@ impl Estimator for WaterBank {
     fn name(&self) -> &'static str {
         Tracker::NAME
     }
+    fn std_with_every_ok_pose(&self) -> bool {
+        true
+    }
 
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
         self.last.clear();

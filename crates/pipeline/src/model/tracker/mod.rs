@@ -618,6 +618,9 @@ impl Estimator for Tracker {
     fn name(&self) -> &'static str {
         Self::NAME
     }
+    fn std_with_every_ok_pose(&self) -> bool {
+        true
+    }
 
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
         if self.which.is_some() {

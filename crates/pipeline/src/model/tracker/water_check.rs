@@ -84,6 +84,9 @@ impl Estimator for WaterWatch {
     fn name(&self) -> &'static str {
         Tracker::NAME
     }
+    fn std_with_every_ok_pose(&self) -> bool {
+        true
+    }
 
     fn estimate(&mut self, frame: &Frame) -> PoseEstimate {
         if self.fired.is_some() {
