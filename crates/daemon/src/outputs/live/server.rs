@@ -537,14 +537,15 @@ impl Reading {
         self.oldest_unread().unwrap_or(now) + stall
     }
 
-    /// When a Ping should go: none in flight and something unread, at
-    /// most one per `gap`.
+    /// When a Ping should go: none in flight and something unread, `gap`
+    /// after it was written (one Ping covers what a gap brings) and after
+    /// the last Ping.
     fn ping_due(&self, gap: Duration) -> Option<Instant> {
         if self.ping.is_some() {
             return None;
         }
-        let since = self.unread_since?;
-        Some(self.last_ping.map_or(since, |t| (t + gap).max(since)))
+        let due = self.unread_since? + gap;
+        Some(self.last_ping.map_or(due, |t| (t + gap).max(due)))
     }
 
     /// The next Ping, in flight from `at`.
@@ -951,7 +952,7 @@ mod tests {
         assert_eq!((r.oldest_unread(), r.ping_due(gap)), (None, None));
         r.wrote(t0);
         r.written = 3;
-        assert_eq!(r.ping_due(gap), Some(t0), "at once: none went yet");
+        assert_eq!(r.ping_due(gap), Some(t0 + gap), "a gap after the write");
         let Ws::Ping(p) = r.ping(t0) else {
             panic!("a ping")
         };
@@ -964,7 +965,7 @@ mod tests {
         assert!(r.pong(&p));
         assert_eq!((r.written, r.read), (5, 3));
         assert_eq!(r.oldest_unread(), Some(t0 + s), "written after the ping");
-        assert_eq!(r.ping_due(gap), Some(t0 + s), "its gap is long past");
+        assert_eq!(r.ping_due(gap), Some(t0 + s + gap), "a gap after the write");
         let Ws::Ping(p) = r.ping(t0 + s) else {
             panic!("a ping")
         };
