@@ -997,7 +997,10 @@ fn four_subscribers_that_never_read_are_cut_and_a_client_then_gets_in() {
         }
         let t0 = Instant::now();
         wait_for("all four cut", || hub.report()["not_reading"] == 4).await;
-        eprintln!("four non-readers cut {:?} after they subscribed", t0.elapsed());
+        eprintln!(
+            "four non-readers cut {:?} after they subscribed",
+            t0.elapsed()
+        );
         let r = hub.report();
         assert_eq!(r["clients"], 0, "{r}");
         assert_eq!(r["sent"], 0, "they read nothing: {r}");
@@ -1018,7 +1021,10 @@ fn four_subscribers_that_never_read_are_cut_and_a_client_then_gets_in() {
         // What it reads, shown by its answer to a ping, is counted sent.
         let t0 = Instant::now();
         while hub.report()["sent"].as_u64() == Some(0) {
-            assert!(t0.elapsed() < Duration::from_secs(10), "nothing counted sent");
+            assert!(
+                t0.elapsed() < Duration::from_secs(10),
+                "nothing counted sent"
+            );
             let _ = tokio::time::timeout(Duration::from_millis(50), ws.next()).await;
         }
         assert_eq!(hub.report()["not_reading"], 4);
@@ -1049,7 +1055,11 @@ fn one_host_takes_at_most_its_places() {
         assert!(matches!(got, Some(Ok(Ws::Close(_))) | None), "{got:?}");
         let _c = greeted(addr).await;
         let r = hub.report();
-        assert_eq!((r["clients"].as_u64(), r["refused"].as_u64()), (Some(3), Some(1)), "{r}");
+        assert_eq!(
+            (r["clients"].as_u64(), r["refused"].as_u64()),
+            (Some(3), Some(1)),
+            "{r}"
+        );
         server.abort();
     });
 }
@@ -1085,22 +1095,37 @@ fn a_huge_op_gets_a_short_warning_and_a_binary_message_a_warning() {
         ws.send(Ws::text(op)).await.unwrap();
         let v = next_text(&mut ws).await;
         let text = v["message"].as_str().unwrap();
-        assert_eq!((v["op"].as_str(), v["level"].as_u64()), (Some("status"), Some(1)));
+        assert_eq!(
+            (v["op"].as_str(), v["level"].as_u64()),
+            (Some("status"), Some(1))
+        );
         assert!(text.len() < 400, "{} bytes quoted back", text.len());
-        assert!(text.contains("not understood") && text.contains("bytes more)"), "{text}");
+        assert!(
+            text.contains("not understood") && text.contains("bytes more)"),
+            "{text}"
+        );
         // A binary message, then a request answered by a warning: the
         // first reply is the binary message's.
         ws.send(Ws::binary(vec![0x01, 0, 0, 0, 0])).await.unwrap();
         let nine = r#"{"op":"subscribe","subscriptions":[{"id":1,"channelId":9}]}"#;
         ws.send(Ws::text(nine)).await.unwrap();
         let v = next_text(&mut ws).await;
-        assert_eq!((v["op"].as_str(), v["level"].as_u64()), (Some("status"), Some(1)));
+        assert_eq!(
+            (v["op"].as_str(), v["level"].as_u64()),
+            (Some("status"), Some(1))
+        );
         assert!(
-            v["message"].as_str().unwrap().contains("binary message of 5 bytes not understood"),
+            v["message"]
+                .as_str()
+                .unwrap()
+                .contains("binary message of 5 bytes not understood"),
             "{v}"
         );
         let v = next_text(&mut ws).await;
-        assert!(v["message"].as_str().unwrap().contains("no channel [9]"), "{v}");
+        assert!(
+            v["message"].as_str().unwrap().contains("no channel [9]"),
+            "{v}"
+        );
         server.abort();
     });
 }
