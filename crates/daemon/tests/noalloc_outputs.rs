@@ -188,6 +188,13 @@ fn framing_for_subscribed_clients_does_not_allocate_per_message() {
     publish(500); // warm: blocks, the clients' queues
     let ((), few) = A.this_thread(|| publish(200));
     let ((), many) = A.this_thread(|| publish(2000));
+    // `sent` counts what a client has shown it read (it answered a ping
+    // sent after it), a second or so behind what it was written.
+    let t0 = Instant::now();
+    while live.hub.report()["sent"].as_u64() <= Some(3000) && t0.elapsed() < Duration::from_secs(10)
+    {
+        std::thread::sleep(Duration::from_millis(20));
+    }
     let r = live.hub.report();
     live.server.abort();
     live.hub.close();

@@ -17,6 +17,9 @@ pub struct Foxglove {
     pub client_queue: usize,
     /// Clients served at once; more are turned away.
     pub max_clients: usize,
+    /// Of them, from one source address (loopback like any other), so
+    /// that one host cannot take every place.
+    pub max_clients_per_addr: usize,
 }
 
 #[derive(Deserialize)]
@@ -27,6 +30,7 @@ pub(super) struct RawFoxglove {
     allow_remote: Option<bool>,
     client_queue: Option<Spanned<i64>>,
     max_clients: Option<Spanned<i64>>,
+    max_clients_per_addr: Option<Spanned<i64>>,
 }
 
 /// Where the live view listens unless told otherwise (Foxglove's default
@@ -83,10 +87,25 @@ fn check(
         )),
         None => Ok(default),
     };
+    let max_clients = count(&r.max_clients, "foxglove.max_clients", 64, 4)?;
+    // All but one place by default: another host always finds one, and
+    // the viewers that share an SSH tunnel (all 127.0.0.1) have the rest.
+    let per_addr = match &r.max_clients_per_addr {
+        Some(q) if !(1..=max_clients as i64).contains(q.get_ref()) => {
+            return Err(ctx.err(
+                q.span(),
+                "foxglove.max_clients_per_addr",
+                format!("{} is not in 1..={max_clients} (max_clients)", q.get_ref()),
+            ))
+        }
+        Some(q) => *q.get_ref() as usize,
+        None => max_clients.saturating_sub(1).max(1),
+    };
     Ok(Foxglove {
         listen,
         client_queue: count(&r.client_queue, "foxglove.client_queue", 100_000, 256)?,
-        max_clients: count(&r.max_clients, "foxglove.max_clients", 64, 4)?,
+        max_clients,
+        max_clients_per_addr: per_addr,
     })
 }
 
@@ -105,7 +124,10 @@ mod tests {
         assert_eq!(parse("").unwrap().foxglove, None);
         let c = parse("[foxglove]\n").unwrap().foxglove.unwrap();
         assert_eq!(c.listen, super::DEFAULT_LISTEN);
-        assert_eq!((c.client_queue, c.max_clients), (256, 4));
+        assert_eq!(
+            (c.client_queue, c.max_clients, c.max_clients_per_addr),
+            (256, 4, 3)
+        );
         assert_eq!(
             parse("[foxglove]\nenabled = false\n").unwrap().foxglove,
             None
@@ -121,6 +143,18 @@ mod tests {
         assert!(c.foxglove.unwrap().listen.ip().is_loopback());
         let e = parse("[foxglove]\nclient_queue = 0\n").unwrap_err();
         assert_eq!(e, "t.toml:7: foxglove.client_queue: 0 is not in 1..=100000");
+        let per = |t: &str| parse(t).map(|c| c.foxglove.unwrap().max_clients_per_addr);
+        assert_eq!(per("[foxglove]\nmax_clients = 1\n"), Ok(1));
+        assert_eq!(per("[foxglove]\nmax_clients = 8\n"), Ok(7));
+        assert_eq!(per("[foxglove]\nmax_clients_per_addr = 4\n"), Ok(4));
+        assert_eq!(
+            per("[foxglove]\nmax_clients = 2\nmax_clients_per_addr = 3\n"),
+            Err("t.toml:8: foxglove.max_clients_per_addr: 3 is not in 1..=2 (max_clients)".into())
+        );
+        assert_eq!(
+            per("[foxglove]\nmax_clients_per_addr = 0\n"),
+            Err("t.toml:7: foxglove.max_clients_per_addr: 0 is not in 1..=4 (max_clients)".into())
+        );
         let e = parse("[foxglove]\nport = 1\n").unwrap_err();
         assert!(
             e.starts_with("t.toml:7: foxglove.port: unknown field `port`"),

@@ -13,7 +13,9 @@
 //! Each client also keeps since when it has subscribed to nothing (from
 //! its join, or from the unsubscribe that left it nothing), so that a
 //! newcomer finding every place taken can have the client idle the
-//! longest make room ([`Hub::join`], docs/foxglove.md).
+//! longest make room ([`Hub::join`], docs/foxglove.md). One source address
+//! holds at most `per_addr` of the places, so that one host (a script
+//! connecting in a loop, four stuck tabs) cannot take them all.
 
 use bytes::{BufMut, Bytes, BytesMut};
 use lightpose_core::ratelog::{Close, RateLog};
@@ -21,7 +23,7 @@ use lightpose_logs::foxglove::Stamp;
 use lightpose_logs::{Channel, Message};
 use serde_json::{json, Value};
 use std::collections::VecDeque;
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -111,7 +113,11 @@ pub struct Client {
     tx: Sender<Bytes>,
     /// Told when the client is evicted: its task ends the session.
     evict: Notify,
+    /// Messages the client has shown it read (it answered a ping written
+    /// after them; `server`), not merely those the kernel took: a client
+    /// that reads nothing has none, however much its socket buffers held.
     pub sent: AtomicU64,
+    /// Messages it did not get: its queue full, or left unread at its end.
     pub dropped: AtomicU64,
 }
 
@@ -201,6 +207,24 @@ pub struct Evicted {
 pub struct Joined {
     pub client: Arc<Client>,
     pub evicted: Option<Evicted>,
+}
+
+/// Why a newcomer was turned away ([`Hub::join`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Refused {
+    /// The daemon stops.
+    Closing,
+    /// Every place is taken, none by a client idle long enough.
+    Full,
+    /// Its address holds `per_addr` places already, none of them idle
+    /// long enough.
+    FromAddr,
+}
+
+/// The address a client counts under: an IPv4 client of an IPv6 socket
+/// (`::ffff:a.b.c.d`) is the IPv4 host it is.
+pub fn host(addr: SocketAddr) -> IpAddr {
+    addr.ip().to_canonical()
 }
 
 /// The live view's clients and counters, shared by the encoder thread, the
@@ -303,28 +327,41 @@ impl Hub {
     /// A new client whose queue is `tx`. When `max` clients are already
     /// served, the one that has subscribed to nothing the longest, and for
     /// at least `min_idle`, is evicted to make room (an operator's
-    /// Foxglove must not be refused for a forgotten tab); `None`, counted
-    /// `refused`, when none qualifies: a client that subscribes is never
-    /// evicted.
+    /// Foxglove must not be refused for a forgotten tab); when `per_addr`
+    /// of them come from the newcomer's address, the longest idle of
+    /// those. Refused (counted `refused`) when none qualifies: a client
+    /// that subscribes is never evicted.
     pub fn join(
         &self,
         addr: SocketAddr,
         tx: Sender<Bytes>,
         max: usize,
+        per_addr: usize,
         min_idle: Duration,
-    ) -> Option<Joined> {
-        let mut clients = self.clients.lock().ok()?;
+    ) -> Result<Joined, Refused> {
+        let mut clients = self.clients.lock().map_err(|_| Refused::Closing)?;
         // After `close` (set under this lock), a handshake that finishes
         // joins nothing: its task would wait on a queue nobody writes.
         if self.closing() {
-            return None;
+            return Err(Refused::Closing);
         }
+        let ip = host(addr);
+        let mine = clients.iter().filter(|c| host(c.addr) == ip).count();
         let mut evicted = None;
-        if clients.len() >= max {
-            evicted = self.evict_idlest(&mut clients, min_idle);
+        // One of its own makes room first: that frees a place of the
+        // total as well.
+        let full = if mine >= per_addr {
+            Some((Some(ip), Refused::FromAddr))
+        } else if clients.len() >= max {
+            Some((None, Refused::Full))
+        } else {
+            None
+        };
+        if let Some((among, why)) = full {
+            evicted = self.evict_idlest(&mut clients, min_idle, among);
             if evicted.is_none() || clients.len() >= max {
                 self.refused.fetch_add(1, Relaxed);
-                return None;
+                return Err(why);
             }
         }
         let c = Arc::new(Client {
@@ -342,19 +379,26 @@ impl Hub {
         });
         clients.push(c.clone());
         self.connections.fetch_add(1, Relaxed);
-        Some(Joined { client: c, evicted })
+        Ok(Joined { client: c, evicted })
     }
 
-    /// Out of `clients`, the one idle (subscribed to nothing) the longest,
-    /// if for `min_idle` at least: retired, counted, its task told to end.
-    /// Picked, then taken under its own lock, again if it subscribed in
-    /// between (bounded: each retry means one client fewer qualifies).
-    fn evict_idlest(&self, clients: &mut Vec<Arc<Client>>, min_idle: Duration) -> Option<Evicted> {
+    /// Out of `clients` (those from `among` if given), the one idle
+    /// (subscribed to nothing) the longest, if for `min_idle` at least:
+    /// retired, counted, its task told to end. Picked, then taken under its
+    /// own lock, again if it subscribed in between (bounded: each retry
+    /// means one client fewer qualifies).
+    fn evict_idlest(
+        &self,
+        clients: &mut Vec<Arc<Client>>,
+        min_idle: Duration,
+        among: Option<IpAddr>,
+    ) -> Option<Evicted> {
         let now = Instant::now();
         for _ in 0..clients.len() {
             let (i, _) = clients
                 .iter()
                 .enumerate()
+                .filter(|(_, c)| among.is_none_or(|ip| host(c.addr) == ip))
                 .filter_map(|(i, c)| Some((i, c.idle_for(now)?)))
                 .filter(|&(_, idle)| idle >= min_idle)
                 .max_by_key(|&(_, idle)| idle)?;
@@ -440,11 +484,11 @@ impl Hub {
             };
             match c.tx.try_send(blocks.frame(sub, m)) {
                 Ok(()) => {}
-                Err(TrySendError::Full(_)) => {
+                // Its task is ending (it leaves in a moment): not shown
+                // either.
+                Err(TrySendError::Full(_) | TrySendError::Closed(_)) => {
                     c.dropped.fetch_add(1, Relaxed);
                 }
-                // Its task is ending; it leaves in a moment.
-                Err(TrySendError::Closed(_)) => {}
             }
         }
     }
@@ -532,13 +576,15 @@ mod tests {
         let (tx, mut rx) = tokio::sync::mpsc::channel(2);
         let never = Duration::from_secs(3600);
         let c = hub
-            .join("127.0.0.1:2".parse().unwrap(), tx, 1, never)
+            .join("127.0.0.1:2".parse().unwrap(), tx, 1, 1, never)
             .unwrap()
             .client;
         let (tx2, _rx2) = tokio::sync::mpsc::channel(2);
-        assert!(hub
-            .join("127.0.0.1:3".parse().unwrap(), tx2, 1, never)
-            .is_none());
+        assert_eq!(
+            hub.join("127.0.0.2:3".parse().unwrap(), tx2, 1, 1, never)
+                .err(),
+            Some(Refused::Full)
+        );
         assert_eq!(hub.refused.load(Relaxed), 1);
         assert!(!hub.wanted());
         hub.publish(&msg(Channel::Frame, b"{}"));
@@ -579,7 +625,54 @@ mod tests {
     fn join(hub: &Hub, port: u16, max: usize, min_idle: Duration) -> Option<Joined> {
         let (tx, _rx) = tokio::sync::mpsc::channel(2);
         let addr = SocketAddr::from(([127, 0, 0, 1], port));
-        hub.join(addr, tx, max, min_idle)
+        hub.join(addr, tx, max, max, min_idle).ok()
+    }
+
+    /// A client from `ip` joined with a throwaway queue, at most `per_addr`
+    /// from one address among 4.
+    fn join_from(
+        hub: &Hub,
+        ip: [u8; 4],
+        per_addr: usize,
+        min_idle: Duration,
+    ) -> Result<Joined, Refused> {
+        let (tx, _rx) = tokio::sync::mpsc::channel(2);
+        hub.join(SocketAddr::from((ip, 40000)), tx, 4, per_addr, min_idle)
+    }
+
+    /// One address holds at most `per_addr` places (loopback like any
+    /// other): its next client is refused while other hosts still get in,
+    /// or has the longest idle of its own address's clients make room, not
+    /// another host's; an IPv4 client on an IPv6 socket counts as its IPv4
+    /// host.
+    #[test]
+    fn one_address_takes_at_most_its_share_of_the_places() {
+        let hub = Hub::new("127.0.0.1:1".parse().unwrap());
+        let never = Duration::from_secs(3600);
+        // b, idle the longest of all.
+        let b = join_from(&hub, [127, 0, 0, 1], 2, never).unwrap().client;
+        let a1 = join_from(&hub, [127, 0, 0, 2], 2, never).unwrap().client;
+        let a2 = join_from(&hub, [127, 0, 0, 2], 2, never).unwrap().client;
+        assert_eq!(
+            join_from(&hub, [127, 0, 0, 2], 2, never).err(),
+            Some(Refused::FromAddr)
+        );
+        let (tx, _rx) = tokio::sync::mpsc::channel(2);
+        let mapped: SocketAddr = "[::ffff:127.0.0.2]:40001".parse().unwrap();
+        assert_eq!(
+            hub.join(mapped, tx, 4, 2, never).err(),
+            Some(Refused::FromAddr),
+            "::ffff:127.0.0.2 is 127.0.0.2"
+        );
+        assert!(join_from(&hub, [127, 0, 0, 3], 2, never).is_ok());
+        assert_eq!(hub.refused.load(Relaxed), 2);
+        // Idle long enough: the longest idle of 127.0.0.2 makes room for
+        // its newcomer; b, idle longer, from another host, is not touched.
+        assert!(a2.subscribe(&hub, 1, 0));
+        let j = join_from(&hub, [127, 0, 0, 2], 2, Duration::ZERO).unwrap();
+        assert_eq!(j.evicted.map(|e| e.addr), Some(a1.addr));
+        assert!(hub.clients.lock().unwrap().iter().any(|c| c.id == b.id));
+        assert_eq!(hub.client_count(), 4);
     }
 
     /// Every place taken: the client idle the longest goes for a newcomer,

@@ -245,7 +245,8 @@ pub async fn start(cfg: &Foxglove, header: &LogHeader) -> std::io::Result<Live> 
     let listen = listener.local_addr()?;
     let hub = Arc::new(Hub::new(listen));
     let output = LiveView::start(hub.clone(), header)?;
-    let limits = server::Limits::new(cfg.client_queue, cfg.max_clients);
+    let mut limits = server::Limits::new(cfg.client_queue, cfg.max_clients);
+    limits.max_clients_per_addr = cfg.max_clients_per_addr;
     let server = tokio::spawn(server::serve(listener, hub.clone(), limits));
     tracing::info!("foxglove live view on ws://{listen}");
     Ok(Live {

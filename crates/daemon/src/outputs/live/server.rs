@@ -5,21 +5,36 @@
 //! `advertise` (the seven channels of a recording, each with its JSON
 //! Schema), then `subscribe` / `unsubscribe` from the client, and binary
 //! `messageData` frames (opcode 1, subscription id, log time, the JSON)
-//! from the hub. Anything else a client sends is answered with a warning
-//! `status` and otherwise ignored.
+//! from the hub. Anything else a client sends (another op, a binary
+//! message) is answered with a warning `status`, short whatever it quotes,
+//! and otherwise ignored.
 //!
 //! One task per client, on the daemon's runtime: it reads the client's
-//! requests and writes what the hub queued for it. Every write (the
-//! greeting, a reply, queued messages, a ping, the close) that does not
-//! finish within [`STALL`] (a client that stopped reading, a cable pulled)
-//! ends that client: a write waits in the same loop as the silence check,
-//! so an unbounded one would hold the client's place for as long as it
-//! keeps its socket open. Meanwhile its queue fills and the hub drops and
-//! counts its messages. At most [`HANDSHAKES`] connections may be in their
-//! handshake at once; more are closed at once and counted
+//! requests and writes what the hub queued for it. A client that has not
+//! read what it was sent (the greeting, a reply, queued messages) within
+//! [`STALL`] is cut, its place freed. Whether it read is not what the
+//! kernel took: the socket buffers on both ends (megabytes, autotuned), an
+//! SSH tunnel's window, hold tens of seconds of the stream for a client
+//! that stopped reading (four such held every place for ~38 s, not 10, and
+//! were counted thousands of messages `sent`). So each Ping carries a
+//! number, and its Pong, which a WebSocket sends only on reading the Ping
+//! and so everything before it, is the proof ([`Reading`]); `sent` counts
+//! only messages so shown read. The send buffer is kept small
+//! ([`SEND_BUFFER`]) so that a client that reads, slowly, answers soon
+//! (it loses messages, counted, rather than getting them late). Every
+//! write is bounded by the same deadline, as it waits in the same loop as
+//! the checks. Meanwhile a non-reader's queue fills and the hub drops and
+//! counts its messages.
+//!
+//! At most [`HANDSHAKES`] connections may be in their handshake at once,
+//! [`HANDSHAKES_PER_ADDR`] of them from one address, each for
+//! [`HANDSHAKE`] at most; more are closed at once and counted
 //! (`handshakes_refused`): each holds a descriptor, and a flood of
 //! half-open ones once took every descriptor the daemon had (the DVL's
-//! reconnect and the recording's rotation need them).
+//! reconnect and the recording's rotation need them); 40 connections
+//! sending their headers a byte at a time, or 16 sending nothing, from one
+//! host kept every other client out for 25 s. Past the handshake, one
+//! address holds at most `max_clients_per_addr` places ([`Hub::join`]).
 //!
 //! A client that subscribed to nothing is never written to, so the
 //! server pings every client ([`PING`]; browsers and
@@ -38,19 +53,21 @@
 //! nothing. A client that subscribes to anything is never evicted; with
 //! no client idle long enough the newcomer is refused as before.
 
-use super::hub::{Client, Hub};
+use super::hub::{host, Client, Hub, Refused};
 use futures_util::{SinkExt, StreamExt};
 use lightpose_core::ratelog::{Close, RateLog};
 use lightpose_logs::schema::{MESSAGE_ENCODING, SCHEMA_ENCODING};
 use lightpose_logs::Channel;
 use serde::Deserialize;
 use serde_json::json;
-use std::net::SocketAddr;
+use std::borrow::Cow;
+use std::collections::HashMap;
+use std::net::{IpAddr, SocketAddr};
 use std::sync::atomic::Ordering::Relaxed;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::{mpsc, OwnedSemaphorePermit, Semaphore};
+use tokio::sync::mpsc;
 use tokio::time::{Instant, MissedTickBehavior};
 use tokio_tungstenite::tungstenite::handshake::server::{ErrorResponse, Request, Response};
 use tokio_tungstenite::tungstenite::http::{HeaderValue, StatusCode};
@@ -63,7 +80,8 @@ use tokio_tungstenite::WebSocketStream;
 /// advertised with their schemas inline (the newer name is the SDK's).
 pub const SUBPROTOCOLS: [&str; 2] = ["foxglove.sdk.v1", "foxglove.websocket.v1"];
 
-/// A write that takes longer ends the client.
+/// A client that has not read what it was sent this long ago is cut
+/// (docs/foxglove.md: "reads nothing for 10 s").
 pub const STALL: Duration = Duration::from_secs(10);
 /// A WebSocket Ping to every client this often.
 pub const PING: Duration = Duration::from_secs(15);
@@ -80,11 +98,24 @@ pub const SILENCE: Duration = Duration::from_secs(45);
 /// [`SILENCE`], so a client that is gone altogether is ended by the pings
 /// first.
 pub const IDLE_EVICT: Duration = Duration::from_secs(60);
-/// A handshake that takes longer ends the connection.
-const HANDSHAKE: Duration = Duration::from_secs(5);
+/// A handshake that takes longer ends the connection: a real client's
+/// takes milliseconds (one request, one response), even over a tether.
+pub const HANDSHAKE: Duration = Duration::from_secs(2);
 /// Connections in their handshake at once: real clients are a handful
 /// (`max_clients`), so 16 is plenty and bounds what a flood costs.
 pub const HANDSHAKES: usize = 16;
+/// Of them, from one address: a host flooding half-open connections
+/// leaves the other 12 to everyone else.
+pub const HANDSHAKES_PER_ADDR: usize = 4;
+/// Send buffer asked for each connection (Linux doubles it): what a
+/// client that reads slowly has waiting in the kernel, beside its queue.
+/// Autotuned it grew to 4 MB, seconds of the stream; 128 KiB is still
+/// 6 MB/s over a 20 ms round trip, thirty times the live view's rate at
+/// 100 Hz.
+pub const SEND_BUFFER: usize = 64 << 10;
+/// Longest text of a `status` message: an error quotes the request (an
+/// unknown op whole), and a 60 KiB op was sent back whole.
+const STATUS_TEXT: usize = 256;
 /// Queued messages written before one flush.
 const BATCH: usize = 64;
 /// Largest message a client may send (a subscribe to every channel is
@@ -108,14 +139,21 @@ pub struct Limits {
     pub silence: Duration,
     /// [`STALL`]; shorter in tests.
     pub stall: Duration,
-    /// [`HANDSHAKES`].
+    /// [`HANDSHAKES`], [`HANDSHAKES_PER_ADDR`], [`HANDSHAKE`].
     pub handshakes: usize,
+    pub handshakes_per_addr: usize,
+    pub handshake: Duration,
+    /// Places one source address may hold (`[foxglove]`
+    /// `max_clients_per_addr`).
+    pub max_clients_per_addr: usize,
     /// [`IDLE_EVICT`]; shorter in tests.
     pub idle_evict: Duration,
 }
 
 impl Limits {
-    /// The daemon's limits, with its queue size and client count.
+    /// The daemon's limits, with its queue size and client count; every
+    /// place may go to one address until `max_clients_per_addr` is set
+    /// (the daemon sets it from its config).
     pub fn new(client_queue: usize, max_clients: usize) -> Limits {
         Limits {
             client_queue,
@@ -124,7 +162,66 @@ impl Limits {
             silence: SILENCE,
             stall: STALL,
             handshakes: HANDSHAKES,
+            handshakes_per_addr: HANDSHAKES_PER_ADDR,
+            handshake: HANDSHAKE,
+            max_clients_per_addr: max_clients,
             idle_evict: IDLE_EVICT,
+        }
+    }
+}
+
+/// The connections in their handshake: how many, and from each address.
+struct Gate {
+    total: usize,
+    per_addr: usize,
+    held: Mutex<(usize, HashMap<IpAddr, usize>)>,
+}
+
+/// Why a connection found no place in the handshake.
+enum Shut {
+    Total,
+    Addr(IpAddr),
+}
+
+/// A place in the handshake, given back when dropped.
+struct Pass {
+    gate: Arc<Gate>,
+    ip: IpAddr,
+}
+
+impl Gate {
+    fn enter(self: &Arc<Gate>, addr: SocketAddr) -> Result<Pass, Shut> {
+        let ip = host(addr);
+        let mut held = self.held.lock().map_err(|_| Shut::Total)?;
+        let (all, by_addr) = &mut *held;
+        if *all >= self.total {
+            return Err(Shut::Total);
+        }
+        let n = by_addr.entry(ip).or_insert(0);
+        if *n >= self.per_addr {
+            return Err(Shut::Addr(ip));
+        }
+        *n += 1;
+        *all += 1;
+        Ok(Pass {
+            gate: self.clone(),
+            ip,
+        })
+    }
+}
+
+impl Drop for Pass {
+    fn drop(&mut self) {
+        let Ok(mut held) = self.gate.held.lock() else {
+            return;
+        };
+        let (all, by_addr) = &mut *held;
+        *all = all.saturating_sub(1);
+        if let Some(n) = by_addr.get_mut(&self.ip) {
+            *n = n.saturating_sub(1);
+            if *n == 0 {
+                by_addr.remove(&self.ip);
+            }
         }
     }
 }
@@ -135,8 +232,9 @@ enum End {
     Silent(Duration),
     /// Closed to make room for a newcomer: it subscribed to nothing.
     Evicted,
-    /// Cut for not reading: a write stalled, or what waits unsent for it
-    /// reached `WRITE_BACKLOG` (a client that sends and never reads).
+    /// Cut for not reading: what it was sent `stall` ago not shown read,
+    /// or what waits unsent for it reached `WRITE_BACKLOG` (a client that
+    /// sends and never reads).
     NotReading(String),
     /// It closed, an error, the daemon stopping.
     Other(String),
@@ -150,7 +248,11 @@ impl From<String> for End {
 
 /// Accept clients on `listener` until the task is aborted.
 pub async fn serve(listener: TcpListener, hub: Arc<Hub>, limits: Limits) {
-    let handshaking = Arc::new(Semaphore::new(limits.handshakes));
+    let gate = Arc::new(Gate {
+        total: limits.handshakes,
+        per_addr: limits.handshakes_per_addr,
+        held: Mutex::new((0, HashMap::new())),
+    });
     // A flood is logged by core's rule for repeated lines, not per
     // connection. Dropped with the task (aborted at stop), it tells what
     // is pending.
@@ -173,19 +275,24 @@ pub async fn serve(listener: TcpListener, hub: Arc<Hub>, limits: Limits) {
         flood.close(std::time::Instant::now(), Close::Over);
         let Some(accepted) = accepted else { continue };
         match accepted {
-            Ok((stream, addr)) => match handshaking.clone().try_acquire_owned() {
-                Ok(permit) => {
-                    tokio::spawn(client(stream, addr, hub.clone(), limits, permit));
+            Ok((stream, addr)) => match gate.enter(addr) {
+                Ok(pass) => {
+                    tokio::spawn(client(stream, addr, hub.clone(), limits, pass));
                 }
-                Err(_) => {
+                Err(shut) => {
                     // Closed at once (dropped): the descriptor is back.
                     let n = hub.handshakes_refused.fetch_add(1, Relaxed) + 1;
                     if let Some(k) = flood.log.tick(std::time::Instant::now()) {
+                        let why = match shut {
+                            Shut::Total => format!("{} connections", limits.handshakes),
+                            Shut::Addr(ip) => {
+                                format!("{} connections from {ip}", limits.handshakes_per_addr)
+                            }
+                        };
                         tracing::warn!(
                             handshakes_refused = n,
                             since_last_line = k,
-                            "foxglove: {addr} closed: {} connections already in their handshake",
-                            limits.handshakes
+                            "foxglove: {addr} closed: {why} already in their handshake"
                         );
                     }
                 }
@@ -250,7 +357,12 @@ fn choose(req: &Request) -> Option<&'static str> {
         .find(|p| offered.iter().any(|o| o == p))
 }
 
-async fn handshake(stream: TcpStream) -> Result<WebSocketStream<TcpStream>, String> {
+/// The HTTP upgrade, within `deadline` in all (a client that sends its
+/// request a byte at a time does not get longer).
+async fn handshake(
+    stream: TcpStream,
+    deadline: Duration,
+) -> Result<WebSocketStream<TcpStream>, String> {
     #[allow(clippy::result_large_err)] // tungstenite's callback signature
     let callback = |req: &Request, mut resp: Response| -> Result<Response, ErrorResponse> {
         let Some(p) = choose(req) else {
@@ -271,10 +383,10 @@ async fn handshake(stream: TcpStream) -> Result<WebSocketStream<TcpStream>, Stri
         .max_frame_size(Some(REQUEST_LIMIT));
     let limits = limits.max_write_buffer_size(limits.write_buffer_size + WRITE_BACKLOG);
     let accept = tokio_tungstenite::accept_hdr_async_with_config(stream, callback, Some(limits));
-    match tokio::time::timeout(HANDSHAKE, accept).await {
+    match tokio::time::timeout(deadline, accept).await {
         Ok(Ok(ws)) => Ok(ws),
         Ok(Err(e)) => Err(e.to_string()),
-        Err(_) => Err("handshake timed out".into()),
+        Err(_) => Err(format!("no WebSocket handshake within {deadline:?}")),
     }
 }
 
@@ -333,9 +445,31 @@ fn channel_index(id: u64) -> Option<usize> {
     (i < Channel::ALL.len()).then_some(i)
 }
 
-/// A warning `status` message for the client.
+/// A warning `status` message for the client, its text cut to
+/// [`STATUS_TEXT`].
 fn warning(msg: &str) -> Ws {
+    let msg = clip(msg, STATUS_TEXT);
     Ws::text(json!({"op": "status", "level": 1, "message": msg}).to_string())
+}
+
+/// `s` cut to `max` bytes (at a character), saying how much was cut.
+fn clip(s: &str, max: usize) -> Cow<'_, str> {
+    if s.len() <= max {
+        return Cow::Borrowed(s);
+    }
+    let end = (0..=max)
+        .rev()
+        .find(|&i| s.is_char_boundary(i))
+        .unwrap_or(0);
+    Cow::Owned(format!("{}… ({} bytes more)", &s[..end], s.len() - end))
+}
+
+/// The warning for a binary message: the client messages of the protocol
+/// that are binary (publishing, service calls) are not served.
+fn binary_warning(len: usize) -> Ws {
+    warning(&format!(
+        "binary message of {len} bytes not understood (lightposed takes subscribe and unsubscribe, as text)"
+    ))
 }
 
 /// Act on one text message; a reply when there is something to say.
@@ -364,14 +498,95 @@ fn request(hub: &Hub, c: &Client, text: &str) -> Option<Ws> {
     }
 }
 
-/// Write `first` and whatever else is queued (up to [`BATCH`]), then flush.
+/// What a client has shown it read. A Ping carries a number, and the
+/// client's WebSocket answers it (the Pong echoes it) on reading it, so
+/// after everything written before it: what the kernel buffers, a tunnel
+/// or a proxy hold for a client that stopped reading does not pass for
+/// read. One Ping at a time: a WebSocket answers only the latest of
+/// several it has not answered yet.
+#[derive(Debug, Default)]
+pub struct Reading {
+    /// `messageData` written to the socket, and those of them shown read.
+    pub written: u64,
+    pub read: u64,
+    /// The first write (greeting, reply, message) not shown read, before
+    /// the Ping in flight; the first after it.
+    unread_since: Option<Instant>,
+    after_ping: Option<Instant>,
+    /// The Ping in flight: its number, and `written` when it went.
+    ping: Option<(u64, u64)>,
+    last_ping: Option<Instant>,
+    next: u64,
+}
+
+impl Reading {
+    /// Something was written at `at` (not a Ping).
+    fn wrote(&mut self, at: Instant) {
+        if self.ping.is_some() {
+            self.after_ping.get_or_insert(at);
+        } else {
+            self.unread_since.get_or_insert(at);
+        }
+    }
+
+    /// The oldest write not shown read.
+    fn oldest_unread(&self) -> Option<Instant> {
+        self.unread_since.or(self.after_ping)
+    }
+
+    /// When the client is cut unless it shows it read: `stall` after the
+    /// oldest write not shown read, or after `now` (a write's bound).
+    fn deadline(&self, now: Instant, stall: Duration) -> Instant {
+        self.oldest_unread().unwrap_or(now) + stall
+    }
+
+    /// When a Ping should go: none in flight and something unread, `gap`
+    /// after it was written (one Ping covers what a gap brings) and after
+    /// the last Ping.
+    fn ping_due(&self, gap: Duration) -> Option<Instant> {
+        if self.ping.is_some() {
+            return None;
+        }
+        let due = self.unread_since? + gap;
+        Some(self.last_ping.map_or(due, |t| (t + gap).max(due)))
+    }
+
+    /// The next Ping, in flight from `at`.
+    fn ping(&mut self, at: Instant) -> Ws {
+        let n = self.next;
+        self.next += 1;
+        self.ping = Some((n, self.written));
+        self.last_ping = Some(at);
+        Ws::Ping(Bytes::copy_from_slice(&n.to_le_bytes()))
+    }
+
+    /// A Pong came: if it answers the Ping in flight, all before that
+    /// Ping was read; whether it did.
+    fn pong(&mut self, payload: &[u8]) -> bool {
+        match self.ping {
+            Some((n, covers)) if payload == n.to_le_bytes() => {
+                self.read = covers;
+                self.ping = None;
+                self.unread_since = self.after_ping.take();
+                true
+            }
+            _ => false,
+        }
+    }
+}
+
+/// Write `first` and whatever else is queued (up to [`BATCH`]), then flush,
+/// by the client's deadline; a batch not written is counted dropped.
 async fn write_batch(
     ws: &mut WebSocketStream<TcpStream>,
     rx: &mut mpsc::Receiver<Bytes>,
     c: &Client,
+    r: &mut Reading,
     first: Bytes,
     stall: Duration,
 ) -> Result<(), End> {
+    let start = Instant::now();
+    r.wrote(start);
     let mut n = 1;
     let write = async {
         ws.feed(Ws::binary(first)).await?;
@@ -382,19 +597,50 @@ async fn write_batch(
         }
         ws.flush().await
     };
-    let written = tokio::time::timeout(stall, write).await;
+    let written = tokio::time::timeout_at(r.deadline(start, stall), write).await;
     if matches!(written, Ok(Ok(()))) {
-        c.sent.fetch_add(n as u64, Relaxed);
+        r.written += n as u64;
+    } else {
+        c.dropped.fetch_add(n as u64, Relaxed);
     }
     ended(written, stall)
 }
 
-/// Send `msg`, bounded by `stall` like every write to a client.
-async fn send(ws: &mut WebSocketStream<TcpStream>, msg: Ws, stall: Duration) -> Result<(), End> {
-    ended(tokio::time::timeout(stall, ws.send(msg)).await, stall)
+/// Send `msg` (the greeting, a reply, a Ping), bounded by the client's
+/// deadline like every write to it.
+async fn send(
+    ws: &mut WebSocketStream<TcpStream>,
+    msg: Ws,
+    r: &mut Reading,
+    stall: Duration,
+) -> Result<(), End> {
+    let start = Instant::now();
+    if !matches!(msg, Ws::Ping(_)) {
+        r.wrote(start);
+    }
+    let until = r.deadline(start, stall);
+    ended(tokio::time::timeout_at(until, ws.send(msg)).await, stall)
 }
 
-/// How a write bounded by `stall` ended the session, if it did.
+/// The Ping due now (none in flight), bounded like any write.
+async fn send_ping(
+    ws: &mut WebSocketStream<TcpStream>,
+    r: &mut Reading,
+    stall: Duration,
+) -> Result<(), End> {
+    let ping = r.ping(Instant::now());
+    send(ws, ping, r, stall).await
+}
+
+/// The end of a client that has not shown it read what it was sent
+/// `stall` ago.
+fn unread(stall: Duration) -> End {
+    End::NotReading(format!(
+        "not reading: what it was sent {stall:?} ago is unread (no answer to a ping sent after it)"
+    ))
+}
+
+/// How a write bounded by the deadline ended the session, if it did.
 fn ended(
     written: Result<Result<(), WsError>, tokio::time::error::Elapsed>,
     stall: Duration,
@@ -405,23 +651,19 @@ fn ended(
             "not reading: {WRITE_BACKLOG} bytes wait unsent for it"
         ))),
         Ok(Err(e)) => Err(End::Other(e.to_string())),
-        Err(_) => Err(End::NotReading(format!(
-            "not reading: a write took more than {stall:?}"
-        ))),
+        Err(_) => Err(unread(stall)),
     }
 }
 
 /// One client's session, from the handshake to its end.
-async fn client(
-    stream: TcpStream,
-    addr: SocketAddr,
-    hub: Arc<Hub>,
-    limits: Limits,
-    handshaking: OwnedSemaphorePermit,
-) {
+async fn client(stream: TcpStream, addr: SocketAddr, hub: Arc<Hub>, limits: Limits, pass: Pass) {
     let _ = stream.set_nodelay(true);
-    let shaken = handshake(stream).await;
-    drop(handshaking); // the handshake is over: room for another
+    // Small, so that what a client has not read waits in its queue
+    // (dropped and counted when it is full), not seconds of it in the
+    // kernel (the `Reading` proof does not need it).
+    let _ = socket2::SockRef::from(&stream).set_send_buffer_size(SEND_BUFFER);
+    let shaken = handshake(stream, limits.handshake).await;
+    drop(pass); // the handshake is over: room for another
     let mut ws = match shaken {
         Ok(ws) => ws,
         Err(e) => {
@@ -439,7 +681,21 @@ async fn client(
     if let Some(k) = hub.conn_line() {
         tracing::info!(since_last_line = k, "foxglove: {addr} connected");
     }
-    let end = session_loop(&mut ws, &mut rx, &hub, &c, &limits).await;
+    let mut r = Reading::default();
+    let end = session_loop(&mut ws, &mut rx, &hub, &c, &limits, &mut r).await;
+    // What was written and not shown read: never read by a client cut for
+    // not reading or gone silent; one that closed (or was closed) was
+    // reading it. What waits in its queue is not shown.
+    let unread = r.written - r.read;
+    if matches!(end, End::NotReading(_) | End::Silent(_)) {
+        c.dropped.fetch_add(unread, Relaxed);
+    } else {
+        c.sent.store(r.written, Relaxed);
+    }
+    rx.close();
+    while rx.try_recv().is_ok() {
+        c.dropped.fetch_add(1, Relaxed);
+    }
     if matches!(end, End::NotReading(_)) {
         // Counted before its place is freed: whoever sees it gone sees why.
         hub.not_reading.fetch_add(1, Relaxed);
@@ -483,55 +739,50 @@ async fn client(
 }
 
 /// Join the hub, making room by evicting a long-idle client if every
-/// place is taken (one line for the operator saying who went and why);
-/// `None` (logged) when the newcomer is turned away.
+/// place (or every place of its address) is taken (one line for the
+/// operator saying who went and why); `None` (logged) when the newcomer
+/// is turned away.
 fn admit(
     hub: &Hub,
     addr: SocketAddr,
     tx: mpsc::Sender<Bytes>,
     limits: &Limits,
 ) -> Option<Arc<Client>> {
-    let max = limits.max_clients;
-    let Some(joined) = hub.join(addr, tx, max, limits.idle_evict) else {
-        if hub.closing() {
+    let (max, per_addr) = (limits.max_clients, limits.max_clients_per_addr);
+    let joined = match hub.join(addr, tx, max, per_addr, limits.idle_evict) {
+        Ok(j) => j,
+        Err(Refused::Closing) => {
             tracing::info!("foxglove: {addr} turned away: the daemon stops");
             return None;
         }
-        if let Some(k) = hub.conn_line() {
-            tracing::warn!(
-                refused = hub.refused.load(Relaxed),
-                since_last_line = k,
-                "foxglove: {addr} turned away: {max} clients already, none of them \
-                 subscribed to nothing for {:.0} s or more",
-                limits.idle_evict.as_secs_f64()
-            );
+        Err(why) => {
+            if let Some(k) = hub.conn_line() {
+                let held = match why {
+                    Refused::FromAddr => format!("{per_addr} clients from {} already", host(addr)),
+                    _ => format!("{max} clients already"),
+                };
+                tracing::warn!(
+                    refused = hub.refused.load(Relaxed),
+                    since_last_line = k,
+                    "foxglove: {addr} turned away: {held}, none of them \
+                     subscribed to nothing for {:.0} s or more",
+                    limits.idle_evict.as_secs_f64()
+                );
+            }
+            return None;
         }
-        return None;
     };
     if let Some(gone) = joined.evicted {
         tracing::warn!(
             evicted = hub.evicted.load(Relaxed),
-            "foxglove: {} disconnected to make room for {addr} ({max} clients already): \
-             it held a place for {:.0} s without subscribing to anything",
+            "foxglove: {} disconnected to make room for {addr} ({max} clients already, \
+             at most {per_addr} from one address): it held a place for {:.0} s without \
+             subscribing to anything",
             gone.addr,
             gone.idle.as_secs_f64()
         );
     }
     Some(joined.client)
-}
-
-/// On each ping tick: the end of a client silent for `silence`, else a
-/// Ping sent (bounded like any write).
-async fn ping(
-    ws: &mut WebSocketStream<TcpStream>,
-    heard: Instant,
-    limits: &Limits,
-) -> Result<(), End> {
-    let quiet = heard.elapsed();
-    if quiet >= limits.silence {
-        return Err(End::Silent(quiet));
-    }
-    send(ws, Ws::Ping(Bytes::new()), limits.stall).await
 }
 
 /// Greet, then serve requests, queued messages and pings until the client
@@ -542,46 +793,75 @@ async fn session_loop(
     hub: &Hub,
     c: &Client,
     limits: &Limits,
+    r: &mut Reading,
 ) -> End {
+    let stall = limits.stall;
     for text in greeting(&hub.session) {
-        if let Err(e) = send(ws, Ws::text(text), limits.stall).await {
+        if let Err(e) = send(ws, Ws::text(text), r, stall).await {
             return e;
         }
     }
+    // Pings that prove reading go at most ten per stall: a reading client
+    // shows it long before the cut.
+    let gap = stall / 10;
     let mut heard = Instant::now();
     let mut ticks = tokio::time::interval_at(heard + limits.ping, limits.ping);
     // After a long stall, one ping, not a burst of them.
     ticks.set_missed_tick_behavior(MissedTickBehavior::Delay);
     loop {
+        let cut = r.oldest_unread().map(|t| t + stall);
+        let due = r.ping_due(gap);
+        let wake = cut.into_iter().chain(due).min();
         tokio::select! {
             msg = ws.next() => {
                 if let Some(Ok(_)) = &msg {
                     heard = Instant::now(); // a pong or anything else
                 }
-                match msg {
-                    Some(Ok(Ws::Text(t))) => {
-                        if let Some(reply) = request(hub, c, t.as_str()) {
-                            if let Err(e) = send(ws, reply, limits.stall).await {
-                                return e;
-                            }
+                let reply = match msg {
+                    Some(Ok(Ws::Text(t))) => request(hub, c, t.as_str()),
+                    Some(Ok(Ws::Binary(b))) => Some(binary_warning(b.len())),
+                    Some(Ok(Ws::Pong(p))) => {
+                        if r.pong(&p) {
+                            c.sent.store(r.read, Relaxed);
                         }
+                        None
                     }
                     Some(Ok(Ws::Close(_))) | None => return "closed".to_string().into(),
-                    Some(Ok(_)) => {} // pongs; pings are answered by tungstenite
+                    Some(Ok(_)) => None, // pings are answered by tungstenite
                     Some(Err(e)) => return e.to_string().into(),
+                };
+                if let Some(reply) = reply {
+                    if let Err(e) = send(ws, reply, r, stall).await {
+                        return e;
+                    }
                 }
             }
             out = rx.recv() => match out {
                 Some(first) => {
-                    if let Err(e) = write_batch(ws, rx, c, first, limits.stall).await {
+                    if let Err(e) = write_batch(ws, rx, c, r, first, stall).await {
                         return e;
                     }
                 }
                 None => return "the daemon stops".to_string().into(),
             },
             _ = ticks.tick() => {
-                if let Err(end) = ping(ws, heard, limits).await {
-                    return end;
+                let quiet = heard.elapsed();
+                if quiet >= limits.silence {
+                    return End::Silent(quiet);
+                }
+                // A Ping in flight asks for an answer already.
+                if r.ping.is_none() {
+                    if let Err(e) = send_ping(ws, r, stall).await {
+                        return e;
+                    }
+                }
+            }
+            _ = tokio::time::sleep_until(wake.unwrap_or_else(Instant::now)), if wake.is_some() => {
+                if cut.is_some_and(|t| Instant::now() >= t) {
+                    return unread(stall);
+                }
+                if let Err(e) = send_ping(ws, r, stall).await {
+                    return e;
                 }
             }
             _ = c.evicted() => {
@@ -621,7 +901,7 @@ mod tests {
         let hub = Hub::new("127.0.0.1:1".parse().unwrap());
         let (tx, _rx) = mpsc::channel(4);
         let c = hub
-            .join("127.0.0.1:2".parse().unwrap(), tx, 4, IDLE_EVICT)
+            .join("127.0.0.1:2".parse().unwrap(), tx, 4, 4, IDLE_EVICT)
             .unwrap()
             .client;
         let sub = r#"{"op":"subscribe","subscriptions":[{"id":5,"channelId":1},{"id":6,"channelId":9},{"id":7,"channelId":0}]}"#;
@@ -651,5 +931,49 @@ mod tests {
             reply.to_text().unwrap().contains("not understood"),
             "{reply}"
         );
+    }
+
+    /// What a status message quotes is cut at a character, saying how
+    /// much went; a short text is kept as it is.
+    #[test]
+    fn clip_cuts_at_a_character_and_says_how_much() {
+        assert_eq!(clip("short", 8), "short");
+        let long = "é".repeat(100); // 200 bytes
+        let c = clip(&long, 7);
+        assert_eq!(c, format!("{}… (194 bytes more)", "é".repeat(3)));
+    }
+
+    /// A Pong proves only what was written before the Ping it answers:
+    /// another Pong (a keepalive's, a forged one) proves nothing, and what
+    /// was written after the Ping stays unread, from when it was written.
+    #[test]
+    fn a_pong_proves_what_was_written_before_its_ping() {
+        let t0 = Instant::now();
+        let s = Duration::from_secs(1);
+        let gap = Duration::from_millis(100);
+        let mut r = Reading::default();
+        assert_eq!((r.oldest_unread(), r.ping_due(gap)), (None, None));
+        r.wrote(t0);
+        r.written = 3;
+        assert_eq!(r.ping_due(gap), Some(t0 + gap), "a gap after the write");
+        let Ws::Ping(p) = r.ping(t0) else {
+            panic!("a ping")
+        };
+        assert_eq!(r.ping_due(gap), None, "one in flight at a time");
+        r.wrote(t0 + s);
+        r.written = 5;
+        assert!(!r.pong(b""), "the keepalive's pong");
+        assert!(!r.pong(&1u64.to_le_bytes()), "not the ping in flight");
+        assert_eq!(r.deadline(t0 + 3 * s, s), t0 + s);
+        assert!(r.pong(&p));
+        assert_eq!((r.written, r.read), (5, 3));
+        assert_eq!(r.oldest_unread(), Some(t0 + s), "written after the ping");
+        assert_eq!(r.ping_due(gap), Some(t0 + s + gap), "a gap after the write");
+        let Ws::Ping(p) = r.ping(t0 + s) else {
+            panic!("a ping")
+        };
+        assert!(r.pong(&p));
+        assert_eq!((r.read, r.oldest_unread()), (5, None));
+        assert_eq!(r.deadline(t0 + 2 * s, s), t0 + 3 * s, "a bound from now");
     }
 }
