@@ -240,7 +240,7 @@ fn a_listen_address_not_of_this_machine_is_refused_at_its_line() {
             "not an address of this machine",
         ],
     );
-    let text = sim_text(OUT, "[site]\nbeacon_heading_deg = 0.0\nbeacon_depth_m = 1.0\n[mavlink]\nconnection = \"udpin:203.0.113.5:14550\"\n");
+    let text = sim_text(OUT, "[site]\nbeacon_heading_deg = 0.0\nbeacon_depth_m = 1.0\n[mavlink]\nconnection = \"udpin:203.0.113.5:14550\"\nallow_remote = true\n");
     let p = write(d, "mav.toml", &text);
     refused(
         &p,

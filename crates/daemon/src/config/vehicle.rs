@@ -267,6 +267,19 @@ mod tests {
             e.starts_with("t.toml:10: mavlink.connection: udpin:127.0.0.1:0: port 0"),
             "{e}"
         );
+        // Issue 44: unsigned on every address, refused at its line.
+        let e = parse(&format!(
+            "{SITE}[mavlink]\nconnection = \"udpin:0.0.0.0:14550\"\n"
+        ))
+        .unwrap_err();
+        assert!(
+            e.starts_with("t.toml:10: mavlink.connection: udpin:0.0.0.0:14550 listens on 0.0.0.0:14550, not a loopback address, without signing"),
+            "{e}"
+        );
+        assert_eq!(e.lines().count(), 1, "{e}");
+        let remote =
+            format!("{SITE}[mavlink]\nconnection = \"udpin:0.0.0.0:14550\"\nallow_remote = true\n");
+        assert!(parse(&remote).is_ok());
         let e = parse(&format!("{SITE}[mavlink]\nconnection = \"tcp:x:1\"\n")).unwrap_err();
         assert!(
             e.starts_with("t.toml:10: mavlink.connection: unknown transport"),

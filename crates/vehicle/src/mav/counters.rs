@@ -30,6 +30,8 @@ pub struct MavCounters {
     pub(crate) unused: AtomicU64,
     pub(crate) refused: [AtomicU64; Refusal::ALL.len()],
     pub(crate) garbage_bytes: AtomicU64,
+    pub(crate) refused_datagrams: AtomicU64,
+    pub(crate) refused_bytes: AtomicU64,
     pub(crate) sent: [AtomicU64; SENT.len()],
     pub(crate) skipped: [AtomicU64; Skip::ALL.len()],
     pub(crate) speed_skipped: [AtomicU64; Skip::ALL.len()],
@@ -87,6 +89,10 @@ pub struct MavlinkStatus {
     pub refused: Vec<(&'static str, u64)>,
     /// Bytes that were no part of any frame.
     pub garbage_bytes: u64,
+    /// Datagrams ended by a candidate that failed (its reason is counted
+    /// once in `refused`), and their bytes from it on.
+    pub refused_datagrams: u64,
+    pub refused_bytes: u64,
     #[serde(serialize_with = "crate::counts_as_map")]
     pub sent: Vec<(&'static str, u64)>,
     /// `ok` poses not sent, per reason.
@@ -320,6 +326,8 @@ impl MavCounters {
             unused: self.unused.load(Relaxed),
             refused: nz(table(Refusal::ALL.map(Refusal::as_str), &self.refused)),
             garbage_bytes: self.garbage_bytes.load(Relaxed),
+            refused_datagrams: self.refused_datagrams.load(Relaxed),
+            refused_bytes: self.refused_bytes.load(Relaxed),
             sent: table(SENT, &self.sent),
             skipped: nz(table(Skip::ALL.map(Skip::as_str), &self.skipped)),
             speed_skipped: nz(table(Skip::ALL.map(Skip::as_str), &self.speed_skipped)),

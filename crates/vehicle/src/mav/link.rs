@@ -82,6 +82,16 @@ impl FromStr for Endpoint {
     }
 }
 
+impl Endpoint {
+    /// The address a listening link binds (`udpin`), else None.
+    pub fn listen_addr(&self) -> Option<SocketAddr> {
+        match self {
+            Endpoint::UdpIn(a) => Some(*a),
+            _ => None,
+        }
+    }
+}
+
 impl fmt::Display for Endpoint {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

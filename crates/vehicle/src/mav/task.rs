@@ -474,6 +474,11 @@ fn absorb(
         sc.end_of_datagram();
     }
     c.garbage_bytes.fetch_add(sc.take_garbage(), Relaxed);
+    let (datagrams, bytes) = sc.take_refused();
+    if datagrams > 0 {
+        c.refused_datagrams.fetch_add(datagrams, Relaxed);
+        c.refused_bytes.fetch_add(bytes, Relaxed);
+    }
     from_autopilot
 }
 
