@@ -105,8 +105,8 @@ pub(super) fn validate(
 /// listener there gets a port nobody knows.
 fn no_port_0(ctx: &Ctx, start: usize, ep: &Endpoint) -> Result<(), ConfigError> {
     let port = match ep {
-        Endpoint::UdpOut { port, .. } => *port,
-        Endpoint::UdpIn(a) => a.port(),
+        Endpoint::UdpOut { port, .. } | Endpoint::TcpOut { port, .. } => *port,
+        Endpoint::UdpIn(a) | Endpoint::TcpIn(a) => a.port(),
         Endpoint::Serial { .. } => return Ok(()),
     };
     if port != 0 {

@@ -15,12 +15,19 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 /// Kinds of used input, in `Input::kind` order.
-pub const USED: [&str; 4] = ["attitude", "depth", "temperature", "autopilot_heartbeat"];
+pub const USED: [&str; 5] = [
+    "attitude",
+    "depth",
+    "temperature",
+    "autopilot_heartbeat",
+    "timesync_request",
+];
 /// Kinds of output.
-pub const SENT: [&str; 3] = [
+pub const SENT: [&str; 4] = [
     "vision_position_estimate",
     "vision_speed_estimate",
     "heartbeat",
+    "timesync",
 ];
 
 #[derive(Default)]
@@ -46,6 +53,7 @@ pub struct MavCounters {
     /// Where poses go on `udpin`: a copy of the link's, for STATUS.
     pub(crate) peer: Mutex<Option<SocketAddr>>,
     pub(crate) peer_changes: AtomicU64,
+    pub(crate) refused_connections: AtomicU64,
     pub(crate) last_error: Mutex<Option<LastError>>,
     /// MAVLink 2 signing as the task runs it (null: off).
     pub(crate) signing: Mutex<Option<SigningStatus>>,
@@ -116,6 +124,8 @@ pub struct MavlinkStatus {
     pub peer: Option<String>,
     /// Moves of the `udpin` peer after it was silent (the first is none).
     pub peer_changes: u64,
+    /// `tcpin` connections closed at once while another still spoke.
+    pub refused_connections: u64,
     pub last_error: Option<String>,
     /// Signing, when configured (its refusals are `unsigned`,
     /// `bad_signature` and `replayed` in `refused`).
@@ -340,6 +350,7 @@ impl MavCounters {
             autopilot: self.autopilot(),
             peer: self.peer().map(|a| a.to_string()),
             peer_changes: self.peer_changes(),
+            refused_connections: self.refused_connections.load(Relaxed),
             last_error: self
                 .last_error
                 .lock()
