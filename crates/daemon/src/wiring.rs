@@ -189,7 +189,17 @@ fn check_binds(cfg: &Config) -> Result<(), DaemonError> {
         Some(f) => Some(machine::try_tcp(f.listen).map_err(|e| foxglove_bind(cfg, f.listen, e))?),
         None => None,
     };
-    drop((udp, tcp));
+    let mav_tcp = match mavlink_endpoint(cfg) {
+        Some(ep @ Endpoint::TcpIn(a)) => {
+            let bound = machine::try_tcp(*a).map_err(|source| LinkError::Tcp {
+                endpoint: ep.to_string(),
+                source,
+            });
+            Some(bound.map_err(|e| mavlink_at(cfg, DaemonError::Mavlink(e)))?)
+        }
+        _ => None,
+    };
+    drop((udp, tcp, mav_tcp));
     Ok(())
 }
 
@@ -273,12 +283,13 @@ fn mavlink_at(cfg: &Config, e: DaemonError) -> DaemonError {
     let DaemonError::Mavlink(link) = e else {
         return e;
     };
-    let udpin = match mavlink_endpoint(cfg) {
-        Some(Endpoint::UdpIn(a)) => Some(*a),
-        _ => None,
-    };
-    let link = match (link, udpin) {
+    let listen = mavlink_endpoint(cfg).and_then(Endpoint::listen_addr);
+    let link = match (link, listen) {
         (LinkError::Socket { endpoint, source }, Some(a)) => LinkError::Socket {
+            endpoint,
+            source: machine::bind_refusal(a, source),
+        },
+        (LinkError::Tcp { endpoint, source }, Some(a)) => LinkError::Tcp {
             endpoint,
             source: machine::bind_refusal(a, source),
         },

@@ -240,7 +240,7 @@ fn a_listen_address_not_of_this_machine_is_refused_at_its_line() {
             "not an address of this machine",
         ],
     );
-    let text = sim_text(OUT, "[site]\nbeacon_heading_deg = 0.0\nbeacon_depth_m = 1.0\n[mavlink]\nconnection = \"udpin:203.0.113.5:14550\"\n");
+    let text = sim_text(OUT, "[site]\nbeacon_heading_deg = 0.0\nbeacon_depth_m = 1.0\n[mavlink]\nconnection = \"udpin:203.0.113.5:14550\"\nallow_remote = true\n");
     let p = write(d, "mav.toml", &text);
     refused(
         &p,
@@ -394,7 +394,7 @@ fn two_inputs_on_one_port_and_poses_sent_to_an_input_are_refused() {
     let d = dir.path();
     let text = sim_text(
         OUT,
-        "[site]\nbeacon_heading_deg = 0.0\nbeacon_depth_m = 1.0\n[attitude]\nenabled = true\nlisten = \"127.0.0.1:17199\"\n[mavlink]\nconnection = \"udpin:0.0.0.0:17199\"\n",
+        "[site]\nbeacon_heading_deg = 0.0\nbeacon_depth_m = 1.0\n[attitude]\nenabled = true\nlisten = \"127.0.0.1:17199\"\n[mavlink]\nconnection = \"udpin:0.0.0.0:17199\"\nallow_remote = true\n",
     );
     let p = write(d, "both.toml", &text);
     let err = refused(

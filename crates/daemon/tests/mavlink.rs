@@ -414,6 +414,8 @@ fn a_link_that_cannot_open_is_exit_1_a_bad_value_exit_2() {
     let (_sub, dest) = subscriber();
     let held = UdpSocket::bind("127.0.0.1:0").expect("bind");
     let taken = held.local_addr().expect("addr");
+    let held_tcp = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+    let taken_tcp = held_tcp.local_addr().expect("addr");
     let with = |conn: &str| {
         let extra = format!(
             "[site]\nbeacon_heading_deg = 30.0\nbeacon_depth_m = 3.0\n[mavlink]\nconnection = \"{conn}\"\n"
@@ -422,6 +424,13 @@ fn a_link_that_cannot_open_is_exit_1_a_bad_value_exit_2() {
     };
     for (conn, code, says) in [
         (format!("udpin:{taken}"), 1, "mavlink: udpin:"),
+        (format!("tcpin:{taken_tcp}"), 1, "mavlink: tcpin:"),
+        // Issue 44: unsigned on every address is a decision.
+        (
+            "udpin:0.0.0.0:14961".into(),
+            2,
+            "mavlink.connection: udpin:0.0.0.0:14961 listens on 0.0.0.0:14961, not a loopback address, without signing",
+        ),
         (
             "serial:/dev/lightpose-no-such-tty:115200".into(),
             1,

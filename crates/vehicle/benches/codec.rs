@@ -81,6 +81,21 @@ fn bench(c: &mut Criterion) {
             black_box(n)
         })
     });
+    // Issue 44's flood: one datagram of 0xFD bytes, as large as UDP
+    // carries. Its first candidate ends it (it was a parse per byte).
+    let flood = vec![0xFDu8; 65_507];
+    g.throughput(Throughput::Bytes(flood.len() as u64));
+    g.bench_function("0xFD flood datagram (65 507 bytes)", |b| {
+        b.iter(|| {
+            sc.push(black_box(&flood));
+            let mut n = 0u32;
+            while sc.next_frame().is_some() {
+                n += 1;
+            }
+            sc.end_of_datagram();
+            black_box(n)
+        })
+    });
     g.finish();
 
     let hub = Hub::new();

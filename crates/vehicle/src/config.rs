@@ -139,6 +139,9 @@ pub struct MavlinkTable {
     pub assume_surge_std_mps: Option<f64>,
     /// `[mavlink.signing]`: MAVLink 2 signing (docs/vehicle.md).
     pub signing: Option<SigningTable>,
+    /// Listen (`udpin`) on an address beyond this host without signing:
+    /// refused unless true (anyone who reaches the port is the autopilot).
+    pub allow_remote: Option<bool>,
 }
 
 /// `[mavlink.signing]`: the key, in a file of its own (not in the
@@ -329,6 +332,29 @@ impl MavlinkTable {
     /// age is `[dvl]`'s and is left at its default here). A signing key
     /// file's relative path is taken from `base_dir` (the configuration's
     /// directory), and the file is read here.
+    /// A listening link on an address beyond this host takes frames from
+    /// whoever reaches it: unsigned (or taking unsigned frames too), any
+    /// host on the network is the autopilot for the daemon (its attitude,
+    /// its depth) and becomes the poses' destination. That is a decision,
+    /// as for `[foxglove]`: `allow_remote = true`, or signing.
+    fn remote_listen(&self, s: &MavlinkSettings) -> Result<(), ConfigError> {
+        let Some(addr) = s.endpoint.listen_addr() else {
+            return Ok(());
+        };
+        let signed = s.signing.as_ref().is_some_and(|g| !g.allow_unsigned);
+        if addr.ip().is_loopback() || signed || self.allow_remote == Some(true) {
+            return Ok(());
+        }
+        Err(err(
+            M,
+            "connection",
+            format!(
+                "{} listens on {addr}, not a loopback address, without signing: anyone who reaches the port is the autopilot for the daemon (its attitude and depth) and gets the poses; configure [mavlink.signing], or set allow_remote = true on a trusted network, or listen on 127.0.0.1",
+                s.endpoint
+            ),
+        ))
+    }
+
     pub fn validate_in(
         &self,
         site: Site,
@@ -350,6 +376,7 @@ impl MavlinkTable {
             Some(t) => Some(t.validate(base_dir)?),
             None => None,
         };
+        self.remote_listen(&s)?;
         let hz = within(M, "heartbeat_hz", self.heartbeat_hz, 1.0, 0.1, 10.0)?;
         s.heartbeat_period = Duration::from_secs_f64(1.0 / hz);
         // Below a millisecond no reading is fresh at any frame: the input
@@ -484,6 +511,50 @@ mod tests {
         }
     }
 
+    /// A listening link beyond loopback needs signing (without
+    /// `allow_unsigned`) or `allow_remote = true`; loopback, `udpout` and
+    /// serial need neither.
+    #[test]
+    fn a_remote_listen_needs_signing_or_allow_remote() {
+        let site = Site::new(Angle::ZERO, 3.0);
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("p"), "pass\n").unwrap();
+        let ok = |connection: &str, allow_remote, signing: Option<bool>| {
+            MavlinkTable {
+                connection: connection.into(),
+                allow_remote,
+                signing: signing.map(|allow_unsigned| SigningTable {
+                    passphrase_file: Some("p".into()),
+                    allow_unsigned: Some(allow_unsigned),
+                    ..Default::default()
+                }),
+                ..Default::default()
+            }
+            .validate_in(site, Some(dir.path()))
+            .map_err(|e| e.key)
+        };
+        for remote in [
+            "udpin:0.0.0.0:14550",
+            "udpin:[::]:14550",
+            "udpin:192.168.2.2:14550",
+        ] {
+            assert_eq!(ok(remote, None, None).err(), Some("connection"), "{remote}");
+            assert_eq!(ok(remote, Some(false), None).err(), Some("connection"));
+            assert_eq!(ok(remote, None, Some(true)).err(), Some("connection"));
+            assert!(ok(remote, Some(true), None).is_ok(), "{remote}");
+            assert!(ok(remote, None, Some(false)).is_ok(), "{remote}");
+        }
+        for local in [
+            "udpin:127.0.0.1:14550",
+            "udpin:[::1]:14550",
+            "udpout:0.0.0.0:14550",
+            "udpout:192.168.2.1:14550",
+            "serial:/dev/ttyACM0:115200",
+        ] {
+            assert!(ok(local, None, None).is_ok(), "{local}");
+        }
+    }
+
     #[test]
     fn bad_values_name_table_and_key() {
         let site = SiteTable {
@@ -513,6 +584,13 @@ mod tests {
             .starts_with("[mavlink] autopilot_system_id: 0 is the broadcast id"));
         assert!(t(|m| m.autopilot_component_id = Some(0))
             .starts_with("[mavlink] autopilot_component_id: 0 is the broadcast id"));
+        // Issue 44: unsigned on 0.0.0.0 started without a word.
+        let e = t(|_| {});
+        assert!(
+            e.starts_with("[mavlink] connection: udpin:0.0.0.0:14550 listens on 0.0.0.0:14550, not a loopback address, without signing"),
+            "{e}"
+        );
+        assert!(e.contains("allow_remote = true"), "{e}");
         let dvl = DvlTable {
             address: "192.168.2.95".into(),
             ..Default::default()

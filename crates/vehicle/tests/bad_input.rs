@@ -290,3 +290,28 @@ fn a_udpin_component_greets_a_new_peer_at_once() {
     }
     assert!(greeted, "no HEARTBEAT within 10 s of the first datagram");
 }
+
+/// Issue 44: one datagram of 0xFD bytes, as large as UDP carries, cost a
+/// frame parse per byte and was counted as 65 507 refused frames (300 a
+/// second held the daemon at 101 % CPU). It is one refused datagram of
+/// 65 507 bytes, one `bad_flags`, and the autopilot's next frame is read.
+#[test]
+fn a_datagram_of_start_bytes_is_one_refused_datagram() {
+    let hub = Hub::new();
+    let (ap, _running) = Autopilot::start(&hub);
+    let n = 65_507;
+    ap.send(&vec![0xFD; n]);
+    let c = &hub.mavlink;
+    let counted = wait_until(Duration::from_secs(5), || {
+        c.status(Instant::now()).refused_datagrams >= 1
+    });
+    let st = c.status(Instant::now());
+    assert!(counted, "{st:?}");
+    assert_eq!((st.refused_datagrams, st.refused_bytes), (1, n as u64));
+    assert_eq!(st.refused, [("bad_flags", 1)], "{st:?}");
+    assert_eq!((st.frames, st.garbage_bytes), (0, 0));
+    ap.send(&v2(&attitude(0.1, 0.2), 1, 0));
+    assert!(wait_until(Duration::from_secs(5), || c.used(0) == 1));
+    let st = c.status(Instant::now());
+    assert_eq!((st.refused_datagrams, st.frames), (1, 1), "{st:?}");
+}

@@ -236,3 +236,37 @@ fn check_readings(hub_a: &Hub, hub_b: &Hub) {
     assert!((za - 0.4).abs() < 1e-9, "{za}");
     assert!((zb - 0.5).abs() < 1e-6, "{zb}");
 }
+
+/// Issue 44: the daemon did not answer TIMESYNC, so PX4 could not map
+/// `usec` to its clock. pymavlink, as the autopilot, asks every 50 ms
+/// (tc1 = 0, ts1 = its CLOCK_MONOTONIC in ns); each answer echoes a ts1
+/// it sent, and its tc1 (our time in ns) lies between the request and the
+/// answer on the same clock, the one live frames are stamped on.
+#[test]
+fn timesync_requests_are_answered_with_our_time_in_ns() {
+    let peer = PyPeer::spawn_script("timesync_peer.py", &["5".into(), "20".into()], &[]);
+    let (mut child, rx, reader, port) = (peer.child, peer.lines, peer.reader, peer.port);
+    let mut s = MavlinkSettings::new(format!("udpout:127.0.0.1:{port}").parse().unwrap(), site());
+    s.heartbeat_period = Duration::from_millis(100);
+    let hub = Hub::new();
+    let task = spawn_mavlink(s, hub.clone());
+    let done = rx
+        .recv_timeout(Duration::from_secs(40))
+        .expect("the peer's summary");
+    drop(task);
+    assert!(child.wait().expect("python ends").success());
+    reader.join().expect("reader");
+    let answers = done["answers"].as_array().expect("answers");
+    assert!(answers.len() >= 5, "{done}");
+    assert_eq!(done["unmatched"], 0, "{done}");
+    assert_eq!(done["outside"], 0, "{done}");
+    assert_eq!(done["receive_errors"], 0, "{done}");
+    for a in answers {
+        assert_eq!(a["comp"], 197, "{a}");
+        assert!(a["tc1"].as_i64().is_some_and(|t| t > 0), "{a}");
+    }
+    let st = hub.mavlink.status(Instant::now());
+    let n = |v: &[(&str, u64)], k: &str| v.iter().find(|(name, _)| *name == k).map_or(0, |x| x.1);
+    assert!(n(&st.sent, "timesync") >= 5, "{st:?}");
+    assert!(n(&st.used, "timesync_request") >= 5, "{st:?}");
+}

@@ -105,8 +105,8 @@ pub(super) fn validate(
 /// listener there gets a port nobody knows.
 fn no_port_0(ctx: &Ctx, start: usize, ep: &Endpoint) -> Result<(), ConfigError> {
     let port = match ep {
-        Endpoint::UdpOut { port, .. } => *port,
-        Endpoint::UdpIn(a) => a.port(),
+        Endpoint::UdpOut { port, .. } | Endpoint::TcpOut { port, .. } => *port,
+        Endpoint::UdpIn(a) | Endpoint::TcpIn(a) => a.port(),
         Endpoint::Serial { .. } => return Ok(()),
     };
     if port != 0 {
@@ -267,6 +267,19 @@ mod tests {
             e.starts_with("t.toml:10: mavlink.connection: udpin:127.0.0.1:0: port 0"),
             "{e}"
         );
+        // Issue 44: unsigned on every address, refused at its line.
+        let e = parse(&format!(
+            "{SITE}[mavlink]\nconnection = \"udpin:0.0.0.0:14550\"\n"
+        ))
+        .unwrap_err();
+        assert!(
+            e.starts_with("t.toml:10: mavlink.connection: udpin:0.0.0.0:14550 listens on 0.0.0.0:14550, not a loopback address, without signing"),
+            "{e}"
+        );
+        assert_eq!(e.lines().count(), 1, "{e}");
+        let remote =
+            format!("{SITE}[mavlink]\nconnection = \"udpin:0.0.0.0:14550\"\nallow_remote = true\n");
+        assert!(parse(&remote).is_ok());
         let e = parse(&format!("{SITE}[mavlink]\nconnection = \"tcp:x:1\"\n")).unwrap_err();
         assert!(
             e.starts_with("t.toml:10: mavlink.connection: unknown transport"),

@@ -15,12 +15,19 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 /// Kinds of used input, in `Input::kind` order.
-pub const USED: [&str; 4] = ["attitude", "depth", "temperature", "autopilot_heartbeat"];
+pub const USED: [&str; 5] = [
+    "attitude",
+    "depth",
+    "temperature",
+    "autopilot_heartbeat",
+    "timesync_request",
+];
 /// Kinds of output.
-pub const SENT: [&str; 3] = [
+pub const SENT: [&str; 4] = [
     "vision_position_estimate",
     "vision_speed_estimate",
     "heartbeat",
+    "timesync",
 ];
 
 #[derive(Default)]
@@ -30,6 +37,8 @@ pub struct MavCounters {
     pub(crate) unused: AtomicU64,
     pub(crate) refused: [AtomicU64; Refusal::ALL.len()],
     pub(crate) garbage_bytes: AtomicU64,
+    pub(crate) refused_datagrams: AtomicU64,
+    pub(crate) refused_bytes: AtomicU64,
     pub(crate) sent: [AtomicU64; SENT.len()],
     pub(crate) skipped: [AtomicU64; Skip::ALL.len()],
     pub(crate) speed_skipped: [AtomicU64; Skip::ALL.len()],
@@ -44,6 +53,7 @@ pub struct MavCounters {
     /// Where poses go on `udpin`: a copy of the link's, for STATUS.
     pub(crate) peer: Mutex<Option<SocketAddr>>,
     pub(crate) peer_changes: AtomicU64,
+    pub(crate) refused_connections: AtomicU64,
     pub(crate) last_error: Mutex<Option<LastError>>,
     /// MAVLink 2 signing as the task runs it (null: off).
     pub(crate) signing: Mutex<Option<SigningStatus>>,
@@ -87,6 +97,10 @@ pub struct MavlinkStatus {
     pub refused: Vec<(&'static str, u64)>,
     /// Bytes that were no part of any frame.
     pub garbage_bytes: u64,
+    /// Datagrams ended by a candidate that failed (its reason is counted
+    /// once in `refused`), and their bytes from it on.
+    pub refused_datagrams: u64,
+    pub refused_bytes: u64,
     #[serde(serialize_with = "crate::counts_as_map")]
     pub sent: Vec<(&'static str, u64)>,
     /// `ok` poses not sent, per reason.
@@ -110,6 +124,8 @@ pub struct MavlinkStatus {
     pub peer: Option<String>,
     /// Moves of the `udpin` peer after it was silent (the first is none).
     pub peer_changes: u64,
+    /// `tcpin` connections closed at once while another still spoke.
+    pub refused_connections: u64,
     pub last_error: Option<String>,
     /// Signing, when configured (its refusals are `unsigned`,
     /// `bad_signature` and `replayed` in `refused`).
@@ -320,6 +336,8 @@ impl MavCounters {
             unused: self.unused.load(Relaxed),
             refused: nz(table(Refusal::ALL.map(Refusal::as_str), &self.refused)),
             garbage_bytes: self.garbage_bytes.load(Relaxed),
+            refused_datagrams: self.refused_datagrams.load(Relaxed),
+            refused_bytes: self.refused_bytes.load(Relaxed),
             sent: table(SENT, &self.sent),
             skipped: nz(table(Skip::ALL.map(Skip::as_str), &self.skipped)),
             speed_skipped: nz(table(Skip::ALL.map(Skip::as_str), &self.speed_skipped)),
@@ -332,6 +350,7 @@ impl MavCounters {
             autopilot: self.autopilot(),
             peer: self.peer().map(|a| a.to_string()),
             peer_changes: self.peer_changes(),
+            refused_connections: self.refused_connections.load(Relaxed),
             last_error: self
                 .last_error
                 .lock()

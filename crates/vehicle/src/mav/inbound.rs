@@ -17,7 +17,7 @@ use crate::readings::AttitudeRates;
 use lightpose_core::{Angle, AttitudeReading, DepthReading};
 use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavType, ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
-    SCALED_PRESSURE2_DATA, VFR_HUD_DATA,
+    SCALED_PRESSURE2_DATA, TIMESYNC_DATA, VFR_HUD_DATA,
 };
 use mavlink::MessageData;
 use std::f64::consts::PI;
@@ -178,6 +178,10 @@ pub enum Input {
     Temperature(f64),
     /// A HEARTBEAT from an autopilot (not from a GCS or a companion).
     AutopilotHeartbeat,
+    /// A TIMESYNC request (`tc1` 0): answered with our time and its `ts1`.
+    TimesyncRequest {
+        ts1: i64,
+    },
     /// A valid message this reader has no use for (or whose input is off).
     Unused,
 }
@@ -190,6 +194,7 @@ impl Input {
             Input::Depth(_) => Some(1),
             Input::Temperature(_) => Some(2),
             Input::AutopilotHeartbeat => Some(3),
+            Input::TimesyncRequest { .. } => Some(4),
             Input::Unused => None,
         }
     }
@@ -255,6 +260,15 @@ pub fn interpret(f: &RawFrame, cfg: &InputConfig, site: &Site) -> Result<Input, 
                 return Err(refuse(Refusal::TemperatureOutOfRange, f, c));
             }
             Ok(Input::Temperature(c))
+        }
+        TIMESYNC_DATA::ID => {
+            let m: TIMESYNC_DATA = decode(f)?;
+            // tc1 set: an answer (to another component's request).
+            Ok(if m.tc1 == 0 {
+                Input::TimesyncRequest { ts1: m.ts1 }
+            } else {
+                Input::Unused
+            })
         }
         HEARTBEAT_DATA::ID => Ok(if is_autopilot_heartbeat(f) {
             Input::AutopilotHeartbeat

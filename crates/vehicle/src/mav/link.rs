@@ -1,8 +1,11 @@
 //! The MAVLink transports, named as MAVLink tools name them:
 //! `udpout:HOST:PORT` (send to the autopilot's or router's port, hear its
 //! replies), `udpin:ADDR:PORT` (listen; reply to the address the
-//! autopilot's own frames come from, see [`Link::accept_sender`]) and
-//! `serial:/dev/ttyX:BAUD`.
+//! autopilot's own frames come from, see [`Link::accept_sender`]),
+//! `tcpout:HOST:PORT` (connect to a TCP server: mavlink-router's, BlueOS's;
+//! reconnected with the task's back-off when it closes), `tcpin:ADDR:PORT`
+//! (listen; one connection at a time, see [`Link::recv`]) and
+//! `serial:/dev/ttyX:BAUD`. TCP and serial are streams (see `scan`).
 //!
 //! Serial is our own: the port is opened and set up by `serialport`
 //! (without libudev, which the vehicle's Linux may lack) and then read and
@@ -19,13 +22,16 @@ use std::os::fd::AsRawFd;
 use std::str::FromStr;
 use std::time::{Duration, Instant};
 use tokio::io::unix::AsyncFd;
-use tokio::net::UdpSocket;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream, UdpSocket};
 
 /// Where the autopilot is.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Endpoint {
     UdpOut { host: String, port: u16 },
     UdpIn(SocketAddr),
+    TcpOut { host: String, port: u16 },
+    TcpIn(SocketAddr),
     Serial { path: String, baud: u32 },
 }
 
@@ -35,14 +41,14 @@ impl FromStr for Endpoint {
     fn from_str(s: &str) -> Result<Self, String> {
         let (kind, rest) = s.split_once(':').ok_or_else(|| {
             format!(
-                "\"{s}\" is not KIND:…; want udpout:HOST:PORT, udpin:ADDR:PORT or serial:PATH:BAUD"
+                "\"{s}\" is not KIND:…; want udpout:HOST:PORT, udpin:ADDR:PORT, tcpout:HOST:PORT, tcpin:ADDR:PORT or serial:PATH:BAUD"
             )
         })?;
         let (head, tail) = rest
             .rsplit_once(':')
             .ok_or_else(|| format!("\"{s}\" lacks its :PORT or :BAUD"))?;
         match kind {
-            "udpout" | "udpin" => {
+            "udpout" | "udpin" | "tcpout" | "tcpin" => {
                 let port: u16 = tail
                     .parse()
                     .map_err(|_| format!("\"{tail}\" in \"{s}\" is not a port number"))?;
@@ -50,16 +56,21 @@ impl FromStr for Endpoint {
                 if host.is_empty() {
                     return Err(format!("\"{s}\" has no host"));
                 }
-                if kind == "udpout" {
-                    return Ok(Endpoint::UdpOut {
-                        host: host.to_string(),
-                        port,
-                    });
+                let host_s = host.to_string();
+                match kind {
+                    "udpout" => return Ok(Endpoint::UdpOut { host: host_s, port }),
+                    "tcpout" => return Ok(Endpoint::TcpOut { host: host_s, port }),
+                    _ => {}
                 }
                 let ip = host.parse().map_err(|_| {
                     format!("\"{host}\" in \"{s}\" is not an IP address to listen on")
                 })?;
-                Ok(Endpoint::UdpIn(SocketAddr::new(ip, port)))
+                let at = SocketAddr::new(ip, port);
+                Ok(if kind == "udpin" {
+                    Endpoint::UdpIn(at)
+                } else {
+                    Endpoint::TcpIn(at)
+                })
             }
             "serial" => {
                 let baud: u32 = tail
@@ -76,8 +87,18 @@ impl FromStr for Endpoint {
                 })
             }
             other => Err(format!(
-                "unknown transport \"{other}\" in \"{s}\"; want udpout, udpin or serial"
+                "unknown transport \"{other}\" in \"{s}\"; want udpout, udpin, tcpout, tcpin or serial"
             )),
+        }
+    }
+}
+
+impl Endpoint {
+    /// The address a listening link binds (`udpin`, `tcpin`), else None.
+    pub fn listen_addr(&self) -> Option<SocketAddr> {
+        match self {
+            Endpoint::UdpIn(a) | Endpoint::TcpIn(a) => Some(*a),
+            _ => None,
         }
     }
 }
@@ -90,6 +111,11 @@ impl fmt::Display for Endpoint {
             }
             Endpoint::UdpOut { host, port } => write!(f, "udpout:{host}:{port}"),
             Endpoint::UdpIn(a) => write!(f, "udpin:{a}"),
+            Endpoint::TcpOut { host, port } if host.contains(':') => {
+                write!(f, "tcpout:[{host}]:{port}")
+            }
+            Endpoint::TcpOut { host, port } => write!(f, "tcpout:{host}:{port}"),
+            Endpoint::TcpIn(a) => write!(f, "tcpin:{a}"),
             Endpoint::Serial { path, baud } => write!(f, "serial:{path}:{baud}"),
         }
     }
@@ -110,6 +136,12 @@ pub enum LinkError {
         #[source]
         source: io::Error,
     },
+    #[error("{endpoint}: cannot connect or listen on TCP")]
+    Tcp {
+        endpoint: String,
+        #[source]
+        source: io::Error,
+    },
     #[error("{endpoint}: cannot open the serial port")]
     Serial {
         endpoint: String,
@@ -125,6 +157,11 @@ pub enum LinkError {
 /// costs at most that much of the poses, while a second sender with the
 /// same ids never takes the poses from an autopilot that still speaks.
 pub const PEER_SILENCE: Duration = Duration::from_secs(3);
+
+/// How long one frame may take to go out on TCP before the far end is
+/// taken to have stopped reading (its window full): the heartbeat's
+/// period twice over.
+pub const TCP_WRITE_BOUND: Duration = Duration::from_secs(2);
 
 /// What [`Link::accept_sender`] did with the peer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -150,6 +187,21 @@ enum Inner {
         heard: Option<Instant>,
         /// The sender of the last datagram received, not yet vouched for.
         sender: Option<SocketAddr>,
+    },
+    TcpOut {
+        stream: TcpStream,
+    },
+    TcpIn {
+        listener: TcpListener,
+        /// The connection held, and its far end.
+        conn: Option<(TcpStream, SocketAddr)>,
+        /// When it was accepted or last carried a frame of the autopilot.
+        heard: Option<Instant>,
+        /// The address frames go to, once its frame was taken (for
+        /// STATUS `peer`, as on `udpin`).
+        vouched: Option<SocketAddr>,
+        /// Connections closed at once because one was held (see `recv`).
+        refused: u64,
     },
     Serial {
         fd: AsyncFd<TTYPort>,
@@ -224,6 +276,30 @@ impl Link {
                 heard: None,
                 sender: None,
             },
+            Endpoint::TcpOut { host, port } => {
+                let tcp = |source| LinkError::Tcp {
+                    endpoint: ep.to_string(),
+                    source,
+                };
+                let stream = TcpStream::connect((host.as_str(), *port))
+                    .await
+                    .map_err(tcp)?;
+                // Frames are small and each is due now.
+                stream.set_nodelay(true).map_err(tcp)?;
+                Inner::TcpOut { stream }
+            }
+            Endpoint::TcpIn(addr) => Inner::TcpIn {
+                listener: TcpListener::bind(addr)
+                    .await
+                    .map_err(|source| LinkError::Tcp {
+                        endpoint: ep.to_string(),
+                        source,
+                    })?,
+                conn: None,
+                heard: None,
+                vouched: None,
+                refused: 0,
+            },
             Endpoint::Serial { path, baud } => Inner::Serial {
                 fd: open_serial(path, *baud).map_err(|source| LinkError::Serial {
                     endpoint: ep.to_string(),
@@ -238,30 +314,48 @@ impl Link {
     /// How frames arrive on this link.
     pub fn framing(&self) -> Framing {
         match self.inner {
-            Inner::Serial { .. } => Framing::Stream,
+            Inner::Serial { .. } | Inner::TcpOut { .. } | Inner::TcpIn { .. } => Framing::Stream,
             _ => Framing::Datagram,
         }
     }
 
-    /// The local UDP address (for tests and logs).
+    /// The local UDP or TCP address (for tests and logs).
     pub fn local_addr(&self) -> Option<SocketAddr> {
         match &self.inner {
             Inner::UdpOut { sock: s, .. } | Inner::UdpIn { sock: s, .. } => s.local_addr().ok(),
+            Inner::TcpOut { stream } => stream.local_addr().ok(),
+            Inner::TcpIn { listener, .. } => listener.local_addr().ok(),
             Inner::Serial { .. } => None,
         }
     }
 
     /// Whether a send has somewhere to go: always, but on `udpin` only
-    /// once a sender has been accepted.
+    /// once a sender has been accepted, on `tcpin` while a connection is
+    /// held.
     pub fn has_peer(&self) -> bool {
-        !matches!(self.inner, Inner::UdpIn { peer: None, .. })
+        match &self.inner {
+            Inner::UdpIn { peer, .. } => peer.is_some(),
+            Inner::TcpIn { conn, .. } => conn.is_some(),
+            _ => true,
+        }
     }
 
-    /// The `udpin` peer, if any (elsewhere none: the far end is fixed).
+    /// The `udpin` or `tcpin` peer, if any (elsewhere none: the far end is
+    /// fixed).
     pub fn peer(&self) -> Option<SocketAddr> {
         match &self.inner {
             Inner::UdpIn { peer, .. } => *peer,
+            Inner::TcpIn { vouched, .. } => *vouched,
             _ => None,
+        }
+    }
+
+    /// Connections a `tcpin` link closed at once since the last call,
+    /// because it held one that still spoke (see [`Link::recv`]).
+    pub fn take_refused_connections(&mut self) -> u64 {
+        match &mut self.inner {
+            Inner::TcpIn { refused, .. } => std::mem::take(refused),
+            _ => 0,
         }
     }
 
@@ -298,6 +392,23 @@ impl Link {
     /// another system's frame or a second sender with the autopilot's ids
     /// must not redirect the poses.
     pub fn accept_sender(&mut self, now: Instant) -> Option<PeerChange> {
+        if let Inner::TcpIn {
+            conn: Some((_, addr)),
+            heard,
+            vouched,
+            ..
+        } = &mut self.inner
+        {
+            *heard = Some(now);
+            return match vouched.replace(*addr) {
+                None => Some(PeerChange::First(*addr)),
+                Some(old) if old != *addr => Some(PeerChange::Moved {
+                    from: old,
+                    to: *addr,
+                }),
+                Some(_) => None,
+            };
+        }
         let admitted = self.sender_admitted(now);
         let Inner::UdpIn {
             peer,
@@ -320,9 +431,61 @@ impl Link {
         }
     }
 
-    /// Receive a datagram or a burst of serial bytes. Cancel-safe.
+    /// Receive a datagram or a burst of serial or TCP bytes. Cancel-safe.
+    ///
+    /// `tcpin` holds one connection at a time: while it is held, a new one
+    /// is closed at once (counted, [`Link::take_refused_connections`])
+    /// unless the held one has carried no frame of the autopilot for
+    /// [`PEER_SILENCE`] since it was accepted or last did, and then the new
+    /// one replaces it (a router restarted, a peer gone without a FIN). A
+    /// held connection that closes is let go and the next is awaited.
     pub async fn recv(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         match &mut self.inner {
+            Inner::TcpOut { stream } => match stream.read(buf).await? {
+                0 => Err(io::Error::new(
+                    io::ErrorKind::UnexpectedEof,
+                    "the TCP server closed the connection",
+                )),
+                n => Ok(n),
+            },
+            Inner::TcpIn {
+                listener,
+                conn,
+                heard,
+                refused,
+                ..
+            } => loop {
+                let Some((stream, _)) = conn.as_mut() else {
+                    let (s, a) = listener.accept().await?;
+                    let _ = s.set_nodelay(true);
+                    (*conn, *heard) = (Some((s, a)), Some(Instant::now()));
+                    continue;
+                };
+                enum Ev {
+                    Read(io::Result<usize>),
+                    Accept(io::Result<(TcpStream, SocketAddr)>),
+                }
+                let ev = tokio::select! {
+                    r = stream.read(buf) => Ev::Read(r),
+                    a = listener.accept() => Ev::Accept(a),
+                };
+                match ev {
+                    Ev::Read(Ok(n)) if n > 0 => return Ok(n),
+                    // Closed or reset: wait for the next connection.
+                    Ev::Read(_) => *conn = None,
+                    Ev::Accept(a) => {
+                        let (s, addr) = a?;
+                        let silent = heard.is_none_or(|h| h.elapsed() >= PEER_SILENCE);
+                        if silent {
+                            let _ = s.set_nodelay(true);
+                            (*conn, *heard) = (Some((s, addr)), Some(Instant::now()));
+                        } else {
+                            *refused += 1;
+                            drop(s);
+                        }
+                    }
+                }
+            },
             Inner::UdpOut { sock: s, .. } => s.recv(buf).await,
             Inner::UdpIn { sock, sender, .. } => {
                 let (n, from) = sock.recv_from(buf).await?;
@@ -371,6 +534,19 @@ impl Link {
                 Some(p) => sock.send_to(bytes, *p).await.map(|_| Sent::Yes),
                 None => Ok(Sent::NoPeer),
             },
+            Inner::TcpOut { stream } => tcp_write(stream, bytes).await.map(|_| Sent::Yes),
+            // A connection that cannot take a frame is let go (the link
+            // stays, listening): the next one is awaited.
+            Inner::TcpIn { conn, .. } => match conn.as_mut() {
+                None => Ok(Sent::NoPeer),
+                Some((s, _)) => match tcp_write(s, bytes).await {
+                    Ok(()) => Ok(Sent::Yes),
+                    Err(_) => {
+                        *conn = None;
+                        Ok(Sent::NoPeer)
+                    }
+                },
+            },
             Inner::Serial { fd, write_bound } => {
                 let bound = *write_bound;
                 let write = async {
@@ -398,6 +574,19 @@ impl Link {
                 }
             }
         }
+    }
+}
+
+/// Write one frame, within [`TCP_WRITE_BOUND`].
+async fn tcp_write(stream: &mut TcpStream, bytes: &[u8]) -> io::Result<()> {
+    match tokio::time::timeout(TCP_WRITE_BOUND, stream.write_all(bytes)).await {
+        Ok(r) => r,
+        Err(_elapsed) => Err(io::Error::new(
+            io::ErrorKind::TimedOut,
+            WriteStalled {
+                bound: TCP_WRITE_BOUND,
+            },
+        )),
     }
 }
 
@@ -464,12 +653,17 @@ mod tests {
             "udpin:0.0.0.0:14660",
             "serial:/dev/ttyACM0:115200",
             "udpin:[::1]:14550",
+            "tcpout:127.0.0.1:5760",
+            "tcpout:blueos.local:5777",
+            "tcpin:0.0.0.0:5760",
+            "tcpin:[::1]:5760",
         ] {
             let e: Endpoint = s.parse().unwrap();
             assert_eq!(e.to_string(), s);
         }
         for (s, why) in [
             ("tcp:1.2.3.4:5", "unknown transport"),
+            ("tcpin:host:5", "not an IP address"),
             ("udpin:host:5", "not an IP address"),
             ("udpout:1.2.3.4:x", "not a port"),
             ("serial:/dev/ttyS0:0", "not a baud"),

@@ -15,7 +15,7 @@ use crate::latest::{opt, word, Latest};
 use crate::ned::{NedVec, Site};
 use lightpose_core::{Angle, Pose, PoseEstimate, Status};
 use mavlink::dialects::ardupilotmega::{
-    MavAutopilot, MavMessage, MavModeFlag, MavState, MavType, HEARTBEAT_DATA,
+    MavAutopilot, MavMessage, MavModeFlag, MavState, MavType, HEARTBEAT_DATA, TIMESYNC_DATA,
     VISION_POSITION_ESTIMATE_DATA, VISION_SPEED_ESTIMATE_DATA,
 };
 use mavlink::{MAVLinkV2MessageRaw, MavHeader};
@@ -537,6 +537,30 @@ pub fn heartbeat(active: bool) -> MavMessage {
             MavState::MAV_STATE_STANDBY
         },
         mavlink_version: 3,
+    })
+}
+
+/// The answer to the autopilot's TIMESYNC request `ts1` (its time, echoed)
+/// from (system, component): `tc1` our time in ns, on the clock `usec` is
+/// on ([`monotonic_ns`]), so PX4 and ArduPilot can map our estimates'
+/// capture times to theirs and measure the link's round trip.
+pub fn timesync_reply(ts1: i64, tc1: i64, to: (u8, u8)) -> MavMessage {
+    MavMessage::TIMESYNC(TIMESYNC_DATA {
+        tc1,
+        ts1,
+        target_system: to.0,
+        target_component: to.1,
+    })
+}
+
+/// CLOCK_MONOTONIC in ns: the clock live frames are stamped on (seconds
+/// since boot, `lightpose_hal::clock`), so the clock of our `usec`.
+pub fn monotonic_ns() -> i64 {
+    use nix::time::{clock_gettime, ClockId};
+    clock_gettime(ClockId::CLOCK_MONOTONIC).map_or(0, |t| {
+        t.tv_sec()
+            .saturating_mul(1_000_000_000)
+            .saturating_add(t.tv_nsec())
     })
 }
 

@@ -51,12 +51,30 @@ pub enum Scanned<'a> {
 /// Whether frame boundaries can be trusted beyond the checksum.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Framing {
-    /// Each datagram holds whole frames: a candidate that fails its CRC is
-    /// skipped whole, and a partial frame at the end is dropped.
+    /// Each datagram holds whole frames of the dialect: the first
+    /// candidate that fails (flags, an id the dialect lacks, its CRC) ends
+    /// the datagram, whose rest is refused, and a partial frame at the end
+    /// is dropped. A datagram of 0xFD bytes was a candidate at every byte,
+    /// each refused and counted (issue 44: 300 a second held the daemon at
+    /// 101 % CPU and counted 8 000 datagrams as 132 million frames).
     Datagram,
     /// A byte stream (serial): a candidate that fails its CRC is skipped by
-    /// one byte, since a real frame may start inside it.
+    /// one byte, since a real frame may start inside it. The work stays
+    /// linear: a candidate's CRC covers at most 264 bytes.
     Stream,
+}
+
+/// What the scanner did, for STATUS and for tests that bound its work.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ScanWork {
+    /// Candidates looked at (a marker with enough bytes behind it).
+    pub candidates: u64,
+    /// Bytes the CRC went over.
+    pub crc_bytes: u64,
+    /// Datagrams ended by a candidate that failed.
+    pub refused_datagrams: u64,
+    /// Their bytes from that candidate on.
+    pub refused_bytes: u64,
 }
 
 /// Incremental frame finder over a fixed buffer (allocated once).
@@ -66,6 +84,7 @@ pub struct Scanner {
     end: usize,
     framing: Framing,
     garbage: u64,
+    work: ScanWork,
 }
 
 /// A message the dialect knows. CRC_EXTRA is 0 for unknown ids, and also
@@ -84,7 +103,22 @@ impl Scanner {
             end: 0,
             framing,
             garbage: 0,
+            work: ScanWork::default(),
         }
+    }
+
+    /// The work done so far.
+    pub fn work(&self) -> ScanWork {
+        self.work
+    }
+
+    /// The refused datagrams and bytes since the last call.
+    pub fn take_refused(&mut self) -> (u64, u64) {
+        let w = &mut self.work;
+        (
+            std::mem::take(&mut w.refused_datagrams),
+            std::mem::take(&mut w.refused_bytes),
+        )
     }
 
     /// Bytes skipped so far that were not part of any frame.
@@ -159,6 +193,20 @@ impl Scanner {
         }
     }
 
+    /// A candidate at `start` failed: in a stream, skip `skip` bytes of
+    /// it; in a datagram, the rest of the datagram is refused.
+    fn failed(&mut self, skip: usize) {
+        match self.framing {
+            Framing::Stream => self.start += skip,
+            Framing::Datagram => {
+                self.work.refused_datagrams += 1;
+                self.work.refused_bytes += (self.end - self.start) as u64;
+                self.start = 0;
+                self.end = 0;
+            }
+        }
+    }
+
     /// The next frame or dropped candidate, or `None` when more bytes are
     /// needed.
     pub fn next_frame(&mut self) -> Option<Scanned<'_>> {
@@ -169,10 +217,11 @@ impl Scanner {
         if c.len() < 3 {
             return None;
         }
+        self.work.candidates += 1;
         let v2 = c[0] == STX_V2;
         let (header, signature) = if v2 {
             if c[2] & !IFLAG_SIGNED != 0 {
-                self.start += 1;
+                self.failed(1);
                 return Some(Scanned::BadFlags);
             }
             (
@@ -196,20 +245,17 @@ impl Scanner {
         } else {
             c[5] as u32
         };
-        // A candidate that cannot be checked or fails its check is skipped
-        // whole in a datagram; in a stream by one byte, since it may be
+        // A candidate that cannot be checked or fails its check ends a
+        // datagram; in a stream it is skipped by one byte, since it may be
         // line noise with a real frame starting inside it.
-        let skip = match self.framing {
-            Framing::Datagram => total,
-            Framing::Stream => 1,
-        };
         let Some(extra) = extra_crc(msg_id) else {
-            self.start += skip;
+            self.failed(1);
             return Some(Scanned::Unknown { msg_id });
         };
+        self.work.crc_bytes += (header + len - 1) as u64;
         let crc = calculate_crc(&c[1..header + len], extra);
         if crc != u16::from_le_bytes([c[header + len], c[header + len + 1]]) {
-            self.start += skip;
+            self.failed(1);
             return Some(Scanned::BadCrc { msg_id });
         }
         let at = self.start;
@@ -335,5 +381,101 @@ mod tests {
         s.push(&f[..f.len() - 3]);
         assert!(s.next_frame().is_none());
         assert_eq!(s.end_of_datagram(), f.len() - 3);
+    }
+
+    /// Issue 44: a datagram of 0xFD bytes was a candidate at every byte
+    /// (65 507 refusals, and a CRC of up to 264 bytes for many). Now its first
+    /// candidate fails and ends it: one refusal, one refused datagram of
+    /// all its bytes, no CRC.
+    #[test]
+    fn a_datagram_of_start_bytes_is_one_refused_datagram() {
+        let n = 65_507;
+        let mut s = Scanner::new(Framing::Datagram);
+        s.push(&vec![0xFD; n]);
+        assert_eq!(ids(&mut s), ["flags"]);
+        s.end_of_datagram();
+        let w = s.work();
+        assert_eq!((w.candidates, w.crc_bytes), (1, 0), "{w:?}");
+        assert_eq!((w.refused_datagrams, w.refused_bytes), (1, n as u64));
+        assert_eq!(s.garbage_bytes(), 0);
+        // Start bytes with valid flags and a length: the CRC is computed
+        // once, over the first candidate, and the datagram ends there.
+        let mut d = vec![0xFD, 0xFF, 0x00, 0, 0, 1, 1, 30, 0, 0];
+        d.resize(n, 0xFD);
+        let mut s = Scanner::new(Framing::Datagram);
+        s.push(&d);
+        assert_eq!(ids(&mut s), ["crc30"]);
+        let w = s.work();
+        assert_eq!((w.candidates, w.crc_bytes), (1, 9 + 255), "{w:?}");
+        assert_eq!(s.take_refused(), (1, n as u64));
+        assert_eq!(s.take_refused(), (0, 0));
+    }
+
+    /// A frame that fails ends its datagram: the frames after it in the
+    /// same datagram are refused with it (counted, not read).
+    #[test]
+    fn a_bad_frame_ends_its_datagram_and_the_next_datagram_is_read() {
+        let good = frame(&attitude(0.1), 1);
+        let mut bad = frame(&attitude(0.2), 2);
+        let n = bad.len();
+        bad[n - 1] ^= 0xFF;
+        let mut s = Scanner::new(Framing::Datagram);
+        s.push(&[good.clone(), bad.clone(), good.clone()].concat());
+        assert_eq!(ids(&mut s), ["30@1", "crc30"]);
+        s.end_of_datagram();
+        assert_eq!(s.take_refused(), (1, (bad.len() + good.len()) as u64));
+        s.push(&good);
+        assert_eq!(ids(&mut s), ["30@1"]);
+    }
+
+    proptest::proptest! {
+        /// Any datagram costs work linear in its length: each candidate
+        /// either is a frame (at least 8 bytes consumed, a bare MAVLink 1 one) or ends the
+        /// datagram, and the CRC goes over each byte at most once.
+        #[test]
+        fn a_datagram_costs_work_linear_in_its_length(
+            bytes in proptest::collection::vec(
+                proptest::prop_oneof![
+                    3 => proptest::prelude::Just(0xFDu8),
+                    1 => proptest::prelude::Just(0xFEu8),
+                    4 => proptest::prelude::any::<u8>(),
+                ],
+                0..4096,
+            ),
+            frames in 0usize..4,
+        ) {
+            let mut d = frame(&attitude(0.3), 0).repeat(frames);
+            d.extend(&bytes);
+            let mut s = Scanner::new(Framing::Datagram);
+            s.push(&d);
+            let got = ids(&mut s);
+            s.end_of_datagram();
+            let w = s.work();
+            proptest::prop_assert!(w.candidates as usize <= d.len() / 8 + 1, "{w:?}");
+            proptest::prop_assert!(w.crc_bytes as usize <= d.len(), "{w:?}");
+            proptest::prop_assert!(w.refused_datagrams <= 1);
+            proptest::prop_assert!(got.len() >= frames);
+        }
+
+        /// A stream resyncs byte by byte, and stays linear: at most one
+        /// candidate per byte and a CRC of at most 264 bytes each.
+        #[test]
+        fn a_stream_costs_work_linear_in_its_length(
+            bytes in proptest::collection::vec(
+                proptest::prop_oneof![
+                    3 => proptest::prelude::Just(0xFDu8),
+                    4 => proptest::prelude::any::<u8>(),
+                ],
+                0..4096,
+            ),
+        ) {
+            let mut s = Scanner::new(Framing::Stream);
+            s.push(&bytes);
+            ids(&mut s);
+            let w = s.work();
+            proptest::prop_assert!(w.candidates as usize <= bytes.len(), "{w:?}");
+            proptest::prop_assert!(w.crc_bytes <= 264 * w.candidates, "{w:?}");
+            proptest::prop_assert_eq!(w.refused_datagrams, 0);
+        }
     }
 }

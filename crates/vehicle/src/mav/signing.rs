@@ -27,9 +27,12 @@ const STX_V2: u8 = 0xFD;
 const IFLAG_SIGNED: u8 = 0x01;
 /// 2015-01-01 00:00:00 UTC in Unix seconds: the timestamps' epoch.
 const EPOCH_2015_S: u64 = 1_420_070_400;
-/// A stream not heard before is refused when its timestamp is more than a
-/// minute behind ours (the spec's rule: an old recording is not new).
-const NEW_STREAM_SLACK: u64 = 60 * 100_000;
+/// A frame is refused when its timestamp is more than a minute behind the
+/// link's: the later of our clock and the newest timestamp we sent or took
+/// from the autopilot (the spec's rule for a new stream, an old recording
+/// is not new; held for every frame, so a stream once known is still
+/// judged against the clock).
+const BEHIND_SLACK: u64 = 60 * 100_000;
 /// Streams remembered (link id, system, component). Only frames with a
 /// valid signature make one, so this is a bound, not a working size: a
 /// vehicle has a handful (autopilot, GCS, a companion or two).
@@ -142,9 +145,10 @@ pub enum Rejected {
     /// A good signature on a timestamp not newer than its stream's last
     /// (a frame played again).
     Replayed,
-    /// A good signature on a stream first heard more than a minute behind
-    /// our timestamp: an old recording, or a sender whose clock is behind
-    /// (an autopilot without the time; see docs/vehicle.md, "Signing").
+    /// A good signature on a timestamp more than a minute behind the
+    /// link's (our clock, or the newest we sent or took): an old recording,
+    /// or a sender whose clock is behind (an autopilot without the time;
+    /// see docs/vehicle.md, "Signing").
     Behind,
 }
 
@@ -163,6 +167,11 @@ struct Stream {
 #[derive(Debug, Clone)]
 pub struct Signer {
     cfg: SigningConfig,
+    /// The link's timestamp: from the clock at start, then the newest sent
+    /// or taken from the autopilot. It started at 0 and moved only with a
+    /// send, so on `udpin` (nothing sent before a peer) a replay of the
+    /// day before was a new stream within a minute of 0, taken, and took
+    /// the peer from the autopilot (issue 44).
     timestamp: u64,
     streams: [Stream; MAX_STREAMS],
     /// Frames taken so far (the streams' clock of when heard).
@@ -180,10 +189,16 @@ pub fn timestamp_now() -> u64 {
 }
 
 impl Signer {
+    /// A link's signing from now: its timestamp starts at the clock.
     pub fn new(cfg: SigningConfig) -> Self {
+        Self::starting_at(cfg, timestamp_now())
+    }
+
+    /// As [`Signer::new`] with the clock reading `now` (tests).
+    pub fn starting_at(cfg: SigningConfig, now: u64) -> Self {
         Signer {
             cfg,
-            timestamp: 0,
+            timestamp: now.min(MAX_TIMESTAMP),
             streams: [Stream::default(); MAX_STREAMS],
             taken: 0,
         }
@@ -218,7 +233,12 @@ impl Signer {
     /// peer that is the autopilot. A daemon that takes frames from others
     /// too checks with [`Signer::verify`] and follows only the autopilot's.
     pub fn check(&mut self, frame: &[u8]) -> Result<(), Rejected> {
-        if let Some(ts) = self.verify(frame)? {
+        self.check_at(frame, timestamp_now())
+    }
+
+    /// As [`Signer::check`] with the clock reading `now`.
+    pub fn check_at(&mut self, frame: &[u8], now: u64) -> Result<(), Rejected> {
+        if let Some(ts) = self.verify_at(frame, now)? {
             self.follow(ts);
         }
         Ok(())
@@ -237,6 +257,14 @@ impl Signer {
     /// of a signed frame that may be taken, `None` for an unsigned one
     /// (when those are allowed).
     pub fn verify(&mut self, frame: &[u8]) -> Result<Option<u64>, Rejected> {
+        self.verify_at(frame, timestamp_now())
+    }
+
+    /// As [`Signer::verify`] with the clock reading `now`. A frame is fresh
+    /// when its timestamp is newer than its stream's last and at most a
+    /// minute behind the link's (the later of `now` and ours); only a
+    /// fresh frame with a good signature makes or moves a stream.
+    pub fn verify_at(&mut self, frame: &[u8], now: u64) -> Result<Option<u64>, Rejected> {
         let signed =
             frame.len() >= 12 + SIGNATURE_LEN && frame[0] == STX_V2 && frame[2] & IFLAG_SIGNED != 0;
         if !signed {
@@ -263,14 +291,18 @@ impl Signer {
         ts[..6].copy_from_slice(&tail[1..]);
         let ts = u64::from_le_bytes(ts);
         let id = (tail[0], frame[5], frame[6]);
+        let link = self.timestamp.max(now.min(MAX_TIMESTAMP));
+        let stream = self.streams.iter_mut().find(|s| s.used && s.id == id);
+        if stream.as_ref().is_some_and(|s| ts <= s.timestamp) {
+            return Err(Rejected::Replayed);
+        }
+        if ts.saturating_add(BEHIND_SLACK) < link {
+            return Err(Rejected::Behind);
+        }
         self.taken += 1;
         let heard = self.taken;
-        match self.streams.iter_mut().find(|s| s.used && s.id == id) {
-            Some(s) if ts <= s.timestamp => return Err(Rejected::Replayed),
+        match stream {
             Some(s) => (s.timestamp, s.heard) = (ts, heard),
-            None if ts.saturating_add(NEW_STREAM_SLACK) < self.timestamp => {
-                return Err(Rejected::Behind)
-            }
             None => {
                 // A free slot, else the stream heard longest ago.
                 let slot = self
@@ -301,6 +333,18 @@ mod tests {
             key: SigningKey::from_passphrase("correct horse"),
             link_id: 3,
             allow_unsigned,
+        }
+    }
+
+    /// A signer whose clock reads 0 (the small timestamps below; the
+    /// clock's own rule is tested with `check_at`).
+    fn new0(c: SigningConfig) -> Signer {
+        Signer::starting_at(c, 0)
+    }
+
+    impl Signer {
+        fn check0(&mut self, frame: &[u8]) -> Result<(), Rejected> {
+            self.check_at(frame, 0)
         }
     }
 
@@ -359,27 +403,27 @@ mod tests {
 
     #[test]
     fn a_frame_signed_with_the_key_is_taken_once() {
-        let (mut a, mut b) = (Signer::new(cfg(false)), Signer::new(cfg(false)));
+        let (mut a, mut b) = (new0(cfg(false)), new0(cfg(false)));
         let f = signed(&mut a, 1, 1000);
         assert_eq!(f[2] & IFLAG_SIGNED, IFLAG_SIGNED);
-        assert_eq!(b.check(&f), Ok(()));
+        assert_eq!(b.check0(&f), Ok(()));
         // The same frame again is a replay.
-        assert_eq!(b.check(&f), Err(Rejected::Replayed));
+        assert_eq!(b.check0(&f), Err(Rejected::Replayed));
         // The next one from the same stream is newer even at the same now.
         let g = signed(&mut a, 1, 1000);
-        assert_eq!(b.check(&g), Ok(()));
+        assert_eq!(b.check0(&g), Ok(()));
     }
 
     #[test]
     fn another_key_or_an_altered_byte_is_refused() {
-        let mut a = Signer::new(cfg(false));
-        let mut other = Signer::new(SigningConfig {
+        let mut a = new0(cfg(false));
+        let mut other = new0(SigningConfig {
             key: SigningKey::from_passphrase("wrong"),
             ..cfg(false)
         });
         let f = signed(&mut a, 1, 5);
-        assert_eq!(other.check(&f), Err(Rejected::BadSignature));
-        let mut b = Signer::new(cfg(false));
+        assert_eq!(other.check0(&f), Err(Rejected::BadSignature));
+        let mut b = new0(cfg(false));
         for k in 0..f.len() {
             let mut g = f.clone();
             g[k] ^= 0x10;
@@ -390,9 +434,9 @@ mod tests {
             } else {
                 Rejected::BadSignature
             };
-            assert_eq!(b.check(&g), Err(want), "byte {k}");
+            assert_eq!(b.check0(&g), Err(want), "byte {k}");
         }
-        assert_eq!(b.check(&f), Ok(()));
+        assert_eq!(b.check0(&f), Ok(()));
     }
 
     #[test]
@@ -400,17 +444,14 @@ mod tests {
         let mut raw = MAVLinkV2MessageRaw::new();
         raw.serialize_message(header(1, 1), &attitude());
         let f = raw.raw_bytes().to_vec();
-        assert_eq!(Signer::new(cfg(false)).check(&f), Err(Rejected::Unsigned));
-        assert_eq!(Signer::new(cfg(true)).check(&f), Ok(()));
+        assert_eq!(new0(cfg(false)).check0(&f), Err(Rejected::Unsigned));
+        assert_eq!(new0(cfg(true)).check0(&f), Ok(()));
         // Allowed unsigned does not let a bad signature through.
-        let mut a = Signer::new(cfg(true));
+        let mut a = new0(cfg(true));
         let mut g = signed(&mut a, 1, 9);
         let n = g.len();
         g[n - 1] ^= 1;
-        assert_eq!(
-            Signer::new(cfg(true)).check(&g),
-            Err(Rejected::BadSignature)
-        );
+        assert_eq!(new0(cfg(true)).check0(&g), Err(Rejected::BadSignature));
     }
 
     /// A computer whose clock is at 1970 signs after what it has taken; a
@@ -418,9 +459,9 @@ mod tests {
     #[test]
     fn timestamps_follow_the_frames_taken() {
         let minute = 60 * 100_000;
-        let mut ap = Signer::new(cfg(false));
-        let mut me = Signer::new(cfg(false));
-        assert_eq!(me.check(&signed(&mut ap, 1, 50 * minute)), Ok(()));
+        let mut ap = new0(cfg(false));
+        let mut me = new0(cfg(false));
+        assert_eq!(me.check0(&signed(&mut ap, 1, 50 * minute)), Ok(()));
         let mine = signed(&mut me, 1, 0);
         let ts = u64::from_le_bytes({
             let mut b = [0u8; 8];
@@ -429,14 +470,14 @@ mod tests {
         });
         assert_eq!(ts, 50 * minute + 1);
         // A stream first heard 2 minutes behind: refused; 30 s behind: taken.
-        let mut old = Signer::new(cfg(false));
+        let mut old = new0(cfg(false));
         assert_eq!(
-            me.check(&signed(&mut old, 2, 48 * minute)),
+            me.check0(&signed(&mut old, 2, 48 * minute)),
             Err(Rejected::Behind)
         );
-        let mut late = Signer::new(cfg(false));
+        let mut late = new0(cfg(false));
         assert_eq!(
-            me.check(&signed(&mut late, 3, 50 * minute - minute / 2)),
+            me.check0(&signed(&mut late, 3, 50 * minute - minute / 2)),
             Ok(())
         );
     }
@@ -445,16 +486,16 @@ mod tests {
     /// one with the smallest timestamp (a live sender whose clock lags).
     #[test]
     fn streams_are_bounded_and_the_one_heard_longest_ago_is_forgotten() {
-        let mut me = Signer::new(cfg(false));
-        let mut peers: Vec<Signer> = (0..=MAX_STREAMS).map(|_| Signer::new(cfg(false))).collect();
+        let mut me = new0(cfg(false));
+        let mut peers: Vec<Signer> = (0..=MAX_STREAMS).map(|_| new0(cfg(false))).collect();
         // System 1 has the smallest timestamps, but is heard last.
         for (k, p) in peers.iter_mut().enumerate().skip(1).take(MAX_STREAMS - 1) {
             let f = signed(p, k as u8 + 1, 1000 + 10 * k as u64);
-            assert_eq!(me.check(&f), Ok(()), "stream {k}");
+            assert_eq!(me.check0(&f), Ok(()), "stream {k}");
         }
-        assert_eq!(me.check(&signed(&mut peers[0], 1, 500)), Ok(()));
+        assert_eq!(me.check0(&signed(&mut peers[0], 1, 500)), Ok(()));
         let f = signed(&mut peers[MAX_STREAMS], MAX_STREAMS as u8 + 1, 2000);
-        assert_eq!(me.check(&f), Ok(()));
+        assert_eq!(me.check0(&f), Ok(()));
         assert!(me.streams.iter().all(|s| s.used));
         assert!(
             me.streams.iter().any(|s| s.id.1 == 1),
@@ -469,12 +510,44 @@ mod tests {
     /// Ours stops at the 48 bits' end instead of wrapping to 0.
     #[test]
     fn the_timestamp_saturates_at_48_bits() {
-        let mut me = Signer::new(cfg(false));
-        let mut far = Signer::new(cfg(false));
-        assert_eq!(me.check(&signed(&mut far, 1, MAX_TIMESTAMP)), Ok(()));
+        let mut me = new0(cfg(false));
+        let mut far = new0(cfg(false));
+        assert_eq!(me.check0(&signed(&mut far, 1, MAX_TIMESTAMP)), Ok(()));
         let mine = signed(&mut me, 1, 0);
         let n = mine.len();
         assert_eq!(&mine[n - 12..n - 6], &[0xFF; 6]);
+    }
+
+    /// Issue 44: on `udpin` nothing is sent before a peer, so the link's
+    /// timestamp was 0 and a replay of frames signed the day before was a
+    /// new stream within a minute of it: taken. The link starts at the
+    /// clock, and every frame (of a stream known or not) is judged against
+    /// the later of the clock and ours.
+    #[test]
+    fn a_replay_from_the_day_before_is_refused_from_the_start() {
+        let day = 86_400 * 100_000;
+        let now = timestamp_now();
+        let mut recorder = new0(cfg(false));
+        let old: Vec<Vec<u8>> = (0..5)
+            .map(|k| signed(&mut recorder, 1, now - day + k))
+            .collect();
+        let mut me = Signer::new(cfg(false));
+        for f in &old {
+            assert_eq!(me.check(f), Err(Rejected::Behind));
+        }
+        // Nothing of the replay was remembered: the autopilot's own
+        // stream (same ids), stamped now, is taken.
+        let mut ap = Signer::new(cfg(false));
+        assert_eq!(me.check(&signed(&mut ap, 1, now)), Ok(()));
+        // A stream known from before the clock moved on a day is judged
+        // against the clock too, not only against its own last timestamp.
+        let mut me = Signer::starting_at(cfg(false), now - day);
+        assert_eq!(me.check_at(&old[0], now - day), Ok(()));
+        assert_eq!(me.check_at(&old[1], now), Err(Rejected::Behind));
+        // A minute's slack: a sender 30 s behind the clock is taken.
+        let mut late = new0(cfg(false));
+        let f = signed(&mut late, 2, now - 30 * 100_000);
+        assert_eq!(Signer::new(cfg(false)).check(&f), Ok(()));
     }
 
     #[test]

@@ -8,7 +8,10 @@ use super::inbound::{
     interpret, is_autopilot_heartbeat, origin, Input, InputConfig, Refusal, Refused,
 };
 use super::link::{Endpoint, Link, PeerChange, Sent, PEER_SILENCE};
-use super::outbound::{heartbeat, vision_position, vision_speed, Encoder, OutputConfig, Skip};
+use super::outbound::{
+    heartbeat, monotonic_ns, timesync_reply, vision_position, vision_speed, Encoder, OutputConfig,
+    Skip,
+};
 use super::scan::{Framing, RawFrame, Scanned, Scanner};
 use super::signing::{Rejected, Signer, SigningConfig};
 use super::skips::SkipLog;
@@ -260,14 +263,30 @@ async fn serve(
             r = link.recv(scanner.spare()) => match r {
                 Ok(n) => {
                     scanner.commit(n);
+                    let refused = link.take_refused_connections();
+                    if refused > 0 {
+                        hub.mavlink.refused_connections.fetch_add(refused, Relaxed);
+                    }
                     let now = Instant::now();
                     let from = Source {
                         addr: link.sender(),
                         admitted: link.sender_admitted(now),
                     };
-                    if absorb(&mut scanner, s, hub, ap, from, tx.enc.signer_mut()) {
+                    let mut ask = None;
+                    if absorb(&mut scanner, s, hub, ap, from, tx.enc.signer_mut(), &mut ask) {
                         if let Some(change) = link.accept_sender(now) {
                             peer_changed(hub, change);
+                        }
+                    }
+                    // The autopilot's TIMESYNC request, answered at once
+                    // (the round trip is what it measures).
+                    if let Some(ask) = ask {
+                        let msg = timesync_reply(ask.ts1, monotonic_ns(), ask.from);
+                        tokio::select! {
+                            _ = &mut shutdown => return Ended::Shutdown,
+                            r = tx.send(&mut link, hub, &msg, 3) => if let Err(e) = r {
+                                return Ended::Lost(e);
+                            },
                         }
                     }
                     backoff.reset();
@@ -433,6 +452,14 @@ fn peer_changed(hub: &Hub, change: PeerChange) {
     }
 }
 
+/// A TIMESYNC request of the autopilot's, to be answered.
+#[derive(Debug, Clone, Copy)]
+struct TimesyncAsk {
+    ts1: i64,
+    /// Its (system, component): the answer's target.
+    from: (u8, u8),
+}
+
 /// Turn everything the scanner holds into readings or counts. True when
 /// it held a CRC-valid frame of the autopilot (on `udpin`, what makes its
 /// sender the peer). With signing, a frame without the key's signature is
@@ -444,6 +471,7 @@ fn absorb(
     ap: &mut Autopilot,
     from: Source,
     mut signer: Option<&mut Signer>,
+    ask: &mut Option<TimesyncAsk>,
 ) -> bool {
     let c = &hub.mavlink;
     let mut from_autopilot = false;
@@ -455,7 +483,7 @@ fn absorb(
                     .map_or(Ok(None), |sg| sg.verify(f.bytes));
                 match checked {
                     Ok(ts) => {
-                        let autopilot = take(&f, s, hub, ap, &from);
+                        let autopilot = take(&f, s, hub, ap, &from, ask);
                         from_autopilot |= autopilot;
                         // Our signing clock follows the autopilot's alone.
                         if let (true, Some(ts), Some(sg)) = (autopilot, ts, signer.as_deref_mut()) {
@@ -474,6 +502,11 @@ fn absorb(
         sc.end_of_datagram();
     }
     c.garbage_bytes.fetch_add(sc.take_garbage(), Relaxed);
+    let (datagrams, bytes) = sc.take_refused();
+    if datagrams > 0 {
+        c.refused_datagrams.fetch_add(datagrams, Relaxed);
+        c.refused_bytes.fetch_add(bytes, Relaxed);
+    }
     from_autopilot
 }
 
@@ -489,7 +522,14 @@ fn refusal_of(r: Rejected) -> Refusal {
 /// One CRC-valid frame: a reading, a count or a refusal. True when it
 /// came from the autopilot (a frame refused for its values, NaN or out of
 /// range, still does).
-fn take(f: &RawFrame, s: &MavlinkSettings, hub: &Hub, ap: &mut Autopilot, from: &Source) -> bool {
+fn take(
+    f: &RawFrame,
+    s: &MavlinkSettings,
+    hub: &Hub,
+    ap: &mut Autopilot,
+    from: &Source,
+    ask: &mut Option<TimesyncAsk>,
+) -> bool {
     let c = &hub.mavlink;
     let now = Instant::now();
     c.frames.fetch_add(1, Relaxed);
@@ -525,6 +565,13 @@ fn take(f: &RawFrame, s: &MavlinkSettings, hub: &Hub, ap: &mut Autopilot, from: 
             if let Ok(mut g) = c.autopilot_seen.lock() {
                 *g = Some(now);
             }
+        }
+        // The latest of a datagram's requests is answered.
+        Input::TimesyncRequest { ts1 } => {
+            *ask = Some(TimesyncAsk {
+                ts1,
+                from: (f.system, f.component),
+            })
         }
         Input::Unused => {
             c.unused.fetch_add(1, Relaxed);

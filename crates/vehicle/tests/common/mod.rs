@@ -112,8 +112,15 @@ pub struct PyPeer {
 
 impl PyPeer {
     pub fn spawn(args: &[String], envs: &[(&str, &str)]) -> PyPeer {
+        Self::spawn_script("mav_peer.py", args, envs)
+    }
+
+    /// As [`PyPeer::spawn`] with another script of `tests/python`.
+    pub fn spawn_script(name: &str, args: &[String], envs: &[(&str, &str)]) -> PyPeer {
         use std::io::{BufRead, BufReader};
-        let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/python/mav_peer.py");
+        let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/python")
+            .join(name);
         let mut child = std::process::Command::new(lightpose_testkit::python::python())
             .arg(script)
             .args(args)
