@@ -7,7 +7,7 @@ use std::time::Duration;
 use serde::Deserialize;
 
 use super::temp::{temp_plan, DividerSupply, TempConfig, TempPlan};
-use super::{err, positive_to, rate, unique_names, within, Env, ValidBackend};
+use super::{err, positive_to, rate, timing, unique_names, within, Env, ValidBackend};
 use crate::chanmap::{BoardSpec, ChannelMap, MapEntry, MAX_CH};
 use crate::drivers::ads1115::{self, DataRate, Fsr};
 use crate::drivers::ads7828::{self, PowerMode};
@@ -50,6 +50,12 @@ pub struct SpiConfig {
     /// Absent: the env's rate.
     #[serde(default)]
     pub rate_hz: Option<f64>,
+    /// Samples of every channel per second (spec v3: a whole multiple N of
+    /// `rate_hz`, each frame N samples of every channel, for a blinking
+    /// beacon). Absent: one sample per frame. Refused above what the bus
+    /// gives (`config::timing`).
+    #[serde(default)]
+    pub sample_hz: Option<f64>,
     /// ADC reference (for a thermistor channel).
     #[serde(default = "v5")]
     pub v_ref: f64,
@@ -90,6 +96,12 @@ pub struct I2cChipConfig {
 pub struct Ads1115Config {
     #[serde(default)]
     pub rate_hz: Option<f64>,
+    /// Samples of every channel per second (spec v3: a whole multiple N of
+    /// `rate_hz`, each frame N samples of every channel, for a blinking
+    /// beacon). Absent: one sample per frame. Refused above what the bus
+    /// gives (`config::timing`).
+    #[serde(default)]
+    pub sample_hz: Option<f64>,
     /// PGA full scale in volts: 6.144, 4.096, 2.048, 1.024, 0.512, 0.256.
     #[serde(default = "fsr_default")]
     pub fsr_v: f64,
@@ -115,6 +127,16 @@ pub struct Ads1115Config {
 pub struct Ads7828Config {
     #[serde(default)]
     pub rate_hz: Option<f64>,
+    /// Samples of every channel per second (spec v3: a whole multiple N of
+    /// `rate_hz`, each frame N samples of every channel, for a blinking
+    /// beacon). Absent: one sample per frame. Refused above what the bus
+    /// gives (`config::timing`).
+    #[serde(default)]
+    pub sample_hz: Option<f64>,
+    /// SCL of the buses (the slowest), for the sample-time check only
+    /// (the kernel sets it). Absent: 100 kHz.
+    #[serde(default)]
+    pub i2c_clock_hz: Option<u32>,
     /// Use the internal 2.5 V reference; otherwise `v_ref` is required.
     #[serde(default = "super::true_")]
     pub internal_ref: bool,
@@ -131,6 +153,10 @@ pub struct Ads7828Config {
 pub struct SerialConfig {
     #[serde(default)]
     pub rate_hz: Option<f64>,
+    /// One sample per frame only: the `$LPADC` line carries one value of
+    /// each channel (docs/serial-protocol.md); more is refused.
+    #[serde(default)]
+    pub sample_hz: Option<f64>,
     /// Resolution every line must declare.
     #[serde(default = "ten_bits")]
     pub adc_bits: u8,
@@ -163,6 +189,13 @@ pub struct SerialBoardConfig {
 pub struct Common {
     /// `None`: as fast as possible.
     pub rate_hz: Option<f64>,
+    /// N: samples of every channel in a frame (`sample_hz` / `rate_hz`;
+    /// 1 without `sample_hz`).
+    pub samples_per_frame: u32,
+    /// Between consecutive channels' conversions, s, as the bank's clocks
+    /// and transfers give it (MODEL.md `channel_skew_s`; 0 where not
+    /// known: serial boards).
+    pub channel_skew_s: f64,
     pub boards: Vec<BoardSpec>,
     pub map: ChannelMap,
     pub temp: TempPlan,
@@ -204,6 +237,7 @@ pub struct I2cChipPlan {
 /// The part every board kind checks the same way.
 struct Shared<'a> {
     rate_hz: Option<f64>,
+    sample_hz: Option<f64>,
     map: &'a [MapEntry],
     temp: &'a TempConfig,
     bits: u8,
@@ -214,15 +248,89 @@ struct Shared<'a> {
 
 fn common(s: Shared, boards: Vec<BoardSpec>, env: &dyn Env) -> Result<Common, HalError> {
     let rate_hz = rate(s.rate_hz, env)?;
+    let samples_per_frame = samples_per_frame(s.sample_hz, rate_hz)?;
     let map = ChannelMap::new(s.map, &boards)?;
     let temp = temp_plan(s.temp, &boards, &map, s.bits, s.v_ref, &s.supply)?;
     Ok(Common {
         rate_hz,
+        samples_per_frame,
+        channel_skew_s: 0.0,
         boards,
         map,
         temp,
         bits: s.bits,
     })
+}
+
+/// Most samples of every channel in one frame: 8 kHz at 1 Hz frames.
+pub const MAX_SAMPLES_PER_FRAME: u32 = 8000;
+
+/// N = `sample_hz` / `rate_hz`, a whole number (MODEL.md: within 1e-9
+/// relative); 1 without `sample_hz`. Needs a paced rate.
+fn samples_per_frame(sample_hz: Option<f64>, rate_hz: Option<f64>) -> Result<u32, HalError> {
+    let Some(hz) = sample_hz else { return Ok(1) };
+    let Some(rate) = rate_hz else {
+        return Err(err(
+            "sample_hz",
+            "needs a frame rate (rate_hz = 0 reads as fast as possible)",
+        ));
+    };
+    let n = (hz / rate).round();
+    let whole = hz.is_finite() && n >= 1.0 && (n * rate - hz).abs() <= 1e-9 * hz;
+    if !whole {
+        return Err(err(
+            "sample_hz",
+            format!(
+                "{} is not a whole multiple of rate_hz = {rate} (each frame holds the same number of samples of every channel)",
+                lightpose_core::bounds::shown(hz)
+            ),
+        ));
+    }
+    if n > f64::from(MAX_SAMPLES_PER_FRAME) {
+        return Err(err(
+            "sample_hz",
+            format!("{hz} Hz is {n} samples a frame at {rate} Hz, over {MAX_SAMPLES_PER_FRAME}"),
+        ));
+    }
+    Ok(n as u32)
+}
+
+/// The bank keeps up with its sample rate (`sample_hz`, else `rate_hz`:
+/// a frame of one sample); the channels' spacing is then known.
+fn keeps_up(
+    common: &mut Common,
+    sample_hz: Option<f64>,
+    t: Option<timing::SampleTiming>,
+    what: &str,
+) -> Result<(), HalError> {
+    let Some(t) = t else { return Ok(()) };
+    common.channel_skew_s = t.channel_skew_s;
+    let Some(rate) = common.rate_hz else {
+        return Ok(());
+    };
+    let Some(hz) = sample_hz else {
+        return timing::fits("rate_hz", rate, &t, what);
+    };
+    timing::fits("sample_hz", hz, &t, what)?;
+    if common.samples_per_frame == 1 {
+        return Ok(());
+    }
+    // Said after the bus check, so that --check-config tells what the
+    // bank can give even now.
+    Err(err(
+        "sample_hz",
+        format!(
+            "{hz} Hz: the bank keeps up (at most {:.0} Hz, channels {:.1} µs apart), but reading a frame of {} samples from a board is not in this build yet: leave sample_hz out (one sample a frame)",
+            t.max_sample_hz(),
+            t.channel_skew_s * 1e6,
+            common.samples_per_frame
+        ),
+    ))
+}
+
+/// Wanted channels per board, in board order.
+fn wanted_counts(common: &Common) -> Vec<u32> {
+    common.wanted().iter().map(|m| m.count_ones()).collect()
 }
 
 /// `kind = "mcp3008"` / `"mcp3208"`.
@@ -258,16 +366,29 @@ pub(super) fn spi(c: &SpiConfig, kind: McpKind, env: &dyn Env) -> Result<ValidBa
         .collect();
     let shared = Shared {
         rate_hz: c.rate_hz,
+        sample_hz: c.sample_hz,
         map: &c.map,
         temp: &c.temperature,
         bits: kind.bits(),
         v_ref: positive_to("v_ref", c.v_ref, MAX_V, " V")?,
         supply: DividerSupply::IsRef,
     };
+    let mut common = common(shared, boards, env)?;
+    let per_chip: Vec<(u32, u32)> = chips
+        .iter()
+        .zip(wanted_counts(&common))
+        .map(|(ch, n)| (ch.max_speed_hz, n))
+        .collect();
+    let n: u32 = per_chip.iter().map(|c| c.1).sum();
+    let what = format!(
+        "{n} transfers of 24 clocks at the chips' max_speed_hz, one after another, and {:.0} µs of the kernel's each",
+        timing::SPI_TRANSFER_OVERHEAD_S * 1e6
+    );
+    keeps_up(&mut common, c.sample_hz, timing::spi(&per_chip), &what)?;
     Ok(ValidBackend::Spi {
         kind,
         chips,
-        common: common(shared, boards, env)?,
+        common,
     })
 }
 
@@ -328,6 +449,7 @@ pub(super) fn ads1115(c: &Ads1115Config, env: &dyn Env) -> Result<ValidBackend, 
     let boards = i2c_boards(&chips, ads1115::CHANNELS);
     let shared = Shared {
         rate_hz: c.rate_hz,
+        sample_hz: c.sample_hz,
         map: &c.map,
         temp: &c.temperature,
         bits: ads1115::BITS,
@@ -337,8 +459,28 @@ pub(super) fn ads1115(c: &Ads1115Config, env: &dyn Env) -> Result<ValidBackend, 
             fsr.volts()
         )),
     };
-    let common = common(shared, boards, env)?;
-    ads1115_frame_fits(&common, data_rate, scl)?;
+    let mut common = common(shared, boards, env)?;
+    match c.sample_hz {
+        // One sample a frame: the frame rule as it always was.
+        None => ads1115_frame_fits(&common, data_rate, scl)?,
+        Some(_) => {
+            let wanted = wanted_counts(&common);
+            let rounds = wanted.iter().copied().max().unwrap_or(0);
+            let n: u32 = wanted.iter().sum();
+            let hz = scl.unwrap_or(timing::DEFAULT_I2C_HZ);
+            let what = format!(
+                "{rounds} conversions of 1.1/DR at data_rate_sps = {}, {n} channels' I2C transfers at {} kHz",
+                data_rate.sps(),
+                hz / 1000
+            );
+            keeps_up(
+                &mut common,
+                c.sample_hz,
+                timing::ads1115(rounds, n, data_rate, hz),
+                &what,
+            )?;
+        }
+    }
     Ok(ValidBackend::Ads1115 {
         fsr,
         data_rate,
@@ -438,19 +580,39 @@ pub(super) fn ads7828(c: &Ads7828Config, env: &dyn Env) -> Result<ValidBackend, 
         ),
         _ => DividerSupply::IsRef,
     };
+    let scl = match c.i2c_clock_hz {
+        None => timing::DEFAULT_I2C_HZ,
+        Some(hz) if (10_000..=ads7828::MAX_CLOCK_HZ).contains(&hz) => hz,
+        Some(hz) => {
+            return Err(err(
+                "i2c_clock_hz",
+                format!("{hz} is not in 10000..={}", ads7828::MAX_CLOCK_HZ),
+            ))
+        }
+    };
     let shared = Shared {
         rate_hz: c.rate_hz,
+        sample_hz: c.sample_hz,
         map: &c.map,
         temp: &c.temperature,
         bits: 12,
         v_ref,
         supply,
     };
+    let mut common = common(shared, boards, env)?;
+    let n: u32 = wanted_counts(&common).iter().sum();
+    let what = format!(
+        "{n} conversions of {} I2C clocks at {} kHz and two messages of {:.0} µs each",
+        timing::ADS7828_CLOCKS_PER_CHANNEL,
+        scl / 1000,
+        timing::I2C_MESSAGE_OVERHEAD_S * 1e6
+    );
+    keeps_up(&mut common, c.sample_hz, timing::ads7828(n, scl), &what)?;
     Ok(ValidBackend::Ads7828 {
         power,
         buses,
         chips,
-        common: common(shared, boards, env)?,
+        common,
     })
 }
 
@@ -486,16 +648,24 @@ pub(super) fn serial(c: &SerialConfig, env: &dyn Env) -> Result<ValidBackend, Ha
         .collect();
     let shared = Shared {
         rate_hz: c.rate_hz,
+        sample_hz: c.sample_hz,
         map: &c.map,
         temp: &c.temperature,
         bits: c.adc_bits,
         v_ref: positive_to("v_ref", c.v_ref, MAX_V, " V")?,
         supply: DividerSupply::IsRef,
     };
+    let common = common(shared, specs, env)?;
+    if common.samples_per_frame > 1 {
+        return Err(err(
+            "sample_hz",
+            "a serial board sends one sample of each channel a line ($LPADC, docs/serial-protocol.md): sample_hz above rate_hz needs a board that sends bursts",
+        ));
+    }
     Ok(ValidBackend::Serial {
         boards,
         timeout: Duration::from_millis(c.timeout_ms),
-        common: common(shared, specs, env)?,
+        common,
     })
 }
 

@@ -21,6 +21,7 @@ pub mod boards;
 pub mod replay;
 pub mod sim;
 pub mod temp;
+pub mod timing;
 
 use std::path::PathBuf;
 
