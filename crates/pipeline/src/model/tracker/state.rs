@@ -80,6 +80,9 @@ pub(super) struct State {
     /// Per reading (attitude, depth, velocity): readings in a row that the
     /// innovation gate refused.
     pub gated: [u32; 3],
+    /// The paper's range of the frame read as x and refused by the gate,
+    /// frames in a row (a jump no vehicle makes: `Tracker::jumped`).
+    pub paper_refused: u32,
     /// K_D is estimated. Otherwise it is a *consider* state (Schmidt):
     /// its doubt and its covariance with the rest are carried in P, so every
     /// σ includes what K_D's doubt does to it, but no update moves K_D away
@@ -131,6 +134,7 @@ impl State {
             frames: 1,
             rejected: 0,
             gated: [0; 3],
+            paper_refused: 0,
             k_d_free: false,
             offset_free: [false; 2],
             paper_x: None,
