@@ -25,7 +25,9 @@ fn frames(cfg: &DemodConfig, count: usize) -> Vec<Vec<u16>> {
             let mut s = vec![0u16; NDET * n];
             for k in 0..NDET {
                 for i in 0..n {
-                    let t = j as f64 / cfg.rate_hz + i as f64 / cfg.sample_hz + k as f64 * cfg.channel_skew_s;
+                    let t = j as f64 / cfg.rate_hz
+                        + i as f64 / cfg.sample_hz
+                        + k as f64 * cfg.channel_skew_s;
                     let mut v = 300.0 + 40.0 * (2.0 * std::f64::consts::PI * 3.0 * t).sin();
                     for (b, beacon) in cfg.beacons.iter().enumerate() {
                         let on = (beacon.mod_hz * t + 0.1 * b as f64).rem_euclid(1.0) < 0.5;
@@ -44,11 +46,26 @@ fn frames(cfg: &DemodConfig, count: usize) -> Vec<Vec<u16>> {
 fn bench(c: &mut Criterion) {
     let cases = [
         ("2 kHz, 5 Hz, 1 beacon", 2000.0, 5.0, vec![250.0]),
-        ("2 kHz, 5 Hz, 4 beacons", 2000.0, 5.0, vec![1000.0, 500.0, 250.0, 125.0]),
+        (
+            "2 kHz, 5 Hz, 4 beacons",
+            2000.0,
+            5.0,
+            vec![1000.0, 500.0, 250.0, 125.0],
+        ),
         ("8 kHz, 20 Hz, 1 beacon", 8000.0, 20.0, vec![500.0]),
-        ("8 kHz, 20 Hz, 4 beacons", 8000.0, 20.0, vec![4000.0, 2000.0, 1000.0, 500.0]),
+        (
+            "8 kHz, 20 Hz, 4 beacons",
+            8000.0,
+            20.0,
+            vec![4000.0, 2000.0, 1000.0, 500.0],
+        ),
         ("4 kHz, 5 Hz, 1 beacon", 4000.0, 5.0, vec![250.0]),
-        ("4 kHz, 5 Hz, 4 beacons", 4000.0, 5.0, vec![2000.0, 1000.0, 500.0, 250.0]),
+        (
+            "4 kHz, 5 Hz, 4 beacons",
+            4000.0,
+            5.0,
+            vec![2000.0, 1000.0, 500.0, 250.0],
+        ),
     ];
     let mut g = c.benchmark_group("demodulate");
     for (name, fs, rate, hz) in cases {
@@ -71,7 +88,9 @@ fn bench(c: &mut Criterion) {
         g.bench_function(name, |b| {
             b.iter(|| {
                 let f = &frames[j % frames.len()];
-                demod.demodulate(black_box(f), j as f64 / rate, 12, &mut out).unwrap();
+                demod
+                    .demodulate(black_box(f), j as f64 / rate, 12, &mut out)
+                    .unwrap();
                 j += 1;
             })
         });

@@ -58,7 +58,11 @@ pub struct Lock {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FrameError {
     #[error("frame has {got} samples: want {expected} (25 channels × {n})")]
-    Length { expected: usize, got: usize, n: usize },
+    Length {
+        expected: usize,
+        got: usize,
+        n: usize,
+    },
     #[error("adc_bits = {bits}: must be 1..=16")]
     Bits { bits: u8 },
     #[error("channel {channel} sample {sample}: count {value} above full scale {max}")]
@@ -235,7 +239,11 @@ impl Demodulator {
                 max: full,
             });
         }
-        assert_eq!(out.beacons.len(), self.cfg.beacons.len(), "out from Demodulator::output");
+        assert_eq!(
+            out.beacons.len(),
+            self.cfg.beacons.len(),
+            "out from Demodulator::output"
+        );
 
         // Clipped counts, and each channel less its slow part.
         let sqrt_n = (n as f64).sqrt();
@@ -268,7 +276,11 @@ impl Demodulator {
             } else {
                 0.5
             };
-            let var_prior = if locked && half < 0.5 { pred.var } else { f64::INFINITY };
+            let var_prior = if locked && half < 0.5 {
+                pred.var
+            } else {
+                f64::INFINITY
+            };
             // The frequency too: an edge that crosses a sample instant in
             // the middle of a frame (every 1/(sample_hz·δ) s) is placed
             // only by a frequency off nominal in the right direction.
@@ -304,7 +316,11 @@ impl Demodulator {
             self.locks[b] = Lock {
                 detected,
                 locked: tr.locked(),
-                phase: if tr.locked() { wrap(tr.phase()).rem_euclid(1.0) } else { phase },
+                phase: if tr.locked() {
+                    wrap(tr.phase()).rem_euclid(1.0)
+                } else {
+                    phase
+                },
                 freq_hz: tr.freq(),
                 phase_std: tr.phase_std(),
                 freq_std_hz: tr.freq_std(),
@@ -380,7 +396,11 @@ impl Demodulator {
         let mut sum: f64 = (0..NDET).map(|k| term(k, c[k], norm[k])).sum();
         let score_at = |lo: f64, hi: f64, sum: f64| {
             let d = 0.0f64.clamp(lo, hi);
-            let prior = if var.is_finite() { d * d / (2.0 * var) } else { 0.0 };
+            let prior = if var.is_finite() {
+                d * d / (2.0 * var)
+            } else {
+                0.0
+            };
             0.5 * sum - prior
         };
         let mut best = Cell {
@@ -429,22 +449,99 @@ impl Demodulator {
     /// beacon's square wave at the phase found: the amplitudes, their σ from
     /// what the fit leaves, and the level with every beacon off.
     fn fit(&mut self, out: &mut Demodulated, full: u16) {
+        let nb = self.cfg.beacons.len();
+        let dof = (self.cfg.n - self.basis.len() - nb) as f64;
+        let (phases, freqs) = (self.frame_phase, self.frame_freq);
+        let mut first = [0.0; NDET];
+        for (k, v) in first.iter_mut().enumerate() {
+            *v = self.fit_channel(k, &phases, &freqs, out, full);
+        }
+        // Without a last frame, the channels' median: one board's noise.
+        let mut sorted = first;
+        sorted.sort_unstable_by(f64::total_cmp);
+        let median = sorted[NDET / 2];
+        for k in 0..NDET {
+            let mut noise = first[k];
+            // Six σ of the residual variance's own spread over the last
+            // frame's.
+            let prev = self.noise[k].unwrap_or(median);
+            if out.clipped[k] == 0 && noise > prev * (1.0 + 6.0 * (2.0 / dof).sqrt()) + QUANT_VAR {
+                // The common phase leaves far more than this channel's noise:
+                // an edge crossed one of its sample instants within the
+                // frame where the common phase and frequency do not put it
+                // (the channels' skew spreads the crossings over frames, and
+                // their places depend on a drift not learnt yet). The
+                // channel's own best phase within a sample of the common one,
+                // kept only when it fits better.
+                let (mut ph, mut fr) = (phases, freqs);
+                let mut w = [0.0; NDET];
+                w[k] = 1.0;
+                for b in 0..nb {
+                    let m = self.cfg.beacons[b].half_period;
+                    let wide = self.cfg.max_drift * self.cfg.beacons[b].mod_hz;
+                    let sf = self.tracks[b].freq_std().max(1e-12);
+                    let mut best = (f64::NEG_INFINITY, phases[b], freqs[b]);
+                    for f in [0.0, -1.5 * sf, 1.5 * sf, -wide, wide] {
+                        let f = freqs[b] + f;
+                        let cell =
+                            self.search(&w, f, phases[b], 1.0 / (2 * m) as f64, f64::INFINITY);
+                        if cell.ll > best.0 {
+                            best = (cell.ll, phases[b] + 0.5 * (cell.lo + cell.hi), f);
+                        }
+                    }
+                    ph[b] = best.1.rem_euclid(1.0);
+                    fr[b] = best.2;
+                }
+                let mut kept = ([0.0; MAX_BEACONS], [0.0; MAX_BEACONS], out.ambient[k]);
+                for (b, bo) in out.beacons.iter().enumerate() {
+                    kept.0[b] = bo.amplitude[k];
+                    kept.1[b] = bo.std[k];
+                }
+                let again = self.fit_channel(k, &ph, &fr, out, full);
+                if again < noise {
+                    noise = again;
+                } else {
+                    for (b, bo) in out.beacons.iter_mut().enumerate() {
+                        bo.amplitude[k] = kept.0[b];
+                        bo.std[k] = kept.1[b];
+                    }
+                    out.ambient[k] = kept.2;
+                }
+            }
+            self.noise[k] = Some(noise);
+        }
+    }
+
+    /// Channel k's fit at the beacons' phases and frequencies given; its
+    /// noise variance.
+    fn fit_channel(
+        &mut self,
+        k: usize,
+        phases: &[f64; MAX_BEACONS],
+        freqs: &[f64; MAX_BEACONS],
+        out: &mut Demodulated,
+        full: u16,
+    ) -> f64 {
         let n = self.cfg.n;
         let nb = self.cfg.beacons.len();
         let d = self.basis.len();
         let dof = (n - d - nb) as f64;
-        for k in 0..NDET {
+        {
             let mut rhs = [0.0; MAX_BEACONS];
             let mut mean_u = [0.0; MAX_BEACONS];
             let mut g = [[0.0; MAX_BEACONS]; MAX_BEACONS];
             let x = &self.xs[k * n..(k + 1) * n];
             for b in 0..nb {
-                let (phase, freq) = (self.frame_phase[b], self.frame_freq[b]);
+                let (phase, freq) = (phases[b], freqs[b]);
                 let skew = k as f64 * self.cfg.channel_skew_s;
                 let u = &mut self.u[b * n..(b + 1) * n];
                 for (i, ui) in u.iter_mut().enumerate() {
                     let p = phase + freq * (self.dt[i] + skew);
-                    *ui = if ((2.0 * p).floor() as i64) & 1 == 0 { 0.5 } else { -0.5 };
+                    *ui = if ((2.0 * p).floor() as i64) & 1 == 0 {
+                        0.5
+                    } else {
+                        -0.5
+                    };
                 }
                 rhs[b] = u.iter().zip(x).map(|(a, c)| a * c).sum();
                 mean_u[b] = u.iter().sum::<f64>() / n as f64;
@@ -462,7 +559,11 @@ impl Demodulator {
                 let p = self.basis.row(j);
                 let mut lu = [0.0; MAX_BEACONS];
                 for (b, l) in lu.iter_mut().enumerate().take(nb) {
-                    *l = p.iter().zip(&self.u[b * n..(b + 1) * n]).map(|(a, c)| a * c).sum();
+                    *l = p
+                        .iter()
+                        .zip(&self.u[b * n..(b + 1) * n])
+                        .map(|(a, c)| a * c)
+                        .sum();
                 }
                 for b in 0..nb {
                     for c in 0..=b {
@@ -500,7 +601,7 @@ impl Demodulator {
                     out.ambient[k] = self.mean[k];
                 }
             }
-            self.noise[k] = Some(noise);
+            noise
         }
     }
 }

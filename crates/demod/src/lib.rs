@@ -26,5 +26,9 @@ pub mod config;
 mod demod;
 pub mod track;
 
-pub use config::{check_frequencies, BeaconSpec, ConfigError, DemodConfig, ValidBeacon, ValidConfig, MAX_BEACONS};
-pub use demod::{detection_threshold, BeaconAmplitudes, Demodulated, Demodulator, FrameError, Lock};
+pub use config::{
+    check_frequencies, BeaconSpec, ConfigError, DemodConfig, ValidBeacon, ValidConfig, MAX_BEACONS,
+};
+pub use demod::{
+    detection_threshold, BeaconAmplitudes, Demodulated, Demodulator, FrameError, Lock,
+};
