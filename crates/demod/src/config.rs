@@ -196,7 +196,8 @@ fn positive(key: &'static str, value: f64) -> Result<(), ConfigError> {
 /// `x` as a whole number when it is one within [`WHOLE_TOL`] relative.
 fn whole(x: f64) -> Option<u64> {
     let r = x.round();
-    (x.is_finite() && r >= 1.0 && r < 1e12 && (x - r).abs() <= WHOLE_TOL * r).then_some(r as u64)
+    (x.is_finite() && (1.0..1e12).contains(&r) && (x - r).abs() <= WHOLE_TOL * r)
+        .then_some(r as u64)
 }
 
 /// MODEL.md's frequency rules, as far as the demodulator's arithmetic needs

@@ -1,6 +1,9 @@
 //! The per-frame work: a frame's samples into FORMATS.md's demodulated
 //! frame. docs/demodulator.md gives the method and its measured figures.
 
+// Channels, beacons and matrix rows are indices into several arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 use crate::basis::{degree_for, Basis};
 use crate::config::{ValidConfig, MAX_BEACONS};
 use crate::track::{wrap, Track};
@@ -657,7 +660,7 @@ impl Cholesky {
                     s -= l[i][q] * l[j][q];
                 }
                 if i == j {
-                    if !(s > 0.0) || !s.is_finite() {
+                    if !s.is_finite() || s <= 0.0 {
                         return None;
                     }
                     l[i][i] = s.sqrt();

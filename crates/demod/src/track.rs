@@ -82,7 +82,7 @@ impl Track {
     /// infinite when there is no lock. Moves the track to `t`.
     pub fn predict(&mut self, t: f64) -> Prediction {
         let dt = t - self.t;
-        if self.locked && !(dt >= 0.0 && dt <= MAX_GAP_S) {
+        if self.locked && !(0.0..=MAX_GAP_S).contains(&dt) {
             // Time went back (a log looped) or a long gap: start over.
             self.reset();
         }
