@@ -276,3 +276,69 @@ pub fn check_frequencies(
     }
     Ok(half)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn err(fs: f64, rate: f64, hz: &[(&str, f64)]) -> String {
+        let b = hz.iter().map(|(id, f)| BeaconSpec::new(*id, *f)).collect();
+        DemodConfig::new(fs, rate, b)
+            .validate()
+            .unwrap_err()
+            .to_string()
+    }
+
+    #[test]
+    fn frequency_rules_name_the_beacons() {
+        assert_eq!(
+            err(4800.0, 10.0, &[("a", 200.0), ("b", 600.0)]),
+            "beacons \"a\" (200 Hz) and \"b\" (600 Hz) stand in the ratio of two odd numbers: they share odd harmonics and cannot be told apart"
+        );
+        assert!(err(4000.0, 10.0, &[("a", 200.0), ("b", 200.0)])
+            .starts_with("beacons \"a\" and \"b\" share a frequency"));
+        assert!(err(4000.0, 10.0, &[("a", 0.0)])
+            .starts_with("beacon \"a\": mod_hz = 0: a steady beacon"));
+        // 4000 / 300 is not whole; 4000 / 4000 is one sample per period, odd.
+        assert!(
+            err(4000.0, 10.0, &[("a", 300.0)]).contains("even whole number of samples per period")
+        );
+        assert!(
+            err(4000.0, 10.0, &[("a", 4000.0)]).contains("even whole number of samples per period")
+        );
+        // 4000 / 160 = 25 samples per period: odd.
+        assert!(err(4000.0, 10.0, &[("a", 160.0)]).contains("even whole number"));
+
+        // 3 Hz frames: 66.67 periods of 200 Hz, and N = 666.7.
+        assert!(err(2000.0, 3.0, &[("a", 200.0)])
+            .starts_with("sample_hz = 2000 is not a whole multiple"));
+        assert!(
+            err(2000.0, 8.0, &[("a", 100.0)]).contains("not a whole number of periods per frame")
+        );
+        assert!(err(2000.0, 5.0, &[]).starts_with("no beacons"));
+        assert!(err(2000.0, 5.0, &[("a", 250.0), ("a", 500.0)])
+            .starts_with("beacons \"a\" and \"a\": the same id"));
+    }
+
+    #[test]
+    fn allowed_sets() {
+        // 200 : 250 = 4 : 5 is allowed; four beacons at N = 400.
+        let ok = |fs: f64, rate: f64, hz: &[f64]| {
+            let b = hz
+                .iter()
+                .enumerate()
+                .map(|(i, f)| BeaconSpec::new(format!("b{i}"), *f))
+                .collect();
+            DemodConfig::new(fs, rate, b).validate()
+        };
+        assert!(ok(4000.0, 10.0, &[200.0, 250.0]).is_ok());
+        let v = ok(4000.0, 10.0, &[2000.0, 1000.0, 500.0, 250.0]).unwrap();
+        assert_eq!(v.n, 400);
+        assert_eq!(
+            v.beacons.iter().map(|b| b.half_period).collect::<Vec<_>>(),
+            [1, 2, 4, 8]
+        );
+        // A fifth at N = 400 must share a power of 2 with one of them.
+        assert!(ok(4000.0, 10.0, &[2000.0, 1000.0, 500.0, 250.0, 125.0]).is_err());
+    }
+}
