@@ -40,12 +40,14 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         }
     })?;
     eprintln!(
-        "{} frames, {} poses: {} -> {}; {} skipped, {} other records passed over",
+        "{} frames, {} poses: {} -> {}; {} skipped, {} other messages and {} metadata records carried, {} other records passed over",
         s.frames,
         s.poses,
         a.input.display(),
         a.out.display(),
         s.skipped,
+        s.carried,
+        s.metadata,
         s.other
     );
     if let Some(cut) = s.cut {
