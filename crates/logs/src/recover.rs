@@ -324,8 +324,7 @@ impl Salvage {
                     } else {
                         format!("cut inside {} of {len} bytes, {avail} of them written", kind(opcode))
                     };
-                    let partial = u64::from(opcode == op::MESSAGE || opcode == op::CHUNK);
-                    self.lose(offset, lost, partial, msg);
+                    self.lose(offset, lost, u64::from(opcode == op::MESSAGE), msg);
                     break;
                 }
                 Next::TooLarge {
@@ -483,14 +482,22 @@ impl Salvage {
             }
         }
         let records_at = offset + HEAD as u64 + start as u64;
+        let lost_before = self.s.lost_bytes;
         let mut p = 0usize;
         while p < records.len() {
             let mut r = Fields::new(&records[p..]);
-            let (opcode, len) = match (r.take(1), r.u64()) {
-                (Ok(o), Ok(l)) => (o[0], l),
-                _ => break,
+            let whole_record = match (r.take(1), r.u64()) {
+                (Ok(o), Ok(l)) => usize::try_from(l)
+                    .ok()
+                    .and_then(|n| r.take(n).ok())
+                    .map(|rec| (o[0], rec)),
+                _ => None,
             };
-            let Some(rec) = usize::try_from(len).ok().and_then(|n| r.take(n).ok()) else {
+            let Some((opcode, rec)) = whole_record else {
+                if whole == Whole::Cut && records[p] == op::MESSAGE {
+                    // The message the cut fell in.
+                    self.s.lost_messages += 1;
+                }
                 break;
             };
             if opcode == 0 {
@@ -510,15 +517,17 @@ impl Salvage {
         match whole {
             Whole::Yes => {
                 self.s.chunks += 1;
-                self.s.kept_bytes += total;
                 if p < records.len() {
                     let rest = &records[p..];
                     let msg = format!(
                         "a record in a chunk that runs past its end: the chunk's last {} bytes dropped",
                         rest.len()
                     );
-                    self.lose(records_at + p as u64, 0, count_messages(rest), msg);
+                    let n = count_messages(rest);
+                    self.lose(records_at + p as u64, rest.len() as u64, n, msg);
                 }
+                // Less what its records that were lost took.
+                self.s.kept_bytes += total - (self.s.lost_bytes - lost_before);
                 Ok(total)
             }
             Whole::Cut => {
