@@ -262,7 +262,10 @@ fn kill_9_mcap_recording_is_recovered_to_its_last_complete_chunk() {
     // message of the complete chunks: every frame STATUS called synced,
     // the STATUS and the clock records with them.
     let theirs = run_python(&py, &script, &[OsStr::new("default"), logs[0].as_os_str()]);
-    assert!(theirs.starts_with("error="), "the cut file opened: {theirs}");
+    assert!(
+        theirs.starts_with("error="),
+        "the cut file opened: {theirs}"
+    );
     let good = dir.path().join("good.mcap");
     let r = lightpose_logs::recover(&logs[0], &good, &Default::default()).expect("recovers");
     let line = run_python(&py, &script, &[OsStr::new("default"), good.as_os_str()]);
@@ -273,7 +276,10 @@ fn kill_9_mcap_recording_is_recovered_to_its_last_complete_chunk() {
     let (kept, cut) = frame_seqs(&good);
     assert_eq!(cut, None, "the recovered file is finished");
     assert!(line.contains(&format!(" frame={} ", kept.len())), "{line}");
-    assert!(kept.len() >= seqs.len() && kept[..seqs.len()] == seqs[..], "{r}");
+    assert!(
+        kept.len() >= seqs.len() && kept[..seqs.len()] == seqs[..],
+        "{r}"
+    );
     assert!(kept.windows(2).all(|w| w[1] == w[0] + 1), "contiguous");
     for topic in ["status", "pose", "image", "tf"] {
         let n: u64 = line

@@ -1,7 +1,10 @@
 //! An MCAP file read record by record and served as the lines of a JSONL
 //! log: first the HEADER line held in the `lightpose-header` metadata, then
 //! each message of `/lightpose/frame`. Core's `LogReader` reads these lines,
-//! so a FRAME means the same in both containers, by one parser.
+//! so a FRAME means the same in both containers, by one parser. For a
+//! conversion it also keeps, when asked, the POSE messages, and the
+//! messages of every other channel it does not make anew (with their
+//! declarations) and the metadata records, to be carried as they are.
 //!
 //! Streaming: one top-level record (at most one chunk) is in memory at a
 //! time. A chunk is taken whole or not at all: it is read to its end and
@@ -554,7 +557,15 @@ impl<R: Read> McapLines<R> {
     fn channel(&mut self, start: usize, end: usize, offset: u64) -> Result<(), LogError> {
         let mut f = Fields::new(&self.body[start..end]);
         // The metadata matters to a conversion only, which carries it.
-        let parsed = (|| Ok::<_, String>((f.u16()?, f.u16()?, f.str()?, f.str()?, f.map().unwrap_or_default())))();
+        let parsed = (|| {
+            Ok::<_, String>((
+                f.u16()?,
+                f.u16()?,
+                f.str()?,
+                f.str()?,
+                f.map().unwrap_or_default(),
+            ))
+        })();
         let (id, schema_id, topic, encoding, metadata) =
             parsed.map_err(|m| self.err(offset, format!("channel: {m}")))?;
         let kind = match topic {
@@ -565,7 +576,10 @@ impl<R: Read> McapLines<R> {
         };
         self.decls.retain(|d| d.0 != id);
         if kind == Kind::Other {
-            let schema = self.schemas.iter().find(|s| s.0 == schema_id && schema_id != 0);
+            let schema = self
+                .schemas
+                .iter()
+                .find(|s| s.0 == schema_id && schema_id != 0);
             let decl = ChannelDecl {
                 topic: topic.to_string(),
                 message_encoding: encoding.to_string(),

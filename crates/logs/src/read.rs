@@ -7,8 +7,8 @@
 //! quietly at its last complete chunk; [`FrameLog::cut`] says where and
 //! what was dropped.
 
-pub use crate::lines::{Carried, ChannelDecl};
 use crate::lines::McapLines;
+pub use crate::lines::{Carried, ChannelDecl};
 use lightpose_core::{Cut, Frame, FrameLog, FrameOrder, LogError, LogHeader, LogReader};
 use std::collections::VecDeque;
 use std::fs::File;

@@ -264,7 +264,9 @@ impl Salvage {
         // output keeps.
         let first = rd.next()?;
         let header = match first {
-            Next::Record { opcode: op::HEADER, .. } => {
+            Next::Record {
+                opcode: op::HEADER, ..
+            } => {
                 let mut f = Fields::new(&rd.body);
                 match (f.str(), f.str()) {
                     (Ok(p), Ok(l)) => Some((p.to_string(), l.to_string())),
@@ -322,7 +324,10 @@ impl Salvage {
                             "cut inside a chunk of {len} bytes, {avail} of them written: its whole records kept, its last {lost} bytes lost"
                         )
                     } else {
-                        format!("cut inside {} of {len} bytes, {avail} of them written", kind(opcode))
+                        format!(
+                            "cut inside {} of {len} bytes, {avail} of them written",
+                            kind(opcode)
+                        )
                     };
                     self.lose(offset, lost, u64::from(opcode == op::MESSAGE), msg);
                     break;
@@ -742,7 +747,11 @@ fn count_messages(records: &[u8]) -> u64 {
     let mut n = 0;
     while let (Ok(o), Ok(len)) = (f.take(1), f.u64()) {
         n += u64::from(o[0] == op::MESSAGE);
-        if usize::try_from(len).ok().and_then(|l| f.take(l).ok()).is_none() {
+        if usize::try_from(len)
+            .ok()
+            .and_then(|l| f.take(l).ok())
+            .is_none()
+        {
             break;
         }
     }
@@ -833,7 +842,9 @@ impl<R: Read> Input<'_, R> {
             return Ok(Next::End {
                 offset,
                 lost: n as u64,
-                why: Some(format!("cut inside a record's head ({n} of its 9 bytes written)")),
+                why: Some(format!(
+                    "cut inside a record's head ({n} of its 9 bytes written)"
+                )),
             });
         }
         let opcode = head[0];

@@ -331,10 +331,11 @@ fn contents(bytes: &[u8]) -> (Topics, Vec<(String, BTreeMap<String, String>)>) {
             "{} {:?} {:?}",
             m.channel.message_encoding,
             m.channel.metadata,
-            m.channel
-                .schema
-                .as_ref()
-                .map(|s| (s.name.clone(), s.encoding.clone(), s.data.to_vec()))
+            m.channel.schema.as_ref().map(|s| (
+                s.name.clone(),
+                s.encoding.clone(),
+                s.data.to_vec()
+            ))
         );
         topics.entry(m.channel.topic.clone()).or_default().push((
             m.sequence,
@@ -368,7 +369,10 @@ fn mcap_to_mcap_keeps_status_other_channels_and_every_metadata_record() {
     assert_eq!((s.carried, s.metadata), (3 + 10, 3), "{s:?}");
     let (want, want_meta) = contents(&std::fs::read(&input).unwrap());
     let (got, got_meta) = contents(&std::fs::read(&output).unwrap());
-    assert_eq!(want.keys().collect::<Vec<_>>(), got.keys().collect::<Vec<_>>());
+    assert_eq!(
+        want.keys().collect::<Vec<_>>(),
+        got.keys().collect::<Vec<_>>()
+    );
     for (topic, msgs) in &want {
         assert_eq!(msgs, &got[topic], "{topic}");
     }
@@ -378,7 +382,12 @@ fn mcap_to_mcap_keeps_status_other_channels_and_every_metadata_record() {
     let names: Vec<&str> = got_meta.iter().map(|m| m.0.as_str()).collect();
     assert_eq!(
         names,
-        ["lightpose-header", "lightpose-clock", "lightpose-clock", "notes"]
+        [
+            "lightpose-header",
+            "lightpose-clock",
+            "lightpose-clock",
+            "notes"
+        ]
     );
     // Into JSONL (frames only) they are passed over, counted.
     let jsonl = dir.path().join("out.jsonl");

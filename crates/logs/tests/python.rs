@@ -111,7 +111,10 @@ fn the_default_reader_opens_what_recover_writes_of_a_cut_recording() {
             line.starts_with(&format!("messages={} ", s.messages)),
             "cut at {cut}: {line} ({s})"
         );
-        let frames = McapReader::open(&fixed).unwrap().map(Result::unwrap).count();
+        let frames = McapReader::open(&fixed)
+            .unwrap()
+            .map(Result::unwrap)
+            .count();
         assert!(line.contains(&format!(" frame={frames} ")), "{line}");
         assert!(line.contains(" clock="), "{line}");
     }
@@ -121,7 +124,10 @@ fn the_default_reader_opens_what_recover_writes_of_a_cut_recording() {
     assert_eq!((s.lost_messages, s.lost_bytes), (0, 0), "{s}");
     assert_eq!(check(&py, &[Path::new("default"), &fixed]), whole);
     let line = check(&py, &[Path::new("alike"), &good, &fixed]);
-    assert!(line.starts_with(&format!("messages={} ", s.messages)), "{line}");
+    assert!(
+        line.starts_with(&format!("messages={} ", s.messages)),
+        "{line}"
+    );
 }
 
 /// MCAP → MCAP, read by the reference library: every channel (STATUS and
@@ -139,6 +145,9 @@ fn the_reference_library_finds_a_converted_recording_alike() {
     let line = check(&py, &[Path::new("alike"), &input, &output]);
     assert!(line.ends_with(" metadata=4"), "{line}");
     let line = check(&py, &[Path::new("default"), &output]);
-    assert!(line.contains(" status=4 ") && line.contains(" depth=14 "), "{line}");
+    assert!(
+        line.contains(" status=4 ") && line.contains(" depth=14 "),
+        "{line}"
+    );
     assert!(line.contains(" clock=2 "), "{line}");
 }

@@ -111,7 +111,10 @@ fn a_recording_cut_anywhere_keeps_every_whole_message_written_before_it() {
         // The same messages, in the same order, on the same channels.
         assert_eq!(got[..], full[..want], "cut at {cut}");
         assert_eq!(s.out_bytes as usize, out.len());
-        assert!(s.kept_bytes + s.lost_bytes <= cut as u64, "cut at {cut}: {s}");
+        assert!(
+            s.kept_bytes + s.lost_bytes <= cut as u64,
+            "cut at {cut}: {s}"
+        );
         let line = s.to_string();
         assert!(!line.contains('\n'), "{line}");
         assert!(line.starts_with(&format!("kept {want} messages")), "{line}");
@@ -121,7 +124,10 @@ fn a_recording_cut_anywhere_keeps_every_whole_message_written_before_it() {
             // Only the summary or footer is cut: the data are whole.
             assert_eq!((s.cut, s.lost_bytes), (None, 0), "cut at {cut}: {s}");
         } else if want > 0 {
-            assert!(matches!(s.cut, Some(Cut::Bytes { .. })), "cut at {cut}: {s}");
+            assert!(
+                matches!(s.cut, Some(Cut::Bytes { .. })),
+                "cut at {cut}: {s}"
+            );
             // Ours reads it finished, with at least the frames it read
             // from the cut file (those of the complete chunks).
             let (before, _) = frames_of(&bytes[..cut]);
@@ -208,7 +214,9 @@ fn foreign() -> Vec<u8> {
     let s1 = w.add_schema("a.A", "jsonschema", b"{}").unwrap();
     let meta: BTreeMap<String, String> = [("k".to_string(), "v".to_string())].into();
     let c1 = w.add_channel(s1, "/a", "json", &meta).unwrap();
-    let c2 = w.add_channel(0, "/raw", "octets", &BTreeMap::new()).unwrap();
+    let c2 = w
+        .add_channel(0, "/raw", "octets", &BTreeMap::new())
+        .unwrap();
     w.write_metadata(&mcap::records::Metadata {
         name: "m1".into(),
         metadata: [("x".to_string(), "1".to_string())].into(),
@@ -250,13 +258,12 @@ fn metadata_attachments_and_other_programs_channels_are_kept() {
     let (r, out) = recover_bytes(&bytes[..cut]);
     let s = r.unwrap();
     assert_eq!(s.messages as usize, ends.len() - 2, "{s}");
-    assert_eq!((s.schemas, s.channels, s.metadata, s.attachments), (1, 2, 1, 1));
+    assert_eq!(
+        (s.schemas, s.channels, s.metadata, s.attachments),
+        (1, 2, 1, 1)
+    );
     let summary = mcap::Summary::read(&out).unwrap().unwrap();
-    let a = summary
-        .channels
-        .values()
-        .find(|c| c.topic == "/a")
-        .unwrap();
+    let a = summary.channels.values().find(|c| c.topic == "/a").unwrap();
     assert_eq!(a.metadata.get("k").map(String::as_str), Some("v"));
     assert_eq!(a.schema.as_ref().unwrap().name, "a.A");
     let raw = summary
@@ -305,12 +312,18 @@ fn a_compressed_chunk_is_refused_in_one_line() {
     let e = r.unwrap_err().to_string();
     assert!(!e.contains('\n'), "{e}");
     assert!(
-        e.contains(&format!("in.mcap: byte {}: chunk compressed with zstd", chunk.1)),
+        e.contains(&format!(
+            "in.mcap: byte {}: chunk compressed with zstd",
+            chunk.1
+        )),
         "{e}"
     );
     let (r, _) = recover_bytes(b"{\"class\":\"HEADER\"}\n");
     let e = r.unwrap_err().to_string();
-    assert!(e.ends_with("in.mcap: byte 0: not an MCAP file (no MCAP magic): nothing to recover"), "{e}");
+    assert!(
+        e.ends_with("in.mcap: byte 0: not an MCAP file (no MCAP magic): nothing to recover"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -328,7 +341,10 @@ fn a_zero_filled_tail_is_a_cut() {
     damaged.extend(std::iter::repeat_n(0u8, 5000));
     let (r, out) = recover_bytes(&damaged);
     let s = r.unwrap();
-    assert_eq!(s.messages as usize, ends.iter().filter(|&&e| e <= chunk_end).count());
+    assert_eq!(
+        s.messages as usize,
+        ends.iter().filter(|&&e| e <= chunk_end).count()
+    );
     assert_eq!(s.lost_bytes, 5000, "{s}");
     assert_eq!(messages(&out).len() as u64, s.messages);
 }

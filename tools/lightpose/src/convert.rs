@@ -8,7 +8,7 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct ConvertArgs {
     /// Log to read (.jsonl or .mcap; an MCAP cut short is read up to its
-    /// last complete chunk).
+    /// last complete chunk: `lightpose recover` keeps every whole record).
     #[arg(long = "in")]
     input: PathBuf,
     /// Log to write (.jsonl or .mcap).

@@ -205,7 +205,10 @@ fn recover_finishes_a_cut_recording_for_every_reader() {
         .and_then(|r| r.split(' ').next())
         .and_then(|n| n.parse().ok())
         .unwrap_or_else(|| panic!("{err}"));
-    assert!(err.contains("; lost ") && err.contains("(first: byte "), "{err}");
+    assert!(
+        err.contains("; lost ") && err.contains("(first: byte "),
+        "{err}"
+    );
     let line = check("default", &fixed);
     assert!(line.starts_with(&format!("messages={kept} ")), "{line}");
     // Every frame our reader finds in the cut file, and the recovered one
@@ -216,7 +219,12 @@ fn recover_finishes_a_cut_recording_for_every_reader() {
     let (ok, _, err) = run(&["convert", "--in", s(&fixed), "--out", s(&b)]);
     assert!(ok && !err.contains("never finished"), "{err}");
     let frames = |p: &Path| std::fs::read_to_string(p).unwrap().lines().count() - 1;
-    assert!(frames(&b) >= frames(&a) && frames(&a) > 5, "{} {}", frames(&a), frames(&b));
+    assert!(
+        frames(&b) >= frames(&a) && frames(&a) > 5,
+        "{} {}",
+        frames(&a),
+        frames(&b)
+    );
     assert!(line.contains(&format!(" frame={} ", frames(&b))), "{line}");
 
     for (args, want) in [
