@@ -357,7 +357,7 @@ impl Salvage {
         left.sort_unstable();
         for id in left {
             if !self.channels.contains_key(&id) {
-                self.from_summary(&mut w, id)?;
+                self.declare_from_summary(&mut w, id)?;
             }
         }
         self.finish(w)
@@ -378,9 +378,8 @@ impl Salvage {
                 self.chunk(w, offset, body, Whole::Yes)?;
             }
             op::SCHEMA | op::CHANNEL | op::MESSAGE => {
-                if self.record(w, opcode, body, offset, false)? {
-                    self.s.kept_bytes += total;
-                }
+                let carried = self.record(w, opcode, body, offset, false)?;
+                self.s.kept_bytes += if carried { total } else { 0 };
             }
             op::METADATA => {
                 let mut f = Fields::new(body);
@@ -649,7 +648,7 @@ impl Salvage {
     }
 
     /// Declare channel `id` from the summary; whether it could be.
-    fn from_summary(&mut self, w: &mut Out, id: u16) -> Result<bool, RecoverError> {
+    fn declare_from_summary(&mut self, w: &mut Out, id: u16) -> Result<bool, RecoverError> {
         let Some(rec) = self.declared.channels.get(&id).cloned() else {
             return Ok(false);
         };
@@ -676,7 +675,9 @@ impl Salvage {
         let known = self.channels.get(&id).copied();
         let channel_id = match known {
             Some(c) => c,
-            None if self.from_summary(w, id)? => self.channels.get(&id).copied().unwrap_or(id),
+            None if self.declare_from_summary(w, id)? => {
+                self.channels.get(&id).copied().unwrap_or(id)
+            }
             None => {
                 return Ok(Err(format!(
                     "a message on channel {id}, which no Channel record declared"
