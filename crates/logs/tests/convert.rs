@@ -322,8 +322,9 @@ fn conversion_refuses_what_it_cannot_do() {
 /// the channel's declaration), and its metadata records in order, read by
 /// the `mcap` crate.
 type Topics = BTreeMap<String, Vec<(u32, u64, u64, Vec<u8>, String)>>;
+type Metas = Vec<(String, BTreeMap<String, String>)>;
 
-fn contents(bytes: &[u8]) -> (Topics, Vec<(String, BTreeMap<String, String>)>) {
+fn contents(bytes: &[u8]) -> (Topics, Metas) {
     let mut topics = Topics::new();
     for m in mcap::MessageStream::new(bytes).unwrap() {
         let m = m.unwrap();
