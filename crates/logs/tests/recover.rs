@@ -335,7 +335,7 @@ fn a_zero_filled_tail_is_a_cut() {
         .into_iter()
         .filter(|r| r.0 == op::CHUNK && r.2 <= at)
         .map(|r| r.2)
-        .last()
+        .next_back()
         .unwrap();
     let mut damaged = bytes[..chunk_end].to_vec();
     damaged.extend(std::iter::repeat_n(0u8, 5000));
