@@ -4,8 +4,10 @@
 //! poses, STATUS and clock records, the poses equal to the POSE datagrams
 //! it sent; after kill -9 of the real binary, `lightpose convert`'s
 //! library recovers every frame up to the last complete chunk, at least
-//! every frame STATUS called synced; a bad MCAP is refused at start with
-//! one line and exit 2.
+//! every frame STATUS called synced, and `lightpose recover`'s writes a
+//! file the reference library's default reader opens (the cut one it
+//! cannot) with all of them; a bad MCAP is refused at start with one line
+//! and exit 2.
 
 mod common;
 use common::run::{
@@ -254,6 +256,40 @@ fn kill_9_mcap_recording_is_recovered_to_its_last_complete_chunk() {
     let script = root().join("crates/logs/tests/mcap_check.py");
     let line = run_python(&py, &script, &[OsStr::new("cut"), logs[0].as_os_str()]);
     assert_eq!(line, format!("frames={}", seqs.len()));
+
+    // The library's default reader (it seeks to the footer) cannot open
+    // the cut file; `lightpose recover` writes one it opens, with every
+    // message of the complete chunks: every frame STATUS called synced,
+    // the STATUS and the clock records with them.
+    let theirs = run_python(&py, &script, &[OsStr::new("default"), logs[0].as_os_str()]);
+    assert!(
+        theirs.starts_with("error="),
+        "the cut file opened: {theirs}"
+    );
+    let good = dir.path().join("good.mcap");
+    let r = lightpose_logs::recover(&logs[0], &good, &Default::default()).expect("recovers");
+    let line = run_python(&py, &script, &[OsStr::new("default"), good.as_os_str()]);
+    assert!(
+        line.starts_with(&format!("messages={} ", r.messages)),
+        "{line} ({r})"
+    );
+    let (kept, cut) = frame_seqs(&good);
+    assert_eq!(cut, None, "the recovered file is finished");
+    assert!(line.contains(&format!(" frame={} ", kept.len())), "{line}");
+    assert!(
+        kept.len() >= seqs.len() && kept[..seqs.len()] == seqs[..],
+        "{r}"
+    );
+    assert!(kept.windows(2).all(|w| w[1] == w[0] + 1), "contiguous");
+    for topic in ["status", "pose", "image", "tf"] {
+        let n: u64 = line
+            .split_whitespace()
+            .find_map(|w| w.strip_prefix(&format!("{topic}=")))
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0);
+        assert!(n >= 1, "{topic}: {line}");
+    }
+    assert!(!line.contains(" clock=0 "), "{line}");
 }
 
 /// An MCAP whose frame channel carries another schema (protobuf), made

@@ -9,9 +9,15 @@
 //! Into MCAP that file is read and its lines go, as they are, on
 //! `/lightpose/pose` after the frame they belong to; out of MCAP the
 //! `/lightpose/pose` messages are written to it one per line. MCAP → MCAP
-//! carries the poses itself. STATUS is not carried (it is about the
-//! daemon, not the data); what was passed over is counted.
+//! carries the poses itself, and every channel it does not make from
+//! frames and poses (`/lightpose/status`, any other program's) and every
+//! metadata record (`lightpose-clock`, any other) as they were: the same
+//! declarations, message bytes, sequence numbers and times. The Foxglove
+//! channels are made anew from the frames and poses (and left out with
+//! `foxglove` off). A JSONL log holds frames only (FORMATS.md): MCAP →
+//! JSONL passes STATUS and metadata over, counted.
 
+use crate::read::Carried;
 use crate::write::{McapOptions, McapWriter, WriteError};
 use crate::{Format, LogFile};
 use lightpose_core::textfile::{read_line_bounded, LineRead, MAX_LINE_BYTES};
@@ -48,9 +54,14 @@ pub struct ConvertSummary {
     pub skipped: u64,
     /// Where the input was cut short, if it was.
     pub cut: Option<Cut>,
-    /// Records of other kinds passed over (status, Foxglove messages,
-    /// which are made anew from frames and poses).
+    /// Records of other kinds read and not carried as they are (poses,
+    /// Foxglove messages, which are made anew from frames and poses;
+    /// into JSONL, STATUS and metadata too).
     pub other: u64,
+    /// MCAP → MCAP: messages of the other channels carried as they were
+    /// (STATUS, other programs'), and metadata records carried.
+    pub carried: u64,
+    pub metadata: u64,
     pub seq_gaps: (u64, u64),
 }
 
@@ -198,8 +209,19 @@ enum Poses {
     Feed(PoseFeed),
     /// MCAP → JSONL: kept by the reader, written to this file.
     ToFile(String, BufWriter<File>),
-    /// MCAP → MCAP: kept by the reader, rewritten on the pose channel.
-    Carry(Vec<u8>),
+    /// MCAP → MCAP: kept by the reader, rewritten on the pose channel;
+    /// with them, what is carried as it was.
+    Carry(Box<Carry>),
+}
+
+/// MCAP → MCAP: the POSE lines' buffer, the output id of each input
+/// channel carried, and the counts.
+#[derive(Default)]
+struct Carry {
+    buf: Vec<u8>,
+    ids: std::collections::HashMap<u16, u16>,
+    messages: u64,
+    metadata: u64,
 }
 
 /// Where the POSE lines go, by the direction of the conversion.
@@ -213,7 +235,7 @@ fn route_poses(
         (Format::Mcap, Format::Jsonl, Some(p)) => {
             Poses::ToFile(p.display().to_string(), create_file(p)?)
         }
-        (Format::Mcap, Format::Mcap, None) => Poses::Carry(Vec::new()),
+        (Format::Mcap, Format::Mcap, None) => Poses::Carry(Box::default()),
         (_, _, None) => Poses::None,
         (Format::Mcap, Format::Mcap, Some(_)) => {
             return Err(ConvertError::Usage(
@@ -226,8 +248,11 @@ fn route_poses(
             ))
         }
     };
-    if let (LogFile::Mcap(r), false) = (log, matches!(route, Poses::None)) {
+    if let (LogFile::Mcap(r), false) = (&mut *log, matches!(route, Poses::None)) {
         r.keep_poses(true);
+    }
+    if let (LogFile::Mcap(r), Poses::Carry(_)) = (log, &route) {
+        r.keep_carried(true);
     }
     Ok(route)
 }
@@ -315,9 +340,12 @@ pub fn convert(
     }
     s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::End)?;
     s.skipped += refused_poses(&mut poses, &mut on_skip);
+    if let Poses::Carry(c) = &poses {
+        (s.carried, s.metadata) = (c.messages, c.metadata);
+    }
     finish(out, poses)?;
     s.cut = log.cut();
-    s.other = log.other_records();
+    s.other = log.other_records().saturating_sub(s.carried + s.metadata);
     s.seq_gaps = log.seq_gaps();
     Ok(s)
 }
@@ -370,21 +398,68 @@ fn pass_poses(
             }
             LogFile::Jsonl(_) => Ok(0),
         },
-        (Poses::Carry(buf), Due::BeforeFrame | Due::End) => match (log, out) {
+        (Poses::Carry(c), Due::BeforeFrame | Due::End) => match (log, out) {
             (LogFile::Mcap(r), Out::Mcap(w)) => {
-                buf.clear();
-                r.take_poses(buf).map_err(WriteError::Io)?;
+                c.buf.clear();
+                r.take_poses(&mut c.buf).map_err(WriteError::Io)?;
                 let mut n = 0;
-                for line in buf.split(|&b| b == b'\n').filter(|l| !l.is_empty()) {
+                for line in c.buf.split(|&b| b == b'\n').filter(|l| !l.is_empty()) {
                     w.write_pose_line(line)?;
                     n += 1;
                 }
+                carry(r, w, c)?;
                 Ok(n)
             }
             _ => Ok(0),
         },
         _ => Ok(0),
     }
+}
+
+/// Write what the reader kept for carrying: each message on its channel,
+/// declared in the output as the input declared it (at its first message),
+/// and each metadata record.
+fn carry(
+    r: &mut crate::McapReader<BufReader<File>>,
+    w: &mut McapWriter<BufWriter<File>>,
+    c: &mut Carry,
+) -> Result<(), ConvertError> {
+    for item in r.take_carried() {
+        match item {
+            Carried::Message {
+                channel,
+                sequence,
+                log_time,
+                publish_time,
+                data,
+            } => {
+                let id = match c.ids.get(&channel) {
+                    Some(&id) => id,
+                    None => {
+                        // Only messages of declared channels are kept.
+                        let Some(d) = r.channel_decl(channel) else {
+                            continue;
+                        };
+                        let schema = d
+                            .schema
+                            .as_ref()
+                            .map(|(n, e, b)| (n.as_str(), e.as_str(), b.as_slice()));
+                        let id =
+                            w.add_channel(schema, &d.topic, &d.message_encoding, &d.metadata)?;
+                        c.ids.insert(channel, id);
+                        id
+                    }
+                };
+                w.write_raw(id, sequence, log_time, publish_time, &data)?;
+                c.messages += 1;
+            }
+            Carried::Metadata { name, pairs } => {
+                w.write_metadata(&name, pairs)?;
+                c.metadata += 1;
+            }
+        }
+    }
+    Ok(())
 }
 
 fn finish(out: Out, poses: Poses) -> Result<(), ConvertError> {

@@ -1,7 +1,10 @@
 //! An MCAP file read record by record and served as the lines of a JSONL
 //! log: first the HEADER line held in the `lightpose-header` metadata, then
 //! each message of `/lightpose/frame`. Core's `LogReader` reads these lines,
-//! so a FRAME means the same in both containers, by one parser.
+//! so a FRAME means the same in both containers, by one parser. For a
+//! conversion it also keeps, when asked, the POSE messages, and the
+//! messages of every other channel it does not make anew (with their
+//! declarations) and the metadata records, to be carried as they are.
 //!
 //! Streaming: one top-level record (at most one chunk) is in memory at a
 //! time. A chunk is taken whole or not at all: it is read to its end and
@@ -15,7 +18,7 @@
 use crate::schema::{self, name, topic};
 use lightpose_core::{Cut, LogError};
 use mcap::records::op;
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 use std::io::{self, BufRead, Read, Seek, SeekFrom};
 
 /// The summary section of a finished MCAP file of `size` bytes (from its
@@ -47,37 +50,75 @@ pub fn summary_of<R: Read + Seek>(src: &mut R, size: u64) -> Option<Vec<u8>> {
 /// (64 KiB chunks by default) and what usual MCAP writers make (a few MiB).
 pub const RECORD_LIMIT: u64 = 64 << 20;
 
-const HEAD: usize = 9;
+/// Bytes of a record's head: opcode and length.
+pub(crate) const HEAD: usize = 9;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kind {
     Frame,
     Pose,
+    /// A Foxglove channel, which a writer makes anew from frames and poses.
+    Derived,
     Other,
     /// The header metadata (not a message; found once).
     Header,
 }
 
-/// A message found: what it is, where its data sits in `body`, and the
-/// file offset of its record.
+/// A message found: what it is, where its data sits in `body`, the file
+/// offset of its record, and its header (channel, sequence, log and
+/// publish times).
 struct Msg {
     kind: Kind,
     start: usize,
     end: usize,
     offset: u64,
+    header: mcap::records::MessageHeader,
+}
+
+/// A channel that is neither frames, poses nor one that a writer makes
+/// from them (the Foxglove channels), as its file declared it: what a
+/// conversion carries to its output as it is (`/lightpose/status`, any
+/// other program's channel).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChannelDecl {
+    pub topic: String,
+    pub message_encoding: String,
+    pub metadata: BTreeMap<String, String>,
+    /// Its schema's name, encoding and data; `None`: no schema (id 0, or
+    /// one the file never declared).
+    pub schema: Option<(String, String, Vec<u8>)>,
+}
+
+/// What a conversion carries, in the order of the file: messages of the
+/// channels of [`ChannelDecl`], and metadata records other than the
+/// HEADER's.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Carried {
+    Message {
+        /// The input's channel id (see `McapReader::channel_decl`).
+        channel: u16,
+        sequence: u32,
+        log_time: u64,
+        publish_time: u64,
+        data: Vec<u8>,
+    },
+    Metadata {
+        name: String,
+        pairs: BTreeMap<String, String>,
+    },
 }
 
 /// A bounds-checked little-endian cursor over a record's body.
-struct Fields<'a> {
-    b: &'a [u8],
-    pos: usize,
+pub(crate) struct Fields<'a> {
+    pub(crate) b: &'a [u8],
+    pub(crate) pos: usize,
 }
 
 impl<'a> Fields<'a> {
-    fn new(b: &'a [u8]) -> Self {
+    pub(crate) fn new(b: &'a [u8]) -> Self {
         Fields { b, pos: 0 }
     }
-    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
+    pub(crate) fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.b.len());
         let end = end.ok_or_else(|| {
             format!(
@@ -90,23 +131,40 @@ impl<'a> Fields<'a> {
         self.pos = end;
         Ok(s)
     }
-    fn u16(&mut self) -> Result<u16, String> {
+    pub(crate) fn u16(&mut self) -> Result<u16, String> {
         let s = self.take(2)?;
         Ok(u16::from_le_bytes([s[0], s[1]]))
     }
-    fn u32(&mut self) -> Result<u32, String> {
+    pub(crate) fn u32(&mut self) -> Result<u32, String> {
         let mut a = [0; 4];
         a.copy_from_slice(self.take(4)?);
         Ok(u32::from_le_bytes(a))
     }
-    fn u64(&mut self) -> Result<u64, String> {
+    pub(crate) fn u64(&mut self) -> Result<u64, String> {
         let mut a = [0; 8];
         a.copy_from_slice(self.take(8)?);
         Ok(u64::from_le_bytes(a))
     }
-    fn str(&mut self) -> Result<&'a str, String> {
+    pub(crate) fn str(&mut self) -> Result<&'a str, String> {
         let n = self.u32()? as usize;
         std::str::from_utf8(self.take(n)?).map_err(|_| "a string is not UTF-8".to_string())
+    }
+    /// A string → string map: its byte length (u32), then key, value pairs.
+    pub(crate) fn map(&mut self) -> Result<std::collections::BTreeMap<String, String>, String> {
+        let len = self.u32()? as usize;
+        let mut m = Fields::new(self.take(len)?);
+        let mut out = std::collections::BTreeMap::new();
+        while m.pos < m.b.len() {
+            let (k, v) = (m.str()?, m.str()?);
+            out.insert(k.to_string(), v.to_string());
+        }
+        Ok(out)
+    }
+    /// What is left of the record.
+    pub(crate) fn rest(&mut self) -> &'a [u8] {
+        let s = &self.b[self.pos..];
+        self.pos = self.b.len();
+        s
     }
 }
 
@@ -123,8 +181,11 @@ pub struct McapLines<R> {
     /// Records of the current chunk not yet read: a range of `body`.
     chunk: Option<(usize, usize)>,
     seen_header_record: bool,
-    schemas: Vec<(u16, String, String)>,
+    /// Id, name, encoding and data of each schema declared.
+    schemas: Vec<(u16, String, String, Vec<u8>)>,
     channels: Vec<(u16, Kind)>,
+    /// The declarations of the channels of kind `Other`, by id.
+    pub(crate) decls: Vec<(u16, ChannelDecl)>,
     header: Option<(u64, String)>,
     /// The line being served, and how much of it was consumed.
     line: Vec<u8>,
@@ -143,6 +204,10 @@ pub struct McapLines<R> {
     /// POSE messages kept for a conversion (one per line), when asked.
     pub(crate) keep_poses: bool,
     pub(crate) poses: Vec<u8>,
+    /// Messages of `Other` channels and metadata kept for a conversion,
+    /// when asked.
+    pub(crate) keep_carried: bool,
+    pub(crate) carried: Vec<Carried>,
 }
 
 impl<R: Read> McapLines<R> {
@@ -172,6 +237,7 @@ impl<R: Read> McapLines<R> {
             seen_header_record: false,
             schemas: Vec::new(),
             channels: Vec::new(),
+            decls: Vec::new(),
             header: None,
             line: Vec::new(),
             line_pos: 0,
@@ -183,6 +249,8 @@ impl<R: Read> McapLines<R> {
             other: 0,
             keep_poses: false,
             poses: Vec::new(),
+            keep_carried: false,
+            carried: Vec::new(),
         })
     }
 
@@ -310,6 +378,7 @@ impl<R: Read> McapLines<R> {
                             start,
                             end,
                             offset,
+                            header: no_header(),
                         }));
                     }
                 }
@@ -472,24 +541,54 @@ impl<R: Read> McapLines<R> {
 
     fn schema(&mut self, start: usize, end: usize, offset: u64) -> Result<(), LogError> {
         let mut f = Fields::new(&self.body[start..end]);
-        let parsed = (|| Ok::<_, String>((f.u16()?, f.str()?.to_string(), f.str()?.to_string())))();
-        let (id, name, encoding) = parsed.map_err(|m| self.err(offset, format!("schema: {m}")))?;
+        let parsed = (|| {
+            let (id, name, encoding) = (f.u16()?, f.str()?.to_string(), f.str()?.to_string());
+            // The data matters to a conversion only, which carries it.
+            let data = f.u32().and_then(|n| f.take(n as usize));
+            Ok::<_, String>((id, name, encoding, data.map_or(Vec::new(), <[u8]>::to_vec)))
+        })();
+        let (id, name, encoding, data) =
+            parsed.map_err(|m| self.err(offset, format!("schema: {m}")))?;
         self.schemas.retain(|s| s.0 != id);
-        self.schemas.push((id, name, encoding));
+        self.schemas.push((id, name, encoding, data));
         Ok(())
     }
 
     fn channel(&mut self, start: usize, end: usize, offset: u64) -> Result<(), LogError> {
         let mut f = Fields::new(&self.body[start..end]);
-        let parsed = (|| Ok::<_, String>((f.u16()?, f.u16()?, f.str()?, f.str()?)))();
-        let (id, schema_id, topic, encoding) =
+        // The metadata matters to a conversion only, which carries it.
+        let parsed = (|| {
+            Ok::<_, String>((
+                f.u16()?,
+                f.u16()?,
+                f.str()?,
+                f.str()?,
+                f.map().unwrap_or_default(),
+            ))
+        })();
+        let (id, schema_id, topic, encoding, metadata) =
             parsed.map_err(|m| self.err(offset, format!("channel: {m}")))?;
         let kind = match topic {
             topic::FRAME => Kind::Frame,
             topic::POSE => Kind::Pose,
+            topic::IMAGE | topic::VEHICLE_POSE | topic::TRUTH_POSE | topic::TF => Kind::Derived,
             _ => Kind::Other,
         };
-        if kind != Kind::Other {
+        self.decls.retain(|d| d.0 != id);
+        if kind == Kind::Other {
+            let schema = self
+                .schemas
+                .iter()
+                .find(|s| s.0 == schema_id && schema_id != 0);
+            let decl = ChannelDecl {
+                topic: topic.to_string(),
+                message_encoding: encoding.to_string(),
+                metadata,
+                schema: schema.map(|s| (s.1.clone(), s.2.clone(), s.3.clone())),
+            };
+            self.decls.push((id, decl));
+        }
+        if matches!(kind, Kind::Frame | Kind::Pose) {
             let want = if kind == Kind::Frame {
                 name::FRAME
             } else {
@@ -513,12 +612,16 @@ impl<R: Read> McapLines<R> {
 
     fn message(&mut self, start: usize, end: usize, offset: u64) -> Result<Msg, LogError> {
         let mut f = Fields::new(&self.body[start..end]);
-        let id = f
-            .u16()
-            .map_err(|m| self.err(offset, format!("message: {m}")))?;
-        // sequence, log time, publish time: the FRAME object carries its own.
-        f.take(4 + 8 + 8)
-            .map_err(|m| self.err(offset, format!("message: {m}")))?;
+        let parsed = (|| {
+            Ok::<_, String>(mcap::records::MessageHeader {
+                channel_id: f.u16()?,
+                sequence: f.u32()?,
+                log_time: f.u64()?,
+                publish_time: f.u64()?,
+            })
+        })();
+        let header = parsed.map_err(|m| self.err(offset, format!("message: {m}")))?;
+        let id = header.channel_id;
         let data_start = start + f.pos;
         let kind = match self.channels.iter().find(|c| c.0 == id) {
             Some(c) => c.1,
@@ -536,6 +639,7 @@ impl<R: Read> McapLines<R> {
             start: data_start,
             end,
             offset,
+            header,
         })
     }
 
@@ -545,6 +649,13 @@ impl<R: Read> McapLines<R> {
         let parsed = (|| {
             let name = f.str()?;
             if name != schema::HEADER_METADATA {
+                if self.keep_carried {
+                    // One that does not parse is passed over, counted.
+                    if let Ok(pairs) = f.map() {
+                        let name = name.to_string();
+                        self.carried.push(Carried::Metadata { name, pairs });
+                    }
+                }
                 return Ok(None);
             }
             let len = f.u32()? as usize;
@@ -590,11 +701,31 @@ impl<R: Read> McapLines<R> {
                             .extend(self.body[m.start..m.end].iter().map(|&b| no_newline(b)));
                         self.poses.push(b'\n');
                     }
+                    if m.kind == Kind::Other && self.keep_carried {
+                        let h = m.header;
+                        self.carried.push(Carried::Message {
+                            channel: h.channel_id,
+                            sequence: h.sequence,
+                            log_time: h.log_time,
+                            publish_time: h.publish_time,
+                            data: self.body[m.start..m.end].to_vec(),
+                        });
+                    }
                 }
                 None => self.done = true,
             }
         }
         Ok(false)
+    }
+}
+
+/// The header of what is no message (the HEADER metadata).
+fn no_header() -> mcap::records::MessageHeader {
+    mcap::records::MessageHeader {
+        channel_id: 0,
+        sequence: 0,
+        log_time: 0,
+        publish_time: 0,
     }
 }
 
@@ -608,7 +739,7 @@ fn no_newline(b: u8) -> u8 {
 }
 
 /// Read until `buf` is full or the source ends; the count read.
-fn read_full<R: Read>(src: &mut R, buf: &mut [u8]) -> io::Result<usize> {
+pub(crate) fn read_full<R: Read>(src: &mut R, buf: &mut [u8]) -> io::Result<usize> {
     let mut n = 0;
     while n < buf.len() {
         match src.read(&mut buf[n..]) {

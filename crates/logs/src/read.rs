@@ -8,6 +8,7 @@
 //! what was dropped.
 
 use crate::lines::McapLines;
+pub use crate::lines::{Carried, ChannelDecl};
 use lightpose_core::{Cut, Frame, FrameLog, FrameOrder, LogError, LogHeader, LogReader};
 use std::collections::VecDeque;
 use std::fs::File;
@@ -90,6 +91,25 @@ impl<R: Read> McapReader<R> {
     /// taken with [`McapReader::take_poses`].
     pub fn keep_poses(&mut self, on: bool) {
         self.inner.get_mut().keep_poses = on;
+    }
+
+    /// Keep the messages of the channels a conversion carries as they are
+    /// (every channel but frames, poses and the Foxglove ones: see
+    /// [`ChannelDecl`]) and the metadata records other than the HEADER's,
+    /// to be taken with [`McapReader::take_carried`].
+    pub fn keep_carried(&mut self, on: bool) {
+        self.inner.get_mut().keep_carried = on;
+    }
+
+    /// What was kept so far for carrying, in the order of the file.
+    pub fn take_carried(&mut self) -> Vec<Carried> {
+        std::mem::take(&mut self.inner.get_mut().carried)
+    }
+
+    /// How the input declared channel `id`, if it is one that is carried.
+    pub fn channel_decl(&self, id: u16) -> Option<&ChannelDecl> {
+        let decls = &self.inner.get_ref().decls;
+        decls.iter().find(|d| d.0 == id).map(|d| &d.1)
     }
 
     /// Write the POSE messages kept so far, one per line, and forget them.

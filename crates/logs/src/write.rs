@@ -249,6 +249,47 @@ impl<W: Write> McapWriter<W> {
             .status(t, json, &mut Self::sink(&mut self.mcap, &self.ids))
     }
 
+    /// Declare a channel as another file declared it (a conversion carries
+    /// the channels it does not make): its schema (name, encoding, data;
+    /// `None`: no schema), topic, message encoding and metadata; its MCAP
+    /// id. A declaration equal to one made before (this writer's own
+    /// `/lightpose/status`, say) gives that channel's id.
+    pub fn add_channel(
+        &mut self,
+        schema: Option<(&str, &str, &[u8])>,
+        topic: &str,
+        message_encoding: &str,
+        metadata: &BTreeMap<String, String>,
+    ) -> Result<u16, WriteError> {
+        let sid = match schema {
+            Some((name, encoding, data)) => self.mcap.add_schema(name, encoding, data)?,
+            None => 0,
+        };
+        Ok(self
+            .mcap
+            .add_channel(sid, topic, message_encoding, metadata)?)
+    }
+
+    /// Append a message on a channel of [`McapWriter::add_channel`] as it
+    /// was: its sequence, log and publish times and bytes unchanged.
+    pub fn write_raw(
+        &mut self,
+        channel_id: u16,
+        sequence: u32,
+        log_time: u64,
+        publish_time: u64,
+        data: &[u8],
+    ) -> Result<(), WriteError> {
+        let h = MessageHeader {
+            channel_id,
+            sequence,
+            log_time,
+            publish_time,
+        };
+        self.mcap.write_to_known_channel(&h, data)?;
+        Ok(())
+    }
+
     /// Append a metadata record `name` of `pairs` (it closes the open
     /// chunk: metadata sits between chunks). Readers here pass over every
     /// metadata record but the HEADER's.

@@ -1,13 +1,15 @@
 //! JSONL ↔ MCAP: the regression logs go through MCAP and come back byte
 //! for byte, with their POSE lines; a recording read back gives the frames
 //! that were written; the `mcap` crate's own reader sees the same FRAME
-//! messages; the opener tells containers apart.
+//! messages; the opener tells containers apart; MCAP → MCAP keeps STATUS,
+//! other programs' channels and every metadata record.
 
 mod common;
 
 use common::{data, frame, header, pose, record};
 use lightpose_core::{FrameLog, LogReader, LogWriter};
 use lightpose_logs::{convert, open, McapOptions, McapReader, McapWriter, WriteError};
+use std::collections::BTreeMap;
 use std::fs;
 
 fn opts() -> McapOptions {
@@ -314,4 +316,83 @@ fn conversion_refuses_what_it_cannot_do() {
         e.ends_with("bad.poses.jsonl:3: POSE has no integer seq"),
         "{e}"
     );
+}
+
+/// Every message of a finished MCAP by topic (sequence, times, bytes, and
+/// the channel's declaration), and its metadata records in order, read by
+/// the `mcap` crate.
+type Topics = BTreeMap<String, Vec<(u32, u64, u64, Vec<u8>, String)>>;
+type Metas = Vec<(String, BTreeMap<String, String>)>;
+
+fn contents(bytes: &[u8]) -> (Topics, Metas) {
+    let mut topics = Topics::new();
+    for m in mcap::MessageStream::new(bytes).unwrap() {
+        let m = m.unwrap();
+        let decl = format!(
+            "{} {:?} {:?}",
+            m.channel.message_encoding,
+            m.channel.metadata,
+            m.channel.schema.as_ref().map(|s| (
+                s.name.clone(),
+                s.encoding.clone(),
+                s.data.to_vec()
+            ))
+        );
+        topics.entry(m.channel.topic.clone()).or_default().push((
+            m.sequence,
+            m.log_time,
+            m.publish_time,
+            m.data.into_owned(),
+            decl,
+        ));
+    }
+    let mut metas = Vec::new();
+    for r in mcap::read::LinearReader::new(bytes).unwrap() {
+        if let mcap::records::Record::Metadata(m) = r.unwrap() {
+            metas.push((m.name, m.metadata));
+        }
+    }
+    (topics, metas)
+}
+
+/// MCAP → MCAP dropped `/lightpose/status` and every metadata record but
+/// the HEADER's (an audit: `lightpose-clock`, the only map from a board's
+/// log time to the date, gone from every converted recording). Now every
+/// channel and record comes through as it was.
+#[test]
+fn mcap_to_mcap_keeps_status_other_channels_and_every_metadata_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let (input, output) = (dir.path().join("in.mcap"), dir.path().join("out.mcap"));
+    let n = 30;
+    std::fs::write(&input, common::rich_record(n, 2 << 10)).unwrap();
+    let s = convert(&input, &output, None, &opts(), |e| panic!("{e}")).unwrap();
+    assert_eq!((s.frames, s.poses), (n, n));
+    assert_eq!((s.carried, s.metadata), (3 + 10, 3), "{s:?}");
+    let (want, want_meta) = contents(&std::fs::read(&input).unwrap());
+    let (got, got_meta) = contents(&std::fs::read(&output).unwrap());
+    assert_eq!(
+        want.keys().collect::<Vec<_>>(),
+        got.keys().collect::<Vec<_>>()
+    );
+    for (topic, msgs) in &want {
+        assert_eq!(msgs, &got[topic], "{topic}");
+    }
+    assert_eq!(got["/lightpose/status"].len(), 3);
+    assert_eq!(got["/x/depth"].len(), 10);
+    assert_eq!(want_meta, got_meta);
+    let names: Vec<&str> = got_meta.iter().map(|m| m.0.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "lightpose-header",
+            "lightpose-clock",
+            "lightpose-clock",
+            "notes"
+        ]
+    );
+    // Into JSONL (frames only) they are passed over, counted.
+    let jsonl = dir.path().join("out.jsonl");
+    let s = convert(&input, &jsonl, None, &opts(), |e| panic!("{e}")).unwrap();
+    assert_eq!((s.carried, s.metadata), (0, 0));
+    assert!(s.other >= 3 + 10 + 3, "{s:?}");
 }

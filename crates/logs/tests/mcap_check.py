@@ -14,6 +14,18 @@ counted (`clock=N` at the end). Prints one line of counts.
 `cut`: a file cut short, read by the library's non-seeking reader, which
 yields what it can before the cut; prints the number of FRAME messages.
 
+    python mcap_check.py default FILE.mcap
+    python mcap_check.py alike A.mcap B.mcap
+
+`default`: the library's default reader as a user opens a file
+(`make_reader` on a seekable file: the seeking reader, through the
+summary), every message in log-time order, then the metadata and
+attachments: one line of counts (messages, per topic, metadata,
+`lightpose-clock` records, attachments), or `error=CLASS` when the reader
+fails (a file cut short). `alike`: two finished files hold the same
+messages on every topic (channel declaration, sequence, times and bytes)
+and the same metadata records in the same order.
+
 Any mismatch: one line on stderr, exit 1.
 """
 
@@ -215,10 +227,61 @@ def cut(path):
     print(f"frames={frames}")
 
 
+def default(path):
+    n = {}
+    try:
+        with open(path, "rb") as f:
+            reader = make_reader(f)
+            for _schema, ch, _msg in reader.iter_messages():
+                n[ch.topic] = n.get(ch.topic, 0) + 1
+            summary = reader.get_summary()
+            metas = [m.name for m in reader.iter_metadata()]
+            attachments = sum(1 for _ in reader.iter_attachments())
+    except Exception as e:  # what a user of the library meets
+        print(f"error={type(e).__name__}")
+        return
+    total = sum(n.values())
+    if summary is None:
+        fail("no summary")
+    if summary.statistics is not None and summary.statistics.message_count != total:
+        fail(f"statistics say {summary.statistics.message_count} messages, {total} read")
+    counts = [f"messages={total}"] + [f"{t.split('/')[-1]}={c}" for t, c in sorted(n.items())]
+    counts += [f"metadata={len(metas)}", f"clock={metas.count('lightpose-clock')}", f"attachments={attachments}"]
+    print(" ".join(counts))
+
+
+def dump(path):
+    msgs = {}
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        for schema, ch, m in reader.iter_messages(log_time_order=False):
+            decl = (schema.name, schema.encoding, schema.data) if schema else None
+            key = (ch.topic, ch.message_encoding, tuple(sorted(ch.metadata.items())), decl)
+            msgs.setdefault(key, []).append((m.sequence, m.log_time, m.publish_time, bytes(m.data)))
+        metas = [(m.name, dict(m.metadata)) for m in reader.iter_metadata()]
+    return msgs, metas
+
+
+def alike(a, b):
+    (ma, ta), (mb, tb) = dump(a), dump(b)
+    for key in sorted(set(ma) | set(mb), key=repr):
+        x, y = ma.get(key, []), mb.get(key, [])
+        if x != y:
+            i = next((i for i, (p, q) in enumerate(zip(x, y)) if p != q), min(len(x), len(y)))
+            fail(f"{key[0]} ({key[3][0] if key[3] else 'no schema'}): {len(x)} vs {len(y)} messages, first difference at #{i}")
+    if ta != tb:
+        fail(f"metadata {[m[0] for m in ta]} vs {[m[0] for m in tb]}")
+    print(f"messages={sum(len(v) for v in ma.values())} metadata={len(ta)}")
+
+
 if __name__ == "__main__":
     if len(sys.argv) >= 4 and sys.argv[1] == "full":
         full(sys.argv[2], sys.argv[3], sys.argv[4] if len(sys.argv) > 4 else None)
     elif len(sys.argv) == 3 and sys.argv[1] == "cut":
         cut(sys.argv[2])
+    elif len(sys.argv) == 3 and sys.argv[1] == "default":
+        default(sys.argv[2])
+    elif len(sys.argv) == 4 and sys.argv[1] == "alike":
+        alike(sys.argv[2], sys.argv[3])
     else:
-        fail("usage: mcap_check.py full REC.mcap LOG.jsonl [POSES.jsonl] | cut PREFIX.mcap")
+        fail("usage: mcap_check.py full REC.mcap LOG.jsonl [POSES.jsonl] | cut PREFIX.mcap | default FILE.mcap | alike A.mcap B.mcap")

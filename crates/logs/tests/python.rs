@@ -87,3 +87,67 @@ fn a_cut_file_gives_the_reference_reader_the_frames_it_gives_ours() {
         assert!(ours > 0 && ours < 40, "cut at {cut}: {ours}");
     }
 }
+
+/// The library's default reader (`make_reader` on a file: it seeks to the
+/// footer) cannot open a recording cut short; what `recover` writes from
+/// it opens, with every message recover kept and the metadata.
+#[test]
+fn the_default_reader_opens_what_recover_writes_of_a_cut_recording() {
+    let py = python();
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = common::rich_record(60, 2 << 10);
+    let good = dir.path().join("good.mcap");
+    std::fs::write(&good, &bytes).unwrap();
+    let whole = check(&py, &[Path::new("default"), &good]);
+    for cut in [bytes.len() / 3 + 17, bytes.len() * 3 / 4, bytes.len() - 30] {
+        let cut_file = dir.path().join(format!("cut{cut}.mcap"));
+        std::fs::write(&cut_file, &bytes[..cut]).unwrap();
+        let theirs = check(&py, &[Path::new("default"), &cut_file]);
+        assert!(theirs.starts_with("error="), "cut at {cut}: {theirs}");
+        let fixed = dir.path().join(format!("fixed{cut}.mcap"));
+        let s = lightpose_logs::recover(&cut_file, &fixed, &Default::default()).unwrap();
+        let line = check(&py, &[Path::new("default"), &fixed]);
+        assert!(
+            line.starts_with(&format!("messages={} ", s.messages)),
+            "cut at {cut}: {line} ({s})"
+        );
+        let frames = McapReader::open(&fixed)
+            .unwrap()
+            .map(Result::unwrap)
+            .count();
+        assert!(line.contains(&format!(" frame={frames} ")), "{line}");
+        assert!(line.contains(" clock="), "{line}");
+    }
+    // A finished file comes through whole.
+    let fixed = dir.path().join("fixed.mcap");
+    let s = lightpose_logs::recover(&good, &fixed, &Default::default()).unwrap();
+    assert_eq!((s.lost_messages, s.lost_bytes), (0, 0), "{s}");
+    assert_eq!(check(&py, &[Path::new("default"), &fixed]), whole);
+    let line = check(&py, &[Path::new("alike"), &good, &fixed]);
+    assert!(
+        line.starts_with(&format!("messages={} ", s.messages)),
+        "{line}"
+    );
+}
+
+/// MCAP → MCAP, read by the reference library: every channel (STATUS and
+/// another program's included) and every metadata record as they were.
+#[test]
+fn the_reference_library_finds_a_converted_recording_alike() {
+    let py = python();
+    let dir = tempfile::tempdir().unwrap();
+    let (input, output) = (dir.path().join("in.mcap"), dir.path().join("out.mcap"));
+    std::fs::write(&input, common::rich_record(40, 4 << 10)).unwrap();
+    convert(&input, &output, None, &McapOptions::default(), |e| {
+        panic!("{e}")
+    })
+    .unwrap();
+    let line = check(&py, &[Path::new("alike"), &input, &output]);
+    assert!(line.ends_with(" metadata=4"), "{line}");
+    let line = check(&py, &[Path::new("default"), &output]);
+    assert!(
+        line.contains(" status=4 ") && line.contains(" depth=14 "),
+        "{line}"
+    );
+    assert!(line.contains(" clock=2 "), "{line}");
+}

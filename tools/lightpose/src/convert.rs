@@ -8,7 +8,7 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct ConvertArgs {
     /// Log to read (.jsonl or .mcap; an MCAP cut short is read up to its
-    /// last complete chunk).
+    /// last complete chunk: `lightpose recover` keeps every whole record).
     #[arg(long = "in")]
     input: PathBuf,
     /// Log to write (.jsonl or .mcap).
@@ -40,12 +40,14 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         }
     })?;
     eprintln!(
-        "{} frames, {} poses: {} -> {}; {} skipped, {} other records passed over",
+        "{} frames, {} poses: {} -> {}; {} skipped, {} other messages and {} metadata records carried, {} other records passed over",
         s.frames,
         s.poses,
         a.input.display(),
         a.out.display(),
         s.skipped,
+        s.carried,
+        s.metadata,
         s.other
     );
     if let Some(cut) = s.cut {

@@ -8,6 +8,7 @@ mod crb;
 mod fake_autopilot;
 mod guard;
 mod montecarlo;
+mod recover;
 mod replay;
 mod simulate;
 mod stdout;
@@ -44,6 +45,9 @@ enum Cmd {
     Crb(crb::CrbArgs),
     /// Convert an intensity log between JSON Lines and MCAP.
     Convert(convert::ConvertArgs),
+    /// Rewrite an MCAP cut short (kill -9, power loss) as a finished file
+    /// that every reader opens, with every whole record written.
+    Recover(recover::RecoverArgs),
     /// Stand in for the vehicle's autopilot: send its sensors over MAVLink
     /// from a trajectory and check the daemon's poses against the truth.
     FakeAutopilot(fake_autopilot::FakeAutopilotArgs),
@@ -60,6 +64,7 @@ fn main() -> ExitCode {
         Cmd::Bench(a) => bench::run(a),
         Cmd::Crb(a) => crb::run(a),
         Cmd::Convert(a) => convert::run(a),
+        Cmd::Recover(a) => recover::run(a),
         Cmd::FakeAutopilot(a) => fake_autopilot::run(a),
     };
     match r {

@@ -168,3 +168,85 @@ fn replay_and_calibrate_read_mcap_alike() {
     }
     assert_eq!(cals[0], cals[1]);
 }
+
+/// `lightpose recover`: a recording cut mid-chunk, which the reference
+/// Python library's default reader cannot open, comes back as a file it
+/// opens, with every frame of the complete chunks and one line saying
+/// what was kept and lost; bad input is one line.
+#[test]
+fn recover_finishes_a_cut_recording_for_every_reader() {
+    let py = lightpose_testkit::python::python();
+    let script = root().join("crates/logs/tests/mcap_check.py");
+    let dir = tempfile::tempdir().unwrap();
+    let log = root().join("tests/data/zigzag.jsonl");
+    let small = dir.path().join("small.mcap");
+    let (ok, _, err) = run(&[
+        "convert",
+        "--in",
+        s(&log),
+        "--out",
+        s(&small),
+        "--chunk-kib",
+        "2",
+    ]);
+    assert!(ok, "{err}");
+    let bytes = std::fs::read(&small).unwrap();
+    let (cut, fixed) = (dir.path().join("cut.mcap"), dir.path().join("fixed.mcap"));
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let check = |mode: &str, f: &Path| {
+        lightpose_testkit::python::run_python(&py, &script, &[Path::new(mode), f])
+    };
+    assert!(check("default", &cut).starts_with("error="));
+    let (ok, _, err) = run(&["recover", "--in", s(&cut), "--out", s(&fixed)]);
+    assert!(ok, "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    let kept: u64 = err
+        .strip_prefix(&format!("{} -> {}: kept ", cut.display(), fixed.display()))
+        .and_then(|r| r.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{err}"));
+    assert!(
+        err.contains("; lost ") && err.contains("(first: byte "),
+        "{err}"
+    );
+    let line = check("default", &fixed);
+    assert!(line.starts_with(&format!("messages={kept} ")), "{line}");
+    // Every frame our reader finds in the cut file, and the recovered one
+    // is finished.
+    let (a, b) = (dir.path().join("a.jsonl"), dir.path().join("b.jsonl"));
+    let (ok, _, err) = run(&["convert", "--in", s(&cut), "--out", s(&a)]);
+    assert!(ok && err.contains("recording never finished"), "{err}");
+    let (ok, _, err) = run(&["convert", "--in", s(&fixed), "--out", s(&b)]);
+    assert!(ok && !err.contains("never finished"), "{err}");
+    let frames = |p: &Path| std::fs::read_to_string(p).unwrap().lines().count() - 1;
+    assert!(
+        frames(&b) >= frames(&a) && frames(&a) > 5,
+        "{} {}",
+        frames(&a),
+        frames(&b)
+    );
+    assert!(line.contains(&format!(" frame={} ", frames(&b))), "{line}");
+
+    for (args, want) in [
+        (
+            vec!["recover", "--in", s(&cut), "--out", s(&cut)],
+            "input and output are the same file".to_string(),
+        ),
+        (
+            vec!["recover", "--in", s(&cut), "--out", "x.jsonl"],
+            "x.jsonl: the output must be named .mcap".to_string(),
+        ),
+        (
+            vec!["recover", "--in", s(&log), "--out", s(&fixed)],
+            format!(
+                "{}: byte 0: not an MCAP file (no MCAP magic): nothing to recover",
+                log.display()
+            ),
+        ),
+    ] {
+        let (ok, _, err) = run(&args);
+        assert!(!ok, "{args:?}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.trim_end().ends_with(&want), "{err}");
+    }
+}

@@ -8,8 +8,10 @@
 //! written. MCAP: frames, estimates and STATUS on the channels of
 //! docs/foxglove.md, in chunks held in memory until they are full or the
 //! timer closes them; a power loss or kill -9 loses the open chunk only,
-//! and the file reads (and `lightpose convert` recovers it) up to its last
-//! complete chunk.
+//! and the file reads here up to its last complete chunk (`lightpose
+//! recover` finishes it for readers that need its footer; a footer
+//! written at each flush would make the file rewritten in place, no longer
+//! append-only: docs/daemon.md).
 //!
 //! A file whose writing failed (a full disk) is not left as the error cut
 //! it: it is cut back to its last whole point (JSONL: its last complete

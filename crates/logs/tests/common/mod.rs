@@ -105,3 +105,62 @@ pub fn assert_one_line_at(e: &impl std::fmt::Display, name: &str) {
         "no file and offset: {s}"
     );
 }
+
+/// A recording with all a daemon's file holds beside frames and poses:
+/// STATUS, `lightpose-clock` metadata at the start and at a step, another
+/// metadata record, and another program's channel (a schema, channel
+/// metadata, its own sequence numbers and times).
+pub fn rich_record(n: u64, chunk_bytes: u64) -> Vec<u8> {
+    let opts = McapOptions {
+        chunk_bytes,
+        foxglove: true,
+    };
+    let mut w = McapWriter::new(Vec::new(), &header(), &opts).unwrap();
+    let clock = |reason: &str, t: f64| -> std::collections::BTreeMap<String, String> {
+        [
+            ("epoch", "source".to_string()),
+            ("t", format!("{t}")),
+            ("log_time", format!("{}", (t * 1e9) as u64)),
+            ("unix", format!("{}", 1.7e9 + t)),
+            ("offset", "1700000000".to_string()),
+            ("synced", "true".to_string()),
+            ("reason", reason.to_string()),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
+    };
+    w.write_metadata("lightpose-clock", clock("open", 0.0))
+        .unwrap();
+    let meta = [("unit".to_string(), "m".to_string())].into();
+    let other = w
+        .add_channel(
+            Some(("x.Depth", "jsonschema", br#"{"type":"object"}"#)),
+            "/x/depth",
+            "json",
+            &meta,
+        )
+        .unwrap();
+    for seq in 0..n {
+        let f = frame(seq);
+        w.write_frame(&f).unwrap();
+        w.write_pose(&pose(&f), Some(1.7e9 + f.t)).unwrap();
+        if seq % 10 == 9 {
+            let status = format!("{{\"class\":\"STATUS\",\"seq\":{},\"t\":1.7e9}}", seq / 10);
+            w.write_status(f.t, status.as_bytes()).unwrap();
+        }
+        if seq % 3 == 0 {
+            let data = format!("{{\"z\":{}}}", seq as f64 * 0.01);
+            let t = (f.t * 1e9) as u64 + 17;
+            w.write_raw(other, 1000 + seq as u32, t, t + 3, data.as_bytes())
+                .unwrap();
+        }
+        if seq == n / 2 {
+            w.write_metadata("lightpose-clock", clock("step", f.t))
+                .unwrap();
+            let notes = [("diver".to_string(), "A. N. Other".to_string())].into();
+            w.write_metadata("notes", notes).unwrap();
+        }
+    }
+    w.finish().unwrap()
+}
