@@ -14,8 +14,10 @@ pub mod frame;
 pub mod geometry;
 pub mod light;
 pub mod log;
+pub mod modulation;
 pub mod pose;
 pub mod ratelog;
+pub mod samples;
 pub mod textfile;
 pub mod textpos;
 pub mod udp;
@@ -27,6 +29,7 @@ pub use frame::{AttitudeReading, AttitudeStd, DepthReading, Frame, Truth, Veloci
 pub use geometry::{Attitude, BeamVec, BodyVec, Pose};
 pub use light::{LightParams, Scattering};
 pub use log::{ByteError, Cut, FrameLog, FrameOrder, LogError, LogHeader, LogReader, LogWriter};
+pub use samples::{BeaconAmplitude, BeaconInfo, Burst, Demodulated, Record, RecordKind, MAX_BEACONS};
 pub use pose::{
     Agreement, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev, CHECKED, READINGS,
 };

@@ -125,6 +125,7 @@ impl Simulator {
             let dp = a.sigma_pitch.rad() * normal();
             let dy = a.sigma_yaw.rad() * normal();
             AttitudeReading {
+                roll: None,
                 std: told(a.sigma_pitch.rad().min(a.sigma_yaw.rad())).then_some(AttitudeStd {
                     pitch: a.sigma_pitch,
                     yaw: a.sigma_yaw,
