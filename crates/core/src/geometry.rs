@@ -229,7 +229,10 @@ mod tests {
         }
         // Level, facing the beacon, rolled starboard down: right points down.
         let lvl = Attitude::default().with_roll(Angle::from_deg(90.0));
-        assert!(close(lvl.to_beam(&BodyVec([0.0, 1.0, 0.0])).0, [0.0, 0.0, -1.0]));
+        assert!(close(
+            lvl.to_beam(&BodyVec([0.0, 1.0, 0.0])).0,
+            [0.0, 0.0, -1.0]
+        ));
         let zero = a.with_roll(Angle::ZERO).r_bv();
         let bits = |m: [[f64; 3]; 3]| m.map(|r| r.map(f64::to_bits));
         assert_eq!(bits(zero), bits(a.r_bv()));

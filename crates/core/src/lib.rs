@@ -29,9 +29,11 @@ pub use frame::{AttitudeReading, AttitudeStd, DepthReading, Frame, Truth, Veloci
 pub use geometry::{Attitude, BeamVec, BodyVec, Pose};
 pub use light::{LightParams, Scattering};
 pub use log::{ByteError, Cut, FrameLog, FrameOrder, LogError, LogHeader, LogReader, LogWriter};
-pub use samples::{BeaconAmplitude, BeaconInfo, Burst, Demodulated, Record, RecordKind, MAX_BEACONS};
 pub use pose::{
     Agreement, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev, CHECKED, READINGS,
+};
+pub use samples::{
+    BeaconAmplitude, BeaconInfo, Burst, Demodulated, Record, RecordKind, MAX_BEACONS,
 };
 
 /// Replace a non-finite number by `None`: no message or log ever carries

@@ -7,10 +7,10 @@
 
 use crate::frame::full_scale;
 use crate::frame::{DepthReading, VelocityReading};
-use crate::textfile::{excerpt, one_line, read_line_bounded, LineRead, MAX_LINE_BYTES};
 use crate::samples::{
     BeaconInfo, Burst, Demodulated, Record, RecordKind, MAX_BEACONS, MAX_SAMPLES_PER_FRAME,
 };
+use crate::textfile::{excerpt, one_line, read_line_bounded, LineRead, MAX_LINE_BYTES};
 use crate::{Angle, AttitudeReading, Frame, Pose, Truth, COLS, NDET, ROWS};
 use serde::{Deserialize, Serialize};
 use std::fs::File;
@@ -109,7 +109,9 @@ impl LogHeader {
 
     /// The id of beacon `i` (see [`LogHeader::beacon_index`]).
     pub fn beacon_id(&self, i: usize) -> &str {
-        self.beacons.get(i).map_or(DEFAULT_BEACON_ID, |b| b.id.as_str())
+        self.beacons
+            .get(i)
+            .map_or(DEFAULT_BEACON_ID, |b| b.id.as_str())
     }
 
     fn to_json(&self) -> serde_json::Value {
@@ -235,7 +237,12 @@ fn parse_v3_header(
             let s = v
                 .as_f64()
                 .filter(|s| s.is_finite() && *s > 0.0)
-                .ok_or_else(|| format!("header sample_hz = {}: must be a positive number", excerpt(&v.to_string(), 40)))?;
+                .ok_or_else(|| {
+                    format!(
+                        "header sample_hz = {}: must be a positive number",
+                        excerpt(&v.to_string(), 40)
+                    )
+                })?;
             let n = samples_per_frame(s, rate_hz).map_err(|e| format!("header {e}"))?;
             if n as usize > MAX_SAMPLES_PER_FRAME {
                 return Err(format!(
@@ -279,7 +286,10 @@ fn parse_v3_header(
                     .and_then(|v| v.as_f64())
                     .filter(|f| f.is_finite() && *f >= 0.0)
                     .ok_or_else(|| {
-                        format!("header beacons[{i}] (\"{}\") has no mod_hz ≥ 0", excerpt(id, 40))
+                        format!(
+                            "header beacons[{i}] (\"{}\") has no mod_hz ≥ 0",
+                            excerpt(id, 40)
+                        )
                     })?;
                 if beacons.iter().any(|o| o.id == id) {
                     return Err(format!(
@@ -308,7 +318,11 @@ fn parse_v3_header(
             id: DEFAULT_BEACON_ID,
             mod_hz: 0.0,
         }];
-        let list = if freqs.is_empty() { &one[..] } else { &freqs[..] };
+        let list = if freqs.is_empty() {
+            &one[..]
+        } else {
+            &freqs[..]
+        };
         check_beacons(rate_hz, sample_hz.unwrap_or(rate_hz), list)
             .map_err(|e| format!("header: {e}"))?;
     }
@@ -745,7 +759,10 @@ impl<R: BufRead> LogReader<R> {
                 ));
             }
             if s.channels != NDET {
-                return Err(format!("samples has {} arrays, expected {NDET}", s.channels));
+                return Err(format!(
+                    "samples has {} arrays, expected {NDET}",
+                    s.channels
+                ));
             }
             if let Some(k) = s.lens.iter().position(|&l| l != n) {
                 return Err(format!(
@@ -756,7 +773,9 @@ impl<R: BufRead> LogReader<R> {
             let fs = full_scale(self.header.adc_bits);
             if let Some((k, i, v)) = &s.first_bad {
                 let v = excerpt(&v.to_string(), 40);
-                return Err(format!("samples[{k}][{i}] = {v} is not an integer in 0..{fs}"));
+                return Err(format!(
+                    "samples[{k}][{i}] = {v} is not an integer in 0..{fs}"
+                ));
             }
             if let Some(j) = s.flat.iter().position(|&c| c > fs) {
                 return Err(format!(
@@ -799,12 +818,18 @@ impl<R: BufRead> LogReader<R> {
                 return Err("FRAME has no counts".into());
             };
             if bs.len > MAX_BEACONS {
-                return Err(format!("beacons has {} entries, at most {MAX_BEACONS}", bs.len));
+                return Err(format!(
+                    "beacons has {} entries, at most {MAX_BEACONS}",
+                    bs.len
+                ));
             }
             if bs.len == 0 {
                 return Err("beacons is empty".into());
             }
-            let nums = |v: &Option<rawline::Nums>, what: String, min: f64| -> Result<[f64; NDET], String> {
+            let nums = |v: &Option<rawline::Nums>,
+                        what: String,
+                        min: f64|
+             -> Result<[f64; NDET], String> {
                 let v = v.as_ref().ok_or_else(|| format!("{what} is missing"))?;
                 if v.len != NDET {
                     return Err(format!("{what} has {} values, expected {NDET}", v.len));
@@ -818,10 +843,9 @@ impl<R: BufRead> LogReader<R> {
                 Ok(v.values)
             };
             for (i, b) in bs.items[..bs.len].iter().enumerate() {
-                let id = b
-                    .id
-                    .as_ref()
-                    .ok_or_else(|| format!("beacons[{i}] has no id"))?;
+                let id =
+                    b.id.as_ref()
+                        .ok_or_else(|| format!("beacons[{i}] has no id"))?;
                 let idx = self.header.beacon_index(&id.0).ok_or_else(|| {
                     format!(
                         "beacons[{i}]: id \"{}\" is not among the header's beacons",
@@ -829,11 +853,17 @@ impl<R: BufRead> LogReader<R> {
                     )
                 })?;
                 if d.beacons[..i].iter().any(|o| o.beacon as usize == idx) {
-                    return Err(format!("beacons[{i}]: id \"{}\" repeats", excerpt(&id.0, 40)));
+                    return Err(format!(
+                        "beacons[{i}]: id \"{}\" repeats",
+                        excerpt(&id.0, 40)
+                    ));
                 }
                 d.beacons[i].beacon = idx as u8;
-                d.beacons[i].amplitude =
-                    nums(&b.amplitude, format!("beacons[{i}].amplitude"), f64::NEG_INFINITY)?;
+                d.beacons[i].amplitude = nums(
+                    &b.amplitude,
+                    format!("beacons[{i}].amplitude"),
+                    f64::NEG_INFINITY,
+                )?;
                 d.beacons[i].std = nums(&b.std, format!("beacons[{i}].std"), 0.0)?;
             }
             d.n_beacons = bs.len;
@@ -845,7 +875,11 @@ impl<R: BufRead> LogReader<R> {
             for (k, (v, out)) in c.values.iter().zip(d.clipped.iter_mut()).enumerate() {
                 match *v {
                     Some(x) if x <= n => *out = x as u32,
-                    _ => return Err(format!("clipped[{k}] is not an integer in 0..={n} (samples per frame)")),
+                    _ => {
+                        return Err(format!(
+                            "clipped[{k}] is not an integer in 0..={n} (samples per frame)"
+                        ))
+                    }
                 }
             }
             Ok(())
@@ -1750,9 +1784,16 @@ mod v3_tests {
         let lines: Vec<&str> = text.lines().collect();
         assert!(!lines[0].contains("sample_hz") && !lines[0].contains("beacons"));
         assert!(!lines[1].contains("roll"), "{}", lines[1]);
-        assert!(lines[2].contains(r#""yaw":0.0,"roll":12.5"#), "{}", lines[2]);
+        assert!(
+            lines[2].contains(r#""yaw":0.0,"roll":12.5"#),
+            "{}",
+            lines[2]
+        );
         assert!(lines[2].contains(r#""roll":12.0"#), "{}", lines[2]);
-        let got: Vec<Frame> = LogReader::new(&bytes[..], "r").unwrap().map(|r| r.unwrap()).collect();
+        let got: Vec<Frame> = LogReader::new(&bytes[..], "r")
+            .unwrap()
+            .map(|r| r.unwrap())
+            .collect();
         assert_eq!(got[0].truth.unwrap().pose.roll, Angle::ZERO);
         assert_eq!(got[0].attitude.unwrap().roll, None);
         assert!((got[1].truth.unwrap().pose.roll.deg() - 12.5).abs() < 1e-12);
@@ -1765,7 +1806,10 @@ mod v3_tests {
         let bad = "{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":5}\n{\"class\":\"FRAME\",\"seq\":0,\"t\":0,\"counts\":[0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0],\"attitude\":{\"pitch\":1,\"yaw\":2,\"roll\":\"x\"}}\n";
         let mut r = LogReader::new(bad.as_bytes(), "b").unwrap();
         assert!(r.next_frame().unwrap().unwrap().attitude.is_none());
-        assert_eq!(r.bad_readings().1, Some("b:2: attitude roll is not a number"));
+        assert_eq!(
+            r.bad_readings().1,
+            Some("b:2: attitude roll is not a number")
+        );
     }
 
     #[test]
@@ -1784,7 +1828,10 @@ mod v3_tests {
             match r.next_record() {
                 Some(Ok(Record::Burst(b))) => {
                     assert_eq!(b.samples(), want.samples());
-                    assert_eq!((b.seq, b.t, b.n(), b.temp_c), (want.seq, want.t, 4, want.temp_c));
+                    assert_eq!(
+                        (b.seq, b.t, b.n(), b.temp_c),
+                        (want.seq, want.t, 4, want.temp_c)
+                    );
                     let roll = b.truth.unwrap().pose.roll.deg();
                     assert!((roll + 7.5).abs() < 1e-12, "{roll}");
                     assert!((b.attitude.unwrap().roll.unwrap().deg() + 7.25).abs() < 1e-12);
@@ -1826,7 +1873,10 @@ mod v3_tests {
         w.write_demodulated(&d).unwrap();
         let bytes = w.into_inner();
         let text = String::from_utf8(bytes.clone()).unwrap();
-        assert!(text.contains(r#""beacons":[{"id":"port","amplitude":[12.5,"#), "{text}");
+        assert!(
+            text.contains(r#""beacons":[{"id":"port","amplitude":[12.5,"#),
+            "{text}"
+        );
         let mut r = LogReader::new(&bytes[..], "d.jsonl").unwrap();
         match r.next_record() {
             Some(Ok(Record::Demodulated(got))) => assert_eq!(*got, d),
@@ -1847,7 +1897,8 @@ mod v3_tests {
 
     #[test]
     fn bad_bursts_are_named_and_a_mixed_log_is_refused_at_its_first_other_line() {
-        let mut text = String::from_utf8(LogWriter::new(Vec::new(), &header()).unwrap().into_inner()).unwrap();
+        let mut text =
+            String::from_utf8(LogWriter::new(Vec::new(), &header()).unwrap().into_inner()).unwrap();
         text += &line("BURST", 0, &samples(4, "[1,2,3,4]"));
         text += &line("BURST", 1, &samples(4, "[1,2,3]"));
         text += &line("BURST", 2, &samples(4, "[1,2,3,1024]"));
@@ -1855,10 +1906,17 @@ mod v3_tests {
         text += &line("BURST", 4, "\"samples\":[[1,1,1,1]]");
         text += &line("BURST", 5, "\"counts\":[]");
         text += &line("BURST", 6, &samples(4, "[4,3,2,1]"));
-        text += &line("FRAME", 7, &format!("\"counts\":[{}]", vec!["0"; NDET].join(",")));
+        text += &line(
+            "FRAME",
+            7,
+            &format!("\"counts\":[{}]", vec!["0"; NDET].join(",")),
+        );
         text += &line("BURST", 8, &samples(4, "[4,3,2,1]"));
         let (got, _) = records(text.as_bytes());
-        let errs: Vec<String> = got.iter().filter_map(|g| g.as_ref().err().map(|e| e.to_string())).collect();
+        let errs: Vec<String> = got
+            .iter()
+            .filter_map(|g| g.as_ref().err().map(|e| e.to_string()))
+            .collect();
         assert_eq!(got.len(), 8, "{got:?}");
         assert!(got[0].is_ok() && got[6].is_ok());
         for (e, want) in errs.iter().zip([
@@ -1876,7 +1934,8 @@ mod v3_tests {
 
     #[test]
     fn bad_demodulated_frames_are_named() {
-        let mut text = String::from_utf8(LogWriter::new(Vec::new(), &header()).unwrap().into_inner()).unwrap();
+        let mut text =
+            String::from_utf8(LogWriter::new(Vec::new(), &header()).unwrap().into_inner()).unwrap();
         let n25 = |x: &str| format!("[{}]", vec![x; NDET].join(","));
         let frame = |seq: u64, id: &str, clipped: &str| {
             let body = format!(
@@ -1893,15 +1952,30 @@ mod v3_tests {
         text += &frame(2, "top", "5");
         text += &frame(3, "port", "4");
         let (got, _) = records(text.as_bytes());
-        let errs: Vec<String> = got.iter().filter_map(|g| g.as_ref().err().map(|e| e.to_string())).collect();
+        let errs: Vec<String> = got
+            .iter()
+            .filter_map(|g| g.as_ref().err().map(|e| e.to_string()))
+            .collect();
         assert!(got[0].is_ok() && got[3].is_ok(), "{got:?}");
-        assert!(errs[0].starts_with("v3.jsonl:3: beacons[0]: id \"starboard\" is not among the header's beacons"), "{}", errs[0]);
-        assert!(errs[1].starts_with("v3.jsonl:4: clipped[0] is not an integer in 0..=4"), "{}", errs[1]);
+        assert!(
+            errs[0].starts_with(
+                "v3.jsonl:3: beacons[0]: id \"starboard\" is not among the header's beacons"
+            ),
+            "{}",
+            errs[0]
+        );
+        assert!(
+            errs[1].starts_with("v3.jsonl:4: clipped[0] is not an integer in 0..=4"),
+            "{}",
+            errs[1]
+        );
     }
 
     #[test]
     fn bad_v3_headers_are_refused() {
-        let h = |extra: &str| format!("{{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":10{extra}}}\n");
+        let h = |extra: &str| {
+            format!("{{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":10{extra}}}\n")
+        };
         for (extra, want) in [
             (",\"sample_hz\":25", "h:1: header sample_hz = 25 is not a whole multiple of rate_hz = 10"),
             (",\"sample_hz\":4000", "no beacon blinks"),

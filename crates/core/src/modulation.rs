@@ -163,7 +163,12 @@ mod tests {
 
     #[test]
     fn the_dock_example_passes_and_v2_passes() {
-        let dock = [b("top", 200.0), b("starboard", 250.0), b("bottom", 400.0), b("port", 500.0)];
+        let dock = [
+            b("top", 200.0),
+            b("starboard", 250.0),
+            b("bottom", 400.0),
+            b("port", 500.0),
+        ];
         assert_eq!(check_beacons(10.0, 4000.0, &dock), Ok(400));
         assert_eq!(check_beacons(5.0, 5.0, &[b("beacon", 0.0)]), Ok(1));
         // A third of a hertz, as a float: whole within 1e-9.
@@ -175,14 +180,29 @@ mod tests {
     #[test]
     fn the_rules_name_the_beacons() {
         let e = check_beacons(10.0, 4800.0, &[b("a", 200.0), b("b", 600.0)]).unwrap_err();
-        assert!(matches!(e, ModulationError::OddRatio { p: 1, q: 3, .. }), "{e}");
-        assert!(e.to_string().contains("\"a\"") && e.to_string().contains("\"b\""), "{e}");
+        assert!(
+            matches!(e, ModulationError::OddRatio { p: 1, q: 3, .. }),
+            "{e}"
+        );
+        assert!(
+            e.to_string().contains("\"a\"") && e.to_string().contains("\"b\""),
+            "{e}"
+        );
         let e = check_beacons(10.0, 4000.0, &[b("a", 200.0), b("c", 4000.0 / 12.0)]);
-        assert!(matches!(e, Err(ModulationError::PeriodsPerFrame { .. })), "{e:?}");
+        assert!(
+            matches!(e, Err(ModulationError::PeriodsPerFrame { .. })),
+            "{e:?}"
+        );
         let e = check_beacons(3.0, 4000.0, &[b("a", 200.0)]);
-        assert!(matches!(e, Err(ModulationError::SamplesPerFrame { .. })), "{e:?}");
+        assert!(
+            matches!(e, Err(ModulationError::SamplesPerFrame { .. })),
+            "{e:?}"
+        );
         let e = check_beacons(10.0 / 3.0, 4000.0, &[b("a", 200.0), b("c", 4000.0 / 12.0)]);
-        assert!(matches!(e, Err(ModulationError::OddRatio { p: 3, q: 5, .. })), "{e:?}");
+        assert!(
+            matches!(e, Err(ModulationError::OddRatio { p: 3, q: 5, .. })),
+            "{e:?}"
+        );
         assert!(check_beacons(10.0, 4000.0, &[b("a", 200.0), b("b", 250.0)]).is_ok());
         let e = check_beacons(10.0, 4000.0, &[b("a", 200.0), b("b", 200.0)]).unwrap_err();
         assert!(matches!(e, ModulationError::SameFrequency { .. }), "{e}");

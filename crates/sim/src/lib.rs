@@ -15,8 +15,8 @@ pub mod sweep;
 pub mod trajectory;
 
 pub use scene::{
-    Adc, AttitudeNoise, Beacon, Blink, Daylight, DepthNoise, DvlNoise, Flicker, McSpread, Noise, Scene,
-    SceneError,
+    Adc, AttitudeNoise, Beacon, Blink, Daylight, DepthNoise, DvlNoise, Flicker, McSpread, Noise,
+    Scene, SceneError,
 };
 pub use simulator::Simulator;
 pub use sweep::{SweepKind, SweepPlan};

@@ -391,37 +391,63 @@ mod tests {
     #[test]
     fn bad_v3_scenes_name_the_line_and_the_beacons() {
         let e = refused("[beacon]\nv1 = 1\n\n[[beacons]]\nid = \"a\"\nmod_hz = 200\n");
-        assert!(e.starts_with("bad.toml:5: [[beacons]] #1 id: a scene has one [beacon]"), "{e}");
+        assert!(
+            e.starts_with("bad.toml:5: [[beacons]] #1 id: a scene has one [beacon]"),
+            "{e}"
+        );
         let two = |f2: &str| {
             format!("[adc]\nrate_hz = 10\nsample_hz = 4800\n\n[[beacons]]\nid = \"a\"\nmod_hz = 200\n\n[[beacons]]\nid = \"b\"\n{f2}\n")
         };
         let e = refused(&two("mod_hz = 600"));
         assert!(e.starts_with("bad.toml:7: [[beacons]] #1 mod_hz: beacons \"a\" (200 Hz) and \"b\" (600 Hz) stand in the ratio 1 : 3"), "{e}");
         let e = refused(&two("mod_hz = 0"));
-        assert!(e.starts_with("bad.toml:11: [[beacons]] #2 mod_hz: beacon \"b\" is steady"), "{e}");
+        assert!(
+            e.starts_with("bad.toml:11: [[beacons]] #2 mod_hz: beacon \"b\" is steady"),
+            "{e}"
+        );
         let e = refused(&two("mod_hz = 320"));
         assert!(e.starts_with("bad.toml:11: [[beacons]] #2 mod_hz: beacon \"b\": mod_hz = 320 gives 15 samples per period"), "{e}");
         assert!(Scene::parse(&two("mod_hz = 150"), "ok.toml").is_ok());
         let e = refused(&two("mod_hz = 150\ncolour = 1"));
         assert!(e.starts_with("bad.toml:12:") && e.contains("colour"), "{e}");
         let e = refused("[adc]\nrate_hz = 10\nsample_hz = 4800\n\n[[beacons]]\nid = \"a\"\nmod_hz = 200\n\n[[beacons]]\nid = \"a\"\nmod_hz = 150\n");
-        assert!(e.starts_with("bad.toml:10: [[beacons]] #2 id: \"a\" repeats"), "{e}");
+        assert!(
+            e.starts_with("bad.toml:10: [[beacons]] #2 id: \"a\" repeats"),
+            "{e}"
+        );
         let e = refused(&two("mod_hz = 150\nposition_m = [1, 2]"));
-        assert!(e.starts_with("bad.toml:12: [[beacons]] #2 position_m"), "{e}");
+        assert!(
+            e.starts_with("bad.toml:12: [[beacons]] #2 position_m"),
+            "{e}"
+        );
         let e = refused("[adc]\nrate_hz = 10\nsample_hz = 4000\n");
-        assert!(e.starts_with("bad.toml:3: [adc] sample_hz:") && e.contains("no beacon blinks"), "{e}");
+        assert!(
+            e.starts_with("bad.toml:3: [adc] sample_hz:") && e.contains("no beacon blinks"),
+            "{e}"
+        );
         let e = refused("[adc]\nrate_hz = 10\nsample_hz = 4005\n\n[beacon]\nmod_hz = 200\n");
-        assert!(e.starts_with("bad.toml:3: [adc] sample_hz:") && e.contains("whole multiple"), "{e}");
+        assert!(
+            e.starts_with("bad.toml:3: [adc] sample_hz:") && e.contains("whole multiple"),
+            "{e}"
+        );
         let e = refused("[beacon]\noff_s = [[3.0, 1.0]]\n");
         assert!(e.starts_with("bad.toml:2: [beacon] off_s: entry 0"), "{e}");
         let e = refused("[daylight]\nspatial = 2\n");
         assert!(e.starts_with("bad.toml:2: [daylight] spatial"), "{e}");
-        let e = refused("[daylight]\n\n[[daylight.flicker]]\nhz = 1\n\n[[daylight.flicker]]\nhz = -1\n");
-        assert!(e.starts_with("bad.toml:7: [[daylight.flicker]] #2 hz"), "{e}");
+        let e = refused(
+            "[daylight]\n\n[[daylight.flicker]]\nhz = 1\n\n[[daylight.flicker]]\nhz = -1\n",
+        );
+        assert!(
+            e.starts_with("bad.toml:7: [[daylight.flicker]] #2 hz"),
+            "{e}"
+        );
         let e = refused("[daylight]\n\n[[daylight.flicker]]\nhz = 1\nwave = 3\n");
         assert!(e.starts_with("bad.toml:5:") && e.contains("wave"), "{e}");
         let e = refused("[attitude]\nsigma_roll_deg = -1\n");
-        assert!(e.starts_with("bad.toml:2: [attitude] sigma_roll_deg"), "{e}");
+        assert!(
+            e.starts_with("bad.toml:2: [attitude] sigma_roll_deg"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -82,7 +82,8 @@ impl RandomFlicker {
 
     /// Its part of Φ_k(t).
     fn at(&self, k: usize, t: f64) -> f64 {
-        let sum = |v: &[(f64, f64, f64)]| v.iter().map(|(a, w, p)| a * (w * t + p).sin()).sum::<f64>();
+        let sum =
+            |v: &[(f64, f64, f64)]| v.iter().map(|(a, w, p)| a * (w * t + p).sin()).sum::<f64>();
         sum(&self.common) + self.own.get(k).map_or(0.0, |v| sum(v))
     }
 }
@@ -217,7 +218,8 @@ impl Simulator {
             let sigma_roll = a
                 .sigma_roll
                 .or(report_roll.then(|| Angle::from_deg(DEFAULT_SIGMA_ROLL_DEG)));
-            let roll = sigma_roll.map(|sr| (pose.roll + Angle::from_rad(sr.rad() * normal())).wrapped());
+            let roll =
+                sigma_roll.map(|sr| (pose.roll + Angle::from_rad(sr.rad() * normal())).wrapped());
             AttitudeReading {
                 roll,
                 std: told(a.sigma_pitch.rad().min(a.sigma_yaw.rad())).then_some(AttitudeStd {
@@ -260,7 +262,13 @@ impl Simulator {
     /// at `at(t)` for each sample's instant; the truth and the readings at
     /// the frame's middle. Noise is drawn sample by sample, channel within
     /// sample, then the readings as for a frame.
-    pub fn burst(&mut self, seq: u64, t_first: f64, at: impl Fn(f64) -> Kinematics, out: &mut Burst) {
+    pub fn burst(
+        &mut self,
+        seq: u64,
+        t_first: f64,
+        at: impl Fn(f64) -> Kinematics,
+        out: &mut Burst,
+    ) {
         let n = self.scene.adc.samples_per_frame();
         if out.n() != n {
             out.resize(n);
@@ -314,12 +322,18 @@ impl Simulator {
         let n_b = att.to_beam(&s.geometry.normal(k));
         let r = s.geometry.radius_m;
         let p = pose.position();
-        let pk = [p.0[0] + r * n_b.0[0], p.0[1] + r * n_b.0[1], p.0[2] + r * n_b.0[2]];
+        let pk = [
+            p.0[0] + r * n_b.0[0],
+            p.0[1] + r * n_b.0[1],
+            p.0[2] + r * n_b.0[2],
+        ];
         let mut e = 0.0;
         if self.beacon_on {
             if s.beacons.is_empty() {
                 if s.blink.on(t) {
-                    e += s.light.irradiance_at(&view(&n_b.0, &pk, &[0.0; 3], &[1.0, 0.0, 0.0]));
+                    e += s
+                        .light
+                        .irradiance_at(&view(&n_b.0, &pk, &[0.0; 3], &[1.0, 0.0, 0.0]));
                 }
             } else {
                 for b in &s.beacons {

@@ -131,7 +131,10 @@ fn knot(
 ) -> Result<Knot, TrajectoryError> {
     let fields: Vec<&str> = l.split(',').map(str::trim).collect();
     if fields.len() != cols {
-        return Err(err(format!("expected {cols} values, found {}", fields.len())));
+        return Err(err(format!(
+            "expected {cols} values, found {}",
+            fields.len()
+        )));
     }
     let mut v = [0.0; 7];
     for (i, (f, slot)) in fields.iter().zip(v.iter_mut()).enumerate() {
@@ -257,7 +260,9 @@ impl Trajectory {
             let (t0, t1) = (self.knots[i].t, self.knots[i + 1].t);
             for k in 1..SAMPLES {
                 let t = t0 + (t1 - t0) * k as f64 / SAMPLES as f64;
-                for (col, name, limit) in [(3, "pitch", 90.0), (4, "yaw", 180.0), (5, "roll", 180.0)] {
+                for (col, name, limit) in
+                    [(3, "pitch", 90.0), (4, "yaw", 180.0), (5, "roll", 180.0)]
+                {
                     let deg = self.cols[col].eval(t).0.to_degrees();
                     if deg.abs() >= limit {
                         return Some((

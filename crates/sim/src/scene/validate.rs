@@ -8,14 +8,14 @@ use super::{
     Adc, AttitudeNoise, Beacon, Blink, Daylight, DepthNoise, DvlNoise, Flicker, McSpread, Noise,
     Scene, SceneError,
 };
-use lightpose_core::modulation::{check_beacons, BeaconFreq, ModulationError};
-use lightpose_core::MAX_BEACONS;
 use lightpose_core::bounds::{
     shown, Within, MAX_GAIN, MAX_K_D, MAX_K_D_DOUBT, MAX_OMEGA, MAX_RADIUS_M, MAX_SPACING_DEG,
     MAX_TEMP_DOUBT_C, MAX_V1_PER_V_REF, MAX_V_REF, MIN_V_REF, WIDTH_DEG,
 };
+use lightpose_core::modulation::{check_beacons, BeaconFreq, ModulationError};
 use lightpose_core::textfile::parse_toml;
 use lightpose_core::textpos::line_of_key;
+use lightpose_core::MAX_BEACONS;
 use lightpose_core::{Angle, ArrayGeometry, LightParams, Scattering, COLS, NDET, ROWS};
 use serde::Deserialize;
 use std::fmt;
@@ -264,7 +264,13 @@ impl Checker<'_> {
         off_s: Option<Vec<Vec<f64>>>,
     ) -> Result<Blink, SceneError> {
         Ok(Blink {
-            mod_hz: self.num(table, "mod_hz", mod_hz, 0.0, Within::closed(0.0, 1e6, " Hz"))?,
+            mod_hz: self.num(
+                table,
+                "mod_hz",
+                mod_hz,
+                0.0,
+                Within::closed(0.0, 1e6, " Hz"),
+            )?,
             phase_deg: self.num(table, "phase_deg", phase_deg, 0.0, PHASE_DEG)?,
             drift_ppm: self.num(
                 table,
@@ -362,7 +368,13 @@ impl RawBeacon {
     /// `[beacon]`: V1 and σ_b, and (spec v3) its clock.
     fn validate(self, c: &Checker, v_ref: f64) -> Result<(f64, f64, Blink), SceneError> {
         let (v1, sigma_b) = beacon_light(c, "beacon", self.v1, self.sigma_b_deg, v_ref)?;
-        let blink = c.blink("beacon", self.mod_hz, self.phase_deg, self.drift_ppm, self.off_s)?;
+        let blink = c.blink(
+            "beacon",
+            self.mod_hz,
+            self.phase_deg,
+            self.drift_ppm,
+            self.off_s,
+        )?;
         Ok((v1, sigma_b, blink))
     }
 }
@@ -388,9 +400,20 @@ impl RawStationBeacon {
                 ))
             }
         };
-        let axis_yaw = c.num(t, "axis_yaw_deg", self.axis_yaw_deg, 0.0, Within::closed(-180.0, 180.0, "°"))?;
-        let axis_pitch =
-            c.num(t, "axis_pitch_deg", self.axis_pitch_deg, 0.0, Within::closed(-90.0, 90.0, "°"))?;
+        let axis_yaw = c.num(
+            t,
+            "axis_yaw_deg",
+            self.axis_yaw_deg,
+            0.0,
+            Within::closed(-180.0, 180.0, "°"),
+        )?;
+        let axis_pitch = c.num(
+            t,
+            "axis_pitch_deg",
+            self.axis_pitch_deg,
+            0.0,
+            Within::closed(-90.0, 90.0, "°"),
+        )?;
         Ok(Beacon {
             id,
             v1,
@@ -437,13 +460,25 @@ impl RawDaylight {
             let ft = "daylight.flicker";
             flicker.push(Flicker {
                 hz: c.num(ft, "hz", f.hz, 1.0, Within::closed(0.0, 1e6, " Hz"))?,
-                amplitude: c.num(ft, "amplitude", f.amplitude, 0.0, Within::closed(0.0, 100.0, ""))?,
+                amplitude: c.num(
+                    ft,
+                    "amplitude",
+                    f.amplitude,
+                    0.0,
+                    Within::closed(0.0, 100.0, ""),
+                )?,
                 phase_deg: c.num(ft, "phase_deg", f.phase_deg, 0.0, PHASE_DEG)?,
             });
         }
         Ok(Daylight {
             surface_v: c.num(t, "surface_v", self.surface_v, d.surface_v, surface)?,
-            origin_depth_m: c.num(t, "origin_depth_m", self.origin_depth_m, d.origin_depth_m, depth)?,
+            origin_depth_m: c.num(
+                t,
+                "origin_depth_m",
+                self.origin_depth_m,
+                d.origin_depth_m,
+                depth,
+            )?,
             upwelling: c.num(t, "upwelling", self.upwelling, d.upwelling, unit)?,
             flicker_depth_m: c.num(
                 t,
@@ -453,7 +488,13 @@ impl RawDaylight {
                 Within::above(0.0, 1e4, " m"),
             )?,
             flicker,
-            random_std: c.num(t, "random_std", self.random_std, d.random_std, Within::closed(0.0, 100.0, ""))?,
+            random_std: c.num(
+                t,
+                "random_std",
+                self.random_std,
+                d.random_std,
+                Within::closed(0.0, 100.0, ""),
+            )?,
             random_min_hz,
             random_max_hz,
             random_components,
@@ -676,7 +717,9 @@ pub(super) fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
             for (i, b) in list.into_iter().enumerate() {
                 let b = b.validate(&c.nth(i), adc.v_ref)?;
                 if out.iter().any(|o| o.id == b.id) {
-                    return Err(c.nth(i).err("beacons", "id", format!("\"{}\" repeats", b.id)));
+                    return Err(c
+                        .nth(i)
+                        .err("beacons", "id", format!("\"{}\" repeats", b.id)));
                 }
                 out.push(b);
             }
@@ -690,7 +733,10 @@ pub(super) fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         None => raw.beacon.unwrap_or_default().validate(&c, adc.v_ref)?,
     };
     check_frequencies(&c, &adc, &blink, &beacons)?;
-    let daylight = raw.daylight.map(|d| d.validate(&c, adc.v_ref)).transpose()?;
+    let daylight = raw
+        .daylight
+        .map(|d| d.validate(&c, adc.v_ref))
+        .transpose()?;
     let (k_d, temp_c) = raw.water.unwrap_or_default().validate(&c)?;
     let scattering = raw.scattering.map(|s| s.validate(&c)).transpose()?;
     let array = raw.array.unwrap_or_default().validate(&c, adc.v_ref)?;
@@ -743,7 +789,11 @@ fn check_frequencies(
             mod_hz: b.mod_hz(),
         })
         .collect();
-    let freqs = if beacons.is_empty() { &one[..] } else { &list[..] };
+    let freqs = if beacons.is_empty() {
+        &one[..]
+    } else {
+        &list[..]
+    };
     let Err(e) = check_beacons(adc.rate_hz, adc.sample_hz, freqs) else {
         return Ok(());
     };
