@@ -17,6 +17,9 @@ pub struct Truth {
 pub struct AttitudeReading {
     pub pitch: Angle,
     pub yaw: Angle,
+    /// Spec v3: `None` when the sensor does not report roll (every v1/v2
+    /// log), which is not the same as a reading of 0.
+    pub roll: Option<Angle>,
     /// 1σ of this reading, when the frame says (FORMATS.md `std`); else the
     /// estimator's configured sensor noise applies.
     pub std: Option<AttitudeStd>,
@@ -30,11 +33,12 @@ pub struct AttitudeStd {
 }
 
 impl AttitudeReading {
-    /// A reading without its own noise figure.
+    /// A reading of pitch and yaw (no roll) without its own noise figure.
     pub fn new(pitch: Angle, yaw: Angle) -> Self {
         AttitudeReading {
             pitch,
             yaw,
+            roll: None,
             std: None,
         }
     }

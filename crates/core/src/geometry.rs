@@ -29,29 +29,54 @@ impl BeamVec {
     }
 }
 
-/// Pitch θ and yaw ψ of the vehicle in B (roll is not observable and is 0).
+/// Roll φ, pitch θ and yaw ψ of the vehicle in B. Spec v1/v2 took roll as
+/// 0 (one beacon barely sees it); spec v3 lets the vehicle roll.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Attitude {
     pub pitch: Angle,
     pub yaw: Angle,
+    pub roll: Angle,
 }
 
 impl Attitude {
+    /// Pitch and yaw, roll 0 (spec v1/v2).
     pub fn new(pitch: Angle, yaw: Angle) -> Self {
-        Attitude { pitch, yaw }
+        Attitude {
+            pitch,
+            yaw,
+            roll: Angle::ZERO,
+        }
     }
 
-    /// R_BV = R0 · Rz(ψ) · Ry(θ), R0 = diag(−1, 1, −1), row-major.
+    /// The same attitude with this roll.
+    pub fn with_roll(self, roll: Angle) -> Self {
+        Attitude { roll, ..self }
+    }
+
+    /// R_BV = R0 · Rz(ψ) · Ry(θ) · Rx(φ), R0 = diag(−1, 1, −1), row-major.
     #[inline]
     pub fn r_bv(&self) -> [[f64; 3]; 3] {
         let (st, ct) = self.pitch.sin_cos();
         let (sp, cp) = self.yaw.sin_cos();
         // Rz·Ry = [[cψcθ, −sψ, cψsθ], [sψcθ, cψ, sψsθ], [−sθ, 0, cθ]]
-        [
+        let m = [
             [-cp * ct, sp, -cp * st],
             [sp * ct, cp, sp * st],
             [st, 0.0, -ct],
-        ]
+        ];
+        if self.roll.rad() == 0.0 {
+            // Roll 0 is the v1/v2 matrix bit for bit (no ±0 from 0·x).
+            return m;
+        }
+        // M · Rx(φ): column 1 → cφ·M1 + sφ·M2, column 2 → −sφ·M1 + cφ·M2.
+        let (sr, cr) = self.roll.sin_cos();
+        let mut r = m;
+        for row in r.iter_mut() {
+            let (a, b) = (row[1], row[2]);
+            row[1] = cr * a + sr * b;
+            row[2] = -sr * a + cr * b;
+        }
+        r
     }
 
     /// Rotate a body vector into B.
@@ -93,9 +118,12 @@ pub struct Pose {
     pub z: f64,
     pub pitch: Angle,
     pub yaw: Angle,
+    /// Spec v3; 0 in every v1/v2 pose.
+    pub roll: Angle,
 }
 
 impl Pose {
+    /// A pose with roll 0 (spec v1/v2).
     pub fn new(x: f64, y: f64, z: f64, pitch: Angle, yaw: Angle) -> Self {
         Pose {
             x,
@@ -103,7 +131,12 @@ impl Pose {
             z,
             pitch,
             yaw,
+            roll: Angle::ZERO,
         }
+    }
+    /// The same pose with this roll.
+    pub fn with_roll(self, roll: Angle) -> Self {
+        Pose { roll, ..self }
     }
     #[inline]
     pub fn position(&self) -> BeamVec {
@@ -111,7 +144,7 @@ impl Pose {
     }
     #[inline]
     pub fn attitude(&self) -> Attitude {
-        Attitude::new(self.pitch, self.yaw)
+        Attitude::new(self.pitch, self.yaw).with_roll(self.roll)
     }
     /// This pose and a surge as six numbers in POSE message order (x, y, z
     /// in m, pitch and yaw in degrees, surge in m/s), the order of
@@ -170,6 +203,39 @@ mod tests {
         // Moving along the bow is all forward in V.
         let f = a.to_body(&a.forward());
         assert!((f.0[0] - 1.0).abs() < 1e-15 && f.0[1].abs() < 1e-15 && f.0[2].abs() < 1e-15);
+    }
+
+    /// MODEL.md: R_BV = R0·Rz(ψ)·Ry(θ)·Rx(φ), positive roll starboard
+    /// side down; roll 0 is the v1/v2 matrix bit for bit.
+    #[test]
+    fn roll_turns_about_the_forward_axis() {
+        let a = Attitude::new(Angle::from_deg(13.0), Angle::from_deg(-41.0));
+        let r = a.with_roll(Angle::from_deg(25.0));
+        let (f0, f1) = (a.forward().0, r.forward().0);
+        assert!(close(f0, f1), "roll keeps the bow");
+        let mul = |a: [[f64; 3]; 3], b: [[f64; 3]; 3]| {
+            let mut m = [[0.0; 3]; 3];
+            for i in 0..3 {
+                for j in 0..3 {
+                    m[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+                }
+            }
+            m
+        };
+        let (s, c) = Angle::from_deg(25.0).sin_cos();
+        let want = mul(a.r_bv(), [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]);
+        for i in 0..3 {
+            assert!(close(r.r_bv()[i], want[i]));
+        }
+        // Level, facing the beacon, rolled starboard down: right points down.
+        let lvl = Attitude::default().with_roll(Angle::from_deg(90.0));
+        assert!(close(
+            lvl.to_beam(&BodyVec([0.0, 1.0, 0.0])).0,
+            [0.0, 0.0, -1.0]
+        ));
+        let zero = a.with_roll(Angle::ZERO).r_bv();
+        let bits = |m: [[f64; 3]; 3]| m.map(|r| r.map(f64::to_bits));
+        assert_eq!(bits(zero), bits(a.r_bv()));
     }
 
     #[test]

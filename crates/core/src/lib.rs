@@ -14,8 +14,10 @@ pub mod frame;
 pub mod geometry;
 pub mod light;
 pub mod log;
+pub mod modulation;
 pub mod pose;
 pub mod ratelog;
+pub mod samples;
 pub mod textfile;
 pub mod textpos;
 pub mod udp;
@@ -29,6 +31,9 @@ pub use light::{LightParams, Scattering};
 pub use log::{ByteError, Cut, FrameLog, FrameOrder, LogError, LogHeader, LogReader, LogWriter};
 pub use pose::{
     Agreement, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev, CHECKED, READINGS,
+};
+pub use samples::{
+    BeaconAmplitude, BeaconInfo, Burst, Demodulated, Record, RecordKind, MAX_BEACONS,
 };
 
 /// Replace a non-finite number by `None`: no message or log ever carries

@@ -7,6 +7,9 @@
 
 use crate::frame::full_scale;
 use crate::frame::{DepthReading, VelocityReading};
+use crate::samples::{
+    BeaconInfo, Burst, Demodulated, Record, RecordKind, MAX_BEACONS, MAX_SAMPLES_PER_FRAME,
+};
 use crate::textfile::{excerpt, one_line, read_line_bounded, LineRead, MAX_LINE_BYTES};
 use crate::{Angle, AttitudeReading, Frame, Pose, Truth, COLS, NDET, ROWS};
 use serde::{Deserialize, Serialize};
@@ -43,6 +46,14 @@ pub enum LogError {
     },
     #[error("{name}: empty log (no HEADER line)")]
     Empty { name: String },
+    /// A line after which the log is not read on: it mixes kinds of frame,
+    /// or holds a kind its reader's consumer cannot take (spec v3).
+    #[error("{name}:{line}: {msg}")]
+    Refused {
+        name: String,
+        line: usize,
+        msg: String,
+    },
     /// A binary container (MCAP) refused something at a byte offset.
     #[error(transparent)]
     At(ByteError),
@@ -54,6 +65,15 @@ pub enum LogError {
 pub struct LogHeader {
     pub adc_bits: u8,
     pub rate_hz: f64,
+    /// Spec v3: samples per second of every channel (absent: one sample
+    /// per frame, `rate_hz`).
+    pub sample_hz: Option<f64>,
+    /// Spec v3: time between two consecutive channels' conversions, s
+    /// (absent: 0).
+    pub channel_skew_s: Option<f64>,
+    /// Spec v3: the beacons a demodulator looks for (empty: one steady
+    /// beacon).
+    pub beacons: Vec<BeaconInfo>,
     /// Everything else the header carried (scene, board, date, notes).
     pub extra: serde_json::Map<String, serde_json::Value>,
 }
@@ -63,8 +83,35 @@ impl LogHeader {
         LogHeader {
             adc_bits,
             rate_hz,
+            sample_hz: None,
+            channel_skew_s: None,
+            beacons: Vec::new(),
             extra: serde_json::Map::new(),
         }
+    }
+
+    /// Samples per channel per frame, N: 1 unless `sample_hz` says more
+    /// (checked whole when the header was read).
+    pub fn samples_per_frame(&self) -> usize {
+        self.sample_hz
+            .and_then(|s| crate::modulation::whole(s / self.rate_hz))
+            .map_or(1, |n| n as usize)
+    }
+
+    /// The place of beacon `id` in `beacons`; with none named, the one
+    /// steady beacon is "beacon" (MODEL.md's `[beacon]` id).
+    pub fn beacon_index(&self, id: &str) -> Option<usize> {
+        if self.beacons.is_empty() {
+            return (id == DEFAULT_BEACON_ID).then_some(0);
+        }
+        self.beacons.iter().position(|b| b.id == id)
+    }
+
+    /// The id of beacon `i` (see [`LogHeader::beacon_index`]).
+    pub fn beacon_id(&self, i: usize) -> &str {
+        self.beacons
+            .get(i)
+            .map_or(DEFAULT_BEACON_ID, |b| b.id.as_str())
     }
 
     fn to_json(&self) -> serde_json::Value {
@@ -79,6 +126,30 @@ impl LogHeader {
             "rate_hz".into(),
             crate::finite(self.rate_hz).map_or(serde_json::Value::Null, Into::into),
         );
+        // Spec v3's fields only where they say something, so that a v1/v2
+        // header is written as before.
+        if let Some(s) = self.sample_hz.and_then(crate::finite) {
+            m.insert("sample_hz".into(), s.into());
+        }
+        if let Some(s) = self.channel_skew_s.and_then(crate::finite) {
+            m.insert("channel_skew_s".into(), s.into());
+        }
+        if !self.beacons.is_empty() {
+            let list = self
+                .beacons
+                .iter()
+                .map(|b| {
+                    let mut o = serde_json::Map::new();
+                    o.insert("id".into(), b.id.clone().into());
+                    o.insert(
+                        "mod_hz".into(),
+                        crate::finite(b.mod_hz).map_or(serde_json::Value::Null, Into::into),
+                    );
+                    serde_json::Value::Object(o)
+                })
+                .collect();
+            m.insert("beacons".into(), serde_json::Value::Array(list));
+        }
         for (k, v) in &self.extra {
             m.entry(k.clone()).or_insert_with(|| v.clone());
         }
@@ -135,12 +206,127 @@ impl LogHeader {
             }
             None => return Err("header has no number rate_hz".into()),
         };
+        let v3 = parse_v3_header(&mut m, rate_hz)?;
         Ok(LogHeader {
             adc_bits,
             rate_hz,
+            sample_hz: v3.0,
+            channel_skew_s: v3.1,
+            beacons: v3.2,
             extra: m,
         })
     }
+}
+
+/// The id of the one beacon of a `[beacon]` scene (MODEL.md).
+pub const DEFAULT_BEACON_ID: &str = "beacon";
+
+/// A header's `sample_hz` (a whole multiple of `rate_hz`, at most
+/// [`MAX_SAMPLES_PER_FRAME`] per frame), `channel_skew_s` (0 up to a frame
+/// period) and `beacons` (at most [`MAX_BEACONS`], ids unique, frequencies
+/// by MODEL.md's rules), taken out of `m`.
+#[allow(clippy::type_complexity)]
+fn parse_v3_header(
+    m: &mut serde_json::Map<String, serde_json::Value>,
+    rate_hz: f64,
+) -> Result<(Option<f64>, Option<f64>, Vec<BeaconInfo>), String> {
+    use crate::modulation::{check_beacons, samples_per_frame, BeaconFreq};
+    let sample_hz = match m.remove("sample_hz") {
+        None | Some(serde_json::Value::Null) => None,
+        Some(v) => {
+            let s = v
+                .as_f64()
+                .filter(|s| s.is_finite() && *s > 0.0)
+                .ok_or_else(|| {
+                    format!(
+                        "header sample_hz = {}: must be a positive number",
+                        excerpt(&v.to_string(), 40)
+                    )
+                })?;
+            let n = samples_per_frame(s, rate_hz).map_err(|e| format!("header {e}"))?;
+            if n as usize > MAX_SAMPLES_PER_FRAME {
+                return Err(format!(
+                    "header sample_hz = {s}: {n} samples per frame, more than {MAX_SAMPLES_PER_FRAME}"
+                ));
+            }
+            Some(s)
+        }
+    };
+    let channel_skew_s = match m.remove("channel_skew_s") {
+        None | Some(serde_json::Value::Null) => None,
+        Some(v) => Some(
+            v.as_f64()
+                .filter(|s| (0.0..=1.0 / rate_hz).contains(s))
+                .ok_or_else(|| {
+                    format!(
+                        "header channel_skew_s = {}: must be a number of seconds in 0..=1 / rate_hz",
+                        excerpt(&v.to_string(), 40)
+                    )
+                })?,
+        ),
+    };
+    let mut beacons: Vec<BeaconInfo> = Vec::new();
+    match m.remove("beacons") {
+        None | Some(serde_json::Value::Null) => {}
+        Some(serde_json::Value::Array(list)) => {
+            if list.len() > MAX_BEACONS {
+                return Err(format!(
+                    "header beacons: {} beacons, at most {MAX_BEACONS}",
+                    list.len()
+                ));
+            }
+            for (i, b) in list.iter().enumerate() {
+                let id = b
+                    .get("id")
+                    .and_then(|v| v.as_str())
+                    .filter(|s| !s.is_empty())
+                    .ok_or_else(|| format!("header beacons[{i}] has no id (a non-empty string)"))?;
+                let mod_hz = b
+                    .get("mod_hz")
+                    .and_then(|v| v.as_f64())
+                    .filter(|f| f.is_finite() && *f >= 0.0)
+                    .ok_or_else(|| {
+                        format!(
+                            "header beacons[{i}] (\"{}\") has no mod_hz ≥ 0",
+                            excerpt(id, 40)
+                        )
+                    })?;
+                if beacons.iter().any(|o| o.id == id) {
+                    return Err(format!(
+                        "header beacons[{i}]: id \"{}\" repeats",
+                        excerpt(id, 40)
+                    ));
+                }
+                beacons.push(BeaconInfo {
+                    id: id.to_string(),
+                    mod_hz,
+                });
+            }
+        }
+        Some(_) => return Err("header beacons is not an array".into()),
+    }
+    if !beacons.is_empty() || sample_hz.is_some() {
+        let freqs: Vec<BeaconFreq> = beacons
+            .iter()
+            .map(|b| BeaconFreq {
+                id: &b.id,
+                mod_hz: b.mod_hz,
+            })
+            .collect();
+        // No list is one steady beacon; a fast sample rate then needs one.
+        let one = [BeaconFreq {
+            id: DEFAULT_BEACON_ID,
+            mod_hz: 0.0,
+        }];
+        let list = if freqs.is_empty() {
+            &one[..]
+        } else {
+            &freqs[..]
+        };
+        check_beacons(rate_hz, sample_hz.unwrap_or(rate_hz), list)
+            .map_err(|e| format!("header: {e}"))?;
+    }
+    Ok((sample_hz, channel_skew_s, beacons))
 }
 
 #[derive(Deserialize, Serialize)]
@@ -150,6 +336,10 @@ struct RawTruth {
     z: f64,
     pitch: f64,
     yaw: f64,
+    /// Spec v3: absent means 0, and a roll of 0 is not written, so that
+    /// v1/v2 logs pass through byte for byte.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    roll: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     surge: Option<f64>,
 }
@@ -169,6 +359,12 @@ pub struct LogReader<R> {
     order: FrameOrder,
     bad_readings: u64,
     last_bad_reading: Option<String>,
+    /// The kind of the log's first frame line, and its number.
+    kind: Option<(RecordKind, usize)>,
+    /// The last BURST read (its buffer reused).
+    burst: Burst,
+    /// The last demodulated frame read (boxed: 3.6 kB).
+    demod: Box<Demodulated>,
 }
 
 impl LogReader<BufReader<File>> {
@@ -222,6 +418,9 @@ impl<R: BufRead> LogReader<R> {
             order: FrameOrder::default(),
             bad_readings: 0,
             last_bad_reading: None,
+            kind: None,
+            burst: Burst::default(),
+            demod: Box::default(),
         })
     }
 
@@ -277,8 +476,42 @@ impl<R: BufRead> LogReader<R> {
         }
     }
 
-    /// The next frame, `None` at the end of the log.
+    /// The next frame of counts, `None` at the end of the log. A log of
+    /// BURST or demodulated lines (spec v3) is refused at its first such
+    /// line with an error that ends it ([`LogReader::next_record`] reads
+    /// them): a consumer of counts must not drop them unseen.
     pub fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
+        match self.next_got()? {
+            Ok(Got::Frame(f)) => Some(Ok(f)),
+            Ok(other) => {
+                self.done = true;
+                let kind = match other {
+                    Got::Burst => RecordKind::Burst,
+                    _ => RecordKind::Demodulated,
+                };
+                Some(Err(self.refused(format!(
+                    "a {} (spec v3): this reader takes FRAME lines of counts only",
+                    kind.describe()
+                ))))
+            }
+            Err(e) => Some(Err(e)),
+        }
+    }
+
+    /// The next frame of whichever kind the log holds (counts, BURST or
+    /// demodulated), `None` at the end. A burst or a demodulated frame is
+    /// lent from the reader until the next call; their buffers are reused.
+    pub fn next_record(&mut self) -> Option<Result<Record<'_>, LogError>> {
+        Some(self.next_got()?.map(|g| match g {
+            Got::Frame(f) => Record::Frame(f),
+            Got::Burst => Record::Burst(&self.burst),
+            Got::Demod => Record::Demodulated(&self.demod),
+        }))
+    }
+
+    /// The next frame line parsed, into `self.burst` or `self.demod` where
+    /// it is of those kinds.
+    fn next_got(&mut self) -> Option<Result<Got, LogError>> {
         // The line is parsed in place (its fields borrowed from it, no
         // allocation per frame): the buffer is out of `self` meanwhile.
         let mut buf = std::mem::take(&mut self.buf);
@@ -287,7 +520,16 @@ impl<R: BufRead> LogReader<R> {
         r
     }
 
-    fn next_frame_in(&mut self, buf: &mut Vec<u8>) -> Option<Result<Frame, LogError>> {
+    /// An error after which the log is not read on.
+    fn refused(&self, msg: impl Into<String>) -> LogError {
+        LogError::Refused {
+            name: self.name.clone(),
+            line: self.line_no,
+            msg: msg.into(),
+        }
+    }
+
+    fn next_frame_in(&mut self, buf: &mut Vec<u8>) -> Option<Result<Got, LogError>> {
         loop {
             if self.done {
                 return None;
@@ -328,8 +570,12 @@ impl<R: BufRead> LogReader<R> {
                     return Some(Err(self.line_err(msg)));
                 }
             };
-            match raw.class.as_ref().map(|c| &*c.0) {
-                Some("FRAME") => {}
+            let kind = match raw.class.as_ref().map(|c| &*c.0) {
+                Some("FRAME") if raw.counts.is_none() && raw.beacons.is_some() => {
+                    RecordKind::Demodulated
+                }
+                Some("FRAME") => RecordKind::Frame,
+                Some("BURST") => RecordKind::Burst,
                 Some(other) => {
                     self.other_lines += 1;
                     if self.first_other.is_none() {
@@ -340,13 +586,37 @@ impl<R: BufRead> LogReader<R> {
                     continue;
                 }
                 None => return Some(Err(self.line_err("line has no class field"))),
+            };
+            // One kind of frame per log (FORMATS.md): the first line of
+            // another kind ends it, named.
+            match self.kind {
+                None => self.kind = Some((kind, self.line_no)),
+                Some((first, at)) if first != kind => {
+                    self.done = true;
+                    return Some(Err(self.refused(format!(
+                        "a {} in a log of {}s (the first at line {at}): a log holds one kind of frame",
+                        kind.describe(),
+                        first.describe()
+                    ))));
+                }
+                Some(_) => {}
             }
-            let r = self
-                .frame_from(raw)
-                .and_then(|f| match self.order.admit(f.seq, f.t) {
-                    Ok(()) => Ok(f),
+            let r = match kind {
+                RecordKind::Frame => self.frame_from(raw).map(Got::Frame),
+                RecordKind::Burst => self.burst_from(raw).map(|()| Got::Burst),
+                RecordKind::Demodulated => self.demod_from(raw).map(|()| Got::Demod),
+            };
+            let r = r.and_then(|g| {
+                let (seq, t) = match &g {
+                    Got::Frame(f) => (f.seq, f.t),
+                    Got::Burst => (self.burst.seq, self.burst.t),
+                    Got::Demod => (self.demod.seq, self.demod.t),
+                };
+                match self.order.admit(seq, t) {
+                    Ok(()) => Ok(g),
                     Err(why) => Err(self.line_err(why)),
-                });
+                }
+            });
             return Some(r);
         }
     }
@@ -373,18 +643,70 @@ impl<R: BufRead> LogReader<R> {
         }
     }
 
-    fn frame_from(&mut self, raw: RawLine<'_>) -> Result<Frame, LogError> {
+    /// A frame line's seq and t; `what` names its class in errors.
+    fn seq_t(&self, raw: &RawLine<'_>, what: &str) -> Result<(u64, f64), LogError> {
         let seq = raw
             .seq
             .as_ref()
             .and_then(|v| v.as_u64())
-            .ok_or_else(|| self.line_err("FRAME needs a non-negative integer seq"))?;
+            .ok_or_else(|| self.line_err(format!("{what} needs a non-negative integer seq")))?;
         let t = raw
             .t
             .filter(|t| t.is_finite())
-            .ok_or_else(|| self.line_err("FRAME needs a finite number t"))?;
+            .ok_or_else(|| self.line_err(format!("{what} needs a finite number t")))?;
+        Ok((seq, t))
+    }
+
+    /// What a frame line of any kind carries beside its light: the reported
+    /// temperature, the truth and the vehicle's readings.
+    fn meta_from(&mut self, raw: &RawLine<'_>) -> Result<Meta, LogError> {
+        if let Some(tc) = raw.temp_c {
+            if !tc.is_finite() {
+                return Err(self.line_err("temp_c is not finite"));
+            }
+        }
+        let truth = match &raw.truth {
+            None => None,
+            Some(tr) => {
+                let vals = [tr.x, tr.y, tr.z, tr.pitch, tr.yaw];
+                let opt_bad = |v: Option<f64>| v.is_some_and(|s| !s.is_finite());
+                if vals.iter().any(|v| !v.is_finite()) || opt_bad(tr.surge) || opt_bad(tr.roll) {
+                    return Err(self.line_err("truth has a value that is not finite"));
+                }
+                let mut pose = Pose::new(
+                    tr.x,
+                    tr.y,
+                    tr.z,
+                    Angle::from_deg(tr.pitch),
+                    Angle::from_deg(tr.yaw),
+                );
+                if let Some(r) = tr.roll {
+                    pose.roll = Angle::from_deg(r);
+                }
+                Some(Truth {
+                    pose,
+                    surge: tr.surge,
+                })
+            }
+        };
+        let fs = raw.std.as_ref();
+        let attitude = self.reading(raw.attitude.as_ref(), fs, parse_attitude);
+        let depth = self.reading(raw.depth.as_ref(), fs, parse_depth);
+        let velocity = self.reading(raw.velocity.as_ref(), fs, parse_velocity);
+        Ok(Meta {
+            temp_c: raw.temp_c,
+            truth,
+            attitude,
+            depth,
+            velocity,
+        })
+    }
+
+    fn frame_from(&mut self, raw: RawLine<'_>) -> Result<Frame, LogError> {
+        let (seq, t) = self.seq_t(&raw, "FRAME")?;
         let values = raw
             .counts
+            .as_ref()
             .ok_or_else(|| self.line_err("FRAME has no counts"))?;
         if values.len != NDET {
             return Err(self.line_err(format!("counts has {} values, expected {NDET}", values.len)));
@@ -408,46 +730,190 @@ impl<R: BufRead> LogReader<R> {
                 }
             }
         }
-        if let Some(tc) = raw.temp_c {
-            if !tc.is_finite() {
-                return Err(self.line_err("temp_c is not finite"));
-            }
-        }
-        let truth = match raw.truth {
-            None => None,
-            Some(tr) => {
-                let vals = [tr.x, tr.y, tr.z, tr.pitch, tr.yaw];
-                if vals.iter().any(|v| !v.is_finite()) || tr.surge.is_some_and(|s| !s.is_finite()) {
-                    return Err(self.line_err("truth has a value that is not finite"));
-                }
-                Some(Truth {
-                    pose: Pose::new(
-                        tr.x,
-                        tr.y,
-                        tr.z,
-                        Angle::from_deg(tr.pitch),
-                        Angle::from_deg(tr.yaw),
-                    ),
-                    surge: tr.surge,
-                })
-            }
-        };
-        let fs = raw.std.as_ref();
-        let attitude = self.reading(raw.attitude.as_ref(), fs, parse_attitude);
-        let depth = self.reading(raw.depth.as_ref(), fs, parse_depth);
-        let velocity = self.reading(raw.velocity.as_ref(), fs, parse_velocity);
+        let m = self.meta_from(&raw)?;
         Ok(Frame {
             seq,
             t,
             adc_bits: self.header.adc_bits,
             counts,
-            temp_c: raw.temp_c,
-            truth,
-            attitude,
-            depth,
-            velocity,
+            temp_c: m.temp_c,
+            truth: m.truth,
+            attitude: m.attitude,
+            depth: m.depth,
+            velocity: m.velocity,
         })
     }
+
+    /// A BURST line into `self.burst`: 25 arrays of exactly N (the header's
+    /// sample_hz / rate_hz) counts, each in 0..full scale.
+    fn burst_from(&mut self, mut raw: RawLine<'_>) -> Result<(), LogError> {
+        let (seq, t) = self.seq_t(&raw, "BURST")?;
+        let n = self.header.samples_per_frame();
+        let Some(mut s) = raw.samples.take() else {
+            return Err(self.line_err("BURST has no samples"));
+        };
+        let checked = (|| {
+            if s.too_many {
+                return Err(format!(
+                    "samples has more than {NDET} × {MAX_SAMPLES_PER_FRAME} values"
+                ));
+            }
+            if s.channels != NDET {
+                return Err(format!(
+                    "samples has {} arrays, expected {NDET}",
+                    s.channels
+                ));
+            }
+            if let Some(k) = s.lens.iter().position(|&l| l != n) {
+                return Err(format!(
+                    "samples[{k}] has {} values, expected N = {n} (the header's sample_hz / rate_hz)",
+                    s.lens[k]
+                ));
+            }
+            let fs = full_scale(self.header.adc_bits);
+            if let Some((k, i, v)) = &s.first_bad {
+                let v = excerpt(&v.to_string(), 40);
+                return Err(format!(
+                    "samples[{k}][{i}] = {v} is not an integer in 0..{fs}"
+                ));
+            }
+            if let Some(j) = s.flat.iter().position(|&c| c > fs) {
+                return Err(format!(
+                    "samples[{}][{}] = {} is not an integer in 0..{fs}",
+                    j / n,
+                    j % n,
+                    s.flat[j]
+                ));
+            }
+            Ok(())
+        })();
+        if let Err(msg) = checked {
+            rawline::give_back(std::mem::take(&mut s.flat));
+            return Err(self.line_err(msg));
+        }
+        let m = self.meta_from(&raw)?;
+        let b = &mut self.burst;
+        b.swap_samples(n, &mut s.flat);
+        rawline::give_back(std::mem::take(&mut s.flat));
+        b.seq = seq;
+        b.t = t;
+        b.adc_bits = self.header.adc_bits;
+        b.temp_c = m.temp_c;
+        b.truth = m.truth;
+        b.attitude = m.attitude;
+        b.depth = m.depth;
+        b.velocity = m.velocity;
+        Ok(())
+    }
+
+    /// A demodulated FRAME line into `self.demod`: beacons named in the
+    /// header, once each, with 25 finite amplitudes and 25 finite std ≥ 0;
+    /// 25 finite ambient levels; 25 clipped counts in 0..=N.
+    fn demod_from(&mut self, raw: RawLine<'_>) -> Result<(), LogError> {
+        let (seq, t) = self.seq_t(&raw, "FRAME")?;
+        let n = self.header.samples_per_frame() as u64;
+        let checked = (|| -> Result<(), String> {
+            let d = &mut *self.demod;
+            let Some(bs) = raw.beacons.as_ref() else {
+                return Err("FRAME has no counts".into());
+            };
+            if bs.len > MAX_BEACONS {
+                return Err(format!(
+                    "beacons has {} entries, at most {MAX_BEACONS}",
+                    bs.len
+                ));
+            }
+            if bs.len == 0 {
+                return Err("beacons is empty".into());
+            }
+            let nums = |v: &Option<rawline::Nums>,
+                        what: String,
+                        min: f64|
+             -> Result<[f64; NDET], String> {
+                let v = v.as_ref().ok_or_else(|| format!("{what} is missing"))?;
+                if v.len != NDET {
+                    return Err(format!("{what} has {} values, expected {NDET}", v.len));
+                }
+                if let Some(k) = v.first_bad {
+                    return Err(format!("{what}[{k}] is not a finite number"));
+                }
+                if let Some(k) = v.values.iter().position(|x| *x < min) {
+                    return Err(format!("{what}[{k}] = {} is below {min}", v.values[k]));
+                }
+                Ok(v.values)
+            };
+            for (i, b) in bs.items[..bs.len].iter().enumerate() {
+                let id =
+                    b.id.as_ref()
+                        .ok_or_else(|| format!("beacons[{i}] has no id"))?;
+                let idx = self.header.beacon_index(&id.0).ok_or_else(|| {
+                    format!(
+                        "beacons[{i}]: id \"{}\" is not among the header's beacons",
+                        excerpt(&id.0, 40)
+                    )
+                })?;
+                if d.beacons[..i].iter().any(|o| o.beacon as usize == idx) {
+                    return Err(format!(
+                        "beacons[{i}]: id \"{}\" repeats",
+                        excerpt(&id.0, 40)
+                    ));
+                }
+                d.beacons[i].beacon = idx as u8;
+                d.beacons[i].amplitude = nums(
+                    &b.amplitude,
+                    format!("beacons[{i}].amplitude"),
+                    f64::NEG_INFINITY,
+                )?;
+                d.beacons[i].std = nums(&b.std, format!("beacons[{i}].std"), 0.0)?;
+            }
+            d.n_beacons = bs.len;
+            d.ambient = nums(&raw.ambient, "ambient".into(), f64::NEG_INFINITY)?;
+            let c = raw.clipped.as_ref().ok_or("clipped is missing")?;
+            if c.len != NDET {
+                return Err(format!("clipped has {} values, expected {NDET}", c.len));
+            }
+            for (k, (v, out)) in c.values.iter().zip(d.clipped.iter_mut()).enumerate() {
+                match *v {
+                    Some(x) if x <= n => *out = x as u32,
+                    _ => {
+                        return Err(format!(
+                            "clipped[{k}] is not an integer in 0..={n} (samples per frame)"
+                        ))
+                    }
+                }
+            }
+            Ok(())
+        })();
+        checked.map_err(|msg| self.line_err(msg))?;
+        let m = self.meta_from(&raw)?;
+        let d = &mut *self.demod;
+        d.seq = seq;
+        d.t = t;
+        d.adc_bits = self.header.adc_bits;
+        d.temp_c = m.temp_c;
+        d.truth = m.truth;
+        d.attitude = m.attitude;
+        d.depth = m.depth;
+        d.velocity = m.velocity;
+        Ok(())
+    }
+}
+
+/// What [`LogReader::next_frame_in`] parsed: a frame of counts, or a line
+/// held in the reader's burst or demodulated frame.
+enum Got {
+    Frame(Frame),
+    Burst,
+    Demod,
+}
+
+/// A frame line's fields beside its light.
+struct Meta {
+    temp_c: Option<f64>,
+    truth: Option<Truth>,
+    attitude: Option<AttitudeReading>,
+    depth: Option<DepthReading>,
+    velocity: Option<VelocityReading>,
 }
 
 impl<R: BufRead> Iterator for LogReader<R> {
@@ -512,6 +978,8 @@ struct AttitudeOut {
     pitch: f64,
     yaw: f64,
     #[serde(skip_serializing_if = "Option::is_none")]
+    roll: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     std: Option<AttitudeStdOut>,
 }
 #[derive(Serialize)]
@@ -552,9 +1020,14 @@ fn all_finite<const N: usize>(v: [f64; N]) -> Option<[f64; N]> {
 
 fn attitude_out(a: &AttitudeReading) -> Option<AttitudeOut> {
     let [pitch, yaw] = all_finite([a.pitch.deg(), a.yaw.deg()])?;
+    let roll = match a.roll {
+        None => None,
+        Some(r) => Some(crate::finite(r.deg())?),
+    };
     Some(AttitudeOut {
         pitch,
         yaw,
+        roll,
         std: a
             .std
             .and_then(|s| all_finite([s.pitch.deg(), s.yaw.deg()]))
@@ -583,6 +1056,113 @@ fn velocity_out(v: &VelocityReading) -> Option<VelocityOut> {
     })
 }
 
+#[derive(Serialize)]
+struct BurstOut<'a> {
+    class: &'static str,
+    seq: u64,
+    t: Option<f64>,
+    samples: SamplesOut<'a>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    temp_c: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    truth: Option<RawTruth>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    attitude: Option<AttitudeOut>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    depth: Option<DepthOut>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    velocity: Option<VelocityOut>,
+}
+
+/// A burst's samples as 25 arrays of N.
+struct SamplesOut<'a>(&'a Burst);
+
+impl Serialize for SamplesOut<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeSeq;
+        let mut seq = s.serialize_seq(Some(NDET))?;
+        for k in 0..NDET {
+            seq.serialize_element(self.0.channel(k))?;
+        }
+        seq.end()
+    }
+}
+
+/// Numbers with each one that is not finite as null.
+struct FiniteOut<'a>(&'a [f64; NDET]);
+
+impl Serialize for FiniteOut<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeSeq;
+        let mut seq = s.serialize_seq(Some(NDET))?;
+        for v in self.0 {
+            seq.serialize_element(&crate::finite(*v))?;
+        }
+        seq.end()
+    }
+}
+
+#[derive(Serialize)]
+struct DemodOut<'a> {
+    class: &'static str,
+    seq: u64,
+    t: Option<f64>,
+    beacons: DemodBeaconsOut<'a>,
+    ambient: FiniteOut<'a>,
+    clipped: &'a [u32; NDET],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    temp_c: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    truth: Option<RawTruth>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    attitude: Option<AttitudeOut>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    depth: Option<DepthOut>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    velocity: Option<VelocityOut>,
+}
+
+/// A demodulated frame's beacons by id.
+struct DemodBeaconsOut<'a>(&'a Demodulated, &'a [String]);
+
+impl Serialize for DemodBeaconsOut<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeSeq;
+        #[derive(Serialize)]
+        struct One<'a> {
+            id: &'a str,
+            amplitude: FiniteOut<'a>,
+            std: FiniteOut<'a>,
+        }
+        let list = self.0.beacons();
+        let mut seq = s.serialize_seq(Some(list.len()))?;
+        for b in list {
+            let id = self.1.get(b.beacon as usize).map_or("?", |s| s.as_str());
+            seq.serialize_element(&One {
+                id,
+                amplitude: FiniteOut(&b.amplitude),
+                std: FiniteOut(&b.std),
+            })?;
+        }
+        seq.end()
+    }
+}
+
+/// A truth as a line carries it: roll only when it is not 0 (spec v3), so
+/// that a v1/v2 frame is written as before.
+fn raw_truth(tr: Truth) -> RawTruth {
+    let roll = tr.pose.roll.deg();
+    RawTruth {
+        x: tr.pose.x,
+        y: tr.pose.y,
+        z: tr.pose.z,
+        pitch: tr.pose.pitch.deg(),
+        yaw: tr.pose.yaw.deg(),
+        roll: (roll != 0.0).then_some(roll).and_then(crate::finite),
+        surge: tr.surge.and_then(crate::finite),
+    }
+}
+
 /// Streaming writer: each line is formatted whole in a reused buffer and
 /// handed to the sink in one `write_all`, so a reader never sees half a
 /// frame except after a crash mid-write (which the reader handles).
@@ -590,6 +1170,8 @@ pub struct LogWriter<W: Write> {
     sink: W,
     line: Vec<u8>,
     frames: u64,
+    /// The header's beacon ids, by which a demodulated frame names them.
+    beacon_ids: Vec<String>,
 }
 
 impl LogWriter<BufWriter<File>> {
@@ -605,11 +1187,65 @@ impl<W: Write> LogWriter<W> {
         let mut line = serde_json::to_vec(&header.to_json())?;
         line.push(b'\n');
         sink.write_all(&line)?;
+        let beacon_ids = if header.beacons.is_empty() {
+            vec![DEFAULT_BEACON_ID.to_string()]
+        } else {
+            header.beacons.iter().map(|b| b.id.clone()).collect()
+        };
         Ok(LogWriter {
             sink,
             line,
             frames: 0,
+            beacon_ids,
         })
+    }
+
+    /// Append one BURST (spec v3) as one line: `t` its first sample's
+    /// time, the samples as 25 arrays of N.
+    pub fn write_burst(&mut self, b: &Burst) -> io::Result<()> {
+        self.line.clear();
+        let out = BurstOut {
+            class: "BURST",
+            seq: b.seq,
+            t: crate::finite(b.t),
+            samples: SamplesOut(b),
+            temp_c: b.temp_c.and_then(crate::finite),
+            truth: b.truth.map(raw_truth),
+            attitude: b.attitude.as_ref().and_then(attitude_out),
+            depth: b.depth.as_ref().and_then(depth_out),
+            velocity: b.velocity.as_ref().and_then(velocity_out),
+        };
+        serde_json::to_writer(&mut self.line, &out)?;
+        self.end_line()
+    }
+
+    /// Append one demodulated frame (spec v3) as one FRAME line with
+    /// `beacons`, `ambient` and `clipped`; a number that is not finite is
+    /// written as null (and refused by a reader, as it should be).
+    pub fn write_demodulated(&mut self, d: &Demodulated) -> io::Result<()> {
+        self.line.clear();
+        let out = DemodOut {
+            class: "FRAME",
+            seq: d.seq,
+            t: crate::finite(d.t),
+            beacons: DemodBeaconsOut(d, &self.beacon_ids),
+            ambient: FiniteOut(&d.ambient),
+            clipped: &d.clipped,
+            temp_c: d.temp_c.and_then(crate::finite),
+            truth: d.truth.map(raw_truth),
+            attitude: d.attitude.as_ref().and_then(attitude_out),
+            depth: d.depth.as_ref().and_then(depth_out),
+            velocity: d.velocity.as_ref().and_then(velocity_out),
+        };
+        serde_json::to_writer(&mut self.line, &out)?;
+        self.end_line()
+    }
+
+    fn end_line(&mut self) -> io::Result<()> {
+        self.line.push(b'\n');
+        self.sink.write_all(&self.line)?;
+        self.frames += 1;
+        Ok(())
     }
 
     /// Append one frame as one line.
@@ -621,14 +1257,7 @@ impl<W: Write> LogWriter<W> {
             t: crate::finite(f.t),
             counts: &f.counts,
             temp_c: f.temp_c.and_then(crate::finite),
-            truth: f.truth.map(|tr| RawTruth {
-                x: tr.pose.x,
-                y: tr.pose.y,
-                z: tr.pose.z,
-                pitch: tr.pose.pitch.deg(),
-                yaw: tr.pose.yaw.deg(),
-                surge: tr.surge.and_then(crate::finite),
-            }),
+            truth: f.truth.map(raw_truth),
             attitude: f.attitude.as_ref().and_then(attitude_out),
             depth: f.depth.as_ref().and_then(depth_out),
             velocity: f.velocity.as_ref().and_then(velocity_out),
@@ -837,6 +1466,7 @@ mod tests {
         f.attitude = Some(AttitudeReading {
             pitch: Angle::from_deg(9.5),
             yaw: Angle::from_deg(-1.25),
+            roll: None,
             std: Some(AttitudeStd {
                 pitch: Angle::from_deg(0.3),
                 yaw: Angle::from_deg(1.5),
@@ -885,6 +1515,7 @@ mod tests {
             f.attitude = Some(AttitudeReading {
                 pitch: Angle::from_rad(p.to_radians()),
                 yaw: Angle::from_rad(y.to_radians()),
+                roll: None,
                 std: Some(std),
             });
             let before = f.attitude.unwrap();
@@ -1075,5 +1706,286 @@ mod hardening_tests {
         assert_eq!(r.order().last_jump(), Some(99.0));
         assert_eq!(r.other_lines(), 1);
         assert_eq!(r.first_other(), Some("o.jsonl:8: class \"POSE\""));
+    }
+}
+
+#[cfg(test)]
+mod v3_tests {
+    //! Spec v3: roll, the header's sample rate and beacons, BURST lines and
+    //! demodulated frames.
+    use super::*;
+    use crate::samples::BeaconAmplitude;
+
+    fn header() -> LogHeader {
+        let mut h = LogHeader::new(10, 5.0);
+        h.sample_hz = Some(20.0);
+        h.channel_skew_s = Some(1e-5);
+        h.beacons = vec![
+            BeaconInfo {
+                id: "top".into(),
+                mod_hz: 10.0,
+            },
+            BeaconInfo {
+                id: "port".into(),
+                mod_hz: 5.0,
+            },
+        ];
+        h
+    }
+
+    fn burst(seq: u64) -> Burst {
+        let mut b = Burst::new(4);
+        b.seq = seq;
+        b.t = seq as f64 * 0.2;
+        b.adc_bits = 10;
+        for (j, c) in b.samples_mut().iter_mut().enumerate() {
+            *c = ((j * 37 + seq as usize) % 1024) as u16;
+        }
+        b.temp_c = Some(14.5);
+        b.truth = Some(Truth {
+            pose: Pose::new(3.0, 0.1, -0.2, Angle::from_deg(2.0), Angle::ZERO)
+                .with_roll(Angle::from_deg(-7.5)),
+            surge: None,
+        });
+        b.attitude = Some(AttitudeReading {
+            roll: Some(Angle::from_deg(-7.25)),
+            ..AttitudeReading::new(Angle::from_deg(2.5), Angle::from_deg(0.5))
+        });
+        b
+    }
+
+    fn records(bytes: &[u8]) -> (Vec<Result<String, LogError>>, LogReader<&[u8]>) {
+        let mut r = LogReader::new(bytes, "v3.jsonl").unwrap();
+        let mut out = Vec::new();
+        while let Some(x) = r.next_record() {
+            out.push(x.map(|rec| format!("{rec:?}")));
+        }
+        (out, r)
+    }
+
+    #[test]
+    fn roll_round_trips_and_a_v2_frame_is_written_as_before() {
+        let mut f = Frame::new(0, 0.0, 10, [7; NDET]);
+        f.truth = Some(Truth {
+            pose: Pose::new(5.0, 0.0, 0.0, Angle::ZERO, Angle::ZERO),
+            surge: None,
+        });
+        f.attitude = Some(AttitudeReading::new(Angle::from_deg(1.0), Angle::ZERO));
+        let mut w = LogWriter::new(Vec::new(), &LogHeader::new(10, 5.0)).unwrap();
+        w.write_frame(&f).unwrap();
+        let mut g = f;
+        g.seq = 1;
+        g.t = 0.2;
+        g.truth.as_mut().unwrap().pose.roll = Angle::from_deg(12.5);
+        g.attitude.as_mut().unwrap().roll = Some(Angle::from_deg(12.0));
+        w.write_frame(&g).unwrap();
+        let bytes = w.into_inner();
+        let text = String::from_utf8(bytes.clone()).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert!(!lines[0].contains("sample_hz") && !lines[0].contains("beacons"));
+        assert!(!lines[1].contains("roll"), "{}", lines[1]);
+        assert!(
+            lines[2].contains(r#""yaw":0.0,"roll":12.5"#),
+            "{}",
+            lines[2]
+        );
+        assert!(lines[2].contains(r#""roll":12.0"#), "{}", lines[2]);
+        let got: Vec<Frame> = LogReader::new(&bytes[..], "r")
+            .unwrap()
+            .map(|r| r.unwrap())
+            .collect();
+        assert_eq!(got[0].truth.unwrap().pose.roll, Angle::ZERO);
+        assert_eq!(got[0].attitude.unwrap().roll, None);
+        assert!((got[1].truth.unwrap().pose.roll.deg() - 12.5).abs() < 1e-12);
+        assert!((got[1].attitude.unwrap().roll.unwrap().deg() - 12.0).abs() < 1e-12);
+        // A v2 line read and written again is the same bytes.
+        let mut again = LogWriter::new(Vec::new(), &LogHeader::new(10, 5.0)).unwrap();
+        again.write_frame(&got[0]).unwrap();
+        let again = String::from_utf8(again.into_inner()).unwrap();
+        assert_eq!(again.lines().nth(1), Some(lines[1]));
+        let bad = "{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":5}\n{\"class\":\"FRAME\",\"seq\":0,\"t\":0,\"counts\":[0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0],\"attitude\":{\"pitch\":1,\"yaw\":2,\"roll\":\"x\"}}\n";
+        let mut r = LogReader::new(bad.as_bytes(), "b").unwrap();
+        assert!(r.next_frame().unwrap().unwrap().attitude.is_none());
+        assert_eq!(
+            r.bad_readings().1,
+            Some("b:2: attitude roll is not a number")
+        );
+    }
+
+    #[test]
+    fn bursts_and_their_header_round_trip() {
+        let h = header();
+        let mut w = LogWriter::new(Vec::new(), &h).unwrap();
+        let bursts: Vec<Burst> = (0..3).map(burst).collect();
+        for b in &bursts {
+            w.write_burst(b).unwrap();
+        }
+        let bytes = w.into_inner();
+        let mut r = LogReader::new(&bytes[..], "b.jsonl").unwrap();
+        assert_eq!(r.header(), &h);
+        assert_eq!(r.header().samples_per_frame(), 4);
+        for want in &bursts {
+            match r.next_record() {
+                Some(Ok(Record::Burst(b))) => {
+                    assert_eq!(b.samples(), want.samples());
+                    assert_eq!(
+                        (b.seq, b.t, b.n(), b.temp_c),
+                        (want.seq, want.t, 4, want.temp_c)
+                    );
+                    let roll = b.truth.unwrap().pose.roll.deg();
+                    assert!((roll + 7.5).abs() < 1e-12, "{roll}");
+                    assert!((b.attitude.unwrap().roll.unwrap().deg() + 7.25).abs() < 1e-12);
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+        assert!(r.next_record().is_none());
+        // A reader of counts refuses a BURST log, and the log ends.
+        let mut r = LogReader::new(&bytes[..], "b.jsonl").unwrap();
+        let e = r.next_frame().unwrap().unwrap_err();
+        assert!(!e.skippable());
+        assert!(
+            e.to_string().starts_with("b.jsonl:2: a BURST line (raw samples) (spec v3): this reader takes FRAME lines of counts only"),
+            "{e}"
+        );
+        assert!(r.next_frame().is_none());
+    }
+
+    #[test]
+    fn demodulated_frames_round_trip() {
+        let h = header();
+        let mut d = Demodulated {
+            seq: 4,
+            t: 0.875,
+            n_beacons: 2,
+            ..Demodulated::default()
+        };
+        d.beacons[0] = BeaconAmplitude {
+            beacon: 1,
+            amplitude: [12.5; NDET],
+            std: [0.25; NDET],
+        };
+        d.beacons[1].beacon = 0;
+        d.beacons[1].amplitude[3] = -0.5;
+        d.ambient = [31.0; NDET];
+        d.clipped[7] = 4;
+        let mut w = LogWriter::new(Vec::new(), &h).unwrap();
+        w.write_demodulated(&d).unwrap();
+        let bytes = w.into_inner();
+        let text = String::from_utf8(bytes.clone()).unwrap();
+        assert!(
+            text.contains(r#""beacons":[{"id":"port","amplitude":[12.5,"#),
+            "{text}"
+        );
+        let mut r = LogReader::new(&bytes[..], "d.jsonl").unwrap();
+        match r.next_record() {
+            Some(Ok(Record::Demodulated(got))) => assert_eq!(*got, d),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn line(class: &str, seq: u64, body: &str) -> String {
+        format!("{{\"class\":\"{class}\",\"seq\":{seq},\"t\":{seq}.0,{body}}}\n")
+    }
+
+    fn samples(n: usize, last: &str) -> String {
+        let one = format!("[{}]", vec!["1"; n].join(","));
+        let mut v = vec![one; NDET - 1];
+        v.push(last.to_string());
+        format!("\"samples\":[{}]", v.join(","))
+    }
+
+    #[test]
+    fn bad_bursts_are_named_and_a_mixed_log_is_refused_at_its_first_other_line() {
+        let mut text =
+            String::from_utf8(LogWriter::new(Vec::new(), &header()).unwrap().into_inner()).unwrap();
+        text += &line("BURST", 0, &samples(4, "[1,2,3,4]"));
+        text += &line("BURST", 1, &samples(4, "[1,2,3]"));
+        text += &line("BURST", 2, &samples(4, "[1,2,3,1024]"));
+        text += &line("BURST", 3, &samples(4, "[1,2,3,-1]"));
+        text += &line("BURST", 4, "\"samples\":[[1,1,1,1]]");
+        text += &line("BURST", 5, "\"counts\":[]");
+        text += &line("BURST", 6, &samples(4, "[4,3,2,1]"));
+        text += &line(
+            "FRAME",
+            7,
+            &format!("\"counts\":[{}]", vec!["0"; NDET].join(",")),
+        );
+        text += &line("BURST", 8, &samples(4, "[4,3,2,1]"));
+        let (got, _) = records(text.as_bytes());
+        let errs: Vec<String> = got
+            .iter()
+            .filter_map(|g| g.as_ref().err().map(|e| e.to_string()))
+            .collect();
+        assert_eq!(got.len(), 8, "{got:?}");
+        assert!(got[0].is_ok() && got[6].is_ok());
+        for (e, want) in errs.iter().zip([
+            "v3.jsonl:3: samples[24] has 3 values, expected N = 4",
+            "v3.jsonl:4: samples[24][3] = 1024 is not an integer in 0..1023",
+            "v3.jsonl:5: samples[24][3] = -1 is not an integer in 0..1023",
+            "v3.jsonl:6: samples has 1 arrays, expected 25",
+            "v3.jsonl:7: BURST has no samples",
+            "v3.jsonl:9: a FRAME line of counts in a log of BURST line (raw samples)s (the first at line 2)",
+        ]) {
+            assert!(e.starts_with(want), "{e} is not {want}");
+        }
+        assert_eq!(errs.len(), 6);
+    }
+
+    #[test]
+    fn bad_demodulated_frames_are_named() {
+        let mut text =
+            String::from_utf8(LogWriter::new(Vec::new(), &header()).unwrap().into_inner()).unwrap();
+        let n25 = |x: &str| format!("[{}]", vec![x; NDET].join(","));
+        let frame = |seq: u64, id: &str, clipped: &str| {
+            let body = format!(
+                "\"beacons\":[{{\"id\":\"{id}\",\"amplitude\":{},\"std\":{}}}],\"ambient\":{},\"clipped\":{}",
+                n25("1.5"),
+                n25("0.1"),
+                n25("30"),
+                n25(clipped)
+            );
+            line("FRAME", seq, &body)
+        };
+        text += &frame(0, "top", "0");
+        text += &frame(1, "starboard", "0");
+        text += &frame(2, "top", "5");
+        text += &frame(3, "port", "4");
+        let (got, _) = records(text.as_bytes());
+        let errs: Vec<String> = got
+            .iter()
+            .filter_map(|g| g.as_ref().err().map(|e| e.to_string()))
+            .collect();
+        assert!(got[0].is_ok() && got[3].is_ok(), "{got:?}");
+        assert!(
+            errs[0].starts_with(
+                "v3.jsonl:3: beacons[0]: id \"starboard\" is not among the header's beacons"
+            ),
+            "{}",
+            errs[0]
+        );
+        assert!(
+            errs[1].starts_with("v3.jsonl:4: clipped[0] is not an integer in 0..=4"),
+            "{}",
+            errs[1]
+        );
+    }
+
+    #[test]
+    fn bad_v3_headers_are_refused() {
+        let h = |extra: &str| {
+            format!("{{\"class\":\"HEADER\",\"format\":\"lightpose-intensity\",\"version\":1,\"rows\":5,\"cols\":5,\"adc_bits\":10,\"rate_hz\":10{extra}}}\n")
+        };
+        for (extra, want) in [
+            (",\"sample_hz\":25", "h:1: header sample_hz = 25 is not a whole multiple of rate_hz = 10"),
+            (",\"sample_hz\":4000", "no beacon blinks"),
+            (",\"sample_hz\":4800,\"beacons\":[{\"id\":\"a\",\"mod_hz\":200},{\"id\":\"b\",\"mod_hz\":600}]", "ratio 1 : 3"),
+            (",\"sample_hz\":4000,\"beacons\":[{\"id\":\"a\",\"mod_hz\":200},{\"id\":\"a\",\"mod_hz\":250}]", "id \"a\" repeats"),
+            (",\"beacons\":[{\"mod_hz\":200}]", "beacons[0] has no id"),
+            (",\"channel_skew_s\":-1", "channel_skew_s = -1"),
+        ] {
+            let e = LogReader::new(h(extra).as_bytes(), "h").err().expect(extra).to_string();
+            assert!(e.contains(want), "{e} lacks {want}");
+        }
     }
 }

@@ -43,6 +43,7 @@ fn vehicle_hub() -> std::sync::Arc<Hub> {
         &AttitudeReading {
             pitch: Angle::from_deg(1.0),
             yaw: Angle::from_deg(-2.0),
+            roll: None,
             std: None,
         },
         Some(lightpose_vehicle::AttitudeRates {
@@ -86,6 +87,7 @@ fn allocations(frames: u64, sink: &UdpSocket, estimator: &str, scene: &str, vehi
         AttitudeReading {
             pitch: Angle::from_deg(2.0),
             yaw: Angle::ZERO,
+            roll: None,
             std: None,
         },
     );

@@ -349,6 +349,7 @@ mod tests {
             attitude: Some(lightpose_sim::AttitudeNoise {
                 sigma_pitch: lightpose_core::Angle::from_deg(0.0),
                 sigma_yaw: lightpose_core::Angle::from_deg(0.0),
+                sigma_roll: None,
             }),
             depth: Some(lightpose_sim::DepthNoise { sigma_m: 0.0 }),
             ..Scene::default()

@@ -224,6 +224,7 @@ proptest! {
                 f.attitude = att.map(|(p, y)| AttitudeReading {
                     pitch: Angle::from_deg(p),
                     yaw: Angle::from_deg(y),
+                    roll: None,
                     std: None,
                 });
                 f

@@ -14,7 +14,10 @@ pub mod spline;
 pub mod sweep;
 pub mod trajectory;
 
-pub use scene::{Adc, AttitudeNoise, DepthNoise, DvlNoise, McSpread, Noise, Scene, SceneError};
+pub use scene::{
+    Adc, AttitudeNoise, Beacon, Blink, Daylight, DepthNoise, DvlNoise, Flicker, McSpread, Noise,
+    Scene, SceneError,
+};
 pub use simulator::Simulator;
 pub use sweep::{SweepKind, SweepPlan};
 pub use trajectory::{Kinematics, Trajectory, TrajectoryError};

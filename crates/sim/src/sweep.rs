@@ -2,8 +2,9 @@
 //! translation grid, the orientation fans at three ranges, and dark frames
 //! with the beacon off. Every lit frame carries its true pose.
 
-use crate::{Scene, Simulator};
-use lightpose_core::{Angle, Frame, LogHeader, LogWriter, Pose};
+use crate::simulator::one_sample_frame;
+use crate::{Kinematics, Scene, Simulator};
+use lightpose_core::{Angle, BeamVec, Burst, Frame, LogWriter, Pose};
 use std::io::Write;
 
 /// Which sweep to write.
@@ -158,16 +159,68 @@ impl SweepPlan {
         Ok(seq)
     }
 
-    /// Write the sweep as an intensity log.
+    /// Spec v3: call `sink` with every frame of the sweep as the samples
+    /// the ADC takes (a [`Burst`], its buffer reused), the vehicle still at
+    /// each pose; a dark sweep has no daylight either (MODEL.md).
+    pub fn run_bursts(
+        &self,
+        scene: &Scene,
+        seed: u64,
+        mut sink: impl FnMut(&Burst) -> std::io::Result<()>,
+    ) -> std::io::Result<u64> {
+        let mut scene = scene.clone();
+        if self.kind == SweepKind::Dark {
+            scene.daylight = None;
+        }
+        let mut sim = Simulator::new(scene.clone(), seed);
+        let dt = 1.0 / scene.adc.rate_hz;
+        let mut burst = Burst::new(scene.adc.samples_per_frame());
+        let mut seq = 0u64;
+        let mut emit = |sim: &mut Simulator, pose: &Pose, truth: bool| {
+            let still = Kinematics {
+                pose: *pose,
+                velocity: BeamVec::default(),
+            };
+            sim.burst(seq, seq as f64 * dt, |_| still, &mut burst);
+            if !truth {
+                burst.truth = None;
+            }
+            seq += 1;
+            sink(&burst)
+        };
+        if self.kind == SweepKind::Dark {
+            sim.set_beacon(false);
+            let pose = Pose::new(4.5, 0.0, 0.0, Angle::ZERO, Angle::ZERO);
+            for _ in 0..self.samples {
+                emit(&mut sim, &pose, false)?;
+            }
+        } else {
+            for pose in &self.poses {
+                for _ in 0..self.samples {
+                    emit(&mut sim, pose, true)?;
+                }
+            }
+        }
+        Ok(seq)
+    }
+
+    /// Write the sweep as an intensity log: FRAME lines, or (spec v3, a
+    /// scene of several samples per frame) BURST lines.
     pub fn write<W: Write>(&self, scene: &Scene, seed: u64, out: W) -> std::io::Result<u64> {
-        let mut header = LogHeader::new(scene.adc.bits, scene.adc.rate_hz);
+        let mut header = scene.log_header();
         header
             .extra
             .insert("sweep".into(), self.kind.as_str().into());
         header.extra.insert("samples".into(), self.samples.into());
         header.extra.insert("seed".into(), seed.into());
         let mut w = LogWriter::new(out, &header)?;
-        let n = self.run(scene, seed, |f| w.write_frame(f))?;
+        let n = if scene.adc.samples_per_frame() > 1 {
+            self.run_bursts(scene, seed, |b| w.write_burst(b))?
+        } else if !scene.is_v2() {
+            self.run_bursts(scene, seed, |b| w.write_frame(&one_sample_frame(b)))?
+        } else {
+            self.run(scene, seed, |f| w.write_frame(f))?
+        };
         w.flush()?;
         Ok(n)
     }

@@ -1,6 +1,8 @@
-//! Trajectories: knots `t,x,y,z,pitch,yaw` from CSV, a natural cubic spline
-//! per column, sampled at t = t0 + k / rate while t ≤ t_end. True surge is
-//! the spline's velocity along the vehicle's forward axis.
+//! Trajectories: knots `t,x,y,z,pitch,yaw` (spec v3: optionally `,roll`)
+//! from CSV, a natural cubic spline per column, sampled at t = t0 + k / rate
+//! while t ≤ t_end. True surge is the spline's velocity along the vehicle's
+//! forward axis. Past its knots a spline follows its end piece, extended
+//! (a burst's first and last samples may fall there).
 
 use crate::spline::Spline;
 use lightpose_core::log::plausible_t;
@@ -8,7 +10,7 @@ use lightpose_core::textfile::{
     excerpt, read_line_bounded, strip_bom, LineRead, TextError, TextSource, EXCERPT_CHARS,
     MAX_LINE_BYTES,
 };
-use lightpose_core::{Angle, Attitude, BeamVec, Pose};
+use lightpose_core::{Angle, BeamVec, Pose};
 use std::io::BufRead;
 use std::path::Path;
 
@@ -43,7 +45,7 @@ pub struct Kinematics {
 impl Kinematics {
     /// Speed along the forward axis (MODEL.md's surge).
     pub fn surge(&self) -> f64 {
-        let f = Attitude::new(self.pose.pitch, self.pose.yaw).forward();
+        let f = self.pose.attitude().forward();
         f.dot(&self.velocity)
     }
 }
@@ -51,11 +53,14 @@ impl Kinematics {
 #[derive(Debug, Clone)]
 pub struct Trajectory {
     knots: Vec<Knot>,
-    /// x, y, z, pitch (rad), yaw (rad)
-    cols: [Spline; 5],
+    /// x, y, z, pitch (rad), yaw (rad), roll (rad)
+    cols: [Spline; 6],
+    /// Whether the knots have a roll column (spec v3); without it roll is
+    /// exactly 0.
+    has_roll: bool,
 }
 
-const HEADER: [&str; 6] = ["t", "x", "y", "z", "pitch", "yaw"];
+const HEADER: [&str; 7] = ["t", "x", "y", "z", "pitch", "yaw", "roll"];
 
 /// Most knots a trajectory may have: a knot every 0.1 s for almost three
 /// hours; far more than any written by hand or by a planner.
@@ -117,13 +122,21 @@ impl<R: BufRead> CsvLines<'_, R> {
     }
 }
 
-/// One knot's line, checked: six finite numbers, t a time, angles in range.
-fn knot(l: &str, err: impl Fn(String) -> TrajectoryError) -> Result<Knot, TrajectoryError> {
+/// One knot's line, checked: `cols` (6, or 7 with roll) finite numbers, t
+/// a time, angles in range.
+fn knot(
+    l: &str,
+    cols: usize,
+    err: impl Fn(String) -> TrajectoryError,
+) -> Result<Knot, TrajectoryError> {
     let fields: Vec<&str> = l.split(',').map(str::trim).collect();
-    if fields.len() != 6 {
-        return Err(err(format!("expected 6 values, found {}", fields.len())));
+    if fields.len() != cols {
+        return Err(err(format!(
+            "expected {cols} values, found {}",
+            fields.len()
+        )));
     }
-    let mut v = [0.0; 6];
+    let mut v = [0.0; 7];
     for (i, (f, slot)) in fields.iter().zip(v.iter_mut()).enumerate() {
         *slot = f
             .parse::<f64>()
@@ -142,16 +155,20 @@ fn knot(l: &str, err: impl Fn(String) -> TrajectoryError) -> Result<Knot, Trajec
             "pitch must be strictly between −90° and 90°, and yaw within ±180°".into(),
         ));
     }
-    Ok(Knot {
-        t: v[0],
-        pose: Pose::new(
-            v[1],
-            v[2],
-            v[3],
-            Angle::from_deg(v[4]),
-            Angle::from_deg(v[5]),
-        ),
-    })
+    if v[6].abs() >= 180.0 {
+        return Err(err("roll must be within ±180°".into()));
+    }
+    let mut pose = Pose::new(
+        v[1],
+        v[2],
+        v[3],
+        Angle::from_deg(v[4]),
+        Angle::from_deg(v[5]),
+    );
+    if cols == 7 {
+        pose.roll = Angle::from_deg(v[6]);
+    }
+    Ok(Knot { t: v[0], pose })
 }
 
 impl Trajectory {
@@ -164,7 +181,8 @@ impl Trajectory {
         Self::read(src.reader()?, &src.describe())
     }
 
-    /// Parse CSV text with the header `t,x,y,z,pitch,yaw` (angles in degrees).
+    /// Parse CSV text with the header `t,x,y,z,pitch,yaw` or
+    /// `t,x,y,z,pitch,yaw,roll` (angles in degrees).
     pub fn parse(text: &str, file: &str) -> Result<Self, TrajectoryError> {
         Self::read(text.as_bytes(), file)
     }
@@ -183,11 +201,17 @@ impl Trajectory {
             return Err(csv.err(1, "empty trajectory: no header"));
         };
         let names: Vec<&str> = header.split(',').map(str::trim).collect();
-        if names != HEADER {
-            let found = excerpt(header, EXCERPT_CHARS);
-            let msg = format!("header must be `{}`, found `{found}`", HEADER.join(","));
-            return Err(csv.err(hl, msg));
-        }
+        let cols = match names.len() {
+            6 | 7 if names == HEADER[..names.len()] => names.len(),
+            _ => {
+                let found = excerpt(header, EXCERPT_CHARS);
+                let msg = format!(
+                    "header must be `{}` (or with `,roll` after it), found `{found}`",
+                    HEADER[..6].join(",")
+                );
+                return Err(csv.err(hl, msg));
+            }
+        };
         let mut knots: Vec<Knot> = Vec::new();
         let mut lines = Vec::new();
         let mut last_line = hl;
@@ -197,7 +221,7 @@ impl Trajectory {
                 line: ln,
                 msg,
             };
-            let k = knot(l, err)?;
+            let k = knot(l, cols, err)?;
             if let Some(prev) = knots.last().map(|k| k.t) {
                 if k.t <= prev {
                     let msg = format!("t = {} does not increase (previous {prev})", k.t);
@@ -217,7 +241,8 @@ impl Trajectory {
                 format!("a trajectory needs at least 2 knots, found {}", knots.len()),
             ));
         }
-        let tr = Self::from_knots(knots);
+        let mut tr = Self::from_knots(knots);
+        tr.has_roll = cols == 7;
         if let Some((i, msg)) = tr.angles_beyond_range() {
             return Err(csv.err(lines[i + 1], msg));
         }
@@ -235,7 +260,9 @@ impl Trajectory {
             let (t0, t1) = (self.knots[i].t, self.knots[i + 1].t);
             for k in 1..SAMPLES {
                 let t = t0 + (t1 - t0) * k as f64 / SAMPLES as f64;
-                for (col, name, limit) in [(3, "pitch", 90.0), (4, "yaw", 180.0)] {
+                for (col, name, limit) in
+                    [(3, "pitch", 90.0), (4, "yaw", 180.0), (5, "roll", 180.0)]
+                {
                     let deg = self.cols[col].eval(t).0.to_degrees();
                     if deg.abs() >= limit {
                         return Some((
@@ -251,7 +278,8 @@ impl Trajectory {
         None
     }
 
-    /// Build from knots already checked: at least two, `t` increasing.
+    /// Build from knots already checked: at least two, `t` increasing. It
+    /// has a roll column when a knot rolls.
     pub fn from_knots(knots: Vec<Knot>) -> Self {
         let t: Vec<f64> = knots.iter().map(|k| k.t).collect();
         let col = |f: fn(&Pose) -> f64| {
@@ -264,8 +292,20 @@ impl Trajectory {
             col(|p| p.z),
             col(|p| p.pitch.rad()),
             col(|p| p.yaw.rad()),
+            col(|p| p.roll.rad()),
         ];
-        Trajectory { knots, cols }
+        let has_roll = knots.iter().any(|k| k.pose.roll != Angle::ZERO);
+        Trajectory {
+            knots,
+            cols,
+            has_roll,
+        }
+    }
+
+    /// Whether the trajectory gives roll (a `roll` column): the vehicle's
+    /// attitude sensor then reports it (MODEL.md).
+    pub fn has_roll(&self) -> bool {
+        self.has_roll
     }
 
     pub fn knots(&self) -> &[Knot] {
@@ -288,11 +328,14 @@ impl Trajectory {
             .iter()
             .map(|k| {
                 let p = k.pose;
-                let pose = Pose::new(p.x, p.y + dy, p.z + dz, p.pitch + dpitch, p.yaw + dyaw);
+                let pose = Pose::new(p.x, p.y + dy, p.z + dz, p.pitch + dpitch, p.yaw + dyaw)
+                    .with_roll(p.roll);
                 Knot { t: k.t, pose }
             })
             .collect();
-        Self::from_knots(knots)
+        let mut tr = Self::from_knots(knots);
+        tr.has_roll = self.has_roll;
+        tr
     }
 
     /// Pose and true surge (m/s along the forward axis) at time `t`.
@@ -308,8 +351,12 @@ impl Trajectory {
         let (z, vz) = self.cols[2].eval(t);
         let (pitch, _) = self.cols[3].eval(t);
         let (yaw, _) = self.cols[4].eval(t);
+        let mut pose = Pose::new(x, y, z, Angle::from_rad(pitch), Angle::from_rad(yaw));
+        if self.has_roll {
+            pose.roll = Angle::from_rad(self.cols[5].eval(t).0);
+        }
         Kinematics {
-            pose: Pose::new(x, y, z, Angle::from_rad(pitch), Angle::from_rad(yaw)),
+            pose,
             velocity: BeamVec([vx, vy, vz]),
         }
     }
@@ -319,6 +366,19 @@ impl Trajectory {
     pub fn frame_count(&self, rate_hz: f64) -> u64 {
         let n = ((self.t_end() - self.t0()) * rate_hz + 1e-9).floor();
         (n as u64).saturating_add(1)
+    }
+
+    /// How many frames of `n` samples at `sample_hz` give while their
+    /// middle, t0 + k / rate + (n − 1) / (2 · sample_hz), is ≤ t_end
+    /// (MODEL.md); [`Self::frame_count`] for n = 1.
+    pub fn burst_count(&self, rate_hz: f64, n: usize, sample_hz: f64) -> u64 {
+        let half = (n.saturating_sub(1)) as f64 / (2.0 * sample_hz);
+        let span = self.t_end() - self.t0() - half;
+        if span < 0.0 {
+            return 0;
+        }
+        let k = (span * rate_hz + 1e-9).floor();
+        (k as u64).saturating_add(1)
     }
 
     /// The frame times t0 + k / rate, k = 0, 1, … while t ≤ t_end.
@@ -369,12 +429,47 @@ mod tests {
         assert!(surge > 0.4 && surge < 0.6, "{surge}");
     }
 
+    /// Spec v3: a roll column is splined as the others; without one roll is
+    /// exactly 0 and everything else as before.
+    #[test]
+    fn a_roll_column_is_splined_and_its_absence_is_zero() {
+        let rolled = "t,x,y,z,pitch,yaw,roll\n0,8.5,0,0,10,0,0\n2.6,7.22,0,0.22,8.7,0,5\n5.2,5.93,0,0.38,5.2,0,-3\n8,4.53,0,0.45,0,0,2\n";
+        let (a, b) = (
+            Trajectory::parse(DIVE, "dive.csv").unwrap(),
+            Trajectory::parse(rolled, "rolled.csv").unwrap(),
+        );
+        assert!(!a.has_roll() && b.has_roll());
+        for t in [0.0, 1.3, 2.6, 6.0, 8.0] {
+            let (ka, kb) = (a.kinematics(t), b.kinematics(t));
+            assert_eq!(ka.pose.roll.rad().to_bits(), 0);
+            assert_eq!(ka.pose.with_roll(kb.pose.roll), kb.pose);
+            assert_eq!(ka.velocity, kb.velocity);
+        }
+        assert!((b.kinematics(2.6).pose.roll.deg() - 5.0).abs() < 1e-9);
+        assert!((b.kinematics(5.2).pose.roll.deg() + 3.0).abs() < 1e-9);
+        // The end piece, extended past the last knot.
+        let past = b.kinematics(8.1).pose.roll.deg();
+        assert!(past.is_finite() && past != 2.0, "{past}");
+    }
+
+    #[test]
+    fn bursts_count_frames_by_their_middle() {
+        let tr = Trajectory::parse(DIVE, "dive.csv").unwrap();
+        assert_eq!(tr.burst_count(5.0, 1, 5.0), 41);
+        // 400 samples at 2 kHz: the middle is 0.09975 s after each frame's
+        // start, so the frame at 8.0 s would end past t_end.
+        assert_eq!(tr.burst_count(5.0, 400, 2000.0), 40);
+    }
+
     #[test]
     fn bad_csv_is_named() {
         for (text, want) in [
             ("", "dive.csv:1: empty"),
             ("t,x,y\n", "dive.csv:1: header"),
             ("t,x,y,z,pitch,yaw\n0,1,2,3,4\n", "dive.csv:2: expected 6"),
+            ("t,x,y,z,pitch,yaw,roll\n0,1,2,3,4,5\n", "dive.csv:2: expected 7"),
+            ("t,x,y,z,pitch,yaw,roll\n0,1,0,0,0,0,180\n", "dive.csv:2: roll must be within"),
+            ("t,x,y,z,pitch,roll\n0,1,0,0,0,0\n", "dive.csv:1: header"),
             (
                 "t,x,y,z,pitch,yaw\n0,1,0,0,0,0\n1,1,0,0,zz,0\n",
                 "dive.csv:3: pitch = `zz`",

@@ -178,6 +178,7 @@ fn carried(
     Att {
         pitch: Angle::from_rad((a.pitch.rad() + w.pitch * dt).clamp(-FRAC_PI_2, FRAC_PI_2)),
         yaw: wrap_pi(Angle::from_rad(a.yaw.rad() + w.yaw * dt)),
+        roll: a.roll,
         std: std.map(|(p, y)| AttitudeStd {
             pitch: Angle::from_rad(widened(p, var_pitch)),
             yaw: Angle::from_rad(widened(y, var_yaw)),
@@ -475,6 +476,7 @@ impl Readings {
         let a = Att {
             pitch: Angle::from_rad(f64::from_bits(w[1])),
             yaw: Angle::from_rad(f64::from_bits(w[2])),
+            roll: None,
             std,
         };
         let assumed = if a.std.is_none() && rates.is_some() {

@@ -213,6 +213,7 @@ pub fn run(a: FakeAutopilotArgs) -> anyhow::Result<()> {
         .unwrap_or(lightpose_sim::scene::AttitudeNoise {
             sigma_pitch: Angle::ZERO,
             sigma_yaw: Angle::ZERO,
+            sigma_roll: None,
         });
     let noise = [
         a.pitch_noise_deg.unwrap_or(att.sigma_pitch.deg()),

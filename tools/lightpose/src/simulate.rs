@@ -3,7 +3,7 @@
 
 use crate::guard;
 use anyhow::Context;
-use lightpose_core::{LogHeader, LogWriter};
+use lightpose_core::{Burst, LogWriter};
 use lightpose_sim::{Scene, Simulator, SweepKind, SweepPlan, Trajectory};
 use std::fs::File;
 use std::io::BufWriter;
@@ -14,7 +14,7 @@ pub struct SimulateArgs {
     /// Scene file (TOML, see scene-example.toml).
     #[arg(long)]
     scene: PathBuf,
-    /// Trajectory knots (CSV: t,x,y,z,pitch,yaw).
+    /// Trajectory knots (CSV: t,x,y,z,pitch,yaw[,roll]).
     #[arg(long)]
     trajectory: PathBuf,
     /// Intensity log to write.
@@ -39,7 +39,9 @@ pub struct SweepArgs {
     /// pose.
     #[arg(long)]
     out: PathBuf,
-    /// Frames per pose (per sweep for dark frames).
+    /// Frames per pose (per sweep for dark frames). A scene of several
+    /// samples per frame writes BURST lines, large: a few frames per pose
+    /// serve.
     #[arg(long, default_value_t = 200)]
     samples: u32,
     /// all (translation + orientation), translation, orientation or dark.
@@ -63,7 +65,14 @@ pub fn simulate(a: SimulateArgs) -> anyhow::Result<()> {
     let scene = Scene::load(&a.scene)?;
     let traj = Trajectory::load(&a.trajectory)?;
     let rate = scene.adc.rate_hz;
-    let frames = traj.frame_count(rate);
+    let n = scene.adc.samples_per_frame();
+    // A frame's time is the middle of its samples, and a trajectory gives
+    // frames while that is within it (MODEL.md); with one sample, as v2.
+    let frames = if n > 1 {
+        traj.burst_count(rate, n, scene.adc.sample_hz)
+    } else {
+        traj.frame_count(rate)
+    };
     guard::max_frames(
         format_args!(
             "{}: {} s at {rate} Hz",
@@ -77,7 +86,7 @@ pub fn simulate(a: SimulateArgs) -> anyhow::Result<()> {
         &a.out,
         &[("scene", &a.scene), ("trajectory", &a.trajectory)],
     )?;
-    let mut header = LogHeader::new(scene.adc.bits, scene.adc.rate_hz);
+    let mut header = scene.log_header();
     header
         .extra
         .insert("scene".into(), a.scene.display().to_string().into());
@@ -88,10 +97,18 @@ pub fn simulate(a: SimulateArgs) -> anyhow::Result<()> {
     header.extra.insert("seed".into(), a.seed.into());
     let mut w = LogWriter::new(create(&a.out)?, &header)?;
     let mut sim = Simulator::new(scene.clone(), a.seed);
-    for (seq, t) in traj.frame_times(scene.adc.rate_hz).enumerate() {
-        let f = sim.frame_moving(seq as u64, t, &traj.kinematics(t));
-        w.write_frame(&f)
-            .with_context(|| format!("{}: write failed", a.out.display()))?;
+    sim.set_report_roll(traj.has_roll());
+    let at = |t: f64| traj.kinematics(t);
+    let mut burst = Burst::new(n);
+    for (seq, t) in traj.frame_times(rate).take(frames as usize).enumerate() {
+        let written = if n > 1 {
+            // Spec v3: the raw samples, t the first one's time.
+            sim.burst(seq as u64, t, at, &mut burst);
+            w.write_burst(&burst)
+        } else {
+            w.write_frame(&sim.frame_at(seq as u64, t, at, &mut burst))
+        };
+        written.with_context(|| format!("{}: write failed", a.out.display()))?;
     }
     w.flush()
         .with_context(|| format!("{}: write failed", a.out.display()))?;

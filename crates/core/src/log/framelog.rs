@@ -4,6 +4,7 @@
 //! A child of `log` so that its line readers' sources can be reached.
 
 use super::{FrameOrder, LogError, LogHeader, LogReader};
+use crate::samples::Record;
 use crate::Frame;
 use std::io::BufRead;
 
@@ -80,6 +81,12 @@ pub trait FrameLog {
     /// [`LogError::skippable`] cost one frame and reading may go on; after
     /// any other, the log ends.
     fn next_frame(&mut self) -> Option<Result<Frame, LogError>>;
+    /// The next frame of any kind (spec v3: counts, BURST or demodulated),
+    /// `None` at the end. A container that reads only counts so far serves
+    /// them here, and refuses the other kinds in `next_frame`.
+    fn next_record(&mut self) -> Option<Result<Record<'_>, LogError>> {
+        self.next_frame().map(|r| r.map(Record::Frame))
+    }
     /// Where the log was cut short, if it ended so (known at its end).
     fn cut(&self) -> Option<Cut>;
     /// Lines or messages of other kinds that were passed over.
@@ -105,6 +112,9 @@ impl<R: BufRead> FrameLog for LogReader<R> {
     }
     fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
         LogReader::next_frame(self)
+    }
+    fn next_record(&mut self) -> Option<Result<Record<'_>, LogError>> {
+        LogReader::next_record(self)
     }
     fn cut(&self) -> Option<Cut> {
         self.truncated_at().map(Cut::Line)

@@ -27,6 +27,13 @@ pub(super) struct RawLine<'a> {
     pub seq: Option<serde_json::Value>,
     pub t: Option<f64>,
     pub counts: Option<Counts>,
+    /// A BURST's `[25 arrays of N integers]` (spec v3).
+    pub samples: Option<SampleArrays>,
+    /// A demodulated FRAME's beacons, ambient and clipped (spec v3).
+    #[serde(borrow)]
+    pub beacons: Option<DemodBeacons<'a>>,
+    pub ambient: Option<Nums>,
+    pub clipped: Option<Counts>,
     pub temp_c: Option<f64>,
     pub truth: Option<super::RawTruth>,
     // The vehicle's own readings are taken apart by hand: a reading that is
@@ -113,6 +120,198 @@ impl<'de> Deserialize<'de> for Counts {
     }
 }
 
+/// 25 numbers (a demodulated frame's `amplitude`, `std`, `ambient`): how
+/// many there were, the first [`NDET`], and the index of the first that is
+/// no finite number.
+pub(super) struct Nums {
+    pub len: usize,
+    pub values: [f64; NDET],
+    pub first_bad: Option<usize>,
+}
+
+impl<'de> Deserialize<'de> for Nums {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Nums;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a sequence")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Nums, A::Error> {
+                let mut n = Nums {
+                    len: 0,
+                    values: [0.0; NDET],
+                    first_bad: None,
+                };
+                while let Some(v) = seq.next_element::<Num>()? {
+                    match (n.values.get_mut(n.len), v) {
+                        (Some(slot), Num::Number(x)) => *slot = x,
+                        (Some(_), _) if n.first_bad.is_none() => n.first_bad = Some(n.len),
+                        _ => {}
+                    }
+                    n.len += 1;
+                }
+                Ok(n)
+            }
+        }
+        d.deserialize_seq(V)
+    }
+}
+
+std::thread_local! {
+    /// The buffer the next BURST line's samples are read into: handed to
+    /// the reader's burst, whose old buffer comes back here, so that a log
+    /// of bursts is read without an allocation per line.
+    static SPARE: std::cell::Cell<Vec<u16>> = const { std::cell::Cell::new(Vec::new()) };
+}
+
+/// Give a samples buffer back for the next line.
+pub(super) fn give_back(v: Vec<u16>) {
+    SPARE.with(|s| s.set(v));
+}
+
+/// Most values a BURST's samples may hold before the line is refused
+/// unread further (25 channels of the most samples a frame may have).
+const MAX_SAMPLE_VALUES: usize = NDET * crate::samples::MAX_SAMPLES_PER_FRAME;
+
+/// A BURST's `samples`: every value in one channel-major buffer, how many
+/// arrays there were and the length of the first [`NDET`], and the first
+/// value that is no count (channel, index, the value).
+pub(super) struct SampleArrays {
+    pub flat: Vec<u16>,
+    pub channels: usize,
+    pub lens: [usize; NDET],
+    pub first_bad: Option<(usize, usize, serde_json::Value)>,
+    /// More values than [`MAX_SAMPLE_VALUES`].
+    pub too_many: bool,
+}
+
+/// One channel's array, appended to the flat buffer.
+struct Channel<'s>(&'s mut SampleArrays);
+
+impl<'de> de::DeserializeSeed<'de> for Channel<'_> {
+    type Value = ();
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_seq(self)
+    }
+}
+
+impl<'de> Visitor<'de> for Channel<'_> {
+    type Value = ();
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("an array of samples")
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        let s = self.0;
+        let k = s.channels;
+        let mut len = 0;
+        while let Some(v) = seq.next_element::<serde_json::Value>()? {
+            let c = v.as_u64().or_else(|| {
+                v.as_f64()
+                    .filter(|f| *f >= 0.0 && f.fract() == 0.0 && *f <= 65535.0)
+                    .map(|f| f as u64)
+            });
+            match c {
+                Some(c) if c <= u16::MAX as u64 => {
+                    if s.flat.len() < MAX_SAMPLE_VALUES {
+                        s.flat.push(c as u16);
+                    } else {
+                        s.too_many = true;
+                    }
+                }
+                _ => {
+                    if s.first_bad.is_none() {
+                        s.first_bad = Some((k, len, v));
+                    }
+                    // Keep the layout: the line is refused anyway.
+                    if s.flat.len() < MAX_SAMPLE_VALUES {
+                        s.flat.push(0);
+                    }
+                }
+            }
+            len += 1;
+        }
+        if let Some(l) = s.lens.get_mut(k) {
+            *l = len;
+        }
+        s.channels += 1;
+        Ok(())
+    }
+}
+
+impl<'de> Deserialize<'de> for SampleArrays {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = SampleArrays;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a sequence of arrays")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<SampleArrays, A::Error> {
+                let mut flat = SPARE.with(|s| s.take());
+                flat.clear();
+                let mut s = SampleArrays {
+                    flat,
+                    channels: 0,
+                    lens: [0; NDET],
+                    first_bad: None,
+                    too_many: false,
+                };
+                while seq.next_element_seed(Channel(&mut s))?.is_some() {}
+                Ok(s)
+            }
+        }
+        d.deserialize_seq(V)
+    }
+}
+
+/// One beacon of a demodulated frame as its line gives it.
+#[derive(serde::Deserialize, Default)]
+pub(super) struct DemodBeacon<'a> {
+    #[serde(borrow)]
+    pub id: Option<Text<'a>>,
+    pub amplitude: Option<Nums>,
+    pub std: Option<Nums>,
+}
+
+/// A demodulated frame's `beacons`: how many, the first
+/// [`MAX_BEACONS`](crate::samples::MAX_BEACONS).
+pub(super) struct DemodBeacons<'a> {
+    pub len: usize,
+    pub items: [DemodBeacon<'a>; crate::samples::MAX_BEACONS],
+}
+
+impl<'de: 'a, 'a> Deserialize<'de> for DemodBeacons<'a> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V<'a>(std::marker::PhantomData<&'a ()>);
+        impl<'de: 'a, 'a> Visitor<'de> for V<'a> {
+            type Value = DemodBeacons<'a>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a sequence of beacon objects")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+                let mut out = DemodBeacons {
+                    len: 0,
+                    items: Default::default(),
+                };
+                loop {
+                    if let Some(slot) = out.items.get_mut(out.len) {
+                        match seq.next_element::<DemodBeacon<'a>>()? {
+                            Some(b) => *slot = b,
+                            None => break,
+                        }
+                    } else if seq.next_element::<Skip>()?.is_none() {
+                        break;
+                    }
+                    out.len += 1;
+                }
+                Ok(out)
+            }
+        }
+        d.deserialize_seq(V(std::marker::PhantomData))
+    }
+}
+
 /// A number field of a reading or of a `std` object, as its `Value` was
 /// told apart.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -125,9 +324,9 @@ pub(super) enum Num {
     Other,
 }
 
-/// The keys a reading or a `std` object may name: attitude's, depth's and
-/// velocity's.
-pub(super) const KEYS: [&str; 6] = ["pitch", "yaw", "z", "fwd", "right", "down"];
+/// The keys a reading or a `std` object may name: attitude's (with spec
+/// v3's roll), depth's and velocity's.
+pub(super) const KEYS: [&str; 7] = ["pitch", "yaw", "z", "fwd", "right", "down", "roll"];
 
 /// The named numbers of a reading or of a `std` object ([`KEYS`]).
 #[derive(Debug, Default, Clone, Copy)]

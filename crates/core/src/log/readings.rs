@@ -85,6 +85,7 @@ pub fn as_logged(frame: &mut crate::Frame) {
     if let Some(a) = frame.attitude.as_mut() {
         a.pitch = angle_as_logged(a.pitch);
         a.yaw = angle_as_logged(a.yaw);
+        a.roll = a.roll.map(angle_as_logged);
         if let Some(s) = a.std.as_mut() {
             s.pitch = angle_as_logged(s.pitch);
             s.yaw = angle_as_logged(s.yaw);
@@ -94,9 +95,19 @@ pub fn as_logged(frame: &mut crate::Frame) {
 
 pub(super) fn parse_attitude(v: &Reading, fs: Option<&Std>) -> Result<AttitudeReading, String> {
     let ([p, y], std) = reading_fields(v, "attitude", ["pitch", "yaw"], fs)?;
+    // Spec v3: roll is optional; absent or null is not measured.
+    let roll = match v {
+        Reading::Object { fields, .. } => match fields.get("roll") {
+            Num::Absent | Num::Null => None,
+            Num::Number(r) => Some(Angle::from_deg(r)),
+            Num::Other => return Err("attitude roll is not a number".into()),
+        },
+        Reading::NotObject => None,
+    };
     Ok(AttitudeReading {
         pitch: Angle::from_deg(p),
         yaw: Angle::from_deg(y),
+        roll,
         std: std.map(|[sp, sy]| AttitudeStd {
             pitch: Angle::from_deg(sp),
             yaw: Angle::from_deg(sy),

@@ -27,6 +27,7 @@ pub fn frame(seq: u64) -> Frame {
     f.attitude = Some(AttitudeReading {
         pitch: Angle::from_deg(-3.5 + s * 1e-2),
         yaw: Angle::from_deg(12.0 - s * 3e-3),
+        roll: None,
         std: (!seq.is_multiple_of(3)).then_some(AttitudeStd {
             pitch: Angle::from_deg(0.25),
             yaw: Angle::from_deg(2.0),

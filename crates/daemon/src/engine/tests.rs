@@ -128,6 +128,7 @@ impl Input for EvenAttitude {
             f.attitude = Some(AttitudeReading {
                 pitch: Angle::from_deg(1.0),
                 yaw: Angle::ZERO,
+                roll: None,
                 std: None,
             });
         }

@@ -245,6 +245,7 @@ pub fn parse(datagram: &[u8], beacon_axis_heading_deg: f64) -> Result<AttitudeRe
     Ok(AttitudeReading {
         pitch: Angle::from_deg(m.pitch),
         yaw: Angle::from_deg(wrap180(m.yaw - beacon_axis_heading_deg - 180.0)),
+        roll: None,
         std: None,
     })
 }
@@ -522,6 +523,7 @@ mod tests {
         AttitudeReading {
             pitch: Angle::from_deg(pitch),
             yaw: Angle::from_deg(yaw),
+            roll: None,
             std: std.map(|(p, y)| AttitudeStd {
                 pitch: Angle::from_deg(p),
                 yaw: Angle::from_deg(y),
@@ -592,6 +594,7 @@ mod tests {
             AttitudeReading {
                 pitch: Angle::ZERO,
                 yaw: Angle::ZERO,
+                roll: None,
                 std: None,
             },
         );

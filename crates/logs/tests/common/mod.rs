@@ -39,6 +39,7 @@ pub fn frame(seq: u64) -> Frame {
         f.attitude = Some(AttitudeReading {
             pitch: Angle::from_deg(9.5),
             yaw: Angle::from_deg(-1.25),
+            roll: None,
             std: Some(AttitudeStd {
                 pitch: Angle::from_deg(0.3),
                 yaw: Angle::from_deg(1.5),

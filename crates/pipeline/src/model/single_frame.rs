@@ -804,6 +804,7 @@ mod tests {
                 attitude: att.map(|(p, y)| lightpose_core::AttitudeReading {
                     pitch: Angle::from_deg(p),
                     yaw: Angle::from_deg(y),
+                    roll: None,
                     std: None,
                 }),
                 depth: None,

@@ -54,6 +54,7 @@ pub fn synth_frame(
     let attitude = attitude_sigma.map(|(sp, sy)| AttitudeReading {
         pitch: lightpose_core::Angle::from_rad(pose.pitch.rad() + sp * rng.normal()),
         yaw: lightpose_core::Angle::from_rad(pose.yaw.rad() + sy * rng.normal()),
+        roll: None,
         std: None,
     });
     Frame {

@@ -4,13 +4,18 @@
 //! generous on purpose: they refuse nonsense (negative, NaN, inf, 1e300),
 //! they do not judge realism.
 
-use super::{Adc, AttitudeNoise, DepthNoise, DvlNoise, McSpread, Noise, Scene, SceneError};
+use super::{
+    Adc, AttitudeNoise, Beacon, Blink, Daylight, DepthNoise, DvlNoise, Flicker, McSpread, Noise,
+    Scene, SceneError,
+};
 use lightpose_core::bounds::{
     shown, Within, MAX_GAIN, MAX_K_D, MAX_K_D_DOUBT, MAX_OMEGA, MAX_RADIUS_M, MAX_SPACING_DEG,
     MAX_TEMP_DOUBT_C, MAX_V1_PER_V_REF, MAX_V_REF, MIN_V_REF, WIDTH_DEG,
 };
+use lightpose_core::modulation::{check_beacons, BeaconFreq, ModulationError};
 use lightpose_core::textfile::parse_toml;
 use lightpose_core::textpos::line_of_key;
+use lightpose_core::MAX_BEACONS;
 use lightpose_core::{Angle, ArrayGeometry, LightParams, Scattering, COLS, NDET, ROWS};
 use serde::Deserialize;
 use std::fmt;
@@ -25,6 +30,14 @@ const MAX_SIGMA_ANGLE_DEG: f64 = 180.0;
 const MAX_SIGMA_DEPTH_M: f64 = 100.0;
 /// A DVL's 1σ, m/s: several times the fastest vehicle's speed.
 const MAX_SIGMA_DVL_MPS: f64 = 10.0;
+/// A phase, degrees: one turn either way.
+const PHASE_DEG: Within = Within::closed(-360.0, 360.0, "°");
+/// A beacon clock's offset, ppm: a hundred times a poor crystal's.
+const MAX_DRIFT_PPM: f64 = 1e4;
+/// A beacon's position in D, m: far past the beacon's optical range.
+const MAX_POSITION_M: f64 = 1e3;
+/// Most random flicker sinusoids of each kind.
+const MAX_RANDOM_COMPONENTS: i64 = 1000;
 
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
@@ -39,6 +52,9 @@ struct RawScene {
     attitude: Option<RawAttitude>,
     depth: Option<RawDepth>,
     dvl: Option<RawDvl>,
+    /// Spec v3: a station's beacons, instead of `[beacon]`.
+    beacons: Option<Vec<RawStationBeacon>>,
+    daylight: Option<RawDaylight>,
 }
 
 #[derive(Deserialize, Default)]
@@ -46,6 +62,45 @@ struct RawScene {
 struct RawBeacon {
     v1: Option<f64>,
     sigma_b_deg: Option<f64>,
+    mod_hz: Option<f64>,
+    phase_deg: Option<f64>,
+    drift_ppm: Option<f64>,
+    off_s: Option<Vec<Vec<f64>>>,
+}
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawStationBeacon {
+    id: Option<String>,
+    v1: Option<f64>,
+    sigma_b_deg: Option<f64>,
+    mod_hz: Option<f64>,
+    phase_deg: Option<f64>,
+    drift_ppm: Option<f64>,
+    off_s: Option<Vec<Vec<f64>>>,
+    position_m: Option<Vec<f64>>,
+    axis_yaw_deg: Option<f64>,
+    axis_pitch_deg: Option<f64>,
+}
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawDaylight {
+    surface_v: Option<f64>,
+    origin_depth_m: Option<f64>,
+    upwelling: Option<f64>,
+    flicker_depth_m: Option<f64>,
+    random_std: Option<f64>,
+    random_min_hz: Option<f64>,
+    random_max_hz: Option<f64>,
+    random_components: Option<i64>,
+    spatial: Option<f64>,
+    flicker: Option<Vec<RawFlicker>>,
+}
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawFlicker {
+    hz: Option<f64>,
+    amplitude: Option<f64>,
+    phase_deg: Option<f64>,
 }
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
@@ -82,6 +137,8 @@ struct RawAdc {
     bits: Option<i64>,
     v_ref: Option<f64>,
     rate_hz: Option<f64>,
+    sample_hz: Option<f64>,
+    channel_skew_s: Option<f64>,
 }
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
@@ -101,6 +158,7 @@ struct RawMc {
 struct RawAttitude {
     sigma_pitch_deg: Option<f64>,
     sigma_yaw_deg: Option<f64>,
+    sigma_roll_deg: Option<f64>,
 }
 
 #[derive(Deserialize, Default)]
@@ -117,15 +175,112 @@ struct RawDvl {
 struct Checker<'a> {
     file: &'a str,
     text: &'a str,
+    /// Within an array of tables (`[[beacons]]`, `[[daylight.flicker]]`):
+    /// which of them, so that a key is found in its own table.
+    nth: Option<usize>,
+}
+
+/// The line of `key` in the `nth` `[[table]]` of `text` (or of that
+/// table's header when the key is not in it).
+fn line_of_key_nth(text: &str, table: &str, nth: usize, key: &str) -> usize {
+    let mut seen = 0;
+    let mut in_table = false;
+    let mut header = 1;
+    for (i, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if l.starts_with('[') {
+            let name = l.trim_matches(|c| c == '[' || c == ']').trim();
+            in_table = false;
+            if l.starts_with("[[") && name == table {
+                in_table = seen == nth;
+                if in_table {
+                    header = i + 1;
+                }
+                seen += 1;
+            }
+            continue;
+        }
+        if in_table {
+            if let Some((k, _)) = l.split_once('=') {
+                if k.trim().trim_matches('"') == key {
+                    return i + 1;
+                }
+            }
+        }
+    }
+    header
 }
 
 impl Checker<'_> {
     fn err(&self, table: &str, key: &str, msg: impl fmt::Display) -> SceneError {
+        let (line, shown) = match self.nth {
+            None => (line_of_key(self.text, table, key), format!("[{table}]")),
+            Some(n) => (
+                line_of_key_nth(self.text, table, n, key),
+                format!("[[{table}]] #{}", n + 1),
+            ),
+        };
         SceneError::Invalid {
             file: self.file.to_string(),
-            line: line_of_key(self.text, table, key),
-            msg: format!("[{table}] {key}: {msg}"),
+            line,
+            msg: format!("{shown} {key}: {msg}"),
         }
+    }
+
+    /// The same checker within the `n`th of an array of tables.
+    fn nth(&self, n: usize) -> Checker<'_> {
+        Checker {
+            file: self.file,
+            text: self.text,
+            nth: Some(n),
+        }
+    }
+
+    /// `off_s`: pairs [t0, t1) of finite times, t0 < t1.
+    fn off_s(&self, table: &str, v: Option<Vec<Vec<f64>>>) -> Result<Vec<(f64, f64)>, SceneError> {
+        let mut out = Vec::new();
+        for (i, pair) in v.unwrap_or_default().iter().enumerate() {
+            match pair[..] {
+                [a, b] if a.is_finite() && b.is_finite() && a < b => out.push((a, b)),
+                _ => {
+                    return Err(self.err(
+                        table,
+                        "off_s",
+                        format!("entry {i} must be [t0, t1] with finite t0 < t1"),
+                    ))
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// A beacon's clock: mod_hz, phase_deg, drift_ppm, off_s.
+    fn blink(
+        &self,
+        table: &str,
+        mod_hz: Option<f64>,
+        phase_deg: Option<f64>,
+        drift_ppm: Option<f64>,
+        off_s: Option<Vec<Vec<f64>>>,
+    ) -> Result<Blink, SceneError> {
+        Ok(Blink {
+            mod_hz: self.num(
+                table,
+                "mod_hz",
+                mod_hz,
+                0.0,
+                Within::closed(0.0, 1e6, " Hz"),
+            )?,
+            phase_deg: self.num(table, "phase_deg", phase_deg, 0.0, PHASE_DEG)?,
+            drift_ppm: self.num(
+                table,
+                "drift_ppm",
+                drift_ppm,
+                0.0,
+                Within::closed(-MAX_DRIFT_PPM, MAX_DRIFT_PPM, " ppm"),
+            )?,
+            off_s: self.off_s(table, off_s)?,
+        })
     }
 
     /// Take `v` or the default, and require it `within` its bounds.
@@ -194,15 +349,157 @@ impl Checker<'_> {
     }
 }
 
+/// V1 (V·m², up to `MAX_V1_PER_V_REF`·v_ref; 0 is the beacon off, as in
+/// a dark sweep) and σ_b (degrees) of `table`.
+fn beacon_light(
+    c: &Checker,
+    table: &str,
+    v1: Option<f64>,
+    sigma_b_deg: Option<f64>,
+    v_ref: f64,
+) -> Result<(f64, f64), SceneError> {
+    let v1_max = Within::closed(0.0, MAX_V1_PER_V_REF * v_ref, " V·m²").why("1e6 × [adc] v_ref");
+    let v1 = c.num(table, "v1", v1, LightParams::default().v1, v1_max)?;
+    let sigma_b = c.num(table, "sigma_b_deg", sigma_b_deg, 12.0, WIDTH_DEG)?;
+    Ok((v1, sigma_b))
+}
+
 impl RawBeacon {
-    /// `[beacon]`: V1 (V·m², up to `MAX_V1_PER_V_REF`·v_ref; 0 is the beacon
-    /// off, as in a dark sweep) and σ_b (degrees).
-    fn validate(self, c: &Checker, v_ref: f64) -> Result<(f64, f64), SceneError> {
-        let v1_max =
-            Within::closed(0.0, MAX_V1_PER_V_REF * v_ref, " V·m²").why("1e6 × [adc] v_ref");
-        let v1 = c.num("beacon", "v1", self.v1, LightParams::default().v1, v1_max)?;
-        let sigma_b = c.num("beacon", "sigma_b_deg", self.sigma_b_deg, 12.0, WIDTH_DEG)?;
-        Ok((v1, sigma_b))
+    /// `[beacon]`: V1 and σ_b, and (spec v3) its clock.
+    fn validate(self, c: &Checker, v_ref: f64) -> Result<(f64, f64, Blink), SceneError> {
+        let (v1, sigma_b) = beacon_light(c, "beacon", self.v1, self.sigma_b_deg, v_ref)?;
+        let blink = c.blink(
+            "beacon",
+            self.mod_hz,
+            self.phase_deg,
+            self.drift_ppm,
+            self.off_s,
+        )?;
+        Ok((v1, sigma_b, blink))
+    }
+}
+
+impl RawStationBeacon {
+    /// One `[[beacons]]` table: its id, light, clock, position and axis.
+    fn validate(self, c: &Checker, v_ref: f64) -> Result<Beacon, SceneError> {
+        let t = "beacons";
+        let id = match self.id {
+            Some(id) if !id.trim().is_empty() => id,
+            _ => return Err(c.err(t, "id", "every beacon needs an id (a non-empty string)")),
+        };
+        let (v1, sigma_b) = beacon_light(c, t, self.v1, self.sigma_b_deg, v_ref)?;
+        let blink = c.blink(t, self.mod_hz, self.phase_deg, self.drift_ppm, self.off_s)?;
+        let position_m = match self.position_m.as_deref() {
+            None => [0.0; 3],
+            Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.abs() <= MAX_POSITION_M) => [x, y, z],
+            Some(_) => {
+                return Err(c.err(
+                    t,
+                    "position_m",
+                    format!("must be [x, y, z], each finite within ±{MAX_POSITION_M} m"),
+                ))
+            }
+        };
+        let axis_yaw = c.num(
+            t,
+            "axis_yaw_deg",
+            self.axis_yaw_deg,
+            0.0,
+            Within::closed(-180.0, 180.0, "°"),
+        )?;
+        let axis_pitch = c.num(
+            t,
+            "axis_pitch_deg",
+            self.axis_pitch_deg,
+            0.0,
+            Within::closed(-90.0, 90.0, "°"),
+        )?;
+        Ok(Beacon {
+            id,
+            v1,
+            sigma_b: Angle::from_deg(sigma_b),
+            blink,
+            position_m,
+            axis_yaw: Angle::from_deg(axis_yaw),
+            axis_pitch: Angle::from_deg(axis_pitch),
+        })
+    }
+}
+
+impl RawDaylight {
+    /// `[daylight]` and its `[[daylight.flicker]]` components.
+    fn validate(self, c: &Checker, v_ref: f64) -> Result<Daylight, SceneError> {
+        let t = "daylight";
+        let d = Daylight::default();
+        let surface = Within::closed(0.0, MAX_V1_PER_V_REF * v_ref, " V").why("1e6 × [adc] v_ref");
+        let depth = Within::closed(0.0, 1e4, " m");
+        let unit = Within::closed(0.0, 1.0, "");
+        let hz = Within::above(0.0, 1e6, " Hz");
+        let random_min_hz = c.num(t, "random_min_hz", self.random_min_hz, d.random_min_hz, hz)?;
+        let random_max_hz = c.num(
+            t,
+            "random_max_hz",
+            self.random_max_hz,
+            d.random_max_hz.max(random_min_hz),
+            Within::closed(random_min_hz, 1e6, " Hz").why("random_min_hz and up"),
+        )?;
+        let random_components = match self.random_components {
+            None => d.random_components,
+            Some(n @ 0..=MAX_RANDOM_COMPONENTS) => n as usize,
+            Some(n) => {
+                return Err(c.err(
+                    t,
+                    "random_components",
+                    format!("{n} is impossible: must be 0..{MAX_RANDOM_COMPONENTS}"),
+                ))
+            }
+        };
+        let mut flicker = Vec::new();
+        for (i, f) in self.flicker.unwrap_or_default().into_iter().enumerate() {
+            let c = c.nth(i);
+            let ft = "daylight.flicker";
+            flicker.push(Flicker {
+                hz: c.num(ft, "hz", f.hz, 1.0, Within::closed(0.0, 1e6, " Hz"))?,
+                amplitude: c.num(
+                    ft,
+                    "amplitude",
+                    f.amplitude,
+                    0.0,
+                    Within::closed(0.0, 100.0, ""),
+                )?,
+                phase_deg: c.num(ft, "phase_deg", f.phase_deg, 0.0, PHASE_DEG)?,
+            });
+        }
+        Ok(Daylight {
+            surface_v: c.num(t, "surface_v", self.surface_v, d.surface_v, surface)?,
+            origin_depth_m: c.num(
+                t,
+                "origin_depth_m",
+                self.origin_depth_m,
+                d.origin_depth_m,
+                depth,
+            )?,
+            upwelling: c.num(t, "upwelling", self.upwelling, d.upwelling, unit)?,
+            flicker_depth_m: c.num(
+                t,
+                "flicker_depth_m",
+                self.flicker_depth_m,
+                d.flicker_depth_m,
+                Within::above(0.0, 1e4, " m"),
+            )?,
+            flicker,
+            random_std: c.num(
+                t,
+                "random_std",
+                self.random_std,
+                d.random_std,
+                Within::closed(0.0, 100.0, ""),
+            )?,
+            random_min_hz,
+            random_max_hz,
+            random_components,
+            spatial: c.num(t, "spatial", self.spatial, d.spatial, unit)?,
+        })
     }
 }
 
@@ -301,10 +598,18 @@ impl RawAdc {
         let v_ref = c.num("adc", "v_ref", self.v_ref, 5.0, v_ref)?;
         let rate = Within::above(0.0, 1e6, " Hz");
         let rate_hz = c.num("adc", "rate_hz", self.rate_hz, 5.0, rate)?;
+        // Whether it is a whole multiple of the rate is MODEL.md's
+        // frequency rules' to say (with the beacons, in `parse`).
+        let sample = Within::above(0.0, 1e7, " Hz");
+        let sample_hz = c.num("adc", "sample_hz", self.sample_hz, rate_hz, sample)?;
+        let skew = Within::closed(0.0, 1.0 / rate_hz, " s").why("up to a frame period");
+        let channel_skew_s = c.num("adc", "channel_skew_s", self.channel_skew_s, 0.0, skew)?;
         Ok(Adc {
             bits,
             v_ref,
             rate_hz,
+            sample_hz,
+            channel_skew_s,
         })
     }
 }
@@ -352,6 +657,11 @@ impl RawAttitude {
                 d.sigma_pitch,
             )?),
             sigma_yaw: Angle::from_deg(n("sigma_yaw_deg", self.sigma_yaw_deg, d.sigma_yaw)?),
+            sigma_roll: self
+                .sigma_roll_deg
+                .map(|v| c.num("attitude", "sigma_roll_deg", Some(v), 0.0, deg))
+                .transpose()?
+                .map(Angle::from_deg),
         })
     }
 }
@@ -384,9 +694,49 @@ impl RawDvl {
 /// takes its defaults, or turns its effect off.
 pub(super) fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
     let raw: RawScene = parse_toml(text, file)?;
-    let c = Checker { file, text };
+    let c = Checker {
+        file,
+        text,
+        nth: None,
+    };
     let adc = raw.adc.unwrap_or_default().validate(&c)?;
-    let (v1, sigma_b) = raw.beacon.unwrap_or_default().validate(&c, adc.v_ref)?;
+    if raw.beacon.is_some() && raw.beacons.is_some() {
+        return Err(c.nth(0).err(
+            "beacons",
+            "id",
+            "a scene has one [beacon] or a station of [[beacons]], not both",
+        ));
+    }
+    let beacons = match raw.beacons {
+        None => Vec::new(),
+        Some(list) => {
+            if list.is_empty() || list.len() > MAX_BEACONS {
+                return Err(c.err("beacons", "id", format!("1 to {MAX_BEACONS} beacons")));
+            }
+            let mut out: Vec<Beacon> = Vec::with_capacity(list.len());
+            for (i, b) in list.into_iter().enumerate() {
+                let b = b.validate(&c.nth(i), adc.v_ref)?;
+                if out.iter().any(|o| o.id == b.id) {
+                    return Err(c
+                        .nth(i)
+                        .err("beacons", "id", format!("\"{}\" repeats", b.id)));
+                }
+                out.push(b);
+            }
+            out
+        }
+    };
+    let (v1, sigma_b, blink) = match beacons.first() {
+        // A station: `light` carries its first beacon's (for the v2 code
+        // that reads one V1); each beacon's own is in `beacons`.
+        Some(b) => (b.v1, b.sigma_b.deg(), Blink::default()),
+        None => raw.beacon.unwrap_or_default().validate(&c, adc.v_ref)?,
+    };
+    check_frequencies(&c, &adc, &blink, &beacons)?;
+    let daylight = raw
+        .daylight
+        .map(|d| d.validate(&c, adc.v_ref))
+        .transpose()?;
     let (k_d, temp_c) = raw.water.unwrap_or_default().validate(&c)?;
     let scattering = raw.scattering.map(|s| s.validate(&c)).transpose()?;
     let array = raw.array.unwrap_or_default().validate(&c, adc.v_ref)?;
@@ -413,5 +763,51 @@ pub(super) fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
         attitude,
         depth,
         dvl,
+        blink,
+        beacons,
+        daylight,
     })
+}
+
+/// MODEL.md's frequency rules on the scene's beacons (core's
+/// `check_beacons`), the error at the line of the first beacon it names
+/// (or of `[adc] sample_hz`).
+fn check_frequencies(
+    c: &Checker,
+    adc: &Adc,
+    blink: &Blink,
+    beacons: &[Beacon],
+) -> Result<(), SceneError> {
+    let one = [BeaconFreq {
+        id: lightpose_core::log::DEFAULT_BEACON_ID,
+        mod_hz: blink.mod_hz,
+    }];
+    let list: Vec<BeaconFreq> = beacons
+        .iter()
+        .map(|b| BeaconFreq {
+            id: &b.id,
+            mod_hz: b.mod_hz(),
+        })
+        .collect();
+    let freqs = if beacons.is_empty() {
+        &one[..]
+    } else {
+        &list[..]
+    };
+    let Err(e) = check_beacons(adc.rate_hz, adc.sample_hz, freqs) else {
+        return Ok(());
+    };
+    let id = match &e {
+        ModulationError::SamplesPerFrame { .. } | ModulationError::FastWithoutBlink { .. } => {
+            return Err(c.err("adc", "sample_hz", e))
+        }
+        ModulationError::SamplesPerPeriod { id, .. }
+        | ModulationError::PeriodsPerFrame { id, .. }
+        | ModulationError::Steady { id } => id,
+        ModulationError::SameFrequency { a, .. } | ModulationError::OddRatio { a, .. } => a,
+    };
+    match beacons.iter().position(|b| &b.id == id) {
+        Some(i) => Err(c.nth(i).err("beacons", "mod_hz", e)),
+        None => Err(c.err("beacon", "mod_hz", e)),
+    }
 }

@@ -437,7 +437,7 @@ proptest! {
             let f = Frame {
                 seq: i as u64, t, adc_bits: 10, counts, temp_c: Some(20.0), truth: None,
                 attitude: att.then_some(lightpose_core::AttitudeReading {
-                    pitch: Angle::ZERO, yaw: Angle::ZERO,
+                    pitch: Angle::ZERO, yaw: Angle::ZERO, roll: None,
                     std: None, }),
                 depth: None,
                 velocity: None,

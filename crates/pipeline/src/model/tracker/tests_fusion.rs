@@ -519,6 +519,7 @@ fn reading(f: &Frame, which: Which, value: f64, sigma: f64, yaw: f64) -> Frame {
             attitude: Some(AttitudeReading {
                 pitch: Angle::from_rad(value),
                 yaw: Angle::from_rad(yaw),
+                roll: None,
                 std: Some(AttitudeStd {
                     pitch: Angle::from_rad(sigma),
                     yaw: Angle::from_deg(1.5),
