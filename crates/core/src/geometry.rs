@@ -224,8 +224,8 @@ mod tests {
         };
         let (s, c) = Angle::from_deg(25.0).sin_cos();
         let want = mul(a.r_bv(), [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]);
-        for i in 0..3 {
-            assert!(close(r.r_bv()[i], want[i]));
+        for (got, want) in r.r_bv().iter().zip(want) {
+            assert!(close(*got, want));
         }
         // Level, facing the beacon, rolled starboard down: right points down.
         let lvl = Attitude::default().with_roll(Angle::from_deg(90.0));

@@ -900,7 +900,9 @@ impl<R: BufRead> LogReader<R> {
 }
 
 /// What [`LogReader::next_frame_in`] parsed: a frame of counts, or a line
-/// held in the reader's burst or demodulated frame.
+/// held in the reader's burst or demodulated frame. On the stack per line:
+/// boxing the frame would allocate per frame.
+#[allow(clippy::large_enum_variant)]
 enum Got {
     Frame(Frame),
     Burst,

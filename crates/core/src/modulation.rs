@@ -59,7 +59,7 @@ pub enum ModulationError {
 
 /// `x` as a whole number if it is one within [`WHOLE_REL`].
 pub fn whole(x: f64) -> Option<u64> {
-    if !x.is_finite() || x < 0.5 || x > 1e15 {
+    if !x.is_finite() || !(0.5..=1e15).contains(&x) {
         return None;
     }
     let r = x.round();

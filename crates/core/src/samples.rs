@@ -153,7 +153,9 @@ impl Demodulated {
     }
 }
 
-/// One frame of a log, of whichever kind the log holds.
+/// One frame of a log, of whichever kind the log holds. A frame is held
+/// by value, as everywhere (fixed size, never on the heap).
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Record<'a> {
     /// Counts (spec v1/v2).

@@ -2,15 +2,14 @@
 //! rates, the channels' skew, the beacons and their frequencies), checked
 //! once into a [`ValidConfig`] so that the per-frame code needs no checks.
 
+use lightpose_core::modulation::{self, check_beacons, BeaconFreq, ModulationError};
 use lightpose_core::NDET;
 
 /// Most beacons one demodulator separates: MODEL.md's frequency rules admit
 /// as many as the times 2 divides the samples per frame (four at N = 400,
-/// six at N = 640); eight keeps the per-channel solve on the stack.
-pub const MAX_BEACONS: usize = 8;
-
-/// "Whole" within this, relative (MODEL.md, "Several beacons").
-pub const WHOLE_TOL: f64 = 1e-9;
+/// six at N = 640); eight, as a demodulated frame holds (core's
+/// `samples::MAX_BEACONS`), keeps the per-channel solve on the stack.
+pub const MAX_BEACONS: usize = lightpose_core::samples::MAX_BEACONS;
 
 /// One beacon the demodulator looks for: FORMATS.md's header `beacons`
 /// entry, `{"id":..,"mod_hz":..}`.
@@ -64,10 +63,7 @@ impl DemodConfig {
     pub fn validate(&self) -> Result<ValidConfig, ConfigError> {
         positive("sample_hz", self.sample_hz)?;
         positive("rate_hz", self.rate_hz)?;
-        let n = whole(self.sample_hz / self.rate_hz).ok_or(ConfigError::SamplesPerFrame {
-            sample_hz: self.sample_hz,
-            rate_hz: self.rate_hz,
-        })?;
+        let n = modulation::samples_per_frame(self.sample_hz, self.rate_hz)?;
         if !self.channel_skew_s.is_finite()
             || self.channel_skew_s < 0.0
             || self.channel_skew_s * (NDET - 1) as f64 >= 1.0 / self.rate_hz
@@ -150,8 +146,6 @@ pub enum ConfigError {
         value: f64,
         range: &'static str,
     },
-    #[error("sample_hz = {sample_hz} is not a whole multiple of rate_hz = {rate_hz}")]
-    SamplesPerFrame { sample_hz: f64, rate_hz: f64 },
     #[error("channel_skew_s = {skew_s}: must be 0 or more, and the 25 channels' skew less than a frame ({frame_s} s)")]
     Skew { skew_s: f64, frame_s: f64 },
     #[error("no beacons: a demodulator needs at least one blinking beacon")]
@@ -162,27 +156,9 @@ pub enum ConfigError {
     DuplicateId { a: String, b: String },
     #[error("beacon {id:?}: mod_hz = {mod_hz}: a steady beacon (or not a frequency) cannot be demodulated; give it a blink frequency")]
     Steady { id: String, mod_hz: f64 },
-    #[error("beacon {id:?}: mod_hz = {mod_hz} does not divide sample_hz = {sample_hz} into an even whole number of samples per period (choose sample_hz / 2m)")]
-    SamplesPerPeriod {
-        id: String,
-        mod_hz: f64,
-        sample_hz: f64,
-    },
-    #[error("beacon {id:?}: mod_hz = {mod_hz} is not a whole number of periods per frame at rate_hz = {rate_hz}")]
-    PeriodsPerFrame {
-        id: String,
-        mod_hz: f64,
-        rate_hz: f64,
-    },
-    #[error("beacons {a:?} and {b:?} share a frequency ({hz} Hz): they cannot be told apart")]
-    SameFrequency { a: String, b: String, hz: f64 },
-    #[error("beacons {a:?} ({a_hz} Hz) and {b:?} ({b_hz} Hz) stand in the ratio of two odd numbers: they share odd harmonics and cannot be told apart")]
-    OddRatio {
-        a: String,
-        b: String,
-        a_hz: f64,
-        b_hz: f64,
-    },
+    /// MODEL.md's frequency rules (lightpose-core's check).
+    #[error(transparent)]
+    Rules(#[from] ModulationError),
 }
 
 fn positive(key: &'static str, value: f64) -> Result<(), ConfigError> {
@@ -193,20 +169,10 @@ fn positive(key: &'static str, value: f64) -> Result<(), ConfigError> {
     }
 }
 
-/// `x` as a whole number when it is one within [`WHOLE_TOL`] relative.
-fn whole(x: f64) -> Option<u64> {
-    let r = x.round();
-    (x.is_finite() && (1.0..1e12).contains(&r) && (x - r).abs() <= WHOLE_TOL * r)
-        .then_some(r as u64)
-}
-
-/// MODEL.md's frequency rules, as far as the demodulator's arithmetic needs
-/// them: every beacon blinks, with an even whole number 2m of samples per
-/// period and a whole number of periods per frame; no two share a frequency
-/// or stand in the ratio of two odd numbers. Gives each beacon's m.
-///
-/// One function so that it can be pointed at lightpose-core's own check
-/// (`lightpose_core::modulation::check_beacons`) when both exist.
+/// MODEL.md's frequency rules (lightpose-core's one check, as the scene
+/// and the log header apply them), and what the demodulator adds: at
+/// least one beacon, at most [`MAX_BEACONS`], each with its own id, every
+/// one blinking. Gives each beacon's m (sample_hz / mod_hz = 2m).
 pub fn check_frequencies(
     sample_hz: f64,
     rate_hz: f64,
@@ -221,7 +187,6 @@ pub fn check_frequencies(
             max: MAX_BEACONS,
         });
     }
-    let mut half = Vec::with_capacity(beacons.len());
     for (i, b) in beacons.iter().enumerate() {
         if let Some(a) = beacons[..i].iter().find(|a| a.id == b.id) {
             return Err(ConfigError::DuplicateId {
@@ -229,52 +194,27 @@ pub fn check_frequencies(
                 b: b.id.clone(),
             });
         }
+        // Core admits one steady beacon (spec v1/v2); nothing to demodulate.
         if !(b.mod_hz.is_finite() && b.mod_hz > 0.0) {
             return Err(ConfigError::Steady {
                 id: b.id.clone(),
                 mod_hz: b.mod_hz,
             });
         }
-        let per_period = whole(sample_hz / b.mod_hz).filter(|p| p % 2 == 0);
-        let Some(per_period) = per_period else {
-            return Err(ConfigError::SamplesPerPeriod {
-                id: b.id.clone(),
-                mod_hz: b.mod_hz,
-                sample_hz,
-            });
-        };
-        if whole(b.mod_hz / rate_hz).is_none() {
-            return Err(ConfigError::PeriodsPerFrame {
-                id: b.id.clone(),
-                mod_hz: b.mod_hz,
-                rate_hz,
-            });
-        }
-        half.push(per_period / 2);
     }
-    // f_a : f_b = m_b : m_a, a ratio of two odd numbers exactly when m_a
-    // and m_b hold the same power of 2.
-    for i in 0..beacons.len() {
-        for j in 0..i {
-            let (a, b) = (&beacons[j], &beacons[i]);
-            if half[i] == half[j] {
-                return Err(ConfigError::SameFrequency {
-                    a: a.id.clone(),
-                    b: b.id.clone(),
-                    hz: b.mod_hz,
-                });
-            }
-            if half[i].trailing_zeros() == half[j].trailing_zeros() {
-                return Err(ConfigError::OddRatio {
-                    a: a.id.clone(),
-                    b: b.id.clone(),
-                    a_hz: a.mod_hz,
-                    b_hz: b.mod_hz,
-                });
-            }
-        }
-    }
-    Ok(half)
+    let freqs: Vec<BeaconFreq<'_>> = beacons
+        .iter()
+        .map(|b| BeaconFreq {
+            id: &b.id,
+            mod_hz: b.mod_hz,
+        })
+        .collect();
+    check_beacons(rate_hz, sample_hz, &freqs)?;
+    // Whole and even by the check above.
+    Ok(beacons
+        .iter()
+        .map(|b| modulation::whole(sample_hz / b.mod_hz).unwrap_or(2) / 2)
+        .collect())
 }
 
 #[cfg(test)]
@@ -293,28 +233,23 @@ mod tests {
     fn frequency_rules_name_the_beacons() {
         assert_eq!(
             err(4800.0, 10.0, &[("a", 200.0), ("b", 600.0)]),
-            "beacons \"a\" (200 Hz) and \"b\" (600 Hz) stand in the ratio of two odd numbers: they share odd harmonics and cannot be told apart"
+            "beacons \"a\" (200 Hz) and \"b\" (600 Hz) stand in the ratio 1 : 3 of two odd numbers: they share odd harmonics"
         );
         assert!(err(4000.0, 10.0, &[("a", 200.0), ("b", 200.0)])
-            .starts_with("beacons \"a\" and \"b\" share a frequency"));
+            .starts_with("beacons \"a\" and \"b\" both blink at 200 Hz"));
         assert!(err(4000.0, 10.0, &[("a", 0.0)])
             .starts_with("beacon \"a\": mod_hz = 0: a steady beacon"));
         // 4000 / 300 is not whole; 4000 / 4000 is one sample per period, odd.
-        assert!(
-            err(4000.0, 10.0, &[("a", 300.0)]).contains("even whole number of samples per period")
-        );
-        assert!(
-            err(4000.0, 10.0, &[("a", 4000.0)]).contains("even whole number of samples per period")
-        );
+        assert!(err(4000.0, 10.0, &[("a", 300.0)]).contains("not an even whole number"));
+        assert!(err(4000.0, 10.0, &[("a", 4000.0)]).contains("not an even whole number"));
         // 4000 / 160 = 25 samples per period: odd.
         assert!(err(4000.0, 10.0, &[("a", 160.0)]).contains("even whole number"));
 
         // 3 Hz frames: 66.67 periods of 200 Hz, and N = 666.7.
         assert!(err(2000.0, 3.0, &[("a", 200.0)])
             .starts_with("sample_hz = 2000 is not a whole multiple"));
-        assert!(
-            err(2000.0, 8.0, &[("a", 100.0)]).contains("not a whole number of periods per frame")
-        );
+        assert!(err(2000.0, 8.0, &[("a", 100.0)])
+            .contains("periods per frame at rate_hz = 8, not a whole number"));
         assert!(err(2000.0, 5.0, &[]).starts_with("no beacons"));
         assert!(err(2000.0, 5.0, &[("a", 250.0), ("a", 500.0)])
             .starts_with("beacons \"a\" and \"a\": the same id"));

@@ -3,7 +3,7 @@
 //! beacon's samples swing between its dark and lit levels, and a roll
 //! column is read by the attitude sensor.
 
-use lightpose_core::{Burst, NDET};
+use lightpose_core::Burst;
 use lightpose_sim::{Scene, Simulator, Trajectory};
 
 const DIVE: &str = "t,x,y,z,pitch,yaw\n0,8.5,0,0,10,0\n2.6,7.22,0,0.22,8.7,0\n5.2,5.93,0,0.38,5.2,0\n8,4.53,0,0.45,0,0\n";
@@ -45,9 +45,9 @@ fn a_blinking_beacon_swings_between_dark_and_lit() {
     let mut b = Burst::new(200);
     sim.burst(0, 4.0, |_| k, &mut b);
     let dark = lightpose_core::frame::volts_to_counts(0.15, 5.0, 12);
-    for ch in 0..NDET {
+    for (ch, &lit) in lit.iter().enumerate() {
         let s = b.channel(ch);
-        let on = s.iter().filter(|&&c| c == lit[ch]).count();
+        let on = s.iter().filter(|&&c| c == lit).count();
         let off = s.iter().filter(|&&c| c == dark).count();
         assert_eq!((on, off), (100, 100), "channel {ch}: {s:?}");
     }

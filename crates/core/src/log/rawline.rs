@@ -343,6 +343,9 @@ impl Fields {
 
 /// A reading (`attitude`, `depth`, `velocity`): an object with its numbers
 /// and its own `std`, or something else.
+// A value on the stack, parsed and used per line: boxing it would
+// allocate per frame.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug)]
 pub(super) enum Reading {
     NotObject,
