@@ -25,7 +25,7 @@ fn bin() -> Command {
 fn sim_text(outputs: &str, extra: &str) -> String {
     let (scene, traj, cal) = shipped();
     format!(
-        "rate_hz = 20.0\nestimator = \"moments\"\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\n[outputs]\n{outputs}\n{extra}",
+        "rate_hz = 20.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\n[outputs]\n{outputs}\n{extra}",
         cal.display(),
         scene.display(),
         traj.display()

@@ -420,7 +420,9 @@ fn a_link_that_cannot_open_is_exit_1_a_bad_value_exit_2() {
         let extra = format!(
             "[site]\nbeacon_heading_deg = 30.0\nbeacon_depth_m = 3.0\n[mavlink]\nconnection = \"{conn}\"\n"
         );
+        // The tracker: [mavlink] refuses an estimator without a std.
         common::run::sim_config(20.0, &[dest], "", &extra)
+            .replace("estimator = \"moments\"", "estimator = \"tracker\"")
     };
     for (conn, code, says) in [
         (format!("udpin:{taken}"), 1, "mavlink: udpin:"),
@@ -470,7 +472,8 @@ fn sighup_keeps_the_link_and_sigterm_ends_it() {
         "[site]\nbeacon_heading_deg = 30.0\nbeacon_depth_m = 3.0\n[mavlink]\nconnection = \"udpout:{}\"\n",
         ap.local_addr().expect("addr")
     );
-    let text = common::run::sim_config(20.0, &[dest], "", &extra);
+    let text = common::run::sim_config(20.0, &[dest], "", &extra)
+        .replace("estimator = \"moments\"", "estimator = \"tracker\"");
     let (cal, text, good) = common::calibration_copy(dir.path(), &text);
     let (mut child, _) = spawn_daemon(dir.path(), &text, &sub);
     std::fs::write(&cal, common::other_calibration(&good)).expect("another calibration");

@@ -165,17 +165,17 @@ fn a_missing_calibration_and_an_unknown_estimator_name_the_config_line() {
         ),
         "foo",
     );
-    // Not TOML at all (a log named as the calibration): the same.
+    // Not TOML at all (a log named as the calibration): said to be a log.
     let log = root().join("tests/data/dive.jsonl");
     let p = config("logcal.toml", "auto", &log.display().to_string());
     refused_at(
         &p,
         &format!(
-            "lightposed: {}:5: calibration: {}:1: ",
+            "lightposed: {}:5: calibration: {}: an intensity log (JSON Lines)",
             p.display(),
             log.display()
         ),
-        "",
+        "not a calibration",
     );
 }
 

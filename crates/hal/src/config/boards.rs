@@ -248,7 +248,7 @@ struct Shared<'a> {
 
 fn common(s: Shared, boards: Vec<BoardSpec>, env: &dyn Env) -> Result<Common, HalError> {
     let rate_hz = rate(s.rate_hz, env)?;
-    let samples_per_frame = samples_per_frame(s.sample_hz, rate_hz)?;
+    let samples_per_frame = timing::samples_per_frame(s.sample_hz, rate_hz)?;
     let map = ChannelMap::new(s.map, &boards)?;
     let temp = temp_plan(s.temp, &boards, &map, s.bits, s.v_ref, &s.supply)?;
     Ok(Common {
@@ -260,72 +260,6 @@ fn common(s: Shared, boards: Vec<BoardSpec>, env: &dyn Env) -> Result<Common, Ha
         temp,
         bits: s.bits,
     })
-}
-
-/// Most samples of every channel in one frame: 8 kHz at 1 Hz frames.
-pub const MAX_SAMPLES_PER_FRAME: u32 = 8000;
-
-/// N = `sample_hz` / `rate_hz`, a whole number (MODEL.md: within 1e-9
-/// relative); 1 without `sample_hz`. Needs a paced rate.
-fn samples_per_frame(sample_hz: Option<f64>, rate_hz: Option<f64>) -> Result<u32, HalError> {
-    let Some(hz) = sample_hz else { return Ok(1) };
-    let Some(rate) = rate_hz else {
-        return Err(err(
-            "sample_hz",
-            "needs a frame rate (rate_hz = 0 reads as fast as possible)",
-        ));
-    };
-    let n = (hz / rate).round();
-    let whole = hz.is_finite() && n >= 1.0 && (n * rate - hz).abs() <= 1e-9 * hz;
-    if !whole {
-        return Err(err(
-            "sample_hz",
-            format!(
-                "{} is not a whole multiple of rate_hz = {rate} (each frame holds the same number of samples of every channel)",
-                lightpose_core::bounds::shown(hz)
-            ),
-        ));
-    }
-    if n > f64::from(MAX_SAMPLES_PER_FRAME) {
-        return Err(err(
-            "sample_hz",
-            format!("{hz} Hz is {n} samples a frame at {rate} Hz, over {MAX_SAMPLES_PER_FRAME}"),
-        ));
-    }
-    Ok(n as u32)
-}
-
-/// The bank keeps up with its sample rate (`sample_hz`, else `rate_hz`:
-/// a frame of one sample); the channels' spacing is then known.
-fn keeps_up(
-    common: &mut Common,
-    sample_hz: Option<f64>,
-    t: Option<timing::SampleTiming>,
-    what: &str,
-) -> Result<(), HalError> {
-    let Some(t) = t else { return Ok(()) };
-    common.channel_skew_s = t.channel_skew_s;
-    let Some(rate) = common.rate_hz else {
-        return Ok(());
-    };
-    let Some(hz) = sample_hz else {
-        return timing::fits("rate_hz", rate, &t, what);
-    };
-    timing::fits("sample_hz", hz, &t, what)?;
-    if common.samples_per_frame == 1 {
-        return Ok(());
-    }
-    // Said after the bus check, so that --check-config tells what the
-    // bank can give even now.
-    Err(err(
-        "sample_hz",
-        format!(
-            "{hz} Hz: the bank keeps up (at most {:.0} Hz, channels {:.1} µs apart), but reading a frame of {} samples from a board is not in this build yet: leave sample_hz out (one sample a frame)",
-            t.max_sample_hz(),
-            t.channel_skew_s * 1e6,
-            common.samples_per_frame
-        ),
-    ))
 }
 
 /// Wanted channels per board, in board order.
@@ -384,7 +318,7 @@ pub(super) fn spi(c: &SpiConfig, kind: McpKind, env: &dyn Env) -> Result<ValidBa
         "{n} transfers of 24 clocks at the chips' max_speed_hz, one after another, and {:.0} µs of the kernel's each",
         timing::SPI_TRANSFER_OVERHEAD_S * 1e6
     );
-    keeps_up(&mut common, c.sample_hz, timing::spi(&per_chip), &what)?;
+    timing::keeps_up(&mut common, c.sample_hz, timing::spi(&per_chip), &what)?;
     Ok(ValidBackend::Spi {
         kind,
         chips,
@@ -473,7 +407,7 @@ pub(super) fn ads1115(c: &Ads1115Config, env: &dyn Env) -> Result<ValidBackend, 
                 data_rate.sps(),
                 hz / 1000
             );
-            keeps_up(
+            timing::keeps_up(
                 &mut common,
                 c.sample_hz,
                 timing::ads1115(rounds, n, data_rate, hz),
@@ -607,7 +541,7 @@ pub(super) fn ads7828(c: &Ads7828Config, env: &dyn Env) -> Result<ValidBackend, 
         scl / 1000,
         timing::I2C_MESSAGE_OVERHEAD_S * 1e6
     );
-    keeps_up(&mut common, c.sample_hz, timing::ads7828(n, scl), &what)?;
+    timing::keeps_up(&mut common, c.sample_hz, timing::ads7828(n, scl), &what)?;
     Ok(ValidBackend::Ads7828 {
         power,
         buses,

@@ -6,9 +6,11 @@
 //! time and the rate that fits, rather than paced into frames whose `t`
 //! and sample instants would be a lie.
 
+use super::boards::Common;
 use super::err;
 use crate::drivers::ads1115::{self, DataRate};
 use crate::HalError;
+use lightpose_core::samples::MAX_SAMPLES_PER_FRAME;
 
 /// The kernel's cost of one SPI transfer (a spidev ioctl) beyond its
 /// clocks: tens of µs on a Raspberry Pi (docs/hardware.md); the lower end,
@@ -74,6 +76,69 @@ fn in_turn(read_s: f64, channels: u32) -> Option<SampleTiming> {
         read_s,
         channel_skew_s: read_s / f64::from(channels),
     })
+}
+
+/// N = `sample_hz` / `rate_hz`, a whole number by MODEL.md's rule
+/// (lightpose-core's, within 1e-9 relative), at most core's
+/// `MAX_SAMPLES_PER_FRAME`; 1 without `sample_hz`. Needs a paced rate.
+pub fn samples_per_frame(sample_hz: Option<f64>, rate_hz: Option<f64>) -> Result<u32, HalError> {
+    let Some(hz) = sample_hz else { return Ok(1) };
+    let Some(rate) = rate_hz else {
+        return Err(err(
+            "sample_hz",
+            "needs a frame rate (rate_hz = 0 reads as fast as possible)",
+        ));
+    };
+    let n = lightpose_core::modulation::samples_per_frame(hz, rate).map_err(|_| {
+        err(
+            "sample_hz",
+            format!(
+                "{} is not a whole multiple of rate_hz = {rate} (each frame holds the same number of samples of every channel)",
+                lightpose_core::bounds::shown(hz)
+            ),
+        )
+    })?;
+    let most = MAX_SAMPLES_PER_FRAME as u64;
+    if n > most {
+        return Err(err(
+            "sample_hz",
+            format!("{hz} Hz is {n} samples a frame at {rate} Hz, over {most}"),
+        ));
+    }
+    Ok(n as u32)
+}
+
+/// The bank keeps up with its sample rate (`sample_hz`, else `rate_hz`:
+/// a frame of one sample); the channels' spacing is then known.
+pub fn keeps_up(
+    common: &mut Common,
+    sample_hz: Option<f64>,
+    t: Option<SampleTiming>,
+    what: &str,
+) -> Result<(), HalError> {
+    let Some(t) = t else { return Ok(()) };
+    common.channel_skew_s = t.channel_skew_s;
+    let Some(rate) = common.rate_hz else {
+        return Ok(());
+    };
+    let Some(hz) = sample_hz else {
+        return fits("rate_hz", rate, &t, what);
+    };
+    fits("sample_hz", hz, &t, what)?;
+    if common.samples_per_frame == 1 {
+        return Ok(());
+    }
+    // Said after the bus check, so that --check-config tells what the
+    // bank can give even now.
+    Err(err(
+        "sample_hz",
+        format!(
+            "{hz} Hz: the bank keeps up (at most {:.0} Hz, channels {:.1} µs apart), but reading a frame of {} samples from a board is not in this build yet: leave sample_hz out (one sample a frame)",
+            t.max_sample_hz(),
+            t.channel_skew_s * 1e6,
+            common.samples_per_frame
+        ),
+    ))
 }
 
 /// Refuse a sample rate the bank's read cannot keep up with, at `key`

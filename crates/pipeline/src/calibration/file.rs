@@ -57,10 +57,10 @@ pub enum CalError {
 }
 
 /// What a file given as a calibration is instead, when its first line
-/// says so: JSON where TOML should be.
+/// says so: JSON (an opening brace, `\u{7b}`) where TOML should be.
 fn not_a_calibration(text: &str) -> Option<&'static str> {
     let first = text.lines().map(str::trim).find(|l| !l.is_empty())?;
-    if !first.starts_with('{') {
+    if !first.starts_with('\u{7b}') {
         return None;
     }
     Some(if first.contains("\"lightpose-intensity\"") {
