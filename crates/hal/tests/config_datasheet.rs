@@ -28,6 +28,25 @@ fn i2c_table(kind: &str, n: usize, per: usize, extra: &str) -> String {
     )
 }
 
+/// Four MCP3x08 on SPI0/SPI1 as config/examples maps them (detector k on
+/// chip k / 8, channel k % 8), `speed` appended to the first chip's table.
+fn spi_table(kind: &str, extra: &str, speed: &str) -> String {
+    let map: String = (0..25)
+        .map(|k| {
+            format!(
+                "[[map]]\nr = {}\nc = {}\nboard = \"u{}\"\nchannel = {}\n",
+                k / 5,
+                k % 5,
+                k / 8,
+                k % 8
+            )
+        })
+        .collect();
+    format!(
+        "kind = \"{kind}\"\n{extra}\nchips = [{{ name = \"u0\", device = \"/dev/spidev0.0\"{speed} }}, {{ name = \"u1\", device = \"/dev/spidev0.1\" }}, {{ name = \"u2\", device = \"/dev/spidev1.0\" }}, {{ name = \"u3\", device = \"/dev/spidev1.1\" }}]\n{map}"
+    )
+}
+
 fn thermistor(board: &str, channel: u8, extra: &str) -> String {
     format!("[temperature]\nkind = \"thermistor\"\nfallback_c = 20.0\nboard = \"{board}\"\nchannel = {channel}\nr_fixed_ohm = 10000.0\n{extra}\n")
 }
@@ -172,21 +191,7 @@ fn an_ads1115_full_scale_above_its_declared_supply_is_refused() {
 #[test]
 fn an_mcp3x08_clock_follows_its_declared_supply() {
     let mcp = |kind: &str, extra: &str, speed: &str| {
-        let map: String = (0..25)
-            .map(|k| {
-                format!(
-                    "[[map]]\nr = {}\nc = {}\nboard = \"u{}\"\nchannel = {}\n",
-                    k / 5,
-                    k % 5,
-                    k / 8,
-                    k % 8
-                )
-            })
-            .collect();
-        let text = format!(
-            "kind = \"{kind}\"\n{extra}\nchips = [{{ name = \"u0\", device = \"/dev/spidev0.0\"{speed} }}, {{ name = \"u1\", device = \"/dev/spidev0.1\" }}, {{ name = \"u2\", device = \"/dev/spidev1.0\" }}, {{ name = \"u3\", device = \"/dev/spidev1.1\" }}]\n{map}"
-        );
-        validate(&text).map(|v| match v {
+        validate(&spi_table(kind, extra, speed)).map(|v| match v {
             ValidBackend::Spi { chips, .. } => chips[0].max_speed_hz,
             other => panic!("not SPI: {other:?}"),
         })
@@ -224,19 +229,10 @@ fn an_mcp3x08_clock_follows_its_declared_supply() {
 #[test]
 fn a_sample_rate_is_checked_against_what_the_bus_can_give() {
     let spi = |extra: &str| {
-        let map: String = (0..25)
-            .map(|k| {
-                format!(
-                    "[[map]]\nr = {}\nc = {}\nboard = \"u{}\"\nchannel = {}\n",
-                    k / 5,
-                    k % 5,
-                    k / 8,
-                    k % 8
-                )
-            })
-            .collect();
-        validate(&format!(
-            "kind = \"mcp3008\"\nrate_hz = 5.0\n{extra}\nchips = [{{ name = \"u0\", device = \"/dev/spidev0.0\" }}, {{ name = \"u1\", device = \"/dev/spidev0.1\" }}, {{ name = \"u2\", device = \"/dev/spidev1.0\" }}, {{ name = \"u3\", device = \"/dev/spidev1.1\" }}]\n{map}"
+        validate(&spi_table(
+            "mcp3008",
+            &format!("rate_hz = 5.0\n{extra}"),
+            "",
         ))
     };
     // One sample a frame: the bank's spacing is known all the same. At the
