@@ -7,6 +7,7 @@
 use crate::basis::{degree_for, Basis};
 use crate::config::{ValidConfig, MAX_BEACONS};
 use crate::track::{wrap, Track};
+use lightpose_core::samples::{Burst, Demodulated};
 use lightpose_core::NDET;
 
 /// Variance floor of one sample, counts²: the ADC's own rounding (1/12 of
@@ -16,28 +17,6 @@ const QUANT_VAR: f64 = 1.0 / 12.0;
 /// Cells of the phase search narrower than this (cycles) are rounding's,
 /// not the samples': they are skipped.
 const MIN_CELL: f64 = 1e-9;
-
-/// One beacon's part of a demodulated frame (FORMATS.md: `beacons[]`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct BeaconAmplitudes {
-    pub id: String,
-    /// Per channel, the on level minus the off level of the beacon's square
-    /// wave over the frame, counts (slightly negative through noise).
-    pub amplitude: [f64; NDET],
-    /// Its 1σ, counts. A channel with clipped samples has at least the full
-    /// scale here: its amplitude is not to be used (`clipped` says why).
-    pub std: [f64; NDET],
-}
-
-/// FORMATS.md's demodulated frame, less what a FRAME carries besides.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Demodulated {
-    pub beacons: Vec<BeaconAmplitudes>,
-    /// Per channel, the mean counts with every beacon off.
-    pub ambient: [f64; NDET],
-    /// Per channel, the samples of the frame at 0 or full scale.
-    pub clipped: [u32; NDET],
-}
 
 /// What the demodulator knows of a beacon's clock after a frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -175,24 +154,41 @@ impl Demodulator {
         self.basis.len()
     }
 
-    /// An output with one entry per beacon, in the configuration's order,
-    /// for [`Demodulator::demodulate`] to fill (the ids are copied here,
-    /// once).
+    /// A demodulated frame (lightpose-core's, the one every log reader and
+    /// writer takes) with one entry per beacon, in the configuration's
+    /// order (`beacon` its index there, as in a log header's `beacons`),
+    /// for [`Demodulator::demodulate`] to fill.
     pub fn output(&self) -> Demodulated {
-        Demodulated {
-            beacons: self
-                .cfg
-                .beacons
-                .iter()
-                .map(|b| BeaconAmplitudes {
-                    id: b.id.clone(),
-                    amplitude: [0.0; NDET],
-                    std: [0.0; NDET],
-                })
-                .collect(),
-            ambient: [0.0; NDET],
-            clipped: [0; NDET],
+        let mut out = Demodulated {
+            n_beacons: self.cfg.beacons.len(),
+            ..Demodulated::default()
+        };
+        for (b, slot) in out.beacons.iter_mut().enumerate() {
+            slot.beacon = b as u8;
         }
+        out
+    }
+
+    /// Demodulates a BURST (lightpose-core's) into `out`, with the frame's
+    /// own fields: its seq, its time (the middle of its samples, MODEL.md),
+    /// its ADC and the readings it carries. `sample_hz` is the
+    /// configuration's.
+    pub fn demodulate_burst(
+        &mut self,
+        burst: &Burst,
+        out: &mut Demodulated,
+    ) -> Result<(), FrameError> {
+        self.demodulate(burst.samples(), burst.t, burst.adc_bits, out)?;
+        let n = self.cfg.n as f64;
+        out.seq = burst.seq;
+        out.t = burst.t + (n - 1.0) / (2.0 * self.cfg.sample_hz);
+        out.adc_bits = burst.adc_bits;
+        out.temp_c = burst.temp_c;
+        out.truth = burst.truth;
+        out.attitude = burst.attitude;
+        out.depth = burst.depth;
+        out.velocity = burst.velocity;
+        Ok(())
     }
 
     /// Beacon `b`'s clock after the last frame.
@@ -243,7 +239,7 @@ impl Demodulator {
             });
         }
         assert_eq!(
-            out.beacons.len(),
+            out.n_beacons,
             self.cfg.beacons.len(),
             "out from Demodulator::output"
         );
@@ -496,7 +492,8 @@ impl Demodulator {
                     fr[b] = best.2;
                 }
                 let mut kept = ([0.0; MAX_BEACONS], [0.0; MAX_BEACONS], out.ambient[k]);
-                for (b, bo) in out.beacons.iter().enumerate() {
+                let nb = out.n_beacons;
+                for (b, bo) in out.beacons[..nb].iter().enumerate() {
                     kept.0[b] = bo.amplitude[k];
                     kept.1[b] = bo.std[k];
                 }
@@ -504,7 +501,7 @@ impl Demodulator {
                 if again < noise {
                     noise = again;
                 } else {
-                    for (b, bo) in out.beacons.iter_mut().enumerate() {
+                    for (b, bo) in out.beacons[..nb].iter_mut().enumerate() {
                         bo.amplitude[k] = kept.0[b];
                         bo.std[k] = kept.1[b];
                     }
@@ -597,7 +594,8 @@ impl Demodulator {
                     // Not reached with whole periods (G ≈ N/4 · I); kept so
                     // that no frame can panic here.
                     noise = (self.energy[k] / dof).max(QUANT_VAR);
-                    for bo in out.beacons.iter_mut() {
+                    let nb = out.n_beacons;
+                    for bo in out.beacons[..nb].iter_mut() {
                         bo.amplitude[k] = 0.0;
                         bo.std[k] = f64::from(full);
                     }

@@ -29,6 +29,7 @@ pub mod track;
 pub use config::{
     check_frequencies, BeaconSpec, ConfigError, DemodConfig, ValidBeacon, ValidConfig, MAX_BEACONS,
 };
-pub use demod::{
-    detection_threshold, BeaconAmplitudes, Demodulated, Demodulator, FrameError, Lock,
-};
+pub use demod::{detection_threshold, Demodulator, FrameError, Lock};
+/// What the demodulator writes: lightpose-core's demodulated frame (one
+/// type for the demodulator, the logs and the estimators).
+pub use lightpose_core::samples::{BeaconAmplitude, Demodulated};

@@ -419,7 +419,7 @@ fn bad_frames_refused() {
     let mut out = demod.output();
     let good = sc.frame(0, &mut rng(1));
     demod.demodulate(&good, sc.t(0), 10, &mut out).unwrap();
-    let before = out.clone();
+    let before = out;
     let e = demod
         .demodulate(&good[1..], sc.t(1), 10, &mut out)
         .unwrap_err();
@@ -439,4 +439,71 @@ fn bad_frames_refused() {
     let e = demod.demodulate(&good, sc.t(1), 0, &mut out).unwrap_err();
     assert_eq!(e.to_string(), "adc_bits = 0: must be 1..=16");
     assert_eq!(out, before);
+}
+
+/// A BURST (lightpose-core's) is demodulated into core's demodulated
+/// frame with the frame's own fields: the same amplitudes as its samples
+/// alone give, its seq and readings, and its time the middle of its
+/// samples (MODEL.md), each beacon named by its index in the header.
+#[test]
+fn a_burst_gives_cores_demodulated_frame_at_its_middle() {
+    use lightpose_core::{Burst, DepthReading};
+    let scene = Scene {
+        sample_hz: 2000.0,
+        rate_hz: 5.0,
+        skew_s: 1e-5,
+        bits: 12,
+        level: [500.0; NDET],
+        waves: vec![
+            Wave {
+                mod_hz: 250.0,
+                phase: 0.3,
+                drift: 0.0,
+                amplitude: [200.0; NDET],
+            },
+            Wave {
+                mod_hz: 500.0,
+                phase: 0.1,
+                drift: 0.0,
+                amplitude: [90.0; NDET],
+            },
+        ],
+        flicker: Vec::new(),
+        noise: 2.0,
+        clip: None,
+        t0: 10.0,
+    };
+    let (mut by_samples, mut by_burst) = (demodulator(&scene), demodulator(&scene));
+    let (mut a, mut b) = (by_samples.output(), by_burst.output());
+    let mut r = rng(3);
+    let mut burst = Burst::new(scene.n());
+    for j in 0..4 {
+        let s = scene.frame(j, &mut r);
+        by_samples
+            .demodulate(&s, scene.t(j), scene.bits, &mut a)
+            .unwrap();
+        burst.samples_mut().copy_from_slice(&s);
+        (burst.seq, burst.t, burst.adc_bits) = (40 + j as u64, scene.t(j), scene.bits);
+        burst.depth = Some(DepthReading::new(-0.5));
+        by_burst.demodulate_burst(&burst, &mut b).unwrap();
+        assert_eq!(
+            (a.beacons, a.ambient, a.clipped),
+            (b.beacons, b.ambient, b.clipped)
+        );
+        assert_eq!(
+            (b.seq, b.adc_bits, b.depth),
+            (40 + j as u64, 12, burst.depth)
+        );
+        let middle = scene.t(j) + (scene.n() as f64 - 1.0) / (2.0 * scene.sample_hz);
+        assert_eq!(b.t, middle);
+    }
+    assert_eq!(
+        b.beacons().iter().map(|x| x.beacon).collect::<Vec<_>>(),
+        [0, 1]
+    );
+    assert!(
+        (b.beacons[0].amplitude[12] - 200.0).abs() < 5.0,
+        "{}",
+        b.beacons[0].amplitude[12]
+    );
 }
