@@ -556,12 +556,11 @@ pub fn timesync_reply(ts1: i64, tc1: i64, to: (u8, u8)) -> MavMessage {
 /// CLOCK_MONOTONIC in ns: the clock live frames are stamped on (seconds
 /// since boot, `lightpose_hal::clock`), so the clock of our `usec`.
 pub fn monotonic_ns() -> i64 {
+    use nix::sys::time::TimeValLike;
     use nix::time::{clock_gettime, ClockId};
-    clock_gettime(ClockId::CLOCK_MONOTONIC).map_or(0, |t| {
-        t.tv_sec()
-            .saturating_mul(1_000_000_000)
-            .saturating_add(t.tv_nsec())
-    })
+    // num_nanoseconds is i64 on every target: tv_sec and tv_nsec are i32
+    // on armv7, where the sum in their own type did not build.
+    clock_gettime(ClockId::CLOCK_MONOTONIC).map_or(0, |t| t.num_nanoseconds())
 }
 
 /// MAVLink 2 framing with this component's ids and its own sequence
