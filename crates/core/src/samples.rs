@@ -147,6 +147,20 @@ impl Default for Demodulated {
 }
 
 impl Demodulated {
+    /// The frame fields of what `burst` was demodulated into: its seq, its
+    /// ADC, its readings and truth, and its time, the middle of its
+    /// samples (MODEL.md) at `sample_hz`.
+    pub fn frame_of(&mut self, burst: &Burst, sample_hz: f64) {
+        self.seq = burst.seq;
+        self.t = burst.t + (burst.n() as f64 - 1.0) / (2.0 * sample_hz);
+        self.adc_bits = burst.adc_bits;
+        self.temp_c = burst.temp_c;
+        self.truth = burst.truth;
+        self.attitude = burst.attitude;
+        self.depth = burst.depth;
+        self.velocity = burst.velocity;
+    }
+
     /// The beacons in use.
     pub fn beacons(&self) -> &[BeaconAmplitude] {
         &self.beacons[..self.n_beacons.min(MAX_BEACONS)]

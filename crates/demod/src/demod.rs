@@ -179,15 +179,7 @@ impl Demodulator {
         out: &mut Demodulated,
     ) -> Result<(), FrameError> {
         self.demodulate(burst.samples(), burst.t, burst.adc_bits, out)?;
-        let n = self.cfg.n as f64;
-        out.seq = burst.seq;
-        out.t = burst.t + (n - 1.0) / (2.0 * self.cfg.sample_hz);
-        out.adc_bits = burst.adc_bits;
-        out.temp_c = burst.temp_c;
-        out.truth = burst.truth;
-        out.attitude = burst.attitude;
-        out.depth = burst.depth;
-        out.velocity = burst.velocity;
+        out.frame_of(burst, self.cfg.sample_hz);
         Ok(())
     }
 
