@@ -11,8 +11,8 @@ status, and decodes binary messageData frames (opcode 1, subscription id
 u32 LE, log time u64 LE, JSON) until it has FRAMES frames with their
 images and poses. Each frame is checked (25 counts, log time = its t in
 ns), each image against its frame's counts. Prints one JSON object: the
-frames and poses as received (text, by seq), the status count and the
-subprotocol. Any mismatch: one line on stderr, exit 1.
+frames and poses as received (text, by seq), the other channels' counts,
+the binary messages received in all and the subprotocol. Any mismatch: one line on stderr, exit 1.
 """
 
 import asyncio
@@ -75,6 +75,7 @@ async def run(url, want):
         await ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
         topic_of = {s["id"]: SUBSCRIBE[i] for i, s in enumerate(subs)}
         frames, poses, images, other = {}, {}, {}, {}
+        received = 0
         def incomplete():
             return any(lt not in images or s not in poses for s, (_, lt) in frames.items())
 
@@ -84,6 +85,7 @@ async def run(url, want):
                 continue  # a status or other text message
             if msg[0] != 1 or len(msg) < 13:
                 fail(f"binary message with opcode {msg[0]}, {len(msg)} bytes")
+            received += 1
             sub, log_time = struct.unpack_from("<IQ", msg, 1)
             topic = topic_of.get(sub) or fail(f"subscription id {sub} never asked for")
             text = msg[13:].decode()
@@ -108,6 +110,7 @@ async def run(url, want):
             "frames": {s: f for s, (f, _) in frames.items()},
             "poses": {s: p for s, p in poses.items() if s in frames},
             "other": other,
+            "received": received,
         }))
 
 

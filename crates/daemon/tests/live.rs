@@ -99,7 +99,12 @@ fn a_python_foxglove_client_decodes_frames_images_and_poses() {
         .expect("STATUS");
     let fx = &last["foxglove"];
     assert_eq!(fx["connections"], 1, "{fx}");
-    assert!(fx["sent"].as_u64() >= Some(150), "{fx}");
+    // `sent` counts what the client was written before it closed: at
+    // least every message it received (the last frame's vehicle pose and
+    // transform may still be queued when it has what it came for).
+    let received = got["received"].as_u64().expect("received");
+    assert!(received >= 30 * 3, "{got}");
+    assert!(fx["sent"].as_u64() >= Some(received), "{fx} for {received} received");
     assert!(summary.frames > 30);
 }
 
