@@ -3,6 +3,7 @@
 //! depth, DVL) read at the same moment, and (from a simulator or tank
 //! carriage) the true pose.
 
+use crate::samples::Amplitudes;
 use crate::{Angle, BodyVec, Pose, NDET};
 
 /// True pose of a frame (simulator or tank carriage), with surge if known.
@@ -93,6 +94,12 @@ pub struct Frame {
     pub attitude: Option<AttitudeReading>,
     pub depth: Option<DepthReading>,
     pub velocity: Option<VelocityReading>,
+    /// Spec v3: what a demodulator made of the frame's samples (each
+    /// beacon's amplitude image with its 1σ, the ambient, the clipped
+    /// counts); then `counts` are only each channel's mean level, for
+    /// display, and an estimator reads the amplitudes. None for a frame
+    /// of counts (v1/v2, a steady beacon).
+    pub amplitudes: Option<Amplitudes>,
 }
 
 impl Frame {
@@ -108,6 +115,7 @@ impl Frame {
             attitude: None,
             depth: None,
             velocity: None,
+            amplitudes: None,
         }
     }
 

@@ -33,7 +33,7 @@ pub use pose::{
     Agreement, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev, CHECKED, READINGS,
 };
 pub use samples::{
-    BeaconAmplitude, BeaconInfo, Burst, Demodulated, Record, RecordKind, MAX_BEACONS,
+    Amplitudes, BeaconAmplitude, BeaconInfo, Burst, Demodulated, Record, RecordKind, MAX_BEACONS,
 };
 
 /// Replace a non-finite number by `None`: no message or log ever carries

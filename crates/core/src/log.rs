@@ -741,6 +741,7 @@ impl<R: BufRead> LogReader<R> {
             attitude: m.attitude,
             depth: m.depth,
             velocity: m.velocity,
+            amplitudes: None,
         })
     }
 
@@ -852,27 +853,30 @@ impl<R: BufRead> LogReader<R> {
                         excerpt(&id.0, 40)
                     )
                 })?;
-                if d.beacons[..i].iter().any(|o| o.beacon as usize == idx) {
+                if d.light.beacons[..i]
+                    .iter()
+                    .any(|o| o.beacon as usize == idx)
+                {
                     return Err(format!(
                         "beacons[{i}]: id \"{}\" repeats",
                         excerpt(&id.0, 40)
                     ));
                 }
-                d.beacons[i].beacon = idx as u8;
-                d.beacons[i].amplitude = nums(
+                d.light.beacons[i].beacon = idx as u8;
+                d.light.beacons[i].amplitude = nums(
                     &b.amplitude,
                     format!("beacons[{i}].amplitude"),
                     f64::NEG_INFINITY,
                 )?;
-                d.beacons[i].std = nums(&b.std, format!("beacons[{i}].std"), 0.0)?;
+                d.light.beacons[i].std = nums(&b.std, format!("beacons[{i}].std"), 0.0)?;
             }
-            d.n_beacons = bs.len;
-            d.ambient = nums(&raw.ambient, "ambient".into(), f64::NEG_INFINITY)?;
+            d.light.n_beacons = bs.len;
+            d.light.ambient = nums(&raw.ambient, "ambient".into(), f64::NEG_INFINITY)?;
             let c = raw.clipped.as_ref().ok_or("clipped is missing")?;
             if c.len != NDET {
                 return Err(format!("clipped has {} values, expected {NDET}", c.len));
             }
-            for (k, (v, out)) in c.values.iter().zip(d.clipped.iter_mut()).enumerate() {
+            for (k, (v, out)) in c.values.iter().zip(d.light.clipped.iter_mut()).enumerate() {
                 match *v {
                     Some(x) if x <= n => *out = x as u32,
                     _ => {
@@ -1231,8 +1235,8 @@ impl<W: Write> LogWriter<W> {
             seq: d.seq,
             t: crate::finite(d.t),
             beacons: DemodBeaconsOut(d, &self.beacon_ids),
-            ambient: FiniteOut(&d.ambient),
-            clipped: &d.clipped,
+            ambient: FiniteOut(&d.light.ambient),
+            clipped: &d.light.clipped,
             temp_c: d.temp_c.and_then(crate::finite),
             truth: d.truth.map(raw_truth),
             attitude: d.attitude.as_ref().and_then(attitude_out),
@@ -1312,6 +1316,7 @@ mod tests {
             attitude: None,
             depth: None,
             velocity: None,
+            amplitudes: None,
         }
     }
 
@@ -1859,18 +1864,18 @@ mod v3_tests {
         let mut d = Demodulated {
             seq: 4,
             t: 0.875,
-            n_beacons: 2,
             ..Demodulated::default()
         };
-        d.beacons[0] = BeaconAmplitude {
+        d.light.n_beacons = 2;
+        d.light.beacons[0] = BeaconAmplitude {
             beacon: 1,
             amplitude: [12.5; NDET],
             std: [0.25; NDET],
         };
-        d.beacons[1].beacon = 0;
-        d.beacons[1].amplitude[3] = -0.5;
-        d.ambient = [31.0; NDET];
-        d.clipped[7] = 4;
+        d.light.beacons[1].beacon = 0;
+        d.light.beacons[1].amplitude[3] = -0.5;
+        d.light.ambient = [31.0; NDET];
+        d.light.clipped[7] = 4;
         let mut w = LogWriter::new(Vec::new(), &h).unwrap();
         w.write_demodulated(&d).unwrap();
         let bytes = w.into_inner();

@@ -74,6 +74,8 @@ pub struct StdDev {
     /// degrees
     pub yaw: Option<f64>,
     pub surge: Option<f64>,
+    /// degrees (spec v3; not among [`StdDev::values`]' six)
+    pub roll: Option<f64>,
 }
 
 impl StdDev {
@@ -89,6 +91,7 @@ impl StdDev {
             && self.pitch.is_none()
             && self.yaw.is_none()
             && self.surge.is_none()
+            && self.roll.is_none()
     }
 }
 
@@ -287,6 +290,11 @@ pub struct PoseEstimate {
     pub pitch_deg: Option<f64>,
     pub yaw_deg: Option<f64>,
     pub surge: Option<f64>,
+    /// Spec v3: the vehicle's roll, degrees, with its 1σ in `std.roll`.
+    /// None when nothing in the frame says roll (every v1/v2 log, whose
+    /// POSE lines stay as they were); not among [`PoseEstimate::values`]'
+    /// six, which the v2 tables and coverage count.
+    pub roll_deg: Option<f64>,
     pub std: StdDev,
     /// Name of the estimator that produced it.
     pub estimator: &'static str,
@@ -336,6 +344,7 @@ impl PoseEstimate {
             readings: ReadingUses::default(),
             excluded_channels: 0,
             agreement: Agreement::default(),
+            roll_deg: None,
         }
     }
 
@@ -377,6 +386,7 @@ impl Serialize for StdMessage<'_> {
             ("pitch", d.pitch),
             ("yaw", d.yaw),
             ("surge", d.surge),
+            ("roll", d.roll),
         ] {
             if let Some(v) = fin(v) {
                 m.serialize_entry(k, &v)?;
@@ -403,6 +413,11 @@ impl Serialize for PoseMessage<'_> {
         m.serialize_entry("pitch", &fin(e.pitch_deg))?;
         m.serialize_entry("yaw", &fin(e.yaw_deg))?;
         m.serialize_entry("surge", &fin(e.surge))?;
+        // Spec v3's roll only where the estimate has one: a v2 log's POSE
+        // lines are byte for byte what they were.
+        if let Some(r) = fin(e.roll_deg) {
+            m.serialize_entry("roll", &r)?;
+        }
         if !e.std.is_empty() {
             m.serialize_entry("std", &StdMessage(&e.std))?;
         }

@@ -105,6 +105,57 @@ pub struct BeaconAmplitude {
     pub std: [f64; NDET],
 }
 
+/// What a demodulator made of one frame's samples, apart from the frame's
+/// own fields: each beacon's amplitude image with its 1σ, the ambient and
+/// the clipped counts (FORMATS.md). The estimators read it from
+/// [`crate::Frame::amplitudes`], the logs from [`Demodulated::light`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Amplitudes {
+    /// How many of `beacons` are in use.
+    pub n_beacons: usize,
+    pub beacons: [BeaconAmplitude; MAX_BEACONS],
+    /// Mean counts of what does not blink (daylight and dark offset).
+    pub ambient: [f64; NDET],
+    /// Samples of the frame at 0 or full scale, per channel.
+    pub clipped: [u32; NDET],
+}
+
+impl Default for Amplitudes {
+    fn default() -> Self {
+        Amplitudes {
+            n_beacons: 0,
+            beacons: [BeaconAmplitude::default(); MAX_BEACONS],
+            ambient: [0.0; NDET],
+            clipped: [0; NDET],
+        }
+    }
+}
+
+impl Amplitudes {
+    /// The beacons in use.
+    pub fn beacons(&self) -> &[BeaconAmplitude] {
+        &self.beacons[..self.n_beacons.min(MAX_BEACONS)]
+    }
+
+    /// The beacon whose place in the header's `beacons` is `index`.
+    pub fn beacon(&self, index: u8) -> Option<&BeaconAmplitude> {
+        self.beacons().iter().find(|b| b.beacon == index)
+    }
+
+    /// What a steady reading of channel k averaged over the frame would
+    /// have been: the ambient plus half of each beacon's amplitude (a
+    /// square wave is on half the time), in counts. What a frame's
+    /// `counts` show for a demodulated frame (images, the 5 × 5 view).
+    pub fn mean_level(&self, k: usize) -> f64 {
+        self.ambient[k]
+            + self
+                .beacons()
+                .iter()
+                .map(|b| 0.5 * b.amplitude[k])
+                .sum::<f64>()
+    }
+}
+
 /// What a demodulator made of a frame's samples (FORMATS.md: a FRAME with
 /// `beacons`, `ambient` and `clipped` in place of `counts`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -113,13 +164,7 @@ pub struct Demodulated {
     /// The frame's middle.
     pub t: f64,
     pub adc_bits: u8,
-    /// How many of `beacons` are in use.
-    pub n_beacons: usize,
-    pub beacons: [BeaconAmplitude; MAX_BEACONS],
-    /// Mean counts of what does not blink (daylight and dark offset).
-    pub ambient: [f64; NDET],
-    /// Samples of the frame at 0 or full scale, per channel.
-    pub clipped: [u32; NDET],
+    pub light: Amplitudes,
     pub temp_c: Option<f64>,
     pub truth: Option<Truth>,
     pub attitude: Option<AttitudeReading>,
@@ -133,10 +178,7 @@ impl Default for Demodulated {
             seq: 0,
             t: 0.0,
             adc_bits: 10,
-            n_beacons: 0,
-            beacons: [BeaconAmplitude::default(); MAX_BEACONS],
-            ambient: [0.0; NDET],
-            clipped: [0; NDET],
+            light: Amplitudes::default(),
             temp_c: None,
             truth: None,
             attitude: None,
@@ -163,7 +205,39 @@ impl Demodulated {
 
     /// The beacons in use.
     pub fn beacons(&self) -> &[BeaconAmplitude] {
-        &self.beacons[..self.n_beacons.min(MAX_BEACONS)]
+        self.light.beacons()
+    }
+
+    /// The frame an estimator reads: its amplitudes in
+    /// [`crate::Frame::amplitudes`], and as `counts` each channel's mean
+    /// level ([`Amplitudes::mean_level`], rounded and clamped to the
+    /// ADC's range) for what shows counts.
+    pub fn to_frame(&self) -> crate::Frame {
+        let full = crate::frame::full_scale(self.adc_bits) as f64;
+        let mut counts = [0u16; NDET];
+        for (k, c) in counts.iter_mut().enumerate() {
+            let v = self.light.mean_level(k).round();
+            // NaN and below 0 read 0 (as an ADC clamps); above, full scale.
+            *c = if v >= full {
+                full as u16
+            } else if v > 0.0 {
+                v as u16
+            } else {
+                0
+            };
+        }
+        crate::Frame {
+            seq: self.seq,
+            t: self.t,
+            adc_bits: self.adc_bits,
+            counts,
+            temp_c: self.temp_c,
+            truth: self.truth,
+            attitude: self.attitude,
+            depth: self.depth,
+            velocity: self.velocity,
+            amplitudes: Some(self.light),
+        }
     }
 }
 

@@ -104,7 +104,10 @@ fn a_python_foxglove_client_decodes_frames_images_and_poses() {
     // transform may still be queued when it has what it came for).
     let received = got["received"].as_u64().expect("received");
     assert!(received >= 30 * 3, "{got}");
-    assert!(fx["sent"].as_u64() >= Some(received), "{fx} for {received} received");
+    assert!(
+        fx["sent"].as_u64() >= Some(received),
+        "{fx} for {received} received"
+    );
     assert!(summary.frames > 30);
 }
 

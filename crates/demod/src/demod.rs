@@ -159,11 +159,9 @@ impl Demodulator {
     /// order (`beacon` its index there, as in a log header's `beacons`),
     /// for [`Demodulator::demodulate`] to fill.
     pub fn output(&self) -> Demodulated {
-        let mut out = Demodulated {
-            n_beacons: self.cfg.beacons.len(),
-            ..Demodulated::default()
-        };
-        for (b, slot) in out.beacons.iter_mut().enumerate() {
+        let mut out = Demodulated::default();
+        out.light.n_beacons = self.cfg.beacons.len();
+        for (b, slot) in out.light.beacons.iter_mut().enumerate() {
             slot.beacon = b as u8;
         }
         out
@@ -231,7 +229,7 @@ impl Demodulator {
             });
         }
         assert_eq!(
-            out.n_beacons,
+            out.light.n_beacons,
             self.cfg.beacons.len(),
             "out from Demodulator::output"
         );
@@ -240,7 +238,7 @@ impl Demodulator {
         let sqrt_n = (n as f64).sqrt();
         for k in 0..NDET {
             let raw = &samples[k * n..(k + 1) * n];
-            out.clipped[k] = raw.iter().filter(|&&v| v == 0 || v == full).count() as u32;
+            out.light.clipped[k] = raw.iter().filter(|&&v| v == 0 || v == full).count() as u32;
             let x = &mut self.xs[k * n..(k + 1) * n];
             x.iter_mut().zip(raw).for_each(|(x, &v)| *x = f64::from(v));
             self.basis.remove(x, &mut self.coef);
@@ -251,7 +249,7 @@ impl Demodulator {
         // that it spoils no other channel's amplitude through the phase.
         let mut w = [0.0; NDET];
         for k in 0..NDET {
-            if out.clipped[k] == 0 {
+            if out.light.clipped[k] == 0 {
                 let var = self.noise[k].unwrap_or(self.energy[k] / n as f64);
                 w[k] = 1.0 / var.max(QUANT_VAR);
             }
@@ -456,7 +454,9 @@ impl Demodulator {
             // Six σ of the residual variance's own spread over the last
             // frame's.
             let prev = self.noise[k].unwrap_or(median);
-            if out.clipped[k] == 0 && noise > prev * (1.0 + 6.0 * (2.0 / dof).sqrt()) + QUANT_VAR {
+            if out.light.clipped[k] == 0
+                && noise > prev * (1.0 + 6.0 * (2.0 / dof).sqrt()) + QUANT_VAR
+            {
                 // The common phase leaves far more than this channel's noise:
                 // an edge crossed one of its sample instants within the
                 // frame where the common phase and frequency do not put it
@@ -483,9 +483,9 @@ impl Demodulator {
                     ph[b] = best.1.rem_euclid(1.0);
                     fr[b] = best.2;
                 }
-                let mut kept = ([0.0; MAX_BEACONS], [0.0; MAX_BEACONS], out.ambient[k]);
-                let nb = out.n_beacons;
-                for (b, bo) in out.beacons[..nb].iter().enumerate() {
+                let mut kept = ([0.0; MAX_BEACONS], [0.0; MAX_BEACONS], out.light.ambient[k]);
+                let nb = out.light.n_beacons;
+                for (b, bo) in out.light.beacons[..nb].iter().enumerate() {
                     kept.0[b] = bo.amplitude[k];
                     kept.1[b] = bo.std[k];
                 }
@@ -493,11 +493,11 @@ impl Demodulator {
                 if again < noise {
                     noise = again;
                 } else {
-                    for (b, bo) in out.beacons[..nb].iter_mut().enumerate() {
+                    for (b, bo) in out.light.beacons[..nb].iter_mut().enumerate() {
                         bo.amplitude[k] = kept.0[b];
                         bo.std[k] = kept.1[b];
                     }
-                    out.ambient[k] = kept.2;
+                    out.light.ambient[k] = kept.2;
                 }
             }
             self.noise[k] = Some(noise);
@@ -573,25 +573,25 @@ impl Demodulator {
                     let mut off = self.mean[k];
                     for b in 0..nb {
                         let mut std = (noise * ch.inverse_diag(b, nb)).sqrt();
-                        if out.clipped[k] > 0 {
+                        if out.light.clipped[k] > 0 {
                             std = std.max(f64::from(full));
                         }
-                        out.beacons[b].amplitude[k] = a[b];
-                        out.beacons[b].std[k] = std;
+                        out.light.beacons[b].amplitude[k] = a[b];
+                        out.light.beacons[b].std[k] = std;
                         off -= a[b] * (mean_u[b] + 0.5);
                     }
-                    out.ambient[k] = off;
+                    out.light.ambient[k] = off;
                 }
                 None => {
                     // Not reached with whole periods (G ≈ N/4 · I); kept so
                     // that no frame can panic here.
                     noise = (self.energy[k] / dof).max(QUANT_VAR);
-                    let nb = out.n_beacons;
-                    for bo in out.beacons[..nb].iter_mut() {
+                    let nb = out.light.n_beacons;
+                    for bo in out.light.beacons[..nb].iter_mut() {
                         bo.amplitude[k] = 0.0;
                         bo.std[k] = f64::from(full);
                     }
-                    out.ambient[k] = self.mean[k];
+                    out.light.ambient[k] = self.mean[k];
                 }
             }
             noise

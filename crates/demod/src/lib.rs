@@ -18,7 +18,7 @@
 //! let mut out = demod.output();
 //! let samples = vec![512u16; 25 * demod.samples_per_channel()];
 //! demod.demodulate(&samples, 0.0, 10, &mut out).unwrap();
-//! assert!((out.ambient[0] - 512.0).abs() < 1e-9);
+//! assert!((out.light.ambient[0] - 512.0).abs() < 1e-9);
 //! ```
 
 pub mod basis;

@@ -27,7 +27,7 @@ fn run(sc: &Scene, frames: usize, seed: u64) -> Vec<[f64; NDET]> {
         .map(|j| {
             d.demodulate(&sc.frame(j, &mut r), sc.t(j), sc.bits, &mut out)
                 .unwrap();
-            out.beacons[0].amplitude
+            out.light.beacons[0].amplitude
         })
         .collect()
 }

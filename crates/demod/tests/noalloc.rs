@@ -61,5 +61,5 @@ fn demodulate_does_not_allocate() {
     });
     assert_eq!(allocs, 0, "allocations in 60 frames");
     assert!(demod.lock(0).locked && demod.lock(2).locked);
-    assert!(out.clipped[7] > 0 && out.beacons[0].std[7] >= 4095.0);
+    assert!(out.light.clipped[7] > 0 && out.light.beacons[0].std[7] >= 4095.0);
 }

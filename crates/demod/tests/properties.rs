@@ -140,10 +140,10 @@ proptest! {
         let sc = scene(fs, rate, skew_us * 1e-6, 14, vec![wave], levels(&lev, 100.0, 8000.0));
         run(&sc, 40, 1, |j, out, _| {
             for k in 0..NDET {
-                let got = out.beacons[0].amplitude[k];
+                let got = out.light.beacons[0].amplitude[k];
                 assert!((got - a[k]).abs() < TOL_ABS + TOL_REL * a[k], "frame {j} channel {k}: {got} for {}", a[k]);
-                assert!((out.ambient[k] - sc.level[k]).abs() < TOL_ABS + TOL_REL * a[k], "frame {j} channel {k}: ambient {}", out.ambient[k]);
-                assert_eq!(out.clipped[k], 0);
+                assert!((out.light.ambient[k] - sc.level[k]).abs() < TOL_ABS + TOL_REL * a[k], "frame {j} channel {k}: ambient {}", out.light.ambient[k]);
+                assert_eq!(out.light.clipped[k], 0);
             }
         });
     }
@@ -170,7 +170,7 @@ proptest! {
         let mut worst: f64 = 0.0;
         run(&sc, 12, 2, |_, out, _| {
             for k in 0..NDET {
-                worst = worst.max((out.beacons[0].amplitude[k] - a[k]).abs());
+                worst = worst.max((out.light.beacons[0].amplitude[k] - a[k]).abs());
             }
         });
         prop_assert!(worst <= 1e-3 * af, "flicker {:.2} Hz: amplitude off by {worst:.3} counts, {:.1} dB", log_hz.exp(), 20.0 * (worst / af).log10());
@@ -201,9 +201,9 @@ proptest! {
         let mut zeros = 0.0;
         run(&sc, frames, 3, |_, out, _| {
             for k in 0..NDET {
-                let e = out.beacons[0].amplitude[k] - a[k];
+                let e = out.light.beacons[0].amplitude[k] - a[k];
                 sq += e * e;
-                reported += out.beacons[0].std[k].powi(2);
+                reported += out.light.beacons[0].std[k].powi(2);
                 count += 1.0;
                 if a[k] == 0.0 {
                     zero_sum += e;
@@ -242,13 +242,13 @@ proptest! {
         run(&sc, 20, 4, |j, out, _| {
             for k in 0..NDET {
                 if k == ch {
-                    assert_eq!(out.clipped[k], want, "frame {j}");
-                    assert!(out.beacons[0].std[k] >= sc.full(), "frame {j}: std {}", out.beacons[0].std[k]);
+                    assert_eq!(out.light.clipped[k], want, "frame {j}");
+                    assert!(out.light.beacons[0].std[k] >= sc.full(), "frame {j}: std {}", out.light.beacons[0].std[k]);
                 } else {
-                    assert_eq!(out.clipped[k], 0);
-                    let got = out.beacons[0].amplitude[k];
+                    assert_eq!(out.light.clipped[k], 0);
+                    let got = out.light.beacons[0].amplitude[k];
                     assert!((got - a[k]).abs() < TOL_ABS + TOL_REL * a[k], "frame {j} channel {k}: {got} for {}", a[k]);
-                    assert!(out.beacons[0].std[k] < 1.0);
+                    assert!(out.light.beacons[0].std[k] < 1.0);
                 }
             }
         });
@@ -292,12 +292,12 @@ proptest! {
         run(&sc, 30, 5, |j, out, _| {
             for (b, w) in sc.waves.iter().enumerate() {
                 for k in 0..NDET {
-                    let got = out.beacons[b].amplitude[k];
+                    let got = out.light.beacons[b].amplitude[k];
                     assert!((got - w.amplitude[k]).abs() < TOL_ABS + TOL_REL * w.amplitude[k], "frame {j} beacon {b} ({} Hz) channel {k}: {got} for {}", w.mod_hz, w.amplitude[k]);
                 }
             }
             for k in 0..NDET {
-                assert!((out.ambient[k] - 900.0).abs() < TOL_ABS + TOL_REL * 900.0, "frame {j} channel {k}: ambient {}", out.ambient[k]);
+                assert!((out.light.ambient[k] - 900.0).abs() < TOL_ABS + TOL_REL * 900.0, "frame {j} channel {k}: ambient {}", out.light.ambient[k]);
             }
         });
     }
@@ -346,18 +346,18 @@ fn dark_beacon_reads_zero_then_relocks() {
                 lock.detection
             );
             for k in 0..NDET {
-                let v = out.beacons[0].amplitude[k];
+                let v = out.light.beacons[0].amplitude[k];
                 sum += v;
                 sq += v * v;
-                rep += out.beacons[0].std[k].powi(2);
+                rep += out.light.beacons[0].std[k].powi(2);
                 cnt += 1.0;
             }
         } else if j > 0 {
             assert!(lock.detected, "frame {j}");
             for k in 0..NDET {
-                let e = out.beacons[0].amplitude[k] - a[k];
+                let e = out.light.beacons[0].amplitude[k] - a[k];
                 assert!(
-                    e.abs() < 6.0 * out.beacons[0].std[k],
+                    e.abs() < 6.0 * out.light.beacons[0].std[k],
                     "frame {j} channel {k}: off by {e}"
                 );
             }
@@ -487,8 +487,8 @@ fn a_burst_gives_cores_demodulated_frame_at_its_middle() {
         burst.depth = Some(DepthReading::new(-0.5));
         by_burst.demodulate_burst(&burst, &mut b).unwrap();
         assert_eq!(
-            (a.beacons, a.ambient, a.clipped),
-            (b.beacons, b.ambient, b.clipped)
+            (a.light.beacons, a.light.ambient, a.light.clipped),
+            (b.light.beacons, b.light.ambient, b.light.clipped)
         );
         assert_eq!(
             (b.seq, b.adc_bits, b.depth),
@@ -502,8 +502,8 @@ fn a_burst_gives_cores_demodulated_frame_at_its_middle() {
         [0, 1]
     );
     assert!(
-        (b.beacons[0].amplitude[12] - 200.0).abs() < 5.0,
+        (b.light.beacons[0].amplitude[12] - 200.0).abs() < 5.0,
         "{}",
-        b.beacons[0].amplitude[12]
+        b.light.beacons[0].amplitude[12]
     );
 }

@@ -520,6 +520,7 @@ impl<B: Bank> FrameSource for BoardSource<B> {
             attitude: None,
             depth: None,
             velocity: None,
+            amplitudes: None,
         })
     }
     fn adc_bits(&self) -> u8 {

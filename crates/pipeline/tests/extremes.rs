@@ -91,6 +91,7 @@ fn frame(seq: u64, bits: u8, counts: [u16; NDET], temp_c: Option<f64>) -> Frame 
         attitude: None,
         depth: None,
         velocity: None,
+        amplitudes: None,
     }
 }
 

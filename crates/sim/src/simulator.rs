@@ -191,6 +191,7 @@ impl Simulator {
             attitude: r.attitude,
             depth: r.depth,
             velocity: r.velocity,
+            amplitudes: None,
         }
     }
 
@@ -404,6 +405,7 @@ pub fn one_sample_frame(b: &Burst) -> Frame {
         attitude: b.attitude,
         depth: b.depth,
         velocity: b.velocity,
+        amplitudes: None,
     }
 }
 

@@ -56,6 +56,7 @@ fn frame(seq: u64, t: f64) -> Frame {
         attitude: None,
         depth: None,
         velocity: None,
+        amplitudes: None,
     }
 }
 

@@ -60,6 +60,7 @@ mod tests {
             pitch: Some(1.0),
             yaw: Some(1.0),
             surge: None,
+            roll: None,
         };
         e
     }

@@ -337,6 +337,7 @@ mod tests {
                 attitude: None,
                 depth: None,
                 velocity: None,
+                amplitudes: None,
             })
             .unwrap();
         }
@@ -455,6 +456,7 @@ mod tests {
                 attitude: None,
                 depth: None,
                 velocity: None,
+                amplitudes: None,
             };
             f.counts[0] = seq as u16;
             w.write_frame(&f).unwrap();
@@ -495,6 +497,7 @@ mod tests {
                 attitude: None,
                 depth: None,
                 velocity: None,
+                amplitudes: None,
             })
             .unwrap();
         }

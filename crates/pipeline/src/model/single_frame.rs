@@ -425,6 +425,7 @@ impl ModelEstimator {
             pitch: sd(3, true),
             yaw: sd(4, true),
             surge: None,
+            roll: None,
         };
         e
     }
@@ -753,6 +754,7 @@ mod tests {
             attitude: None,
             depth: None,
             velocity: None,
+            amplitudes: None,
         };
         assert_eq!(est.estimate(&dark).status, Status::NoLight);
         let mut f = dark;
@@ -809,6 +811,7 @@ mod tests {
                 }),
                 depth: None,
                 velocity: None,
+                amplitudes: None,
             };
             for _ in 0..2 {
                 let e = est.estimate(&f);

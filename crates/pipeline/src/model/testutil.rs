@@ -70,6 +70,7 @@ pub fn synth_frame(
         attitude,
         depth: None,
         velocity: None,
+        amplitudes: None,
     }
 }
 

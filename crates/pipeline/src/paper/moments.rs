@@ -291,6 +291,7 @@ mod tests {
             attitude: None,
             depth: None,
             velocity: None,
+            amplitudes: None,
         }
     }
 

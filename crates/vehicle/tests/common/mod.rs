@@ -96,6 +96,7 @@ pub fn estimate(seq: u64, t: f64) -> PoseEstimate {
         pitch: Some(1.0),
         yaw: Some(2.0),
         surge: Some(0.05),
+        roll: None,
     };
     e
 }

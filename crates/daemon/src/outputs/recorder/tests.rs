@@ -25,6 +25,7 @@ pub(super) fn frame(seq: u64) -> Frame {
         attitude: None,
         depth: None,
         velocity: None,
+        amplitudes: None,
     }
 }
 

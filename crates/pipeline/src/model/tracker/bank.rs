@@ -190,6 +190,7 @@ pub(super) fn mix_estimates(ests: &[PoseEstimate], weight: &[f64]) -> PoseEstima
         pitch: sds[3],
         yaw: sds[4],
         surge: sds[5],
+        roll: None,
     };
     out
 }

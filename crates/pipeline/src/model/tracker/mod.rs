@@ -542,6 +542,7 @@ impl Tracker {
             pitch: sdb(3).map(f64::to_degrees),
             yaw: sdb(4).map(f64::to_degrees),
             surge: lightpose_core::finite(surge_sd).filter(|_| known),
+            roll: None,
         };
         e
     }

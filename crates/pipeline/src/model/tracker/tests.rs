@@ -441,6 +441,7 @@ proptest! {
                     std: None, }),
                 depth: None,
                 velocity: None,
+                amplitudes: None,
             };
             let e = tr.estimate(&f);
             for v in [e.x, e.y, e.z, e.pitch_deg, e.yaw_deg, e.surge,
