@@ -468,6 +468,12 @@ impl<R: BufRead> LogReader<R> {
         (self.bad_readings, self.last_bad_reading.as_deref())
     }
 
+    /// The number of the line read last (1 is the header): where an error
+    /// about the frame just read is, for a consumer that finds one.
+    pub fn line_no(&self) -> usize {
+        self.line_no
+    }
+
     fn line_err(&self, msg: impl Into<String>) -> LogError {
         LogError::Line {
             name: self.name.clone(),

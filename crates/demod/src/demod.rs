@@ -161,7 +161,10 @@ impl Demodulator {
     pub fn output(&self) -> Demodulated {
         let mut out = Demodulated::default();
         out.light.n_beacons = self.cfg.beacons.len();
-        for (b, slot) in out.light.beacons.iter_mut().enumerate() {
+        for (b, slot) in out.light.beacons[..out.light.n_beacons]
+            .iter_mut()
+            .enumerate()
+        {
             slot.beacon = b as u8;
         }
         out

@@ -24,12 +24,14 @@
 pub mod basis;
 pub mod config;
 mod demod;
+pub mod frames;
 pub mod track;
 
 pub use config::{
     check_frequencies, BeaconSpec, ConfigError, DemodConfig, ValidBeacon, ValidConfig, MAX_BEACONS,
 };
 pub use demod::{detection_threshold, Demodulator, FrameError, Lock};
+pub use frames::{demodulator_for, FramesError, LogFrames};
 /// What the demodulator writes: lightpose-core's demodulated frame (one
 /// type for the demodulator, the logs and the estimators).
 pub use lightpose_core::samples::{BeaconAmplitude, Demodulated};
