@@ -17,6 +17,7 @@ const INIT_SIGMA_MIN: f64 = 1e-3;
 impl TrackerConfig {
     pub fn validate(&self) -> Result<(), ModelError> {
         let bad = |m: String| Err(ModelError::Config(m));
+        super::roll_sigma_ok(self.roll_sigma_deg).map_err(ModelError::Config)?;
         for (name, v) in [
             ("accel_psd", self.accel_psd),
             ("ang_accel_psd_deg", self.ang_accel_psd_deg),
@@ -26,6 +27,7 @@ impl TrackerConfig {
             ("init_attitude_sigma_deg", self.init_attitude_sigma_deg),
             ("attitude_sigma_pitch_deg", self.attitude_sigma_pitch_deg),
             ("attitude_sigma_yaw_deg", self.attitude_sigma_yaw_deg),
+            ("attitude_sigma_roll_deg", self.attitude_sigma_roll_deg),
             ("nis_gate", self.nis_gate),
             ("max_gap_s", self.max_gap_s),
             ("side_sigma", self.side_sigma),
