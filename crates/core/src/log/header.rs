@@ -177,81 +177,10 @@ fn parse_v3_header(
     m: &mut serde_json::Map<String, serde_json::Value>,
     rate_hz: f64,
 ) -> Result<(Option<f64>, Option<f64>, Vec<BeaconInfo>), String> {
-    use crate::modulation::{check_beacons, samples_per_frame, BeaconFreq};
-    let sample_hz = match m.remove("sample_hz") {
-        None | Some(serde_json::Value::Null) => None,
-        Some(v) => {
-            let s = v
-                .as_f64()
-                .filter(|s| s.is_finite() && *s > 0.0)
-                .ok_or_else(|| {
-                    format!(
-                        "header sample_hz = {}: must be a positive number",
-                        excerpt(&v.to_string(), 40)
-                    )
-                })?;
-            let n = samples_per_frame(s, rate_hz).map_err(|e| format!("header {e}"))?;
-            if n as usize > MAX_SAMPLES_PER_FRAME {
-                return Err(format!(
-                    "header sample_hz = {s}: {n} samples per frame, more than {MAX_SAMPLES_PER_FRAME}"
-                ));
-            }
-            Some(s)
-        }
-    };
-    let channel_skew_s = match m.remove("channel_skew_s") {
-        None | Some(serde_json::Value::Null) => None,
-        Some(v) => Some(
-            v.as_f64()
-                .filter(|s| (0.0..=1.0 / rate_hz).contains(s))
-                .ok_or_else(|| {
-                    format!(
-                        "header channel_skew_s = {}: must be a number of seconds in 0..=1 / rate_hz",
-                        excerpt(&v.to_string(), 40)
-                    )
-                })?,
-        ),
-    };
-    let mut beacons: Vec<BeaconInfo> = Vec::new();
-    match m.remove("beacons") {
-        None | Some(serde_json::Value::Null) => {}
-        Some(serde_json::Value::Array(list)) => {
-            if list.len() > MAX_BEACONS {
-                return Err(format!(
-                    "header beacons: {} beacons, at most {MAX_BEACONS}",
-                    list.len()
-                ));
-            }
-            for (i, b) in list.iter().enumerate() {
-                let id = b
-                    .get("id")
-                    .and_then(|v| v.as_str())
-                    .filter(|s| !s.is_empty())
-                    .ok_or_else(|| format!("header beacons[{i}] has no id (a non-empty string)"))?;
-                let mod_hz = b
-                    .get("mod_hz")
-                    .and_then(|v| v.as_f64())
-                    .filter(|f| f.is_finite() && *f >= 0.0)
-                    .ok_or_else(|| {
-                        format!(
-                            "header beacons[{i}] (\"{}\") has no mod_hz ≥ 0",
-                            excerpt(id, 40)
-                        )
-                    })?;
-                if beacons.iter().any(|o| o.id == id) {
-                    return Err(format!(
-                        "header beacons[{i}]: id \"{}\" repeats",
-                        excerpt(id, 40)
-                    ));
-                }
-                beacons.push(BeaconInfo {
-                    id: id.to_string(),
-                    mod_hz,
-                });
-            }
-        }
-        Some(_) => return Err("header beacons is not an array".into()),
-    }
+    use crate::modulation::{check_beacons, BeaconFreq};
+    let sample_hz = sample_hz_of(m.remove("sample_hz"), rate_hz)?;
+    let channel_skew_s = skew_of(m.remove("channel_skew_s"), rate_hz)?;
+    let beacons = beacons_of(m.remove("beacons"))?;
     if !beacons.is_empty() || sample_hz.is_some() {
         let freqs: Vec<BeaconFreq> = beacons
             .iter()
@@ -274,4 +203,91 @@ fn parse_v3_header(
             .map_err(|e| format!("header: {e}"))?;
     }
     Ok((sample_hz, channel_skew_s, beacons))
+}
+
+/// `sample_hz`: absent, or a whole multiple of `rate_hz` within
+/// [`MAX_SAMPLES_PER_FRAME`] per frame.
+fn sample_hz_of(v: Option<serde_json::Value>, rate_hz: f64) -> Result<Option<f64>, String> {
+    let v = match v {
+        None | Some(serde_json::Value::Null) => return Ok(None),
+        Some(v) => v,
+    };
+    let s = v
+        .as_f64()
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .ok_or_else(|| {
+            format!(
+                "header sample_hz = {}: must be a positive number",
+                excerpt(&v.to_string(), 40)
+            )
+        })?;
+    let n = crate::modulation::samples_per_frame(s, rate_hz).map_err(|e| format!("header {e}"))?;
+    if n as usize > MAX_SAMPLES_PER_FRAME {
+        return Err(format!(
+            "header sample_hz = {s}: {n} samples per frame, more than {MAX_SAMPLES_PER_FRAME}"
+        ));
+    }
+    Ok(Some(s))
+}
+
+/// `channel_skew_s`: absent, or seconds up to a frame period.
+fn skew_of(v: Option<serde_json::Value>, rate_hz: f64) -> Result<Option<f64>, String> {
+    match v {
+        None | Some(serde_json::Value::Null) => Ok(None),
+        Some(v) => v
+            .as_f64()
+            .filter(|s| (0.0..=1.0 / rate_hz).contains(s))
+            .map(Some)
+            .ok_or_else(|| {
+                format!(
+                    "header channel_skew_s = {}: must be a number of seconds in 0..=1 / rate_hz",
+                    excerpt(&v.to_string(), 40)
+                )
+            }),
+    }
+}
+
+/// `beacons`: absent, or at most [`MAX_BEACONS`] of `{id, mod_hz}` with
+/// unique, non-empty ids.
+fn beacons_of(v: Option<serde_json::Value>) -> Result<Vec<BeaconInfo>, String> {
+    let list = match v {
+        None | Some(serde_json::Value::Null) => return Ok(Vec::new()),
+        Some(serde_json::Value::Array(list)) => list,
+        Some(_) => return Err("header beacons is not an array".into()),
+    };
+    if list.len() > MAX_BEACONS {
+        return Err(format!(
+            "header beacons: {} beacons, at most {MAX_BEACONS}",
+            list.len()
+        ));
+    }
+    let mut beacons: Vec<BeaconInfo> = Vec::with_capacity(list.len());
+    for (i, b) in list.iter().enumerate() {
+        let id = b
+            .get("id")
+            .and_then(|v| v.as_str())
+            .filter(|s| !s.is_empty())
+            .ok_or_else(|| format!("header beacons[{i}] has no id (a non-empty string)"))?;
+        let mod_hz = b
+            .get("mod_hz")
+            .and_then(|v| v.as_f64())
+            .filter(|f| f.is_finite() && *f >= 0.0)
+            .ok_or_else(|| {
+                format!(
+                    "header beacons[{i}] (\"{}\") has no mod_hz ≥ 0",
+                    excerpt(id, 40)
+                )
+            })?;
+        if beacons.iter().any(|o| o.id == id) {
+            return Err(format!(
+                "header beacons[{i}]: id \"{}\" repeats",
+                excerpt(id, 40)
+            ));
+        }
+        beacons.push(BeaconInfo {
+            id: id.to_string(),
+            mod_hz,
+        });
+    }
+    Ok(beacons)
 }
