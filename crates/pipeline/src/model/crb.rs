@@ -81,6 +81,9 @@ pub struct CrbBound {
     pub z: f64,
     pub pitch_deg: f64,
     pub yaw_deg: f64,
+    /// Spec v3: roll's, degrees, with its prior (`CrbScene::roll_sigma`);
+    /// 0 when roll is known exactly.
+    pub roll_deg: f64,
 }
 
 /// Fisher information of one frame at `pose` over (x, y, z, θ, ψ, K_D, gain,
@@ -169,6 +172,11 @@ pub fn crb_along(scene: &CrbScene, poses: &[Pose]) -> Vec<CrbBound> {
                         z: sd(&c, 2),
                         pitch_deg: sd(&c, 3).to_degrees(),
                         yaw_deg: sd(&c, 4).to_degrees(),
+                        roll_deg: if scene.roll_sigma.is_some() {
+                            sd(&c, 7).to_degrees()
+                        } else {
+                            0.0
+                        },
                     }
                 }
                 None => CrbBound {
@@ -177,6 +185,7 @@ pub fn crb_along(scene: &CrbScene, poses: &[Pose]) -> Vec<CrbBound> {
                     z: f64::INFINITY,
                     pitch_deg: f64::INFINITY,
                     yaw_deg: f64::INFINITY,
+                    roll_deg: f64::INFINITY,
                 },
             }
         })
@@ -254,6 +263,22 @@ mod tests {
         assert!(prior.y.max(prior.z) > v2.y.max(v2.z) * 1.001);
         let rolled = crb_along(&scene, &[p.with_roll(Angle::from_deg(8.0))])[0];
         assert!(rolled.x.is_finite() && rolled.y.is_finite() && rolled.z.is_finite());
+        // One Gaussian beacon barely sees roll (MODEL.md): a frame leaves
+        // a 5° prior nearly as it was, which is why the estimators take
+        // roll as a consider parameter rather than fit it.
+        for q in [
+            p,
+            p.with_roll(Angle::from_deg(8.0)),
+            Pose::new(4.0, 0.5, 0.4, Angle::ZERO, Angle::ZERO),
+        ] {
+            let b = crb_along(&scene, &[q])[0];
+            eprintln!(
+                "roll's bound at {q:?}: {:.5}° of the prior's 5°",
+                b.roll_deg
+            );
+            assert!(b.roll_deg > 4.9 && b.roll_deg <= 5.0 + 1e-9, "{b:?}");
+        }
+        assert_eq!(v2.roll_deg, 0.0);
     }
 
     #[test]
