@@ -674,12 +674,11 @@ mod tests {
             for i in 0..5 {
                 let added = with.cov[(i, i)] - base.cov[(i, i)];
                 let want = (s[i] * sd).powi(2);
-                eprintln!(
-                    "{i}: added {added:e} want {want:e} base {:e}",
-                    base.cov[(i, i)]
-                );
+                // Gauss–Newton's curvature (the consider's) against the
+                // re-fits' exact move: the residuals' own curvature is left
+                // out, a few to 20 % here.
                 assert!(
-                    true || (added - want).abs() <= 0.05 * want + 1e-4 * base.cov[(i, i)],
+                    (added - want).abs() <= 0.25 * want + 1e-3 * base.cov[(i, i)],
                     "{pose:?} coordinate {i}: added {added:e}, re-fits say {want:e}"
                 );
             }
