@@ -20,7 +20,8 @@ use crate::drivers::{ads1115::Ads1115, ads7828::Ads7828, mcp3x08::Mcp3x08, Drive
 use crate::pace::{Pacer, Stop};
 use crate::temp::TempReader;
 use crate::text::{Recent, Text};
-use crate::{FrameSource, SourceError, SourceHealth};
+use crate::{FrameSource, Sampling, SourceError, SourceHealth, Take};
+use lightpose_core::samples::Burst;
 
 /// A set of boards read together for each frame.
 pub trait Bank: Send {
@@ -32,6 +33,25 @@ pub trait Bank: Send {
     /// Read every channel whose bit is set in `wanted[board]` into
     /// `raw[board][channel]`. An error names the board and channel.
     fn read(&mut self, wanted: &[u16], raw: &mut [RawBoard]) -> Result<(), SourceError>;
+    /// Read one sample of the (board, channel) pairs of `order` into
+    /// `raw`, converting them one after another in that order where the
+    /// bank can ([`Bank::converts_in_order`]); the others read `wanted`
+    /// their own way (an ADS1115 bank's overlapped rounds).
+    fn read_in_order(
+        &mut self,
+        order: &[(usize, u8)],
+        wanted: &[u16],
+        raw: &mut [RawBoard],
+    ) -> Result<(), SourceError> {
+        let _ = order;
+        self.read(wanted, raw)
+    }
+    /// Whether [`Bank::read_in_order`] converts in the order given, one
+    /// conversion after another: then channel k of a burst is converted
+    /// k · channel_skew_s after channel 0, as MODEL.md assumes.
+    fn converts_in_order(&self) -> bool {
+        false
+    }
     /// Add this bank's counters (skipped lines, reopens) to `h`.
     fn health(&self, _h: &mut SourceHealth) {}
     /// When the last read's values were sampled
@@ -160,6 +180,38 @@ impl<S: SpiDevice + Send> Bank for SpiBank<S> {
             }
         }
         Ok(())
+    }
+    /// Every MCP3x08 conversion is its own transfer, so any order costs
+    /// the same bus time: a burst converts in detector order.
+    fn read_in_order(
+        &mut self,
+        order: &[(usize, u8)],
+        _: &[u16],
+        raw: &mut [RawBoard],
+    ) -> Result<(), SourceError> {
+        for &(b, ch) in order {
+            let (Some((_, chip)), Some(places), Some(out)) =
+                (self.chips.get_mut(b), self.places.get(b), raw.get_mut(b))
+            else {
+                return Err(no_board());
+            };
+            out[ch as usize % MAX_CH] = chip
+                .read_channel(ch)
+                .map_err(|e| bus_error(&places.channel(ch), e, &mut self.recent))?;
+        }
+        Ok(())
+    }
+    fn converts_in_order(&self) -> bool {
+        true
+    }
+}
+
+/// A (board, channel) past the bank's boards: a map the config should have
+/// refused.
+fn no_board() -> SourceError {
+    SourceError::BadData {
+        place: Text::from_static("board bank"),
+        msg: Text::from_static("the channel order names a board the bank does not have"),
     }
 }
 
@@ -406,6 +458,43 @@ impl<I: I2c + Send, C: I2cAdc, D: DelayNs + Send> Bank for I2cBank<I, C, D> {
         }
         Ok(())
     }
+    /// Chips that convert while read (ADS7828) go in the order given, one
+    /// conversion after another; chips that convert on their own (ADS1115)
+    /// keep their overlapped rounds, whose channels are not evenly spaced.
+    fn read_in_order(
+        &mut self,
+        order: &[(usize, u8)],
+        wanted: &[u16],
+        raw: &mut [RawBoard],
+    ) -> Result<(), SourceError> {
+        if !self.converts_in_order() {
+            return self.read(wanted, raw);
+        }
+        for &(b, ch) in order {
+            let (Some(slot), Some(places), Some(out)) =
+                (self.chips.get_mut(b), self.places.get(b), raw.get_mut(b))
+            else {
+                return Err(no_board());
+            };
+            let (_, bus) = &mut self.buses[slot.bus];
+            let v = slot
+                .chip
+                .start(bus, &mut self.delay, ch)
+                .map_err(|e| bus_error(&places.channel(ch), e, &mut self.recent))?;
+            // A chip that converts while read gives its counts at once.
+            out[ch as usize % MAX_CH] = v.ok_or_else(|| {
+                bus_error::<I::Error>(
+                    &places.channel(ch),
+                    DriverError::NotReady { polls: 0 },
+                    &mut self.recent,
+                )
+            })?;
+        }
+        Ok(())
+    }
+    fn converts_in_order(&self) -> bool {
+        self.chips.iter().all(|s| s.chip.conversion_ns() == 0)
+    }
 }
 
 /// A [`DelayNs`] that sleeps the thread (std, any platform).
@@ -437,6 +526,39 @@ pub struct BoardSource<B> {
     last_t: f64,
     bits: u8,
     describe: String,
+    /// Spec v3: N samples of every channel a frame, given as bursts.
+    sampling: Option<Sampling>,
+    /// The (board, channel) of detectors 0..24 in turn, then a thermistor's
+    /// channel the map does not use: a burst's conversion order.
+    order: Vec<(usize, u8)>,
+}
+
+/// Of a burst's sample period, how late a sample may start and the burst
+/// still be taken: later (the thread held up, a bus stalled) and its
+/// samples are not at t + i / sample_hz, so the frame is dropped.
+pub const MAX_LATE_SHARE: f64 = 0.25;
+/// How long before a sample is due the wait stops sleeping and spins: a
+/// sleep overshoots by tens of µs (more on a loaded machine), a spin by
+/// the clock's read.
+pub const SPIN_S: f64 = 2e-3;
+
+/// Wait until `due` ([`monotonic_s`]): sleep while far, spin the last
+/// [`SPIN_S`]. False when `stop` was raised.
+fn wait_until(due: f64, stop: &Stop) -> bool {
+    loop {
+        let left = due - monotonic_s();
+        if left <= 0.0 {
+            return true;
+        }
+        if stop.is_raised() {
+            return false;
+        }
+        if left > SPIN_S {
+            std::thread::sleep(Duration::from_secs_f64(left - SPIN_S));
+        } else {
+            std::hint::spin_loop();
+        }
+    }
 }
 
 impl<B: Bank> BoardSource<B> {
@@ -453,7 +575,15 @@ impl<B: Bank> BoardSource<B> {
             Some(p) => format!("{} at {:.2} Hz", bank.describe(), 1.0 / p.as_secs_f64()),
             None => format!("{} free-running", bank.describe()),
         };
+        let mut order: Vec<(usize, u8)> = (0..NDET).map(|k| map.source_of(k)).collect();
+        if let Some((b, ch)) = temp.needs_channel() {
+            if !order.contains(&(b, ch)) {
+                order.push((b, ch));
+            }
+        }
         BoardSource {
+            sampling: None,
+            order,
             bits: bank.bits(),
             bank,
             map,
@@ -467,8 +597,77 @@ impl<B: Bank> BoardSource<B> {
         }
     }
 
+    /// Spec v3: read `s.samples_per_frame` samples of every channel a
+    /// frame, `1 / s.sample_hz` apart, given by
+    /// [`FrameSource::next_take`] as bursts (N = 1 is frames as before).
+    pub fn with_sampling(mut self, s: Option<Sampling>) -> Self {
+        self.sampling = s.filter(|s| s.samples_per_frame > 1 && s.sample_hz > 0.0);
+        if let Some(s) = &self.sampling {
+            self.describe = format!(
+                "{}, {} samples a frame at {} Hz",
+                self.describe, s.samples_per_frame, s.sample_hz
+            );
+        }
+        self
+    }
+
     pub fn bank(&self) -> &B {
         &self.bank
+    }
+
+    /// One burst into `burst`: sample i of every channel read at
+    /// t + i / sample_hz (spun to), in detector order where the bank
+    /// converts in order. A bus error, a stop or a sample started late
+    /// drops the frame (its `seq` used up).
+    fn read_burst(
+        &mut self,
+        n: usize,
+        sample_hz: f64,
+        burst: &mut Burst,
+    ) -> Result<(), SourceError> {
+        if burst.n() != n {
+            burst.resize(n);
+        }
+        if let Some(until) = self.pacer.due() {
+            self.bank.idle(until, self.pacer.stop());
+        }
+        let seq = self.seq;
+        self.seq += 1;
+        let dt = 1.0 / sample_hz;
+        let mut counts = [0u16; NDET];
+        let t0 = monotonic_s();
+        for i in 0..n {
+            let due = t0 + i as f64 * dt;
+            if !wait_until(due, self.pacer.stop()) {
+                return Err(SourceError::Stopped);
+            }
+            if monotonic_s() - due > MAX_LATE_SHARE * dt {
+                return Err(SourceError::BadData {
+                    place: Text::from_static("board bank"),
+                    msg: Text::from_static(
+                        "a sample of the burst began over a quarter of its period late (the thread or the bus held up): frame dropped",
+                    ),
+                });
+            }
+            self.bank
+                .read_in_order(&self.order, &self.wanted, &mut self.raw)?;
+            self.map.apply(&self.raw, &mut counts);
+            let samples = burst.samples_mut();
+            for (k, &c) in counts.iter().enumerate() {
+                samples[k * n + i] = c;
+            }
+        }
+        let t = t0.max(self.last_t + 1e-6);
+        self.last_t = t;
+        burst.seq = seq;
+        burst.t = t;
+        burst.adc_bits = self.bits;
+        burst.temp_c = self.temp.for_frame(&self.raw);
+        burst.truth = None;
+        burst.attitude = None;
+        burst.depth = None;
+        burst.velocity = None;
+        Ok(())
     }
     pub fn into_bank(self) -> B {
         self.bank
@@ -477,6 +676,9 @@ impl<B: Bank> BoardSource<B> {
 
 impl<B: Bank> FrameSource for BoardSource<B> {
     fn next_frame(&mut self) -> Result<Frame, SourceError> {
+        if self.sampling.is_some() {
+            return Err(crate::bursts_only("board bank"));
+        }
         if let Some(until) = self.pacer.due() {
             self.bank.idle(until, self.pacer.stop());
         }
@@ -537,6 +739,19 @@ impl<B: Bank> FrameSource for BoardSource<B> {
     /// stopped, showed only as a dip in fps.
     fn period(&self) -> Option<Duration> {
         self.pacer.period()
+    }
+    fn sampling(&self) -> Option<Sampling> {
+        self.sampling.clone()
+    }
+    fn next_take(&mut self, burst: &mut Burst) -> Result<Take, SourceError> {
+        let Some((n, hz)) = self
+            .sampling
+            .as_ref()
+            .map(|s| (s.samples_per_frame, s.sample_hz))
+        else {
+            return self.next_frame().map(Take::Frame);
+        };
+        self.read_burst(n, hz, burst).map(|()| Take::Burst)
     }
     fn health(&self) -> SourceHealth {
         let mut h = SourceHealth {

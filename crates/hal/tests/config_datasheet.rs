@@ -256,14 +256,33 @@ fn a_sample_rate_is_checked_against_what_the_bus_can_give() {
         "{e}"
     );
     // ... but at 3.6 MHz (vdd_v = 5) the bank gives 1.92 kHz: the bus check
-    // passes and the message says so, with what this build cannot yet do.
+    // passes, and a burst needs a blinking beacon to demodulate.
     let e = spi("vdd_v = 5.0\nsample_hz = 1000.0").unwrap_err();
     assert!(
-        e.contains(
-            "sample_hz: 1000 Hz: the bank keeps up (at most 1920 Hz, channels 16.7 µs apart)"
-        ) && e.contains("not in this build"),
+        e.starts_with("source config: beacons: ") && e.contains("no beacon blinks"),
         "{e}"
     );
+    let v = spi("vdd_v = 5.0\nsample_hz = 1000.0\nbeacons = [{ id = \"beacon\", mod_hz = 250.0 }]")
+        .expect("1 kHz fits at 3.6 MHz");
+    let ValidBackend::Spi { common, .. } = &v else {
+        panic!("{v:?}")
+    };
+    let s = common.sampling().expect("bursts");
+    assert_eq!((s.samples_per_frame, s.sample_hz), (200, 1000.0));
+    assert!((s.channel_skew_s - (24.0 / 3.6e6 + 10e-6)).abs() < 1e-12);
+    assert_eq!(
+        (s.beacons[0].id.as_str(), s.beacons[0].mod_hz),
+        ("beacon", 250.0)
+    );
+    // A mod_hz the samples cannot resolve (3 samples a period), and
+    // beacons without sample_hz, are refused at `beacons`.
+    let e = spi(
+        "vdd_v = 5.0\nsample_hz = 1000.0\nbeacons = [{ id = \"b\", mod_hz = 333.3333333333333 }]",
+    )
+    .unwrap_err();
+    assert!(e.starts_with("source config: beacons: beacon \"b\""), "{e}");
+    let e = spi("beacons = [{ id = \"b\", mod_hz = 250.0 }]").unwrap_err();
+    assert!(e.contains("beacons: given without sample_hz"), "{e}");
     // N must be whole, and needs a paced rate.
     let e = spi("sample_hz = 12.5").unwrap_err();
     assert!(

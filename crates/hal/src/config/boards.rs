@@ -15,6 +15,8 @@ use crate::drivers::mcp3x08::McpKind;
 use crate::pace::{Pacer, Stop};
 use crate::serial::SerialBoard;
 use crate::HalError;
+use lightpose_core::modulation::{check_beacons, BeaconFreq};
+use lightpose_core::samples::{BeaconInfo, MAX_BEACONS};
 
 /// Highest reference or supply voltage a table may give: far above any ADC's.
 pub const MAX_V: f64 = 50.0;
@@ -43,6 +45,15 @@ fn dr_default() -> u16 {
     860
 }
 
+/// A beacon of a board's `beacons` list: its id and blink frequency (Hz;
+/// 0 is steady), as a v3 scene's `[[beacons]]` gives them.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BeaconConfig {
+    pub id: String,
+    pub mod_hz: f64,
+}
+
 /// MCP3008 / MCP3208 chips, one spidev device (chip select) each.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -56,6 +67,12 @@ pub struct SpiConfig {
     /// gives (`config::timing`).
     #[serde(default)]
     pub sample_hz: Option<f64>,
+    /// Spec v3: the beacons the samples carry, for the daemon's
+    /// demodulator (`[backend] beacons = [{ id = "beacon", mod_hz = 250.0 }]`),
+    /// checked with `sample_hz` and `rate_hz` by MODEL.md's rules. Needed
+    /// with `sample_hz`; refused without it.
+    #[serde(default)]
+    pub beacons: Vec<BeaconConfig>,
     /// ADC reference (for a thermistor channel).
     #[serde(default = "v5")]
     pub v_ref: f64,
@@ -102,6 +119,12 @@ pub struct Ads1115Config {
     /// gives (`config::timing`).
     #[serde(default)]
     pub sample_hz: Option<f64>,
+    /// Spec v3: the beacons the samples carry, for the daemon's
+    /// demodulator (`[backend] beacons = [{ id = "beacon", mod_hz = 250.0 }]`),
+    /// checked with `sample_hz` and `rate_hz` by MODEL.md's rules. Needed
+    /// with `sample_hz`; refused without it.
+    #[serde(default)]
+    pub beacons: Vec<BeaconConfig>,
     /// PGA full scale in volts: 6.144, 4.096, 2.048, 1.024, 0.512, 0.256.
     #[serde(default = "fsr_default")]
     pub fsr_v: f64,
@@ -133,6 +156,12 @@ pub struct Ads7828Config {
     /// gives (`config::timing`).
     #[serde(default)]
     pub sample_hz: Option<f64>,
+    /// Spec v3: the beacons the samples carry, for the daemon's
+    /// demodulator (`[backend] beacons = [{ id = "beacon", mod_hz = 250.0 }]`),
+    /// checked with `sample_hz` and `rate_hz` by MODEL.md's rules. Needed
+    /// with `sample_hz`; refused without it.
+    #[serde(default)]
+    pub beacons: Vec<BeaconConfig>,
     /// SCL of the buses (the slowest), for the sample-time check only
     /// (the kernel sets it). Absent: 100 kHz.
     #[serde(default)]
@@ -192,6 +221,10 @@ pub struct Common {
     /// N: samples of every channel in a frame (`sample_hz` / `rate_hz`;
     /// 1 without `sample_hz`).
     pub samples_per_frame: u32,
+    /// Samples of every channel per second when `samples_per_frame` > 1.
+    pub sample_hz: Option<f64>,
+    /// The beacons the samples carry (with `sample_hz`).
+    pub beacons: Vec<BeaconInfo>,
     /// Between consecutive channels' conversions, s, as the bank's clocks
     /// and transfers give it (MODEL.md `channel_skew_s`; 0 where not
     /// known: serial boards).
@@ -206,6 +239,17 @@ impl Common {
     /// The pacer of these boards, its waits ended early by `stop`.
     pub fn pacer(&self, stop: &Stop) -> Pacer {
         Pacer::from_rate(self.rate_hz).stoppable(stop.clone())
+    }
+    /// Spec v3: how the bank samples when a frame is N > 1 samples of
+    /// every channel (`None`: one sample a frame, as v1/v2).
+    pub fn sampling(&self) -> Option<crate::Sampling> {
+        let hz = self.sample_hz?;
+        (self.samples_per_frame > 1).then(|| crate::Sampling {
+            sample_hz: hz,
+            samples_per_frame: self.samples_per_frame as usize,
+            channel_skew_s: self.channel_skew_s,
+            beacons: self.beacons.clone(),
+        })
     }
     /// Per board, the channels a frame reads: the map's and a thermistor's.
     pub fn wanted(&self) -> Vec<u16> {
@@ -254,12 +298,87 @@ fn common(s: Shared, boards: Vec<BoardSpec>, env: &dyn Env) -> Result<Common, Ha
     Ok(Common {
         rate_hz,
         samples_per_frame,
+        sample_hz: s.sample_hz,
+        beacons: Vec::new(),
         channel_skew_s: 0.0,
         boards,
         map,
         temp,
         bits: s.bits,
     })
+}
+
+/// The `beacons` list into `common`, checked with the rates by MODEL.md's
+/// rules (core's `check_beacons`: each blinks at an even number of samples
+/// a period and a whole number of periods a frame, no two alike): refused
+/// at `beacons`. Checked after the bus, so that `--check-config` says what
+/// the bank can give first.
+fn with_beacons(common: &mut Common, list: &[BeaconConfig]) -> Result<(), HalError> {
+    if list.is_empty() {
+        if let (Some(hz), true) = (common.sample_hz, common.samples_per_frame > 1) {
+            return Err(err(
+                "beacons",
+                format!(
+                    "sample_hz = {} is {} samples a frame, which only a blinking beacon needs, and no beacon blinks: name them, e.g. beacons = [{{ id = \"beacon\", mod_hz = 250.0 }}]",
+                    lightpose_core::bounds::shown(hz),
+                    common.samples_per_frame
+                ),
+            ));
+        }
+        return Ok(());
+    }
+    common.beacons = beacons(list, common.sample_hz, common.rate_hz)?;
+    Ok(())
+}
+
+fn beacons(
+    list: &[BeaconConfig],
+    sample_hz: Option<f64>,
+    rate_hz: Option<f64>,
+) -> Result<Vec<BeaconInfo>, HalError> {
+    let (Some(hz), Some(rate)) = (sample_hz, rate_hz) else {
+        if list.is_empty() {
+            return Ok(Vec::new());
+        }
+        return Err(err(
+            "beacons",
+            "given without sample_hz: one sample a frame sees only steady light (give sample_hz, a whole multiple of rate_hz, to demodulate blinking beacons)",
+        ));
+    };
+    if list.len() > MAX_BEACONS {
+        return Err(err(
+            "beacons",
+            format!("{} beacons, at most {MAX_BEACONS}", list.len()),
+        ));
+    }
+    unique_names("beacons", list.iter().map(|b| b.id.as_str()))?;
+    let freqs: Vec<BeaconFreq> = list
+        .iter()
+        .map(|b| BeaconFreq {
+            id: &b.id,
+            mod_hz: b.mod_hz,
+        })
+        .collect();
+    if let Some(b) = list
+        .iter()
+        .find(|b| !(b.mod_hz.is_finite() && b.mod_hz >= 0.0))
+    {
+        return Err(err(
+            "beacons",
+            format!(
+                "beacon \"{}\": mod_hz = {} is not a frequency (>= 0 Hz)",
+                b.id, b.mod_hz
+            ),
+        ));
+    }
+    check_beacons(rate, hz, &freqs).map_err(|e| err("beacons", e.to_string()))?;
+    Ok(list
+        .iter()
+        .map(|b| BeaconInfo {
+            id: b.id.clone(),
+            mod_hz: b.mod_hz,
+        })
+        .collect())
 }
 
 /// Wanted channels per board, in board order.
@@ -319,6 +438,7 @@ pub(super) fn spi(c: &SpiConfig, kind: McpKind, env: &dyn Env) -> Result<ValidBa
         timing::SPI_TRANSFER_OVERHEAD_S * 1e6
     );
     timing::keeps_up(&mut common, c.sample_hz, timing::spi(&per_chip), &what)?;
+    with_beacons(&mut common, &c.beacons)?;
     Ok(ValidBackend::Spi {
         kind,
         chips,
@@ -415,6 +535,7 @@ pub(super) fn ads1115(c: &Ads1115Config, env: &dyn Env) -> Result<ValidBackend, 
             )?;
         }
     }
+    with_beacons(&mut common, &c.beacons)?;
     Ok(ValidBackend::Ads1115 {
         fsr,
         data_rate,
@@ -542,6 +663,7 @@ pub(super) fn ads7828(c: &Ads7828Config, env: &dyn Env) -> Result<ValidBackend, 
         timing::I2C_MESSAGE_OVERHEAD_S * 1e6
     );
     timing::keeps_up(&mut common, c.sample_hz, timing::ads7828(n, scl), &what)?;
+    with_beacons(&mut common, &c.beacons)?;
     Ok(ValidBackend::Ads7828 {
         power,
         buses,

@@ -124,21 +124,7 @@ pub fn keeps_up(
     let Some(hz) = sample_hz else {
         return fits("rate_hz", rate, &t, what);
     };
-    fits("sample_hz", hz, &t, what)?;
-    if common.samples_per_frame == 1 {
-        return Ok(());
-    }
-    // Said after the bus check, so that --check-config tells what the
-    // bank can give even now.
-    Err(err(
-        "sample_hz",
-        format!(
-            "{hz} Hz: the bank keeps up (at most {:.0} Hz, channels {:.1} µs apart), but reading a frame of {} samples from a board is not in this build yet: leave sample_hz out (one sample a frame)",
-            t.max_sample_hz(),
-            t.channel_skew_s * 1e6,
-            common.samples_per_frame
-        ),
-    ))
+    fits("sample_hz", hz, &t, what)
 }
 
 /// Refuse a sample rate the bank's read cannot keep up with, at `key`

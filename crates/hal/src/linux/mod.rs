@@ -110,12 +110,15 @@ fn i2c_source<C: I2cAdc + 'static>(
         place: "i2c".into(),
         msg: e.to_string(),
     })?;
-    Ok(Box::new(BoardSource::new(
-        bank,
-        common.map,
-        common.temp.clone().start(),
-        common.pacer(stop),
-    )))
+    Ok(Box::new(
+        BoardSource::new(
+            bank,
+            common.map,
+            common.temp.clone().start(),
+            common.pacer(stop),
+        )
+        .with_sampling(common.sampling()),
+    ))
 }
 
 /// Open the SPI or I²C backend `v` describes.
@@ -139,12 +142,15 @@ pub fn open(v: &ValidBackend, stop: &Stop) -> Result<Box<dyn FrameSource>, HalEr
                 })?;
                 devs.push((c.name.clone(), Mcp3x08::new(d, *kind)));
             }
-            Ok(Box::new(BoardSource::new(
-                SpiBank::new(devs),
-                common.map,
-                common.temp.clone().start(),
-                common.pacer(stop),
-            )))
+            Ok(Box::new(
+                BoardSource::new(
+                    SpiBank::new(devs),
+                    common.map,
+                    common.temp.clone().start(),
+                    common.pacer(stop),
+                )
+                .with_sampling(common.sampling()),
+            ))
         }
         ValidBackend::Ads1115 {
             fsr,
