@@ -21,7 +21,7 @@ use crate::read::Carried;
 use crate::write::{McapOptions, McapWriter, WriteError};
 use crate::{Format, LogFile};
 use lightpose_core::textfile::{read_line_bounded, LineRead, MAX_LINE_BYTES};
-use lightpose_core::{Cut, FrameLog, LogError};
+use lightpose_core::{Burst, Cut, Demodulated, Frame, FrameLog, LogError, Record};
 use std::fs::File;
 use std::io::{self, BufReader, BufWriter, Write};
 use std::path::Path;
@@ -318,9 +318,30 @@ pub fn convert(
     let mut poses = route_poses(&mut log, out_format, poses)?;
     let mut out = create_output(&log, output, out_format, opts)?;
     let mut s = ConvertSummary::default();
-    while let Some(r) = log.next_frame() {
-        let f = match r {
-            Ok(f) => f,
+    // Spec v3: frames of any of the three kinds, each carried as its line
+    // (into MCAP, a BURST as the binary `/lightpose/burst`, which gives
+    // its line back byte for byte); a burst or demodulated frame is copied
+    // out of the reader into buffers reused frame after frame.
+    let mut burst = Burst::default();
+    let mut demod = Box::<Demodulated>::default();
+    // A frame by value, as everywhere (no heap per frame).
+    #[allow(clippy::large_enum_variant)]
+    enum Got {
+        Frame(Frame),
+        Burst,
+        Demod,
+    }
+    while let Some(r) = log.next_record() {
+        let got = match r {
+            Ok(Record::Frame(f)) => Got::Frame(f),
+            Ok(Record::Burst(b)) => {
+                burst.clone_from(b);
+                Got::Burst
+            }
+            Ok(Record::Demodulated(d)) => {
+                *demod = *d;
+                Got::Demod
+            }
             Err(e) if e.skippable() => {
                 s.skipped += 1;
                 on_skip(&e);
@@ -328,14 +349,19 @@ pub fn convert(
             }
             Err(e) => return Err(e.into()),
         };
+        let rec = match &got {
+            Got::Frame(f) => Record::Frame(*f),
+            Got::Burst => Record::Burst(&burst),
+            Got::Demod => Record::Demodulated(&demod),
+        };
         // Poses kept while reading up to this frame belong before it.
         s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::BeforeFrame)?;
         match &mut out {
             Out::Jsonl(file, w) => write_line(w, log.last_line(), file)?,
-            Out::Mcap(w) => w.write_frame_line(&f, log.last_line())?,
+            Out::Mcap(w) => w.write_record_line(&rec, log.last_line())?,
         }
         s.frames += 1;
-        s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::AfterFrame(f.seq))?;
+        s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::AfterFrame(rec.seq()))?;
         s.skipped += refused_poses(&mut poses, &mut on_skip);
     }
     s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::End)?;

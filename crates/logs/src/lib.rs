@@ -26,6 +26,7 @@
 //! append-only and chunked, so a file cut by a power loss is readable up
 //! to its last complete chunk.
 
+pub mod burst;
 pub mod convert;
 pub mod encode;
 pub mod foxglove;
@@ -181,6 +182,16 @@ impl LogFile {
             LogFile::Mcap(r) => r.set_max_gap_s(max_gap_s),
         }
         self
+    }
+
+    /// Spec v3: the next frame of whichever kind the log holds (counts,
+    /// BURST, demodulated), in either container; `None` at the end. A
+    /// burst or demodulated frame is lent until the next call.
+    pub fn next_record(&mut self) -> Option<Result<lightpose_core::Record<'_>, LogError>> {
+        match self {
+            LogFile::Jsonl(r) => r.next_record(),
+            LogFile::Mcap(r) => r.next_record(),
+        }
     }
 
     fn get(&self) -> &dyn FrameLog {

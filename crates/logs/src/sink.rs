@@ -3,7 +3,7 @@
 
 use crate::write::{McapOptions, McapWriter, WriteError};
 use crate::Format;
-use lightpose_core::{Frame, LogHeader, LogWriter, PoseEstimate};
+use lightpose_core::{Burst, Demodulated, Frame, LogHeader, LogWriter, PoseEstimate};
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -12,6 +12,11 @@ use std::path::Path;
 /// Where frames (and, in MCAP, poses and status) are recorded.
 pub trait LogSink {
     fn write_frame(&mut self, f: &Frame) -> Result<(), WriteError>;
+    /// Spec v3: a frame's raw samples (JSONL: a BURST line; MCAP: the
+    /// binary `/lightpose/burst`). A log holds one kind of frame.
+    fn write_burst(&mut self, b: &Burst) -> Result<(), WriteError>;
+    /// Spec v3: a demodulated frame.
+    fn write_demodulated(&mut self, d: &Demodulated) -> Result<(), WriteError>;
     /// An estimate with its wall-clock capture time (Unix seconds). JSONL
     /// intensity logs hold frames only (FORMATS.md): there, nothing.
     fn write_pose(&mut self, p: &PoseEstimate, wall_unix: Option<f64>) -> Result<(), WriteError>;
@@ -35,6 +40,12 @@ pub trait LogSink {
 impl<W: Write> LogSink for McapWriter<W> {
     fn write_frame(&mut self, f: &Frame) -> Result<(), WriteError> {
         McapWriter::write_frame(self, f)
+    }
+    fn write_burst(&mut self, b: &Burst) -> Result<(), WriteError> {
+        McapWriter::write_burst(self, b)
+    }
+    fn write_demodulated(&mut self, d: &Demodulated) -> Result<(), WriteError> {
+        McapWriter::write_demodulated(self, d)
     }
     fn write_pose(&mut self, p: &PoseEstimate, wall_unix: Option<f64>) -> Result<(), WriteError> {
         McapWriter::write_pose(self, p, wall_unix)
@@ -66,6 +77,12 @@ impl<W: Write> LogSink for McapWriter<W> {
 impl<W: Write> LogSink for LogWriter<W> {
     fn write_frame(&mut self, f: &Frame) -> Result<(), WriteError> {
         Ok(LogWriter::write_frame(self, f)?)
+    }
+    fn write_burst(&mut self, b: &Burst) -> Result<(), WriteError> {
+        Ok(LogWriter::write_burst(self, b)?)
+    }
+    fn write_demodulated(&mut self, d: &Demodulated) -> Result<(), WriteError> {
+        Ok(LogWriter::write_demodulated(self, d)?)
     }
     fn write_pose(&mut self, _: &PoseEstimate, _: Option<f64>) -> Result<(), WriteError> {
         Ok(())
