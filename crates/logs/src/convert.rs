@@ -15,7 +15,11 @@
 //! declarations, message bytes, sequence numbers and times. The Foxglove
 //! channels are made anew from the frames and poses (and left out with
 //! `foxglove` off). A JSONL log holds frames only (FORMATS.md): MCAP →
-//! JSONL passes STATUS and metadata over, counted.
+//! JSONL passes STATUS and metadata over, counted. Spec v3: frames of any
+//! kind (counts, BURST, demodulated) are carried as their lines, a BURST
+//! into MCAP as the binary `/lightpose/burst` that gives its line back
+//! byte for byte ([`crate::burst`]), so that BURST JSONL → MCAP → JSONL is
+//! exact too.
 
 use crate::read::Carried;
 use crate::write::{McapOptions, McapWriter, WriteError};
