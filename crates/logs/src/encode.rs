@@ -460,5 +460,45 @@ mod tests {
         }
         let fox: Vec<_> = Channel::ALL.iter().filter(|c| c.is_foxglove()).collect();
         assert_eq!(fox.len(), 4);
+        for c in Channel::V3 {
+            assert!(!c.is_foxglove() && c.index() >= Channel::ALL.len());
+            assert!(c.topic().starts_with("/lightpose/"));
+        }
+    }
+
+    /// Spec v3: an estimate's roll turns its Foxglove pose and transform;
+    /// without one they are spec v2's, byte for byte.
+    #[test]
+    fn an_estimate_s_roll_is_in_its_quaternion() {
+        use lightpose_core::Status;
+        let mut enc = Encoder::new(&LogHeader::new(10, 5.0), true).unwrap();
+        let mut p = PoseEstimate::empty(3, 0.6, Status::Ok, "t");
+        (p.x, p.y, p.z, p.pitch_deg, p.yaw_deg) =
+            (Some(5.0), Some(0.1), Some(0.2), Some(4.0), Some(-6.0));
+        let mut got: Vec<(Channel, Vec<u8>)> = Vec::new();
+        let mut run = |enc: &mut Encoder, p: &PoseEstimate| {
+            got.clear();
+            enc.pose(p, None, &mut |m: Message| {
+                got.push((m.channel, m.data.to_vec()));
+                Ok(())
+            })
+            .unwrap();
+            got.iter()
+                .find(|(c, _)| *c == Channel::VehiclePose)
+                .map(|(_, d)| serde_json::from_slice::<serde_json::Value>(d).unwrap())
+                .unwrap()
+        };
+        let level = run(&mut enc, &p);
+        p.roll_deg = Some(12.0);
+        let rolled = run(&mut enc, &p);
+        let q = |v: &serde_json::Value| {
+            let o = &v["pose"]["orientation"];
+            ["x", "y", "z", "w"].map(|k| o[k].as_f64().unwrap())
+        };
+        let (pitch, yaw) = (Angle::from_deg(4.0), Angle::from_deg(-6.0));
+        assert_eq!(q(&level), foxglove::attitude_quaternion(pitch, yaw));
+        let want = foxglove::attitude_quaternion_rolled(pitch, yaw, Angle::from_deg(12.0));
+        assert_eq!(q(&rolled), want);
+        assert_ne!(q(&rolled), q(&level));
     }
 }
