@@ -188,16 +188,6 @@ impl LogFile {
         self
     }
 
-    /// Spec v3: the next frame of whichever kind the log holds (counts,
-    /// BURST, demodulated), in either container; `None` at the end. A
-    /// burst or demodulated frame is lent until the next call.
-    pub fn next_record(&mut self) -> Option<Result<lightpose_core::Record<'_>, LogError>> {
-        match self {
-            LogFile::Jsonl(r) => r.next_record(),
-            LogFile::Mcap(r) => r.next_record(),
-        }
-    }
-
     fn get(&self) -> &dyn FrameLog {
         match self {
             LogFile::Jsonl(r) => r.as_ref(),
@@ -217,6 +207,12 @@ impl FrameLog for LogFile {
         match self {
             LogFile::Jsonl(r) => FrameLog::next_frame(r.as_mut()),
             LogFile::Mcap(r) => FrameLog::next_frame(r.as_mut()),
+        }
+    }
+    fn next_record(&mut self) -> Option<Result<lightpose_core::samples::Record<'_>, LogError>> {
+        match self {
+            LogFile::Jsonl(r) => FrameLog::next_record(r.as_mut()),
+            LogFile::Mcap(r) => FrameLog::next_record(r.as_mut()),
         }
     }
     fn cut(&self) -> Option<Cut> {

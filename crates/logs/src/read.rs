@@ -269,6 +269,9 @@ impl<R: Read> FrameLog for McapReader<R> {
     fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
         McapReader::next_frame(self)
     }
+    fn next_record(&mut self) -> Option<Result<Record<'_>, LogError>> {
+        McapReader::next_record(self)
+    }
     fn cut(&self) -> Option<Cut> {
         self.inner.get_ref().cut
     }

@@ -8,6 +8,7 @@
 
 mod common;
 
+use lightpose_core::FrameLog;
 use lightpose_core::{
     Angle, AttitudeReading, BeaconAmplitude, BeaconInfo, Burst, Demodulated, LogHeader, LogWriter,
     Pose, PoseEstimate, Record, Status, Truth, NDET,
@@ -129,7 +130,7 @@ fn burst_logs_round_trip_byte_for_byte_and_read_back_as_bursts() {
     );
     assert!(m < 0.75 * j, "MCAP {m} B against JSONL {j} B");
     let mut r = LogFile::open(&mcap).unwrap();
-    assert_eq!(lightpose_core::FrameLog::header(&r).sample_hz, Some(2000.0));
+    assert_eq!(r.header().sample_hz, Some(2000.0));
     let mut got = 0;
     while let Some(rec) = r.next_record() {
         match rec.unwrap() {
@@ -152,9 +153,7 @@ fn burst_logs_round_trip_byte_for_byte_and_read_back_as_bursts() {
     assert_eq!(got, 31);
     // A reader of counts is refused the bursts, named, as with JSONL.
     let mut r = LogFile::open(&mcap).unwrap();
-    let e = lightpose_core::FrameLog::next_frame(&mut r)
-        .unwrap()
-        .unwrap_err();
+    let e = r.next_frame().unwrap().unwrap_err();
     assert!(e.to_string().contains("BURST"), "{e}");
 }
 
