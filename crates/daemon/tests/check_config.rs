@@ -464,3 +464,35 @@ fn the_autopilot_ids_are_refused_at_their_line_outside_1_to_255() {
     let (code, err) = run("--check-config", &p);
     assert_eq!(code, Some(0), "{err}");
 }
+
+/// Spec v3: a board sampling a blinking beacon (config/examples/
+/// mcp3008-beacon.toml: `sample_hz` and `beacons` in `[backend]`) passes
+/// `--check-config` (its chips are not opened: they may appear later), and
+/// a `mod_hz` its samples cannot resolve is refused at the `beacons` line,
+/// naming the beacon.
+#[test]
+fn a_board_sampling_a_beacon_is_checked_and_a_bad_mod_hz_refused_at_its_line() {
+    let (_, _, cal) = shipped();
+    let example =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/examples/mcp3008-beacon.toml");
+    let text = std::fs::read_to_string(example)
+        .expect("read the example")
+        .replace(
+            "\"/etc/lightpose/calibration.toml\"",
+            &format!("\"{}\"", cal.display()),
+        );
+    assert!(text.contains("sample_hz = 1000.0") && text.contains("mod_hz = 250.0"));
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ok = write(dir.path(), "beacon.toml", &text);
+    let (code, err) = run("--check-config", &ok);
+    assert_eq!(code, Some(0), "{err}");
+    // 1000 / 300 samples a period is no whole number.
+    let bad_text = text.replace("mod_hz = 250.0", "mod_hz = 300.0");
+    let bad = write(dir.path(), "bad.toml", &bad_text);
+    refused(
+        &bad,
+        2,
+        line_of(&bad_text, "beacons = ["),
+        &["backend.beacons", "beacon \"beacon\"", "mod_hz = 300"],
+    );
+}

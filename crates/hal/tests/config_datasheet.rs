@@ -332,7 +332,12 @@ fn a_sample_rate_is_checked_against_what_the_bus_can_give() {
 #[test]
 fn the_shipped_board_examples_validate() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/examples");
-    for name in ["ads1115.toml", "ads7828.toml", "mcp3008.toml"] {
+    for name in [
+        "ads1115.toml",
+        "ads7828.toml",
+        "mcp3008.toml",
+        "mcp3008-beacon.toml",
+    ] {
         let text = std::fs::read_to_string(dir.join(name)).unwrap();
         let table: toml::Table = toml::from_str(&text).unwrap();
         let backend = table["backend"].clone();
