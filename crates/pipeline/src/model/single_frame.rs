@@ -21,11 +21,11 @@ use lightpose_core::{Estimator, Findings, Frame, PoseEstimate, ReadingUse, Statu
 use super::findings::Found;
 use super::frozen::FrozenWatch;
 use super::light::{to_pose, PoseVec};
+use super::measurement::Measurement;
 use super::solver::{solve, Censoring, LmResult, Prior, SolveOptions};
 use super::tracker::readings::{check_attitude, Pending};
 use super::SensorModel;
 use crate::settings::{Dof, ModelConfig, ModelError};
-use lightpose_core::frame::full_scale;
 use lightpose_core::light::{temperature_gain, WATER_TEMP_C};
 
 /// 1σ of x caused by a K_D error of `sigma_k_d` at range `x`: near the beam
@@ -165,13 +165,11 @@ impl ModelEstimator {
     /// own dark level; without that a frame says nothing about pose.
     pub fn has_light(&self, frame: &Frame) -> bool {
         let m = &self.model;
-        let cpv = m.counts_per_volt();
-        let sigma0 = m.count_variance(0.0).sqrt();
         // A channel stuck at full scale is no light.
-        let kinds = Censoring::classify(m, &frame.counts, self.frozen.mask());
+        let meas = Measurement::of(m, frame, self.frozen.mask());
         let best = (0..NDET)
-            .filter(|&k| kinds[k] != Censoring::Excluded)
-            .map(|k| (frame.counts[k] as f64 - m.offset_v[k] * cpv) / sigma0)
+            .filter(|&k| meas.kinds[k] != Censoring::Excluded)
+            .map(|k| meas.snr_without_light(m, k))
             .fold(f64::NEG_INFINITY, f64::max);
         best >= self.cfg.min_signal_sigma
     }
@@ -179,22 +177,19 @@ impl ModelEstimator {
     /// Solve one frame; `warm` is a starting pose to try first.
     pub(crate) fn fit_frame(&self, frame: &Frame, warm: Option<PoseVec>) -> FrameFit {
         let k = self.constraints(frame);
+        let meas = Measurement::of(&self.model, frame, self.frozen.mask());
         let mut f = match self.screen(frame) {
             Err(status) => FrameFit::failed(status),
             Ok(gt) => {
                 let opts = self.solve_options(k.free, gt);
-                match self.best_fit(frame, warm, gt, &k, &opts) {
+                match self.best_fit(&meas, warm, gt, &k, &opts) {
                     Some(r) => self.judge(frame, r, k.free),
                     None => FrameFit::failed(Status::Diverged),
                 }
             }
         };
         f.attitude = k.attitude;
-        f.excluded = Censoring::excluded_mask(&Censoring::classify(
-            &self.model,
-            &frame.counts,
-            self.frozen.mask(),
-        ));
+        f.excluded = Censoring::excluded_mask(&meas.kinds);
         f
     }
 
@@ -286,7 +281,7 @@ impl ModelEstimator {
     /// the image (position first, then the rest), keeping the better.
     fn best_fit(
         &self,
-        frame: &Frame,
+        meas: &Measurement,
         warm: Option<PoseVec>,
         gt: f64,
         k: &Constraints,
@@ -301,20 +296,20 @@ impl ModelEstimator {
             }
             // A warm start that fits badly may sit in the wrong basin: it
             // is kept only if the cold start below does no better.
-            result = Some(solve(m, &frame.counts, &q, &k.prior, opts));
+            result = Some(solve(m, meas, &q, &k.prior, opts));
         }
         let warm_good = result
             .as_ref()
             .is_some_and(|r| r.converged && reduced_chi2(r, &k.free) <= 4.0);
         if !warm_good {
-            if let Some(q0) = coarse_start(m, frame, gt, k.att_q, opts) {
+            if let Some(q0) = coarse_start(m, meas, gt, k.att_q, opts) {
                 // Position first with the attitude held, then the rest: the
                 // y/yaw and z/pitch ridges are easier to walk from there.
                 let mut pos_only = *opts;
                 pos_only.free = [true, true, true, false, false];
-                let r1 = solve(m, &frame.counts, &q0, &k.prior, &pos_only);
+                let r1 = solve(m, meas, &q0, &k.prior, &pos_only);
                 let r2 = if k.free[3] || k.free[4] {
-                    solve(m, &frame.counts, &r1.q, &k.prior, opts)
+                    solve(m, meas, &r1.q, &k.prior, opts)
                 } else {
                     r1
                 };
@@ -337,8 +332,7 @@ impl ModelEstimator {
         // bound), so a failed fit of such a frame is `saturated`, which
         // says why, not `diverged`; and without a pose (nothing to start
         // the tracker from).
-        let fs = full_scale(self.model.adc_bits);
-        let clipped = frame.counts.iter().filter(|&&k| k >= fs).count();
+        let clipped = Measurement::n_clipped(&self.model, frame);
         let refuse = |r: LmResult| {
             if clipped > c.max_saturated {
                 FrameFit::failed(Status::Saturated)
@@ -436,16 +430,16 @@ impl ModelEstimator {
 /// range (as if on the axis and facing it); attitude is the reading, or 0.
 pub(crate) fn coarse_start(
     m: &SensorModel,
-    frame: &Frame,
+    meas: &Measurement,
     gt: f64,
     att: Option<(f64, f64)>,
     o: &SolveOptions,
 ) -> Option<PoseVec> {
     let cpv = m.counts_per_volt();
-    let frame = &Censoring::stand_in(m, &Censoring::classify(m, &frame.counts, o.frozen), frame);
+    let z = Censoring::stand_in(m, meas);
     let mut e = [0.0; NDET];
     for k in 0..NDET {
-        let v = frame.counts[k] as f64 / cpv - m.offset_v[k];
+        let v = z[k] / cpv - m.offset_v[k];
         e[k] = (v / (m.gain[k] * gt)).max(0.0);
     }
     let (kmax, emax) = e

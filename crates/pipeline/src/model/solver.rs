@@ -21,6 +21,7 @@ use lightpose_core::{COLS, NDET, ROWS};
 use nalgebra::{SMatrix, SVector};
 
 use super::light::{predict, predict_with_grad, PoseJacobian, PoseVec};
+use super::measurement::Measurement;
 use super::SensorModel;
 
 type M5 = SMatrix<f64, 5, 5>;
@@ -122,16 +123,16 @@ impl Censoring {
     /// the Gaussian gives √(S_a·S_b)·e^(s²/2σ_r²) of light above dark (the
     /// geometric mean of both pairs when both exist); a channel without
     /// such a pair takes the mean of its neighbours. Fits leave it out.
-    pub fn stand_in(
-        m: &SensorModel,
-        kinds: &[Censoring; NDET],
-        frame: &lightpose_core::Frame,
-    ) -> lightpose_core::Frame {
-        let mut f = *frame;
+    ///
+    /// On the measurement's count scale ([`Measurement::z`]); a count's
+    /// stand-in is rounded and clamped as a count is, an amplitude's not.
+    pub fn stand_in(m: &SensorModel, meas: &Measurement) -> [f64; NDET] {
+        let kinds = &meas.kinds;
+        let mut f = meas.z;
         let cpv = m.counts_per_volt();
         let (s, sigma) = (m.geometry.spacing.rad(), m.light.sigma_r.rad());
         let curve = (0.5 * s * s / (sigma * sigma)).exp();
-        let light = |j: usize| (frame.counts[j] as f64 - m.offset_v[j] * cpv).max(0.0);
+        let light = |j: usize| (meas.z[j] - m.offset_v[j] * cpv).max(0.0);
         for k in 0..NDET {
             if kinds[k] != Censoring::Excluded {
                 continue;
@@ -170,7 +171,12 @@ impl Censoring {
                 }
             };
             let fs = m.full_scale();
-            f.counts[k] = (m.offset_v[k] * cpv + est).round().clamp(0.0, fs) as u16;
+            let z = m.offset_v[k] * cpv + est;
+            f[k] = if meas.is_amplitude() {
+                z
+            } else {
+                z.round().clamp(0.0, fs)
+            };
         }
         f
     }
@@ -259,7 +265,7 @@ pub struct LmResult {
 }
 
 fn residuals(
-    counts: &[u16; NDET],
+    z: &[f64; NDET],
     kinds: &[Censoring; NDET],
     pred: &SVector<f64, NDET>,
     w: &[f64; NDET],
@@ -268,7 +274,7 @@ fn residuals(
 ) -> f64 {
     let mut chi2 = 0.0;
     for k in 0..NDET {
-        let obs = counts[k] as f64;
+        let obs = z[k];
         let r = match kinds[k] {
             Censoring::Data => pred[k] - obs,
             Censoring::Saturated => (pred[k] - (fs - 0.5)).min(0.0),
@@ -296,11 +302,18 @@ fn admissible(q: &PoseVec, o: &SolveOptions) -> bool {
         && q[4].abs() <= o.max_angle
 }
 
-/// The counts' weights 1/σ_k from the noise model at irradiance `irr`.
+/// The channels' weights 1/σ_k: the noise model's at irradiance `irr`
+/// for counts, the demodulator's for amplitudes.
 #[inline]
-fn noise_weights(m: &SensorModel, irr: &[f64; NDET], gt: f64, w: &mut [f64; NDET]) {
+fn noise_weights(
+    m: &SensorModel,
+    meas: &Measurement,
+    irr: &[f64; NDET],
+    gt: f64,
+    w: &mut [f64; NDET],
+) {
     for k in 0..NDET {
-        w[k] = 1.0 / m.count_variance(irr[k] * m.gain[k] * gt).sqrt();
+        w[k] = 1.0 / meas.variance(m, k, irr[k] * m.gain[k] * gt).sqrt();
     }
 }
 
@@ -345,7 +358,7 @@ fn pin_fixed(a: &mut M5, free: &[bool; 5]) {
 /// One frame's fit: what stays the same while the pose moves.
 struct Problem<'a> {
     m: &'a SensorModel,
-    counts: &'a [u16; NDET],
+    meas: &'a Measurement,
     kinds: [Censoring; NDET],
     fs: f64,
     prior: &'a Prior,
@@ -367,8 +380,8 @@ impl Problem<'_> {
     fn linearize(&self, q: &PoseVec, w: &mut [f64; NDET], r: &mut [f64; NDET]) -> Linearized {
         let o = self.o;
         let (pred, irr, jac) = predict_with_grad(self.m, q, o.k_d, o.gt);
-        noise_weights(self.m, &irr, o.gt, w);
-        let chi2 = residuals(self.counts, &self.kinds, &pred, w, self.fs, r);
+        noise_weights(self.m, self.meas, &irr, o.gt, w);
+        let chi2 = residuals(&self.meas.z, &self.kinds, &pred, w, self.fs, r);
         let (mut h, mut g) = normal_equations(&jac, &self.kinds, w, r);
         let prior = self.prior;
         for i in 0..5 {
@@ -383,7 +396,7 @@ impl Problem<'_> {
     #[inline]
     fn cost_at(&self, q: &PoseVec, w: &[f64; NDET], r: &mut [f64; NDET]) -> f64 {
         let (pred, _) = predict(self.m, q, self.o.k_d, self.o.gt);
-        residuals(self.counts, &self.kinds, &pred, w, self.fs, r) + prior_cost(q, self.prior)
+        residuals(&self.meas.z, &self.kinds, &pred, w, self.fs, r) + prior_cost(q, self.prior)
     }
 
     /// Levenberg–Marquardt from `q` (cost `cost`): raise the damping until
@@ -435,22 +448,23 @@ impl Problem<'_> {
     }
 }
 
-/// Minimize the censored, weighted squared residuals plus the prior,
+/// Minimize the censored, weighted squared residuals of the frame's
+/// channels (`meas`: counts or amplitudes, classified) plus the prior,
 /// starting from `q0`. Weights come from the noise model at the current
 /// iterate (iteratively reweighted), so κ > 0 is handled too.
 pub fn solve(
     m: &SensorModel,
-    counts: &[u16; NDET],
+    meas: &Measurement,
     q0: &PoseVec,
     prior: &Prior,
     o: &SolveOptions,
 ) -> LmResult {
-    let kinds = Censoring::classify(m, counts, o.frozen);
+    let kinds = meas.kinds;
     let n_saturated = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
     let n_data = kinds.iter().filter(|k| **k == Censoring::Data).count();
     let p = Problem {
         m,
-        counts,
+        meas,
         kinds,
         fs: m.full_scale(),
         prior,

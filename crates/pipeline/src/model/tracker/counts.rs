@@ -16,7 +16,7 @@ use nalgebra::{SMatrix, SVector};
 use super::state::{k_d_of, Ms, State, Vs, KD, NS};
 use super::Tracker;
 use crate::model::light::{predict, predict_with_grad, PoseVec};
-use crate::model::solver::Censoring;
+use crate::model::measurement::Measurement;
 
 /// The sigma-point update's coordinates: the pose and K_D.
 const NP: usize = 6;
@@ -27,12 +27,13 @@ type Zv = SVector<f64, NDET>;
 type Hm = SMatrix<f64, NDET, NS>;
 type Pm = SMatrix<f64, NP, NP>;
 
-/// What a counts update needs to know about the frame besides its counts.
+/// What a counts update needs to know about the frame.
 pub(super) struct CountsInput<'a> {
     pub frame: &'a Frame,
     /// Temperature gain g_T of the frame.
     pub gt: f64,
-    pub kinds: [Censoring; NDET],
+    /// Its channels (counts or amplitudes), classified, with their noise.
+    pub meas: &'a Measurement,
     /// Attitude pinned by a reading this frame: the EKF's update suffices.
     pub pinned: bool,
 }
@@ -131,8 +132,8 @@ impl Tracker {
         let mut used = [false; NDET];
         let mut n_used = 0usize;
         for k in 0..NDET {
-            let obs = inp.frame.counts[k] as f64;
-            if let Some(z) = inp.kinds[k].target(obs, sp.zbar[k], fs) {
+            let obs = inp.meas.z[k];
+            if let Some(z) = inp.meas.kinds[k].target(obs, sp.zbar[k], fs) {
                 y[k] = z - sp.zbar[k];
                 used[k] = true;
                 n_used += 1;
@@ -144,7 +145,7 @@ impl Tracker {
         let mut pzz = sp.s1 * sp.s1.transpose() + sp.s2 * sp.s2.transpose();
         for k in 0..NDET {
             pzz[(k, k)] += if used[k] {
-                m.count_variance(sp.irr[k] * m.gain[k] * inp.gt)
+                inp.meas.variance(m, k, sp.irr[k] * m.gain[k] * inp.gt)
             } else {
                 1.0
             };
@@ -196,8 +197,8 @@ impl Tracker {
         let mut r = Zv::from_element(1.0);
         let mut n_used = 0usize;
         for k in 0..NDET {
-            let obs = inp.frame.counts[k] as f64;
-            let Some(z) = inp.kinds[k].target(obs, pred[k], fs) else {
+            let obs = inp.meas.z[k];
+            let Some(z) = inp.meas.kinds[k].target(obs, pred[k], fs) else {
                 continue;
             };
             for j in 0..5 {
@@ -205,7 +206,7 @@ impl Tracker {
             }
             h[(k, KD)] = jac[(k, 5)] * k_d;
             y[k] = z - pred[k];
-            r[k] = m.count_variance(irr[k] * m.gain[k] * inp.gt);
+            r[k] = inp.meas.variance(m, k, irr[k] * m.gain[k] * inp.gt);
             n_used += 1;
         }
         (h, y, r, n_used)

@@ -56,7 +56,6 @@ use std::any::Any;
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{
     Estimator, Findings, Frame, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev,
-    NDET,
 };
 
 pub use self::bank::WaterBank;
@@ -68,6 +67,7 @@ use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD,
 pub use self::water_check::WaterWatch;
 use crate::model::findings::Found;
 use crate::model::single_frame::ModelEstimator;
+use crate::model::measurement::Measurement;
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
 use crate::paper::MomentsEstimator;
@@ -634,9 +634,9 @@ impl Tracker {
     fn estimate_one(&mut self, frame: &Frame) -> PoseEstimate {
         // Once per frame: the counts update and the report share it.
         self.init.observe_channels(frame);
-        let kinds = Censoring::classify(&self.model, &frame.counts, self.init.frozen_mask());
-        let mut e = self.estimate_frame(frame, kinds);
-        e.excluded_channels = Censoring::excluded_mask(&kinds);
+        let meas = Measurement::of(&self.model, frame, self.init.frozen_mask());
+        let mut e = self.estimate_frame(frame, &meas);
+        e.excluded_channels = Censoring::excluded_mask(&meas.kinds);
         let span = (self.cfg.reading_check_s / READING_CHECK_SLOT_S).round() as usize;
         e.agreement = self.agreement.report(span, self.cfg.reading_check_limit);
         self.dvl.report(&mut e.agreement);
@@ -724,8 +724,8 @@ impl Estimator for Tracker {
 
 impl Tracker {
     /// One frame through the filter (see [`Estimator::estimate`]), its
-    /// channels classified as `kinds`.
-    fn estimate_frame(&mut self, frame: &Frame, kinds: [Censoring; NDET]) -> PoseEstimate {
+    /// channels read and classified as `meas`.
+    fn estimate_frame(&mut self, frame: &Frame, meas: &Measurement) -> PoseEstimate {
         let mut readings = FrameReadings::check(frame, &self.cfg);
         // Issue 8: a temperature that is not water's is a bad frame, as in
         // the model estimator; the update used to correct such a frame as
@@ -739,7 +739,7 @@ impl Tracker {
         }
         // The paper law's reading of the frame, light only: the paper's
         // range and rate read it, and the DVL checks.
-        let law = self.law_reading(frame, &kinds);
+        let law = self.law_reading(frame, meas);
         // The DVL's and the attitude's readings as the frame gives them,
         // for the DVL checks after the update (refused or not).
         let dvl_seen = self.dvl_sample(frame.t, &readings, law);
@@ -789,11 +789,15 @@ impl Tracker {
             return e;
         }
         let gt = gain_of(frame);
-        let n_sat = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
+        let n_sat = meas
+            .kinds
+            .iter()
+            .filter(|k| **k == Censoring::Saturated)
+            .count();
         let inp = CountsInput {
             frame,
             gt,
-            kinds,
+            meas,
             pinned: uses[0] == ReadingUse::Used,
         };
         let applied = self.update_counts(&mut s, &inp);
