@@ -201,6 +201,11 @@ pub enum CalibError {
     NoRepeatedPose(u64, u64),
     #[error("frames differ in ADC resolution ({0} and {1} bits)")]
     MixedBits(u8, u8),
+    #[error(
+        "the sweeps mix counts and demodulated amplitudes (a steady beacon's and a \
+         blinking one's): calibrate each from its own sweeps"
+    )]
+    MixedKinds,
     #[error("only {0} usable poses; the fit has {1} parameters")]
     TooFewPoses(usize, usize),
     #[error("the sweeps cannot determine {parameter}: {reason}")]
@@ -238,6 +243,9 @@ pub struct PhysicalFitter {
     groups: Vec<Group>,
     dark: Option<Group>,
     bits: Option<u8>,
+    /// Whether the frames are demodulated amplitudes (of the first frame;
+    /// the rest must agree).
+    amplitudes: Option<bool>,
     frames: u64,
 }
 
@@ -252,6 +260,10 @@ impl PhysicalFitter {
             Some(b) if b != f.adc_bits => return Err(CalibError::MixedBits(b, f.adc_bits)),
             _ => {}
         }
+        let amp = f.amplitudes.is_some();
+        if *self.amplitudes.get_or_insert(amp) != amp {
+            return Err(CalibError::MixedKinds);
+        }
         Ok(())
     }
 
@@ -259,6 +271,22 @@ impl PhysicalFitter {
         let fs = full_scale(f.adc_bits);
         g.n += 1;
         g.gt_sum += f.temp_c.map_or(1.0, temperature_gain);
+        if let Some(a) = f.amplitudes.as_ref() {
+            // A demodulated frame: the beacon's amplitude (no dark offset),
+            // a channel with a clipped sample left out of its pose's mean;
+            // without the beacon in use the frame is dark.
+            let b = a.beacon(crate::model::measurement::BEACON);
+            for k in 0..NDET {
+                let c = b.map_or(0.0, |b| b.amplitude[k]);
+                if a.clipped[k] > 0 || !c.is_finite() {
+                    g.clipped[k] = true;
+                    continue;
+                }
+                g.sum[k] += c;
+                g.sumsq[k] += c * c;
+            }
+            return;
+        }
         for k in 0..NDET {
             let c = f.counts[k];
             if c == 0 || c >= fs {

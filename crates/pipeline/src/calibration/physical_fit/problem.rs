@@ -61,6 +61,10 @@ fn standard_error(s2: f64, n: f64) -> f64 {
     (s2.max(1.0 / 12.0) / n).sqrt()
 }
 
+/// How tightly an amplitude sweep's offsets are held at 0, counts: far
+/// below any pose mean's standard error, far above round-off.
+const AMPLITUDE_OFFSET_SE: f64 = 1e-3;
+
 impl Data {
     /// The per-pose means of the groups with at least `o.min_samples`
     /// frames (clipped channels left out), and the dark log's.
@@ -112,6 +116,12 @@ impl Data {
                     dv[k] = s2;
                 }
                 (Some(d), Some(dv))
+            }
+            // Amplitudes have no dark offset: the on level minus the off
+            // level of a beacon that is off is 0 exactly, so the offsets
+            // are held at 0 (a tight prior, in the place of a dark log's).
+            _ if fitter.amplitudes == Some(true) => {
+                (Some([(0.0, AMPLITUDE_OFFSET_SE); NDET]), None)
             }
             _ => (None, None),
         };
