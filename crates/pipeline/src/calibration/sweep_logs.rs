@@ -8,7 +8,7 @@
 //! the way and the fits see each frame's amplitudes.
 
 use lightpose_core::bounds::{Within, MAX_V_REF, MIN_V_REF};
-use lightpose_core::{FrameLog, Frame, LogError, LogHeader};
+use lightpose_core::{Frame, FrameLog, LogError, LogHeader};
 use lightpose_demod::{FramesError, LogFrames};
 use lightpose_logs::{open as open_log, LogFile};
 use std::path::Path;

@@ -20,6 +20,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod crb;
+pub mod daylight;
 pub(crate) mod findings;
 pub mod frozen;
 pub mod light;

@@ -22,7 +22,7 @@ use super::findings::Found;
 use super::frozen::FrozenWatch;
 use super::light::{to_pose, PoseVec};
 use super::measurement::Measurement;
-use super::solver::{solve, Censoring, LmResult, Prior, SolveOptions};
+use super::solver::{solve, AmbientOptions, Censoring, LmResult, Prior, SolveOptions};
 use super::tracker::readings::{check_attitude, Pending};
 use super::SensorModel;
 use crate::settings::{Dof, ModelConfig, ModelError};
@@ -181,9 +181,19 @@ impl ModelEstimator {
         let mut f = match self.screen(frame) {
             Err(status) => FrameFit::failed(status),
             Ok(gt) => {
-                let opts = self.solve_options(k.free, gt);
+                let mut opts = self.solve_options(k.free, gt);
+                opts.ambient = self.ambient_for(frame);
                 match self.best_fit(&meas, warm, gt, &k, &opts) {
-                    Some(r) => self.judge(frame, r, k.free),
+                    Some(r) => {
+                        let mut f = self.judge(frame, r, k.free);
+                        let refused = f
+                            .fit
+                            .is_some_and(|r| self.daylight_refuses(&meas, &r, &k.free, &opts));
+                        if f.status == Status::Ok && refused {
+                            f.status = Status::Daylight;
+                        }
+                        f
+                    }
                     None => FrameFit::failed(Status::Diverged),
                 }
             }
@@ -274,7 +284,53 @@ impl ModelEstimator {
             k_d: m.light.k_d,
             gt,
             frozen: self.frozen.mask(),
+            ambient: None,
         }
+    }
+
+    /// The ambient's settings for `frame` when daylight is modelled: the
+    /// roll of its attitude reading turns the dome under the sky.
+    pub(crate) fn ambient_for(&self, frame: &Frame) -> Option<AmbientOptions> {
+        let d = self.cfg.daylight.filter(|_| frame.amplitudes.is_none())?;
+        let roll = frame
+            .attitude
+            .and_then(|a| a.roll)
+            .map(|r| r.rad())
+            .filter(|r| r.is_finite())
+            .unwrap_or(0.0);
+        Some(AmbientOptions {
+            rho: d.upwelling,
+            flicker: d.flicker,
+            roll,
+        })
+    }
+
+    /// Whether a fit's pose is too uncertain, or too much of its light
+    /// ambient, to be called `ok` by day (`daylight`).
+    pub(crate) fn daylight_refuses(
+        &self,
+        meas: &Measurement,
+        r: &LmResult,
+        free: &[bool; 5],
+        o: &SolveOptions,
+    ) -> bool {
+        let (Some(d), Some(a), Some(level)) = (self.cfg.daylight, o.ambient, r.ambient_v) else {
+            return false;
+        };
+        let m = &self.model;
+        let too_wide = (0..3).any(|i| free[i] && !(r.cov[(i, i)].sqrt() <= d.max_sigma_m));
+        // The brightest channel's light above dark, and the ambient's share.
+        let cpv = m.counts_per_volt();
+        let b = super::daylight::counts_per_level(m, a.rho, r.q[3], r.q[4], a.roll, o.gt);
+        let (mut best, mut amb) = (0.0, 0.0);
+        for k in 0..NDET {
+            let lit = meas.z[k] - m.offset_v[k] * cpv;
+            if meas.kinds[k] == Censoring::Data && lit > best {
+                best = lit;
+                amb = level * b[k];
+            }
+        }
+        too_wide || !(amb <= d.max_ambient_share * best)
     }
 
     /// The warm start's fit if it is good; otherwise also a cold start from

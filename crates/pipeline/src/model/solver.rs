@@ -20,6 +20,7 @@
 use lightpose_core::{COLS, NDET, ROWS};
 use nalgebra::{SMatrix, SVector};
 
+use super::daylight::{counts_per_level, Ambient};
 use super::light::{predict, predict_with_grad, PoseJacobian, PoseVec};
 use super::measurement::Measurement;
 use super::SensorModel;
@@ -244,6 +245,21 @@ pub struct SolveOptions {
     /// Channels frozen by their history (bit k for detector k), left out
     /// as stuck ones are (see [`Censoring::classify`]).
     pub frozen: u32,
+    /// Daylight on a steady beacon's counts, profiled out of the fit
+    /// (`None`: none, as in v1/v2; amplitudes never carry it).
+    pub ambient: Option<AmbientOptions>,
+}
+
+/// The ambient's settings for one frame's fit (see `model::daylight`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AmbientOptions {
+    /// ρ, the upwelling share.
+    pub rho: f64,
+    /// Relative 1σ of each channel's own flicker.
+    pub flicker: f64,
+    /// Roll (radians) that turns the dome under the sky: the frame's
+    /// reading, else 0.
+    pub roll: f64,
 }
 
 /// Outcome of one solve.
@@ -262,6 +278,9 @@ pub struct LmResult {
     pub n_saturated: usize,
     pub iterations: usize,
     pub converged: bool,
+    /// The ambient level profiled out at the optimum (volts on an
+    /// upward-facing detector before its gain), when daylight is modelled.
+    pub ambient_v: Option<f64>,
 }
 
 fn residuals(
@@ -363,6 +382,9 @@ struct Problem<'a> {
     fs: f64,
     prior: &'a Prior,
     o: &'a SolveOptions,
+    /// The ambient level of the last linearization (its noise weighs the
+    /// channels at the next).
+    level: std::cell::Cell<f64>,
 }
 
 /// The fit linearized at one pose: χ² of the counts, and the normal
@@ -379,8 +401,11 @@ impl Problem<'_> {
     #[inline]
     fn linearize(&self, q: &PoseVec, w: &mut [f64; NDET], r: &mut [f64; NDET]) -> Linearized {
         let o = self.o;
-        let (pred, irr, jac) = predict_with_grad(self.m, q, o.k_d, o.gt);
+        let (mut pred, irr, mut jac) = predict_with_grad(self.m, q, o.k_d, o.gt);
         noise_weights(self.m, self.meas, &irr, o.gt, w);
+        if let Some(a) = self.ambient_at(q) {
+            self.profile(&a, &irr, &mut pred, &mut jac, w);
+        }
         let chi2 = residuals(&self.meas.z, &self.kinds, &pred, w, self.fs, r);
         let (mut h, mut g) = normal_equations(&jac, &self.kinds, w, r);
         let prior = self.prior;
@@ -392,10 +417,75 @@ impl Problem<'_> {
         Linearized { chi2, h, g }
     }
 
+    /// The ambient's shape at `q` when daylight is modelled (counts only).
+    #[inline]
+    fn ambient_at(&self, q: &PoseVec) -> Option<Ambient> {
+        let a = self.o.ambient.filter(|_| !self.meas.is_amplitude())?;
+        Some(Ambient {
+            b: counts_per_level(self.m, a.rho, q[3], q[4], a.roll, self.o.gt),
+            flicker: a.flicker,
+        })
+    }
+
+    /// Variable projection of the ambient level: the channels reweighted
+    /// with its shot noise and flicker at the last level, the level that
+    /// fits best added to the prediction, and the Jacobian's data rows
+    /// projected off the ambient's shape (so that JᵀWJ is the pose's
+    /// information with the level unknown: its covariance the marginal
+    /// one). The shape's turn with the attitude is left out of the
+    /// Jacobian (second order beside the AHRS's prior).
+    #[inline]
+    fn profile(
+        &self,
+        a: &Ambient,
+        irr: &[f64; NDET],
+        pred: &mut SVector<f64, NDET>,
+        jac: &mut PoseJacobian,
+        w: &mut [f64; NDET],
+    ) {
+        let (m, gt) = (self.m, self.o.gt);
+        let l0 = self.level.get();
+        let mut used = [false; NDET];
+        for k in 0..NDET {
+            let e = irr[k] * m.gain[k] * gt + a.volts(m, k, l0);
+            w[k] = 1.0 / (self.meas.variance(m, k, e) + a.flicker_variance(k, l0)).sqrt();
+            used[k] = self.kinds[k] == Censoring::Data;
+        }
+        let l = a.level(&self.meas.z, pred.as_slice(), w, &used);
+        self.level.set(l);
+        for k in 0..NDET {
+            pred[k] += l * a.b[k];
+        }
+        if !(l > 0.0) {
+            return;
+        }
+        let mut bb = 0.0;
+        let mut bj = [0.0; 5];
+        for k in (0..NDET).filter(|&k| used[k]) {
+            let w2 = w[k] * w[k];
+            bb += w2 * a.b[k] * a.b[k];
+            for j in 0..5 {
+                bj[j] += w2 * a.b[k] * jac[(k, j)];
+            }
+        }
+        for k in (0..NDET).filter(|&k| used[k]) {
+            for j in 0..5 {
+                jac[(k, j)] -= a.b[k] * bj[j] / bb;
+            }
+        }
+    }
+
     /// Cost (χ² plus prior) at `q` with the weights `w` held.
     #[inline]
     fn cost_at(&self, q: &PoseVec, w: &[f64; NDET], r: &mut [f64; NDET]) -> f64 {
-        let (pred, _) = predict(self.m, q, self.o.k_d, self.o.gt);
+        let (mut pred, _) = predict(self.m, q, self.o.k_d, self.o.gt);
+        if let Some(a) = self.ambient_at(q) {
+            let used = self.kinds.map(|k| k == Censoring::Data);
+            let l = a.level(&self.meas.z, pred.as_slice(), w, &used);
+            for k in 0..NDET {
+                pred[k] += l * a.b[k];
+            }
+        }
         residuals(&self.meas.z, &self.kinds, &pred, w, self.fs, r) + prior_cost(q, self.prior)
     }
 
@@ -469,6 +559,7 @@ pub fn solve(
         fs: m.full_scale(),
         prior,
         o,
+        level: std::cell::Cell::new(0.0),
     };
     let mut q = *q0;
     let mut lambda = 1e-3;
@@ -517,6 +608,7 @@ pub fn solve(
         n_saturated,
         iterations,
         converged,
+        ambient_v: p.ambient_at(&q).map(|_| p.level.get()),
     }
 }
 

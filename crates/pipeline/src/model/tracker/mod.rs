@@ -66,8 +66,8 @@ use self::readings::{gate_thresholds, FrameReadings, PaperReading};
 use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
 pub use self::water_check::WaterWatch;
 use crate::model::findings::Found;
-use crate::model::single_frame::ModelEstimator;
 use crate::model::measurement::Measurement;
+use crate::model::single_frame::ModelEstimator;
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
 use crate::paper::MomentsEstimator;
@@ -159,6 +159,7 @@ impl Tracker {
             x_range: cfg.x_range,
             max_saturated: cfg.max_saturated,
             k_d_sigma: Some(if cfg.estimate_k_d { 0.0 } else { k_d_sigma }),
+            daylight: cfg.daylight,
             ..ModelConfig::default()
         };
         let init = ModelEstimator::new(model.clone(), init_cfg)?;
@@ -795,9 +796,9 @@ impl Tracker {
             .filter(|k| **k == Censoring::Saturated)
             .count();
         let inp = CountsInput {
-            frame,
             gt,
             meas,
+            ambient: self.init.ambient_for(frame),
             pinned: uses[0] == ReadingUse::Used,
         };
         let applied = self.update_counts(&mut s, &inp);

@@ -24,9 +24,7 @@ use lightpose_core::{AttitudeReading, Frame, ReadingUse, Refusal, NDET};
 use nalgebra::{SMatrix, SVector};
 
 use super::counts::commit;
-use super::state::{
-    body_axes, body_axes_derivatives, k_d_of, Ms, State, DOFF, KD, NS, POFF, VEL,
-};
+use super::state::{body_axes, body_axes_derivatives, k_d_of, Ms, State, DOFF, KD, NS, POFF, VEL};
 use super::Tracker;
 use crate::model::measurement::Measurement;
 use crate::model::solver::Censoring;
@@ -436,7 +434,14 @@ impl Tracker {
     /// law's residual over the calibration grid (scaled, see
     /// `paper_range_sigma_scale`) and the counts' noise at the brightest
     /// channel through the law, σ_count/(peak·b1), in quadrature.
+    ///
+    /// None for counts by day (`daylight` set): the paper's moments read
+    /// the sun's light as the beacon's, a range metres short under 2 V of
+    /// it, and nothing in the law takes it out.
     pub(super) fn law_reading(&self, frame: &Frame, meas: &Measurement) -> Option<PaperReading> {
+        if self.cfg.daylight.is_some() && !meas.is_amplitude() {
+            return None;
+        }
         let m = &self.model;
         let p = self.paper.as_ref()?;
         // The paper's moments read the whole image: a stuck channel, left

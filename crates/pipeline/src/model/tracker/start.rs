@@ -31,8 +31,8 @@ use super::readings::{Checked, FrameReadings};
 use super::state::{body_axes, Ms, State, Vs, KD, VEL};
 use super::Tracker;
 use crate::model::light::PoseVec;
-use crate::model::single_frame::coarse_start;
 use crate::model::measurement::Measurement;
+use crate::model::single_frame::coarse_start;
 use crate::model::solver::{solve, LmResult, Prior, SolveOptions};
 use crate::settings::Motion;
 
@@ -123,7 +123,8 @@ impl Tracker {
         paper_x: Option<&Checked<1>>,
         gt: f64,
     ) -> Option<LmResult> {
-        let o = self.start_options(gt);
+        let mut o = self.start_options(gt);
+        o.ambient = self.init.ambient_for(frame);
         let pitch_offset = self.offsets.prior(Offset::Pitch).0;
         let att = r.attitude.ready().map(|a| (a.z[0] - pitch_offset, a.z[1]));
         let meas = &Measurement::of(&self.model, frame, o.frozen);
