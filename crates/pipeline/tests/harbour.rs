@@ -17,6 +17,9 @@
 //! Each test prints the table it measures (`--nocapture`); the figures are
 //! in docs/estimators.md, "By day".
 
+// Coordinate loops index several parallel per-coordinate arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};

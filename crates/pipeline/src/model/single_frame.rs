@@ -738,6 +738,84 @@ mod tests {
         );
     }
 
+    /// A steady beacon's counts with daylight on them (MODEL.md's shape,
+    /// a level and each channel's own flicker): with the ambient modelled
+    /// the pose is `ok` and within 3σ where the beacon is bright against
+    /// it, and `daylight` where the sun leaves the beacon too little; not
+    /// modelled, the fit fails or is far off.
+    #[test]
+    fn daylight_is_profiled_out_or_refused_with_its_own_status() {
+        use crate::model::daylight::{counts_per_level, DaylightConfig};
+        let m = SensorModel {
+            adc_bits: 12,
+            offset_v: [0.3; NDET],
+            ..SensorModel::default()
+        };
+        let day = ModelConfig {
+            daylight: Some(DaylightConfig::default()),
+            k_d_sigma: Some(0.0),
+            ..ModelConfig::default()
+        };
+        let sig = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
+        let mut rng = Rng::new(5);
+        let lit = |pose: &Pose, level: f64, rng: &mut Rng| {
+            let mut f = synth_frame(&m, pose, 0, 0.0, sig, rng);
+            let b = counts_per_level(&m, 0.02, pose.pitch.rad(), pose.yaw.rad(), 0.0, 1.0);
+            let fs = m.full_scale();
+            for k in 0..NDET {
+                let flicker = 1.0 + 0.045 * rng.normal();
+                let c = f.counts[k] as f64 + level * b[k] * flicker;
+                f.counts[k] = c.round().clamp(0.0, fs) as u16;
+            }
+            f
+        };
+        let (mut ok, mut beyond) = (0, 0);
+        for i in 0..30 {
+            let pose = Pose::new(
+                5.0 + 0.1 * i as f64,
+                0.2,
+                -0.1,
+                Angle::from_deg(3.0),
+                Angle::from_deg(-2.0),
+            );
+            let f = lit(&pose, 1.5, &mut rng);
+            let e = ModelEstimator::new(m.clone(), day.clone())
+                .unwrap()
+                .estimate(&f);
+            if e.status == Status::Ok {
+                ok += 1;
+                let d = [
+                    e.x.unwrap() - pose.x,
+                    e.y.unwrap() - pose.y,
+                    e.z.unwrap() - pose.z,
+                ];
+                let sd = [e.std.x.unwrap(), e.std.y.unwrap(), e.std.z.unwrap()];
+                if (0..3).any(|c| d[c].abs() > 3.0 * sd[c]) {
+                    beyond += 1;
+                }
+            }
+            let night = ModelEstimator::new(m.clone(), ModelConfig::default())
+                .unwrap()
+                .estimate(&f);
+            assert!(
+                night.status != Status::Ok || (night.x.unwrap() - pose.x).abs() > 0.5,
+                "unmodelled daylight read as the beacon's: {night:?}"
+            );
+        }
+        assert!(ok >= 27 && beyond <= 1, "{ok} ok, {beyond} beyond 3σ");
+        // Far off and under a strong sun the beacon is lost in it.
+        let far = Pose::new(11.5, 0.5, 0.5, Angle::from_deg(3.0), Angle::from_deg(-2.0));
+        let f = lit(&far, 2.5, &mut rng);
+        let e = ModelEstimator::new(m.clone(), day).unwrap().estimate(&f);
+        assert!(
+            matches!(
+                e.status,
+                Status::Daylight | Status::Diverged | Status::NoLight
+            ),
+            "{e:?}"
+        );
+    }
+
     #[test]
     fn position_only_with_known_attitude() {
         let m = SensorModel::default();

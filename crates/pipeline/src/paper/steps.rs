@@ -270,8 +270,8 @@ pub fn prepare(
         Some(a) => match a.beacon(crate::model::measurement::BEACON) {
             Some(b) => {
                 let scale = v_ref / full_scale(frame.adc_bits) as f64;
-                for k in 0..NDET {
-                    img[k] = b.amplitude[k] * scale;
+                for (v, amp) in img.iter_mut().zip(b.amplitude) {
+                    *v = amp * scale;
                 }
                 a.clipped.iter().any(|&c| c > 0)
             }

@@ -468,6 +468,17 @@ impl Tracker {
         }
     }
 
+    /// Whether a steady beacon's counts by day (`daylight` set) leave the
+    /// position too uncertain to be called `ok`: σ of x, y or z above the
+    /// setting's `max_sigma_m` (the ambient's level, unknown every frame,
+    /// takes the part of the light its shape explains).
+    fn daylight_refuses(&self, s: &State, meas: &Measurement) -> bool {
+        let Some(d) = self.cfg.daylight.filter(|_| !meas.is_amplitude()) else {
+            return false;
+        };
+        (0..3).any(|i| !(s.p[(i, i)].sqrt() <= d.max_sigma_m))
+    }
+
     /// Surge and its 1σ: the body model's u, or the world model's velocity
     /// along the bow; the σ with the paper rate's drift when it was read.
     fn surge_of(&self, s: &State) -> (f64, f64) {
@@ -870,7 +881,10 @@ impl Tracker {
         if applied {
             self.observe_dvl(frame.t, &s, dvl_seen);
         }
-        let status = self.status_of(&s, applied, n_sat, &uses);
+        let mut status = self.status_of(&s, applied, n_sat, &uses);
+        if status == Status::Ok && self.daylight_refuses(&s, meas) {
+            status = Status::Daylight;
+        }
         let mut e = self.to_estimate(frame, &s, status);
         e.readings = verdicts(uses);
         self.keep(s);
