@@ -189,11 +189,25 @@ fn a_blinking_beacon_by_day_meets_the_paper_and_stays_within_1_5x_of_night() {
         &calibrate(&night_scene, 3, dir.path(), "night"),
         &SEEDS,
     );
-    let day = run(
-        &day_scene,
-        &calibrate(&day_scene, 3, dir.path(), "day"),
-        &SEEDS,
+    let day_cal = calibrate(&day_scene, 3, dir.path(), "day");
+    // The BURST sweep by day, demodulated on the way: no dark offsets
+    // (held at 0), the scene's gains (mean 1: V1 takes the scale).
+    let phys = day_cal.physical.as_ref().expect("light model");
+    let mean = day_scene.gain.iter().sum::<f64>() / day_scene.gain.len() as f64;
+    let gain_err = (0..day_scene.gain.len())
+        .map(|k| (phys.gain[k].value - day_scene.gain[k] / mean).abs())
+        .fold(0.0, f64::max);
+    let offset_max = phys
+        .offset_v
+        .iter()
+        .map(|o| o.value.abs())
+        .fold(0.0, f64::max);
+    println!("day BURST sweep's light model: gains within {gain_err:.4} of the scene's, offsets ≤ {offset_max:.1e} V, K_D {:.4} ± {:.4}", phys.k_d.value, phys.k_d.std);
+    assert!(
+        gain_err < 0.01 && offset_max < 1e-4,
+        "{gain_err} {offset_max}"
     );
+    let day = run(&day_scene, &day_cal, &SEEDS);
     println!(
         "\nharbour approach, beacon blinking at 250 Hz, tracker, {} seeds\n{HEAD}",
         SEEDS.len()
