@@ -3,7 +3,7 @@
 //! on; each is calibrated here from its own sweeps (`SweepPlan`, written
 //! and read back as a log, BURSTs demodulated on the way by the
 //! calibration's reader), and the approach is simulated sample by sample
-//! and demodulated as `lightpose replay` would (`lightpose_demod`).
+//! and demodulated as its log would be (`lightpose_sim::EstimatorFrames`).
 //!
 //! - A beacon blinking at 250 Hz, sampled at 2 kHz, through 5 V of
 //!   daylight at 4 m with flicker 0.3, AHRS with roll: the tracker's p95
@@ -24,12 +24,11 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-use lightpose_core::{Burst, Estimator, Status};
-use lightpose_demod::demodulator_for;
+use lightpose_core::{Estimator, Status};
 use lightpose_pipeline::calibration::{calibrate_full, CalibrateOptions};
 use lightpose_pipeline::settings::DaylightConfig;
 use lightpose_pipeline::{build_estimator, Calibration};
-use lightpose_sim::{Scene, Simulator, SweepKind, SweepPlan, Trajectory};
+use lightpose_sim::{EstimatorFrames, Scene, Simulator, SweepKind, SweepPlan, Trajectory};
 
 fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -120,27 +119,19 @@ const HEAD: &str = "| run | ok after 1 s | p95 x m | y m | z m | pitch ° | yaw 
 /// The approach through `scene` with the tracker of `cal`, over `seeds`.
 fn run(scene: &Scene, cal: &Calibration, seeds: &[u64]) -> Run {
     let traj = Trajectory::load(&data("harbour-approach.csv")).expect("trajectory");
-    let n = scene.adc.samples_per_frame();
     let mut out = Run::default();
     let mut statuses = std::collections::BTreeMap::<&'static str, (Status, usize)>::new();
     for &seed in seeds {
         let mut est: Box<dyn Estimator> = build_estimator("tracker", cal).expect("tracker");
         let mut sim = Simulator::new(scene.clone(), seed);
         sim.set_report_roll(traj.has_roll());
-        let mut demod = demodulator_for(&scene.log_header()).expect("demodulator");
-        let mut demodulated = demod.as_ref().map(|d| d.output()).unwrap_or_default();
-        let mut burst = Burst::new(n);
+        let mut frames = EstimatorFrames::new(sim).expect("demodulator");
         let at = |t: f64| traj.kinematics(t);
         for (seq, t) in traj.frame_times(scene.adc.rate_hz).enumerate() {
-            let frame = match demod.as_mut() {
-                Some(d) => {
-                    sim.burst(seq as u64, t, at, &mut burst);
-                    d.demodulate_burst(&burst, &mut demodulated)
-                        .expect("demodulated");
-                    demodulated.to_frame()
-                }
-                None => sim.frame_at(seq as u64, t, at, &mut burst),
-            };
+            let frame = frames.frame(seq as u64, t, at);
+            if scene.adc.samples_per_frame() > 1 {
+                assert!(frame.amplitudes.is_some(), "frame {seq} not demodulated");
+            }
             let e = est.estimate(&frame);
             if frame.t - traj.t0() < 1.0 {
                 continue;
