@@ -222,6 +222,10 @@ struct Group {
     sumsq: [f64; NDET],
     clipped: [bool; NDET],
     gt_sum: f64,
+    /// Amplitudes: the sum of the demodulator's variance of each channel's
+    /// amplitude over the group's frames (its scatter, known per frame:
+    /// a few frames a pose estimate it poorly themselves).
+    reported_var: [f64; NDET],
 }
 
 impl Group {
@@ -233,6 +237,7 @@ impl Group {
             sumsq: [0.0; NDET],
             clipped: [false; NDET],
             gt_sum: 0.0,
+            reported_var: [0.0; NDET],
         }
     }
 }
@@ -277,13 +282,14 @@ impl PhysicalFitter {
             // without the beacon in use the frame is dark.
             let b = a.beacon(crate::model::measurement::BEACON);
             for k in 0..NDET {
-                let c = b.map_or(0.0, |b| b.amplitude[k]);
-                if a.clipped[k] > 0 || !c.is_finite() {
+                let (c, sd) = b.map_or((0.0, 0.0), |b| (b.amplitude[k], b.std[k]));
+                if a.clipped[k] > 0 || !c.is_finite() || !sd.is_finite() {
                     g.clipped[k] = true;
                     continue;
                 }
                 g.sum[k] += c;
                 g.sumsq[k] += c * c;
+                g.reported_var[k] += sd * sd;
             }
             return;
         }

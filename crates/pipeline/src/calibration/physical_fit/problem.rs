@@ -52,6 +52,13 @@ fn channel_stats(g: &Group, k: usize) -> (f64, f64) {
     let n = g.n as f64;
     let mean = g.sum[k] / n;
     let s2 = ((g.sumsq[k] - n * mean * mean) / (n - 1.0)).max(0.0);
+    // Amplitudes carry their own variance (the demodulator's, checked
+    // against their scatter): with the 3 frames a pose of a BURST sweep
+    // the sample variance has 2 degrees of freedom, and weights that
+    // noisy biased the fit (K_D 7σ off its std on the harbour sweep).
+    if g.reported_var[k] > 0.0 {
+        return (mean, g.reported_var[k] / n);
+    }
     (mean, s2)
 }
 
