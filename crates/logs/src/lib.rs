@@ -204,6 +204,12 @@ impl FrameLog for LogFile {
             LogFile::Mcap(r) => FrameLog::next_frame(r.as_mut()),
         }
     }
+    fn next_record(&mut self) -> Option<Result<lightpose_core::samples::Record<'_>, LogError>> {
+        match self {
+            LogFile::Jsonl(r) => FrameLog::next_record(r.as_mut()),
+            LogFile::Mcap(r) => FrameLog::next_record(r.as_mut()),
+        }
+    }
     fn cut(&self) -> Option<Cut> {
         self.get().cut()
     }

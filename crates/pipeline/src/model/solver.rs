@@ -21,7 +21,7 @@ use lightpose_core::{COLS, NDET, ROWS};
 use nalgebra::{SMatrix, SVector};
 
 use super::daylight::{counts_per_level, Ambient};
-use super::light::{predict, predict_with_grad, PoseJacobian, PoseVec};
+use super::light::{predict_rolled, predict_with_grad_rolled, PoseJacobian, PoseVec};
 use super::measurement::Measurement;
 use super::SensorModel;
 
@@ -245,8 +245,15 @@ pub struct SolveOptions {
     /// Channels frozen by their history (bit k for detector k), left out
     /// as stuck ones are (see [`Censoring::classify`]).
     pub frozen: u32,
+    /// Spec v3: the roll (rad) the fit holds the vehicle at, and its
+    /// variance (rad²): roll is a *consider* parameter, not fitted (one
+    /// beacon barely sees it), whose doubt [`solve`] carries into the
+    /// covariance. 0 and 0 are spec v1/v2's fit exactly.
+    pub roll: f64,
+    pub roll_var: f64,
     /// Daylight on a steady beacon's counts, profiled out of the fit
-    /// (`None`: none, as in v1/v2; amplitudes never carry it).
+    /// (`None`: none, as in v1/v2; amplitudes never carry it). The roll
+    /// above turns the dome under the sky too.
     pub ambient: Option<AmbientOptions>,
 }
 
@@ -257,9 +264,6 @@ pub struct AmbientOptions {
     pub rho: f64,
     /// Relative 1σ of each channel's own flicker.
     pub flicker: f64,
-    /// Roll (radians) that turns the dome under the sky: the frame's
-    /// reading, else 0.
-    pub roll: f64,
 }
 
 /// Outcome of one solve.
@@ -267,7 +271,8 @@ pub struct AmbientOptions {
 pub struct LmResult {
     pub q: PoseVec,
     /// Covariance of the free coordinates from (JᵀWJ + prior)⁻¹ at the
-    /// optimum; zero rows and columns for fixed ones.
+    /// optimum, plus what the roll's doubt does to them (`roll_var`);
+    /// zero rows and columns for fixed ones.
     pub cov: M5,
     /// Σ of squared normalized residuals (data and active penalties).
     pub chi2: f64,
@@ -401,7 +406,7 @@ impl Problem<'_> {
     #[inline]
     fn linearize(&self, q: &PoseVec, w: &mut [f64; NDET], r: &mut [f64; NDET]) -> Linearized {
         let o = self.o;
-        let (mut pred, irr, mut jac) = predict_with_grad(self.m, q, o.k_d, o.gt);
+        let (mut pred, irr, mut jac, _) = predict_with_grad_rolled(self.m, q, o.roll, o.k_d, o.gt);
         noise_weights(self.m, self.meas, &irr, o.gt, w);
         if let Some(a) = self.ambient_at(q) {
             self.profile(&a, &irr, &mut pred, &mut jac, w);
@@ -422,7 +427,7 @@ impl Problem<'_> {
     fn ambient_at(&self, q: &PoseVec) -> Option<Ambient> {
         let a = self.o.ambient.filter(|_| !self.meas.is_amplitude())?;
         Some(Ambient {
-            b: counts_per_level(self.m, a.rho, q[3], q[4], a.roll, self.o.gt),
+            b: counts_per_level(self.m, a.rho, q[3], q[4], self.o.roll, self.o.gt),
             flicker: a.flicker,
         })
     }
@@ -478,7 +483,7 @@ impl Problem<'_> {
     /// Cost (χ² plus prior) at `q` with the weights `w` held.
     #[inline]
     fn cost_at(&self, q: &PoseVec, w: &[f64; NDET], r: &mut [f64; NDET]) -> f64 {
-        let (mut pred, _) = predict(self.m, q, self.o.k_d, self.o.gt);
+        let (mut pred, _) = predict_rolled(self.m, q, self.o.roll, self.o.k_d, self.o.gt);
         if let Some(a) = self.ambient_at(q) {
             let used = self.kinds.map(|k| k == Censoring::Data);
             let l = a.level(&self.meas.z, pred.as_slice(), w, &used);
@@ -598,7 +603,10 @@ pub fn solve(
         cost = chi2 + prior_cost(&q, prior);
         h = end.h;
     }
-    let cov = covariance(&h, &o.free);
+    let mut cov = covariance(&h, &o.free);
+    if o.roll_var > 0.0 {
+        consider_roll(&p, &q, &w, &mut cov);
+    }
     LmResult {
         q,
         cov,
@@ -609,6 +617,36 @@ pub fn solve(
         iterations,
         converged,
         ambient_v: p.ambient_at(&q).map(|_| p.level.get()),
+    }
+}
+
+/// Add the roll's doubt to `cov` (Schmidt's consider covariance of a least
+/// squares): the fit at a roll δφ off moves by s·δφ, s = −C·JᵀW²·∂r/∂φ
+/// with C the fit's covariance, so C gains s·sᵀ·σ_φ². Only the channels
+/// that entered the fit's normal equations count, as there.
+fn consider_roll(p: &Problem, q: &PoseVec, w: &[f64; NDET], cov: &mut M5) {
+    let o = p.o;
+    let (mut pred, _, jac, jr) = predict_with_grad_rolled(p.m, q, o.roll, o.k_d, o.gt);
+    if let Some(a) = p.ambient_at(q) {
+        // By day the prediction carries the fit's ambient level (its turn
+        // with roll is left out of the sensitivity: second order).
+        for k in 0..NDET {
+            pred[k] += p.level.get() * a.b[k];
+        }
+    }
+    let mut r = [0.0; NDET];
+    residuals(&p.meas.z, &p.kinds, &pred, w, p.fs, &mut r);
+    let mut g = SVector::<f64, 5>::zeros();
+    for k in 0..NDET {
+        if !(p.kinds[k] == Censoring::Data || r[k] != 0.0) {
+            continue;
+        }
+        let row = jac.fixed_view::<1, 5>(k, 0).transpose() * (w[k] * w[k]);
+        g += row * jr[k];
+    }
+    let sens = -(*cov * g);
+    if sens.iter().all(|v| v.is_finite()) {
+        *cov += sens * sens.transpose() * o.roll_var;
     }
 }
 

@@ -16,7 +16,7 @@ use nalgebra::{SMatrix, SVector};
 use super::state::{k_d_of, Ms, State, Vs, KD, NS};
 use super::Tracker;
 use crate::model::daylight::{counts_per_level, Ambient};
-use crate::model::light::{predict, predict_with_grad, PoseVec};
+use crate::model::light::{predict_rolled, predict_with_grad_rolled, PoseVec};
 use crate::model::measurement::Measurement;
 use crate::model::solver::{AmbientOptions, Censoring};
 
@@ -93,14 +93,16 @@ impl Tracker {
     /// (pose, K_D) covariance about the state.
     fn sigma_spread(&self, s: &State, l: &Pm, gt: f64) -> SigmaSpread {
         let m = &self.model;
+        let roll = s.roll_rad();
         let at = |d: &SVector<f64, NP>| -> Zv {
             let q = PoseVec::from_fn(|i, _| s.x[i] + d[i]);
             let kd = (s.x[KD] + d[5]).exp();
-            predict(m, &q, kd, gt).0
+            predict_rolled(m, &q, roll, kd, gt).0
         };
         let h = H2.sqrt();
         // The centre point also gives the irradiance the noise model needs.
-        let (z0, irr) = predict(m, &PoseVec::from_fn(|i, _| s.x[i]), k_d_of(&s.x), gt);
+        let q0 = PoseVec::from_fn(|i, _| s.x[i]);
+        let (z0, irr) = predict_rolled(m, &q0, roll, k_d_of(&s.x), gt);
         let mut sp = SigmaSpread {
             s1: SMatrix::zeros(),
             s2: SMatrix::zeros(),
@@ -143,7 +145,7 @@ impl Tracker {
         };
         let l = chol.l();
         let mut sp = self.sigma_spread(s, &l, inp.gt);
-        let day = self.ambient_of(&s.x, inp, &sp.zbar, &sp.irr);
+        let day = self.ambient_of(&s.x, s.roll_rad(), inp, &sp.zbar, &sp.irr);
         if day.modelled {
             sp.zbar += day.offset;
         }
@@ -162,6 +164,16 @@ impl Tracker {
             }
         }
         let mut pzz = sp.s1 * sp.s1.transpose() + sp.s2 * sp.s2.transpose();
+        if let Some((roll, sd)) = s.roll.filter(|(_, sd)| *sd > 0.0) {
+            let q = PoseVec::from_fn(|i, _| s.x[i]);
+            let mut jr = predict_with_grad_rolled(m, &q, roll, k_d_of(&s.x), inp.gt).3;
+            for k in 0..NDET {
+                if !used[k] {
+                    jr[k] = 0.0;
+                }
+            }
+            pzz += jr * jr.transpose() * (sd * sd);
+        }
         for k in 0..NDET {
             pzz[(k, k)] += if used[k] { day.var[k] } else { 1.0 };
         }
@@ -203,15 +215,17 @@ impl Tracker {
         true
     }
 
-    /// One linearization of the counts at `xi`: Jacobian, innovation and
-    /// noise of the channels that enter.
-    fn counts_linearized(&self, xi: &Vs, inp: &CountsInput) -> (Hm, Zv, Rm, usize) {
+    /// One linearization of the counts at `xi` rolled by `roll`: Jacobian,
+    /// innovation and noise of the channels that enter (with the ambient's
+    /// level's doubt by day: a full matrix), and ∂count/∂φ of those
+    /// channels (0 for the others).
+    fn counts_linearized(&self, xi: &Vs, roll: f64, inp: &CountsInput) -> (Hm, Zv, Rm, usize, Zv) {
         let m = &self.model;
         let fs = m.full_scale();
         let q = PoseVec::from_fn(|i, _| xi[i]);
         let k_d = k_d_of(xi);
-        let (pred, irr, jac) = predict_with_grad(m, &q, k_d, inp.gt);
-        let day = self.ambient_of(xi, inp, &pred, &irr);
+        let (pred, irr, jac, mut jr) = predict_with_grad_rolled(m, &q, roll, k_d, inp.gt);
+        let day = self.ambient_of(xi, roll, inp, &pred, &irr);
         let pred = pred + day.offset;
         let mut h = Hm::zeros();
         let mut y = Zv::zeros();
@@ -221,6 +235,7 @@ impl Tracker {
         for k in 0..NDET {
             let obs = inp.meas.z[k];
             let Some(z) = inp.meas.kinds[k].target(obs, pred[k], fs) else {
+                jr[k] = 0.0;
                 continue;
             };
             for j in 0..5 {
@@ -235,7 +250,7 @@ impl Tracker {
         if day.modelled {
             r += nb * nb.transpose();
         }
-        (h, y, r, n_used)
+        (h, y, r, n_used, jr)
     }
 
     /// What the ambient does to a counts update about state `x`, whose
@@ -249,7 +264,14 @@ impl Tracker {
     /// a spread (twice what would take any channel to full scale) that
     /// leaves the data alone to say it; the pose's information is then the
     /// part of the counts the ambient's shape cannot explain.
-    fn ambient_of(&self, x: &Vs, inp: &CountsInput, pred: &Zv, irr: &[f64; NDET]) -> Daylit {
+    fn ambient_of(
+        &self,
+        x: &Vs,
+        roll: f64,
+        inp: &CountsInput,
+        pred: &Zv,
+        irr: &[f64; NDET],
+    ) -> Daylit {
         let m = &self.model;
         let e = |k: usize| irr[k] * m.gain[k] * inp.gt;
         let mut out = Daylit {
@@ -265,7 +287,7 @@ impl Tracker {
             return out;
         };
         let a = Ambient {
-            b: counts_per_level(m, o.rho, x[3], x[4], o.roll, inp.gt),
+            b: counts_per_level(m, o.rho, x[3], x[4], roll, inp.gt),
             flicker: o.flicker,
         };
         let w = out.var.map(|v| 1.0 / v.sqrt());
@@ -297,7 +319,12 @@ impl Tracker {
         let mut nis = 0.0;
         let mut last: Option<(Hm, SMatrix<f64, NDET, NDET>, SMatrix<f64, NS, NDET>)> = None;
         for it in 0..self.cfg.update_iterations {
-            let (h, y, r, n_used) = self.counts_linearized(&xi, inp);
+            let (h, y, mut r, n_used, jr) = self.counts_linearized(&xi, s.roll_rad(), inp);
+            // Roll's doubt as the counts' own (a consider parameter: the
+            // channels it moves together are doubted together).
+            if let Some((_, sd)) = s.roll.filter(|(_, sd)| *sd > 0.0) {
+                r += jr * jr.transpose() * (sd * sd);
+            }
             // IEKF: innovation about the linearization point.
             let innov = y - h * (xbar - xi);
             let sm = h * pbar * h.transpose() + r;
