@@ -685,11 +685,12 @@ mod tests {
                 (1.0 / 0.3f64.to_radians(), 1.0 / 1.5f64.to_radians());
             let q0 = super::super::light::from_pose(&pose);
             o.roll = phi.to_radians();
-            let base = solve(&m, &f.counts, &q0, &prior, &o);
+            let meas = Measurement::of(&m, &f, o.frozen);
+            let base = solve(&m, &meas, &q0, &prior, &o);
             let sd = 5f64.to_radians();
             let with = solve(
                 &m,
-                &f.counts,
+                &meas,
                 &q0,
                 &prior,
                 &SolveOptions {
@@ -702,7 +703,7 @@ mod tests {
             let at = |d: f64| {
                 solve(
                     &m,
-                    &f.counts,
+                    &meas,
                     &base.q,
                     &prior,
                     &SolveOptions {
