@@ -82,9 +82,16 @@ impl SimSource {
                 " with injected faults"
             },
         );
-        let per_pass = traj.frame_count(1.0 / dt).max(1);
         let scene = sim.scene();
         let n = scene.adc.samples_per_frame();
+        // A frame while its middle is within the trajectory (MODEL.md): with
+        // one sample, its instant.
+        let per_pass = if n > 1 {
+            traj.burst_count(1.0 / dt, n, scene.adc.sample_hz)
+        } else {
+            traj.frame_count(1.0 / dt)
+        }
+        .max(1);
         let sampling = (n > 1).then(|| Sampling {
             sample_hz: scene.adc.sample_hz,
             samples_per_frame: n,
@@ -255,22 +262,10 @@ impl SimSource {
     /// frame's samples, trajectory time `tt` at its first.
     fn burst_of(&mut self, slot: &Slot, out: &mut Burst) {
         let (traj, off) = (&self.traj, slot.tt - slot.t);
-        let (t0, t_end, looping) = (traj.t0(), traj.t_end(), self.looping);
-        let span = t_end - t0;
-        self.sim.burst(
-            slot.seq,
-            slot.t,
-            |s| {
-                // A looping pass's last samples run on into the next
-                // pass's first: the trajectory's start, as its frames.
-                let mut at = s + off;
-                if looping && at > t_end && span > 0.0 {
-                    at -= span;
-                }
-                traj.kinematics(at)
-            },
-            out,
-        );
+        // As `lightpose simulate`: the trajectory at each sample's instant
+        // (a frame's last samples may run past its end, where it holds).
+        self.sim
+            .burst(slot.seq, slot.t, |s| traj.kinematics(s + off), out);
     }
 }
 
@@ -528,5 +523,66 @@ mod tests {
         });
         let got = rx.recv_timeout(std::time::Duration::from_secs(5));
         assert_eq!(got.ok(), Some((5_000_000_001, true)));
+    }
+
+    /// The harbour by day, blinking at 250 Hz and sampled at 2 kHz.
+    fn day() -> Scene {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../config/scenes/harbour-day.toml");
+        Scene::load(&p).expect("config/scenes/harbour-day.toml")
+    }
+
+    /// Spec v3: a scene that samples faster than its frames gives bursts,
+    /// each the simulator's own for that frame (the same seed, the same
+    /// samples), its readings faulted as a frame's; `next_frame` refuses.
+    #[test]
+    fn a_sampling_scene_gives_the_simulators_bursts() {
+        let faults = Faults {
+            stuck: vec![(3, 77)],
+            bus_error_every: Some(4),
+            ..Faults::default()
+        };
+        let mut s = src_in(day(), false, faults);
+        let sampling = s.sampling().expect("bursts");
+        assert_eq!(sampling.samples_per_frame, 400);
+        assert_eq!(sampling.sample_hz, 2000.0);
+        assert_eq!(sampling.channel_skew_s, 2e-5);
+        assert_eq!(sampling.beacons.len(), 1);
+        assert_eq!(sampling.beacons[0].mod_hz, 250.0);
+        assert!(matches!(s.next_frame(), Err(SourceError::BadData { .. })));
+
+        let mut s = src_in(day(), false, Faults::default());
+        let mut direct = Simulator::new(day(), 7);
+        let (mut got, mut want) = (Burst::new(1), Burst::new(400));
+        for seq in 0..3u64 {
+            assert_eq!(s.next_take(&mut got).expect("a burst"), Take::Burst);
+            let t = seq as f64 / 5.0;
+            direct.burst(seq, t, |u| traj().kinematics(u), &mut want);
+            assert_eq!(got, want, "frame {seq}");
+        }
+        // traj() is 2 s: frames while their middle is within it.
+        let mut n = 3;
+        while s.next_take(&mut got).is_ok() {
+            n += 1;
+        }
+        assert_eq!(n, 10);
+
+        let faults = Faults {
+            stuck: vec![(3, 77)],
+            bus_error_every: Some(4),
+            ..Faults::default()
+        };
+        let mut s = src_in(day(), true, faults);
+        let mut errors = 0;
+        for _ in 0..12 {
+            match s.next_take(&mut got) {
+                Ok(Take::Burst) => assert!(got.channel(3).iter().all(|&c| c == 77)),
+                Ok(Take::Frame(_)) => panic!("a frame from a source of bursts"),
+                Err(SourceError::Bus { .. }) => errors += 1,
+                Err(e) => panic!("{e}"),
+            }
+        }
+        assert_eq!(errors, 3);
+        assert_eq!(s.health().injected_faults, 3);
     }
 }

@@ -133,3 +133,75 @@ impl Demod {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lightpose_core::samples::BeaconInfo;
+
+    fn sampling(mod_hz: f64, skew: f64) -> Sampling {
+        Sampling {
+            sample_hz: 2000.0,
+            samples_per_frame: 400,
+            channel_skew_s: skew,
+            beacons: vec![BeaconInfo {
+                id: "beacon".into(),
+                mod_hz,
+            }],
+        }
+    }
+
+    /// The demodulator a source's sampling asks for is the one a log of
+    /// that header gets; what it cannot take (a steady beacon sampled
+    /// fast, a frequency off MODEL.md's grid, a skew past the frame) is
+    /// refused, as `--check-config` then says at the backend's key.
+    #[test]
+    fn a_sampling_is_demodulated_as_its_header_would_be() {
+        let d = demodulator(&sampling(250.0, 2e-5), 5.0).expect("valid");
+        assert_eq!(d.samples_per_channel(), 400);
+        assert_eq!(d.config().channel_skew_s, 2e-5);
+        let mut h = LogHeader::new(10, 5.0);
+        header_fields(&mut h, &sampling(250.0, 2e-5));
+        assert_eq!(h.samples_per_frame(), 400);
+        assert_eq!(h.beacons[0].mod_hz, 250.0);
+        for (mod_hz, skew) in [(0.0, 0.0), (300.0, 0.0), (250.0, 0.01)] {
+            assert!(
+                demodulator(&sampling(mod_hz, skew), 5.0).is_err(),
+                "{mod_hz} Hz, skew {skew} s"
+            );
+        }
+        // The frame rate differs from the sampling's: N = 1.
+        assert!(demodulator(&sampling(250.0, 0.0), 2000.0).is_err());
+    }
+
+    /// A burst is demodulated into a frame with the beacon's amplitudes;
+    /// one with a count above full scale is the source's bad data, counted.
+    #[test]
+    fn bursts_become_frames_with_amplitudes_and_bad_ones_are_counted() {
+        let mut d = Demod::new(demodulator(&sampling(250.0, 0.0), 5.0).expect("valid"));
+        d.burst.adc_bits = 10;
+        for k in 0..lightpose_core::NDET {
+            for (i, c) in d.burst.channel_mut(k).iter_mut().enumerate() {
+                // 250 Hz at 2 kHz: on for 4 samples, off for 4.
+                *c = if (i / 4) % 2 == 0 { 300 } else { 100 };
+            }
+        }
+        let f = d.frame().expect("a frame");
+        let a = f.amplitudes.expect("amplitudes");
+        assert_eq!(a.n_beacons, 1);
+        assert!(
+            (a.beacons[0].amplitude[0] - 200.0).abs() < 1.0,
+            "{}",
+            a.beacons[0].amplitude[0]
+        );
+        assert!(d.last_burst().is_some());
+        d.burst.channel_mut(3)[5] = 1024;
+        assert!(matches!(d.frame(), Err(SourceError::BadData { .. })));
+        let mut s = None;
+        d.report(&mut s);
+        let s = s.expect("a report");
+        assert_eq!((s.frames, s.refused), (1, 1));
+        assert_eq!(s.beacons[0].id, "beacon");
+        assert!(s.beacons[0].locked, "{s:?}");
+    }
+}
