@@ -24,10 +24,16 @@ pub enum Status {
     /// not determine (without an attitude reading: y/yaw and z/pitch), so
     /// their std is not a guarantee.
     Unobservable,
+    /// Daylight on the array is more than the estimator can tell from a
+    /// steady beacon's light (spec v3): the ambient's level, fitted with
+    /// the pose, leaves the pose too uncertain to give, or the array is
+    /// lit beyond what the model of the ambient explains. A blinking
+    /// beacon (demodulated) does not meet it.
+    Daylight,
 }
 
 impl Status {
-    pub const ALL: [Status; 8] = [
+    pub const ALL: [Status; 9] = [
         Status::Ok,
         Status::NoLight,
         Status::Saturated,
@@ -36,6 +42,7 @@ impl Status {
         Status::BadFrame,
         Status::Diverged,
         Status::Unobservable,
+        Status::Daylight,
     ];
 
     /// The word of FORMATS.md's `status` field.
@@ -49,6 +56,7 @@ impl Status {
             Status::BadFrame => "bad_frame",
             Status::Diverged => "diverged",
             Status::Unobservable => "unobservable",
+            Status::Daylight => "daylight",
         }
     }
 

@@ -15,6 +15,8 @@ use serde::{Deserialize, Serialize};
 
 mod checks;
 
+pub use crate::model::daylight::DaylightConfig;
+
 /// The `[estimator]` table: what the model-based estimators model for this
 /// scene. Every key is optional. Scattering is not here: it is modelled
 /// exactly when the physical calibration kept it (`omega`, `sigma_h_deg`).
@@ -112,6 +114,12 @@ pub struct ModelConfig {
     /// montecarlo` and `bench` tell the estimator).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub k_d_sigma: Option<f64>,
+    /// `[estimator.model.daylight]`: the vehicle works by day with a steady
+    /// beacon, so the counts carry the sun's light (see
+    /// [`DaylightConfig`]); left out, none is modelled (v1/v2). Frames of
+    /// a blinking beacon (amplitudes) ignore it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub daylight: Option<DaylightConfig>,
 }
 
 impl Default for ModelConfig {
@@ -136,6 +144,7 @@ impl Default for ModelConfig {
             max_reduced_chi2: 100.0,
             max_gap_s: 2.0,
             k_d_sigma: None,
+            daylight: None,
         }
     }
 }
@@ -199,6 +208,9 @@ pub fn roll_of(
 impl ModelConfig {
     pub fn validate(&self) -> Result<(), ModelError> {
         let bad = |m: String| Err(ModelError::Config(m));
+        if let Some(d) = &self.daylight {
+            d.validate().map_err(ModelError::Config)?;
+        }
         let [lo, hi] = self.x_range;
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
             return bad(format!(
@@ -589,6 +601,10 @@ pub struct TrackerConfig {
     pub max_gap_s: f64,
     /// More channels at full scale than this gives `saturated`.
     pub max_saturated: usize,
+    /// `[estimator.tracker.daylight]`: as the model's (a steady beacon by
+    /// day: the ambient level marginalized in every update).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub daylight: Option<DaylightConfig>,
 }
 
 /// The most frames `water_check_frames` may span (a fixed ring).
@@ -667,6 +683,7 @@ impl Default for TrackerConfig {
             max_rejected: 3,
             max_gap_s: 2.0,
             max_saturated: 4,
+            daylight: None,
         }
     }
 }

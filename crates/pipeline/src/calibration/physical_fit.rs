@@ -201,6 +201,11 @@ pub enum CalibError {
     NoRepeatedPose(u64, u64),
     #[error("frames differ in ADC resolution ({0} and {1} bits)")]
     MixedBits(u8, u8),
+    #[error(
+        "the sweeps mix counts and demodulated amplitudes (a steady beacon's and a \
+         blinking one's): calibrate each from its own sweeps"
+    )]
+    MixedKinds,
     #[error("only {0} usable poses; the fit has {1} parameters")]
     TooFewPoses(usize, usize),
     #[error("the sweeps cannot determine {parameter}: {reason}")]
@@ -217,6 +222,10 @@ struct Group {
     sumsq: [f64; NDET],
     clipped: [bool; NDET],
     gt_sum: f64,
+    /// Amplitudes: the sum of the demodulator's variance of each channel's
+    /// amplitude over the group's frames (its scatter, known per frame:
+    /// a few frames a pose estimate it poorly themselves).
+    reported_var: [f64; NDET],
 }
 
 impl Group {
@@ -228,6 +237,7 @@ impl Group {
             sumsq: [0.0; NDET],
             clipped: [false; NDET],
             gt_sum: 0.0,
+            reported_var: [0.0; NDET],
         }
     }
 }
@@ -238,6 +248,9 @@ pub struct PhysicalFitter {
     groups: Vec<Group>,
     dark: Option<Group>,
     bits: Option<u8>,
+    /// Whether the frames are demodulated amplitudes (of the first frame;
+    /// the rest must agree).
+    amplitudes: Option<bool>,
     frames: u64,
 }
 
@@ -252,6 +265,10 @@ impl PhysicalFitter {
             Some(b) if b != f.adc_bits => return Err(CalibError::MixedBits(b, f.adc_bits)),
             _ => {}
         }
+        let amp = f.amplitudes.is_some();
+        if *self.amplitudes.get_or_insert(amp) != amp {
+            return Err(CalibError::MixedKinds);
+        }
         Ok(())
     }
 
@@ -259,6 +276,23 @@ impl PhysicalFitter {
         let fs = full_scale(f.adc_bits);
         g.n += 1;
         g.gt_sum += f.temp_c.map_or(1.0, temperature_gain);
+        if let Some(a) = f.amplitudes.as_ref() {
+            // A demodulated frame: the beacon's amplitude (no dark offset),
+            // a channel with a clipped sample left out of its pose's mean;
+            // without the beacon in use the frame is dark.
+            let b = a.beacon(crate::model::measurement::BEACON);
+            for k in 0..NDET {
+                let (c, sd) = b.map_or((0.0, 0.0), |b| (b.amplitude[k], b.std[k]));
+                if a.clipped[k] > 0 || !c.is_finite() || !sd.is_finite() {
+                    g.clipped[k] = true;
+                    continue;
+                }
+                g.sum[k] += c;
+                g.sumsq[k] += c * c;
+                g.reported_var[k] += sd * sd;
+            }
+            return;
+        }
         for k in 0..NDET {
             let c = f.counts[k];
             if c == 0 || c >= fs {

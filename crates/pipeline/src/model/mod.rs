@@ -20,9 +20,11 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod crb;
+pub mod daylight;
 pub(crate) mod findings;
 pub mod frozen;
 pub mod light;
+pub mod measurement;
 pub(crate) mod normal;
 pub mod single_frame;
 pub mod solver;
@@ -31,6 +33,7 @@ pub(crate) mod testutil;
 pub mod tracker;
 
 pub use light::{predict, predict_with_grad, PoseJacobian, NGRAD};
+pub use measurement::Measurement;
 pub use single_frame::ModelEstimator;
 pub use solver::{solve, Censoring, LmResult, Prior, SolveOptions};
 pub use tracker::{Tracker, WaterBank, WaterWatch};

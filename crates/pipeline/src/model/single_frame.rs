@@ -21,11 +21,11 @@ use lightpose_core::{Estimator, Findings, Frame, PoseEstimate, ReadingUse, Statu
 use super::findings::Found;
 use super::frozen::FrozenWatch;
 use super::light::{to_pose, PoseVec};
-use super::solver::{solve, Censoring, LmResult, Prior, SolveOptions};
+use super::measurement::Measurement;
+use super::solver::{solve, AmbientOptions, Censoring, LmResult, Prior, SolveOptions};
 use super::tracker::readings::{check_attitude, Pending};
 use super::SensorModel;
 use crate::settings::{Dof, ModelConfig, ModelError};
-use lightpose_core::frame::full_scale;
 use lightpose_core::light::{temperature_gain, WATER_TEMP_C};
 
 /// 1σ of x caused by a K_D error of `sigma_k_d` at range `x`: near the beam
@@ -172,13 +172,11 @@ impl ModelEstimator {
     /// own dark level; without that a frame says nothing about pose.
     pub fn has_light(&self, frame: &Frame) -> bool {
         let m = &self.model;
-        let cpv = m.counts_per_volt();
-        let sigma0 = m.count_variance(0.0).sqrt();
         // A channel stuck at full scale is no light.
-        let kinds = Censoring::classify(m, &frame.counts, self.frozen.mask());
+        let meas = Measurement::of(m, frame, self.frozen.mask());
         let best = (0..NDET)
-            .filter(|&k| kinds[k] != Censoring::Excluded)
-            .map(|k| (frame.counts[k] as f64 - m.offset_v[k] * cpv) / sigma0)
+            .filter(|&k| meas.kinds[k] != Censoring::Excluded)
+            .map(|k| meas.snr_without_light(m, k))
             .fold(f64::NEG_INFINITY, f64::max);
         best >= self.cfg.min_signal_sigma
     }
@@ -186,6 +184,7 @@ impl ModelEstimator {
     /// Solve one frame; `warm` is a starting pose to try first.
     pub(crate) fn fit_frame(&self, frame: &Frame, warm: Option<PoseVec>) -> FrameFit {
         let k = self.constraints(frame);
+        let meas = Measurement::of(&self.model, frame, self.frozen.mask());
         let mut f = match self.screen(frame) {
             Err(status) => FrameFit::failed(status),
             Ok(gt) => {
@@ -194,19 +193,25 @@ impl ModelEstimator {
                     opts.roll = roll;
                     opts.roll_var = sd * sd;
                 }
-                match self.best_fit(frame, warm, gt, &k, &opts) {
-                    Some(r) => self.judge(frame, r, k.free),
+                opts.ambient = self.ambient_for(frame);
+                match self.best_fit(&meas, warm, gt, &k, &opts) {
+                    Some(r) => {
+                        let mut f = self.judge(frame, r, k.free);
+                        let refused = f
+                            .fit
+                            .is_some_and(|r| self.daylight_refuses(&meas, &r, &k.free, &opts));
+                        if f.status == Status::Ok && refused {
+                            f.status = Status::Daylight;
+                        }
+                        f
+                    }
                     None => FrameFit::failed(Status::Diverged),
                 }
             }
         };
         f.attitude = k.attitude;
         f.roll = k.roll;
-        f.excluded = Censoring::excluded_mask(&Censoring::classify(
-            &self.model,
-            &frame.counts,
-            self.frozen.mask(),
-        ));
+        f.excluded = Censoring::excluded_mask(&meas.kinds);
         f
     }
 
@@ -301,14 +306,53 @@ impl ModelEstimator {
             frozen: self.frozen.mask(),
             roll: 0.0,
             roll_var: 0.0,
+            ambient: None,
         }
+    }
+
+    /// The ambient's settings for `frame` when daylight is modelled (the
+    /// fit's roll turns the dome under the sky: `SolveOptions::roll`).
+    pub(crate) fn ambient_for(&self, frame: &Frame) -> Option<AmbientOptions> {
+        let d = self.cfg.daylight.filter(|_| frame.amplitudes.is_none())?;
+        Some(AmbientOptions {
+            rho: d.upwelling,
+            flicker: d.flicker,
+        })
+    }
+
+    /// Whether a fit's pose is too uncertain, or too much of its light
+    /// ambient, to be called `ok` by day (`daylight`).
+    pub(crate) fn daylight_refuses(
+        &self,
+        meas: &Measurement,
+        r: &LmResult,
+        free: &[bool; 5],
+        o: &SolveOptions,
+    ) -> bool {
+        let (Some(d), Some(a), Some(level)) = (self.cfg.daylight, o.ambient, r.ambient_v) else {
+            return false;
+        };
+        let m = &self.model;
+        let too_wide = (0..3).any(|i| free[i] && !(r.cov[(i, i)].sqrt() <= d.max_sigma_m));
+        // The brightest channel's light above dark, and the ambient's share.
+        let cpv = m.counts_per_volt();
+        let b = super::daylight::counts_per_level(m, a.rho, r.q[3], r.q[4], o.roll, o.gt);
+        let (mut best, mut amb) = (0.0, 0.0);
+        for k in 0..NDET {
+            let lit = meas.z[k] - m.offset_v[k] * cpv;
+            if meas.kinds[k] == Censoring::Data && lit > best {
+                best = lit;
+                amb = level * b[k];
+            }
+        }
+        too_wide || !(amb <= d.max_ambient_share * best)
     }
 
     /// The warm start's fit if it is good; otherwise also a cold start from
     /// the image (position first, then the rest), keeping the better.
     fn best_fit(
         &self,
-        frame: &Frame,
+        meas: &Measurement,
         warm: Option<PoseVec>,
         gt: f64,
         k: &Constraints,
@@ -323,20 +367,20 @@ impl ModelEstimator {
             }
             // A warm start that fits badly may sit in the wrong basin: it
             // is kept only if the cold start below does no better.
-            result = Some(solve(m, &frame.counts, &q, &k.prior, opts));
+            result = Some(solve(m, meas, &q, &k.prior, opts));
         }
         let warm_good = result
             .as_ref()
             .is_some_and(|r| r.converged && reduced_chi2(r, &k.free) <= 4.0);
         if !warm_good {
-            if let Some(q0) = coarse_start(m, frame, gt, k.att_q, opts) {
+            if let Some(q0) = coarse_start(m, meas, gt, k.att_q, opts) {
                 // Position first with the attitude held, then the rest: the
                 // y/yaw and z/pitch ridges are easier to walk from there.
                 let mut pos_only = *opts;
                 pos_only.free = [true, true, true, false, false];
-                let r1 = solve(m, &frame.counts, &q0, &k.prior, &pos_only);
+                let r1 = solve(m, meas, &q0, &k.prior, &pos_only);
                 let r2 = if k.free[3] || k.free[4] {
-                    solve(m, &frame.counts, &r1.q, &k.prior, opts)
+                    solve(m, meas, &r1.q, &k.prior, opts)
                 } else {
                     r1
                 };
@@ -359,8 +403,7 @@ impl ModelEstimator {
         // bound), so a failed fit of such a frame is `saturated`, which
         // says why, not `diverged`; and without a pose (nothing to start
         // the tracker from).
-        let fs = full_scale(self.model.adc_bits);
-        let clipped = frame.counts.iter().filter(|&&k| k >= fs).count();
+        let clipped = Measurement::n_clipped(&self.model, frame);
         let refuse = |r: LmResult| {
             if clipped > c.max_saturated {
                 FrameFit::failed(Status::Saturated)
@@ -463,16 +506,16 @@ impl ModelEstimator {
 /// range (as if on the axis and facing it); attitude is the reading, or 0.
 pub(crate) fn coarse_start(
     m: &SensorModel,
-    frame: &Frame,
+    meas: &Measurement,
     gt: f64,
     att: Option<(f64, f64)>,
     o: &SolveOptions,
 ) -> Option<PoseVec> {
     let cpv = m.counts_per_volt();
-    let frame = &Censoring::stand_in(m, &Censoring::classify(m, &frame.counts, o.frozen), frame);
+    let z = Censoring::stand_in(m, meas);
     let mut e = [0.0; NDET];
     for k in 0..NDET {
-        let v = frame.counts[k] as f64 / cpv - m.offset_v[k];
+        let v = z[k] / cpv - m.offset_v[k];
         e[k] = (v / (m.gain[k] * gt)).max(0.0);
     }
     let (kmax, emax) = e
@@ -642,11 +685,12 @@ mod tests {
                 (1.0 / 0.3f64.to_radians(), 1.0 / 1.5f64.to_radians());
             let q0 = super::super::light::from_pose(&pose);
             o.roll = phi.to_radians();
-            let base = solve(&m, &f.counts, &q0, &prior, &o);
+            let meas = Measurement::of(&m, &f, o.frozen);
+            let base = solve(&m, &meas, &q0, &prior, &o);
             let sd = 5f64.to_radians();
             let with = solve(
                 &m,
-                &f.counts,
+                &meas,
                 &q0,
                 &prior,
                 &SolveOptions {
@@ -659,7 +703,7 @@ mod tests {
             let at = |d: f64| {
                 solve(
                     &m,
-                    &f.counts,
+                    &meas,
                     &base.q,
                     &prior,
                     &SolveOptions {
@@ -785,6 +829,84 @@ mod tests {
         assert!(
             beyond_3sx * 50 <= total / 5,
             "{beyond_3sx} x errors beyond 3σ"
+        );
+    }
+
+    /// A steady beacon's counts with daylight on them (MODEL.md's shape,
+    /// a level and each channel's own flicker): with the ambient modelled
+    /// the pose is `ok` and within 3σ where the beacon is bright against
+    /// it, and `daylight` where the sun leaves the beacon too little; not
+    /// modelled, the fit fails or is far off.
+    #[test]
+    fn daylight_is_profiled_out_or_refused_with_its_own_status() {
+        use crate::model::daylight::{counts_per_level, DaylightConfig};
+        let m = SensorModel {
+            adc_bits: 12,
+            offset_v: [0.3; NDET],
+            ..SensorModel::default()
+        };
+        let day = ModelConfig {
+            daylight: Some(DaylightConfig::default()),
+            k_d_sigma: Some(0.0),
+            ..ModelConfig::default()
+        };
+        let sig = Some((0.3f64.to_radians(), 1.5f64.to_radians()));
+        let mut rng = Rng::new(5);
+        let lit = |pose: &Pose, level: f64, rng: &mut Rng| {
+            let mut f = synth_frame(&m, pose, 0, 0.0, sig, rng);
+            let b = counts_per_level(&m, 0.02, pose.pitch.rad(), pose.yaw.rad(), 0.0, 1.0);
+            let fs = m.full_scale();
+            for k in 0..NDET {
+                let flicker = 1.0 + 0.045 * rng.normal();
+                let c = f.counts[k] as f64 + level * b[k] * flicker;
+                f.counts[k] = c.round().clamp(0.0, fs) as u16;
+            }
+            f
+        };
+        let (mut ok, mut beyond) = (0, 0);
+        for i in 0..30 {
+            let pose = Pose::new(
+                5.0 + 0.1 * i as f64,
+                0.2,
+                -0.1,
+                Angle::from_deg(3.0),
+                Angle::from_deg(-2.0),
+            );
+            let f = lit(&pose, 1.5, &mut rng);
+            let e = ModelEstimator::new(m.clone(), day.clone())
+                .unwrap()
+                .estimate(&f);
+            if e.status == Status::Ok {
+                ok += 1;
+                let d = [
+                    e.x.unwrap() - pose.x,
+                    e.y.unwrap() - pose.y,
+                    e.z.unwrap() - pose.z,
+                ];
+                let sd = [e.std.x.unwrap(), e.std.y.unwrap(), e.std.z.unwrap()];
+                if (0..3).any(|c| d[c].abs() > 3.0 * sd[c]) {
+                    beyond += 1;
+                }
+            }
+            let night = ModelEstimator::new(m.clone(), ModelConfig::default())
+                .unwrap()
+                .estimate(&f);
+            assert!(
+                night.status != Status::Ok || (night.x.unwrap() - pose.x).abs() > 0.5,
+                "unmodelled daylight read as the beacon's: {night:?}"
+            );
+        }
+        assert!(ok >= 27 && beyond <= 1, "{ok} ok, {beyond} beyond 3σ");
+        // Far off and under a strong sun the beacon is lost in it.
+        let far = Pose::new(11.5, 0.5, 0.5, Angle::from_deg(3.0), Angle::from_deg(-2.0));
+        let f = lit(&far, 2.5, &mut rng);
+        let e = ModelEstimator::new(m.clone(), day).unwrap().estimate(&f);
+        assert!(
+            matches!(
+                e.status,
+                Status::Daylight | Status::Diverged | Status::NoLight
+            ),
+            "{e:?}"
         );
     }
 

@@ -20,7 +20,9 @@
 use lightpose_core::{COLS, NDET, ROWS};
 use nalgebra::{SMatrix, SVector};
 
+use super::daylight::{counts_per_level, Ambient};
 use super::light::{predict_rolled, predict_with_grad_rolled, PoseJacobian, PoseVec};
+use super::measurement::Measurement;
 use super::SensorModel;
 
 type M5 = SMatrix<f64, 5, 5>;
@@ -122,16 +124,16 @@ impl Censoring {
     /// the Gaussian gives √(S_a·S_b)·e^(s²/2σ_r²) of light above dark (the
     /// geometric mean of both pairs when both exist); a channel without
     /// such a pair takes the mean of its neighbours. Fits leave it out.
-    pub fn stand_in(
-        m: &SensorModel,
-        kinds: &[Censoring; NDET],
-        frame: &lightpose_core::Frame,
-    ) -> lightpose_core::Frame {
-        let mut f = *frame;
+    ///
+    /// On the measurement's count scale ([`Measurement::z`]); a count's
+    /// stand-in is rounded and clamped as a count is, an amplitude's not.
+    pub fn stand_in(m: &SensorModel, meas: &Measurement) -> [f64; NDET] {
+        let kinds = &meas.kinds;
+        let mut f = meas.z;
         let cpv = m.counts_per_volt();
         let (s, sigma) = (m.geometry.spacing.rad(), m.light.sigma_r.rad());
         let curve = (0.5 * s * s / (sigma * sigma)).exp();
-        let light = |j: usize| (frame.counts[j] as f64 - m.offset_v[j] * cpv).max(0.0);
+        let light = |j: usize| (meas.z[j] - m.offset_v[j] * cpv).max(0.0);
         for k in 0..NDET {
             if kinds[k] != Censoring::Excluded {
                 continue;
@@ -170,7 +172,12 @@ impl Censoring {
                 }
             };
             let fs = m.full_scale();
-            f.counts[k] = (m.offset_v[k] * cpv + est).round().clamp(0.0, fs) as u16;
+            let z = m.offset_v[k] * cpv + est;
+            f[k] = if meas.is_amplitude() {
+                z
+            } else {
+                z.round().clamp(0.0, fs)
+            };
         }
         f
     }
@@ -244,6 +251,19 @@ pub struct SolveOptions {
     /// covariance. 0 and 0 are spec v1/v2's fit exactly.
     pub roll: f64,
     pub roll_var: f64,
+    /// Daylight on a steady beacon's counts, profiled out of the fit
+    /// (`None`: none, as in v1/v2; amplitudes never carry it). The roll
+    /// above turns the dome under the sky too.
+    pub ambient: Option<AmbientOptions>,
+}
+
+/// The ambient's settings for one frame's fit (see `model::daylight`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AmbientOptions {
+    /// ρ, the upwelling share.
+    pub rho: f64,
+    /// Relative 1σ of each channel's own flicker.
+    pub flicker: f64,
 }
 
 /// Outcome of one solve.
@@ -263,10 +283,13 @@ pub struct LmResult {
     pub n_saturated: usize,
     pub iterations: usize,
     pub converged: bool,
+    /// The ambient level profiled out at the optimum (volts on an
+    /// upward-facing detector before its gain), when daylight is modelled.
+    pub ambient_v: Option<f64>,
 }
 
 fn residuals(
-    counts: &[u16; NDET],
+    z: &[f64; NDET],
     kinds: &[Censoring; NDET],
     pred: &SVector<f64, NDET>,
     w: &[f64; NDET],
@@ -275,7 +298,7 @@ fn residuals(
 ) -> f64 {
     let mut chi2 = 0.0;
     for k in 0..NDET {
-        let obs = counts[k] as f64;
+        let obs = z[k];
         let r = match kinds[k] {
             Censoring::Data => pred[k] - obs,
             Censoring::Saturated => (pred[k] - (fs - 0.5)).min(0.0),
@@ -303,11 +326,18 @@ fn admissible(q: &PoseVec, o: &SolveOptions) -> bool {
         && q[4].abs() <= o.max_angle
 }
 
-/// The counts' weights 1/σ_k from the noise model at irradiance `irr`.
+/// The channels' weights 1/σ_k: the noise model's at irradiance `irr`
+/// for counts, the demodulator's for amplitudes.
 #[inline]
-fn noise_weights(m: &SensorModel, irr: &[f64; NDET], gt: f64, w: &mut [f64; NDET]) {
+fn noise_weights(
+    m: &SensorModel,
+    meas: &Measurement,
+    irr: &[f64; NDET],
+    gt: f64,
+    w: &mut [f64; NDET],
+) {
     for k in 0..NDET {
-        w[k] = 1.0 / m.count_variance(irr[k] * m.gain[k] * gt).sqrt();
+        w[k] = 1.0 / meas.variance(m, k, irr[k] * m.gain[k] * gt).sqrt();
     }
 }
 
@@ -352,11 +382,14 @@ fn pin_fixed(a: &mut M5, free: &[bool; 5]) {
 /// One frame's fit: what stays the same while the pose moves.
 struct Problem<'a> {
     m: &'a SensorModel,
-    counts: &'a [u16; NDET],
+    meas: &'a Measurement,
     kinds: [Censoring; NDET],
     fs: f64,
     prior: &'a Prior,
     o: &'a SolveOptions,
+    /// The ambient level of the last linearization (its noise weighs the
+    /// channels at the next).
+    level: std::cell::Cell<f64>,
 }
 
 /// The fit linearized at one pose: χ² of the counts, and the normal
@@ -373,9 +406,12 @@ impl Problem<'_> {
     #[inline]
     fn linearize(&self, q: &PoseVec, w: &mut [f64; NDET], r: &mut [f64; NDET]) -> Linearized {
         let o = self.o;
-        let (pred, irr, jac, _) = predict_with_grad_rolled(self.m, q, o.roll, o.k_d, o.gt);
-        noise_weights(self.m, &irr, o.gt, w);
-        let chi2 = residuals(self.counts, &self.kinds, &pred, w, self.fs, r);
+        let (mut pred, irr, mut jac, _) = predict_with_grad_rolled(self.m, q, o.roll, o.k_d, o.gt);
+        noise_weights(self.m, self.meas, &irr, o.gt, w);
+        if let Some(a) = self.ambient_at(q) {
+            self.profile(&a, &irr, &mut pred, &mut jac, w);
+        }
+        let chi2 = residuals(&self.meas.z, &self.kinds, &pred, w, self.fs, r);
         let (mut h, mut g) = normal_equations(&jac, &self.kinds, w, r);
         let prior = self.prior;
         for i in 0..5 {
@@ -386,11 +422,76 @@ impl Problem<'_> {
         Linearized { chi2, h, g }
     }
 
+    /// The ambient's shape at `q` when daylight is modelled (counts only).
+    #[inline]
+    fn ambient_at(&self, q: &PoseVec) -> Option<Ambient> {
+        let a = self.o.ambient.filter(|_| !self.meas.is_amplitude())?;
+        Some(Ambient {
+            b: counts_per_level(self.m, a.rho, q[3], q[4], self.o.roll, self.o.gt),
+            flicker: a.flicker,
+        })
+    }
+
+    /// Variable projection of the ambient level: the channels reweighted
+    /// with its shot noise and flicker at the last level, the level that
+    /// fits best added to the prediction, and the Jacobian's data rows
+    /// projected off the ambient's shape (so that JᵀWJ is the pose's
+    /// information with the level unknown: its covariance the marginal
+    /// one). The shape's turn with the attitude is left out of the
+    /// Jacobian (second order beside the AHRS's prior).
+    #[inline]
+    fn profile(
+        &self,
+        a: &Ambient,
+        irr: &[f64; NDET],
+        pred: &mut SVector<f64, NDET>,
+        jac: &mut PoseJacobian,
+        w: &mut [f64; NDET],
+    ) {
+        let (m, gt) = (self.m, self.o.gt);
+        let l0 = self.level.get();
+        let mut used = [false; NDET];
+        for k in 0..NDET {
+            let e = irr[k] * m.gain[k] * gt + a.volts(m, k, l0);
+            w[k] = 1.0 / (self.meas.variance(m, k, e) + a.flicker_variance(k, l0)).sqrt();
+            used[k] = self.kinds[k] == Censoring::Data;
+        }
+        let l = a.level(&self.meas.z, pred.as_slice(), w, &used);
+        self.level.set(l);
+        for k in 0..NDET {
+            pred[k] += l * a.b[k];
+        }
+        if !(l > 0.0) {
+            return;
+        }
+        let mut bb = 0.0;
+        let mut bj = [0.0; 5];
+        for k in (0..NDET).filter(|&k| used[k]) {
+            let w2 = w[k] * w[k];
+            bb += w2 * a.b[k] * a.b[k];
+            for j in 0..5 {
+                bj[j] += w2 * a.b[k] * jac[(k, j)];
+            }
+        }
+        for k in (0..NDET).filter(|&k| used[k]) {
+            for j in 0..5 {
+                jac[(k, j)] -= a.b[k] * bj[j] / bb;
+            }
+        }
+    }
+
     /// Cost (χ² plus prior) at `q` with the weights `w` held.
     #[inline]
     fn cost_at(&self, q: &PoseVec, w: &[f64; NDET], r: &mut [f64; NDET]) -> f64 {
-        let (pred, _) = predict_rolled(self.m, q, self.o.roll, self.o.k_d, self.o.gt);
-        residuals(self.counts, &self.kinds, &pred, w, self.fs, r) + prior_cost(q, self.prior)
+        let (mut pred, _) = predict_rolled(self.m, q, self.o.roll, self.o.k_d, self.o.gt);
+        if let Some(a) = self.ambient_at(q) {
+            let used = self.kinds.map(|k| k == Censoring::Data);
+            let l = a.level(&self.meas.z, pred.as_slice(), w, &used);
+            for k in 0..NDET {
+                pred[k] += l * a.b[k];
+            }
+        }
+        residuals(&self.meas.z, &self.kinds, &pred, w, self.fs, r) + prior_cost(q, self.prior)
     }
 
     /// Levenberg–Marquardt from `q` (cost `cost`): raise the damping until
@@ -442,26 +543,28 @@ impl Problem<'_> {
     }
 }
 
-/// Minimize the censored, weighted squared residuals plus the prior,
+/// Minimize the censored, weighted squared residuals of the frame's
+/// channels (`meas`: counts or amplitudes, classified) plus the prior,
 /// starting from `q0`. Weights come from the noise model at the current
 /// iterate (iteratively reweighted), so κ > 0 is handled too.
 pub fn solve(
     m: &SensorModel,
-    counts: &[u16; NDET],
+    meas: &Measurement,
     q0: &PoseVec,
     prior: &Prior,
     o: &SolveOptions,
 ) -> LmResult {
-    let kinds = Censoring::classify(m, counts, o.frozen);
+    let kinds = meas.kinds;
     let n_saturated = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
     let n_data = kinds.iter().filter(|k| **k == Censoring::Data).count();
     let p = Problem {
         m,
-        counts,
+        meas,
         kinds,
         fs: m.full_scale(),
         prior,
         o,
+        level: std::cell::Cell::new(0.0),
     };
     let mut q = *q0;
     let mut lambda = 1e-3;
@@ -513,6 +616,7 @@ pub fn solve(
         n_saturated,
         iterations,
         converged,
+        ambient_v: p.ambient_at(&q).map(|_| p.level.get()),
     }
 }
 
@@ -522,9 +626,16 @@ pub fn solve(
 /// that entered the fit's normal equations count, as there.
 fn consider_roll(p: &Problem, q: &PoseVec, w: &[f64; NDET], cov: &mut M5) {
     let o = p.o;
-    let (pred, _, jac, jr) = predict_with_grad_rolled(p.m, q, o.roll, o.k_d, o.gt);
+    let (mut pred, _, jac, jr) = predict_with_grad_rolled(p.m, q, o.roll, o.k_d, o.gt);
+    if let Some(a) = p.ambient_at(q) {
+        // By day the prediction carries the fit's ambient level (its turn
+        // with roll is left out of the sensitivity: second order).
+        for k in 0..NDET {
+            pred[k] += p.level.get() * a.b[k];
+        }
+    }
     let mut r = [0.0; NDET];
-    residuals(p.counts, &p.kinds, &pred, w, p.fs, &mut r);
+    residuals(&p.meas.z, &p.kinds, &pred, w, p.fs, &mut r);
     let mut g = SVector::<f64, 5>::zeros();
     for k in 0..NDET {
         if !(p.kinds[k] == Censoring::Data || r[k] != 0.0) {

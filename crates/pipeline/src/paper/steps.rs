@@ -264,7 +264,21 @@ pub fn prepare(
         return Err(Status::BadFrame);
     }
     let mut img = [0.0; NDET];
-    let saturated = signal_volts(&frame.counts, frame.adc_bits, v_ref, dark, &mut img);
+    let saturated = match frame.amplitudes.as_ref() {
+        // A demodulated frame's beacon image has no dark offset (it is the
+        // on level minus the off level); a clipped sample spoils it.
+        Some(a) => match a.beacon(crate::model::measurement::BEACON) {
+            Some(b) => {
+                let scale = v_ref / full_scale(frame.adc_bits) as f64;
+                for (v, amp) in img.iter_mut().zip(b.amplitude) {
+                    *v = amp * scale;
+                }
+                a.clipped.iter().any(|&c| c > 0)
+            }
+            None => return Err(Status::NoLight),
+        },
+        None => signal_volts(&frame.counts, frame.adc_bits, v_ref, dark, &mut img),
+    };
     let temp = frame
         .temp_c
         .filter(|t| t.is_finite())

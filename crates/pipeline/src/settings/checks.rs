@@ -17,6 +17,9 @@ const INIT_SIGMA_MIN: f64 = 1e-3;
 impl TrackerConfig {
     pub fn validate(&self) -> Result<(), ModelError> {
         let bad = |m: String| Err(ModelError::Config(m));
+        if let Some(d) = &self.daylight {
+            d.validate().map_err(ModelError::Config)?;
+        }
         super::roll_sigma_ok(self.roll_sigma_deg).map_err(ModelError::Config)?;
         for (name, v) in [
             ("accel_psd", self.accel_psd),

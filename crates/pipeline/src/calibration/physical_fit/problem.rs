@@ -52,6 +52,13 @@ fn channel_stats(g: &Group, k: usize) -> (f64, f64) {
     let n = g.n as f64;
     let mean = g.sum[k] / n;
     let s2 = ((g.sumsq[k] - n * mean * mean) / (n - 1.0)).max(0.0);
+    // Amplitudes carry their own variance (the demodulator's, checked
+    // against their scatter): with the 3 frames a pose of a BURST sweep
+    // the sample variance has 2 degrees of freedom, and weights that
+    // noisy biased the fit (K_D 7σ off its std on the harbour sweep).
+    if g.reported_var[k] > 0.0 {
+        return (mean, g.reported_var[k] / n);
+    }
     (mean, s2)
 }
 
@@ -60,6 +67,10 @@ fn channel_stats(g: &Group, k: usize) -> (f64, f64) {
 fn standard_error(s2: f64, n: f64) -> f64 {
     (s2.max(1.0 / 12.0) / n).sqrt()
 }
+
+/// How tightly an amplitude sweep's offsets are held at 0, counts: far
+/// below any pose mean's standard error, far above round-off.
+const AMPLITUDE_OFFSET_SE: f64 = 1e-3;
 
 impl Data {
     /// The per-pose means of the groups with at least `o.min_samples`
@@ -112,6 +123,12 @@ impl Data {
                     dv[k] = s2;
                 }
                 (Some(d), Some(dv))
+            }
+            // Amplitudes have no dark offset: the on level minus the off
+            // level of a beacon that is off is 0 exactly, so the offsets
+            // are held at 0 (a tight prior, in the place of a dark log's).
+            _ if fitter.amplitudes == Some(true) => {
+                (Some([(0.0, AMPLITUDE_OFFSET_SE); NDET]), None)
             }
             _ => (None, None),
         };

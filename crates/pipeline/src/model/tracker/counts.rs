@@ -10,13 +10,15 @@
 // Channel loops index several parallel per-detector arrays at once.
 #![allow(clippy::needless_range_loop)]
 
-use lightpose_core::{Frame, NDET};
+use lightpose_core::NDET;
 use nalgebra::{SMatrix, SVector};
 
 use super::state::{k_d_of, Ms, State, Vs, KD, NS};
 use super::Tracker;
+use crate::model::daylight::{counts_per_level, Ambient};
 use crate::model::light::{predict_rolled, predict_with_grad_rolled, PoseVec};
-use crate::model::solver::Censoring;
+use crate::model::measurement::Measurement;
+use crate::model::solver::{AmbientOptions, Censoring};
 
 /// The sigma-point update's coordinates: the pose and K_D.
 const NP: usize = 6;
@@ -26,13 +28,16 @@ const H2: f64 = 3.0;
 type Zv = SVector<f64, NDET>;
 type Hm = SMatrix<f64, NDET, NS>;
 type Pm = SMatrix<f64, NP, NP>;
+type Rm = SMatrix<f64, NDET, NDET>;
 
-/// What a counts update needs to know about the frame besides its counts.
+/// What a counts update needs to know about the frame.
 pub(super) struct CountsInput<'a> {
-    pub frame: &'a Frame,
     /// Temperature gain g_T of the frame.
     pub gt: f64,
-    pub kinds: [Censoring; NDET],
+    /// Its channels (counts or amplitudes), classified, with their noise.
+    pub meas: &'a Measurement,
+    /// Daylight on a steady beacon's counts, when modelled.
+    pub ambient: Option<AmbientOptions>,
     /// Attitude pinned by a reading this frame: the EKF's update suffices.
     pub pinned: bool,
 }
@@ -40,6 +45,17 @@ pub(super) struct CountsInput<'a> {
 /// A counts update that was not applied (the gate, or numbers that went
 /// bad): the state is untouched.
 const REFUSED: bool = false;
+
+/// The ambient's part in one counts update (see `Tracker::ambient_of`).
+struct Daylit {
+    modelled: bool,
+    /// Each channel's noise variance, counts².
+    var: [f64; NDET],
+    /// The fitted level's counts, added to the prediction.
+    offset: Zv,
+    /// The level's doubt in counts per channel (zero without daylight).
+    spread: Zv,
+}
 
 /// Predicted counts' first- and second-order divided differences along
 /// each sigma axis, and their mean.
@@ -129,12 +145,16 @@ impl Tracker {
         };
         let l = chol.l();
         let mut sp = self.sigma_spread(s, &l, inp.gt);
+        let day = self.ambient_of(&s.x, s.roll_rad(), inp, &sp.zbar, &sp.irr);
+        if day.modelled {
+            sp.zbar += day.offset;
+        }
         let mut y = Zv::zeros();
         let mut used = [false; NDET];
         let mut n_used = 0usize;
         for k in 0..NDET {
-            let obs = inp.frame.counts[k] as f64;
-            if let Some(z) = inp.kinds[k].target(obs, sp.zbar[k], fs) {
+            let obs = inp.meas.z[k];
+            if let Some(z) = inp.meas.kinds[k].target(obs, sp.zbar[k], fs) {
                 y[k] = z - sp.zbar[k];
                 used[k] = true;
                 n_used += 1;
@@ -155,11 +175,11 @@ impl Tracker {
             pzz += jr * jr.transpose() * (sd * sd);
         }
         for k in 0..NDET {
-            pzz[(k, k)] += if used[k] {
-                m.count_variance(sp.irr[k] * m.gain[k] * inp.gt)
-            } else {
-                1.0
-            };
+            pzz[(k, k)] += if used[k] { day.var[k] } else { 1.0 };
+        }
+        if day.modelled {
+            let nb = Zv::from_fn(|k, _| if used[k] { day.spread[k] } else { 0.0 });
+            pzz += nb * nb.transpose();
         }
         let Some(cs) = pzz.cholesky() else {
             return REFUSED;
@@ -196,21 +216,25 @@ impl Tracker {
     }
 
     /// One linearization of the counts at `xi` rolled by `roll`: Jacobian,
-    /// innovation and noise of the channels that enter, and ∂count/∂φ of
-    /// those channels (0 for the others).
-    fn counts_linearized(&self, xi: &Vs, roll: f64, inp: &CountsInput) -> (Hm, Zv, Zv, usize, Zv) {
+    /// innovation and noise of the channels that enter (with the ambient's
+    /// level's doubt by day: a full matrix), and ∂count/∂φ of those
+    /// channels (0 for the others).
+    fn counts_linearized(&self, xi: &Vs, roll: f64, inp: &CountsInput) -> (Hm, Zv, Rm, usize, Zv) {
         let m = &self.model;
         let fs = m.full_scale();
         let q = PoseVec::from_fn(|i, _| xi[i]);
         let k_d = k_d_of(xi);
         let (pred, irr, jac, mut jr) = predict_with_grad_rolled(m, &q, roll, k_d, inp.gt);
+        let day = self.ambient_of(xi, roll, inp, &pred, &irr);
+        let pred = pred + day.offset;
         let mut h = Hm::zeros();
         let mut y = Zv::zeros();
-        let mut r = Zv::from_element(1.0);
+        let mut r = Rm::identity();
+        let mut nb = Zv::zeros();
         let mut n_used = 0usize;
         for k in 0..NDET {
-            let obs = inp.frame.counts[k] as f64;
-            let Some(z) = inp.kinds[k].target(obs, pred[k], fs) else {
+            let obs = inp.meas.z[k];
+            let Some(z) = inp.meas.kinds[k].target(obs, pred[k], fs) else {
                 jr[k] = 0.0;
                 continue;
             };
@@ -219,10 +243,70 @@ impl Tracker {
             }
             h[(k, KD)] = jac[(k, 5)] * k_d;
             y[k] = z - pred[k];
-            r[k] = m.count_variance(irr[k] * m.gain[k] * inp.gt);
+            r[(k, k)] = day.var[k];
+            nb[k] = day.spread[k];
             n_used += 1;
         }
+        if day.modelled {
+            r += nb * nb.transpose();
+        }
         (h, y, r, n_used, jr)
+    }
+
+    /// What the ambient does to a counts update about state `x`, whose
+    /// prediction is `pred` (irradiance `irr`): each channel's variance
+    /// (the noise model's or the demodulator's, with the ambient's shot
+    /// noise and flicker), the level's share of each prediction, and the
+    /// level's doubt as a column whose outer product joins the channels'
+    /// noise. Why marginalized rather than a state: the level changes
+    /// from frame to frame as fast as the flicker (a random walk faster
+    /// than the frame rate), so each frame's update takes it unknown, with
+    /// a spread (twice what would take any channel to full scale) that
+    /// leaves the data alone to say it; the pose's information is then the
+    /// part of the counts the ambient's shape cannot explain.
+    fn ambient_of(
+        &self,
+        x: &Vs,
+        roll: f64,
+        inp: &CountsInput,
+        pred: &Zv,
+        irr: &[f64; NDET],
+    ) -> Daylit {
+        let m = &self.model;
+        let e = |k: usize| irr[k] * m.gain[k] * inp.gt;
+        let mut out = Daylit {
+            modelled: false,
+            var: [0.0; NDET],
+            offset: Zv::zeros(),
+            spread: Zv::zeros(),
+        };
+        for k in 0..NDET {
+            out.var[k] = inp.meas.variance(m, k, e(k));
+        }
+        let Some(o) = inp.ambient.filter(|_| !inp.meas.is_amplitude()) else {
+            return out;
+        };
+        let a = Ambient {
+            b: counts_per_level(m, o.rho, x[3], x[4], roll, inp.gt),
+            flicker: o.flicker,
+        };
+        let w = out.var.map(|v| 1.0 / v.sqrt());
+        let used = inp.meas.kinds.map(|k| k == Censoring::Data);
+        let level = a.level(&inp.meas.z, pred.as_slice(), &w, &used);
+        let bmax = a.b.iter().copied().fold(0.0, f64::max);
+        let spread = if bmax > 0.0 {
+            2.0 * m.full_scale() / bmax
+        } else {
+            0.0
+        };
+        out.modelled = true;
+        for k in 0..NDET {
+            out.var[k] =
+                inp.meas.variance(m, k, e(k) + a.volts(m, k, level)) + a.flicker_variance(k, level);
+            out.offset[k] = level * a.b[k];
+            out.spread[k] = spread * a.b[k];
+        }
+        out
     }
 
     /// Iterated EKF update with the frame's counts (one iteration by
@@ -235,8 +319,7 @@ impl Tracker {
         let mut nis = 0.0;
         let mut last: Option<(Hm, SMatrix<f64, NDET, NDET>, SMatrix<f64, NS, NDET>)> = None;
         for it in 0..self.cfg.update_iterations {
-            let (h, y, rd, n_used, jr) = self.counts_linearized(&xi, s.roll_rad(), inp);
-            let mut r = SMatrix::<f64, NDET, NDET>::from_diagonal(&rd);
+            let (h, y, mut r, n_used, jr) = self.counts_linearized(&xi, s.roll_rad(), inp);
             // Roll's doubt as the counts' own (a consider parameter: the
             // channels it moves together are doubted together).
             if let Some((_, sd)) = s.roll.filter(|(_, sd)| *sd > 0.0) {

@@ -56,7 +56,6 @@ use std::any::Any;
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{
     Estimator, Findings, Frame, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev,
-    NDET,
 };
 
 pub use self::bank::WaterBank;
@@ -67,6 +66,7 @@ use self::readings::{gate_thresholds, FrameReadings, PaperReading};
 use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
 pub use self::water_check::WaterWatch;
 use crate::model::findings::Found;
+use crate::model::measurement::Measurement;
 use crate::model::single_frame::ModelEstimator;
 use crate::model::solver::Censoring;
 use crate::model::SensorModel;
@@ -159,6 +159,7 @@ impl Tracker {
             x_range: cfg.x_range,
             max_saturated: cfg.max_saturated,
             k_d_sigma: Some(if cfg.estimate_k_d { 0.0 } else { k_d_sigma }),
+            daylight: cfg.daylight,
             ..ModelConfig::default()
         };
         let init = ModelEstimator::new(model.clone(), init_cfg)?;
@@ -467,6 +468,17 @@ impl Tracker {
         }
     }
 
+    /// Whether a steady beacon's counts by day (`daylight` set) leave the
+    /// position too uncertain to be called `ok`: σ of x, y or z above the
+    /// setting's `max_sigma_m` (the ambient's level, unknown every frame,
+    /// takes the part of the light its shape explains).
+    fn daylight_refuses(&self, s: &State, meas: &Measurement) -> bool {
+        let Some(d) = self.cfg.daylight.filter(|_| !meas.is_amplitude()) else {
+            return false;
+        };
+        (0..3).any(|i| !(s.p[(i, i)].sqrt() <= d.max_sigma_m))
+    }
+
     /// Surge and its 1σ: the body model's u, or the world model's velocity
     /// along the bow; the σ with the paper rate's drift when it was read.
     fn surge_of(&self, s: &State) -> (f64, f64) {
@@ -652,9 +664,9 @@ impl Tracker {
     fn estimate_one(&mut self, frame: &Frame) -> PoseEstimate {
         // Once per frame: the counts update and the report share it.
         self.init.observe_channels(frame);
-        let kinds = Censoring::classify(&self.model, &frame.counts, self.init.frozen_mask());
-        let mut e = self.estimate_frame(frame, kinds);
-        e.excluded_channels = Censoring::excluded_mask(&kinds);
+        let meas = Measurement::of(&self.model, frame, self.init.frozen_mask());
+        let mut e = self.estimate_frame(frame, &meas);
+        e.excluded_channels = Censoring::excluded_mask(&meas.kinds);
         let span = (self.cfg.reading_check_s / READING_CHECK_SLOT_S).round() as usize;
         e.agreement = self.agreement.report(span, self.cfg.reading_check_limit);
         self.dvl.report(&mut e.agreement);
@@ -742,8 +754,8 @@ impl Estimator for Tracker {
 
 impl Tracker {
     /// One frame through the filter (see [`Estimator::estimate`]), its
-    /// channels classified as `kinds`.
-    fn estimate_frame(&mut self, frame: &Frame, kinds: [Censoring; NDET]) -> PoseEstimate {
+    /// channels read and classified as `meas`.
+    fn estimate_frame(&mut self, frame: &Frame, meas: &Measurement) -> PoseEstimate {
         let mut readings = FrameReadings::check(frame, &self.cfg);
         // Issue 8: a temperature that is not water's is a bad frame, as in
         // the model estimator; the update used to correct such a frame as
@@ -757,7 +769,7 @@ impl Tracker {
         }
         // The paper law's reading of the frame, light only: the paper's
         // range and rate read it, and the DVL checks.
-        let law = self.law_reading(frame, &kinds);
+        let law = self.law_reading(frame, meas);
         // The DVL's and the attitude's readings as the frame gives them,
         // for the DVL checks after the update (refused or not).
         let dvl_seen = self.dvl_sample(frame.t, &readings, law);
@@ -810,11 +822,15 @@ impl Tracker {
             return e;
         }
         let gt = gain_of(frame);
-        let n_sat = kinds.iter().filter(|k| **k == Censoring::Saturated).count();
+        let n_sat = meas
+            .kinds
+            .iter()
+            .filter(|k| **k == Censoring::Saturated)
+            .count();
         let inp = CountsInput {
-            frame,
             gt,
-            kinds,
+            meas,
+            ambient: self.init.ambient_for(frame),
             pinned: uses[0] == ReadingUse::Used,
         };
         let applied = self.update_counts(&mut s, &inp);
@@ -886,7 +902,10 @@ impl Tracker {
         if applied {
             self.observe_dvl(frame.t, &s, dvl_seen);
         }
-        let status = self.status_of(&s, applied, n_sat, &uses);
+        let mut status = self.status_of(&s, applied, n_sat, &uses);
+        if status == Status::Ok && self.daylight_refuses(&s, meas) {
+            status = Status::Daylight;
+        }
         let mut e = self.to_estimate(frame, &s, status);
         e.readings = verdicts(uses);
         self.keep(s);

@@ -21,12 +21,13 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use crate::model::normal::erfc;
-use lightpose_core::{AttitudeReading, Frame, ReadingUse, Refusal};
+use lightpose_core::{AttitudeReading, Frame, ReadingUse, Refusal, NDET};
 use nalgebra::{SMatrix, SVector};
 
 use super::counts::commit;
-use super::state::{k_d_of, Kinds, Ms, State, DOFF, KD, NS, POFF, VEL};
+use super::state::{k_d_of, Ms, State, DOFF, KD, NS, POFF, VEL};
 use super::Tracker;
+use crate::model::measurement::Measurement;
 use crate::model::solver::Censoring;
 use crate::settings::{Motion, TrackerConfig};
 
@@ -445,18 +446,40 @@ impl Tracker {
     /// law's residual over the calibration grid (scaled, see
     /// `paper_range_sigma_scale`) and the counts' noise at the brightest
     /// channel through the law, σ_count/(peak·b1), in quadrature.
-    pub(super) fn law_reading(&self, frame: &Frame, kinds: &Kinds) -> Option<PaperReading> {
+    ///
+    /// None for counts by day (`daylight` set): the paper's moments read
+    /// the sun's light as the beacon's, a range metres short under 2 V of
+    /// it, and nothing in the law takes it out.
+    pub(super) fn law_reading(&self, frame: &Frame, meas: &Measurement) -> Option<PaperReading> {
+        if self.cfg.daylight.is_some() && !meas.is_amplitude() {
+            return None;
+        }
         let m = &self.model;
         let p = self.paper.as_ref()?;
         // The paper's moments read the whole image: a stuck channel, left
         // out of the fits, is read as its neighbours here.
-        let frame = &Censoring::stand_in(m, kinds, frame);
-        let x = p.est.range_of(frame)?;
+        let z = Censoring::stand_in(m, meas);
         let cpv = m.counts_per_volt();
-        let (peak, k) = (0..frame.counts.len())
-            .map(|k| (frame.counts[k] as f64 - m.offset_v[k] * cpv, k))
+        let mut whole = *frame;
+        match whole.amplitudes.as_mut().and_then(|a| {
+            let n = a.n_beacons.min(a.beacons.len());
+            a.beacons[..n]
+                .iter_mut()
+                .find(|b| b.beacon == crate::model::measurement::BEACON)
+        }) {
+            Some(b) => {
+                for k in 0..NDET {
+                    b.amplitude[k] = z[k] - m.offset_v[k] * cpv;
+                }
+            }
+            None => whole.counts = z.map(|c| c as u16),
+        }
+        let frame = &whole;
+        let x = p.est.range_of(frame)?;
+        let (peak, k) = (0..NDET)
+            .map(|k| (z[k] - m.offset_v[k] * cpv, k))
             .fold((f64::NEG_INFINITY, 0), |a, b| if b.0 > a.0 { b } else { a });
-        let var = m.count_variance((peak / cpv / m.gain[k]).max(0.0));
+        let var = meas.variance(m, k, (peak / cpv / m.gain[k]).max(0.0));
         let noise = var.sqrt() / (peak.max(1.0) * p.b1.max(1e-3));
         let sigma = noise.hypot(p.bias(self.cfg.paper_range_sigma_scale));
         (sigma.is_finite() && sigma > 0.0).then(|| PaperReading {

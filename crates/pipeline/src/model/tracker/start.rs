@@ -24,7 +24,6 @@
 // `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use lightpose_core::frame::full_scale;
 use lightpose_core::{Frame, ReadingUse, Status};
 
 use super::offsets::Offset;
@@ -32,6 +31,7 @@ use super::readings::{Checked, FrameReadings};
 use super::state::{body_axes, roll_axes, Ms, State, Vs, KD, VEL};
 use super::Tracker;
 use crate::model::light::PoseVec;
+use crate::model::measurement::Measurement;
 use crate::model::single_frame::coarse_start;
 use crate::model::solver::{solve, LmResult, Prior, SolveOptions};
 use crate::settings::Motion;
@@ -106,12 +106,18 @@ impl Tracker {
 
     /// Solve from `q0`: position first with the attitude held (the ridges
     /// are easier to walk from there), then all five.
-    fn solve_from(&self, frame: &Frame, q0: &PoseVec, prior: &Prior, o: &SolveOptions) -> LmResult {
+    fn solve_from(
+        &self,
+        meas: &Measurement,
+        q0: &PoseVec,
+        prior: &Prior,
+        o: &SolveOptions,
+    ) -> LmResult {
         let m = &self.model;
         let mut pos_only = *o;
         pos_only.free = [true, true, true, false, false];
-        let r1 = solve(m, &frame.counts, q0, prior, &pos_only);
-        solve(m, &frame.counts, &r1.q, prior, o)
+        let r1 = solve(m, meas, q0, prior, &pos_only);
+        solve(m, meas, &r1.q, prior, o)
     }
 
     /// The best fit of `frame` under `prior`, from each start candidate.
@@ -123,23 +129,25 @@ impl Tracker {
         gt: f64,
         roll: Option<(f64, f64)>,
     ) -> Option<LmResult> {
-        let o = self.start_options(gt, roll);
+        let mut o = self.start_options(gt, roll);
+        o.ambient = self.init.ambient_for(frame);
         let pitch_offset = self.offsets.prior(Offset::Pitch).0;
         let att = r.attitude.ready().map(|a| (a.z[0] - pitch_offset, a.z[1]));
-        let mut q0 = coarse_start(&self.model, frame, gt, att, &o)?;
+        let meas = &Measurement::of(&self.model, frame, o.frozen);
+        let mut q0 = coarse_start(&self.model, meas, gt, att, &o)?;
         let mut prior = self.start_prior(r, q0.fixed_rows::<3>(0).norm(), paper_x);
         let depth = r.depth.ready().is_some();
         if depth {
             let lat = o.max_lateral_ratio * q0[0] * 0.99;
             q0[2] = prior.mean[2].clamp(-lat, lat);
         }
-        let mut best = self.solve_from(frame, &q0, &prior, &o);
+        let mut best = self.solve_from(meas, &q0, &prior, &o);
         if att.is_none() && !depth && self.cfg.start_both_ways {
             // The same spot read as attitude: on the beam axis, facing
             // away from the beacon's direction by the offset.
             let range = q0.fixed_rows::<3>(0).norm();
             let on_axis = PoseVec::new(range, 0.0, 0.0, q0[2].atan2(q0[0]), q0[1].atan2(q0[0]));
-            let other = self.solve_from(frame, &on_axis, &prior, &o);
+            let other = self.solve_from(meas, &on_axis, &prior, &o);
             if other.converged && (!best.converged || other.cost < best.cost) {
                 best = other;
             }
@@ -150,7 +158,7 @@ impl Tracker {
             if let Some(d) = r.depth.ready() {
                 let offset = self.offsets.prior(Offset::Depth).0;
                 prior.mean[2] = self.dome_z_of_depth(d.z[0] - offset, best.q[3]);
-                best = solve(&self.model, &frame.counts, &best.q, &prior, &o);
+                best = solve(&self.model, meas, &best.q, &prior, &o);
             }
         }
         Some(best)
@@ -160,11 +168,7 @@ impl Tracker {
     /// it: `Ok`-like (Ok, Saturated, OutOfRange) lets the filter start.
     fn start_status(&self, frame: &Frame, f: &LmResult) -> Status {
         let c = self.init.config();
-        let clipped = frame
-            .counts
-            .iter()
-            .filter(|&&k| k >= full_scale(self.model.adc_bits))
-            .count();
+        let clipped = Measurement::n_clipped(&self.model, frame);
         let dof = 5usize;
         let red = f.chi2 / (f.n_data.saturating_sub(dof).max(1)) as f64;
         if !f.converged || !f.q.iter().all(|v| v.is_finite()) || !(red <= c.max_reduced_chi2) {

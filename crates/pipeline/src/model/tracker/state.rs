@@ -65,8 +65,6 @@ pub(super) fn ln_k_d_reach(k_d: f64, sigma_k_d: f64) -> f64 {
 }
 
 pub(super) type Vs = SVector<f64, NS>;
-/// A frame's channels as classified once per frame (`Censoring::classify`).
-pub(super) type Kinds = [crate::model::solver::Censoring; lightpose_core::NDET];
 pub(super) type Ms = SMatrix<f64, NS, NS>;
 
 #[derive(Debug, Clone, Copy)]
