@@ -24,11 +24,15 @@
 //! is refused (lightpose reads and writes uncompressed chunks only; the
 //! C compressors do not cross-build): nothing is written.
 //!
-//! Streaming, one record (at most [`RECORD_LIMIT`]) in memory; parsed here,
+//! Streaming, one record (at most [`RECORD_LIMIT`](crate::lines::RECORD_LIMIT)) in memory; parsed here,
 //! bounds-checked, as `lines.rs` does, never by the `mcap` crate's parser,
 //! which reserves what a corrupt length field says.
 
-use crate::lines::{read_full, summary_of, Fields, HEAD, RECORD_LIMIT};
+mod chunk;
+mod input;
+use input::{count_messages, kind, Input, Next};
+
+use crate::lines::{read_full, summary_of, Fields, HEAD};
 use lightpose_core::Cut;
 use mcap::records::{op, MessageHeader, Metadata};
 use mcap::Attachment;
@@ -260,33 +264,7 @@ impl Salvage {
             size: self.size,
             body: Vec::new(),
         };
-        // The first record: the Header, whose profile and library the
-        // output keeps.
-        let first = rd.next()?;
-        let header = match first {
-            Next::Record {
-                opcode: op::HEADER, ..
-            } => {
-                let mut f = Fields::new(&rd.body);
-                match (f.str(), f.str()) {
-                    (Ok(p), Ok(l)) => Some((p.to_string(), l.to_string())),
-                    _ => Some((String::new(), String::new())),
-                }
-            }
-            _ => None,
-        };
-        let (profile, library) = header.clone().unwrap_or_default();
-        let mut w = mcap::WriteOptions::new()
-            .compression(None)
-            .chunk_size(Some(opts.chunk_bytes.max(1)))
-            .profile(profile)
-            .library(library)
-            .create(sink)
-            .map_err(self.write_err())?;
-        let mut next = match header {
-            Some(_) => rd.next()?,
-            None => first,
-        };
+        let (mut w, mut next) = self.open_output(&mut rd, sink, opts)?;
         loop {
             match next {
                 Next::End { offset, lost, why } => {
@@ -305,31 +283,7 @@ impl Salvage {
                     len,
                     avail,
                 } => {
-                    // What a cut leaves: a record whose end was never
-                    // written. Of a chunk, the records that are whole are
-                    // taken.
-                    let rest = HEAD as u64 + avail;
-                    self.s.cut = Some(Cut::Bytes {
-                        offset,
-                        dropped: rest,
-                    });
-                    let kept = if opcode == op::CHUNK {
-                        self.chunk(&mut w, offset, &rd.body, Whole::Cut)?
-                    } else {
-                        0
-                    };
-                    let lost = rest - kept;
-                    let msg = if kept > 0 {
-                        format!(
-                            "cut inside a chunk of {len} bytes, {avail} of them written: its whole records kept, its last {lost} bytes lost"
-                        )
-                    } else {
-                        format!(
-                            "cut inside {} of {len} bytes, {avail} of them written",
-                            kind(opcode)
-                        )
-                    };
-                    self.lose(offset, lost, u64::from(opcode == op::MESSAGE), msg);
+                    self.cut_record(&mut w, opcode, offset, len, avail, &rd.body)?;
                     break;
                 }
                 Next::TooLarge {
@@ -361,6 +315,78 @@ impl Salvage {
             }
         }
         self.finish(w)
+    }
+
+    /// The output, with the input's Header's profile and library, and the
+    /// first record after that Header (or the first, without one).
+    fn open_output(
+        &self,
+        rd: &mut Input<'_, impl Read>,
+        sink: BufWriter<File>,
+        opts: &RecoverOptions,
+    ) -> Result<(Out, Next), RecoverError> {
+        let first = rd.next()?;
+        let header = match first {
+            Next::Record {
+                opcode: op::HEADER, ..
+            } => {
+                let mut f = Fields::new(&rd.body);
+                match (f.str(), f.str()) {
+                    (Ok(p), Ok(l)) => Some((p.to_string(), l.to_string())),
+                    _ => Some((String::new(), String::new())),
+                }
+            }
+            _ => None,
+        };
+        let (profile, library) = header.clone().unwrap_or_default();
+        let w = mcap::WriteOptions::new()
+            .compression(None)
+            .chunk_size(Some(opts.chunk_bytes.max(1)))
+            .profile(profile)
+            .library(library)
+            .create(sink)
+            .map_err(self.write_err())?;
+        let next = match header {
+            Some(_) => rd.next()?,
+            None => first,
+        };
+        Ok((w, next))
+    }
+
+    /// What a cut leaves: a record whose end was never written. Of a
+    /// chunk, the records that are whole are taken.
+    fn cut_record(
+        &mut self,
+        w: &mut Out,
+        opcode: u8,
+        offset: u64,
+        len: u64,
+        avail: u64,
+        body: &[u8],
+    ) -> Result<(), RecoverError> {
+        let rest = HEAD as u64 + avail;
+        self.s.cut = Some(Cut::Bytes {
+            offset,
+            dropped: rest,
+        });
+        let kept = if opcode == op::CHUNK {
+            self.chunk(w, offset, body, Whole::Cut)?
+        } else {
+            0
+        };
+        let lost = rest - kept;
+        let msg = if kept > 0 {
+            format!(
+                "cut inside a chunk of {len} bytes, {avail} of them written: its whole records kept, its last {lost} bytes lost"
+            )
+        } else {
+            format!(
+                "cut inside {} of {len} bytes, {avail} of them written",
+                kind(opcode)
+            )
+        };
+        self.lose(offset, lost, u64::from(opcode == op::MESSAGE), msg);
+        Ok(())
     }
 
     /// A whole top-level record; false where the data section ends.
@@ -421,128 +447,6 @@ impl Salvage {
         file.sync_all().map_err(file_err)?;
         self.s.out_bytes = file.metadata().map_err(file_err)?.len();
         Ok(self.s)
-    }
-
-    /// The records of a chunk (`body`, its record at `offset`); the input
-    /// bytes kept.
-    fn chunk(
-        &mut self,
-        w: &mut Out,
-        offset: u64,
-        body: &[u8],
-        whole: Whole,
-    ) -> Result<u64, RecoverError> {
-        let total = HEAD as u64 + body.len() as u64;
-        let mut f = Fields::new(body);
-        let parsed = (|| {
-            f.take(8 + 8 + 8)?;
-            let crc = f.u32()?;
-            let compression = f.str()?;
-            let size = f.u64()?;
-            Ok::<_, String>((crc, compression, size))
-        })();
-        let (crc, compression, size) = match parsed {
-            Ok(p) => p,
-            Err(e) if whole == Whole::Yes => {
-                self.lose(offset, total, 0, format!("chunk: {e}"));
-                return Ok(0);
-            }
-            // Cut before its first record: nothing of it to take.
-            Err(_) => return Ok(0),
-        };
-        if !compression.is_empty() {
-            return Err(RecoverError::Input {
-                file: self.name.clone(),
-                offset,
-                msg: format!(
-                    "chunk compressed with {compression}: recover reads uncompressed chunks (the MCAP CLI's `mcap recover` reads compressed ones)"
-                ),
-            });
-        }
-        let start = f.pos;
-        let records = &body[start..];
-        let records = match usize::try_from(size) {
-            Ok(n) if n <= records.len() => &records[..n],
-            _ if whole == Whole::Yes => {
-                let msg = format!(
-                    "chunk: {size} bytes of records in a chunk with {} left",
-                    records.len()
-                );
-                self.lose(offset, total, count_messages(records), msg);
-                return Ok(0);
-            }
-            _ => records,
-        };
-        if whole == Whole::Yes && crc != 0 {
-            let computed = crc32fast::hash(records);
-            if computed != crc {
-                let n = count_messages(records);
-                let msg = format!(
-                    "chunk CRC {computed:08x} is not the recorded {crc:08x}: its {} bytes and {n} messages dropped",
-                    records.len()
-                );
-                self.lose(offset, total, n, msg);
-                return Ok(0);
-            }
-        }
-        let records_at = offset + HEAD as u64 + start as u64;
-        let lost_before = self.s.lost_bytes;
-        let mut p = 0usize;
-        while p < records.len() {
-            let mut r = Fields::new(&records[p..]);
-            let whole_record = match (r.take(1), r.u64()) {
-                (Ok(o), Ok(l)) => usize::try_from(l)
-                    .ok()
-                    .and_then(|n| r.take(n).ok())
-                    .map(|rec| (o[0], rec)),
-                _ => None,
-            };
-            let Some((opcode, rec)) = whole_record else {
-                if whole == Whole::Cut && records[p] == op::MESSAGE {
-                    // The message the cut fell in.
-                    self.s.lost_messages += 1;
-                }
-                break;
-            };
-            if opcode == 0 {
-                break;
-            }
-            if matches!(opcode, op::SCHEMA | op::CHANNEL | op::MESSAGE)
-                && !self.record(w, opcode, rec, records_at + p as u64, whole == Whole::Cut)?
-                && whole == Whole::Cut
-            {
-                // In the chunk cut short, a record that does not parse is
-                // where the bytes stop being what was written.
-                break;
-            }
-            p += HEAD + rec.len();
-        }
-        let kept = HEAD as u64 + start as u64 + p as u64;
-        match whole {
-            Whole::Yes => {
-                self.s.chunks += 1;
-                if p < records.len() {
-                    let rest = &records[p..];
-                    let msg = format!(
-                        "a record in a chunk that runs past its end: the chunk's last {} bytes dropped",
-                        rest.len()
-                    );
-                    let n = count_messages(rest);
-                    self.lose(records_at + p as u64, rest.len() as u64, n, msg);
-                }
-                // Less what its records that were lost took.
-                self.s.kept_bytes += total - (self.s.lost_bytes - lost_before);
-                Ok(total)
-            }
-            Whole::Cut => {
-                if p > 0 {
-                    self.s.kept_bytes += kept;
-                    Ok(kept)
-                } else {
-                    Ok(0)
-                }
-            }
-        }
     }
 
     /// A Schema, Channel or Message record; whether it was carried. A
@@ -739,155 +643,5 @@ impl Salvage {
         self.s.attachments += 1;
         self.s.kept_bytes += total;
         Ok(())
-    }
-}
-
-/// Message records in `records`, as far as their heads can be followed.
-fn count_messages(records: &[u8]) -> u64 {
-    let mut f = Fields::new(records);
-    let mut n = 0;
-    while let (Ok(o), Ok(len)) = (f.take(1), f.u64()) {
-        n += u64::from(o[0] == op::MESSAGE);
-        if usize::try_from(len)
-            .ok()
-            .and_then(|l| f.take(l).ok())
-            .is_none()
-        {
-            break;
-        }
-    }
-    n
-}
-
-/// A record's kind, for messages.
-fn kind(opcode: u8) -> &'static str {
-    match opcode {
-        op::HEADER => "a Header",
-        op::SCHEMA => "a Schema",
-        op::CHANNEL => "a Channel",
-        op::MESSAGE => "a Message",
-        op::CHUNK => "a Chunk",
-        op::METADATA => "a Metadata record",
-        op::ATTACHMENT => "an Attachment",
-        op::MESSAGE_INDEX | op::CHUNK_INDEX | op::ATTACHMENT_INDEX | op::METADATA_INDEX => {
-            "an index"
-        }
-        _ => "a record",
-    }
-}
-
-/// What the input holds next.
-enum Next {
-    /// A whole record, its body in `Input::body`.
-    Record { opcode: u8, offset: u64 },
-    /// A whole record larger than [`RECORD_LIMIT`], skipped unread.
-    TooLarge { opcode: u8, offset: u64, len: u64 },
-    /// A record whose end is past the end of the file; of a chunk, the
-    /// bytes there are in `Input::body` (at most [`RECORD_LIMIT`]).
-    Cut {
-        opcode: u8,
-        offset: u64,
-        len: u64,
-        avail: u64,
-    },
-    /// No record from `offset` on: the end of the file, or (with `why`)
-    /// `lost` bytes that are no record.
-    End {
-        offset: u64,
-        lost: u64,
-        why: Option<String>,
-    },
-}
-
-/// The input, record by record.
-struct Input<'a, R> {
-    src: &'a mut R,
-    name: String,
-    /// File offset of the next byte of `src`.
-    pos: u64,
-    size: u64,
-    body: Vec<u8>,
-}
-
-impl<R: Read> Input<'_, R> {
-    fn io_err(&self, err: io::Error) -> RecoverError {
-        RecoverError::File {
-            file: self.name.clone(),
-            err,
-        }
-    }
-
-    /// Read `len` bytes into `body`.
-    fn fill(&mut self, len: u64) -> Result<(), RecoverError> {
-        self.body.clear();
-        let got = (&mut *self.src).take(len).read_to_end(&mut self.body);
-        let got = got.map_err(|e| self.io_err(e))?;
-        self.pos += got as u64;
-        Ok(())
-    }
-
-    fn next(&mut self) -> Result<Next, RecoverError> {
-        let offset = self.pos;
-        let rest = self.size.saturating_sub(offset);
-        let mut head = [0u8; HEAD];
-        let n = read_full(&mut *self.src, &mut head).map_err(|e| self.io_err(e))?;
-        self.pos += n as u64;
-        if n == 0 {
-            return Ok(Next::End {
-                offset,
-                lost: 0,
-                why: None,
-            });
-        }
-        if n < HEAD {
-            return Ok(Next::End {
-                offset,
-                lost: n as u64,
-                why: Some(format!(
-                    "cut inside a record's head ({n} of its 9 bytes written)"
-                )),
-            });
-        }
-        let opcode = head[0];
-        let mut lb = [0u8; 8];
-        lb.copy_from_slice(&head[1..]);
-        let len = u64::from_le_bytes(lb);
-        if opcode == 0 {
-            // Opcode 0 is no record: a zero-filled tail (what a file
-            // system may leave after a power loss), or garbage.
-            let why = if head.iter().all(|&b| b == 0) {
-                "zeros, no record: the rest of the file dropped"
-            } else {
-                "opcode 0x00 is no MCAP record: the rest of the file dropped"
-            };
-            return Ok(Next::End {
-                offset,
-                lost: rest,
-                why: Some(why.into()),
-            });
-        }
-        let avail = rest.saturating_sub(HEAD as u64);
-        if len > avail {
-            if opcode == op::CHUNK {
-                self.fill(avail.min(RECORD_LIMIT))?;
-            }
-            return Ok(Next::Cut {
-                opcode,
-                offset,
-                len,
-                avail,
-            });
-        }
-        if len > RECORD_LIMIT {
-            let skipped = io::copy(&mut (&mut *self.src).take(len), &mut io::sink());
-            self.pos += skipped.map_err(|e| self.io_err(e))?;
-            return Ok(Next::TooLarge {
-                opcode,
-                offset,
-                len,
-            });
-        }
-        self.fill(len)?;
-        Ok(Next::Record { opcode, offset })
     }
 }

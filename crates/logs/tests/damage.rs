@@ -7,27 +7,12 @@
 
 mod common;
 
-use common::{assert_one_line_at, frame, header, record};
+use common::{assert_one_line_at, frame, header, record, records};
 use lightpose_core::{Cut, Frame, FrameLog, LogError};
 use lightpose_logs::{McapReader, McapWriter};
 use mcap::records::op;
 use proptest::prelude::*;
 use std::collections::BTreeMap;
-
-/// Top-level records of a complete file: (opcode, offset, end).
-fn records(bytes: &[u8]) -> Vec<(u8, usize, usize)> {
-    let mut out = Vec::new();
-    let mut p = 8;
-    while p + 9 <= bytes.len() {
-        let len = u64::from_le_bytes(bytes[p + 1..p + 9].try_into().unwrap()) as usize;
-        out.push((bytes[p], p, p + 9 + len));
-        if bytes[p] == op::DATA_END {
-            break;
-        }
-        p += 9 + len;
-    }
-    out
-}
 
 /// Frames in each chunk, counted by the `mcap` crate's own chunk reader:
 /// (chunk end, frames in it).

@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::record;
+use common::{record, records};
 use lightpose_core::{Cut, FrameLog};
 use lightpose_logs::{recover, McapReader, RecoverError, RecoverOptions, RecoverSummary};
 use mcap::records::op;
@@ -156,21 +156,6 @@ fn the_messages_of_the_chunk_cut_short_are_counted_unverified() {
         "{line}"
     );
     assert!(line.contains("(first: byte "), "{line}");
-}
-
-/// Top-level records of a complete file: (opcode, offset, end).
-fn records(bytes: &[u8]) -> Vec<(u8, usize, usize)> {
-    let mut out = Vec::new();
-    let mut p = 8;
-    while p + 9 <= bytes.len() {
-        let len = u64::from_le_bytes(bytes[p + 1..p + 9].try_into().unwrap()) as usize;
-        out.push((bytes[p], p, p + 9 + len));
-        if bytes[p] == op::DATA_END {
-            break;
-        }
-        p += 9 + len;
-    }
-    out
 }
 
 #[test]

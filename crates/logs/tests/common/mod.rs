@@ -86,15 +86,37 @@ pub fn record(n: u64, chunk_bytes: u64) -> Vec<u8> {
     };
     let mut w = McapWriter::new(Vec::new(), &header(), &opts).unwrap();
     for seq in 0..n {
-        let f = frame(seq);
-        w.write_frame(&f).unwrap();
-        w.write_pose(&pose(&f), Some(1.7e9 + f.t)).unwrap();
-        if seq % 10 == 9 {
-            let status = format!("{{\"class\":\"STATUS\",\"seq\":{},\"t\":1.7e9}}", seq / 10);
-            w.write_status(f.t, status.as_bytes()).unwrap();
-        }
+        write_daemon_frame(&mut w, seq);
     }
     w.finish().unwrap()
+}
+
+/// Frame `seq` as the daemon records it: the frame, its pose, and a
+/// status every tenth frame; the frame, for what comes beside it.
+fn write_daemon_frame(w: &mut McapWriter<Vec<u8>>, seq: u64) -> Frame {
+    let f = frame(seq);
+    w.write_frame(&f).unwrap();
+    w.write_pose(&pose(&f), Some(1.7e9 + f.t)).unwrap();
+    if seq % 10 == 9 {
+        let status = format!("{{\"class\":\"STATUS\",\"seq\":{},\"t\":1.7e9}}", seq / 10);
+        w.write_status(f.t, status.as_bytes()).unwrap();
+    }
+    f
+}
+
+/// Top-level records of a complete file: (opcode, offset, end).
+pub fn records(bytes: &[u8]) -> Vec<(u8, usize, usize)> {
+    let mut out = Vec::new();
+    let mut p = 8;
+    while p + 9 <= bytes.len() {
+        let len = u64::from_le_bytes(bytes[p + 1..p + 9].try_into().unwrap()) as usize;
+        out.push((bytes[p], p, p + 9 + len));
+        if bytes[p] == mcap::records::op::DATA_END {
+            break;
+        }
+        p += 9 + len;
+    }
+    out
 }
 
 /// One line, naming the file and a byte offset.
@@ -143,13 +165,7 @@ pub fn rich_record(n: u64, chunk_bytes: u64) -> Vec<u8> {
         )
         .unwrap();
     for seq in 0..n {
-        let f = frame(seq);
-        w.write_frame(&f).unwrap();
-        w.write_pose(&pose(&f), Some(1.7e9 + f.t)).unwrap();
-        if seq % 10 == 9 {
-            let status = format!("{{\"class\":\"STATUS\",\"seq\":{},\"t\":1.7e9}}", seq / 10);
-            w.write_status(f.t, status.as_bytes()).unwrap();
-        }
+        let f = write_daemon_frame(&mut w, seq);
         if seq % 3 == 0 {
             let data = format!("{{\"z\":{}}}", seq as f64 * 0.01);
             let t = (f.t * 1e9) as u64 + 17;
