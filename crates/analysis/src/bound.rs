@@ -43,6 +43,8 @@ pub fn crb_scene(s: &Scene) -> CrbScene {
         sigma_temp_c: Some(s.montecarlo.sigma_temp_c).filter(|v| *v > 0.0),
         attitude_sigma: s.attitude.map(|n| (n.sigma_pitch, n.sigma_yaw)),
         depth_sigma: s.depth.map(|d| d.sigma_m),
+        // Spec v3: a scene whose sensor reads roll; else roll as known.
+        roll_sigma: s.attitude.and_then(|n| n.sigma_roll),
     }
 }
 

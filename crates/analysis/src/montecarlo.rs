@@ -13,7 +13,7 @@ pub use crate::axis::{Axis, AXES, NAXES};
 use crate::stats::{self, Coverage, StepStats};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lightpose_core::Estimator;
-use lightpose_sim::{Kinematics, Scene, Simulator, Trajectory};
+use lightpose_sim::{EstimatorFrames, Kinematics, Scene, Simulator, Trajectory};
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -136,12 +136,12 @@ const COV_NONE: u8 = 0;
 const COV_IN: u8 = 1;
 const COV_OUT: u8 = 2;
 
-/// What every realization shares: the frame times, the true motion at
-/// each (the whole of it, so that a DVL reads sideslip and heave too) and
-/// the truth rows.
+/// What every realization shares: the frame times (of a frame of several
+/// samples, its middle, MODEL.md) and the first sample's, the true motion
+/// and the truth rows there.
 struct Track {
     times: Vec<f64>,
-    kinematics: Vec<Kinematics>,
+    starts: Vec<f64>,
     truth: Vec<[f64; NAXES]>,
 }
 
@@ -151,7 +151,11 @@ fn track_of(cfg: &McConfig) -> Result<Track, McError> {
         return Err(McError::NoRuns);
     }
     let rate = cfg.scene.adc.rate_hz;
-    let times: Vec<f64> = cfg.trajectory.frame_times(rate).collect();
+    let (n, sample_hz) = (cfg.scene.adc.samples_per_frame(), cfg.scene.adc.sample_hz);
+    let frames = cfg.trajectory.burst_count(rate, n, sample_hz) as usize;
+    let starts: Vec<f64> = cfg.trajectory.frame_times(rate).take(frames).collect();
+    let mid = (n - 1) as f64 / (2.0 * sample_hz);
+    let times: Vec<f64> = starts.iter().map(|&t| t + mid).collect();
     if times.is_empty() || rate.is_nan() || rate <= 0.0 {
         return Err(McError::NoFrames { rate_hz: rate });
     }
@@ -162,6 +166,10 @@ fn track_of(cfg: &McConfig) -> Result<Track, McError> {
             spread.sigma_temp_c, spread.sigma_k_d
         )));
     }
+    // A blinking scene's demodulator, checked once here so that no
+    // realization meets an error.
+    EstimatorFrames::new(Simulator::new(cfg.scene.clone(), 0))
+        .map_err(|e| McError::Scene(format!("demodulator: {e}")))?;
     let kinematics: Vec<Kinematics> = times
         .iter()
         .map(|&t| cfg.trajectory.kinematics(t))
@@ -172,7 +180,7 @@ fn track_of(cfg: &McConfig) -> Result<Track, McError> {
         .collect();
     Ok(Track {
         times,
-        kinematics,
+        starts,
         truth,
     })
 }
@@ -188,7 +196,7 @@ where
 {
     let Track {
         times,
-        kinematics,
+        starts,
         truth,
     } = track_of(cfg)?;
     // One probe both names the estimator and turns a factory error into a
@@ -224,8 +232,7 @@ where
                         *draw = realization(
                             cfg,
                             i as u64,
-                            &times,
-                            &kinematics,
+                            &starts,
                             &truth,
                             est.as_mut(),
                             vals,
@@ -275,8 +282,7 @@ where
 fn realization(
     cfg: &McConfig,
     index: u64,
-    times: &[f64],
-    kinematics: &[Kinematics],
+    starts: &[f64],
     truth: &[[f64; NAXES]],
     est: &mut dyn Estimator,
     vals: &mut [f64],
@@ -309,10 +315,16 @@ fn realization(
     // The vehicle's sensor is believed: the frames report T0 exactly, so
     // the temperature spread is an error source (MODEL.md, as the paper).
     sim.set_reported_temp(Some(nominal.temp_c));
+    sim.set_report_roll(cfg.trajectory.has_roll());
+    // `run` checked the scene: its demodulator, if it needs one, is made.
+    let Ok(mut frames) = EstimatorFrames::new(sim) else {
+        return draw;
+    };
+    let at = |t: f64| cfg.trajectory.kinematics(t);
 
     est.reset();
-    for (j, ((&t, k), tr)) in times.iter().zip(kinematics).zip(truth).enumerate() {
-        let frame = sim.frame_moving(j as u64, t, k);
+    for (j, (&t, tr)) in starts.iter().zip(truth).enumerate() {
+        let frame = frames.frame(j as u64, t, at);
         let e = est.estimate(&frame);
         oks[j] = e.status == lightpose_core::Status::Ok;
         for a in AXES {

@@ -25,7 +25,7 @@ use lightpose_core::{Estimator, Frame};
 use lightpose_pipeline::model::crb::{crb_along, CrbBound};
 use lightpose_pipeline::model::tracker::TrackBound;
 use lightpose_pipeline::{build_estimator, BuildError, Calibration};
-use lightpose_sim::{Scene, Simulator, Trajectory};
+use lightpose_sim::{EstimatorFrames, Scene, Simulator, Trajectory};
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
@@ -193,16 +193,25 @@ pub fn time_per_frame(est: &mut dyn Estimator, frames: &[Vec<Frame>]) -> f64 {
 
 /// `runs` realizations of the nominal scene along `traj`, the whole motion
 /// read by the scene's sensors.
+/// A blinking scene's frames are its bursts demodulated
+/// ([`EstimatorFrames`]); a scene whose beacons cannot be demodulated (its
+/// validation refuses such scenes) gives no runs.
 pub fn simulate_runs(scene: &Scene, traj: &Trajectory, runs: usize, seed: u64) -> Vec<Vec<Frame>> {
-    let times: Vec<f64> = traj.frame_times(scene.adc.rate_hz).collect();
+    let (n, sample_hz) = (scene.adc.samples_per_frame(), scene.adc.sample_hz);
+    let count = traj.burst_count(scene.adc.rate_hz, n, sample_hz) as usize;
+    let starts: Vec<f64> = traj.frame_times(scene.adc.rate_hz).take(count).collect();
     (0..runs)
-        .map(|i| {
+        .filter_map(|i| {
             let mut sim = Simulator::new(scene.clone(), seed.wrapping_add(1000 + i as u64));
-            times
-                .iter()
-                .enumerate()
-                .map(|(j, &t)| sim.frame_moving(j as u64, t, &traj.kinematics(t)))
-                .collect()
+            sim.set_report_roll(traj.has_roll());
+            let mut frames = EstimatorFrames::new(sim).ok()?;
+            Some(
+                starts
+                    .iter()
+                    .enumerate()
+                    .map(|(j, &t)| frames.frame(j as u64, t, |t| traj.kinematics(t)))
+                    .collect(),
+            )
         })
         .collect()
 }

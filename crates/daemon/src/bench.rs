@@ -533,6 +533,7 @@ pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
     let dir = std::env::temp_dir().join(format!("lightposed-soak-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(DaemonError::Recorder)?;
     let rec_cfg = crate::config::Recording {
+        samples: Default::default(),
         dir: dir.clone(),
         rotate_bytes: Some(SOAK_ROTATE_BYTES),
         rotate_after: None,

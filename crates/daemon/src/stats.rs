@@ -301,6 +301,47 @@ pub struct Stats {
     /// bad serial lines, reopens, injected faults), copied about once a
     /// second by the frame thread.
     pub source_health: Mutex<Option<lightpose_hal::SourceHealth>>,
+    /// Spec v3: the demodulator's state, when the source gives bursts,
+    /// copied with the source's counters.
+    pub demod: Mutex<Option<DemodStatus>>,
+}
+
+/// What STATUS says of the demodulator (`demodulator`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DemodStatus {
+    pub sample_hz: f64,
+    pub samples_per_frame: usize,
+    pub channel_skew_s: f64,
+    pub beacons: Vec<BeaconLock>,
+    /// Frames demodulated, and bursts it refused (counted as failed).
+    pub frames: u64,
+    pub refused: u64,
+    /// Clipped samples over the run, and in the last frame.
+    pub clipped_total: u64,
+    pub clipped_last: u64,
+}
+
+/// One beacon's clock as the demodulator holds it.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BeaconLock {
+    pub id: String,
+    pub mod_hz: f64,
+    pub locked: bool,
+    pub detected: bool,
+    pub freq_hz: f64,
+    /// The matched filter's signal-to-noise of the last frame.
+    pub detection: f64,
+}
+
+impl BeaconLock {
+    /// The beacon's clock off its nominal frequency, ppm.
+    pub fn offset_ppm(&self) -> f64 {
+        if self.mod_hz > 0.0 {
+            (self.freq_hz / self.mod_hz - 1.0) * 1e6
+        } else {
+            0.0
+        }
+    }
 }
 
 impl Stats {

@@ -85,6 +85,43 @@ pub fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> Value {
         "outputs": outputs(c.publisher),
         "foxglove": c.live.map_or_else(|| json!({"enabled": false}), Hub::report),
         "vehicle": vehicle(c),
+        "demodulator": demodulator(s),
+    })
+}
+
+/// Spec v3: the demodulator's state (each beacon locked or not, its
+/// clock's offset in ppm, the clipped samples); `enabled: false` for a
+/// source of one sample a frame.
+fn demodulator(s: &Stats) -> Value {
+    let d = s.demod.lock().ok().and_then(|g| g.clone());
+    let Some(d) = d else {
+        return json!({"enabled": false});
+    };
+    let beacons: Vec<Value> = d
+        .beacons
+        .iter()
+        .map(|b| {
+            json!({
+                "id": b.id,
+                "mod_hz": b.mod_hz,
+                "locked": b.locked,
+                "detected": b.detected,
+                "freq_hz": b.freq_hz,
+                "offset_ppm": b.offset_ppm(),
+                "detection": b.detection,
+            })
+        })
+        .collect();
+    json!({
+        "enabled": true,
+        "sample_hz": d.sample_hz,
+        "samples_per_frame": d.samples_per_frame,
+        "channel_skew_s": d.channel_skew_s,
+        "frames": d.frames,
+        "refused": d.refused,
+        "clipped_total": d.clipped_total,
+        "clipped_last": d.clipped_last,
+        "beacons": beacons,
     })
 }
 

@@ -156,7 +156,9 @@ fn sends_what_mavlink_asks(cfg: &Config, est: &dyn Estimator) -> Result<(), Daem
 fn checked_adc_bits(cfg: &Config) -> Result<u8, DaemonError> {
     match &cfg.backend {
         ValidBackend::Sim(_) | ValidBackend::Replay(_) => {
-            Ok(open_source(cfg, &Stop::new())?.adc_bits())
+            let source = open_source(cfg, &Stop::new())?;
+            demodulates(cfg, source.as_ref())?;
+            Ok(source.adc_bits())
         }
         ValidBackend::Spi { common, .. }
         | ValidBackend::Ads1115 { common, .. }
@@ -166,6 +168,30 @@ fn checked_adc_bits(cfg: &Config) -> Result<u8, DaemonError> {
             Ok(common.bits)
         }
     }
+}
+
+/// Spec v3: a source that gives bursts can be demodulated (its beacons'
+/// frequencies fit its sampling by MODEL.md's rules, its channels' skew
+/// fits a frame), refused at the key that names what it samples: the
+/// scene, the replayed log, the board's `sample_hz`.
+fn demodulates(cfg: &Config, source: &dyn FrameSource) -> Result<(), DaemonError> {
+    let Some(s) = source.sampling() else {
+        return Ok(());
+    };
+    let rate = source.rate_hz().unwrap_or(cfg.rate_hz);
+    let Err(e) = crate::engine::demod::demodulator(&s, rate) else {
+        return Ok(());
+    };
+    let key = match &cfg.backend {
+        ValidBackend::Sim(_) => places::SCENE,
+        ValidBackend::Replay(_) => places::LOG,
+        _ => "backend.sample_hz",
+    };
+    let msg = format!(
+        "the demodulator cannot take this sampling ({} Hz, {} samples a frame at {rate} Hz): {e}",
+        s.sample_hz, s.samples_per_frame
+    );
+    Err(DaemonError::Config(cfg.places.of(key).refuse(key, msg)))
 }
 
 /// Bind what a start binds, each held until the last is done (as a start
@@ -351,6 +377,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     let source = open_source(cfg, &stop)?;
     let adc_bits = source.adc_bits();
     reads_frames(cfg, estimator.as_ref(), &cal, adc_bits)?;
+    demodulates(cfg, source.as_ref())?;
     let source_desc = source.describe();
     let publisher = Arc::new(publisher);
     let stats = Arc::new(Stats::default());
@@ -504,5 +531,10 @@ fn log_header(cfg: &Config, source: &dyn FrameSource, source_desc: &str) -> LogH
         format!("lightposed {}", env!("CARGO_PKG_VERSION")).into(),
     );
     h.extra.insert("source".into(), source_desc.into());
+    if let Some(s) = source.sampling() {
+        // What a replay's demodulator is set up from (FORMATS.md): the
+        // recording's frames are BURSTs or demodulated frames of it.
+        crate::engine::demod::header_fields(&mut h, &s);
+    }
     h
 }

@@ -740,7 +740,7 @@ fn the_daemon_stopping_closes_every_client() {
 /// "heard", so the silence check never fired, and its pongs queued in a
 /// write buffer without a bound. Now at most a megabyte waits unsent: this
 /// process (the server runs in it) grows by far less than the pongs of
-/// 256 MB of pings, sent as such a client sends them (masked frames, 64 a
+/// 128 MB of pings, sent as such a client sends them (masked frames, 64 a
 /// write, never a read).
 #[test]
 fn a_client_that_pings_without_end_and_reads_nothing_costs_no_memory() {
@@ -771,17 +771,23 @@ fn a_client_that_pings_without_end_and_reads_nothing_costs_no_memory() {
         frame.extend((0..125).map(|i| b'p' ^ mask[i % 4]));
         let burst = frame.repeat(64);
         let before = rss_kb();
-        let (t0, mut sent) = (Instant::now(), 0usize);
-        while t0.elapsed() < Duration::from_secs(15) && sent < 256 << 20 {
+        // A fixed amount, however long it takes on a loaded machine (a
+        // debug build under CI's load sends ~4 MB/s): the server must keep
+        // reading them all, a write stuck for 10 s says it stopped.
+        let mut sent = 0usize;
+        while sent < 128 << 20 {
             let w = ws.get_mut().write_all(&burst);
-            match tokio::time::timeout(Duration::from_secs(1), w).await {
+            match tokio::time::timeout(Duration::from_secs(10), w).await {
                 Ok(Ok(())) => sent += burst.len(),
                 _ => break,
             }
         }
         let grew_mb = rss_kb().saturating_sub(before) / 1024;
         // (Other tests run in this process: a margin for what they hold.)
-        assert!(sent >= 128 << 20, "only {sent} bytes of pings sent");
+        assert!(
+            sent >= 128 << 20,
+            "the server stopped reading after {sent} bytes of pings"
+        );
         assert!(
             grew_mb < 64,
             "grew {grew_mb} MB while {} MB of pings were sent",

@@ -192,3 +192,62 @@ fn a_source_that_keeps_failing_does_not_allocate_per_frame() {
         "{few} allocations for 50 failed frames, {many} for 2000"
     );
 }
+
+/// Allocations over `frames` frames of spec v3: the harbour by day with
+/// its beacon blinking (config/scenes/harbour-day.toml), 400 samples of
+/// each channel a frame demodulated on the frame thread, the tracker on
+/// the amplitudes, POSE sent, and the frames recorded as `samples`
+/// (BURST lines from the pool of buffers, or demodulated frames).
+fn v3_allocations(frames: u64, sink: &UdpSocket, samples: &str) -> u64 {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = format!(
+        "rate_hz = 5.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{}\"]\n[recording]\ndir = \"{}\"\nsamples = \"{samples}\"\n",
+        root.join("config/calibration/harbour.toml").display(),
+        root.join("config/scenes/harbour-day.toml").display(),
+        root.join("config/trajectories/dock.csv").display(),
+        sink.local_addr().expect("addr"),
+        dir.path().display(),
+    );
+    let cfg = Config::parse(&text, "noalloc.toml", None).expect("valid");
+    let source = lightposed::open_source(&cfg, &Stop::new()).expect("source");
+    let sampling = source.sampling().expect("the scene samples at 2 kHz");
+    assert_eq!(sampling.samples_per_frame, 400);
+    let mut header = lightpose_core::LogHeader::new(source.adc_bits(), 5.0);
+    lightposed::engine::demod::header_fields(&mut header, &sampling);
+    let rec_cfg = cfg.recording.clone().expect("[recording]");
+    let recorder = lightposed::outputs::recorder::Recorder::start(
+        &rec_cfg,
+        header,
+        lightposed::outputs::recorder::Epoch::of(false),
+    )
+    .expect("recorder");
+    let publisher = Arc::new(Publisher::open(&cfg.outputs).expect("publisher"));
+    let engine = Engine::new(
+        source,
+        lightposed::build_estimator(&cfg).expect("estimator"),
+    )
+    .period(Some(Duration::from_millis(200)))
+    .max_frames(frames)
+    .output(Box::new(PoseDatagrams::new(publisher)))
+    .output(Box::new(recorder));
+    A.everywhere(|| engine.run()).1
+}
+
+#[test]
+fn demodulating_and_recording_bursts_does_not_allocate_per_frame() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
+    let sink = UdpSocket::bind("127.0.0.1:0").expect("sink");
+    for samples in ["raw", "demodulated"] {
+        let few = v3_allocations(10, &sink, samples);
+        let many = (0..2)
+            .map(|_| v3_allocations(45, &sink, samples))
+            .min()
+            .unwrap_or(u64::MAX);
+        eprintln!("v3, recording {samples}: {few} allocations for 10 frames, {many} for 45");
+        assert!(
+            many <= few + 2,
+            "v3, recording {samples}: {few} allocations for 10 frames, {many} for 45"
+        );
+    }
+}

@@ -30,6 +30,7 @@
 
 use std::time::Duration;
 
+use lightpose_core::samples::{BeaconInfo, Burst};
 use lightpose_core::Frame;
 
 pub mod bank;
@@ -114,6 +115,32 @@ pub struct SourceHealth {
     pub last_bad_reading: Option<String>,
 }
 
+/// Spec v3: how a source that takes N > 1 samples of every channel per
+/// frame samples, for the demodulator the daemon sets up from it and for
+/// a recording's header (FORMATS.md `sample_hz`, `channel_skew_s`,
+/// `beacons`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sampling {
+    pub sample_hz: f64,
+    /// N: samples of every channel per frame.
+    pub samples_per_frame: usize,
+    /// Channel k is converted k · channel_skew_s after channel 0.
+    pub channel_skew_s: f64,
+    /// The beacons whose light the samples carry.
+    pub beacons: Vec<BeaconInfo>,
+}
+
+/// What [`FrameSource::next_take`] gave: a frame (counts, or amplitudes
+/// already demodulated), or the caller's burst filled with the next
+/// frame's samples.
+#[derive(Debug, Clone, Copy, PartialEq)]
+// A frame is held by value, as everywhere (fixed size, never on the heap).
+#[allow(clippy::large_enum_variant)]
+pub enum Take {
+    Frame(Frame),
+    Burst,
+}
+
 /// "Give me the next frame": 25 channels in MODEL.md's order, the ADC
 /// resolution, the capture time and the temperature.
 ///
@@ -147,6 +174,44 @@ pub trait FrameSource: Send {
     /// recorded time, whose capture is taken to be its arrival.
     fn t_is_monotonic(&self) -> bool {
         false
+    }
+    /// Spec v3: `Some` when the source samples faster than its frames and
+    /// gives bursts ([`FrameSource::next_take`]); `None` (the default):
+    /// frames of one sample, as v1/v2.
+    fn sampling(&self) -> Option<Sampling> {
+        None
+    }
+    /// The next frame or burst: a source with [`FrameSource::sampling`]
+    /// fills `burst` (its buffer reused: no allocation once it has the
+    /// size) and says [`Take::Burst`]; the others give their frame.
+    fn next_take(&mut self, burst: &mut Burst) -> Result<Take, SourceError> {
+        let _ = burst;
+        self.next_frame().map(Take::Frame)
+    }
+}
+
+/// `from` into `to`, its buffer reused when it has the size.
+pub fn copy_burst(from: &Burst, to: &mut Burst) {
+    if to.n() != from.n() {
+        to.resize(from.n());
+    }
+    to.samples_mut().copy_from_slice(from.samples());
+    to.seq = from.seq;
+    to.t = from.t;
+    to.adc_bits = from.adc_bits;
+    to.temp_c = from.temp_c;
+    to.truth = from.truth;
+    to.attitude = from.attitude;
+    to.depth = from.depth;
+    to.velocity = from.velocity;
+}
+
+/// Said by the `next_frame` of a source that gives bursts: its frames
+/// need the demodulator, which [`FrameSource::next_take`]'s caller runs.
+pub(crate) fn bursts_only(place: &'static str) -> SourceError {
+    SourceError::BadData {
+        place: Text::from_static(place),
+        msg: Text::from_static("gives bursts of samples: read with next_take"),
     }
 }
 

@@ -21,7 +21,8 @@ use rand_chacha::ChaCha8Rng;
 use crate::config::{Faults, Pace, SimPlan};
 use crate::pace::{Pacer, Stop};
 use crate::text::Text;
-use crate::{FrameSource, HalError, SourceError, SourceHealth};
+use crate::{FrameSource, HalError, Sampling, SourceError, SourceHealth, Take};
+use lightpose_core::samples::Burst;
 
 /// The simulator as a frame source.
 pub struct SimSource {
@@ -40,6 +41,14 @@ pub struct SimSource {
     seq: u64,
     injected: u64,
     describe: String,
+    /// The scene is v3 (its frames are made as bursts, of one sample
+    /// when it samples no faster than its frames).
+    v3: bool,
+    /// `Some` when the scene takes N > 1 samples a frame: the source
+    /// gives bursts.
+    sampling: Option<Sampling>,
+    /// A burst of one sample for a v3 scene's frames, reused.
+    one: Burst,
 }
 
 impl SimSource {
@@ -73,8 +82,31 @@ impl SimSource {
                 " with injected faults"
             },
         );
-        let per_pass = traj.frame_count(1.0 / dt).max(1);
+        let scene = sim.scene();
+        let n = scene.adc.samples_per_frame();
+        // A frame while its middle is within the trajectory (MODEL.md): with
+        // one sample, its instant.
+        let per_pass = if n > 1 {
+            traj.burst_count(1.0 / dt, n, scene.adc.sample_hz)
+        } else {
+            traj.frame_count(1.0 / dt)
+        }
+        .max(1);
+        let sampling = (n > 1).then(|| Sampling {
+            sample_hz: scene.adc.sample_hz,
+            samples_per_frame: n,
+            channel_skew_s: scene.adc.channel_skew_s,
+            beacons: scene.beacon_infos(),
+        });
+        let v3 = !scene.is_v2();
+        let mut sim = sim;
+        // As `lightpose simulate`: an AHRS reports roll when the
+        // trajectory has a roll column.
+        sim.set_report_roll(traj.has_roll());
         SimSource {
+            v3,
+            sampling,
+            one: Burst::new(1),
             per_pass,
             rng: ChaCha8Rng::seed_from_u64(faults.seed),
             sim,
@@ -102,6 +134,19 @@ impl SimSource {
         };
         let traj = Trajectory::from_source(&plan.trajectory)?;
         let bits = scene.adc.bits;
+        let n = scene.adc.samples_per_frame();
+        if let Some(r) = plan
+            .rate_hz
+            .filter(|&r| n > 1 && (r - scene.adc.rate_hz).abs() > 1e-9 * r)
+        {
+            return Err(HalError::Config {
+                key: "rate_hz".into(),
+                msg: format!(
+                    "{r} Hz, but the scene's frames are {} Hz ({n} samples at sample_hz = {} Hz): a burst's samples are the scene's",
+                    scene.adc.rate_hz, scene.adc.sample_hz
+                ),
+            });
+        }
         if let Some(&(_, v)) = plan.faults.stuck.iter().find(|s| s.1 > full_scale(bits)) {
             return Err(HalError::Config {
                 key: "faults.stuck".into(),
@@ -138,8 +183,18 @@ impl SimSource {
     }
 }
 
-impl FrameSource for SimSource {
-    fn next_frame(&mut self) -> Result<Frame, SourceError> {
+/// A frame's place in simulated time: its seq, its `t` (a burst's: its
+/// first sample's) and the trajectory's time it samples.
+struct Slot {
+    seq: u64,
+    t: f64,
+    tt: f64,
+}
+
+impl SimSource {
+    /// The next frame's slot after its pacing, or the fault that took it
+    /// (a dropped frame is passed over here, as a board's would be).
+    fn next_slot(&mut self) -> Result<Slot, SourceError> {
         loop {
             let seq = self.seq;
             let t = seq as f64 * self.dt;
@@ -171,34 +226,91 @@ impl FrameSource for SimSource {
                     msg: Text::from_static("injected fault"),
                 });
             }
-            let mut f = self.sim.frame_moving(seq, t, &self.traj.kinematics(tt));
-            for &(k, v) in &self.faults.stuck {
-                f.counts[k] = v;
-            }
-            if let Some(r) = f
-                .velocity
-                .as_mut()
-                .filter(|_| self.faults.dvl_turned != 0.0)
-            {
-                // Its axes turned to starboard: a forward motion reads
-                // partly to the right, each component's std with its axis.
-                let (s, c) = self.faults.dvl_turned.sin_cos();
-                let [fwd, right, down] = r.v.0;
-                r.v.0 = [c * fwd - s * right, s * fwd + c * right, down];
-                if let Some(sd) = r.std.as_mut() {
-                    let [f, ri, d] = sd.0;
-                    let turn = |a: f64, b: f64| (c * c * a * a + s * s * b * b).sqrt();
-                    sd.0 = [turn(f, ri), turn(ri, f), d];
-                }
-            }
-            if let Some(d) = f.depth.as_mut() {
-                d.z += self.faults.depth_bias;
-            }
-            if let Some(a) = f.attitude.as_mut() {
-                a.pitch = lightpose_core::Angle::from_rad(a.pitch.rad() + self.faults.pitch_bias);
-            }
-            return Ok(f);
+            return Ok(Slot { seq, t, tt });
         }
+    }
+
+    /// The readings' injected faults: a DVL turned, a depth and a pitch
+    /// off by a constant.
+    fn fault_readings(
+        &self,
+        velocity: &mut Option<lightpose_core::VelocityReading>,
+        depth: &mut Option<lightpose_core::DepthReading>,
+        attitude: &mut Option<lightpose_core::AttitudeReading>,
+    ) {
+        if let Some(r) = velocity.as_mut().filter(|_| self.faults.dvl_turned != 0.0) {
+            // Its axes turned to starboard: a forward motion reads
+            // partly to the right, each component's std with its axis.
+            let (s, c) = self.faults.dvl_turned.sin_cos();
+            let [fwd, right, down] = r.v.0;
+            r.v.0 = [c * fwd - s * right, s * fwd + c * right, down];
+            if let Some(sd) = r.std.as_mut() {
+                let [f, ri, d] = sd.0;
+                let turn = |a: f64, b: f64| (c * c * a * a + s * s * b * b).sqrt();
+                sd.0 = [turn(f, ri), turn(ri, f), d];
+            }
+        }
+        if let Some(d) = depth.as_mut() {
+            d.z += self.faults.depth_bias;
+        }
+        if let Some(a) = attitude.as_mut() {
+            a.pitch = lightpose_core::Angle::from_rad(a.pitch.rad() + self.faults.pitch_bias);
+        }
+    }
+
+    /// The burst of `slot` into `out`: the vehicle flown through the
+    /// frame's samples, trajectory time `tt` at its first.
+    fn burst_of(&mut self, slot: &Slot, out: &mut Burst) {
+        let (traj, off) = (&self.traj, slot.tt - slot.t);
+        // As `lightpose simulate`: the trajectory at each sample's instant
+        // (a frame's last samples may run past its end, where it holds).
+        self.sim
+            .burst(slot.seq, slot.t, |s| traj.kinematics(s + off), out);
+    }
+}
+
+impl FrameSource for SimSource {
+    fn next_frame(&mut self) -> Result<Frame, SourceError> {
+        if self.sampling.is_some() {
+            return Err(crate::bursts_only("sim"));
+        }
+        let slot = self.next_slot()?;
+        let mut f = if self.v3 {
+            // A v3 scene of one sample a frame (daylight, beacons, roll):
+            // the simulator's burst of one, as `lightpose simulate` does.
+            let mut one = std::mem::take(&mut self.one);
+            self.burst_of(&slot, &mut one);
+            let f = lightpose_sim::simulator::one_sample_frame(&one);
+            self.one = one;
+            f
+        } else {
+            self.sim
+                .frame_moving(slot.seq, slot.t, &self.traj.kinematics(slot.tt))
+        };
+        for &(k, v) in &self.faults.stuck {
+            f.counts[k] = v;
+        }
+        let (mut vel, mut dep, mut att) = (f.velocity, f.depth, f.attitude);
+        self.fault_readings(&mut vel, &mut dep, &mut att);
+        (f.velocity, f.depth, f.attitude) = (vel, dep, att);
+        Ok(f)
+    }
+    fn sampling(&self) -> Option<Sampling> {
+        self.sampling.clone()
+    }
+    fn next_take(&mut self, burst: &mut Burst) -> Result<Take, SourceError> {
+        if self.sampling.is_none() {
+            return self.next_frame().map(Take::Frame);
+        }
+        let slot = self.next_slot()?;
+        self.burst_of(&slot, burst);
+        for &(k, v) in &self.faults.stuck {
+            burst.channel_mut(k).fill(v);
+        }
+        let (mut vel, mut dep, mut att) = (burst.velocity, burst.depth, burst.attitude);
+        self.fault_readings(&mut vel, &mut dep, &mut att);
+        (burst.velocity, burst.depth, burst.attitude) = (vel, dep, att);
+        Ok(Take::Burst)
     }
     fn adc_bits(&self) -> u8 {
         self.sim.scene().adc.bits
@@ -411,5 +523,66 @@ mod tests {
         });
         let got = rx.recv_timeout(std::time::Duration::from_secs(5));
         assert_eq!(got.ok(), Some((5_000_000_001, true)));
+    }
+
+    /// The harbour by day, blinking at 250 Hz and sampled at 2 kHz.
+    fn day() -> Scene {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../config/scenes/harbour-day.toml");
+        Scene::load(&p).expect("config/scenes/harbour-day.toml")
+    }
+
+    /// Spec v3: a scene that samples faster than its frames gives bursts,
+    /// each the simulator's own for that frame (the same seed, the same
+    /// samples), its readings faulted as a frame's; `next_frame` refuses.
+    #[test]
+    fn a_sampling_scene_gives_the_simulators_bursts() {
+        let faults = Faults {
+            stuck: vec![(3, 77)],
+            bus_error_every: Some(4),
+            ..Faults::default()
+        };
+        let mut s = src_in(day(), false, faults);
+        let sampling = s.sampling().expect("bursts");
+        assert_eq!(sampling.samples_per_frame, 400);
+        assert_eq!(sampling.sample_hz, 2000.0);
+        assert_eq!(sampling.channel_skew_s, 2e-5);
+        assert_eq!(sampling.beacons.len(), 1);
+        assert_eq!(sampling.beacons[0].mod_hz, 250.0);
+        assert!(matches!(s.next_frame(), Err(SourceError::BadData { .. })));
+
+        let mut s = src_in(day(), false, Faults::default());
+        let mut direct = Simulator::new(day(), 7);
+        let (mut got, mut want) = (Burst::new(1), Burst::new(400));
+        for seq in 0..3u64 {
+            assert_eq!(s.next_take(&mut got).expect("a burst"), Take::Burst);
+            let t = seq as f64 / 5.0;
+            direct.burst(seq, t, |u| traj().kinematics(u), &mut want);
+            assert_eq!(got, want, "frame {seq}");
+        }
+        // traj() is 2 s: frames while their middle is within it.
+        let mut n = 3;
+        while s.next_take(&mut got).is_ok() {
+            n += 1;
+        }
+        assert_eq!(n, 10);
+
+        let faults = Faults {
+            stuck: vec![(3, 77)],
+            bus_error_every: Some(4),
+            ..Faults::default()
+        };
+        let mut s = src_in(day(), true, faults);
+        let mut errors = 0;
+        for _ in 0..12 {
+            match s.next_take(&mut got) {
+                Ok(Take::Burst) => assert!(got.channel(3).iter().all(|&c| c == 77)),
+                Ok(Take::Frame(_)) => panic!("a frame from a source of bursts"),
+                Err(SourceError::Bus { .. }) => errors += 1,
+                Err(e) => panic!("{e}"),
+            }
+        }
+        assert_eq!(errors, 3);
+        assert_eq!(s.health().injected_faults, 3);
     }
 }

@@ -20,6 +20,7 @@
 use crate::read::Carried;
 use crate::write::{McapOptions, McapWriter, WriteError};
 use crate::{Format, LogFile};
+use lightpose_core::samples::Record;
 use lightpose_core::textfile::{read_line_bounded, LineRead, MAX_LINE_BYTES};
 use lightpose_core::{Cut, FrameLog, LogError};
 use std::fs::File;
@@ -318,9 +319,12 @@ pub fn convert(
     let mut poses = route_poses(&mut log, out_format, poses)?;
     let mut out = create_output(&log, output, out_format, opts)?;
     let mut s = ConvertSummary::default();
-    while let Some(r) = log.next_frame() {
-        let f = match r {
-            Ok(f) => f,
+    // Spec v3: every kind of frame line is read (FORMATS.md), and carried
+    // as it was written.
+    while let Some(r) = log.next_record() {
+        let (f, seq, kind) = match r {
+            Ok(r @ Record::Frame(f)) => (Some(f), f.seq, r.kind()),
+            Ok(r) => (None, r.seq(), r.kind()),
             Err(e) if e.skippable() => {
                 s.skipped += 1;
                 on_skip(&e);
@@ -330,12 +334,21 @@ pub fn convert(
         };
         // Poses kept while reading up to this frame belong before it.
         s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::BeforeFrame)?;
-        match &mut out {
-            Out::Jsonl(file, w) => write_line(w, log.last_line(), file)?,
-            Out::Mcap(w) => w.write_frame_line(&f, log.last_line())?,
+        match (&mut out, f) {
+            (Out::Jsonl(file, w), _) => write_line(w, log.last_line(), file)?,
+            (Out::Mcap(w), Some(f)) => w.write_frame_line(&f, log.last_line())?,
+            (Out::Mcap(_), None) => {
+                // MCAP's channels for raw samples and amplitudes come
+                // with its writer and reader of them (lightpose-logs').
+                return Err(ConvertError::Usage(format!(
+                    "{}: seq {seq}: a {}: MCAP holds frames of counts only in this build; convert to .jsonl",
+                    input.display(),
+                    kind.describe()
+                )));
+            }
         }
         s.frames += 1;
-        s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::AfterFrame(f.seq))?;
+        s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::AfterFrame(seq))?;
         s.skipped += refused_poses(&mut poses, &mut on_skip);
     }
     s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::End)?;

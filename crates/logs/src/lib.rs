@@ -173,6 +173,15 @@ impl LogFile {
         }
     }
 
+    /// The line number of the frame read last (JSON Lines; `None` in MCAP,
+    /// whose places are byte offsets).
+    pub fn line_no(&self) -> Option<usize> {
+        match self {
+            LogFile::Jsonl(r) => Some(r.line_no()),
+            LogFile::Mcap(_) => None,
+        }
+    }
+
     /// Flag forward steps of `t` above `max_gap_s` as jumps (before the
     /// first frame; default core's `DEFAULT_MAX_GAP_S`).
     pub fn with_max_gap_s(mut self, max_gap_s: f64) -> Self {
@@ -202,6 +211,12 @@ impl FrameLog for LogFile {
         match self {
             LogFile::Jsonl(r) => FrameLog::next_frame(r.as_mut()),
             LogFile::Mcap(r) => FrameLog::next_frame(r.as_mut()),
+        }
+    }
+    fn next_record(&mut self) -> Option<Result<lightpose_core::samples::Record<'_>, LogError>> {
+        match self {
+            LogFile::Jsonl(r) => FrameLog::next_record(r.as_mut()),
+            LogFile::Mcap(r) => FrameLog::next_record(r.as_mut()),
         }
     }
     fn cut(&self) -> Option<Cut> {

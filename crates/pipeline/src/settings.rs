@@ -70,6 +70,17 @@ pub struct ModelConfig {
     /// The attitude sensor's 1σ (MODEL.md defaults).
     pub attitude_sigma_pitch_deg: f64,
     pub attitude_sigma_yaw_deg: f64,
+    /// Spec v3: the attitude sensor's roll 1σ (degrees; MODEL.md's 0.3°),
+    /// for a frame whose attitude reading has roll (a frame's `std` has
+    /// none for roll).
+    pub attitude_sigma_roll_deg: f64,
+    /// Spec v3: a frame without a roll reading is taken at roll 0 ± this
+    /// (degrees, 1σ; a vehicle in waves rolls a few degrees, 5 is a fair
+    /// figure), whose doubt goes into every other axis' σ and is reported
+    /// as `std.roll`. Unset: roll is exactly 0 and not reported, as in
+    /// spec v1/v2 (the default, so that v1/v2 logs give what they gave).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub roll_sigma_deg: Option<f64>,
     /// With `dof = "full"` and no attitude reading: a weak prior of
     /// pitch = yaw = 0 with this σ (degrees), for vehicles known to keep
     /// roughly facing the beacon. Absent: no prior at all.
@@ -112,6 +123,8 @@ impl Default for ModelConfig {
             use_attitude: true,
             attitude_sigma_pitch_deg: 0.3,
             attitude_sigma_yaw_deg: 1.5,
+            attitude_sigma_roll_deg: 0.3,
+            roll_sigma_deg: None,
             attitude_envelope_deg: None,
             x_range: [3.0, 12.0],
             search_margin: 2.0,
@@ -149,6 +162,40 @@ pub(crate) fn num(v: f64) -> String {
     }
 }
 
+/// `roll_sigma_deg`, when set, is a roll a vehicle can have: above 0 and
+/// at most 45°.
+pub(crate) fn roll_sigma_ok(v: Option<f64>) -> Result<(), String> {
+    match v {
+        Some(v) if !(v.is_finite() && v > 0.0 && v <= 45.0) => Err(format!(
+            "roll_sigma_deg = {} must be above 0 and at most 45°",
+            num(v)
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// A frame's roll as an estimator takes it: the reading's (with the
+/// configured σ) when it has one, else 0 with `prior_sigma_deg` when that
+/// is set; `None` (roll exactly 0, not reported: spec v1/v2) otherwise.
+/// Radians: (roll, 1σ).
+pub fn roll_of(
+    frame: &lightpose_core::Frame,
+    use_attitude: bool,
+    reading_sigma_deg: f64,
+    prior_sigma_deg: Option<f64>,
+) -> Option<(f64, f64)> {
+    let reading = frame
+        .attitude
+        .filter(|_| use_attitude)
+        .and_then(|a| a.roll)
+        .filter(|r| r.rad().is_finite());
+    match (reading, prior_sigma_deg) {
+        (Some(r), _) => Some((r.rad(), reading_sigma_deg.to_radians())),
+        (None, Some(s)) => Some((0.0, s.to_radians())),
+        (None, None) => None,
+    }
+}
+
 impl ModelConfig {
     pub fn validate(&self) -> Result<(), ModelError> {
         let bad = |m: String| Err(ModelError::Config(m));
@@ -163,6 +210,7 @@ impl ModelConfig {
         for (name, v) in [
             ("attitude_sigma_pitch_deg", self.attitude_sigma_pitch_deg),
             ("attitude_sigma_yaw_deg", self.attitude_sigma_yaw_deg),
+            ("attitude_sigma_roll_deg", self.attitude_sigma_roll_deg),
             ("search_margin", self.search_margin),
             ("max_lateral_ratio", self.max_lateral_ratio),
             ("max_angle_deg", self.max_angle_deg),
@@ -182,6 +230,7 @@ impl ModelConfig {
                 ));
             }
         }
+        roll_sigma_ok(self.roll_sigma_deg).map_err(ModelError::Config)?;
         if let Some(v) = self.attitude_envelope_deg {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!("attitude_envelope_deg = {v} must be positive"));
@@ -375,6 +424,17 @@ pub struct TrackerConfig {
     pub use_attitude: bool,
     pub attitude_sigma_pitch_deg: f64,
     pub attitude_sigma_yaw_deg: f64,
+    /// Spec v3: the attitude sensor's roll 1σ (degrees; MODEL.md's 0.3°),
+    /// for a frame whose attitude reading has roll (a frame's `std` has
+    /// none for roll).
+    pub attitude_sigma_roll_deg: f64,
+    /// Spec v3: a frame without a roll reading is taken at roll 0 ± this
+    /// (degrees, 1σ; a vehicle in waves rolls a few degrees, 5 is a fair
+    /// figure), whose doubt goes into every other axis' σ and is reported
+    /// as `std.roll`. Unset: roll is exactly 0 and not reported, as in
+    /// spec v1/v2 (the default, so that v1/v2 logs give what they gave).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub roll_sigma_deg: Option<f64>,
     /// Use `Frame.depth` when present, with this 1σ (m) unless the reading
     /// gives its own (MODEL.md's sensor: 0.02 m).
     pub use_depth: bool,
@@ -568,6 +628,8 @@ impl Default for TrackerConfig {
             use_attitude: true,
             attitude_sigma_pitch_deg: 0.3,
             attitude_sigma_yaw_deg: 1.5,
+            attitude_sigma_roll_deg: 0.3,
+            roll_sigma_deg: None,
             use_depth: true,
             depth_sigma_m: 0.02,
             depth_lever_arm_m: [0.0; 3],

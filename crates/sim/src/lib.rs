@@ -6,14 +6,18 @@
 //! - [`scene`]: the scene file (TOML) parsed and validated into a [`Scene`];
 //! - [`trajectory`]: knots, natural cubic splines and sampling;
 //! - [`simulator`]: light to counts, with gains, offsets, noise and the ADC;
-//! - [`sweep`]: the calibration sweeps of MODEL.md.
+//! - [`sweep`]: the calibration sweeps of MODEL.md;
+//! - [`frames`]: the frames an estimator reads from a simulated run (a
+//!   blinking beacon's bursts demodulated).
 
+pub mod frames;
 pub mod scene;
 pub mod simulator;
 pub mod spline;
 pub mod sweep;
 pub mod trajectory;
 
+pub use frames::EstimatorFrames;
 pub use scene::{
     Adc, AttitudeNoise, Beacon, Blink, Daylight, DepthNoise, DvlNoise, Flicker, McSpread, Noise,
     Scene, SceneError,

@@ -142,20 +142,8 @@ impl SweepPlan {
             seq += 1;
             sink(&f)
         };
-        if self.kind == SweepKind::Dark {
-            sim.set_beacon(false);
-            // Dark frames carry no truth: with the beacon off the pose is moot.
-            let pose = Pose::new(4.5, 0.0, 0.0, Angle::ZERO, Angle::ZERO);
-            for _ in 0..self.samples {
-                emit(&mut sim, &pose, false)?;
-            }
-        } else {
-            for pose in &self.poses {
-                for _ in 0..self.samples {
-                    emit(&mut sim, pose, true)?;
-                }
-            }
-        }
+        sim.set_beacon(self.kind != SweepKind::Dark);
+        self.each_pose(|pose, truth| emit(&mut sim, pose, truth))?;
         Ok(seq)
     }
 
@@ -188,20 +176,31 @@ impl SweepPlan {
             seq += 1;
             sink(&burst)
         };
+        sim.set_beacon(self.kind != SweepKind::Dark);
+        self.each_pose(|pose, truth| emit(&mut sim, pose, truth))?;
+        Ok(seq)
+    }
+
+    /// The sweep's schedule: `samples` frames at each pose, with truth; a
+    /// dark sweep's frames carry none (with the beacon off the pose is
+    /// moot).
+    fn each_pose(
+        &self,
+        mut emit: impl FnMut(&Pose, bool) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
         if self.kind == SweepKind::Dark {
-            sim.set_beacon(false);
             let pose = Pose::new(4.5, 0.0, 0.0, Angle::ZERO, Angle::ZERO);
             for _ in 0..self.samples {
-                emit(&mut sim, &pose, false)?;
+                emit(&pose, false)?;
             }
         } else {
             for pose in &self.poses {
                 for _ in 0..self.samples {
-                    emit(&mut sim, pose, true)?;
+                    emit(pose, true)?;
                 }
             }
         }
-        Ok(seq)
+        Ok(())
     }
 
     /// Write the sweep as an intensity log: FRAME lines, or (spec v3, a

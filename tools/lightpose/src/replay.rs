@@ -38,14 +38,24 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     let mut est = build_estimator(&a.estimator, &cal)?;
     // Say which one "auto" chose, before any output.
     eprintln!("lightpose: estimator {} ({})", est.name(), a.estimator);
-    let mut log = lightpose_logs::open(&a.log)?;
+    // Every kind of frame (FORMATS.md): BURSTs demodulated on the way.
+    let mut log = crate::frames::Frames::open(&a.log)?;
+    if let Some(d) = log.demodulator() {
+        let c = d.config();
+        eprintln!(
+            "lightpose: demodulating {} samples a frame at {} Hz ({} beacon(s))",
+            c.n,
+            c.sample_hz,
+            c.beacons.len()
+        );
+    }
     reads_frames_of(est.as_ref(), &cal, log.header().adc_bits)
         .map_err(|m| anyhow::anyhow!("{}: {m}", a.log.display()))?;
     let file = File::create(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let mut out = BufWriter::new(file);
     let mut shown = 0u32;
     let mut first_bad = None;
-    let s = replay(est.as_mut(), log.as_mut(), &mut out, |e| {
+    let s = replay(est.as_mut(), &mut log, &mut out, |e| {
         shown += 1;
         if shown <= 20 {
             eprintln!("lightpose: skipped {e}");
@@ -67,7 +77,7 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
         anyhow::bail!("{}: no frame could be replayed: {why}", a.log.display());
     }
     say_summary(&a, &s);
-    say_log(&a, log.as_ref());
+    say_log(&a, &log);
     if a.report {
         match &s.report {
             Some(r) => out!("{r}"),

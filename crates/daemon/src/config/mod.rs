@@ -38,7 +38,7 @@ pub use foxglove::Foxglove;
 pub use logging::{LogFormat, Logging};
 pub use outputs::{Multicast, Outputs};
 pub use places::Places;
-pub use recording::{RecFormat, Recording};
+pub use recording::{RecFormat, RecSamples, Recording};
 pub use vehicle::VehicleConfig;
 
 use lightpose_core::textfile::{excerpt, one_line, read_text, TextError, TextSource};

@@ -43,6 +43,24 @@ pub struct Recording {
     /// `max_total_mb`: the recordings in `dir` are kept under this, the
     /// oldest pruned first.
     pub max_total_bytes: Option<u64>,
+    /// Spec v3, a source that samples faster than its frames: what its
+    /// frames are recorded as (`samples`).
+    pub samples: RecSamples,
+}
+
+/// What a recording holds of a source that gives bursts (spec v3); a
+/// source of one sample a frame records its counts whatever this says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RecSamples {
+    /// BURST lines: the samples as the ADC took them, so that a replay
+    /// demodulates them again (with a better demodulator, another
+    /// configuration). 25 × N numbers a frame.
+    #[default]
+    Raw,
+    /// Demodulated frames (each beacon's amplitudes, the ambient, the
+    /// clipped counts): about 75 numbers a frame whatever N.
+    Demodulated,
 }
 
 /// The container of a recording.
@@ -113,6 +131,7 @@ pub(super) struct RawRecording {
     flush_s: Option<Spanned<f64>>,
     keep_free_mb: Option<Spanned<f64>>,
     max_total_mb: Option<Spanned<f64>>,
+    samples: Option<Spanned<RecSamples>>,
 }
 
 /// `None` when the table is absent or not enabled (checked all the same:
@@ -183,6 +202,7 @@ fn check(
         flush,
         keep_free_bytes,
         max_total_bytes,
+        samples: r.samples.as_ref().map_or(RecSamples::Raw, |f| *f.get_ref()),
     })
 }
 

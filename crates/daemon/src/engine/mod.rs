@@ -17,6 +17,7 @@
 //! counters are atomics. Every wait (the source's pacing, the pause after a
 //! dead bus) ends at once when the [`Stop`] is raised.
 
+pub mod demod;
 mod failure;
 mod health;
 mod seq;
@@ -28,7 +29,7 @@ use crate::stats::{BackendState, Stats, TempSource};
 use failure::LastFailure;
 use lightpose_core::ratelog::RateLog;
 use lightpose_core::{Estimator, Frame, PoseEstimate};
-use lightpose_hal::{FrameSource, SourceError, Stop};
+use lightpose_hal::{FrameSource, SourceError, Stop, Take};
 use seq::{SeqBooks, Step};
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::mpsc::Receiver;
@@ -115,6 +116,8 @@ pub struct Engine {
     /// hypotheses of which sensor is off may hand the lead back and forth
     /// while they are weighed).
     offsets_said: [bool; 2],
+    /// Spec v3: the demodulator of a source that gives bursts.
+    demod: Option<Box<demod::Demod>>,
 }
 
 /// What the loop keeps from one frame to the next.
@@ -153,7 +156,26 @@ impl Engine {
     pub fn new(source: Box<dyn FrameSource>, estimator: Box<dyn Estimator>) -> Engine {
         let period = source.period();
         let t_is_monotonic = source.t_is_monotonic();
+        // A source of bursts gets its demodulator here, so that no engine
+        // runs one without; one its sampling cannot have (wiring refuses
+        // such a config first) fails each frame, said in STATUS.
+        let demod = source.sampling().map(|s| {
+            let rate = source.rate_hz().unwrap_or(0.0);
+            match demod::demodulator(&s, rate) {
+                Ok(d) => Ok(Box::new(demod::Demod::new(d))),
+                Err(e) => Err(e.to_string()),
+            }
+        });
+        let demod = match demod {
+            Some(Ok(d)) => Some(d),
+            Some(Err(e)) => {
+                tracing::error!("demodulator: {e}: every frame will fail");
+                None
+            }
+            None => None,
+        };
         Engine {
+            demod,
             source,
             estimator,
             inputs: Vec::new(),
@@ -240,7 +262,11 @@ impl Engine {
             self.account_seq(&acq, &mut books);
             self.attach_inputs(&mut acq);
             let est = self.estimate(&acq.frame);
+            let burst = self.demod.as_ref().and_then(|d| d.last_burst());
             for o in &mut self.outputs {
+                if let Some(b) = burst {
+                    o.raw(b);
+                }
                 o.emit(&acq, &est);
             }
             self.account_done(&acq, &est, Instant::now(), &mut books);
@@ -396,13 +422,17 @@ impl Engine {
             );
         }
         *h = Some(new);
+        drop(h);
+        if let (Some(d), Ok(mut g)) = (&self.demod, self.stats.demod.lock()) {
+            d.report(&mut g);
+        }
     }
 
     /// The next frame from the source; a failure is counted and logged,
     /// and after a dead bus (which fails at once) the loop pauses rather
     /// than spin a core on it.
     fn acquire(&mut self, books: &mut Books) -> Got {
-        let got = self.source.next_frame();
+        let got = self.take();
         let arrival = Instant::now();
         let mono_s = self.t_is_monotonic.then(lightpose_hal::clock::monotonic_s);
         let wall_unix = SystemTime::now()
@@ -460,6 +490,18 @@ impl Engine {
                 }
                 Got::Retry
             }
+        }
+    }
+
+    /// The source's next frame: a burst demodulated when it gives bursts.
+    fn take(&mut self) -> Result<Frame, SourceError> {
+        let Some(d) = self.demod.as_mut() else {
+            return self.source.next_frame();
+        };
+        d.taking();
+        match self.source.next_take(&mut d.burst)? {
+            Take::Frame(f) => Ok(f),
+            Take::Burst => d.frame(),
         }
     }
 

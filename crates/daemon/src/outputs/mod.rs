@@ -24,6 +24,12 @@ use lightpose_core::PoseEstimate;
 /// a bounded queue, as the recorder does) nor allocate per frame.
 pub trait Output: Send {
     fn emit(&mut self, frame: &Acquired, est: &PoseEstimate);
+    /// Spec v3: the raw samples the frame about to be emitted was
+    /// demodulated from, just before its [`Output::emit`] (a recorder of
+    /// BURST lines keeps them). Not called for frames of one sample.
+    fn raw(&mut self, burst: &lightpose_core::samples::Burst) {
+        let _ = burst;
+    }
     /// The engine replaced its estimator (a calibration reload): the
     /// estimates that follow are a new track. Called on the frame thread,
     /// between two frames.

@@ -20,6 +20,7 @@
 //! left without a frame is removed.
 
 use crate::config::RecFormat;
+use lightpose_core::samples::{Burst, Demodulated};
 use lightpose_core::{Frame, LogHeader, LogWriter, PoseEstimate};
 use lightpose_logs::foxglove::Stamp;
 use lightpose_logs::{LogSink, McapOptions, McapWriter, WriteError};
@@ -242,11 +243,38 @@ impl RecFile {
 
     /// A frame and its estimate (JSONL keeps the frame only).
     pub fn write(&mut self, f: &Frame, est: &PoseEstimate, wall: f64) -> Result<(), RecError> {
+        self.write_of(f, None, est, wall)
+    }
+
+    /// A frame as the recording keeps it (spec v3): `raw`, the samples it
+    /// was demodulated from, as a BURST line; a frame with amplitudes as a
+    /// demodulated frame; else its counts.
+    pub fn write_of(
+        &mut self,
+        f: &Frame,
+        raw: Option<&Burst>,
+        est: &PoseEstimate,
+        wall: f64,
+    ) -> Result<(), RecError> {
         if let Some(e) = unencodable(self.format, f, est) {
             return Err(RecError::Skip(e));
         }
-        self.sink
-            .write_frame(f)
+        let written = match (raw, f.amplitudes) {
+            (Some(b), _) => self.sink.write_burst(b),
+            (None, Some(light)) => self.sink.write_demodulated(&Demodulated {
+                seq: f.seq,
+                t: f.t,
+                adc_bits: f.adc_bits,
+                light,
+                temp_c: f.temp_c,
+                truth: f.truth,
+                attitude: f.attitude,
+                depth: f.depth,
+                velocity: f.velocity,
+            }),
+            (None, None) => self.sink.write_frame(f),
+        };
+        written
             .and_then(|()| {
                 if self.sink.keeps_poses() {
                     self.sink.write_pose(est, Some(wall))

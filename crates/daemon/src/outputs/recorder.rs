@@ -21,14 +21,15 @@ mod worker;
 pub use space::{default_floor, MIN_FREE};
 
 use super::{Output, StatusTap};
-use crate::config::{RecFormat, Recording};
+use crate::config::{RecFormat, RecSamples, Recording};
 use crate::engine::Acquired;
 pub use clock::Epoch;
 use lightpose_core::ratelog::{Close, RateLog};
+use lightpose_core::samples::Burst;
 use lightpose_core::{Frame, LogHeader, PoseEstimate};
 use std::io;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering::Relaxed};
-use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
@@ -129,8 +130,11 @@ impl RecStats {
 /// What the frame thread hands the recorder: the frame as acquired, its
 /// estimate and the wall clock of its arrival. All Copy: the queue's slots
 /// are allocated once, so handing over allocates nothing.
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 struct Item {
+    /// Spec v3: the samples `frame` was demodulated from, recorded as a
+    /// BURST line (`samples = "raw"`), its buffer from the pool.
+    burst: Option<Box<Burst>>,
     frame: Frame,
     est: PoseEstimate,
     wall_unix: f64,
@@ -148,7 +152,24 @@ pub struct Recorder {
     /// Frames the full queue refused: core's rule, the first at once,
     /// then less and less often while the disk stays slow.
     drop_log: RateLog,
+    /// Spec v3, `samples = "raw"` of a source of bursts: buffers for the
+    /// frames' samples, made once, coming back from the recorder thread.
+    raw: Option<RawPool>,
 }
+
+/// Buffers for raw samples on their way to the disk.
+struct RawPool {
+    free: Receiver<Box<Burst>>,
+    /// The burst of the frame about to be recorded, if one was free.
+    pending: Option<Box<Burst>>,
+    /// [`Output::raw`] was called for that frame (a source of bursts may
+    /// still give a frame demodulated already: recorded as it is).
+    called: bool,
+}
+
+/// Raw bursts waiting for the disk at most: 32 × 25 × N samples (0.6 MB
+/// at N = 400); past them a frame is dropped, counted, as by a full queue.
+const RAW_POOL: usize = 32;
 
 impl Recorder {
     /// Start the recorder thread. `header` is written at the top of every
@@ -160,7 +181,24 @@ impl Recorder {
             ..RecStats::default()
         });
         stats.set_state(RecState::Idle);
-        Recorder::spawn(Worker::new(cfg, header, stats, epoch), cfg.queue)
+        let n = header.samples_per_frame();
+        let mut worker = Worker::new(cfg, header, stats, epoch);
+        let raw = (n > 1 && cfg.samples == RecSamples::Raw).then(|| {
+            let size = RAW_POOL.min(cfg.queue);
+            let (back, free) = sync_channel::<Box<Burst>>(size);
+            for _ in 0..size {
+                let _ = back.try_send(Box::new(Burst::new(n)));
+            }
+            worker.free = Some(back);
+            RawPool {
+                free,
+                pending: None,
+                called: false,
+            }
+        });
+        let mut r = Recorder::spawn(worker, cfg.queue)?;
+        r.raw = raw;
+        Ok(r)
     }
 
     /// `worker` on its thread behind a queue of `queue` frames.
@@ -177,18 +215,32 @@ impl Recorder {
             join: Some(join),
             stats,
             drop_log: RateLog::new(),
+            raw: None,
         })
     }
 
     /// Hand a frame and its estimate to the recorder without waiting.
     #[inline]
     pub fn record(&mut self, frame: &Frame, est: &PoseEstimate, wall_unix: f64) {
-        let Some(tx) = &self.tx else { return };
+        if self.tx.is_none() {
+            return;
+        }
+        let mut burst = None;
+        if let Some(pool) = self.raw.as_mut() {
+            burst = pool.pending.take();
+            if std::mem::take(&mut pool.called) && burst.is_none() {
+                // Every buffer still waits for the disk: as a full queue.
+                self.full();
+                return;
+            }
+        }
         let item = Item {
+            burst,
             frame: *frame,
             est: *est,
             wall_unix,
         };
+        let Some(tx) = &self.tx else { return };
         match tx.try_send(item) {
             Ok(()) => {
                 self.stats.queued.fetch_add(1, Relaxed);
@@ -200,19 +252,33 @@ impl Recorder {
                     self.settle_drops(Instant::now());
                 }
             }
-            Err(TrySendError::Full(_)) => {
-                let n = self.stats.dropped.fetch_add(1, Relaxed) + 1;
-                if let Some(k) = self.drop_log.tick(Instant::now()) {
-                    tracing::warn!(
-                        dropped = n,
-                        since_last_line = k,
-                        "recording queue full: the disk is too slow, frame not recorded"
-                    );
-                }
+            Err(TrySendError::Full(item)) => {
+                self.give_back(item.burst);
+                self.full();
             }
-            Err(TrySendError::Disconnected(_)) => {
+            Err(TrySendError::Disconnected(item)) => {
+                self.give_back(item.burst);
                 self.stats.failed.fetch_add(1, Relaxed);
             }
+        }
+    }
+
+    /// A burst not handed over, kept for the next frame.
+    fn give_back(&mut self, burst: Option<Box<Burst>>) {
+        if let (Some(pool), Some(b)) = (self.raw.as_mut(), burst) {
+            pool.pending = Some(b);
+        }
+    }
+
+    /// A frame the full queue (or an empty pool of raw buffers) refused.
+    fn full(&mut self) {
+        let n = self.stats.dropped.fetch_add(1, Relaxed) + 1;
+        if let Some(k) = self.drop_log.tick(Instant::now()) {
+            tracing::warn!(
+                dropped = n,
+                since_last_line = k,
+                "recording queue full: the disk is too slow, frame not recorded"
+            );
         }
     }
 
@@ -353,6 +419,20 @@ impl Output for Recorder {
     #[inline]
     fn emit(&mut self, frame: &Acquired, est: &PoseEstimate) {
         self.record(&frame.frame, est, frame.wall_unix);
+    }
+    /// Kept for the frame's record when it records raw samples: copied
+    /// into a buffer of the pool (none free: that frame is dropped).
+    fn raw(&mut self, burst: &Burst) {
+        let Some(pool) = self.raw.as_mut() else {
+            return;
+        };
+        pool.called = true;
+        if pool.pending.is_none() {
+            pool.pending = pool.free.try_recv().ok();
+        }
+        if let Some(b) = pool.pending.as_mut() {
+            lightpose_hal::copy_burst(burst, b);
+        }
     }
     fn finish(&mut self) {
         Recorder::finish(self);

@@ -16,6 +16,7 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use lightpose_core::samples::{Burst, Record};
 use lightpose_core::{Frame, FrameLog, LogError};
 
 use crate::config::{Pace, ReplayPlan};
@@ -29,7 +30,7 @@ fn open_log(path: &std::path::Path, max_gap_s: f64) -> Result<Box<dyn FrameLog +
     ))
 }
 use crate::text::Text;
-use crate::{FrameSource, SourceError, SourceHealth};
+use crate::{FrameSource, Sampling, SourceError, SourceHealth, Take};
 
 /// Counters of the passes before the current one.
 #[derive(Debug, Default, Clone, Copy)]
@@ -47,7 +48,12 @@ pub struct ReplaySource {
     max_gap_s: f64,
     log: Box<dyn FrameLog + Send>,
     /// What the log gave first, read at open (see [`ReplaySource::open`]).
-    first: Option<Option<Result<Frame, LogError>>>,
+    first: Option<Option<Result<Rec, LogError>>>,
+    /// The BURST read last (spec v3), its buffer swapped with the
+    /// caller's: no copy, no allocation.
+    held: Burst,
+    /// How the log's BURSTs were sampled (its header's), when they are.
+    sampling: Option<Sampling>,
     adc_bits: u8,
     rate_hz: f64,
     stop: Stop,
@@ -78,12 +84,21 @@ impl ReplaySource {
     /// and the place, rather than ending the replay at its first frame.
     pub fn open(plan: &ReplayPlan, stop: &Stop) -> Result<ReplaySource, LogError> {
         let mut log = open_log(&plan.log, plan.max_gap_s)?;
-        let first = match log.next_frame() {
+        let mut held = Burst::new(log.header().samples_per_frame());
+        let first = match read(log.as_mut(), &mut held) {
             Some(Err(e)) if !e.skippable() => return Err(e),
             first => first,
         };
         let h = log.header();
+        let sampling = (h.samples_per_frame() > 1).then(|| Sampling {
+            sample_hz: h.sample_hz.unwrap_or(h.rate_hz),
+            samples_per_frame: h.samples_per_frame(),
+            channel_skew_s: h.channel_skew_s.unwrap_or(0.0),
+            beacons: h.beacons.clone(),
+        });
         Ok(ReplaySource {
+            held,
+            sampling,
             adc_bits: h.adc_bits,
             rate_hz: h.rate_hz,
             path: plan.log.clone(),
@@ -179,15 +194,24 @@ impl ReplaySource {
     /// time (or a stop); a jump of `t` is counted and not waited for. A
     /// seq that the shift would take past `u64::MAX` (the log grew between
     /// passes) ends the replay, as [`ReplaySource::refuse_loop`] says.
-    fn release(&mut self, mut f: Frame) -> Result<Frame, SourceError> {
-        let Some(seq) = f.seq.checked_add(self.seq_offset) else {
+    fn release(&mut self, f: &mut Frame) -> Result<(), SourceError> {
+        (f.seq, f.t) = self.release_at(f.seq, f.t)?;
+        Ok(())
+    }
+
+    /// [`ReplaySource::release`] of a frame or burst at (`seq`, `t`) as
+    /// logged: its seq and t in the current pass.
+    fn release_at(&mut self, seq0: u64, t0: f64) -> Result<(u64, f64), SourceError> {
+        let Some(seq) = seq0.checked_add(self.seq_offset) else {
             return Err(self.refuse_loop());
         };
         if self.first_of_pass.is_none() {
-            self.first_of_pass = Some((f.seq, f.t));
+            self.first_of_pass = Some((seq0, t0));
         }
-        f.seq = seq;
-        f.t += self.t_offset;
+        let f = At {
+            seq,
+            t: t0 + self.t_offset,
+        };
         self.last_out = Some((f.seq, f.t));
         if let Some(dt) = self.log.order().last_jump() {
             self.jumps += 1;
@@ -214,7 +238,7 @@ impl ReplaySource {
             self.last_due = Some(due);
             self.stop.sleep_until(due);
         }
-        Ok(f)
+        Ok((f.seq, f.t))
     }
 
     /// Say once where the first line of another class was.
@@ -231,16 +255,53 @@ impl ReplaySource {
     }
 }
 
-impl FrameSource for ReplaySource {
-    fn next_frame(&mut self) -> Result<Frame, SourceError> {
+/// The next frame of `log` of any kind (FORMATS.md): counts as they are,
+/// a demodulated frame as a frame with its amplitudes, a BURST into `held`.
+fn read(log: &mut (dyn FrameLog + Send), held: &mut Burst) -> Option<Result<Rec, LogError>> {
+    Some(match log.next_record()? {
+        Err(e) => Err(e),
+        Ok(Record::Frame(f)) => Ok(Rec::Frame(f)),
+        Ok(Record::Demodulated(d)) => Ok(Rec::Frame(d.to_frame())),
+        Ok(Record::Burst(b)) => {
+            crate::copy_burst(b, held);
+            Ok(Rec::Burst)
+        }
+    })
+}
+
+/// A frame's place as released.
+struct At {
+    seq: u64,
+    t: f64,
+}
+
+/// A record read: a frame, or a BURST in `held`.
+// A frame is held by value, as everywhere (fixed size, never on the heap).
+#[allow(clippy::large_enum_variant)]
+enum Rec {
+    Frame(Frame),
+    Burst,
+}
+
+impl ReplaySource {
+    /// The next record, shifted into its pass and released at its time.
+    fn next_rec(&mut self) -> Result<Rec, SourceError> {
         loop {
             let next = match self.first.take() {
                 Some(first) => first,
-                None => self.log.next_frame(),
+                None => read(self.log.as_mut(), &mut self.held),
             };
             self.note_other();
             match next {
-                Some(Ok(f)) => return self.release(f),
+                Some(Ok(Rec::Frame(mut f))) => {
+                    self.release(&mut f)?;
+                    return Ok(Rec::Frame(f));
+                }
+                Some(Ok(Rec::Burst)) => {
+                    let (seq, t) = self.release_at(self.held.seq, self.held.t)?;
+                    (self.held.seq, self.held.t) = (seq, t);
+                    return Ok(Rec::Burst);
+                }
                 Some(Err(e)) => {
                     // The reader's error was built for this line (its
                     // number, its fault); its words are kept inline when
@@ -261,6 +322,29 @@ impl FrameSource for ReplaySource {
                         return Err(SourceError::Ended);
                     }
                 }
+            }
+        }
+    }
+}
+
+impl FrameSource for ReplaySource {
+    fn next_frame(&mut self) -> Result<Frame, SourceError> {
+        match self.next_rec()? {
+            Rec::Frame(f) => Ok(f),
+            Rec::Burst => Err(crate::bursts_only("replay")),
+        }
+    }
+
+    fn sampling(&self) -> Option<Sampling> {
+        self.sampling.clone()
+    }
+
+    fn next_take(&mut self, burst: &mut Burst) -> Result<Take, SourceError> {
+        match self.next_rec()? {
+            Rec::Frame(f) => Ok(Take::Frame(f)),
+            Rec::Burst => {
+                std::mem::swap(&mut self.held, burst);
+                Ok(Take::Burst)
             }
         }
     }

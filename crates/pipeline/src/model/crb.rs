@@ -8,6 +8,9 @@
 //! with the Monte Carlo's spread as prior, so is the unknown temperature
 //! (a common gain), and the vehicle's own sensors add priors: the attitude
 //! sensor on pitch and yaw, the depth sensor 1/σ_d² on z (spec v2).
+//! Spec v3: the pose's roll is where the light is evaluated, and roll is a
+//! nuisance parameter too when the scene says how well it is known (the
+//! attitude sensor's roll σ, or a prior), as the estimators consider it.
 //!
 //! A DVL adds nothing here: it measures velocity, and one frame's bound
 //! has no velocity in it. What the DVL buys is the tie between frames,
@@ -23,11 +26,11 @@ use lightpose_core::light::temperature_gain;
 use lightpose_core::{Angle, Pose, NDET};
 use nalgebra::{SMatrix, SVector};
 
-use super::light::{from_pose, predict_with_grad};
+use super::light::{from_pose, predict_with_grad_rolled};
 use super::SensorModel;
 
-/// Parameters: x, y, z, θ, ψ, K_D, common gain.
-const NP: usize = 7;
+/// Parameters: x, y, z, θ, ψ, K_D, common gain, roll.
+const NP: usize = 8;
 
 /// A scene as the bound needs it.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,6 +50,10 @@ pub struct CrbScene {
     /// the sensor's z; a lever arm only shifts it by a known function of
     /// pitch, so the bound takes it at the dome centre.
     pub depth_sigma: Option<f64>,
+    /// Spec v3: 1σ of the roll the estimator is given (the attitude
+    /// sensor's roll, or a prior without one); `None`: roll known exactly
+    /// (spec v1/v2, and the bound is v2's bit for bit).
+    pub roll_sigma: Option<Angle>,
 }
 
 impl CrbScene {
@@ -60,6 +67,7 @@ impl CrbScene {
             sigma_temp_c: Some(3.0),
             attitude_sigma: None,
             depth_sigma: None,
+            roll_sigma: None,
         }
     }
 }
@@ -73,16 +81,19 @@ pub struct CrbBound {
     pub z: f64,
     pub pitch_deg: f64,
     pub yaw_deg: f64,
+    /// Spec v3: roll's, degrees, with its prior (`CrbScene::roll_sigma`);
+    /// 0 when roll is known exactly.
+    pub roll_deg: f64,
 }
 
-/// Fisher information of one frame at `pose` over (x, y, z, θ, ψ, K_D, gain),
-/// priors included. Channels the model puts at or beyond full scale, or at
+/// Fisher information of one frame at `pose` over (x, y, z, θ, ψ, K_D, gain,
+/// roll), priors included. Channels the model puts at or beyond full scale, or at
 /// zero, are censored and carry (almost) nothing; they are left out.
 pub fn fisher(scene: &CrbScene, pose: &Pose) -> SMatrix<f64, NP, NP> {
     let m = &scene.model;
     let gt = temperature_gain(scene.temp_c);
     let q = from_pose(pose);
-    let (pred, irr, jac) = predict_with_grad(m, &q, m.light.k_d, gt);
+    let (pred, irr, jac, jr) = predict_with_grad_rolled(m, &q, pose.roll.rad(), m.light.k_d, gt);
     let fs = m.full_scale();
     let cpv = m.counts_per_volt();
     let mut f = SMatrix::<f64, NP, NP>::zeros();
@@ -97,6 +108,7 @@ pub fn fisher(scene: &CrbScene, pose: &Pose) -> SMatrix<f64, NP, NP> {
         }
         // ∂count/∂(relative gain): the light part of the count.
         row[6] = m.gain[k] * gt * irr[k] * cpv;
+        row[7] = jr[k];
         f += row * row.transpose() / var;
     }
     let mut fix = |i: usize, sigma: Option<f64>| match sigma {
@@ -113,6 +125,7 @@ pub fn fisher(scene: &CrbScene, pose: &Pose) -> SMatrix<f64, NP, NP> {
     fix(5, scene.sigma_k_d);
     let slope = lightpose_core::light::temperature_gain_slope(scene.temp_c);
     fix(6, scene.sigma_temp_c.map(|s| s * slope));
+    fix(7, scene.roll_sigma.map(|s| s.rad()));
     if let Some((sp, sy)) = scene.attitude_sigma {
         f[(3, 3)] += 1.0 / (sp.rad() * sp.rad());
         f[(4, 4)] += 1.0 / (sy.rad() * sy.rad());
@@ -159,6 +172,11 @@ pub fn crb_along(scene: &CrbScene, poses: &[Pose]) -> Vec<CrbBound> {
                         z: sd(&c, 2),
                         pitch_deg: sd(&c, 3).to_degrees(),
                         yaw_deg: sd(&c, 4).to_degrees(),
+                        roll_deg: if scene.roll_sigma.is_some() {
+                            sd(&c, 7).to_degrees()
+                        } else {
+                            0.0
+                        },
                     }
                 }
                 None => CrbBound {
@@ -167,6 +185,7 @@ pub fn crb_along(scene: &CrbScene, poses: &[Pose]) -> Vec<CrbBound> {
                     z: f64::INFINITY,
                     pitch_deg: f64::INFINITY,
                     yaw_deg: f64::INFINITY,
+                    roll_deg: f64::INFINITY,
                 },
             }
         })
@@ -216,6 +235,50 @@ mod tests {
         assert!(d.pitch_deg < bare.pitch_deg / 5.0, "{bare:?} {d:?}");
         // The y/yaw ridge narrows (the beam couples it to z) but stays open.
         assert!(d.yaw_deg > 10.0 && d.y > 1.0, "{bare:?} {d:?}");
+    }
+
+    /// A roll known to its sensor's 0.3° costs the bound little; one known
+    /// only to a few degrees costs y and z more (the beam's gradient
+    /// across the dome turns with roll), and a rolled pose is bounded.
+    #[test]
+    fn roll_s_doubt_widens_the_bound_and_known_roll_is_v2() {
+        let mut scene = CrbScene::montecarlo(SensorModel::default());
+        scene.attitude_sigma = Some((Angle::from_deg(0.3), Angle::from_deg(1.5)));
+        let p = Pose::new(6.5, 0.3, -0.2, Angle::from_deg(3.0), Angle::from_deg(-4.0));
+        let v2 = crb_along(&scene, &[p])[0];
+        scene.roll_sigma = Some(Angle::from_deg(0.3));
+        let sensed = crb_along(&scene, &[p])[0];
+        scene.roll_sigma = Some(Angle::from_deg(5.0));
+        let prior = crb_along(&scene, &[p])[0];
+        eprintln!("roll known {v2:?}\nroll ±0.3° {sensed:?}\nroll ±5° {prior:?}");
+        for (a, b) in [
+            (v2.y, sensed.y),
+            (v2.z, sensed.z),
+            (sensed.y, prior.y),
+            (sensed.z, prior.z),
+        ] {
+            assert!(b >= a * (1.0 - 1e-9), "{a} {b}");
+        }
+        assert!(sensed.y < 1.1 * v2.y && sensed.z < 1.1 * v2.z);
+        assert!(prior.y.max(prior.z) > v2.y.max(v2.z) * 1.001);
+        let rolled = crb_along(&scene, &[p.with_roll(Angle::from_deg(8.0))])[0];
+        assert!(rolled.x.is_finite() && rolled.y.is_finite() && rolled.z.is_finite());
+        // One Gaussian beacon barely sees roll (MODEL.md): a frame leaves
+        // a 5° prior nearly as it was, which is why the estimators take
+        // roll as a consider parameter rather than fit it.
+        for q in [
+            p,
+            p.with_roll(Angle::from_deg(8.0)),
+            Pose::new(4.0, 0.5, 0.4, Angle::ZERO, Angle::ZERO),
+        ] {
+            let b = crb_along(&scene, &[q])[0];
+            eprintln!(
+                "roll's bound at {q:?}: {:.5}° of the prior's 5°",
+                b.roll_deg
+            );
+            assert!(b.roll_deg > 4.9 && b.roll_deg <= 5.0 + 1e-9, "{b:?}");
+        }
+        assert_eq!(v2.roll_deg, 0.0);
     }
 
     #[test]

@@ -1,5 +1,5 @@
 //! The light equation of MODEL.md with its analytic derivatives with respect
-//! to pose (x, y, z, θ, ψ) and K_D, in counts.
+//! to pose (x, y, z, θ, ψ), K_D and (spec v3) roll φ, in counts.
 //!
 //! Why analytic: Gauss–Newton, the EKF and the Cramér–Rao bound all need
 //! ∂count/∂pose at every frame, and finite differences would cost six extra
@@ -56,12 +56,13 @@ fn mat_vec(r: &[[f64; 3]; 3], v: &[f64; 3]) -> [f64; 3] {
     [dot(&r[0], v), dot(&r[1], v), dot(&r[2], v)]
 }
 
-/// R_BV and its derivatives with respect to θ and ψ, in that order.
-type Rotations = [[[f64; 3]; 3]; 3];
+/// R_BV and its derivatives with respect to θ, ψ and φ, in that order.
+type Rotations = [[[f64; 3]; 3]; 4];
 
-/// R_BV and its derivatives with respect to θ and ψ (MODEL.md's R0·Rz·Ry).
+/// R_BV = R0·Rz(ψ)·Ry(θ)·Rx(φ) (MODEL.md) and its derivatives with respect
+/// to θ, ψ and φ.
 #[inline]
-fn rotations(theta: f64, psi: f64) -> Rotations {
+fn rotations(theta: f64, psi: f64, phi: f64) -> Rotations {
     let (st, ct) = theta.sin_cos();
     let (sp, cp) = psi.sin_cos();
     let r = [
@@ -79,30 +80,82 @@ fn rotations(theta: f64, psi: f64) -> Rotations {
         [cp * ct, -sp, cp * st],
         [0.0, 0.0, 0.0],
     ];
-    [r, r_t, r_p]
+    // ∂(M·Rx(φ))/∂φ at φ = 0: column 1 → M's column 2, column 2 → −column 1.
+    let roll_d = |m: &[[f64; 3]; 3]| m.map(|row| [0.0, row[2], -row[1]]);
+    if phi == 0.0 {
+        // Roll 0 is the v1/v2 matrices bit for bit (no ±0 from 0·x).
+        return [r, r_t, r_p, roll_d(&r)];
+    }
+    // M·Rx(φ): column 1 → cφ·M1 + sφ·M2, column 2 → −sφ·M1 + cφ·M2 (as
+    // core's `Attitude::r_bv`); the θ and ψ derivatives turn the same way.
+    let (sr, cr) = phi.sin_cos();
+    let roll = |m: &[[f64; 3]; 3]| {
+        m.map(|row| {
+            [
+                row[0],
+                cr * row[1] + sr * row[2],
+                -sr * row[1] + cr * row[2],
+            ]
+        })
+    };
+    let rolled = roll(&r);
+    [rolled, roll(&r_t), roll(&r_p), roll_d(&rolled)]
 }
 
 /// Expected counts of every channel at pose `q` (noise-free, unclamped,
 /// unrounded), with `k_d` in place of the model's K_D and `gt` the
 /// temperature gain g_T. Also returns the irradiance E_k (volts).
+/// Roll 0 (spec v1/v2; see [`predict_rolled`]).
 pub fn predict(
     m: &SensorModel,
     q: &PoseVec,
     k_d: f64,
     gt: f64,
 ) -> (SVector<f64, NDET>, [f64; NDET]) {
-    let (c, e, _) = eval::<false>(m, q, k_d, gt);
-    (c, e)
+    predict_rolled(m, q, 0.0, k_d, gt)
 }
 
-/// As [`predict`], plus ∂count/∂(x, y, z, θ, ψ, K_D).
+/// As [`predict`], plus ∂count/∂(x, y, z, θ, ψ, K_D), at roll 0.
 pub fn predict_with_grad(
     m: &SensorModel,
     q: &PoseVec,
     k_d: f64,
     gt: f64,
 ) -> (SVector<f64, NDET>, [f64; NDET], PoseJacobian) {
-    eval::<true>(m, q, k_d, gt)
+    let (c, e, j, _) = eval::<true, false>(m, q, 0.0, k_d, gt);
+    (c, e, j)
+}
+
+/// As [`predict`] with the vehicle rolled by `roll` (radians; MODEL.md's
+/// φ, starboard side down). Why roll is beside the pose vector rather
+/// than in it: one Gaussian beacon barely sees roll, so the estimators
+/// take it from the attitude reading (or a prior) and carry its doubt
+/// into the other axes' σ rather than fit it (see docs/estimators.md).
+pub fn predict_rolled(
+    m: &SensorModel,
+    q: &PoseVec,
+    roll: f64,
+    k_d: f64,
+    gt: f64,
+) -> (SVector<f64, NDET>, [f64; NDET]) {
+    let (c, e, _, _) = eval::<false, false>(m, q, roll, k_d, gt);
+    (c, e)
+}
+
+/// As [`predict_rolled`], plus ∂count/∂(x, y, z, θ, ψ, K_D) and ∂count/∂φ.
+pub fn predict_with_grad_rolled(
+    m: &SensorModel,
+    q: &PoseVec,
+    roll: f64,
+    k_d: f64,
+    gt: f64,
+) -> (
+    SVector<f64, NDET>,
+    [f64; NDET],
+    PoseJacobian,
+    SVector<f64, NDET>,
+) {
+    eval::<true, true>(m, q, roll, k_d, gt)
 }
 
 /// The light equation's constants for one evaluation: the same for every
@@ -238,11 +291,17 @@ fn irradiance(b: &Beam, s: &Sight) -> Irradiance {
     }
 }
 
-/// ∂E/∂(x, y, z, θ, ψ, K_D) of one detector, in volts: the partials of E
-/// in d, α² and β², chained through how each pose coordinate moves p_k and
-/// turns m_k.
+/// ∂E/∂(x, y, z, θ, ψ, K_D) of one detector, in volts, and (when `ROLL`)
+/// ∂E/∂φ: the partials of E in d, α² and β², chained through how each pose
+/// coordinate moves p_k and turns m_k.
 #[inline]
-fn gradient(b: &Beam, s: &Sight, e: &Irradiance, rot: &Rotations, rh: f64) -> [f64; NGRAD] {
+fn gradient<const ROLL: bool>(
+    b: &Beam,
+    s: &Sight,
+    e: &Irradiance,
+    rot: &Rotations,
+    rh: f64,
+) -> ([f64; NGRAD], f64) {
     let (a, d, pk) = (e.a, s.d, s.pk);
     let (bracket, f, g_r, g_t) = (e.bracket, e.f, e.g_r, e.g_t);
     let (k_d, omega, ratio) = (b.k_d, b.omega, b.ratio);
@@ -277,42 +336,59 @@ fn gradient(b: &Beam, s: &Sight, e: &Irradiance, rot: &Rotations, rh: f64) -> [f
     // coordinate: position moves p_k only; attitude turns both.
     let mt = mat_vec(&rot[1], &s.n);
     let mpsi = mat_vec(&rot[2], &s.n);
-    let dpk: [[f64; 3]; 5] = [
+    let mphi = if ROLL {
+        mat_vec(&rot[3], &s.n)
+    } else {
+        [0.0; 3]
+    };
+    let dpk: [[f64; 3]; 6] = [
         [1.0, 0.0, 0.0],
         [0.0, 1.0, 0.0],
         [0.0, 0.0, 1.0],
         [rh * mt[0], rh * mt[1], rh * mt[2]],
         [rh * mpsi[0], rh * mpsi[1], rh * mpsi[2]],
+        [rh * mphi[0], rh * mphi[1], rh * mphi[2]],
     ];
-    let dm: [[f64; 3]; 5] = [[0.0; 3], [0.0; 3], [0.0; 3], mt, mpsi];
-    let mut out = [0.0; NGRAD];
-    for j in 0..5 {
+    let dm: [[f64; 3]; 6] = [[0.0; 3], [0.0; 3], [0.0; 3], mt, mpsi, mphi];
+    let chain = |j: usize| {
         let dd = dot(&pk, &dpk[j]) / d;
         let da2 = dot(&da2_dpk, &dpk[j]);
         // c = −m·p/d ⇒ dc = −(dm·p + m·dp)/d − c·dd/d
         let dc = -(dot(&dm[j], &pk) + dot(&s.mk, &dpk[j])) / d - s.c * dd / d;
         let db2 = -2.0 * b_over_s * dc;
-        out[j] = de_dd * dd + de_da2 * da2 + de_db2 * db2;
+        de_dd * dd + de_da2 * da2 + de_db2 * db2
+    };
+    let mut out = [0.0; NGRAD];
+    for j in 0..5 {
+        out[j] = chain(j);
     }
     out[5] = de_dk;
-    out
+    (out, if ROLL { chain(5) } else { 0.0 })
 }
 
-/// The light equation for every detector at pose `q`: counts, irradiance
-/// and, when `GRAD`, ∂count/∂(x, y, z, θ, ψ, K_D).
+/// The light equation for every detector at pose `q` rolled by `roll`:
+/// counts, irradiance and, when `GRAD`, ∂count/∂(x, y, z, θ, ψ, K_D) and
+/// (when `ROLL` too) ∂count/∂φ.
 #[inline]
-fn eval<const GRAD: bool>(
+fn eval<const GRAD: bool, const ROLL: bool>(
     m: &SensorModel,
     q: &PoseVec,
+    roll: f64,
     k_d: f64,
     gt: f64,
-) -> (SVector<f64, NDET>, [f64; NDET], PoseJacobian) {
+) -> (
+    SVector<f64, NDET>,
+    [f64; NDET],
+    PoseJacobian,
+    SVector<f64, NDET>,
+) {
     let mut counts = SVector::<f64, NDET>::zeros();
     let mut irr = [0.0; NDET];
     let mut jac = PoseJacobian::zeros();
+    let mut jac_roll = SVector::<f64, NDET>::zeros();
     let beam = Beam::new(m, k_d);
     let cpv = m.counts_per_volt();
-    let rot = rotations(q[3], q[4]);
+    let rot = rotations(q[3], q[4], roll);
     let p = [q[0], q[1], q[2]];
     let rh = m.geometry.radius_m;
     for k in 0..NDET {
@@ -330,12 +406,13 @@ fn eval<const GRAD: bool>(
         if !GRAD || e.a == 0.0 {
             continue;
         }
-        let de = gradient(&beam, &s, &e, &rot, rh);
+        let (de, de_roll) = gradient::<ROLL>(&beam, &s, &e, &rot, rh);
         for j in 0..NGRAD {
             jac[(k, j)] = scale * de[j];
         }
+        jac_roll[k] = scale * de_roll;
     }
-    (counts, irr, jac)
+    (counts, irr, jac, jac_roll)
 }
 
 #[cfg(test)]
@@ -349,10 +426,13 @@ mod tests {
         for pose in [
             Pose::new(4.5, 0.0, 0.0, Angle::ZERO, Angle::ZERO),
             Pose::new(7.0, 0.4, -0.3, Angle::from_deg(8.0), Angle::from_deg(-11.0)),
+            Pose::new(6.0, -0.3, 0.5, Angle::from_deg(-4.0), Angle::from_deg(6.0))
+                .with_roll(Angle::from_deg(9.0)),
+            Pose::new(3.0, 0.2, 0.1, Angle::ZERO, Angle::ZERO).with_roll(Angle::from_deg(-40.0)),
         ] {
             let mut e = [0.0; NDET];
             m.light.irradiance(&m.geometry, &pose, &mut e);
-            let (c, irr) = predict(&m, &from_pose(&pose), m.light.k_d, 1.0);
+            let (c, irr) = predict_rolled(&m, &from_pose(&pose), pose.roll.rad(), m.light.k_d, 1.0);
             for k in 0..NDET {
                 assert!((irr[k] - e[k]).abs() <= 1e-12 * e[k].max(1e-6), "{k}");
                 let want = (e[k] + 0.15) * m.counts_per_volt();
@@ -383,6 +463,62 @@ mod tests {
                     (fd - an).abs() < tol,
                     "q = {q:?}, col {j}, det {k}: analytic {an}, fd {fd}"
                 );
+            }
+        }
+    }
+
+    /// At roll 0 the rolled evaluation is the v1/v2 one bit for bit (the
+    /// regression logs compare poses byte for byte).
+    #[test]
+    fn roll_zero_is_the_v2_model_bit_for_bit() {
+        let m = SensorModel::default();
+        let q = PoseVec::new(6.2, 0.3, -0.2, 0.1, -0.15);
+        let (c0, e0, j0) = predict_with_grad(&m, &q, m.light.k_d, 1.0);
+        let (c1, e1, j1, jr) = predict_with_grad_rolled(&m, &q, 0.0, m.light.k_d, 1.0);
+        assert_eq!(c0, c1);
+        assert_eq!(e0, e1);
+        assert_eq!(j0, j1);
+        assert!(jr.iter().any(|v| *v != 0.0), "roll moves an off-axis image");
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::test_runner::Config {
+            cases: 64,
+            rng_algorithm: proptest::test_runner::RngAlgorithm::ChaCha,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(40),
+            ..Default::default()
+        })]
+        /// ∂count/∂φ and the other columns at a rolled pose match central
+        /// differences of the rolled model.
+        #[test]
+        fn roll_gradient_matches_finite_differences(
+            x in 2.0f64..9.0, y in -0.6f64..0.6, z in -0.6f64..0.6,
+            th in -0.3f64..0.3, ps in -0.3f64..0.3, phi in -0.5f64..0.5,
+        ) {
+            let m = SensorModel::default();
+            let kd = m.light.k_d;
+            let q = PoseVec::new(x, y, z, th, ps);
+            let (_, _, jac, jr) = predict_with_grad_rolled(&m, &q, phi, kd, 1.0);
+            let h = 1e-7;
+            let cp = predict_rolled(&m, &q, phi + h, kd, 1.0).0;
+            let cm = predict_rolled(&m, &q, phi - h, kd, 1.0).0;
+            for k in 0..NDET {
+                let fd = (cp[k] - cm[k]) / (2.0 * h);
+                let tol = 1e-5 * (jr[k].abs() + fd.abs()) + 1e-5;
+                proptest::prop_assert!((fd - jr[k]).abs() < tol, "det {}: {} vs {}", k, jr[k], fd);
+            }
+            for j in 3..5 {
+                let (mut qp, mut qm) = (q, q);
+                qp[j] += h;
+                qm[j] -= h;
+                let cp = predict_rolled(&m, &qp, phi, kd, 1.0).0;
+                let cm = predict_rolled(&m, &qm, phi, kd, 1.0).0;
+                for k in 0..NDET {
+                    let fd = (cp[k] - cm[k]) / (2.0 * h);
+                    let an = jac[(k, j)];
+                    let tol = 1e-5 * (an.abs() + fd.abs()) + 1e-5;
+                    proptest::prop_assert!((fd - an).abs() < tol, "col {} det {}", j, k);
+                }
             }
         }
     }

@@ -64,6 +64,9 @@ pub(crate) struct FrameFit {
     /// out as stuck (set by `fit_frame`, for the estimate's report).
     pub attitude: ReadingUse,
     pub excluded: u32,
+    /// Spec v3: the roll the fit held (rad) and its 1σ, when the frame's
+    /// reading or the settings' prior gave one (`settings::roll_of`).
+    pub roll: Option<(f64, f64)>,
 }
 
 impl FrameFit {
@@ -75,6 +78,7 @@ impl FrameFit {
             free: [false; 5],
             attitude: ReadingUse::Absent,
             excluded: 0,
+            roll: None,
         }
     }
 }
@@ -89,6 +93,9 @@ struct Constraints {
     att_q: Option<(f64, f64)>,
     /// What became of the frame's attitude reading.
     attitude: ReadingUse,
+    /// Roll held (rad) and its 1σ: the reading's when the attitude reading
+    /// was used, else the settings' prior; None: roll 0, v1/v2.
+    roll: Option<(f64, f64)>,
 }
 
 /// χ² per degree of freedom of a fit over the `free` coordinates.
@@ -182,7 +189,11 @@ impl ModelEstimator {
         let mut f = match self.screen(frame) {
             Err(status) => FrameFit::failed(status),
             Ok(gt) => {
-                let opts = self.solve_options(k.free, gt);
+                let mut opts = self.solve_options(k.free, gt);
+                if let Some((roll, sd)) = k.roll {
+                    opts.roll = roll;
+                    opts.roll_var = sd * sd;
+                }
                 match self.best_fit(frame, warm, gt, &k, &opts) {
                     Some(r) => self.judge(frame, r, k.free),
                     None => FrameFit::failed(Status::Diverged),
@@ -190,6 +201,7 @@ impl ModelEstimator {
             }
         };
         f.attitude = k.attitude;
+        f.roll = k.roll;
         f.excluded = Censoring::excluded_mask(&Censoring::classify(
             &self.model,
             &frame.counts,
@@ -257,11 +269,19 @@ impl ModelEstimator {
                 ([true; 5], p, None)
             }
         };
+        // A reading refused as a whole gives no roll either.
+        let roll = crate::settings::roll_of(
+            frame,
+            attitude == ReadingUse::Used,
+            c.attitude_sigma_roll_deg,
+            c.roll_sigma_deg,
+        );
         Constraints {
             free,
             prior,
             att_q,
             attitude,
+            roll,
         }
     }
 
@@ -279,6 +299,8 @@ impl ModelEstimator {
             k_d: m.light.k_d,
             gt,
             frozen: self.frozen.mask(),
+            roll: 0.0,
+            roll_var: 0.0,
         }
     }
 
@@ -425,8 +447,13 @@ impl ModelEstimator {
             pitch: sd(3, true),
             yaw: sd(4, true),
             surge: None,
-            roll: None,
+            roll: f
+                .roll
+                .and_then(|(_, s)| lightpose_core::finite(s.to_degrees())),
         };
+        e.roll_deg = f
+            .roll
+            .and_then(|(r, _)| lightpose_core::finite(r.to_degrees()));
         e
     }
 }
@@ -506,7 +533,8 @@ pub(crate) fn coarse_start(
     let att_q = lightpose_core::Attitude::new(
         lightpose_core::Angle::from_rad(th),
         lightpose_core::Angle::from_rad(ps),
-    );
+    )
+    .with_roll(lightpose_core::Angle::from_rad(o.roll));
     // The beacon lies along u in V, so p = −range·R_BV·u.
     let u_b = att_q.to_beam(&lightpose_core::BodyVec(u_v)).0;
     let mut q = PoseVec::new(-range * u_b[0], -range * u_b[1], -range * u_b[2], th, ps);
@@ -583,6 +611,78 @@ mod tests {
             }
         }
         v
+    }
+
+    /// Roll's consider covariance is what re-fitting at another roll does:
+    /// the fit's covariance grows by s·sᵀ·σ_φ², s the fit's move per unit
+    /// of roll, here measured by fitting the frame again at φ ± 1°; and
+    /// roll's doubt matters (z's or y's variance grows by over 1 %).
+    #[test]
+    fn roll_s_consider_covariance_is_the_fit_s_move_with_roll() {
+        let m = SensorModel::default();
+        let mut rng = Rng::new(40);
+        for (pose, phi) in [
+            (
+                Pose::new(6.0, 0.3, -0.2, Angle::from_deg(4.0), Angle::from_deg(-6.0)),
+                6.0,
+            ),
+            (
+                Pose::new(4.5, -0.4, 0.5, Angle::from_deg(-3.0), Angle::from_deg(8.0)),
+                -8.0,
+            ),
+        ] {
+            let pose = pose.with_roll(Angle::from_deg(phi));
+            let f = synth_frame(&m, &pose, 1, 0.0, None, &mut rng);
+            let est = ModelEstimator::new(m.clone(), ModelConfig::default()).unwrap();
+            let mut o = est.solve_options([true; 5], 1.0);
+            o.max_iter = 200;
+            let mut prior = Prior::none();
+            (prior.mean[3], prior.mean[4]) = (pose.pitch.rad(), pose.yaw.rad());
+            (prior.inv_sigma[3], prior.inv_sigma[4]) =
+                (1.0 / 0.3f64.to_radians(), 1.0 / 1.5f64.to_radians());
+            let q0 = super::super::light::from_pose(&pose);
+            o.roll = phi.to_radians();
+            let base = solve(&m, &f.counts, &q0, &prior, &o);
+            let sd = 5f64.to_radians();
+            let with = solve(
+                &m,
+                &f.counts,
+                &q0,
+                &prior,
+                &SolveOptions {
+                    roll_var: sd * sd,
+                    ..o
+                },
+            );
+            assert_eq!(base.q, with.q, "the fit itself does not move");
+            let h = 1f64.to_radians();
+            let at = |d: f64| {
+                solve(
+                    &m,
+                    &f.counts,
+                    &base.q,
+                    &prior,
+                    &SolveOptions {
+                        roll: o.roll + d,
+                        ..o
+                    },
+                )
+                .q
+            };
+            let s = (at(h) - at(-h)) / (2.0 * h);
+            assert!((1..3).any(|i| with.cov[(i, i)] > 1.01 * base.cov[(i, i)]));
+            for i in 0..5 {
+                let added = with.cov[(i, i)] - base.cov[(i, i)];
+                let want = (s[i] * sd).powi(2);
+                // Gauss–Newton's curvature (the consider's) against the
+                // re-fits' exact move: the residuals' own curvature is left
+                // out, a few to 20 % here.
+                assert!(
+                    (added - want).abs() <= 0.25 * want + 1e-3 * base.cov[(i, i)],
+                    "{pose:?} coordinate {i}: added {added:e}, re-fits say {want:e}"
+                );
+            }
+        }
     }
 
     /// With the attitude sensor, every coordinate lands within its reported

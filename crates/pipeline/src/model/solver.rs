@@ -20,7 +20,7 @@
 use lightpose_core::{COLS, NDET, ROWS};
 use nalgebra::{SMatrix, SVector};
 
-use super::light::{predict, predict_with_grad, PoseJacobian, PoseVec};
+use super::light::{predict_rolled, predict_with_grad_rolled, PoseJacobian, PoseVec};
 use super::SensorModel;
 
 type M5 = SMatrix<f64, 5, 5>;
@@ -238,6 +238,12 @@ pub struct SolveOptions {
     /// Channels frozen by their history (bit k for detector k), left out
     /// as stuck ones are (see [`Censoring::classify`]).
     pub frozen: u32,
+    /// Spec v3: the roll (rad) the fit holds the vehicle at, and its
+    /// variance (rad²): roll is a *consider* parameter, not fitted (one
+    /// beacon barely sees it), whose doubt [`solve`] carries into the
+    /// covariance. 0 and 0 are spec v1/v2's fit exactly.
+    pub roll: f64,
+    pub roll_var: f64,
 }
 
 /// Outcome of one solve.
@@ -245,7 +251,8 @@ pub struct SolveOptions {
 pub struct LmResult {
     pub q: PoseVec,
     /// Covariance of the free coordinates from (JᵀWJ + prior)⁻¹ at the
-    /// optimum; zero rows and columns for fixed ones.
+    /// optimum, plus what the roll's doubt does to them (`roll_var`);
+    /// zero rows and columns for fixed ones.
     pub cov: M5,
     /// Σ of squared normalized residuals (data and active penalties).
     pub chi2: f64,
@@ -366,7 +373,7 @@ impl Problem<'_> {
     #[inline]
     fn linearize(&self, q: &PoseVec, w: &mut [f64; NDET], r: &mut [f64; NDET]) -> Linearized {
         let o = self.o;
-        let (pred, irr, jac) = predict_with_grad(self.m, q, o.k_d, o.gt);
+        let (pred, irr, jac, _) = predict_with_grad_rolled(self.m, q, o.roll, o.k_d, o.gt);
         noise_weights(self.m, &irr, o.gt, w);
         let chi2 = residuals(self.counts, &self.kinds, &pred, w, self.fs, r);
         let (mut h, mut g) = normal_equations(&jac, &self.kinds, w, r);
@@ -382,7 +389,7 @@ impl Problem<'_> {
     /// Cost (χ² plus prior) at `q` with the weights `w` held.
     #[inline]
     fn cost_at(&self, q: &PoseVec, w: &[f64; NDET], r: &mut [f64; NDET]) -> f64 {
-        let (pred, _) = predict(self.m, q, self.o.k_d, self.o.gt);
+        let (pred, _) = predict_rolled(self.m, q, self.o.roll, self.o.k_d, self.o.gt);
         residuals(self.counts, &self.kinds, &pred, w, self.fs, r) + prior_cost(q, self.prior)
     }
 
@@ -493,7 +500,10 @@ pub fn solve(
         cost = chi2 + prior_cost(&q, prior);
         h = end.h;
     }
-    let cov = covariance(&h, &o.free);
+    let mut cov = covariance(&h, &o.free);
+    if o.roll_var > 0.0 {
+        consider_roll(&p, &q, &w, &mut cov);
+    }
     LmResult {
         q,
         cov,
@@ -503,6 +513,29 @@ pub fn solve(
         n_saturated,
         iterations,
         converged,
+    }
+}
+
+/// Add the roll's doubt to `cov` (Schmidt's consider covariance of a least
+/// squares): the fit at a roll δφ off moves by s·δφ, s = −C·JᵀW²·∂r/∂φ
+/// with C the fit's covariance, so C gains s·sᵀ·σ_φ². Only the channels
+/// that entered the fit's normal equations count, as there.
+fn consider_roll(p: &Problem, q: &PoseVec, w: &[f64; NDET], cov: &mut M5) {
+    let o = p.o;
+    let (pred, _, jac, jr) = predict_with_grad_rolled(p.m, q, o.roll, o.k_d, o.gt);
+    let mut r = [0.0; NDET];
+    residuals(p.counts, &p.kinds, &pred, w, p.fs, &mut r);
+    let mut g = SVector::<f64, 5>::zeros();
+    for k in 0..NDET {
+        if !(p.kinds[k] == Censoring::Data || r[k] != 0.0) {
+            continue;
+        }
+        let row = jac.fixed_view::<1, 5>(k, 0).transpose() * (w[k] * w[k]);
+        g += row * jr[k];
+    }
+    let sens = -(*cov * g);
+    if sens.iter().all(|v| v.is_finite()) {
+        *cov += sens * sens.transpose() * o.roll_var;
     }
 }
 

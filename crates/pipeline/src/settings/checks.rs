@@ -17,6 +17,7 @@ const INIT_SIGMA_MIN: f64 = 1e-3;
 impl TrackerConfig {
     pub fn validate(&self) -> Result<(), ModelError> {
         let bad = |m: String| Err(ModelError::Config(m));
+        super::roll_sigma_ok(self.roll_sigma_deg).map_err(ModelError::Config)?;
         for (name, v) in [
             ("accel_psd", self.accel_psd),
             ("ang_accel_psd_deg", self.ang_accel_psd_deg),
@@ -26,6 +27,7 @@ impl TrackerConfig {
             ("init_attitude_sigma_deg", self.init_attitude_sigma_deg),
             ("attitude_sigma_pitch_deg", self.attitude_sigma_pitch_deg),
             ("attitude_sigma_yaw_deg", self.attitude_sigma_yaw_deg),
+            ("attitude_sigma_roll_deg", self.attitude_sigma_roll_deg),
             ("nis_gate", self.nis_gate),
             ("max_gap_s", self.max_gap_s),
             ("side_sigma", self.side_sigma),
@@ -243,6 +245,29 @@ mod tests {
         let mut c = ModelConfig::default();
         f(&mut c);
         c.validate().map_err(|e| e.to_string())
+    }
+
+    /// Spec v3's roll settings, in both estimators: a prior σ a vehicle's
+    /// roll can have, a reading's σ positive; each refused by its name.
+    #[test]
+    fn roll_settings_are_refused_by_their_own_name() {
+        for v in [0.0, -1.0, 46.0, f64::NAN, f64::INFINITY] {
+            let e = tracker(|c| c.roll_sigma_deg = Some(v)).unwrap_err();
+            assert!(
+                e.contains("roll_sigma_deg = ") && e.contains("at most 45°"),
+                "{e}"
+            );
+            let e = model(|c| c.roll_sigma_deg = Some(v)).unwrap_err();
+            assert!(e.contains("roll_sigma_deg = "), "{e}");
+        }
+        for v in [0.0, -0.3, f64::NAN] {
+            let e = tracker(|c| c.attitude_sigma_roll_deg = v).unwrap_err();
+            assert!(e.contains("attitude_sigma_roll_deg"), "{e}");
+            let e = model(|c| c.attitude_sigma_roll_deg = v).unwrap_err();
+            assert!(e.contains("attitude_sigma_roll_deg"), "{e}");
+        }
+        tracker(|c| c.roll_sigma_deg = Some(5.0)).unwrap();
+        model(|c| c.roll_sigma_deg = Some(45.0)).unwrap();
     }
 
     /// Values an audit found accepted that made every pose wrong or the

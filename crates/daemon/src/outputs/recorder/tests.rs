@@ -36,6 +36,7 @@ pub(super) fn est(seq: u64) -> PoseEstimate {
 /// The frame and estimate `seq` as the frame thread hands them over.
 pub(super) fn item(seq: u64) -> Item {
     Item {
+        burst: None,
         frame: frame(seq),
         est: est(seq),
         wall_unix: 1.7e9,
@@ -54,6 +55,7 @@ pub(super) fn worker(c: &Recording) -> (Worker, Arc<RecStats>) {
 
 pub(super) fn cfg(dir: PathBuf, rotate_bytes: Option<u64>, queue: usize) -> Recording {
     Recording {
+        samples: Default::default(),
         dir,
         rotate_bytes,
         rotate_after: None,
@@ -143,6 +145,7 @@ fn full_disk_mid_file_is_reported() {
         c.format = format;
         let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone(), Epoch::Source);
         let item = |seq| Item {
+            burst: None,
             frame: frame(seq),
             est: est(seq),
             wall_unix: 1.7e9,
@@ -221,6 +224,7 @@ fn finish_does_not_wait_for_a_stuck_disk() {
         Epoch::Source,
     );
     w.write(&Item {
+        burst: None,
         frame: frame(0),
         est: est(0),
         wall_unix: 1.7e9,
@@ -314,6 +318,7 @@ fn the_end_of_a_burst_of_skipped_frames_is_told() {
             let (mut f, mut e) = (frame(s), est(s));
             (f.t, e.t) = (-1.0, -1.0);
             w.write(&Item {
+                burst: None,
                 frame: f,
                 est: e,
                 wall_unix: 1.7e9,
@@ -358,6 +363,7 @@ fn status_behind_a_stuck_disk_is_counted() {
     c.format = RecFormat::Mcap;
     let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone(), Epoch::Source);
     w.write(&Item {
+        burst: None,
         frame: frame(0),
         est: est(0),
         wall_unix: 1.7e9,
@@ -427,6 +433,7 @@ fn mcap_without_rotation_rotates_by_default() {
     let mut w = Worker::new(&c, LogHeader::new(10, 5.0), stats.clone(), Epoch::Source);
     assert_eq!(w.rotation, default);
     let item = |seq| Item {
+        burst: None,
         frame: frame(seq),
         est: est(seq),
         wall_unix: 1.7e9,

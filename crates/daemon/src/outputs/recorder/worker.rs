@@ -64,6 +64,8 @@ pub(super) struct Worker {
     /// The wall clock against the frames' time: each file's pair, and
     /// MCAP's new records when the wall clock steps.
     pub(super) clock: ClockWatch,
+    /// Where a recorded BURST's buffer goes back (spec v3, raw samples).
+    pub(super) free: Option<std::sync::mpsc::SyncSender<Box<lightpose_core::samples::Burst>>>,
 }
 
 impl Worker {
@@ -93,6 +95,7 @@ impl Worker {
             open_file: recfile::create_new,
             skip_log: RateLog::new(),
             clock: ClockWatch::new(epoch),
+            free: None,
         }
     }
 
@@ -109,6 +112,10 @@ impl Worker {
                         break;
                     }
                     self.write(&item);
+                    if let (Some(b), Some(back)) = (item.burst, &self.free) {
+                        // Its buffer back to the frame thread's pool.
+                        let _ = back.try_send(b);
+                    }
                 }
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => break,
@@ -214,7 +221,13 @@ impl Worker {
         let Some(f) = self.file.as_mut() else {
             return;
         };
-        match f.write(&item.frame, &item.est, item.wall_unix) {
+        let written = f.write_of(
+            &item.frame,
+            item.burst.as_deref(),
+            &item.est,
+            item.wall_unix,
+        );
+        match written {
             Ok(()) => {
                 {
                     let Some(_books) = self.stats.book() else {

@@ -24,7 +24,7 @@ use nalgebra::{SMatrix, SVector};
 
 use super::state::{Ms, State, Vs, KD, NS, VEL};
 use super::Tracker;
-use crate::model::light::{from_pose, predict_with_grad, PoseVec};
+use crate::model::light::{from_pose, predict_with_grad_rolled, PoseVec};
 
 /// The bound's state: the tracker's and the common gain.
 const NB: usize = NS + 1;
@@ -154,11 +154,13 @@ impl Tracker {
 
     /// Add one frame's information: the counts (uncensored channels of
     /// the true image) and the own sensors' readings.
-    fn inform_frame(&self, p: &mut Mb, x: &Vs, sc: &TrackBoundScene) {
+    /// Spec v3: the light is the true pose's, rolled by `roll` (rad; taken
+    /// as known, as its reading gives it to the tracker to 0.3°).
+    fn inform_frame(&self, p: &mut Mb, x: &Vs, roll: f64, sc: &TrackBoundScene) {
         let m = &self.model;
         let gt = lightpose_core::light::temperature_gain(sc.temp_c);
         let q = PoseVec::from_fn(|i, _| x[i]);
-        let (pred, irr, jac) = predict_with_grad(m, &q, x[KD], gt);
+        let (pred, irr, jac, _) = predict_with_grad_rolled(m, &q, roll, x[KD], gt);
         let fs = m.full_scale();
         let cpv = m.counts_per_volt();
         let mut h = SMatrix::<f64, NDET, NB>::zeros();
@@ -241,7 +243,7 @@ impl Tracker {
                 let pn = fb * p * fb.transpose() + qb;
                 p = (pn + pn.transpose()) * 0.5;
             }
-            self.inform_frame(&mut p, &x, sc);
+            self.inform_frame(&mut p, &x, pt.pose.roll.rad(), sc);
             last = Some((pt.t, x));
             let sd = |i: usize| p[(i, i)].max(0.0).sqrt();
             out.push(TrackBound {

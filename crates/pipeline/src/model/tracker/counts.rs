@@ -15,7 +15,7 @@ use nalgebra::{SMatrix, SVector};
 
 use super::state::{k_d_of, Ms, State, Vs, KD, NS};
 use super::Tracker;
-use crate::model::light::{predict, predict_with_grad, PoseVec};
+use crate::model::light::{predict_rolled, predict_with_grad_rolled, PoseVec};
 use crate::model::solver::Censoring;
 
 /// The sigma-point update's coordinates: the pose and K_D.
@@ -77,14 +77,16 @@ impl Tracker {
     /// (pose, K_D) covariance about the state.
     fn sigma_spread(&self, s: &State, l: &Pm, gt: f64) -> SigmaSpread {
         let m = &self.model;
+        let roll = s.roll_rad();
         let at = |d: &SVector<f64, NP>| -> Zv {
             let q = PoseVec::from_fn(|i, _| s.x[i] + d[i]);
             let kd = (s.x[KD] + d[5]).exp();
-            predict(m, &q, kd, gt).0
+            predict_rolled(m, &q, roll, kd, gt).0
         };
         let h = H2.sqrt();
         // The centre point also gives the irradiance the noise model needs.
-        let (z0, irr) = predict(m, &PoseVec::from_fn(|i, _| s.x[i]), k_d_of(&s.x), gt);
+        let q0 = PoseVec::from_fn(|i, _| s.x[i]);
+        let (z0, irr) = predict_rolled(m, &q0, roll, k_d_of(&s.x), gt);
         let mut sp = SigmaSpread {
             s1: SMatrix::zeros(),
             s2: SMatrix::zeros(),
@@ -142,6 +144,16 @@ impl Tracker {
             }
         }
         let mut pzz = sp.s1 * sp.s1.transpose() + sp.s2 * sp.s2.transpose();
+        if let Some((roll, sd)) = s.roll.filter(|(_, sd)| *sd > 0.0) {
+            let q = PoseVec::from_fn(|i, _| s.x[i]);
+            let mut jr = predict_with_grad_rolled(m, &q, roll, k_d_of(&s.x), inp.gt).3;
+            for k in 0..NDET {
+                if !used[k] {
+                    jr[k] = 0.0;
+                }
+            }
+            pzz += jr * jr.transpose() * (sd * sd);
+        }
         for k in 0..NDET {
             pzz[(k, k)] += if used[k] {
                 m.count_variance(sp.irr[k] * m.gain[k] * inp.gt)
@@ -183,14 +195,15 @@ impl Tracker {
         true
     }
 
-    /// One linearization of the counts at `xi`: Jacobian, innovation and
-    /// noise of the channels that enter.
-    fn counts_linearized(&self, xi: &Vs, inp: &CountsInput) -> (Hm, Zv, Zv, usize) {
+    /// One linearization of the counts at `xi` rolled by `roll`: Jacobian,
+    /// innovation and noise of the channels that enter, and ∂count/∂φ of
+    /// those channels (0 for the others).
+    fn counts_linearized(&self, xi: &Vs, roll: f64, inp: &CountsInput) -> (Hm, Zv, Zv, usize, Zv) {
         let m = &self.model;
         let fs = m.full_scale();
         let q = PoseVec::from_fn(|i, _| xi[i]);
         let k_d = k_d_of(xi);
-        let (pred, irr, jac) = predict_with_grad(m, &q, k_d, inp.gt);
+        let (pred, irr, jac, mut jr) = predict_with_grad_rolled(m, &q, roll, k_d, inp.gt);
         let mut h = Hm::zeros();
         let mut y = Zv::zeros();
         let mut r = Zv::from_element(1.0);
@@ -198,6 +211,7 @@ impl Tracker {
         for k in 0..NDET {
             let obs = inp.frame.counts[k] as f64;
             let Some(z) = inp.kinds[k].target(obs, pred[k], fs) else {
+                jr[k] = 0.0;
                 continue;
             };
             for j in 0..5 {
@@ -208,7 +222,7 @@ impl Tracker {
             r[k] = m.count_variance(irr[k] * m.gain[k] * inp.gt);
             n_used += 1;
         }
-        (h, y, r, n_used)
+        (h, y, r, n_used, jr)
     }
 
     /// Iterated EKF update with the frame's counts (one iteration by
@@ -221,8 +235,13 @@ impl Tracker {
         let mut nis = 0.0;
         let mut last: Option<(Hm, SMatrix<f64, NDET, NDET>, SMatrix<f64, NS, NDET>)> = None;
         for it in 0..self.cfg.update_iterations {
-            let (h, y, rd, n_used) = self.counts_linearized(&xi, inp);
-            let r = SMatrix::<f64, NDET, NDET>::from_diagonal(&rd);
+            let (h, y, rd, n_used, jr) = self.counts_linearized(&xi, s.roll_rad(), inp);
+            let mut r = SMatrix::<f64, NDET, NDET>::from_diagonal(&rd);
+            // Roll's doubt as the counts' own (a consider parameter: the
+            // channels it moves together are doubted together).
+            if let Some((_, sd)) = s.roll.filter(|(_, sd)| *sd > 0.0) {
+                r += jr * jr.transpose() * (sd * sd);
+            }
             // IEKF: innovation about the linearization point.
             let innov = y - h * (xbar - xi);
             let sm = h * pbar * h.transpose() + r;

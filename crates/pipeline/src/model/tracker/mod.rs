@@ -542,9 +542,27 @@ impl Tracker {
             pitch: sdb(3).map(f64::to_degrees),
             yaw: sdb(4).map(f64::to_degrees),
             surge: lightpose_core::finite(surge_sd).filter(|_| known),
-            roll: None,
+            roll: s
+                .roll
+                .and_then(|(_, sd)| lightpose_core::finite(sd.to_degrees())),
         };
+        e.roll_deg = s
+            .roll
+            .and_then(|(r, _)| lightpose_core::finite(r.to_degrees()));
         e
+    }
+
+    /// The roll `frame` is taken at (rad) and its 1σ: its attitude
+    /// reading's when that passed its checks, else the settings' prior
+    /// (`roll_sigma_deg`); None (roll 0, spec v1/v2) without either.
+    fn roll_of(&self, frame: &Frame, r: &FrameReadings) -> Option<(f64, f64)> {
+        let c = &self.cfg;
+        crate::settings::roll_of(
+            frame,
+            r.attitude.ready().is_some(),
+            c.attitude_sigma_roll_deg,
+            c.roll_sigma_deg,
+        )
     }
 
     /// The range bias of a temperature read `temp_sigma_c` wrong (1σ, m):
@@ -755,6 +773,9 @@ impl Tracker {
         let Some(mut s) = self.carried_to(frame.t) else {
             return self.restart(frame, &readings, law);
         };
+        // The motion above moved the state at the last frame's roll; this
+        // frame's readings and counts are taken at its own.
+        s.roll = self.roll_of(frame, &readings);
         s.counts_ll = None;
         s.counts_nis = None;
         s.readings_ll = 0.0;

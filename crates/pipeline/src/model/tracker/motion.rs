@@ -3,7 +3,7 @@
 //! world model (constant velocity in B).
 
 use super::offsets::Offset;
-use super::state::{body_axes, body_axes_derivatives, Ms, State, KD, VEL};
+use super::state::{Ms, State, KD, VEL};
 use super::Tracker;
 use crate::settings::Motion;
 
@@ -66,8 +66,8 @@ impl Tracker {
     fn predict_body(&self, s: &mut State, dt: f64) {
         let c = &self.cfg;
         let x = s.x;
-        let axes = body_axes(x[3], x[4]);
-        let [d_t, d_p] = body_axes_derivatives(x[3], x[4]);
+        // Roll turns the sideslip's axes about the bow (the state's roll).
+        let (axes, [d_t, d_p]) = s.axes();
         let vel = [x[VEL], x[VEL + 1], x[VEL + 2]];
         let tau = if s.attitude_fused {
             c.side_tau_with_attitude_s

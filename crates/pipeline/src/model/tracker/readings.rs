@@ -12,7 +12,8 @@
 //! Measurement models (state in `state.rs`):
 //! - attitude: (θ, ψ), the yaw innovation wrapped to ±π;
 //! - depth: z + (R_BV·lever)_z = z + l_f·sin θ − l_d·cos θ, the lever arm
-//!   from the dome centre to the sensor in V (docs/spec-notes.md);
+//!   from the dome centre to the sensor in V (docs/spec-notes.md); rolled
+//!   by φ, z + l_f·sin θ − (l_r·sin φ + l_d·cos φ)·cos θ;
 //! - velocity: the body model's (u, v, w) directly; with the world model
 //!   R_BVᵀ·v, linearized in θ, ψ and v.
 
@@ -24,9 +25,7 @@ use lightpose_core::{AttitudeReading, Frame, ReadingUse, Refusal};
 use nalgebra::{SMatrix, SVector};
 
 use super::counts::commit;
-use super::state::{
-    body_axes, body_axes_derivatives, k_d_of, Kinds, Ms, State, DOFF, KD, NS, POFF, VEL,
-};
+use super::state::{k_d_of, Kinds, Ms, State, DOFF, KD, NS, POFF, VEL};
 use super::Tracker;
 use crate::model::solver::Censoring;
 use crate::settings::{Motion, TrackerConfig};
@@ -380,12 +379,24 @@ impl Tracker {
     /// The depth sensor's z: z + l_f·sin θ − l_d·cos θ, plus its offset
     /// (0 with no doubt unless `depth_offset_sigma_m` asks for it).
     fn depth_model(&self, s: &State) -> Linear<1> {
-        let [lf, _, ld] = self.cfg.depth_lever_arm_m;
+        let [lf, lr, ld] = self.cfg.depth_lever_arm_m;
         let (st, ct) = s.x[3].sin_cos();
         let mut jac = SMatrix::<f64, 1, NS>::zeros();
         jac[(0, 2)] = 1.0;
-        jac[(0, 3)] = lf * ct + ld * st;
         jac[(0, DOFF)] = 1.0;
+        let phi = s.roll_rad();
+        if phi != 0.0 {
+            // Rolled: R_BV's z row is (sθ, −sφ·cθ, −cφ·cθ), so the right
+            // arm counts too.
+            let (sr, cr) = phi.sin_cos();
+            jac[(0, 3)] = lf * ct + (lr * sr + ld * cr) * st;
+            let h = s.x[2] + lf * st - (lr * sr + ld * cr) * ct + s.x[DOFF];
+            return Linear {
+                h: SVector::<f64, 1>::new(h),
+                jac,
+            };
+        }
+        jac[(0, 3)] = lf * ct + ld * st;
         Linear {
             h: SVector::<f64, 1>::new(s.x[2] + lf * st - ld * ct + s.x[DOFF]),
             jac,
@@ -406,8 +417,7 @@ impl Tracker {
                 }
             }
             Motion::World => {
-                let axes = body_axes(s.x[3], s.x[4]);
-                let [d_t, d_p] = body_axes_derivatives(s.x[3], s.x[4]);
+                let (axes, [d_t, d_p]) = s.axes();
                 let v = [s.x[VEL], s.x[VEL + 1], s.x[VEL + 2]];
                 let dot = |a: &[f64; 3]| a[0] * v[0] + a[1] * v[1] + a[2] * v[2];
                 let mut h = SVector::<f64, 3>::zeros();
@@ -467,7 +477,7 @@ impl Tracker {
         let m = &self.model;
         let q = crate::model::light::PoseVec::from_fn(|i, _| s.x[i]);
         let gt = super::gain_of(frame);
-        let (pred, _) = crate::model::light::predict(m, &q, k_d_of(&s.x), gt);
+        let (pred, _) = crate::model::light::predict_rolled(m, &q, s.roll_rad(), k_d_of(&s.x), gt);
         let fs = m.full_scale();
         let mut f = Frame::new(
             frame.seq,
@@ -533,8 +543,7 @@ impl Tracker {
         let mut jac = SMatrix::<f64, 1, NS>::zeros();
         let h = match self.cfg.motion {
             Motion::Body => {
-                let axes = body_axes(s.x[3], s.x[4]);
-                let [d_t, d_p] = body_axes_derivatives(s.x[3], s.x[4]);
+                let (axes, [d_t, d_p]) = s.axes();
                 let mut h = 0.0;
                 for a in 0..3 {
                     let v = s.x[VEL + a];

@@ -29,7 +29,7 @@ use lightpose_core::{Frame, ReadingUse, Status};
 
 use super::offsets::Offset;
 use super::readings::{Checked, FrameReadings};
-use super::state::{body_axes, Ms, State, Vs, KD, VEL};
+use super::state::{body_axes, roll_axes, Ms, State, Vs, KD, VEL};
 use super::Tracker;
 use crate::model::light::PoseVec;
 use crate::model::single_frame::coarse_start;
@@ -39,8 +39,13 @@ use crate::settings::Motion;
 impl Tracker {
     /// The solver's limits, as the `"model"` estimator sets them (its
     /// model is the tracker's).
-    fn start_options(&self, gt: f64) -> SolveOptions {
-        self.init.solve_options([true; 5], gt)
+    fn start_options(&self, gt: f64, roll: Option<(f64, f64)>) -> SolveOptions {
+        let mut o = self.init.solve_options([true; 5], gt);
+        if let Some((r, sd)) = roll {
+            o.roll = r;
+            o.roll_var = sd * sd;
+        }
+        o
     }
 
     /// The start fit's prior: the attitude reading (else the start-up
@@ -116,8 +121,9 @@ impl Tracker {
         r: &FrameReadings,
         paper_x: Option<&Checked<1>>,
         gt: f64,
+        roll: Option<(f64, f64)>,
     ) -> Option<LmResult> {
-        let o = self.start_options(gt);
+        let o = self.start_options(gt, roll);
         let pitch_offset = self.offsets.prior(Offset::Pitch).0;
         let att = r.attitude.ready().map(|a| (a.z[0] - pitch_offset, a.z[1]));
         let mut q0 = coarse_start(&self.model, frame, gt, att, &o)?;
@@ -182,7 +188,8 @@ impl Tracker {
             return Err(Status::NoLight);
         }
         let gt = super::gain_of(frame);
-        let Some(fit) = self.start_fit(frame, r, paper_x, gt) else {
+        let roll = self.roll_of(frame, r);
+        let Some(fit) = self.start_fit(frame, r, paper_x, gt, roll) else {
             return Err(Status::NoLight);
         };
         let status = self.start_status(frame, &fit);
@@ -200,7 +207,7 @@ impl Tracker {
         // A model that fits worse than its noise says: widen, don't lie.
         let red = fit.chi2 / (fit.n_data.saturating_sub(5).max(1)) as f64;
         let mut p = if red > 1.0 { p_fit * red } else { p_fit };
-        self.start_velocity(&mut x, &mut p, r);
+        self.start_velocity(&mut x, &mut p, r, roll.map_or(0.0, |(r, _)| r));
         let c = &self.cfg;
         for i in 8..10 {
             p[(i, i)] = c.init_rate_sigma_deg.to_radians().powi(2);
@@ -208,6 +215,7 @@ impl Tracker {
         x[KD] = super::state::ln_k_d(self.model.light.k_d);
         self.start_offsets(&mut x, &mut p, &p_fit, r);
         let mut s = State::new(x, p, frame.t);
+        s.roll = roll;
         s.offset_free = Offset::ALL.map(|o| self.offsets.told(o, &self.cfg));
         s.paper_x = paper_x.and(self.paper_bias());
         s.doubt_k_d(self.k_d_sigma);
@@ -227,7 +235,7 @@ impl Tracker {
 
     /// The start's velocity: the DVL's reading when there is one, else
     /// the start-up doubt around rest.
-    fn start_velocity(&self, x: &mut Vs, p: &mut Ms, r: &FrameReadings) {
+    fn start_velocity(&self, x: &mut Vs, p: &mut Ms, r: &FrameReadings, roll: f64) {
         let c = &self.cfg;
         match (r.velocity.ready(), c.motion) {
             (Some(v), Motion::Body) => {
@@ -238,7 +246,10 @@ impl Tracker {
             }
             (Some(v), Motion::World) => {
                 // v_B = R_BV·v_V; the attitude's doubt turns the vector.
-                let axes = body_axes(x[3], x[4]);
+                let mut axes = body_axes(x[3], x[4]);
+                if roll != 0.0 {
+                    axes = roll_axes(&axes, roll);
+                }
                 let turn = v.z.norm_squared() * (p[(3, 3)] + p[(4, 4)]);
                 for i in 0..3 {
                     x[VEL + i] = (0..3).map(|a| axes[a][i] * v.z[a]).sum();

@@ -123,6 +123,13 @@ pub(super) struct State {
     /// The last frames' `counts_nis` with a DVL reading fused (the water
     /// check, `water_check_frames`).
     pub water_nis: super::window::FrameWindow,
+    /// Spec v3: the roll this frame is taken at (rad) and its 1σ: the
+    /// attitude reading's, or the settings' prior (`settings::roll_of`).
+    /// Why not a state: one beacon barely sees roll, so it is a *consider*
+    /// parameter, held at what the frame says, whose doubt the counts'
+    /// update carries into every other axis (`counts`). None: roll exactly
+    /// 0, spec v1/v2's filter bit for bit.
+    pub roll: Option<(f64, f64)>,
 }
 
 impl State {
@@ -146,7 +153,27 @@ impl State {
             counts_nis: None,
             readings_ll: 0.0,
             water_nis: Default::default(),
+            roll: None,
         }
+    }
+
+    /// The roll the light model is evaluated at (rad): 0 without one.
+    pub fn roll_rad(&self) -> f64 {
+        self.roll.map_or(0.0, |(r, _)| r)
+    }
+
+    /// The body axes in B at the state's pitch, yaw and roll, with their
+    /// derivatives in θ and ψ ([`body_axes`], [`body_axes_derivatives`]).
+    /// The sideslip states are along the rolled axes (right and down as
+    /// the DVL reads them).
+    pub fn axes(&self) -> ([[f64; 3]; 3], [[[f64; 3]; 3]; 2]) {
+        let (t, p) = (self.x[3], self.x[4]);
+        let (a, d) = (body_axes(t, p), body_axes_derivatives(t, p));
+        let phi = self.roll_rad();
+        if phi == 0.0 {
+            return (a, d);
+        }
+        (roll_axes(&a, phi), d.map(|d| roll_axes(&d, phi)))
     }
 
     /// Every number finite: what a step must leave behind.
@@ -252,6 +279,20 @@ pub(super) fn body_axes(theta: f64, psi: f64) -> [[f64; 3]; 3] {
         [-cp * ct, sp * ct, st],
         [sp, cp, 0.0],
         [-cp * st, sp * st, -ct],
+    ]
+}
+
+/// Axes (or their derivatives) in the order of [`body_axes`] turned by
+/// roll φ about the forward axis: R_BV's columns of M·Rx(φ) (MODEL.md),
+/// right → cφ·right + sφ·down, down → −sφ·right + cφ·down.
+#[inline]
+pub(super) fn roll_axes(a: &[[f64; 3]; 3], phi: f64) -> [[f64; 3]; 3] {
+    let (sr, cr) = phi.sin_cos();
+    let mix = |u: f64, v: f64, i: usize| u * a[1][i] + v * a[2][i];
+    [
+        a[0],
+        [mix(cr, sr, 0), mix(cr, sr, 1), mix(cr, sr, 2)],
+        [mix(-sr, cr, 0), mix(-sr, cr, 1), mix(-sr, cr, 2)],
     ]
 }
 

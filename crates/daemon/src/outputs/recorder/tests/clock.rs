@@ -158,6 +158,7 @@ fn a_wall_clock_step_writes_a_new_record() {
         let item = |s: u64, stepped: i64| {
             let (frame, est) = at(s, t_of(s));
             Item {
+                burst: None,
                 frame,
                 est,
                 wall_unix: 1.7e9 + s as f64 + stepped as f64,
