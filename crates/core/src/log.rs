@@ -2,7 +2,7 @@
 //! line. Read and written as a stream, so a log of a million frames never
 //! sits in memory whole. The reader names the line of anything it refuses,
 //! and treats a cut-short last line (power loss) as the end of the log.
-//! Lines are read bounded ([`crate::textfile::MAX_LINE_BYTES`]), errors quote
+//! Lines are read bounded ([`MAX_LOG_LINE_BYTES`]), errors quote
 //! at most an excerpt, and the order of frames follows [`FrameOrder`].
 
 use crate::frame::full_scale;
@@ -35,6 +35,12 @@ pub const VERSION: u32 = 1;
 /// own limit). A recorded pace waits a period per frame, and 1e-19 Hz made
 /// that wait overflow the clock.
 pub const HEADER_RATE_HZ: std::ops::RangeInclusive<f64> = 1e-3..=1e6;
+/// Longest line of an intensity log: a BURST of the most samples a frame
+/// may have (25 × [`MAX_SAMPLES_PER_FRAME`] counts of up to five digits and
+/// a comma: 8 kHz at 2 Hz frames) with every reading beside it. A FRAME
+/// line is under 1 kB; the text files' 64 KiB bound refused a BURST line
+/// of 8 kHz at 5 Hz frames (180 kB).
+pub const MAX_LOG_LINE_BYTES: usize = NDET * MAX_SAMPLES_PER_FRAME * 6 + MAX_LINE_BYTES;
 
 #[derive(Debug, thiserror::Error)]
 pub enum LogError {
@@ -680,14 +686,14 @@ fn read_line<'b, R: BufRead>(
         line,
         msg,
     };
-    match read_line_bounded(src, buf, MAX_LINE_BYTES) {
+    match read_line_bounded(src, buf, MAX_LOG_LINE_BYTES) {
         Err(err) => Err(LogError::Io {
             name: name.to_string(),
             err,
         }),
         Ok(LineRead::Eof) => Ok(None),
         Ok(LineRead::TooLong) => Err(refused(format!(
-            "line longer than {MAX_LINE_BYTES} bytes: refused unread (a FRAME line is under 1 kB)"
+            "line longer than {MAX_LOG_LINE_BYTES} bytes: refused unread (a FRAME line is under 1 kB, a BURST line of the most samples a frame may have under that)"
         ))),
         Ok(LineRead::Line) => std::str::from_utf8(buf)
             .map(Some)
@@ -1033,7 +1039,7 @@ mod hardening_tests {
     fn a_line_past_the_bound_is_refused_by_its_number_and_reading_goes_on() {
         let mut text = HEADER.to_string();
         text.push_str(&frame_line(0, 0.0));
-        text.push_str(&"x".repeat(crate::textfile::MAX_LINE_BYTES * 3));
+        text.push_str(&"x".repeat(MAX_LOG_LINE_BYTES * 3));
         text.push('\n');
         text.push_str(&frame_line(1, 0.2));
         let (seqs, errs, _) = read(&text);
@@ -1263,6 +1269,35 @@ mod v3_tests {
             "{e}"
         );
         assert!(r.next_frame().is_none());
+    }
+
+    /// The longest BURST a frame may have (4096 samples of 25 channels at
+    /// full scale) reads back: the text files' 64 KiB line bound had
+    /// refused 8 kHz at 5 Hz frames.
+    #[test]
+    fn a_burst_of_the_most_samples_a_frame_may_have_reads_back() {
+        let mut h = LogHeader::new(16, 2.0);
+        h.sample_hz = Some(2.0 * MAX_SAMPLES_PER_FRAME as f64);
+        h.beacons = vec![BeaconInfo {
+            id: "top".into(),
+            mod_hz: 512.0,
+        }];
+        let mut b = Burst::new(MAX_SAMPLES_PER_FRAME);
+        b.adc_bits = 16;
+        b.samples_mut().fill(65535);
+        b.truth = Some(Truth {
+            pose: Pose::new(1.0, 2.0, 3.0, Angle::ZERO, Angle::ZERO),
+            surge: Some(0.5),
+        });
+        let mut w = LogWriter::new(Vec::new(), &h).unwrap();
+        w.write_burst(&b).unwrap();
+        let bytes = w.into_inner();
+        assert!(bytes.len() > 600_000 && bytes.len() < MAX_LOG_LINE_BYTES);
+        let mut r = LogReader::new(&bytes[..], "long.jsonl").unwrap();
+        match r.next_record() {
+            Some(Ok(Record::Burst(got))) => assert_eq!(got.samples(), b.samples()),
+            other => panic!("{other:?}"),
+        }
     }
 
     #[test]

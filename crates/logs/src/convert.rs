@@ -15,14 +15,17 @@
 //! declarations, message bytes, sequence numbers and times. The Foxglove
 //! channels are made anew from the frames and poses (and left out with
 //! `foxglove` off). A JSONL log holds frames only (FORMATS.md): MCAP →
-//! JSONL passes STATUS and metadata over, counted.
+//! JSONL passes STATUS and metadata over, counted. Spec v3: frames of any
+//! kind (counts, BURST, demodulated) are carried as their lines, a BURST
+//! into MCAP as the binary `/lightpose/burst` that gives its line back
+//! byte for byte ([`crate::burst`]), so that BURST JSONL → MCAP → JSONL is
+//! exact too.
 
 use crate::read::Carried;
 use crate::write::{McapOptions, McapWriter, WriteError};
 use crate::{Format, LogFile};
-use lightpose_core::samples::Record;
 use lightpose_core::textfile::{read_line_bounded, LineRead, MAX_LINE_BYTES};
-use lightpose_core::{Cut, FrameLog, LogError};
+use lightpose_core::{Burst, Cut, Demodulated, Frame, FrameLog, LogError, Record};
 use std::fs::File;
 use std::io::{self, BufReader, BufWriter, Write};
 use std::path::Path;
@@ -319,12 +322,30 @@ pub fn convert(
     let mut poses = route_poses(&mut log, out_format, poses)?;
     let mut out = create_output(&log, output, out_format, opts)?;
     let mut s = ConvertSummary::default();
-    // Spec v3: every kind of frame line is read (FORMATS.md), and carried
-    // as it was written.
+    // Spec v3: frames of any of the three kinds, each carried as its line
+    // (into MCAP, a BURST as the binary `/lightpose/burst`, which gives
+    // its line back byte for byte); a burst or demodulated frame is copied
+    // out of the reader into buffers reused frame after frame.
+    let mut burst = Burst::default();
+    let mut demod = Box::<Demodulated>::default();
+    // A frame by value, as everywhere (no heap per frame).
+    #[allow(clippy::large_enum_variant)]
+    enum Got {
+        Frame(Frame),
+        Burst,
+        Demod,
+    }
     while let Some(r) = log.next_record() {
-        let (f, seq, kind) = match r {
-            Ok(r @ Record::Frame(f)) => (Some(f), f.seq, r.kind()),
-            Ok(r) => (None, r.seq(), r.kind()),
+        let got = match r {
+            Ok(Record::Frame(f)) => Got::Frame(f),
+            Ok(Record::Burst(b)) => {
+                burst.clone_from(b);
+                Got::Burst
+            }
+            Ok(Record::Demodulated(d)) => {
+                *demod = *d;
+                Got::Demod
+            }
             Err(e) if e.skippable() => {
                 s.skipped += 1;
                 on_skip(&e);
@@ -332,23 +353,19 @@ pub fn convert(
             }
             Err(e) => return Err(e.into()),
         };
+        let rec = match &got {
+            Got::Frame(f) => Record::Frame(*f),
+            Got::Burst => Record::Burst(&burst),
+            Got::Demod => Record::Demodulated(&demod),
+        };
         // Poses kept while reading up to this frame belong before it.
         s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::BeforeFrame)?;
-        match (&mut out, f) {
-            (Out::Jsonl(file, w), _) => write_line(w, log.last_line(), file)?,
-            (Out::Mcap(w), Some(f)) => w.write_frame_line(&f, log.last_line())?,
-            (Out::Mcap(_), None) => {
-                // MCAP's channels for raw samples and amplitudes come
-                // with its writer and reader of them (lightpose-logs').
-                return Err(ConvertError::Usage(format!(
-                    "{}: seq {seq}: a {}: MCAP holds frames of counts only in this build; convert to .jsonl",
-                    input.display(),
-                    kind.describe()
-                )));
-            }
+        match &mut out {
+            Out::Jsonl(file, w) => write_line(w, log.last_line(), file)?,
+            Out::Mcap(w) => w.write_record_line(&rec, log.last_line())?,
         }
         s.frames += 1;
-        s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::AfterFrame(seq))?;
+        s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::AfterFrame(rec.seq()))?;
         s.skipped += refused_poses(&mut poses, &mut on_skip);
     }
     s.poses += pass_poses(&mut log, &mut poses, &mut out, Due::End)?;

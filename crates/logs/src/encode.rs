@@ -9,7 +9,9 @@
 use crate::foxglove::{self, Stamp};
 use crate::schema::{self, name, topic};
 use crate::write::WriteError;
-use lightpose_core::{Angle, Frame, LogHeader, LogWriter, Pose, PoseEstimate};
+use lightpose_core::{
+    Angle, Burst, Demodulated, Frame, LogHeader, LogWriter, Pose, PoseEstimate, NDET,
+};
 use std::io;
 
 /// The channels of a recording and of the live view.
@@ -22,6 +24,10 @@ pub enum Channel {
     VehiclePose,
     TruthPose,
     Tf,
+    /// Spec v3: raw samples, binary (recordings only: see [`Channel::V3`]).
+    Burst,
+    /// Spec v3: demodulated frames, their JSONL lines.
+    Demodulated,
 }
 
 impl Channel {
@@ -37,7 +43,13 @@ impl Channel {
         Channel::Tf,
     ];
 
-    /// Its place in [`Channel::ALL`].
+    /// Spec v3's channels, after [`Channel::ALL`]: a recording declares
+    /// each at its first message (a v1/v2 recording has neither, as
+    /// before); the live view does not serve them (Foxglove has no panel
+    /// for a packed sample block, and a burst is tens of kilobytes).
+    pub const V3: [Channel; 2] = [Channel::Burst, Channel::Demodulated];
+
+    /// Its place in [`Channel::ALL`], then [`Channel::V3`].
     pub fn index(self) -> usize {
         self as usize
     }
@@ -51,6 +63,8 @@ impl Channel {
             Channel::VehiclePose => topic::VEHICLE_POSE,
             Channel::TruthPose => topic::TRUTH_POSE,
             Channel::Tf => topic::TF,
+            Channel::Burst => topic::BURST,
+            Channel::Demodulated => topic::DEMODULATED,
         }
     }
 
@@ -62,10 +76,30 @@ impl Channel {
             Channel::Image => name::RAW_IMAGE,
             Channel::VehiclePose | Channel::TruthPose => name::POSE_IN_FRAME,
             Channel::Tf => name::FRAME_TRANSFORM,
+            Channel::Burst => name::BURST,
+            Channel::Demodulated => name::DEMODULATED,
         }
     }
 
-    /// Its JSON Schema (encoding [`schema::SCHEMA_ENCODING`]).
+    /// Its schema's encoding: [`schema::SCHEMA_ENCODING`] but for the
+    /// binary burst's.
+    pub fn schema_encoding(self) -> &'static str {
+        match self {
+            Channel::Burst => schema::BURST_SCHEMA_ENCODING,
+            _ => schema::SCHEMA_ENCODING,
+        }
+    }
+
+    /// Its message encoding: [`schema::MESSAGE_ENCODING`] but for the
+    /// binary burst's.
+    pub fn message_encoding(self) -> &'static str {
+        match self {
+            Channel::Burst => schema::BURST_MESSAGE_ENCODING,
+            _ => schema::MESSAGE_ENCODING,
+        }
+    }
+
+    /// Its schema (a JSON Schema; the burst's layout in words).
     pub fn schema(self) -> &'static str {
         match self {
             Channel::Frame => schema::FRAME,
@@ -74,13 +108,22 @@ impl Channel {
             Channel::Image => schema::RAW_IMAGE,
             Channel::VehiclePose | Channel::TruthPose => schema::POSE_IN_FRAME,
             Channel::Tf => schema::FRAME_TRANSFORM,
+            Channel::Burst => schema::BURST_LAYOUT,
+            Channel::Demodulated => schema::DEMODULATED,
         }
     }
 
     /// One of Foxglove's well-known types (the same data again, for its
     /// panels), rather than one of the project's own objects.
     pub fn is_foxglove(self) -> bool {
-        !matches!(self, Channel::Frame | Channel::Pose | Channel::Status)
+        !matches!(
+            self,
+            Channel::Frame
+                | Channel::Pose
+                | Channel::Status
+                | Channel::Burst
+                | Channel::Demodulated
+        )
     }
 }
 
@@ -101,6 +144,9 @@ pub struct Encoder {
     /// Formats FRAME lines exactly as the JSONL log does; emptied after each.
     lines: LogWriter<Vec<u8>>,
     buf: Vec<u8>,
+    /// A burst's message and the codec's scratch (spec v3).
+    burst: Vec<u8>,
+    scratch: Vec<u8>,
     foxglove: bool,
     status_seq: u32,
 }
@@ -117,6 +163,8 @@ impl Encoder {
         Ok(Encoder {
             lines,
             buf: Vec::with_capacity(1024),
+            burst: Vec::new(),
+            scratch: Vec::new(),
             foxglove,
             status_seq: 0,
         })
@@ -158,6 +206,96 @@ impl Encoder {
         Ok(())
     }
 
+    /// Spec v3: a BURST's messages: the binary burst on `/lightpose/burst`
+    /// (its line as `LogWriter` writes it, or `line` as a log held it:
+    /// see [`crate::burst`]) and, with Foxglove channels, each channel's
+    /// mean sample as the image and its truth. Log time is its t (its first
+    /// sample's).
+    pub fn burst(&mut self, b: &Burst, line: Option<&[u8]>, out: Emit) -> Result<(), WriteError> {
+        if let Some(l) = line {
+            return self.burst_line(b, l, out);
+        }
+        self.lines.write_burst(b)?;
+        let own = std::mem::take(self.lines.get_mut());
+        let r = self.burst_line(b, &own, out);
+        *self.lines.get_mut() = own;
+        self.lines.get_mut().clear();
+        r
+    }
+
+    fn burst_line(&mut self, b: &Burst, line: &[u8], out: Emit) -> Result<(), WriteError> {
+        let stamp = Stamp::of(b.t).ok_or(WriteError::Time {
+            what: "burst",
+            seq: b.seq,
+            t: b.t,
+        })?;
+        crate::burst::encode(b, trim_newline(line), &mut self.burst, &mut self.scratch);
+        let at = At(b.seq as u32, stamp.nanos());
+        out(at.msg(Channel::Burst, &self.burst))?;
+        if !self.foxglove {
+            return Ok(());
+        }
+        let n = b.n().max(1) as u64;
+        let counts: [u16; NDET] = std::array::from_fn(|k| {
+            let sum: u64 = b.channel(k).iter().map(|&v| v as u64).sum();
+            ((sum + n / 2) / n) as u16
+        });
+        foxglove::raw_image(stamp, &counts, &mut self.buf);
+        emit_buf(out, at.msg(Channel::Image, &self.buf))?;
+        if let Some(tr) = b.truth.filter(|tr| finite_pose(&tr.pose)) {
+            foxglove::pose_in_frame(stamp, &tr.pose, &mut self.buf);
+            emit_buf(out, at.msg(Channel::TruthPose, &self.buf))?;
+        }
+        Ok(())
+    }
+
+    /// Spec v3: a demodulated frame's messages: its line (as `LogWriter`
+    /// writes it, or `line` as a log held it) on `/lightpose/demodulated`
+    /// and, with Foxglove channels, each channel's mean level as the image
+    /// ([`Demodulated::to_frame`]'s counts) and its truth.
+    pub fn demodulated(
+        &mut self,
+        d: &Demodulated,
+        line: Option<&[u8]>,
+        out: Emit,
+    ) -> Result<(), WriteError> {
+        if let Some(l) = line {
+            return self.demodulated_line(d, l, out);
+        }
+        self.lines.write_demodulated(d)?;
+        let own = std::mem::take(self.lines.get_mut());
+        let r = self.demodulated_line(d, &own, out);
+        *self.lines.get_mut() = own;
+        self.lines.get_mut().clear();
+        r
+    }
+
+    fn demodulated_line(
+        &mut self,
+        d: &Demodulated,
+        line: &[u8],
+        out: Emit,
+    ) -> Result<(), WriteError> {
+        let stamp = Stamp::of(d.t).ok_or(WriteError::Time {
+            what: "demodulated frame",
+            seq: d.seq,
+            t: d.t,
+        })?;
+        let at = At(d.seq as u32, stamp.nanos());
+        out(at.msg(Channel::Demodulated, trim_newline(line)))?;
+        if !self.foxglove {
+            return Ok(());
+        }
+        let f = d.to_frame();
+        foxglove::raw_image(stamp, &f.counts, &mut self.buf);
+        emit_buf(out, at.msg(Channel::Image, &self.buf))?;
+        if let Some(tr) = d.truth.filter(|tr| finite_pose(&tr.pose)) {
+            foxglove::pose_in_frame(stamp, &tr.pose, &mut self.buf);
+            emit_buf(out, at.msg(Channel::TruthPose, &self.buf))?;
+        }
+        Ok(())
+    }
+
     /// An estimate's messages: its POSE object (with the wall-clock capture
     /// time, Unix seconds, when given) at its frame's t; with Foxglove
     /// channels, also a pose and a transform when x, y, z, pitch and yaw
@@ -172,7 +310,7 @@ impl Encoder {
         p.write_json(wall_unix, &mut self.buf);
         let at = At(p.seq as u32, stamp.nanos());
         emit_buf(out, at.msg(Channel::Pose, &self.buf))?;
-        let pose = pose_of(p.x, p.y, p.z, p.pitch_deg, p.yaw_deg);
+        let pose = pose_of(p.x, p.y, p.z, p.pitch_deg, p.yaw_deg, p.roll_deg);
         self.foxglove_pose(p.seq, stamp, pose, out)
     }
 
@@ -193,7 +331,7 @@ impl Encoder {
             p.t.ok_or_else(|| WriteError::PoseLine("no number t".into()))?;
         let stamp = pose_stamp(seq, t)?;
         out(At(seq as u32, stamp.nanos()).msg(Channel::Pose, text))?;
-        let pose = pose_of(p.x, p.y, p.z, p.pitch, p.yaw);
+        let pose = pose_of(p.x, p.y, p.z, p.pitch, p.yaw, p.roll);
         self.foxglove_pose(seq, stamp, pose, out)
     }
 
@@ -261,20 +399,27 @@ fn emit_buf(out: Emit, m: Message) -> Result<(), WriteError> {
     out(m)
 }
 
-/// The pose of an estimate that knows all five of its fields (degrees).
+/// The pose of an estimate that knows all five of its fields (degrees),
+/// with its roll when it has one (spec v3; else 0, level, as spec v2 drew
+/// it).
 fn pose_of(
     x: Option<f64>,
     y: Option<f64>,
     z: Option<f64>,
     pitch: Option<f64>,
     yaw: Option<f64>,
+    roll: Option<f64>,
 ) -> Option<Pose> {
     let (x, y, z, p, w) = (x?, y?, z?, pitch?, yaw?);
-    Some(Pose::new(x, y, z, Angle::from_deg(p), Angle::from_deg(w)))
+    let pose = Pose::new(x, y, z, Angle::from_deg(p), Angle::from_deg(w));
+    Some(match roll {
+        Some(r) => pose.with_roll(Angle::from_deg(r)),
+        None => pose,
+    })
 }
 
 fn finite_pose(p: &Pose) -> bool {
-    [p.x, p.y, p.z, p.pitch.rad(), p.yaw.rad()]
+    [p.x, p.y, p.z, p.pitch.rad(), p.yaw.rad(), p.roll.rad()]
         .iter()
         .all(|v| v.is_finite())
 }
@@ -298,6 +443,7 @@ struct PoseLine {
     z: Option<f64>,
     pitch: Option<f64>,
     yaw: Option<f64>,
+    roll: Option<f64>,
 }
 
 #[cfg(test)]
@@ -314,5 +460,45 @@ mod tests {
         }
         let fox: Vec<_> = Channel::ALL.iter().filter(|c| c.is_foxglove()).collect();
         assert_eq!(fox.len(), 4);
+        for c in Channel::V3 {
+            assert!(!c.is_foxglove() && c.index() >= Channel::ALL.len());
+            assert!(c.topic().starts_with("/lightpose/"));
+        }
+    }
+
+    /// Spec v3: an estimate's roll turns its Foxglove pose and transform;
+    /// without one they are spec v2's, byte for byte.
+    #[test]
+    fn an_estimate_s_roll_is_in_its_quaternion() {
+        use lightpose_core::Status;
+        let mut enc = Encoder::new(&LogHeader::new(10, 5.0), true).unwrap();
+        let mut p = PoseEstimate::empty(3, 0.6, Status::Ok, "t");
+        (p.x, p.y, p.z, p.pitch_deg, p.yaw_deg) =
+            (Some(5.0), Some(0.1), Some(0.2), Some(4.0), Some(-6.0));
+        let mut got: Vec<(Channel, Vec<u8>)> = Vec::new();
+        let mut run = |enc: &mut Encoder, p: &PoseEstimate| {
+            got.clear();
+            enc.pose(p, None, &mut |m: Message| {
+                got.push((m.channel, m.data.to_vec()));
+                Ok(())
+            })
+            .unwrap();
+            got.iter()
+                .find(|(c, _)| *c == Channel::VehiclePose)
+                .map(|(_, d)| serde_json::from_slice::<serde_json::Value>(d).unwrap())
+                .unwrap()
+        };
+        let level = run(&mut enc, &p);
+        p.roll_deg = Some(12.0);
+        let rolled = run(&mut enc, &p);
+        let q = |v: &serde_json::Value| {
+            let o = &v["pose"]["orientation"];
+            ["x", "y", "z", "w"].map(|k| o[k].as_f64().unwrap())
+        };
+        let (pitch, yaw) = (Angle::from_deg(4.0), Angle::from_deg(-6.0));
+        assert_eq!(q(&level), foxglove::attitude_quaternion(pitch, yaw));
+        let want = foxglove::attitude_quaternion_rolled(pitch, yaw, Angle::from_deg(12.0));
+        assert_eq!(q(&rolled), want);
+        assert_ne!(q(&rolled), q(&level));
     }
 }

@@ -8,7 +8,8 @@
 //! (a DVL velocity, a lever arm) is placed right by the same transform; a
 //! ROS user expecting FLU sees the y and z axes of the vehicle's triad
 //! flipped, and its x (the arrow of a `PoseInFrame`) along the bow either
-//! way. The rotation is R_BV = R0·Rz(ψ)·Ry(θ) (MODEL.md), as a quaternion.
+//! way. The rotation is R_BV = R0·Rz(ψ)·Ry(θ)·Rx(φ) (MODEL.md), as a
+//! quaternion; roll 0 gives spec v2's quaternion bit for bit.
 
 use crate::schema::{BEACON_FRAME, DOME_FRAME, VEHICLE_FRAME};
 use lightpose_core::{Angle, Pose, NDET};
@@ -63,6 +64,26 @@ pub fn attitude_quaternion(pitch: Angle, yaw: Angle) -> [f64; 4] {
     [sz * cy, cz * cy, sz * sy, -cz * sy]
 }
 
+/// R_BV = R0·Rz(ψ)·Ry(θ)·Rx(φ) (spec v3) as a unit quaternion `[x, y, z,
+/// w]`: [`attitude_quaternion`] times q(Rx(φ)) = (sin φ/2, 0, 0, cos φ/2).
+/// Roll 0 is that quaternion as it is (no −0 turned into +0), so a v1/v2
+/// recording's Foxglove messages are unchanged.
+pub fn attitude_quaternion_rolled(pitch: Angle, yaw: Angle, roll: Angle) -> [f64; 4] {
+    let q = attitude_quaternion(pitch, yaw);
+    if roll.rad() == 0.0 {
+        return q;
+    }
+    let [ax, ay, az, aw] = q;
+    let (bx, bw) = (roll.rad() / 2.0).sin_cos();
+    // Hamilton product a·b with b = (bx, 0, 0, bw).
+    [
+        aw * bx + bw * ax,
+        bw * ay + az * bx,
+        bw * az - ay * bx,
+        aw * bw - ax * bx,
+    ]
+}
+
 #[derive(Serialize)]
 struct Vector3 {
     x: f64,
@@ -80,7 +101,7 @@ struct Quaternion {
 
 impl Quaternion {
     fn of(pose: &Pose) -> Self {
-        let [x, y, z, w] = attitude_quaternion(pose.pitch, pose.yaw);
+        let [x, y, z, w] = attitude_quaternion_rolled(pose.pitch, pose.yaw, pose.roll);
         Quaternion { x, y, z, w }
     }
 }
@@ -251,6 +272,26 @@ mod tests {
                     prop_assert!((v[row] - r[row][col]).abs() < 1e-12, "R[{row}][{col}]");
                 }
             }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { rng_seed: proptest::test_runner::RngSeed::Fixed(40), ..ProptestConfig::default() })]
+        /// Spec v3: with roll, the quaternion is the full R_BV of MODEL.md.
+        #[test]
+        fn rolled_quaternion_is_r_bv(pitch in -89.0f64..89.0, yaw in -180.0f64..180.0, roll in -180.0f64..180.0) {
+            let (p, y, r) = (Angle::from_deg(pitch), Angle::from_deg(yaw), Angle::from_deg(roll));
+            let q = attitude_quaternion_rolled(p, y, r);
+            let n: f64 = q.iter().map(|c| c * c).sum();
+            prop_assert!((n - 1.0).abs() < 1e-12);
+            let m = Attitude::new(p, y).with_roll(r).r_bv();
+            for (col, e) in [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]].iter().enumerate() {
+                let v = rotate(q, *e);
+                for row in 0..3 {
+                    prop_assert!((v[row] - m[row][col]).abs() < 1e-12, "R[{row}][{col}]");
+                }
+            }
+            prop_assert_eq!(attitude_quaternion_rolled(p, y, Angle::ZERO), attitude_quaternion(p, y));
         }
     }
 

@@ -15,7 +15,11 @@
 //! same data in Foxglove's well-known types (`foxglove.RawImage`,
 //! `foxglove.PoseInFrame`, `foxglove.FrameTransform`) so that Foxglove's
 //! panels show a recording as it is (docs/foxglove.md). Log time is the
-//! frame's t in nanoseconds; t < 0 is refused.
+//! frame's t in nanoseconds; t < 0 is refused. Spec v3's frames have
+//! channels of their own, declared at their first message: a BURST's raw
+//! samples binary on `/lightpose/burst` ([`burst`]: 2 bytes a sample where
+//! its JSON line spends 4–5), a demodulated frame's line on
+//! `/lightpose/demodulated`.
 //!
 //! Chunks are uncompressed. The `mcap` crate's zstd and lz4 are C libraries
 //! that the ARM cross builds would have to compile; a frame is a few
@@ -26,6 +30,7 @@
 //! append-only and chunked, so a file cut by a power loss is readable up
 //! to its last complete chunk.
 
+pub mod burst;
 pub mod convert;
 pub mod encode;
 pub mod foxglove;

@@ -56,6 +56,10 @@ pub(crate) const HEAD: usize = 9;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kind {
     Frame,
+    /// Spec v3: a BURST in binary (`crate::burst`), served as its line.
+    Burst,
+    /// Spec v3: a demodulated frame's line.
+    Demodulated,
     Pose,
     /// A Foxglove channel, which a writer makes anew from frames and poses.
     Derived,
@@ -189,6 +193,8 @@ pub struct McapLines<R> {
     header: Option<(u64, String)>,
     /// The line being served, and how much of it was consumed.
     line: Vec<u8>,
+    /// A burst's samples while its line is rebuilt.
+    samples: Vec<u16>,
     line_pos: usize,
     /// Offset of the record of the message last served.
     pub(crate) msg_offset: u64,
@@ -240,6 +246,7 @@ impl<R: Read> McapLines<R> {
             decls: Vec::new(),
             header: None,
             line: Vec::new(),
+            samples: Vec::new(),
             line_pos: 0,
             msg_offset: 0,
             done: false,
@@ -306,15 +313,19 @@ impl<R: Read> McapLines<R> {
         loop {
             match self.next_message()? {
                 Some(m) if m.kind == Kind::Header => break,
-                Some(m) if m.kind == Kind::Frame => {
+                Some(m) if matches!(m.kind, Kind::Frame | Kind::Burst | Kind::Demodulated) => {
+                    let t = match m.kind {
+                        Kind::Burst => topic::BURST,
+                        Kind::Demodulated => topic::DEMODULATED,
+                        _ => topic::FRAME,
+                    };
                     return Err(self.err(
                         m.offset,
                         format!(
-                            "a {} message before the {} metadata: not a lightpose recording",
-                            topic::FRAME,
+                            "a {t} message before the {} metadata: not a lightpose recording",
                             schema::HEADER_METADATA
                         ),
-                    ))
+                    ));
                 }
                 Some(_) => self.other += 1,
                 None => {
@@ -570,6 +581,8 @@ impl<R: Read> McapLines<R> {
             parsed.map_err(|m| self.err(offset, format!("channel: {m}")))?;
         let kind = match topic {
             topic::FRAME => Kind::Frame,
+            topic::BURST => Kind::Burst,
+            topic::DEMODULATED => Kind::Demodulated,
             topic::POSE => Kind::Pose,
             topic::IMAGE | topic::VEHICLE_POSE | topic::TRUTH_POSE | topic::TF => Kind::Derived,
             _ => Kind::Other,
@@ -588,19 +601,38 @@ impl<R: Read> McapLines<R> {
             };
             self.decls.push((id, decl));
         }
-        if matches!(kind, Kind::Frame | Kind::Pose) {
-            let want = if kind == Kind::Frame {
-                name::FRAME
-            } else {
-                name::POSE
+        if matches!(
+            kind,
+            Kind::Frame | Kind::Pose | Kind::Burst | Kind::Demodulated
+        ) {
+            let (want, want_se, want_me) = match kind {
+                Kind::Frame => (
+                    name::FRAME,
+                    schema::SCHEMA_ENCODING,
+                    schema::MESSAGE_ENCODING,
+                ),
+                Kind::Pose => (
+                    name::POSE,
+                    schema::SCHEMA_ENCODING,
+                    schema::MESSAGE_ENCODING,
+                ),
+                Kind::Demodulated => (
+                    name::DEMODULATED,
+                    schema::SCHEMA_ENCODING,
+                    schema::MESSAGE_ENCODING,
+                ),
+                _ => (
+                    name::BURST,
+                    schema::BURST_SCHEMA_ENCODING,
+                    schema::BURST_MESSAGE_ENCODING,
+                ),
             };
             let found = self.schemas.iter().find(|s| s.0 == schema_id);
-            let ok = encoding == schema::MESSAGE_ENCODING
-                && found.is_some_and(|s| s.1 == want && s.2 == schema::SCHEMA_ENCODING);
+            let ok = encoding == want_me && found.is_some_and(|s| s.1 == want && s.2 == want_se);
             if !ok {
                 let (sn, se) = found.map_or(("none", ""), |s| (s.1.as_str(), s.2.as_str()));
                 let msg = format!(
-                    "channel {topic} has schema {sn} ({se}) and {encoding} messages; lightpose reads schema {want} (jsonschema) with json messages"
+                    "channel {topic} has schema {sn} ({se}) and {encoding} messages; lightpose reads schema {want} ({want_se}) with {want_me} messages"
                 );
                 return Err(self.err(offset, msg));
             }
@@ -685,7 +717,30 @@ impl<R: Read> McapLines<R> {
     fn next_line(&mut self) -> Result<bool, LogError> {
         while !self.done {
             match self.next_message()? {
-                Some(m) if m.kind == Kind::Frame => {
+                Some(m) if m.kind == Kind::Burst => {
+                    let msg = &self.body[m.start..m.end];
+                    match crate::burst::decode_line(msg, &mut self.line, &mut self.samples) {
+                        Ok(_) => {
+                            for b in self.line.iter_mut() {
+                                *b = no_newline(*b);
+                            }
+                            self.line.push(b'\n');
+                            self.msg_offset = m.offset;
+                            return Ok(true);
+                        }
+                        // That frame is lost, as a refused FRAME line is.
+                        Err(why) => {
+                            self.line.clear();
+                            self.pending.push_back(LogError::at(
+                                self.name.clone(),
+                                m.offset,
+                                why,
+                                false,
+                            ));
+                        }
+                    }
+                }
+                Some(m) if matches!(m.kind, Kind::Frame | Kind::Demodulated) => {
                     self.line.clear();
                     self.line
                         .extend(self.body[m.start..m.end].iter().map(|&b| no_newline(b)));

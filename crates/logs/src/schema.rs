@@ -61,6 +61,11 @@ pub mod topic {
     pub const TRUTH_POSE: &str = "/lightpose/truth_pose";
     /// `beacon` → `vehicle` as a `foxglove.FrameTransform`.
     pub const TF: &str = "/lightpose/tf";
+    /// Spec v3: each BURST (the raw samples of a frame), binary
+    /// ([`BURST_LAYOUT`]).
+    pub const BURST: &str = "/lightpose/burst";
+    /// Spec v3: each demodulated frame, exactly its JSONL line.
+    pub const DEMODULATED: &str = "/lightpose/demodulated";
 }
 
 /// Schema names.
@@ -71,6 +76,8 @@ pub mod name {
     pub const RAW_IMAGE: &str = "foxglove.RawImage";
     pub const POSE_IN_FRAME: &str = "foxglove.PoseInFrame";
     pub const FRAME_TRANSFORM: &str = "foxglove.FrameTransform";
+    pub const BURST: &str = "lightpose.Burst";
+    pub const DEMODULATED: &str = "lightpose.DemodulatedFrame";
 }
 
 /// Foxglove reference frames: B of MODEL.md, V (FRD) of MODEL.md, and the
@@ -80,9 +87,37 @@ pub const BEACON_FRAME: &str = "beacon";
 pub const VEHICLE_FRAME: &str = "vehicle";
 pub const DOME_FRAME: &str = "dome";
 
-pub const FRAME: &str = r#"{"title":"lightpose.Frame","description":"One capture of the 5 x 5 photodiode array (FORMATS.md, intensity log FRAME line)","type":"object","properties":{"class":{"const":"FRAME"},"seq":{"type":"integer","minimum":0,"description":"frame counter; a gap means frames were lost"},"t":{"type":"number","description":"seconds in the log's own epoch"},"counts":{"type":"array","items":{"type":"integer","minimum":0,"maximum":65535},"minItems":25,"maxItems":25,"description":"ADC counts, row-major, index 5*r + c"},"temp_c":{"type":["number","null"],"description":"water temperature, degrees C"},"truth":{"type":"object","description":"reference pose (simulator, tank carriage)","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"pitch":{"type":"number"},"yaw":{"type":"number"},"surge":{"type":"number"}},"required":["x","y","z","pitch","yaw"]},"attitude":{"type":"object","description":"attitude sensor, degrees, beam frame","properties":{"pitch":{"type":"number"},"yaw":{"type":"number"},"std":{"type":"object","properties":{"pitch":{"type":"number"},"yaw":{"type":"number"}}}},"required":["pitch","yaw"]},"depth":{"type":"object","description":"depth sensor: the vehicle's z in B, m","properties":{"z":{"type":"number"},"std":{"type":"object","properties":{"z":{"type":"number"}}}},"required":["z"]},"velocity":{"type":"object","description":"DVL velocity over ground in V (FRD), m/s","properties":{"fwd":{"type":"number"},"right":{"type":"number"},"down":{"type":"number"},"std":{"type":"object","properties":{"fwd":{"type":"number"},"right":{"type":"number"},"down":{"type":"number"}}}},"required":["fwd","right","down"]}},"required":["class","seq","t","counts"]}"#;
+pub const FRAME: &str = r#"{"title":"lightpose.Frame","description":"One capture of the 5 x 5 photodiode array (FORMATS.md, intensity log FRAME line)","type":"object","properties":{"class":{"const":"FRAME"},"seq":{"type":"integer","minimum":0,"description":"frame counter; a gap means frames were lost"},"t":{"type":"number","description":"seconds in the log's own epoch"},"counts":{"type":"array","items":{"type":"integer","minimum":0,"maximum":65535},"minItems":25,"maxItems":25,"description":"ADC counts, row-major, index 5*r + c"},"temp_c":{"type":["number","null"],"description":"water temperature, degrees C"},"truth":{"type":"object","description":"reference pose (simulator, tank carriage)","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"pitch":{"type":"number"},"yaw":{"type":"number"},"roll":{"type":"number","description":"degrees, starboard side down; absent: 0 (spec v3)"},"surge":{"type":"number"}},"required":["x","y","z","pitch","yaw"]},"attitude":{"type":"object","description":"attitude sensor, degrees, beam frame","properties":{"pitch":{"type":"number"},"yaw":{"type":"number"},"roll":{"type":"number","description":"absent: not measured (spec v3)"},"std":{"type":"object","properties":{"pitch":{"type":"number"},"yaw":{"type":"number"}}}},"required":["pitch","yaw"]},"depth":{"type":"object","description":"depth sensor: the vehicle's z in B, m","properties":{"z":{"type":"number"},"std":{"type":"object","properties":{"z":{"type":"number"}}}},"required":["z"]},"velocity":{"type":"object","description":"DVL velocity over ground in V (FRD), m/s","properties":{"fwd":{"type":"number"},"right":{"type":"number"},"down":{"type":"number"},"std":{"type":"object","properties":{"fwd":{"type":"number"},"right":{"type":"number"},"down":{"type":"number"}}}},"required":["fwd","right","down"]}},"required":["class","seq","t","counts"]}"#;
 
-pub const POSE: &str = r#"{"title":"lightpose.Pose","description":"One estimate (FORMATS.md POSE message); fields not known are null","type":"object","properties":{"class":{"const":"POSE"},"seq":{"type":"integer","minimum":0},"t":{"type":["number","null"],"description":"t of the frame the estimate comes from"},"time":{"type":"number","description":"wall-clock capture time, Unix seconds"},"status":{"type":"string","description":"ok when every field is trustworthy, else why not"},"x":{"type":["number","null"]},"y":{"type":["number","null"]},"z":{"type":["number","null"]},"pitch":{"type":["number","null"],"description":"degrees"},"yaw":{"type":["number","null"],"description":"degrees"},"surge":{"type":["number","null"],"description":"m/s"},"std":{"type":"object","description":"1-sigma of each field where known","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"pitch":{"type":"number"},"yaw":{"type":"number"},"surge":{"type":"number"}}},"estimator":{"type":"string"}},"required":["class","seq","status"]}"#;
+pub const POSE: &str = r#"{"title":"lightpose.Pose","description":"One estimate (FORMATS.md POSE message); fields not known are null","type":"object","properties":{"class":{"const":"POSE"},"seq":{"type":"integer","minimum":0},"t":{"type":["number","null"],"description":"t of the frame the estimate comes from"},"time":{"type":"number","description":"wall-clock capture time, Unix seconds"},"status":{"type":"string","description":"ok when every field is trustworthy, else why not"},"x":{"type":["number","null"]},"y":{"type":["number","null"]},"z":{"type":["number","null"]},"pitch":{"type":["number","null"],"description":"degrees"},"yaw":{"type":["number","null"],"description":"degrees"},"surge":{"type":["number","null"],"description":"m/s"},"roll":{"type":["number","null"],"description":"degrees, starboard side down; absent when nothing in the frame says roll (spec v3)"},"frame":{"type":"string","description":"B for one beacon, else the station's name (spec v3)"},"std":{"type":"object","description":"1-sigma of each field where known","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"pitch":{"type":"number"},"yaw":{"type":"number"},"roll":{"type":"number"},"surge":{"type":"number"}}},"estimator":{"type":"string"}},"required":["class","seq","status"]}"#;
+
+/// Spec v3: a demodulated frame (FORMATS.md: a FRAME whose counts are
+/// replaced by each beacon's amplitudes, the ambient and the clipped counts).
+pub const DEMODULATED: &str = r#"{"title":"lightpose.DemodulatedFrame","description":"One demodulated frame (FORMATS.md, spec v3: a FRAME line with beacons, ambient and clipped in place of counts)","type":"object","properties":{"class":{"const":"FRAME"},"seq":{"type":"integer","minimum":0},"t":{"type":"number","description":"the middle of the frame's samples, seconds"},"beacons":{"type":"array","items":{"type":"object","properties":{"id":{"type":"string"},"amplitude":{"type":"array","items":{"type":["number","null"]},"minItems":25,"maxItems":25,"description":"on level minus off level, counts, index 5*r + c"},"std":{"type":"array","items":{"type":["number","null"]},"minItems":25,"maxItems":25}},"required":["id","amplitude","std"]}},"ambient":{"type":"array","items":{"type":["number","null"]},"minItems":25,"maxItems":25,"description":"mean counts of what does not blink"},"clipped":{"type":"array","items":{"type":"integer","minimum":0},"minItems":25,"maxItems":25,"description":"samples at 0 or full scale"},"temp_c":{"type":["number","null"]},"truth":{"type":"object"},"attitude":{"type":"object"},"depth":{"type":"object"},"velocity":{"type":"object"}},"required":["class","seq","t","beacons","ambient","clipped"]}"#;
+
+/// Message encoding of `/lightpose/burst` (binary, [`BURST_LAYOUT`]).
+pub const BURST_MESSAGE_ENCODING: &str = "lightpose-burst-v1";
+/// Schema encoding of `lightpose.Burst`: its data is [`BURST_LAYOUT`], the
+/// layout in words (no schema language describes a packed sample block
+/// that Foxglove would decode; a program reads it with a few lines of
+/// `struct`, as tests/python's mcap check does).
+pub const BURST_SCHEMA_ENCODING: &str = "lightpose-layout";
+
+/// The layout of a `/lightpose/burst` message, every number little-endian.
+pub const BURST_LAYOUT: &str = "lightpose.Burst v1: one BURST (FORMATS.md, spec v3) in little-endian binary.
+offset size field
+0      4    magic \"LPB1\"
+4      8    seq (u64)
+12     8    t (f64): time of the frame's first sample, s
+20     2    channels (u16): 25, index 5*r + c
+22     2    n (u16): samples per channel
+24     1    adc_bits (u8)
+25     1    cut (u8): how `side` and the samples make the BURST line: 0 = the line is side[..at] + '\"samples\":' + S + ',' + side[at..]; 1 = side[..at] + ',\"samples\":' + S + side[at..]; 2 = side is the line whole
+26     4    at (u32): byte offset into side
+30     4    side_len (u32)
+34     side_len  side: UTF-8 JSON, the BURST object without its samples (cut 0, 1; its seq, t, temp_c, truth, attitude, depth, velocity), or the line whole (cut 2)
+34+side_len  2*channels*n  samples: u16, channel-major (sample i of channel k at k*n + i)
+S is the samples as JSON: [[..n integers..], ..25 arrays..], no spaces. Log time: t in ns.";
 
 pub const STATUS: &str = r#"{"title":"lightpose.Status","description":"The daemon's STATUS report (once a second); its fields grow with the daemon, readers ignore what they do not know","type":"object","properties":{"class":{"const":"STATUS"},"seq":{"type":"integer"},"t":{"type":"number","description":"wall clock, Unix seconds"}},"required":["class"]}"#;
 
@@ -146,6 +181,7 @@ mod tests {
             (RAW_IMAGE, name::RAW_IMAGE),
             (POSE_IN_FRAME, name::POSE_IN_FRAME),
             (FRAME_TRANSFORM, name::FRAME_TRANSFORM),
+            (DEMODULATED, name::DEMODULATED),
         ] {
             let v: serde_json::Value = serde_json::from_str(text).expect(title);
             assert_eq!(v["title"], title);

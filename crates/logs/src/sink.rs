@@ -3,36 +3,20 @@
 
 use crate::write::{McapOptions, McapWriter, WriteError};
 use crate::Format;
-use lightpose_core::samples::{Burst, Demodulated};
-use lightpose_core::{Frame, LogHeader, LogWriter, PoseEstimate};
+use lightpose_core::{Burst, Demodulated, Frame, LogHeader, LogWriter, PoseEstimate};
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
-/// The refusal of a kind of frame a container does not hold yet.
-fn not_here(what: &str) -> WriteError {
-    WriteError::Io(std::io::Error::new(
-        std::io::ErrorKind::Unsupported,
-        format!("{what}: not written to this container in this build"),
-    ))
-}
-
 /// Where frames (and, in MCAP, poses and status) are recorded.
 pub trait LogSink {
     fn write_frame(&mut self, f: &Frame) -> Result<(), WriteError>;
-    /// Spec v3: one frame's raw samples (FORMATS.md `BURST`). A container
-    /// that has no place for them yet says so.
-    fn write_burst(&mut self, b: &Burst) -> Result<(), WriteError> {
-        let _ = b;
-        Err(not_here("BURST (raw samples)"))
-    }
-    /// Spec v3: a demodulated frame (FORMATS.md), as for
-    /// [`LogSink::write_burst`].
-    fn write_demodulated(&mut self, d: &Demodulated) -> Result<(), WriteError> {
-        let _ = d;
-        Err(not_here("demodulated frames"))
-    }
+    /// Spec v3: a frame's raw samples (JSONL: a BURST line; MCAP: the
+    /// binary `/lightpose/burst`). A log holds one kind of frame.
+    fn write_burst(&mut self, b: &Burst) -> Result<(), WriteError>;
+    /// Spec v3: a demodulated frame.
+    fn write_demodulated(&mut self, d: &Demodulated) -> Result<(), WriteError>;
     /// An estimate with its wall-clock capture time (Unix seconds). JSONL
     /// intensity logs hold frames only (FORMATS.md): there, nothing.
     fn write_pose(&mut self, p: &PoseEstimate, wall_unix: Option<f64>) -> Result<(), WriteError>;
@@ -56,6 +40,12 @@ pub trait LogSink {
 impl<W: Write> LogSink for McapWriter<W> {
     fn write_frame(&mut self, f: &Frame) -> Result<(), WriteError> {
         McapWriter::write_frame(self, f)
+    }
+    fn write_burst(&mut self, b: &Burst) -> Result<(), WriteError> {
+        McapWriter::write_burst(self, b)
+    }
+    fn write_demodulated(&mut self, d: &Demodulated) -> Result<(), WriteError> {
+        McapWriter::write_demodulated(self, d)
     }
     fn write_pose(&mut self, p: &PoseEstimate, wall_unix: Option<f64>) -> Result<(), WriteError> {
         McapWriter::write_pose(self, p, wall_unix)

@@ -8,7 +8,7 @@
 //! `read_line_bounded`, which reads the rest of it piece by piece and
 //! throws it away, so that a 200 MB line is never held whole here either.
 
-use lightpose_core::textfile::MAX_LINE_BYTES;
+use lightpose_core::log::MAX_LOG_LINE_BYTES;
 use std::io::{self, BufRead, Read};
 
 pub struct LineTap<R> {
@@ -55,7 +55,7 @@ impl<R: BufRead> BufRead for LineTap<R> {
             self.line.clear();
             self.pos = 0;
             (&mut self.src)
-                .take(MAX_LINE_BYTES as u64 + 1)
+                .take(MAX_LOG_LINE_BYTES as u64 + 1)
                 .read_until(b'\n', &mut self.line)?;
         }
         Ok(&self.line[self.pos..])

@@ -15,7 +15,9 @@
 
 use crate::encode::{trim_newline, Channel, Encoder, Message};
 use crate::schema;
-use lightpose_core::{Frame, LogHeader, LogReader, LogWriter, PoseEstimate};
+use lightpose_core::{
+    Burst, Demodulated, Frame, LogHeader, LogReader, LogWriter, PoseEstimate, Record,
+};
 use mcap::records::{MessageHeader, Metadata};
 use mcap::write::NoSeek;
 use std::collections::BTreeMap;
@@ -68,11 +70,16 @@ impl Default for McapOptions {
     }
 }
 
+/// Channel ids by [`Channel::index`] (the seven of [`Channel::ALL`],
+/// then [`Channel::V3`]).
+type Ids = [Option<u16>; 9];
+
 pub struct McapWriter<W: Write> {
     mcap: mcap::Writer<NoSeek<W>>,
     /// The MCAP channel id of each [`Channel`] (by its index); `None` for
-    /// the Foxglove channels when they are left out.
-    ids: [Option<u16>; 7],
+    /// the Foxglove channels when they are left out, and for spec v3's
+    /// ([`Channel::V3`]) until their first message declares them.
+    ids: Ids,
     enc: Encoder,
     frames: u64,
     poses: u64,
@@ -144,7 +151,7 @@ impl<W: Write> McapWriter<W> {
             name: schema::HEADER_METADATA.into(),
             metadata: meta,
         })?;
-        let mut ids = [None; 7];
+        let mut ids: Ids = [None; 9];
         // Schemas by name: the two PoseInFrame channels share theirs.
         let mut schemas: BTreeMap<&str, u16> = BTreeMap::new();
         for c in Channel::ALL {
@@ -176,13 +183,26 @@ impl<W: Write> McapWriter<W> {
         })
     }
 
-    /// The closure that writes each message the encoder makes.
+    /// The closure that writes each message the encoder makes; a spec v3
+    /// channel is declared at its first message, so that a v1/v2
+    /// recording is laid out as before.
     fn sink<'a>(
         mcap: &'a mut mcap::Writer<NoSeek<W>>,
-        ids: &'a [Option<u16>; 7],
+        ids: &'a mut Ids,
     ) -> impl FnMut(Message) -> Result<(), WriteError> + 'a {
         move |m: Message| {
-            let Some(channel_id) = ids[m.channel.index()] else {
+            let c = m.channel;
+            if ids[c.index()].is_none() && Channel::V3.contains(&c) {
+                let sid =
+                    mcap.add_schema(c.schema_name(), c.schema_encoding(), c.schema().as_bytes())?;
+                ids[c.index()] = Some(mcap.add_channel(
+                    sid,
+                    c.topic(),
+                    c.message_encoding(),
+                    &BTreeMap::new(),
+                )?);
+            }
+            let Some(channel_id) = ids[c.index()] else {
                 return Ok(());
             };
             let h = MessageHeader {
@@ -202,7 +222,7 @@ impl<W: Write> McapWriter<W> {
     /// start, say) is refused.
     pub fn write_frame(&mut self, f: &Frame) -> Result<(), WriteError> {
         self.enc
-            .frame(f, &mut Self::sink(&mut self.mcap, &self.ids))?;
+            .frame(f, &mut Self::sink(&mut self.mcap, &mut self.ids))?;
         self.frames += 1;
         Ok(())
     }
@@ -212,9 +232,66 @@ impl<W: Write> McapWriter<W> {
     /// the Foxglove messages are made from `f`).
     pub fn write_frame_line(&mut self, f: &Frame, line: &[u8]) -> Result<(), WriteError> {
         self.enc
-            .frame_line(f, line, &mut Self::sink(&mut self.mcap, &self.ids))?;
+            .frame_line(f, line, &mut Self::sink(&mut self.mcap, &mut self.ids))?;
         self.frames += 1;
         Ok(())
+    }
+
+    /// Spec v3: append one BURST, binary on `/lightpose/burst` (with
+    /// Foxglove channels, each channel's mean sample as the image, and its
+    /// truth); log time its t, its first sample's.
+    pub fn write_burst(&mut self, b: &Burst) -> Result<(), WriteError> {
+        self.enc
+            .burst(b, None, &mut Self::sink(&mut self.mcap, &mut self.ids))?;
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// As [`McapWriter::write_burst`], with the BURST as the text of the
+    /// line a log held for it (kept byte for byte: [`crate::burst`]).
+    pub fn write_burst_line(&mut self, b: &Burst, line: &[u8]) -> Result<(), WriteError> {
+        self.enc.burst(
+            b,
+            Some(line),
+            &mut Self::sink(&mut self.mcap, &mut self.ids),
+        )?;
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// Spec v3: append one demodulated frame, its line on
+    /// `/lightpose/demodulated` (with Foxglove channels, its mean levels as
+    /// the image, and its truth).
+    pub fn write_demodulated(&mut self, d: &Demodulated) -> Result<(), WriteError> {
+        self.enc
+            .demodulated(d, None, &mut Self::sink(&mut self.mcap, &mut self.ids))?;
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// As [`McapWriter::write_demodulated`], with the line a log held.
+    pub fn write_demodulated_line(
+        &mut self,
+        d: &Demodulated,
+        line: &[u8],
+    ) -> Result<(), WriteError> {
+        self.enc.demodulated(
+            d,
+            Some(line),
+            &mut Self::sink(&mut self.mcap, &mut self.ids),
+        )?;
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// Append one frame of any kind ([`Record`]) with the text of the line
+    /// a log held for it.
+    pub fn write_record_line(&mut self, r: &Record, line: &[u8]) -> Result<(), WriteError> {
+        match r {
+            Record::Frame(f) => self.write_frame_line(f, line),
+            Record::Burst(b) => self.write_burst_line(b, line),
+            Record::Demodulated(d) => self.write_demodulated_line(d, line),
+        }
     }
 
     /// Append one estimate as its POSE object (with the wall-clock capture
@@ -226,7 +303,7 @@ impl<W: Write> McapWriter<W> {
         wall_unix: Option<f64>,
     ) -> Result<(), WriteError> {
         self.enc
-            .pose(p, wall_unix, &mut Self::sink(&mut self.mcap, &self.ids))?;
+            .pose(p, wall_unix, &mut Self::sink(&mut self.mcap, &mut self.ids))?;
         self.poses += 1;
         Ok(())
     }
@@ -236,7 +313,7 @@ impl<W: Write> McapWriter<W> {
     /// with its frame's `seq` and a `t` ≥ 0.
     pub fn write_pose_line(&mut self, line: &[u8]) -> Result<(), WriteError> {
         self.enc
-            .pose_line(line, &mut Self::sink(&mut self.mcap, &self.ids))?;
+            .pose_line(line, &mut Self::sink(&mut self.mcap, &mut self.ids))?;
         self.poses += 1;
         Ok(())
     }
@@ -246,7 +323,7 @@ impl<W: Write> McapWriter<W> {
     /// status sits among the frames it describes.
     pub fn write_status(&mut self, t: f64, json: &[u8]) -> Result<(), WriteError> {
         self.enc
-            .status(t, json, &mut Self::sink(&mut self.mcap, &self.ids))
+            .status(t, json, &mut Self::sink(&mut self.mcap, &mut self.ids))
     }
 
     /// Declare a channel as another file declared it (a conversion carries

@@ -8,7 +8,7 @@
 mod common;
 use common::data;
 
-use lightpose_core::textfile::MAX_LINE_BYTES;
+use lightpose_core::log::MAX_LOG_LINE_BYTES;
 use lightpose_logs::{convert, FrameLog, LogFile, McapOptions};
 use lightpose_testkit::alloc::Counting;
 use std::io::Write;
@@ -41,7 +41,7 @@ const BOUND: usize = 4 << 20;
 // them.
 #[test]
 fn a_line_of_24_mb_is_refused_without_being_held() {
-    const { assert!(LONG > 100 * MAX_LINE_BYTES) };
+    const { assert!(LONG > 30 * MAX_LOG_LINE_BYTES) };
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("long.jsonl");
     with_long_line(&data("dive.jsonl"), &log, 3, LONG);

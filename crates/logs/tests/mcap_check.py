@@ -26,6 +26,16 @@ fails (a file cut short). `alike`: two finished files hold the same
 messages on every topic (channel declaration, sequence, times and bytes)
 and the same metadata records in the same order.
 
+    python mcap_check.py v3 REC.mcap BURST_LOG.jsonl POSES.jsonl
+
+`v3` (spec v3): a recording of BURST frames. Each `/lightpose/burst`
+message is decoded from its layout (lightpose.Burst v1: the schema data)
+by this script's own reading of it, its line rebuilt and compared with the
+JSONL line byte for byte, its samples with the line's; each image is the
+rounded mean of its burst's channels; truths and poses (with their roll)
+against MODEL.md's full R_BV = R0·Rz(ψ)·Ry(θ)·Rx(φ), every axis. Prints
+one line of counts, `rolled=N` the poses with a roll.
+
 Any mismatch: one line on stderr, exit 1.
 """
 
@@ -101,6 +111,124 @@ def check_pose(pose, x, y, z, pitch, yaw, where):
     got = rotate(q, (1.0, 0.0, 0.0))
     if max(abs(a - b) for a, b in zip(got, want)) > 1e-12:
         fail(f"{where}: the bow points {got}, MODEL.md says {want}")
+
+
+def r_bv(pitch, yaw, roll):
+    """MODEL.md's R_BV as three columns (the body's x, y, z axes in B)."""
+    th, ps, ph = math.radians(pitch), math.radians(yaw), math.radians(roll)
+
+    def mul(a, b):
+        return [[sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
+
+    r0 = [[-1, 0, 0], [0, 1, 0], [0, 0, -1]]
+    rz = [[math.cos(ps), -math.sin(ps), 0], [math.sin(ps), math.cos(ps), 0], [0, 0, 1]]
+    ry = [[math.cos(th), 0, math.sin(th)], [0, 1, 0], [-math.sin(th), 0, math.cos(th)]]
+    rx = [[1, 0, 0], [0, math.cos(ph), -math.sin(ph)], [0, math.sin(ph), math.cos(ph)]]
+    m = mul(mul(mul(r0, rz), ry), rx)
+    return [tuple(m[i][j] for i in range(3)) for j in range(3)]
+
+
+def check_rolled_pose(pose, want, where):
+    """A PoseInFrame's pose against x, y, z, pitch, yaw, roll (degrees)."""
+    x, y, z, pitch, yaw, roll = want
+    p, q = pose["position"], pose["orientation"]
+    same([p["x"], p["y"], p["z"]], [float(x), float(y), float(z)], f"{where} position")
+    for axis, col in enumerate(r_bv(pitch, yaw, roll)):
+        e = tuple(1.0 if i == axis else 0.0 for i in range(3))
+        got = rotate(q, e)
+        if max(abs(a - b) for a, b in zip(got, col)) > 1e-12:
+            fail(f"{where}: body axis {axis} is {got} in B, MODEL.md says {col}")
+
+
+LAYOUT = struct.Struct("<4sQdHHBBII")
+
+
+def burst_line(data, where):
+    """The BURST line of a /lightpose/burst message, and its samples."""
+    magic, seq, t, channels, n, adc_bits, cut, at, side_len = LAYOUT.unpack_from(data)
+    if magic != b"LPB1" or channels != 25:
+        fail(f"{where}: magic {magic!r}, {channels} channels")
+    side = data[LAYOUT.size:LAYOUT.size + side_len]
+    raw = data[LAYOUT.size + side_len:]
+    if len(raw) != 2 * channels * n:
+        fail(f"{where}: {len(raw)} bytes of samples for {channels} x {n}")
+    flat = struct.unpack(f"<{channels * n}H", raw)
+    samples = [list(flat[k * n:(k + 1) * n]) for k in range(channels)]
+    text = '"samples":' + json.dumps(samples, separators=(",", ":"))
+    text = text.encode()
+    if cut == 0:
+        line = side[:at] + text + b"," + side[at:]
+    elif cut == 1:
+        line = side[:at] + b"," + text + side[at:]
+    elif cut == 2:
+        line = side
+    else:
+        fail(f"{where}: cut {cut}")
+    if cut != 2:
+        obj = json.loads(side)
+        if obj.get("seq") != seq or "samples" in obj:
+            fail(f"{where}: side {obj}")
+    return line.decode(), samples, seq, t, adc_bits
+
+
+def v3(path, log, poses_path):
+    with open(log, encoding="utf-8") as f:
+        lines = [line.rstrip("\n") for line in f if line.strip()]
+    bursts = [json.loads(line) for line in lines[1:]]
+    poses = read_lines(poses_path)
+    topics = ["/lightpose/burst", "/lightpose/pose", "/lightpose/image", "/lightpose/vehicle_pose", "/lightpose/truth_pose", "/lightpose/tf"]
+    n = {t: 0 for t in topics}
+    rolled = 0
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        if summary is None:
+            fail("no summary")
+        for ch in summary.channels.values():
+            if ch.topic == "/lightpose/burst":
+                schema = summary.schemas[ch.schema_id]
+                if (schema.name, schema.encoding, ch.message_encoding) != ("lightpose.Burst", "lightpose-layout", "lightpose-burst-v1"):
+                    fail(f"burst channel: {schema.name} {schema.encoding} {ch.message_encoding}")
+                if not schema.data.startswith(b"lightpose.Burst v1"):
+                    fail("burst schema data is not its layout")
+        for _schema, ch, msg in reader.iter_messages(log_time_order=False):
+            if ch.topic not in n:
+                continue
+            i = n[ch.topic]
+            n[ch.topic] += 1
+            where = f"{ch.topic} #{i}"
+            if ch.topic == "/lightpose/burst":
+                line, samples, seq, t, adc_bits = burst_line(msg.data, where)
+                if line != lines[1 + i]:
+                    fail(f"{where}: the rebuilt line is not the JSONL line")
+                b = bursts[i]
+                if samples != b["samples"] or seq != b["seq"] or t != b["t"] or adc_bits != 12:
+                    fail(f"{where}: fields")
+                if abs(msg.log_time - t * 1e9) > 1.0:
+                    fail(f"{where}: log time {msg.log_time} for t = {t}")
+                continue
+            data = json.loads(msg.data)
+            if ch.topic == "/lightpose/image":
+                counts = list(struct.unpack("<25H", base64.b64decode(data["data"])))
+                s = bursts[i]["samples"]
+                want = [int((sum(c) + len(c) // 2) // len(c)) for c in s]
+                if counts != want:
+                    fail(f"{where}: pixels {counts} vs means {want}")
+            elif ch.topic == "/lightpose/truth_pose":
+                tr = bursts[i]["truth"]
+                check_rolled_pose(data["pose"], [tr[k] for k in ("x", "y", "z", "pitch", "yaw")] + [tr.get("roll", 0.0)], where)
+            elif ch.topic == "/lightpose/pose":
+                same(data, poses[i], where)
+                rolled += "roll" in data
+            else:
+                p = poses[i]
+                want = [p[k] for k in ("x", "y", "z", "pitch", "yaw")] + [p.get("roll", 0.0)]
+                pose = data["pose"] if ch.topic == "/lightpose/vehicle_pose" else {"position": data["translation"], "orientation": data["rotation"]}
+                check_rolled_pose(pose, want, where)
+    if n["/lightpose/burst"] != len(bursts):
+        fail(f"{n['/lightpose/burst']} bursts for {len(bursts)} lines")
+    counts = [f"{t.split('/')[-1]}={c}" for t, c in n.items()]
+    print(" ".join(counts) + f" rolled={rolled}")
 
 
 def read_lines(path):
@@ -277,6 +405,8 @@ def alike(a, b):
 if __name__ == "__main__":
     if len(sys.argv) >= 4 and sys.argv[1] == "full":
         full(sys.argv[2], sys.argv[3], sys.argv[4] if len(sys.argv) > 4 else None)
+    elif len(sys.argv) == 5 and sys.argv[1] == "v3":
+        v3(sys.argv[2], sys.argv[3], sys.argv[4])
     elif len(sys.argv) == 3 and sys.argv[1] == "cut":
         cut(sys.argv[2])
     elif len(sys.argv) == 3 and sys.argv[1] == "default":

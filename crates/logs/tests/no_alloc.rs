@@ -124,3 +124,49 @@ fn the_writer_allocates_per_chunk_not_per_frame() {
         "{allocs} allocations for {chunks} chunks"
     );
 }
+
+/// Spec v3: a BURST (binary on `/lightpose/burst`, its image and truth)
+/// costs the writer no allocation per frame either, once warm: allocations
+/// come with chunks (a 2 kHz burst of 25 × 100 samples is about 5 kB, so a
+/// 64 KiB chunk holds about twelve).
+#[test]
+fn writing_bursts_allocates_per_chunk_not_per_frame() {
+    let mut h = LogHeader::new(10, 20.0);
+    h.sample_hz = Some(2000.0);
+    h.beacons = vec![lightpose_core::BeaconInfo {
+        id: "top".into(),
+        mod_hz: 200.0,
+    }];
+    let sink = Bytes::default();
+    let mut w = McapWriter::new(sink.clone(), &h, &McapOptions::default()).unwrap();
+    let mut b = lightpose_core::Burst::new(100);
+    b.adc_bits = 10;
+    let mut write = |w: &mut McapWriter<Bytes>, seq: u64| {
+        b.seq = seq;
+        b.t = seq as f64 * 0.05;
+        for (i, v) in b.samples_mut().iter_mut().enumerate() {
+            *v = ((i as u64 * 13 + seq * 7) % 1024) as u16;
+        }
+        b.truth = frame(seq).truth;
+        w.write_burst(&b).unwrap();
+    };
+    for seq in 0..100 {
+        write(&mut w, seq);
+    }
+    let n = 2000u64;
+    let (mut chunks, mut last) = (0u64, sink.0.load(Relaxed));
+    let ((), allocs) = A.this_thread(|| {
+        for seq in 100..100 + n {
+            write(&mut w, seq);
+            let now = sink.0.load(Relaxed);
+            chunks += u64::from(now > last);
+            last = now;
+        }
+    });
+    eprintln!("{n} bursts: {chunks} chunks, {allocs} allocations");
+    assert!(chunks >= 50, "the test must cross chunk boundaries");
+    assert!(
+        allocs <= 40 * chunks,
+        "{allocs} allocations for {chunks} chunks"
+    );
+}

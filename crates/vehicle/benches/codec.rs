@@ -28,6 +28,7 @@ fn outgoing() -> Outgoing {
             Some(2.0),
             Some(0.05),
         ],
+        roll_std: None,
         epoch: 0,
     }
 }

@@ -42,9 +42,9 @@ pub fn full_from_upper(u: &[f64; 21]) -> [[f64; 6]; 6] {
 /// Covariance of VISION_POSITION_ESTIMATE: the 21-element upper triangle
 /// of the 6×6 over N, E, D, roll, pitch, yaw (m², rad²), row-major.
 ///
-/// Roll is not observable from the beacon; the message carries roll 0
-/// with `roll_std` as its 1σ (a configured figure for how far the vehicle
-/// rolls, see docs/vehicle.md).
+/// `roll_std` is the roll's 1σ: the estimate's own (spec v3, `std.roll`)
+/// when it has one, else a configured figure for how far the vehicle
+/// rolls about the roll it claims (0 without one; see docs/vehicle.md).
 pub fn position_covariance(site: &Site, std: &PoseStd, roll_std: Angle) -> [f64; 21] {
     let (s, c) = site.axis_heading.sin_cos();
     let (vx, vy) = (std.x * std.x, std.y * std.y);

@@ -43,11 +43,14 @@ pub struct Site {
 }
 
 /// The vehicle's pose as the autopilot sees it: where the dome centre is in
-/// NED, and the bow's pitch and compass heading. Roll is not observable
-/// from the beacon (MODEL.md) and is not part of it.
+/// NED, and the bow's roll, pitch and compass heading (ZYX Euler angles in
+/// NED: R_NV = R_NB·R_BV = Rz(heading)·Ry(pitch)·Rx(roll), so roll and
+/// pitch are B's own).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NedPose {
     pub position: NedVec,
+    /// Spec v3: starboard side down (0 in every v1/v2 pose).
+    pub roll: Angle,
     pub pitch: Angle,
     /// Compass heading of the bow, wrapped into (−180°, 180°].
     pub heading: Angle,
@@ -135,6 +138,7 @@ impl Site {
     pub fn pose_ned(&self, p: &Pose) -> NedPose {
         NedPose {
             position: self.position_ned(&p.position()),
+            roll: p.roll,
             pitch: p.pitch,
             heading: self.heading(p.yaw),
         }
@@ -143,7 +147,7 @@ impl Site {
     /// The vehicle's pose in B from NED.
     pub fn pose_beam(&self, n: &NedPose) -> Pose {
         let b = self.position_beam(&n.position);
-        Pose::new(b.0[0], b.0[1], b.0[2], n.pitch, self.yaw_b(n.heading))
+        Pose::new(b.0[0], b.0[1], b.0[2], n.pitch, self.yaw_b(n.heading)).with_roll(n.roll)
     }
 
     /// A body vector (FRD: a DVL velocity, the bow) to NED at an attitude

@@ -285,8 +285,9 @@ struct Use {
 /// taken, in nanoseconds since `epoch`.
 pub struct Readings {
     epoch: Instant,
-    /// taken, pitch, yaw, their std, their rates (rad/s; NaN: none).
-    attitude: Latest<7>,
+    /// taken, pitch, yaw, their std, their rates (rad/s; NaN: none), and
+    /// roll (rad; NaN: the sender gave none, spec v3).
+    attitude: Latest<8>,
     depth: Latest<3>,
     temperature: Latest<2>,
     velocity: Latest<7>,
@@ -431,6 +432,7 @@ impl Readings {
             word(s.map(|s| s.1)),
             word(rates.map(|w| w.pitch)),
             word(rates.map(|w| w.yaw)),
+            word(r.roll.map(|r| r.rad())),
         ]);
     }
 
@@ -476,7 +478,7 @@ impl Readings {
         let a = Att {
             pitch: Angle::from_rad(f64::from_bits(w[1])),
             yaw: Angle::from_rad(f64::from_bits(w[2])),
-            roll: None,
+            roll: opt(w[7]).map(Angle::from_rad),
             std,
         };
         let assumed = if a.std.is_none() && rates.is_some() {

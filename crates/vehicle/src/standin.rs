@@ -111,6 +111,7 @@ pub fn decode(f: &RawFrame) -> Option<Received> {
         MavMessage::VISION_POSITION_ESTIMATE(d) => Received::Position(VisionPosition {
             usec: d.usec,
             position: NedVec([d.x as f64, d.y as f64, d.z as f64]),
+            roll: Angle::from_rad(d.roll as f64),
             pitch: Angle::from_rad(d.pitch as f64),
             heading: Angle::from_rad(d.yaw as f64),
             covariance: d.covariance.map(|v| v as f64),

@@ -14,6 +14,10 @@ use std::time::{Duration, Instant};
 
 const H_DEG: f64 = 30.0;
 const BEACON_NED: [f64; 3] = [10.0, -5.0, 1.0];
+/// Spec v3: the estimates sent carry a roll and its σ (common::estimate
+/// has none, a v2 estimate's roll 0 and configured σ are the unit tests').
+const ROLL_DEG: f64 = -6.0;
+const ROLL_STD_DEG: f64 = 0.7;
 
 fn site() -> Site {
     let mut s = Site::new(Angle::from_deg(H_DEG), 3.0);
@@ -43,7 +47,7 @@ fn expected_position() -> ([f64; 3], f64) {
 }
 
 /// The 21-element upper triangle, by hand: the horizontal block turned by
-/// h, the rest on the diagonal (roll 5° by default).
+/// h, the rest on the diagonal (roll: the estimate's σ, [`ROLL_STD_DEG`]).
 fn expected_covariance() -> [f64; 21] {
     let (s, c) = H_DEG.to_radians().sin_cos();
     let (vx, vy) = (0.2f64.powi(2), 0.05f64.powi(2));
@@ -52,7 +56,7 @@ fn expected_covariance() -> [f64; 21] {
     u[1] = c * s * (vx - vy); // NE
     u[6] = s * s * vx + c * c * vy; // EE
     u[11] = 0.03f64.powi(2); // DD
-    u[15] = 5f64.to_radians().powi(2); // roll
+    u[15] = ROLL_STD_DEG.to_radians().powi(2); // roll
     u[18] = 1f64.to_radians().powi(2); // pitch
     u[20] = 2f64.to_radians().powi(2); // yaw
     u
@@ -81,7 +85,9 @@ fn pymavlink_reads_what_we_send_and_we_read_what_it_sends() {
     let t0 = 1000.0;
     let start = Instant::now();
     for k in 0u64.. {
-        hub_a.outbox.offer(&estimate(k, t0 + k as f64 * 0.01), 3);
+        let mut e = estimate(k, t0 + k as f64 * 0.01);
+        (e.roll_deg, e.std.roll) = (Some(ROLL_DEG), Some(ROLL_STD_DEG));
+        hub_a.outbox.offer(&e, 3);
         if let Ok(v) = rx.recv_timeout(Duration::from_millis(10)) {
             let done = v.get("done").is_some();
             lines.push(v);
@@ -130,7 +136,7 @@ fn check_positions(lines: &[Value], t0: f64) {
         for (key, want) in ["x", "y", "z"].iter().zip(ned) {
             close(&f[*key], want, 1e-5, key);
         }
-        close(&f["roll"], 0.0, 0.0, "roll");
+        close(&f["roll"], ROLL_DEG.to_radians(), 1e-6, "roll");
         close(&f["pitch"], 10f64.to_radians(), 1e-6, "pitch");
         close(&f["yaw"], heading, 1e-6, "yaw");
         let c = f["covariance"].as_array().unwrap();
@@ -222,6 +228,9 @@ fn check_readings(hub_a: &Hub, hub_b: &Hub) {
         assert!((a.pitch.rad() - 0.1).abs() < 1e-7);
         // −160° − 30° − 180° = −370° ≡ −10° in B.
         assert!((a.yaw.deg() + 10.0).abs() < 1e-5, "{}", a.yaw.deg());
+        // Spec v3: ATTITUDE's roll (0.05 rad) reaches the reading.
+        let roll = a.roll.expect("roll").rad();
+        assert!((roll - 0.05).abs() < 1e-7, "{roll}");
         let t = hub.readings.temperature(now, age).expect("temperature");
         assert!((t - 12.34).abs() < 1e-9);
         let st = hub.mavlink.status(now);

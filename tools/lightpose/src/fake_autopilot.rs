@@ -384,6 +384,7 @@ impl Session {
                         .pose_ned(&self.traj.kinematics(self.traj_time(t)).pose);
                     let est = NedPose {
                         position: p.position,
+                        roll: p.roll,
                         pitch: p.pitch,
                         heading: p.heading,
                     };

@@ -3,9 +3,8 @@
 //! config/scenes/harbour-day.toml; two: tests/data/v3/two-beacons.toml)
 //! replays to poses, demodulated on the way, and the same poses as the
 //! daemon's replay backend would give are not this test's (crates/daemon
-//! tests/v3.rs); `convert` carries a BURST log into JSON Lines unchanged
-//! and refuses MCAP, which has no channel for raw samples in this build,
-//! in one line naming the frame.
+//! tests/v3.rs); `convert` carries a BURST log into JSON Lines unchanged,
+//! and into MCAP (its binary `/lightpose/burst`) and back byte for byte.
 
 mod common;
 
@@ -96,7 +95,7 @@ fn a_two_beacon_burst_log_is_demodulated_for_both() {
 }
 
 #[test]
-fn convert_carries_bursts_into_jsonl_and_refuses_mcap_in_one_line() {
+fn convert_carries_bursts_into_jsonl_and_through_mcap_unchanged() {
     let dir = tempfile::tempdir().expect("tempdir");
     let log = dir.path().join("day.jsonl");
     simulate(&root().join("config/scenes/harbour-day.toml"), &log);
@@ -109,9 +108,18 @@ fn convert_carries_bursts_into_jsonl_and_refuses_mcap_in_one_line() {
     );
     let mcap = dir.path().join("day.mcap");
     let (ok, _, err) = run(&["convert", "--in", s(&log), "--out", s(&mcap)]);
-    assert!(!ok);
-    assert!(
-        err.contains("seq 0: a BURST line (raw samples)") && err.trim().lines().count() == 1,
-        "{err}"
+    assert!(ok, "{err}");
+    let again = dir.path().join("again.jsonl");
+    let (ok, _, err) = run(&["convert", "--in", s(&mcap), "--out", s(&again)]);
+    assert!(ok, "{err}");
+    assert_eq!(
+        std::fs::read(&log).expect("log"),
+        std::fs::read(&again).expect("through MCAP")
     );
+    // Two bytes a sample, not the JSON's four or five.
+    let (j, m) = (
+        std::fs::metadata(&log).expect("log").len(),
+        std::fs::metadata(&mcap).expect("mcap").len(),
+    );
+    assert!(m * 4 < j * 3, "MCAP {m} B against JSONL {j} B");
 }

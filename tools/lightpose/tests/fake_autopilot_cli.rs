@@ -111,6 +111,7 @@ fn the_stand_in_autopilot_sends_the_truth_and_judges_what_comes_back() {
             pose,
             surge: None,
             std: [Some(0.1); 6],
+            roll_std: None,
             epoch: 0,
         };
         let mut v = vision_position(&o, &site, &OutputConfig::default()).unwrap();

@@ -1,14 +1,19 @@
 //! Optional attitude input: the vehicle's AHRS sends
-//! `{"class":"ATTITUDE","t":..,"pitch":..,"yaw":..}` over UDP; yaw is the
+//! `{"class":"ATTITUDE","t":..,"pitch":..,"yaw":..}` over UDP, and spec v3's
+//! `"roll":..` when it has one (degrees, starboard side down: the same
+//! angle in B as on the compass); yaw is the
 //! compass heading, referred here to the beam frame with the beacon's axis
 //! heading so that each frame carries pitch and yaw in B (MODEL.md), which is
-//! what lets an estimator tell y from yaw and z from pitch.
+//! what lets an estimator tell y from yaw and z from pitch. A sender without
+//! `roll` (spec v2's) gives readings without roll, as before: not a roll of
+//! 0, which would claim a level vehicle.
 //!
 //! A datagram is refused, counted by reason (STATUS `attitude.rejected_by`)
 //! and logged (the first, then every 100th) when it is not a JSON object of
 //! numbers (`malformed`), not of class ATTITUDE (`class`), has no `t` that
 //! is a time in seconds (|t| ≤ 1e10, the rule of core's `FrameOrder`:
-//! `time`), or a pitch outside ±90° or a heading outside ±360° (`angle`).
+//! `time`), or a pitch outside ±90°, a roll outside ±180° or a heading
+//! outside ±360° (`angle`; a `"roll":null` is no roll).
 //! A datagram the same byte for byte as the one before, `t` included, is
 //! taken (an AHRS at rest behind a sender that leaves `t` alone sends
 //! just that) but counted `repeated`, and told once it has lasted
@@ -198,6 +203,8 @@ pub fn parse(datagram: &[u8], beacon_axis_heading_deg: f64) -> Result<AttitudeRe
         t: Option<serde_json::Value>,
         pitch: f64,
         yaw: f64,
+        #[serde(default)]
+        roll: Option<f64>,
     }
     let no = |reason, msg: String| Rejected { reason, msg };
     // serde takes a struct from an array too (["ATTITUDE", t, pitch, yaw]
@@ -242,10 +249,16 @@ pub fn parse(datagram: &[u8], beacon_axis_heading_deg: f64) -> Result<AttitudeRe
             format!("yaw {:e}° is not a heading in -360..=360", m.yaw),
         ));
     }
+    if let Some(r) = m.roll.filter(|r| !r.is_finite() || r.abs() > 180.0) {
+        return Err(no(
+            Reason::Angle,
+            format!("roll {r:e}° is not in -180..=180"),
+        ));
+    }
     Ok(AttitudeReading {
         pitch: Angle::from_deg(m.pitch),
         yaw: Angle::from_deg(wrap180(m.yaw - beacon_axis_heading_deg - 180.0)),
-        roll: None,
+        roll: m.roll.map(Angle::from_deg),
         std: None,
     })
 }
@@ -606,6 +619,42 @@ mod tests {
             .is_none());
         assert_eq!(wrap180(190.0), -170.0);
         assert_eq!(wrap180(-180.0), 180.0);
+    }
+
+    /// Spec v3: a sender's roll goes on the reading as it is (and through
+    /// the cell); without one (spec v2's sender) the reading has none.
+    #[test]
+    fn roll_is_read_when_the_sender_gives_it() {
+        let r = parse(
+            br#"{"class":"ATTITUDE","t":1.0,"pitch":2,"yaw":190,"roll":-6.5}"#,
+            0.0,
+        )
+        .unwrap();
+        assert_eq!(r.roll.map(|a| a.deg()), Some(-6.5));
+        assert!((r.yaw.deg() - 10.0).abs() < 1e-9);
+        let v2 = parse(br#"{"class":"ATTITUDE","t":1.0,"pitch":2,"yaw":190}"#, 0.0).unwrap();
+        assert_eq!(v2.roll, None);
+        let null = br#"{"class":"ATTITUDE","t":1.0,"pitch":2,"yaw":190,"roll":null}"#;
+        assert_eq!(parse(null, 0.0).unwrap().roll, None);
+        for bad in [
+            &br#"{"class":"ATTITUDE","t":1.0,"pitch":2,"yaw":190,"roll":181}"#[..],
+            br#"{"class":"ATTITUDE","t":1.0,"pitch":2,"yaw":190,"roll":-1e300}"#,
+        ] {
+            let e = parse(bad, 0.0).unwrap_err();
+            assert!(e.reason == Reason::Angle && e.msg.contains("roll"), "{e}");
+        }
+        let e = parse(
+            br#"{"class":"ATTITUDE","t":1.0,"pitch":2,"yaw":190,"roll":"level"}"#,
+            0.0,
+        )
+        .unwrap_err();
+        assert_eq!(e.reason, Reason::Malformed);
+        let c = AttitudeCell::default();
+        let t0 = Instant::now();
+        c.store(t0, r);
+        assert_eq!(c.fresh(t0, Duration::ZERO), Some(r));
+        c.store(t0, v2);
+        assert_eq!(c.fresh(t0, Duration::ZERO).map(|a| a.roll), Some(None));
     }
 
     /// Audit: an array with the fields in order was read as a message.

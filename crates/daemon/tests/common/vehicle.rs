@@ -224,6 +224,7 @@ pub fn judge(
             covered += 1;
             let est = lightpose_vehicle::NedPose {
                 position: p.position,
+                roll: p.roll,
                 pitch: p.pitch,
                 heading: p.heading,
             };

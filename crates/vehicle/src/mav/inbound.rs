@@ -1,10 +1,12 @@
 //! What the autopilot's messages say about the vehicle, in the frames of
 //! MODEL.md, and why a message is refused.
 //!
-//! - `ATTITUDE` → pitch, and yaw in B = heading − h − 180° (roll is not
-//!   part of the pose), with their rates from the body rates (the roll
-//!   enters those), so that the frame thread can carry the attitude to a
-//!   frame's capture.
+//! - `ATTITUDE` → pitch, roll (spec v3: MAVLink's roll, starboard side
+//!   down, is MODEL.md's), and yaw in B = heading − h − 180°, with pitch's
+//!   and yaw's rates from the body rates (the roll enters those), so that
+//!   the frame thread can carry the attitude to a frame's capture. Roll is
+//!   attached as it was read, not carried (a few tenths of a degree at a
+//!   wave's roll rate over the ≤ 0.25 s of `attitude_max_age_s`).
 //! - `GLOBAL_POSITION_INT.relative_alt` (the default) or `VFR_HUD.alt`
 //!   (below the surface negative) → z in B = d_b − depth. The depth
 //!   sensor's lever arm is not applied here: the estimator applies it in
@@ -311,10 +313,12 @@ fn attitude(f: &RawFrame, m: &ATTITUDE_DATA, site: &Site) -> Result<Input, Refus
     // The rates are a bonus: a message without usable ones (not finite,
     // near θ = ±90°) still gives its attitude, attached as it is.
     let rates = AttitudeRates::from_body(roll, pitch, m.pitchspeed as f64, m.yawspeed as f64);
-    Ok(Input::Attitude(
-        AttitudeReading::new(Angle::from_rad(pitch), site.yaw_b(Angle::from_rad(yaw))),
-        rates,
-    ))
+    let mut reading =
+        AttitudeReading::new(Angle::from_rad(pitch), site.yaw_b(Angle::from_rad(yaw)));
+    // Roll about the bow is the same angle in B and in NED (R_BV's last
+    // factor, Rx(φ), either way).
+    reading.roll = Some(Angle::from_rad(roll));
+    Ok(Input::Attitude(reading, rates))
 }
 
 fn depth(f: &RawFrame, depth_m: f64, cfg: &InputConfig, site: &Site) -> Result<Input, Refused> {
@@ -395,9 +399,11 @@ mod tests {
         };
         let n = raw(&m, &mut buf);
         let got = interpret(&frame(30, 1, &buf[..n]), &InputConfig::default(), &site);
-        let Ok(Input::Attitude(_, Some(w))) = got else {
+        let Ok(Input::Attitude(a, Some(w))) = got else {
             panic!("{got:?}")
         };
+        // Spec v3: the roll itself goes on the reading, as sent.
+        assert_eq!(a.roll.map(|r| r.rad()), Some(rolled as f64));
         let (sr, cr) = (rolled as f64).sin_cos();
         let want_pitch = 0.2f32 as f64 * cr - 0.5f32 as f64 * sr;
         let want_yaw = (0.2f32 as f64 * sr + 0.5f32 as f64 * cr) / (0.1f32 as f64).cos();

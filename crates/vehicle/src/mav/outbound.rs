@@ -44,7 +44,8 @@ pub struct OutputConfig {
     pub position_rate_hz: Option<f64>,
     /// Send VISION_SPEED_ESTIMATE when the surge is known.
     pub speed: bool,
-    /// 1σ of the roll the message claims to be 0.
+    /// 1σ of the roll when the estimate gives none of its own (it then
+    /// claims 0, or the roll of the frame's attitude with no σ).
     pub roll_std: Angle,
     /// 1σ of the sway and heave the speed leaves out, m/s.
     pub side_speed_std_mps: f64,
@@ -74,8 +75,8 @@ pub enum Offer {
     Incomplete,
 }
 
-/// A pose waiting for the sender: 15 words (see `to_words`).
-const WORDS: usize = 15;
+/// A pose waiting for the sender: 17 words (see `to_words`).
+const WORDS: usize = 17;
 
 /// An `ok` pose as the sender takes it from the outbox.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -87,6 +88,9 @@ pub struct Outgoing {
     pub surge: Option<f64>,
     /// x, y, z (m), pitch, yaw (degrees), surge (m/s), as in `StdDev`.
     pub std: [Option<f64>; 6],
+    /// Spec v3: the roll's 1σ, degrees (`StdDev::roll`), when the
+    /// estimate knows it.
+    pub roll_std: Option<f64>,
     pub epoch: u32,
 }
 
@@ -108,6 +112,8 @@ impl Outgoing {
             w[8 + k] = word(*s);
         }
         w[14] = self.epoch as u64;
+        w[15] = p.roll.rad().to_bits();
+        w[16] = word(self.roll_std);
         w
     }
 
@@ -122,9 +128,11 @@ impl Outgoing {
                 f(4),
                 Angle::from_rad(f(5)),
                 Angle::from_rad(f(6)),
-            ),
+            )
+            .with_roll(Angle::from_rad(f(15))),
             surge: opt(w[7]),
             std: std::array::from_fn(|k| opt(w[8 + k])),
+            roll_std: opt(w[16]),
             epoch: w[14] as u32,
         }
     }
@@ -165,16 +173,21 @@ impl PoseOutbox {
             self.incomplete.fetch_add(1, Relaxed);
             return Offer::Incomplete;
         };
-        if ![x, y, z, p, yaw, est.t].iter().all(|v| v.is_finite()) {
+        // Spec v3: without a roll the estimate's vehicle is level (0, as
+        // spec v2 sent); a roll that is not finite is no roll.
+        let roll = est.roll_deg.unwrap_or(0.0);
+        if ![x, y, z, p, yaw, roll, est.t].iter().all(|v| v.is_finite()) {
             self.incomplete.fetch_add(1, Relaxed);
             return Offer::Incomplete;
         }
         let out = Outgoing {
             seq: est.seq,
             t: est.t,
-            pose: Pose::new(x, y, z, Angle::from_deg(p), Angle::from_deg(yaw)),
+            pose: Pose::new(x, y, z, Angle::from_deg(p), Angle::from_deg(yaw))
+                .with_roll(Angle::from_deg(roll)),
             surge: est.surge.filter(|s| s.is_finite()),
             std: est.std.values(),
+            roll_std: est.std.roll,
             epoch,
         };
         self.slot.store(out.to_words());
@@ -385,6 +398,8 @@ pub fn skip_why(o: &Outgoing, k: Skip, speed: bool) -> String {
 pub struct VisionPosition {
     pub usec: u64,
     pub position: NedVec,
+    /// Spec v3: the estimate's roll (0 when it has none, as spec v2 sent).
+    pub roll: Angle,
     pub pitch: Angle,
     pub heading: Angle,
     pub covariance: [f64; 21],
@@ -442,13 +457,17 @@ pub fn vision_position(
     cfg: &OutputConfig,
 ) -> Result<VisionPosition, Skip> {
     let std = pose_std(o, cfg.missing_std)?;
+    // The estimate's own roll σ when it has one (a std that is not finite
+    // is refused as the others are); else the configured figure.
+    let roll_std = Angle::from_deg(std_or(o.roll_std, Some(cfg.roll_std.deg()))?);
     let ned = site.pose_ned(&o.pose);
     Ok(VisionPosition {
         usec: usec(o.t)?,
         position: ned.position,
+        roll: ned.roll,
         pitch: ned.pitch,
         heading: ned.heading,
-        covariance: position_covariance(site, &std, cfg.roll_std),
+        covariance: position_covariance(site, &std, roll_std),
         reset_counter: o.epoch as u8,
     })
 }
@@ -497,7 +516,7 @@ impl VisionPosition {
                 x,
                 y,
                 z,
-                roll: 0.0,
+                roll: self.roll.rad() as f32,
                 pitch: self.pitch.rad() as f32,
                 yaw: self.heading.rad() as f32,
                 covariance: f32s(&self.covariance)?,
@@ -617,6 +636,7 @@ impl Encoder {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::covariance::upper_index;
 
     fn est(status: Status) -> PoseEstimate {
         PoseEstimate::empty(0, 1.0, status, "test")
@@ -650,6 +670,7 @@ mod tests {
             pose: Pose::new(1.0, 2.0, 3.0, Angle::ZERO, Angle::ZERO),
             surge: Some(0.2),
             std: [Some(0.1), None, Some(0.1), Some(1.0), None, None],
+            roll_std: None,
             epoch: 0,
         };
         let why = skip_why(&o, Skip::NoStd, false);
@@ -684,5 +705,65 @@ mod tests {
         // An estimator that starts over by itself.
         assert_eq!(c.observe(&est(Status::Initialising)), 256);
         assert_eq!(c.observe(&est(Status::Ok)), 257);
+    }
+
+    /// Spec v3: VISION_POSITION_ESTIMATE carries the estimate's roll and
+    /// its σ; without them roll 0 and the configured σ, as spec v2 sent.
+    #[test]
+    fn roll_and_its_std_go_out_with_the_pose() {
+        let site = Site::new(Angle::from_deg(30.0), 3.0);
+        let cfg = OutputConfig::default();
+        let mut e = est(Status::Ok);
+        (e.x, e.y, e.z, e.pitch_deg, e.yaw_deg) =
+            (Some(5.0), Some(0.5), Some(0.2), Some(3.0), Some(-4.0));
+        (e.std.x, e.std.y, e.std.z, e.std.pitch, e.std.yaw) =
+            (Some(0.2), Some(0.05), Some(0.05), Some(1.0), Some(1.0));
+        let sent = |e: &PoseEstimate| {
+            let outbox = PoseOutbox::default();
+            assert_eq!(outbox.offer(e, 0), Offer::Queued);
+            let o = outbox.take_new(&mut 0).expect("offered");
+            let v = vision_position(&o, &site, &cfg).expect("sent");
+            let MavMessage::VISION_POSITION_ESTIMATE(m) = v.message().expect("message") else {
+                panic!("not a VPE")
+            };
+            (o, m)
+        };
+        let var = |m: &VISION_POSITION_ESTIMATE_DATA| m.covariance[upper_index(3, 3)] as f64;
+        // A v2 estimate: roll 0, the configured 5°.
+        let (o, m) = sent(&e);
+        assert_eq!((o.pose.roll, o.roll_std), (Angle::ZERO, None));
+        assert_eq!(m.roll, 0.0);
+        assert!((var(&m) - 5f64.to_radians().powi(2)).abs() < 1e-9);
+        // Roll known, without a σ: the roll, the configured σ.
+        e.roll_deg = Some(-7.5);
+        let (_, m) = sent(&e);
+        assert!((m.roll as f64 - (-7.5f64).to_radians()).abs() < 1e-7);
+        assert!((var(&m) - 5f64.to_radians().powi(2)).abs() < 1e-9);
+        // With its σ: that σ.
+        e.std.roll = Some(0.4);
+        let (o, m) = sent(&e);
+        assert_eq!(o.roll_std, Some(0.4));
+        assert!((var(&m) - 0.4f64.to_radians().powi(2)).abs() < 1e-12);
+        assert!(m.covariance.iter().all(|c| c.is_finite()));
+        // Roll is B's and NED's alike: pitch and heading are unchanged by it.
+        let level = {
+            let mut l = e;
+            l.roll_deg = None;
+            sent(&l).1
+        };
+        assert_eq!((m.pitch, m.yaw), (level.pitch, level.yaw));
+        // A negative σ is refused as the others are; one not finite is no
+        // σ (the outbox's words hold NaN as none): the configured one.
+        e.std.roll = Some(-1.0);
+        let outbox = PoseOutbox::default();
+        outbox.offer(&e, 0);
+        let o = outbox.take_new(&mut 0).expect("offered");
+        assert_eq!(vision_position(&o, &site, &cfg), Err(Skip::BadStd));
+        e.std.roll = Some(f64::NAN);
+        let (_, m) = sent(&e);
+        assert!((var(&m) - 5f64.to_radians().powi(2)).abs() < 1e-9);
+        // A roll that is not finite makes the pose incomplete.
+        e.roll_deg = Some(f64::INFINITY);
+        assert_eq!(PoseOutbox::default().offer(&e, 0), Offer::Incomplete);
     }
 }

@@ -165,7 +165,9 @@ impl Client {
         self.subs
             .lock()
             .ok()
-            .and_then(|s| s.by_channel[channel.index()])
+            // Spec v3's channels (Channel::V3) are recorded, not served
+            // live: beyond the seven, no client subscribes.
+            .and_then(|s| s.by_channel.get(channel.index()).copied().flatten())
     }
 
     fn count_subscriptions(&self) -> usize {
