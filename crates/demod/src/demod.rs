@@ -6,6 +6,8 @@
 
 use crate::basis::{degree_for, Basis};
 use crate::config::{ValidConfig, MAX_BEACONS};
+use crate::runs::{on_runs, overlap, turns};
+use crate::scan::{Cell, Scan, Signal, Window};
 use crate::track::{wrap, Track};
 use lightpose_core::samples::{Burst, Demodulated};
 use lightpose_core::NDET;
@@ -13,10 +15,6 @@ use lightpose_core::NDET;
 /// Variance floor of one sample, counts²: the ADC's own rounding (1/12 of
 /// a count²) is there whatever the light, so no channel's noise is less.
 const QUANT_VAR: f64 = 1.0 / 12.0;
-
-/// Cells of the phase search narrower than this (cycles) are rounding's,
-/// not the samples': they are skipped.
-const MIN_CELL: f64 = 1e-9;
 
 /// What the demodulator knows of a beacon's clock after a frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,27 +62,52 @@ pub enum FrameError {
 pub struct Demodulator {
     cfg: ValidConfig,
     basis: Basis,
+    scan: Scan,
     tracks: Vec<Track>,
     locks: Vec<Lock>,
-    /// The samples less their slow part, channel-major, NDET × N.
+    /// The samples less their slow part, channel-major, NDET × N, and
+    /// their prefix sums, NDET × (N + 1).
     xs: Vec<f64>,
+    xs_sum: Vec<f64>,
+    /// One channel's samples less the other beacons' fitted light (the
+    /// search of one beacon of several), its prefix sums, and the slow part
+    /// of that light (Σ_c a_c Lᵀu_c), NDET × D.
+    ys: Vec<f64>,
+    ys_sum: Vec<f64>,
+    corr: Vec<f64>,
     /// Each channel's mean and Σ x⊥².
     mean: [f64; NDET],
     energy: [f64; NDET],
     /// Each channel's noise variance in the last frame (None: no frame yet).
     noise: [Option<f64>; NDET],
-    /// The templates of one channel, MAX_BEACONS × N, ±1/2.
-    u: Vec<f64>,
     coef: Vec<f64>,
-    events: Vec<(f64, u32)>,
-    /// The slow polynomials by sample, N × D (the search flips one sample
-    /// at a time), and each channel's Lᵀu in the search, NDET × D.
-    cols: Vec<f64>,
-    lu: Vec<f64>,
-    /// Sample times from the frame's first: i / sample_hz.
-    dt: Vec<f64>,
+    /// Lᵀu of each beacon's template in each channel at the last fit,
+    /// NDET × MAX_BEACONS × D.
+    fit_lu: Vec<f64>,
+    /// Each beacon's turns in the channel being fitted.
+    turns: Vec<Vec<u32>>,
+    choices: [Choice; MAX_BEACONS],
     frame_phase: [f64; MAX_BEACONS],
     frame_freq: [f64; MAX_BEACONS],
+}
+
+/// A beacon's search in a frame: where it looked and what it found.
+#[derive(Debug, Clone, Copy, Default)]
+struct Choice {
+    pred_phase: f64,
+    pred_freq: f64,
+    /// The window's half-width, and the prior's variance in it.
+    half: f64,
+    var_prior: f64,
+    cell: Cell,
+    freq: f64,
+}
+
+impl Choice {
+    /// The phase at the frame's first sample: the best cell's centre.
+    fn phase(&self) -> f64 {
+        (self.pred_phase + 0.5 * (self.cell.lo + self.cell.hi)).rem_euclid(1.0)
+    }
 }
 
 impl Demodulator {
@@ -112,28 +135,25 @@ impl Demodulator {
             })
             .collect();
         let d = basis.len();
-        let mut cols = vec![0.0; n * d];
-        for j in 0..d {
-            for (i, v) in basis.row(j).iter().enumerate() {
-                cols[i * d + j] = *v;
-            }
-        }
         Demodulator {
-            cols,
-            lu: vec![0.0; NDET * d],
+            scan: Scan::new(&basis, n),
             basis,
             tracks,
             locks,
             xs: vec![0.0; NDET * n],
+            xs_sum: vec![0.0; NDET * (n + 1)],
+            ys: vec![0.0; NDET * n],
+            ys_sum: vec![0.0; NDET * (n + 1)],
+            corr: vec![0.0; NDET * d],
             mean: [0.0; NDET],
             energy: [0.0; NDET],
             noise: [None; NDET],
-            u: vec![0.0; MAX_BEACONS * n],
             coef: vec![0.0; d],
-            // At most two crossings of a half cycle per sample in a search
-            // window of at most one cycle.
-            events: Vec::with_capacity(2 * NDET * n),
-            dt: (0..n).map(|i| i as f64 / cfg.sample_hz).collect(),
+            fit_lu: vec![0.0; NDET * MAX_BEACONS * d],
+            turns: (0..MAX_BEACONS)
+                .map(|_| Vec::with_capacity(n + 2))
+                .collect(),
+            choices: [Choice::default(); MAX_BEACONS],
             frame_phase: [0.0; MAX_BEACONS],
             frame_freq: [0.0; MAX_BEACONS],
             cfg,
@@ -208,6 +228,34 @@ impl Demodulator {
         adc_bits: u8,
         out: &mut Demodulated,
     ) -> Result<(), FrameError> {
+        let full = self.check(samples, t, adc_bits)?;
+        assert_eq!(
+            out.light.n_beacons,
+            self.cfg.beacons.len(),
+            "out from Demodulator::output"
+        );
+        self.slow_part_out(samples, full, out);
+        let w = self.weights(out);
+        let used = w.iter().filter(|&&v| v > 0.0).count();
+        let nb = self.cfg.beacons.len();
+        for b in 0..nb {
+            self.predict(b, t);
+            if used > 0 {
+                self.search_beacon(b, &w, false);
+            }
+        }
+        if nb > 1 && used > 0 {
+            self.search_on_residuals(&w, used, out, full);
+        }
+        for b in 0..nb {
+            self.commit(b, used);
+        }
+        self.fit(out, full);
+        Ok(())
+    }
+
+    /// The frame's own checks; its ADC's full scale.
+    fn check(&self, samples: &[u16], t: f64, adc_bits: u8) -> Result<u16, FrameError> {
         let n = self.cfg.n;
         if samples.len() != NDET * n {
             return Err(FrameError::Length {
@@ -231,13 +279,13 @@ impl Demodulator {
                 max: full,
             });
         }
-        assert_eq!(
-            out.light.n_beacons,
-            self.cfg.beacons.len(),
-            "out from Demodulator::output"
-        );
+        Ok(full)
+    }
 
-        // Clipped counts, and each channel less its slow part.
+    /// Step 1: clipped counts, and each channel less its slow part (with
+    /// its mean, its energy and its prefix sums).
+    fn slow_part_out(&mut self, samples: &[u16], full: u16, out: &mut Demodulated) {
+        let n = self.cfg.n;
         let sqrt_n = (n as f64).sqrt();
         for k in 0..NDET {
             let raw = &samples[k * n..(k + 1) * n];
@@ -247,202 +295,207 @@ impl Demodulator {
             self.basis.remove(x, &mut self.coef);
             self.mean[k] = self.coef[0] / sqrt_n;
             self.energy[k] = x.iter().map(|v| v * v).sum();
+            prefix(x, &mut self.xs_sum[k * (n + 1)..(k + 1) * (n + 1)]);
         }
-        // The phase search's weights: 1/σ², none for a clipped channel, so
-        // that it spoils no other channel's amplitude through the phase.
+    }
+
+    /// The phase search's weights: 1/σ², none for a clipped channel, so
+    /// that it spoils no other channel's amplitude through the phase.
+    fn weights(&self, out: &Demodulated) -> [f64; NDET] {
         let mut w = [0.0; NDET];
         for k in 0..NDET {
             if out.light.clipped[k] == 0 {
-                let var = self.noise[k].unwrap_or(self.energy[k] / n as f64);
+                let var = self.noise[k].unwrap_or(self.energy[k] / self.cfg.n as f64);
                 w[k] = 1.0 / var.max(QUANT_VAR);
             }
         }
-        let used = w.iter().filter(|&&v| v > 0.0).count();
+        w
+    }
 
-        for b in 0..self.cfg.beacons.len() {
-            let m = self.cfg.beacons[b].half_period;
-            let pred = self.tracks[b].predict(t);
-            let locked = self.tracks[b].locked();
-            let half = if locked {
-                (6.0 * pred.var.sqrt() + 1.0 / (2 * m) as f64).min(0.5)
-            } else {
-                0.5
-            };
-            let var_prior = if locked && half < 0.5 {
+    /// Beacon b's prediction at the frame and the window searched about it
+    /// (±6σ and a sample; the whole cycle before a lock).
+    fn predict(&mut self, b: usize, t: f64) {
+        let m = self.cfg.beacons[b].half_period;
+        let pred = self.tracks[b].predict(t);
+        let locked = self.tracks[b].locked();
+        let half = if locked {
+            (6.0 * pred.var.sqrt() + 1.0 / (2 * m) as f64).min(0.5)
+        } else {
+            0.5
+        };
+        self.choices[b] = Choice {
+            pred_phase: pred.phase,
+            pred_freq: pred.freq,
+            half,
+            var_prior: if locked && half < 0.5 {
                 pred.var
             } else {
                 f64::INFINITY
-            };
-            // The frequency too: an edge that crosses a sample instant in
-            // the middle of a frame (every 1/(sample_hz·δ) s) is placed
-            // only by a frequency off nominal in the right direction.
-            let sf = self.tracks[b].freq_std().max(1e-12);
-            let mut best = Cell::default();
-            let mut freq = pred.freq;
-            if used > 0 {
-                best.ll = f64::NEG_INFINITY;
-                for step in FREQ_STEPS {
-                    let f = pred.freq + step * sf;
-                    let mut cell = self.search(&w, f, pred.phase, half, var_prior);
-                    cell.ll -= 0.5 * step * step;
-                    if cell.ll > best.ll {
-                        best = cell;
-                        freq = f;
-                    }
-                }
-            }
-            let detected = used > 0 && best.score > detection_threshold(used);
-            let phase = if detected {
-                let cell = best.hi - best.lo;
-                let phase = (pred.phase + 0.5 * (best.lo + best.hi)).rem_euclid(1.0);
-                let var = cell * cell / 12.0
-                    + 1.0 / (4.0 * std::f64::consts::PI.powi(2) * best.score.max(1.0));
-                self.tracks[b].update(phase, var);
-                phase
-            } else {
-                pred.phase
-            };
-            self.frame_phase[b] = phase;
-            self.frame_freq[b] = if detected { freq } else { pred.freq };
-            let tr = &self.tracks[b];
-            self.locks[b] = Lock {
-                detected,
-                locked: tr.locked(),
-                phase: if tr.locked() {
-                    wrap(tr.phase()).rem_euclid(1.0)
-                } else {
-                    phase
-                },
-                freq_hz: tr.freq(),
-                phase_std: tr.phase_std(),
-                freq_std_hz: tr.freq_std(),
-                detection: best.score,
-            };
-        }
-
-        self.fit(out, full);
-        Ok(())
+            },
+            cell: Cell::default(),
+            freq: pred.freq,
+        };
     }
 
-    /// The phase offset Δ in [−half, half] from `center` that best explains
-    /// every unclipped channel at once: each channel's amplitude is free but
-    /// not negative, so the likelihood gained is Σ_k w_k·max(c_k, 0)²/(2n)
-    /// with c_k = u_k(Δ)·x⊥_k, less the prediction's (Δ²/2var). The
-    /// templates u_k(Δ) change only where a sample crosses an edge of the
-    /// wave: the search walks those crossings in order, one sample's change
-    /// at a time, so no phase is missed however narrow its cell.
-    fn search(&mut self, w: &[f64; NDET], freq: f64, center: f64, half: f64, var: f64) -> Cell {
+    /// Step 2: beacon b's best cell over the frequencies tried (the
+    /// track's, ±1.5σ: an edge that crosses a sample instant in the middle
+    /// of a frame, every 1/(sample_hz·δ) s, is placed only by a frequency
+    /// off nominal in the right direction), on the samples (`residual`
+    /// false) or on what the other beacons' fit leaves (`ys`, true).
+    fn search_beacon(&mut self, b: usize, w: &[f64; NDET], residual: bool) {
+        let ch = self.choices[b];
+        let sf = self.tracks[b].freq_std().max(1e-12);
+        let sig = if residual {
+            Signal {
+                x: &self.ys,
+                sums: &self.ys_sum,
+                corr: Some(&self.corr),
+            }
+        } else {
+            Signal {
+                x: &self.xs,
+                sums: &self.xs_sum,
+                corr: None,
+            }
+        };
+        let mut best = (
+            Cell {
+                ll: f64::NEG_INFINITY,
+                ..Cell::default()
+            },
+            ch.pred_freq,
+        );
+        for step in FREQ_STEPS {
+            let freq = ch.pred_freq + step * sf;
+            let win = Window {
+                freq,
+                center: ch.pred_phase,
+                half: ch.half,
+                var: ch.var_prior,
+                sample_hz: self.cfg.sample_hz,
+                skew_s: self.cfg.channel_skew_s,
+            };
+            let mut cell = self.scan.search(&sig, w, &win);
+            cell.ll -= 0.5 * step * step;
+            if cell.ll > best.0.ll {
+                best = (cell, freq);
+            }
+        }
+        self.choices[b].cell = best.0;
+        self.choices[b].freq = best.1;
+    }
+
+    /// Several beacons: each searched again on the samples less the
+    /// others' light as the first searches and a joint fit give it, so that
+    /// no beacon's light (nor its share in the slow polynomials, which the
+    /// templates do not cancel) moves another's cell.
+    fn search_on_residuals(
+        &mut self,
+        w: &[f64; NDET],
+        used: usize,
+        out: &mut Demodulated,
+        full: u16,
+    ) {
+        let nb = self.cfg.beacons.len();
+        let threshold = detection_threshold(used);
+        let (mut phases, mut freqs) = ([0.0; MAX_BEACONS], [0.0; MAX_BEACONS]);
+        for b in 0..nb {
+            let ch = &self.choices[b];
+            let found = ch.cell.score > threshold;
+            phases[b] = if found { ch.phase() } else { ch.pred_phase };
+            freqs[b] = if found { ch.freq } else { ch.pred_freq };
+        }
+        for k in 0..NDET {
+            self.fit_channel(k, &phases, &freqs, out, full);
+        }
+        for b in 0..nb {
+            for k in 0..NDET {
+                if w[k] > 0.0 {
+                    self.residual(k, b, &phases, &freqs, out);
+                }
+            }
+            self.search_beacon(b, w, true);
+        }
+    }
+
+    /// Channel k's samples (slow part out) less every beacon's fitted light
+    /// but b's, into `ys`, with its prefix sums and `corr` (the slow part
+    /// of the light taken out, which x⊥ does not hold: added back in the
+    /// search through Lᵀu).
+    fn residual(
+        &mut self,
+        k: usize,
+        b: usize,
+        phases: &[f64; MAX_BEACONS],
+        freqs: &[f64; MAX_BEACONS],
+        out: &Demodulated,
+    ) {
         let n = self.cfg.n;
         let d = self.basis.len();
-        let mut c = [0.0; NDET];
-        let mut events = std::mem::take(&mut self.events);
-        events.clear();
-        for (k, ck) in c.iter_mut().enumerate() {
-            if w[k] == 0.0 {
+        let y = &mut self.ys[k * n..(k + 1) * n];
+        y.copy_from_slice(&self.xs[k * n..(k + 1) * n]);
+        let corr = &mut self.corr[k * d..(k + 1) * d];
+        corr.iter_mut().for_each(|v| *v = 0.0);
+        for c in 0..self.cfg.beacons.len() {
+            let a = out.light.beacons[c].amplitude[k];
+            if c == b || a == 0.0 {
                 continue;
             }
-            let lu = &mut self.lu[k * d..(k + 1) * d];
-            lu.iter_mut().for_each(|v| *v = 0.0);
-            let x = &self.xs[k * n..(k + 1) * n];
-            for (i, &xi) in x.iter().enumerate() {
-                let p = center + freq * (self.dt[i] + k as f64 * self.cfg.channel_skew_s);
-                let mut h = (2.0 * (p - half)).floor();
-                let col = &self.cols[i * d..(i + 1) * d];
-                let u = if (h as i64) & 1 == 0 {
-                    *ck += xi;
-                    0.5
-                } else {
-                    -0.5
-                };
-                lu.iter_mut().zip(col).for_each(|(a, b)| *a += u * b);
-                for _ in 0..2 {
-                    let dd = 0.5 * (h + 1.0) - p;
-                    if dd > half {
-                        break;
-                    }
-                    h += 1.0;
-                    let on = (h as i64) & 1 == 0;
-                    events.push((dd, (((k * n + i) as u32) << 1) | on as u32));
-                }
+            let p0 = phases[c] + freqs[c] * k as f64 * self.cfg.channel_skew_s;
+            let turns_c = &mut self.turns[c];
+            let first_on = turns(p0, freqs[c] / self.cfg.sample_hz, n, turns_c);
+            // u = on − 1/2: y −= a·u.
+            y.iter_mut().for_each(|v| *v += 0.5 * a);
+            for (s, e) in on_runs(first_on, turns_c, n) {
+                y[s..e].iter_mut().for_each(|v| *v -= a);
             }
+            let lu = &self.fit_lu[(k * MAX_BEACONS + c) * d..(k * MAX_BEACONS + c + 1) * d];
+            corr.iter_mut().zip(lu).for_each(|(v, l)| *v += a * l);
         }
-        events.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-        // The likelihood gained by channel k: its amplitude's fit,
-        // c²/|u⊥|², |u⊥|² = N/4 − |Lᵀu|² (exact: with the norm taken as
-        // N/4 a pattern that spoils the frame's ends would score higher).
-        let quarter = n as f64 / 4.0;
-        let mut norm = [quarter; NDET];
-        for k in 0..NDET {
-            if w[k] > 0.0 {
-                let lu = &self.lu[k * d..(k + 1) * d];
-                norm[k] = quarter - lu.iter().map(|v| v * v).sum::<f64>();
-            }
-        }
-        let term = |k: usize, c: f64, norm: f64| {
-            if norm > 0.0 {
-                w[k] * c.max(0.0).powi(2) / norm
-            } else {
-                0.0
-            }
-        };
-        let mut sum: f64 = (0..NDET).map(|k| term(k, c[k], norm[k])).sum();
-        let score_at = |lo: f64, hi: f64, sum: f64| {
-            let d = 0.0f64.clamp(lo, hi);
-            let prior = if var.is_finite() {
-                d * d / (2.0 * var)
-            } else {
-                0.0
-            };
-            0.5 * sum - prior
-        };
-        let mut best = Cell {
-            lo: -half,
-            hi: half,
-            score: 0.0,
-            ll: f64::NEG_INFINITY,
-        };
-        let mut lo = -half;
-        for &(at, code) in events.iter().chain(std::iter::once(&(half, u32::MAX))) {
-            if at - lo > MIN_CELL {
-                let ll = score_at(lo, at, sum);
-                if ll > best.ll {
-                    best = Cell {
-                        lo,
-                        hi: at,
-                        score: sum,
-                        ll,
-                    };
-                }
-                lo = at;
-            }
-            if code == u32::MAX {
-                break;
-            }
-            let idx = (code >> 1) as usize;
-            let (k, i) = (idx / n, idx % n);
-            let before = term(k, c[k], norm[k]);
-            let sign = if code & 1 == 1 { 1.0 } else { -1.0 };
-            c[k] += sign * self.xs[idx];
-            let lu = &mut self.lu[k * d..(k + 1) * d];
-            let col = &self.cols[i * d..(i + 1) * d];
-            let mut sq = 0.0;
-            for (a, b) in lu.iter_mut().zip(col) {
-                *a += sign * b;
-                sq += *a * *a;
-            }
-            norm[k] = quarter - sq;
-            sum += term(k, c[k], norm[k]) - before;
-        }
-        self.events = events;
-        best
+        prefix(y, &mut self.ys_sum[k * (n + 1)..(k + 1) * (n + 1)]);
     }
 
-    /// Per channel, the least-squares fit of the slow polynomials and every
-    /// beacon's square wave at the phase found: the amplitudes, their σ from
-    /// what the fit leaves, and the level with every beacon off.
+    /// Steps 3 and 4: beacon b detected or not, its track updated, its
+    /// lock and the phase and frequency its fit uses.
+    fn commit(&mut self, b: usize, used: usize) {
+        let ch = self.choices[b];
+        let best = if used > 0 { ch.cell } else { Cell::default() };
+        let detected = used > 0 && best.score > detection_threshold(used);
+        let phase = if detected {
+            let cell = best.hi - best.lo;
+            let phase = ch.phase();
+            let var = cell * cell / 12.0
+                + 1.0 / (4.0 * std::f64::consts::PI.powi(2) * best.score.max(1.0));
+            self.tracks[b].update(phase, var);
+            phase
+        } else {
+            ch.pred_phase
+        };
+        self.frame_phase[b] = phase;
+        self.frame_freq[b] = if detected { ch.freq } else { ch.pred_freq };
+        let tr = &self.tracks[b];
+        self.locks[b] = Lock {
+            detected,
+            locked: tr.locked(),
+            phase: if tr.locked() {
+                wrap(tr.phase()).rem_euclid(1.0)
+            } else {
+                phase
+            },
+            freq_hz: tr.freq(),
+            phase_std: tr.phase_std(),
+            freq_std_hz: tr.freq_std(),
+            detection: best.score,
+        };
+    }
+
+    /// Steps 5–7: per channel the least-squares fit of the slow polynomials
+    /// and every beacon's square wave at the phase found (the amplitudes,
+    /// their σ from what the fit leaves, and the level with every beacon
+    /// off), a channel the common phase fits badly refitted on its own, and
+    /// each channel's noise kept for the next frame.
     fn fit(&mut self, out: &mut Demodulated, full: u16) {
-        let nb = self.cfg.beacons.len();
-        let dof = (self.cfg.n - self.basis.len() - nb) as f64;
+        let dof = (self.cfg.n - self.basis.len() - self.cfg.beacons.len()) as f64;
         let (phases, freqs) = (self.frame_phase, self.frame_freq);
         let mut first = [0.0; NDET];
         for (k, v) in first.iter_mut().enumerate() {
@@ -460,55 +513,92 @@ impl Demodulator {
             if out.light.clipped[k] == 0
                 && noise > prev * (1.0 + 6.0 * (2.0 / dof).sqrt()) + QUANT_VAR
             {
-                // The common phase leaves far more than this channel's noise:
-                // an edge crossed one of its sample instants within the
-                // frame where the common phase and frequency do not put it
-                // (the channels' skew spreads the crossings over frames, and
-                // their places depend on a drift not learnt yet). The
-                // channel's own best phase within a sample of the common one,
-                // kept only when it fits better.
-                let (mut ph, mut fr) = (phases, freqs);
-                let mut w = [0.0; NDET];
-                w[k] = 1.0;
-                for b in 0..nb {
-                    let m = self.cfg.beacons[b].half_period;
-                    let wide = self.cfg.max_drift * self.cfg.beacons[b].mod_hz;
-                    let sf = self.tracks[b].freq_std().max(1e-12);
-                    let mut best = (f64::NEG_INFINITY, phases[b], freqs[b]);
-                    for f in [0.0, -1.5 * sf, 1.5 * sf, -wide, wide] {
-                        let f = freqs[b] + f;
-                        let cell =
-                            self.search(&w, f, phases[b], 1.0 / (2 * m) as f64, f64::INFINITY);
-                        if cell.ll > best.0 {
-                            best = (cell.ll, phases[b] + 0.5 * (cell.lo + cell.hi), f);
-                        }
-                    }
-                    ph[b] = best.1.rem_euclid(1.0);
-                    fr[b] = best.2;
-                }
-                let mut kept = ([0.0; MAX_BEACONS], [0.0; MAX_BEACONS], out.light.ambient[k]);
-                let nb = out.light.n_beacons;
-                for (b, bo) in out.light.beacons[..nb].iter().enumerate() {
-                    kept.0[b] = bo.amplitude[k];
-                    kept.1[b] = bo.std[k];
-                }
-                let again = self.fit_channel(k, &ph, &fr, out, full);
-                if again < noise {
-                    noise = again;
-                } else {
-                    for (b, bo) in out.light.beacons[..nb].iter_mut().enumerate() {
-                        bo.amplitude[k] = kept.0[b];
-                        bo.std[k] = kept.1[b];
-                    }
-                    out.light.ambient[k] = kept.2;
-                }
+                noise = self.refit(k, noise, &phases, &freqs, out, full);
             }
             self.noise[k] = Some(noise);
         }
     }
 
+    /// Step 6. The common phase leaves far more than channel k's noise: an
+    /// edge crossed one of its sample instants within the frame where the
+    /// common phase and frequency do not put it (the channels' skew spreads
+    /// the crossings over frames, and their places depend on a drift not
+    /// learnt yet). The channel's own best phase within a sample of the
+    /// common one (each beacon on what the others' fit leaves), kept only
+    /// when it fits better; its noise.
+    fn refit(
+        &mut self,
+        k: usize,
+        noise: f64,
+        phases: &[f64; MAX_BEACONS],
+        freqs: &[f64; MAX_BEACONS],
+        out: &mut Demodulated,
+        full: u16,
+    ) -> f64 {
+        let nb = self.cfg.beacons.len();
+        let (mut ph, mut fr) = (*phases, *freqs);
+        let mut w = [0.0; NDET];
+        w[k] = 1.0;
+        for b in 0..nb {
+            if nb > 1 {
+                self.residual(k, b, phases, freqs, out);
+            }
+            let m = self.cfg.beacons[b].half_period;
+            let wide = self.cfg.max_drift * self.cfg.beacons[b].mod_hz;
+            let sf = self.tracks[b].freq_std().max(1e-12);
+            let sig = if nb > 1 {
+                Signal {
+                    x: &self.ys,
+                    sums: &self.ys_sum,
+                    corr: Some(&self.corr),
+                }
+            } else {
+                Signal {
+                    x: &self.xs,
+                    sums: &self.xs_sum,
+                    corr: None,
+                }
+            };
+            let mut best = (f64::NEG_INFINITY, phases[b], freqs[b]);
+            for f in [0.0, -1.5 * sf, 1.5 * sf, -wide, wide] {
+                let win = Window {
+                    freq: freqs[b] + f,
+                    center: phases[b],
+                    half: 1.0 / (2 * m) as f64,
+                    var: f64::INFINITY,
+                    sample_hz: self.cfg.sample_hz,
+                    skew_s: self.cfg.channel_skew_s,
+                };
+                let cell = self.scan.search(&sig, &w, &win);
+                if cell.ll > best.0 {
+                    best = (cell.ll, phases[b] + 0.5 * (cell.lo + cell.hi), win.freq);
+                }
+            }
+            ph[b] = best.1.rem_euclid(1.0);
+            fr[b] = best.2;
+        }
+        let mut kept = ([0.0; MAX_BEACONS], [0.0; MAX_BEACONS], out.light.ambient[k]);
+        for (b, bo) in out.light.beacons[..nb].iter().enumerate() {
+            kept.0[b] = bo.amplitude[k];
+            kept.1[b] = bo.std[k];
+        }
+        let again = self.fit_channel(k, &ph, &fr, out, full);
+        if again < noise {
+            return again;
+        }
+        for (b, bo) in out.light.beacons[..nb].iter_mut().enumerate() {
+            bo.amplitude[k] = kept.0[b];
+            bo.std[k] = kept.1[b];
+        }
+        out.light.ambient[k] = kept.2;
+        // The common phases' Lᵀu again, for a later residual.
+        self.fit_channel(k, phases, freqs, out, full);
+        noise
+    }
+
     /// Channel k's fit at the beacons' phases and frequencies given; its
-    /// noise variance.
+    /// noise variance. Every sum over a template is taken over its runs
+    /// (prefix sums of the samples and of the polynomials).
     fn fit_channel(
         &mut self,
         k: usize,
@@ -521,106 +611,88 @@ impl Demodulator {
         let nb = self.cfg.beacons.len();
         let d = self.basis.len();
         let dof = (n - d - nb) as f64;
-        {
-            let mut rhs = [0.0; MAX_BEACONS];
-            let mut mean_u = [0.0; MAX_BEACONS];
-            let mut g = [[0.0; MAX_BEACONS]; MAX_BEACONS];
-            let x = &self.xs[k * n..(k + 1) * n];
-            for b in 0..nb {
-                let (phase, freq) = (phases[b], freqs[b]);
-                let skew = k as f64 * self.cfg.channel_skew_s;
-                let u = &mut self.u[b * n..(b + 1) * n];
-                for (i, ui) in u.iter_mut().enumerate() {
-                    let p = phase + freq * (self.dt[i] + skew);
-                    *ui = if ((2.0 * p).floor() as i64) & 1 == 0 {
-                        0.5
-                    } else {
-                        -0.5
-                    };
-                }
-                rhs[b] = u.iter().zip(x).map(|(a, c)| a * c).sum();
-                mean_u[b] = u.iter().sum::<f64>() / n as f64;
-            }
-            // G = UᵀU − (LᵀU)ᵀ(LᵀU): the templates' Gram matrix once the
-            // slow part is out.
-            for b in 0..nb {
-                let ub = &self.u[b * n..(b + 1) * n];
-                for c in 0..=b {
-                    let uc = &self.u[c * n..(c + 1) * n];
-                    g[b][c] = ub.iter().zip(uc).map(|(a, c)| a * c).sum();
+        let mut rhs = [0.0; MAX_BEACONS];
+        let mut mean_u = [0.0; MAX_BEACONS];
+        let mut on = [0usize; MAX_BEACONS];
+        let mut first_on = [false; MAX_BEACONS];
+        let mut g = [[0.0; MAX_BEACONS]; MAX_BEACONS];
+        let sums = &self.xs_sum[k * (n + 1)..(k + 1) * (n + 1)];
+        for b in 0..nb {
+            let p0 = phases[b] + freqs[b] * k as f64 * self.cfg.channel_skew_s;
+            let tb = &mut self.turns[b];
+            first_on[b] = turns(p0, freqs[b] / self.cfg.sample_hz, n, tb);
+            let lu = &mut self.fit_lu[(k * MAX_BEACONS + b) * d..(k * MAX_BEACONS + b + 1) * d];
+            lu.iter_mut()
+                .zip(self.scan.cum(n))
+                .for_each(|(l, t)| *l = -0.5 * t);
+            let mut raw = 0.0;
+            for (s, e) in on_runs(first_on[b], tb, n) {
+                raw += sums[e] - sums[s];
+                on[b] += e - s;
+                let (cs, ce) = (self.scan.cum(s), self.scan.cum(e));
+                for j in 0..d {
+                    lu[j] += ce[j] - cs[j];
                 }
             }
-            for j in 0..d {
-                let p = self.basis.row(j);
-                let mut lu = [0.0; MAX_BEACONS];
-                for (b, l) in lu.iter_mut().enumerate().take(nb) {
-                    *l = p
-                        .iter()
-                        .zip(&self.u[b * n..(b + 1) * n])
-                        .map(|(a, c)| a * c)
-                        .sum();
-                }
+            rhs[b] = raw - 0.5 * sums[n];
+            mean_u[b] = (on[b] as f64 - 0.5 * n as f64) / n as f64;
+        }
+        // G = UᵀU − (LᵀU)ᵀ(LᵀU): the templates' Gram matrix once the slow
+        // part is out; uᵀu = N/4, and for two beacons (on − ½)ᵀ(on − ½).
+        let quarter = n as f64 / 4.0;
+        for b in 0..nb {
+            let lb = &self.fit_lu[(k * MAX_BEACONS + b) * d..(k * MAX_BEACONS + b + 1) * d];
+            for c in 0..=b {
+                let uu = if b == c {
+                    quarter
+                } else {
+                    let both = overlap(first_on[b], &self.turns[b], first_on[c], &self.turns[c], n);
+                    both as f64 - 0.5 * (on[b] + on[c]) as f64 + quarter
+                };
+                let lc = &self.fit_lu[(k * MAX_BEACONS + c) * d..(k * MAX_BEACONS + c + 1) * d];
+                g[b][c] = uu - lb.iter().zip(lc).map(|(x, y)| x * y).sum::<f64>();
+            }
+        }
+        match Cholesky::new(&g, nb) {
+            Some(ch) => {
+                let a = ch.solve(&rhs, nb);
+                let fitted: f64 = (0..nb).map(|b| a[b] * rhs[b]).sum();
+                let noise = ((self.energy[k] - fitted) / dof).max(QUANT_VAR);
+                let mut off = self.mean[k];
                 for b in 0..nb {
-                    for c in 0..=b {
-                        g[b][c] -= lu[b] * lu[c];
+                    let mut std = (noise * ch.inverse_diag(b, nb)).sqrt();
+                    if out.light.clipped[k] > 0 {
+                        std = std.max(f64::from(full));
                     }
+                    out.light.beacons[b].amplitude[k] = a[b];
+                    out.light.beacons[b].std[k] = std;
+                    off -= a[b] * (mean_u[b] + 0.5);
                 }
+                out.light.ambient[k] = off;
+                noise
             }
-            let solved = Cholesky::new(&g, nb);
-            let noise;
-            match solved {
-                Some(ch) => {
-                    let a = ch.solve(&rhs, nb);
-                    let fitted: f64 = (0..nb).map(|b| a[b] * rhs[b]).sum();
-                    noise = ((self.energy[k] - fitted) / dof).max(QUANT_VAR);
-                    let mut off = self.mean[k];
-                    for b in 0..nb {
-                        let mut std = (noise * ch.inverse_diag(b, nb)).sqrt();
-                        if out.light.clipped[k] > 0 {
-                            std = std.max(f64::from(full));
-                        }
-                        out.light.beacons[b].amplitude[k] = a[b];
-                        out.light.beacons[b].std[k] = std;
-                        off -= a[b] * (mean_u[b] + 0.5);
-                    }
-                    out.light.ambient[k] = off;
+            None => {
+                // Not reached with whole periods (G ≈ N/4 · I); kept so
+                // that no frame can panic here.
+                let nb = out.light.n_beacons;
+                for bo in out.light.beacons[..nb].iter_mut() {
+                    bo.amplitude[k] = 0.0;
+                    bo.std[k] = f64::from(full);
                 }
-                None => {
-                    // Not reached with whole periods (G ≈ N/4 · I); kept so
-                    // that no frame can panic here.
-                    noise = (self.energy[k] / dof).max(QUANT_VAR);
-                    let nb = out.light.n_beacons;
-                    for bo in out.light.beacons[..nb].iter_mut() {
-                        bo.amplitude[k] = 0.0;
-                        bo.std[k] = f64::from(full);
-                    }
-                    out.light.ambient[k] = self.mean[k];
-                }
+                out.light.ambient[k] = self.mean[k];
+                (self.energy[k] / dof).max(QUANT_VAR)
             }
-            noise
         }
     }
 }
 
-/// The search's best phase cell, offsets from its centre, and its score.
-#[derive(Debug, Clone, Copy)]
-struct Cell {
-    lo: f64,
-    hi: f64,
-    /// Σ_k w_k max(c_k, 0)² / n there.
-    score: f64,
-    /// The log-likelihood gained, less the priors'.
-    ll: f64,
-}
-
-impl Default for Cell {
-    fn default() -> Self {
-        Cell {
-            lo: -0.5,
-            hi: 0.5,
-            score: 0.0,
-            ll: 0.0,
-        }
+/// `sums[i] = Σ_{i' < i} x[i']` (N + 1 values).
+fn prefix(x: &[f64], sums: &mut [f64]) {
+    let mut s = 0.0;
+    sums[0] = 0.0;
+    for (v, out) in x.iter().zip(&mut sums[1..]) {
+        s += v;
+        *out = s;
     }
 }
 

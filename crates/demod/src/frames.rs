@@ -1,13 +1,12 @@
 //! Frames for estimators from a log of any of FORMATS.md's three kinds of
-//! frame: counts as they are, demodulated frames with their amplitudes,
-//! and raw samples (BURST) demodulated on the way, by a demodulator set up
-//! from the log's header (its `sample_hz`, `channel_skew_s` and
-//! `beacons`). Every reader of logs that wants poses (replay, calibrate,
-//! the daemon's replay backend, convert) reads through this one place.
+//! frame, in either container (core's [`FrameLog`]: JSON Lines or MCAP):
+//! counts as they are, demodulated frames with their amplitudes, and raw
+//! samples (BURST) demodulated on the way, by a demodulator set up from the
+//! log's header (its `sample_hz`, `channel_skew_s` and `beacons`). Every
+//! reader of logs that wants poses (replay, calibrate) reads through this
+//! one place; it is itself a [`FrameLog`].
 
-use std::io::BufRead;
-
-use lightpose_core::{Demodulated, Frame, LogError, LogHeader, LogReader, Record};
+use lightpose_core::{Cut, Demodulated, Frame, FrameLog, FrameOrder, LogError, LogHeader, Record};
 
 use crate::{BeaconSpec, ConfigError, DemodConfig, Demodulator, FrameError};
 
@@ -20,13 +19,35 @@ pub enum FramesError {
     /// sampled fast, frequencies that break MODEL.md's rules).
     #[error("{name}: header: {err}")]
     Config { name: String, err: ConfigError },
-    /// A BURST the demodulator refused.
+    /// A BURST the demodulator refused (`line` 0 in a container without
+    /// lines).
     #[error("{name}:{line}: {err}")]
     Burst {
         name: String,
         line: usize,
         err: FrameError,
     },
+}
+
+impl From<FramesError> for LogError {
+    /// A demodulation's error as the log's: a BURST the demodulator
+    /// refused costs its frame (a line), a header it cannot demodulate
+    /// ends the log.
+    fn from(e: FramesError) -> Self {
+        match e {
+            FramesError::Log(e) => e,
+            FramesError::Config { name, err } => LogError::Refused {
+                name,
+                line: 1,
+                msg: format!("header: {err}"),
+            },
+            FramesError::Burst { name, line, err } => LogError::Line {
+                name,
+                line,
+                msg: err.to_string(),
+            },
+        }
+    }
 }
 
 /// The demodulator a log's header asks for: `None` when its frames are one
@@ -51,28 +72,28 @@ pub fn demodulator_for(header: &LogHeader) -> Result<Option<Demodulator>, Config
 }
 
 /// A log read as frames for an estimator (see the module's doc).
-pub struct LogFrames<R> {
-    reader: LogReader<R>,
+pub struct LogFrames<L> {
+    log: L,
     demod: Option<Demodulator>,
     /// The demodulator's output, reused (3.6 kB: on the heap once).
     out: Box<Demodulated>,
 }
 
-impl<R: BufRead> LogFrames<R> {
-    /// Frames of `reader`; its header says whether they need demodulating.
-    pub fn new(reader: LogReader<R>) -> Result<Self, FramesError> {
-        let demod = demodulator_for(reader.header()).map_err(|err| FramesError::Config {
-            name: reader.name().to_string(),
+impl<L: FrameLog> LogFrames<L> {
+    /// Frames of `log`; its header says whether they need demodulating.
+    pub fn new(log: L) -> Result<Self, FramesError> {
+        let demod = demodulator_for(log.header()).map_err(|err| FramesError::Config {
+            name: log.name().to_string(),
             err,
         })?;
         let out = Box::new(demod.as_ref().map(Demodulator::output).unwrap_or_default());
-        Ok(LogFrames { reader, demod, out })
+        Ok(LogFrames { log, demod, out })
     }
 
     /// The next frame, `None` at the end of the log.
     #[allow(clippy::should_implement_trait)]
     pub fn next(&mut self) -> Option<Result<Frame, FramesError>> {
-        let rec = match self.reader.next_record()? {
+        let rec = match self.log.next_record()? {
             Ok(r) => r,
             Err(e) => return Some(Err(e.into())),
         };
@@ -93,8 +114,8 @@ impl<R: BufRead> LogFrames<R> {
         Some(match got {
             Ok(()) => Ok(self.out.to_frame()),
             Err(err) => Err(FramesError::Burst {
-                name: self.reader.name().to_string(),
-                line: self.reader.line_no(),
+                name: self.log.name().to_string(),
+                line: self.log.line_no().unwrap_or(0),
                 err,
             }),
         })
@@ -105,23 +126,59 @@ impl<R: BufRead> LogFrames<R> {
         self.demod.as_ref()
     }
 
-    pub fn reader(&self) -> &LogReader<R> {
-        &self.reader
+    pub fn reader(&self) -> &L {
+        &self.log
     }
 
-    pub fn reader_mut(&mut self) -> &mut LogReader<R> {
-        &mut self.reader
+    pub fn reader_mut(&mut self) -> &mut L {
+        &mut self.log
     }
 
-    pub fn into_reader(self) -> LogReader<R> {
-        self.reader
+    pub fn into_reader(self) -> L {
+        self.log
+    }
+}
+
+impl<L: FrameLog> FrameLog for LogFrames<L> {
+    fn header(&self) -> &LogHeader {
+        self.log.header()
+    }
+    fn name(&self) -> &str {
+        self.log.name()
+    }
+    fn line_no(&self) -> Option<usize> {
+        self.log.line_no()
+    }
+    fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
+        Some(LogFrames::next(self)?.map_err(LogError::from))
+    }
+    fn next_record(&mut self) -> Option<Result<Record<'_>, LogError>> {
+        self.log.next_record()
+    }
+    fn cut(&self) -> Option<Cut> {
+        self.log.cut()
+    }
+    fn other_records(&self) -> u64 {
+        self.log.other_records()
+    }
+    fn first_other(&self) -> Option<&str> {
+        self.log.first_other()
+    }
+    fn order(&self) -> &FrameOrder {
+        self.log.order()
+    }
+    fn seq_gaps(&self) -> (u64, u64) {
+        self.log.seq_gaps()
+    }
+    fn bad_readings(&self) -> (u64, Option<&str>) {
+        self.log.bad_readings()
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lightpose_core::{BeaconInfo, Burst, NDET};
+    use lightpose_core::{BeaconInfo, Burst, LogReader, NDET};
 
     fn header(sample_hz: Option<f64>) -> LogHeader {
         let mut h = LogHeader::new(12, 5.0);
@@ -135,7 +192,7 @@ mod tests {
         h
     }
 
-    fn read(text: Vec<u8>) -> Result<LogFrames<&'static [u8]>, FramesError> {
+    fn read(text: Vec<u8>) -> Result<LogFrames<LogReader<&'static [u8]>>, FramesError> {
         let text: &'static [u8] = Box::leak(text.into_boxed_slice());
         LogFrames::new(LogReader::new(text, "t.jsonl")?)
     }

@@ -25,6 +25,8 @@ pub mod basis;
 pub mod config;
 mod demod;
 pub mod frames;
+mod runs;
+mod scan;
 pub mod track;
 
 pub use config::{

@@ -212,6 +212,9 @@ impl FrameLog for LogFile {
     fn name(&self) -> &str {
         self.get().name()
     }
+    fn line_no(&self) -> Option<usize> {
+        LogFile::line_no(self)
+    }
     fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
         match self {
             LogFile::Jsonl(r) => FrameLog::next_frame(r.as_mut()),

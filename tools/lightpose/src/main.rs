@@ -6,7 +6,6 @@ mod calibrate;
 mod convert;
 mod crb;
 mod fake_autopilot;
-mod frames;
 mod guard;
 mod montecarlo;
 mod recover;

@@ -39,7 +39,8 @@ pub fn run(a: ReplayArgs) -> anyhow::Result<()> {
     // Say which one "auto" chose, before any output.
     eprintln!("lightpose: estimator {} ({})", est.name(), a.estimator);
     // Every kind of frame (FORMATS.md): BURSTs demodulated on the way.
-    let mut log = crate::frames::Frames::open(&a.log)?;
+    let mut log = lightpose_demod::LogFrames::new(lightpose_logs::LogFile::open(&a.log)?)
+        .map_err(lightpose_core::LogError::from)?;
     if let Some(d) = log.demodulator() {
         let c = d.config();
         eprintln!(

@@ -77,6 +77,11 @@ pub trait FrameLog {
     fn header(&self) -> &LogHeader;
     /// How errors name the log (its path).
     fn name(&self) -> &str;
+    /// The number of the line read last, in a container of lines (JSON
+    /// Lines); None in one of records (MCAP), whose errors name bytes.
+    fn line_no(&self) -> Option<usize> {
+        None
+    }
     /// The next frame, `None` at the end of the log. An error that is
     /// [`LogError::skippable`] cost one frame and reading may go on; after
     /// any other, the log ends.
@@ -109,6 +114,9 @@ impl<R: BufRead> FrameLog for LogReader<R> {
     }
     fn name(&self) -> &str {
         LogReader::name(self)
+    }
+    fn line_no(&self) -> Option<usize> {
+        Some(LogReader::line_no(self))
     }
     fn next_frame(&mut self) -> Option<Result<Frame, LogError>> {
         LogReader::next_frame(self)

@@ -2,14 +2,13 @@
 //! frame (a sweep never sits in memory), its refused lines counted and
 //! handed on rather than stopping the fit, and the header facts the fits
 //! need (the ADC reference, whether it is a dark sweep). JSON Lines or
-//! MCAP alike (`lightpose_logs::open`); a JSON Lines log of any kind of
-//! frame (spec v3: counts, BURST or demodulated) through
-//! `lightpose_demod::LogFrames`, so that a BURST sweep is demodulated on
-//! the way and the fits see each frame's amplitudes.
+//! MCAP alike, of any kind of frame (spec v3: counts, BURST or
+//! demodulated) through `lightpose_demod::LogFrames`, so that a BURST sweep
+//! is demodulated on the way and the fits see each frame's amplitudes.
 
 use lightpose_core::bounds::{Within, MAX_V_REF, MIN_V_REF};
 use lightpose_core::{Frame, FrameLog, LogError, LogHeader};
-use lightpose_demod::{FramesError, LogFrames};
+use lightpose_demod::LogFrames;
 use lightpose_logs::{open as open_log, LogFile};
 use std::path::Path;
 
@@ -21,67 +20,25 @@ pub(super) struct BadLines<'a> {
     pub cuts: Vec<String>,
 }
 
-/// One frame's outcome as the fits take it: a frame, a refused line that
-/// costs only itself, or an error that ends the log.
-fn take(
-    item: Result<Frame, LogError>,
-    header: &LogHeader,
-    each: &mut impl FnMut(&Frame, &LogHeader),
-    bad: &mut BadLines,
-) -> Result<(), LogError> {
-    match item {
-        Ok(f) => each(&f, header),
-        Err(e) if e.skippable() => {
-            bad.count += 1;
-            (bad.report)(&e);
-        }
-        Err(e) => return Err(e),
-    }
-    Ok(())
-}
-
-/// A demodulation's error as the log's: a BURST the demodulator refused
-/// costs its frame (a line), a header it cannot demodulate ends the log.
-fn log_error(e: FramesError) -> LogError {
-    match e {
-        FramesError::Log(e) => e,
-        FramesError::Config { name, err } => LogError::Refused {
-            name,
-            line: 1,
-            msg: format!("header: {err}"),
-        },
-        FramesError::Burst { name, line, err } => LogError::Line {
-            name,
-            line,
-            msg: err.to_string(),
-        },
-    }
-}
-
 /// Open a log and feed every frame to `each`; bad lines to `bad`.
 pub(super) fn stream(
     path: &Path,
     mut each: impl FnMut(&Frame, &LogHeader),
     bad: &mut BadLines,
 ) -> Result<LogHeader, LogError> {
-    let (header, cut) = match LogFile::open(path)? {
-        LogFile::Jsonl(r) => {
-            let mut frames = LogFrames::new(*r).map_err(log_error)?;
-            let header = frames.reader().header().clone();
-            while let Some(item) = frames.next() {
-                take(item.map_err(log_error), &header, &mut each, bad)?;
+    let mut frames = LogFrames::new(LogFile::open(path)?).map_err(LogError::from)?;
+    let header = frames.header().clone();
+    while let Some(item) = frames.next_frame() {
+        match item {
+            Ok(f) => each(&f, &header),
+            Err(e) if e.skippable() => {
+                bad.count += 1;
+                (bad.report)(&e);
             }
-            (header, frames.reader().cut())
+            Err(e) => return Err(e),
         }
-        LogFile::Mcap(mut r) => {
-            let header = r.header().clone();
-            while let Some(item) = r.next_frame() {
-                take(item, &header, &mut each, bad)?;
-            }
-            (header, r.cut())
-        }
-    };
-    if let Some(c) = cut {
+    }
+    if let Some(c) = frames.cut() {
         bad.cuts.push(format!("{}: {c}", path.display()));
     }
     Ok(header)
