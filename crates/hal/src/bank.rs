@@ -546,15 +546,18 @@ pub const SPIN_S: f64 = 2e-3;
 /// [`SPIN_S`]. False when `stop` was raised.
 fn wait_until(due: f64, stop: &Stop) -> bool {
     loop {
+        if stop.is_raised() {
+            return false;
+        }
         let left = due - monotonic_s();
         if left <= 0.0 {
             return true;
         }
-        if stop.is_raised() {
-            return false;
-        }
         if left > SPIN_S {
-            std::thread::sleep(Duration::from_secs_f64(left - SPIN_S));
+            // The stop's sleep: ends on a stop, and beats the heartbeat.
+            if !stop.sleep(Duration::from_secs_f64(left - SPIN_S)) {
+                return false;
+            }
         } else {
             std::hint::spin_loop();
         }
@@ -641,6 +644,8 @@ impl<B: Bank> BoardSource<B> {
             if !wait_until(due, self.pacer.stop()) {
                 return Err(SourceError::Stopped);
             }
+            // A long burst spins: the watchdog still hears the thread.
+            self.pacer.stop().beat();
             if monotonic_s() - due > MAX_LATE_SHARE * dt {
                 return Err(SourceError::BadData {
                     place: Text::from_static("board bank"),

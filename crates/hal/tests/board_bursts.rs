@@ -271,6 +271,104 @@ fn an_ads1115_bank_reads_a_burst_in_rounds() {
     delay.done();
 }
 
+/// Four ADS7828 on one bus (detector k on chip k / 8, channel k % 8): a
+/// chip that converts while read goes in detector order in a burst (a
+/// frame of one sample reads in rounds), one command and read a channel.
+#[test]
+fn an_ads7828_bank_reads_a_burst_in_detector_order() {
+    use lightpose_hal::drivers::ads7828::{command, Ads7828, PowerMode};
+    let mut ex = Vec::new();
+    for i in 0..N {
+        for k in 0..NDET {
+            let v = value(k, i);
+            ex.push(I2cT::write_read(
+                0x48 + (k / 8) as u8,
+                vec![command((k % 8) as u8, PowerMode::InternalRef)],
+                vec![(v >> 8) as u8, v as u8],
+            ));
+        }
+    }
+    let slots = (0..4u8)
+        .map(|c| I2cSlot {
+            name: format!("adc{c}"),
+            bus: 0,
+            chip: Ads7828::new(0x48 + c, PowerMode::InternalRef),
+        })
+        .collect();
+    let bus = I2cMock::new(&ex);
+    let bank = I2cBank::new(
+        vec![("/dev/i2c-1".into(), bus)],
+        slots,
+        embedded_hal_mock::eh1::delay::NoopDelay::new(),
+    )
+    .unwrap();
+    let mut src = BoardSource::new(
+        bank,
+        ChannelMap::sequential(8),
+        TempReader::new(TempKind::None, 0.0),
+        Pacer::new(None),
+    )
+    .with_sampling(sampling(1e-4));
+    let mut burst = Burst::default();
+    assert_eq!(src.next_take(&mut burst).unwrap(), Take::Burst);
+    assert_eq!((burst.n(), burst.adc_bits), (N, 12));
+    for k in 0..NDET {
+        let want: Vec<u16> = (0..N).map(|i| value(k, i)).collect();
+        assert_eq!(burst.channel(k), &want[..], "detector {k}");
+    }
+    for (_, mut bus) in src.into_bank().into_buses() {
+        bus.done();
+    }
+}
+
+/// A stop raised while a slow burst waits for its next sample (2 s
+/// apart) ends it there, as it ends every wait of a source: sample 0 read,
+/// sample 1 never asked for.
+#[test]
+fn a_stop_ends_a_burst_between_samples() {
+    let stop = lightpose_hal::Stop::new();
+    let chips = (0..4)
+        .map(|b| {
+            let spi = LoggedSpi {
+                inner: SpiMock::new(&chip_sample(b, 0, NDET)),
+                chip: b,
+                log: Arc::new(Mutex::new(Vec::new())),
+                calls: 0,
+                fail_at: None,
+            };
+            (format!("u{b}"), Mcp3x08::new(spi, McpKind::Mcp3008))
+        })
+        .collect();
+    let mut slow = sampling(0.0);
+    if let Some(s) = slow.as_mut() {
+        s.sample_hz = 0.5;
+    }
+    let mut src = BoardSource::new(
+        SpiBank::new(chips),
+        interleaved(),
+        TempReader::new(TempKind::None, 0.0),
+        Pacer::new(None).stoppable(stop.clone()),
+    )
+    .with_sampling(slow);
+    let raiser = {
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+            stop.raise();
+        })
+    };
+    let started = std::time::Instant::now();
+    let mut burst = Burst::default();
+    let e = src.next_take(&mut burst);
+    assert!(matches!(e, Err(SourceError::Stopped)), "{e:?}");
+    // Before sample 1 was due.
+    assert!(started.elapsed() < std::time::Duration::from_secs(2));
+    raiser.join().unwrap();
+    for (_, chip) in src.into_bank().into_chips() {
+        chip.release().inner.done();
+    }
+}
+
 /// Without a sampling of N > 1 a board source is what it was: frames.
 #[test]
 fn a_source_without_sampling_gives_frames() {
