@@ -346,3 +346,33 @@ fn the_shipped_board_examples_validate() {
             .unwrap_or_else(|e| panic!("{name}: {e}"));
     }
 }
+
+/// An ADS1115 bank can sample a slow beacon: seven chips at 860 SPS and
+/// 400 kHz give at most 58.8 samples a second, so 40 Hz of samples at
+/// 10 frames a second (N = 4) and a 10 Hz beacon (4 samples a period)
+/// pass; the skew it reports is the mean spacing of its rounds.
+#[test]
+fn an_ads1115_bank_samples_a_slow_beacon_and_refuses_a_mod_hz_it_cannot_resolve() {
+    let t = |extra: &str| {
+        validate(&i2c_table(
+            "ads1115",
+            7,
+            4,
+            &format!("rate_hz = 10.0\ni2c_clock_hz = 400000\nsample_hz = 40.0\n{extra}"),
+        ))
+    };
+    let v = t("beacons = [{ id = \"b\", mod_hz = 10.0 }]").expect("fits");
+    let ValidBackend::Ads1115 { common, .. } = &v else {
+        panic!("{v:?}")
+    };
+    let s = common.sampling().expect("bursts");
+    assert_eq!((s.samples_per_frame, s.sample_hz), (4, 40.0));
+    assert!(s.channel_skew_s > 0.0 && s.channel_skew_s * 25.0 < 1.0 / 40.0);
+    // 40 / 15 samples a period is no whole number.
+    let e = t("beacons = [{ id = \"b\", mod_hz = 15.0 }]").unwrap_err();
+    assert!(e.starts_with("source config: beacons: beacon \"b\""), "{e}");
+    // Two beacons with one id.
+    let e =
+        t("beacons = [{ id = \"b\", mod_hz = 10.0 }, { id = \"b\", mod_hz = 5.0 }]").unwrap_err();
+    assert!(e.contains("beacons: name \"b\" is used twice"), "{e}");
+}
