@@ -55,6 +55,23 @@ impl Burst {
         b
     }
 
+    /// `from` into `self`, the buffer reused when it has the size (a
+    /// derived `clone_from` would allocate a new one each frame).
+    pub fn copy_from(&mut self, from: &Burst) {
+        if self.n() != from.n() {
+            self.resize(from.n());
+        }
+        self.samples_mut().copy_from_slice(from.samples());
+        self.seq = from.seq;
+        self.t = from.t;
+        self.adc_bits = from.adc_bits;
+        self.temp_c = from.temp_c;
+        self.truth = from.truth;
+        self.attitude = from.attitude;
+        self.depth = from.depth;
+        self.velocity = from.velocity;
+    }
+
     /// Samples per channel.
     pub fn n(&self) -> usize {
         self.n

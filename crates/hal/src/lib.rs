@@ -190,22 +190,6 @@ pub trait FrameSource: Send {
     }
 }
 
-/// `from` into `to`, its buffer reused when it has the size.
-pub fn copy_burst(from: &Burst, to: &mut Burst) {
-    if to.n() != from.n() {
-        to.resize(from.n());
-    }
-    to.samples_mut().copy_from_slice(from.samples());
-    to.seq = from.seq;
-    to.t = from.t;
-    to.adc_bits = from.adc_bits;
-    to.temp_c = from.temp_c;
-    to.truth = from.truth;
-    to.attitude = from.attitude;
-    to.depth = from.depth;
-    to.velocity = from.velocity;
-}
-
 /// Said by the `next_frame` of a source that gives bursts: its frames
 /// need the demodulator, which [`FrameSource::next_take`]'s caller runs.
 pub(crate) fn bursts_only(place: &'static str) -> SourceError {

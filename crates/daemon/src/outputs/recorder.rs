@@ -431,7 +431,7 @@ impl Output for Recorder {
             pool.pending = pool.free.try_recv().ok();
         }
         if let Some(b) = pool.pending.as_mut() {
-            lightpose_hal::copy_burst(burst, b);
+            b.copy_from(burst);
         }
     }
     fn finish(&mut self) {

@@ -263,7 +263,7 @@ fn read(log: &mut (dyn FrameLog + Send), held: &mut Burst) -> Option<Result<Rec,
         Ok(Record::Frame(f)) => Ok(Rec::Frame(f)),
         Ok(Record::Demodulated(d)) => Ok(Rec::Frame(d.to_frame())),
         Ok(Record::Burst(b)) => {
-            crate::copy_burst(b, held);
+            held.copy_from(b);
             Ok(Rec::Burst)
         }
     })
