@@ -51,31 +51,7 @@ impl TrackerConfig {
             }
         }
         self.validate_water()?;
-        // The start-up's doubts past what any vehicle does (or so small
-        // that the covariance underflows) made every pose `diverged`,
-        // without a word (an audit: 1e300 and 1e-300).
-        for (name, v, hi, unit) in [
-            ("init_velocity_sigma", self.init_velocity_sigma, 10.0, "m/s"),
-            (
-                "init_rate_sigma_deg",
-                self.init_rate_sigma_deg,
-                1000.0,
-                "°/s",
-            ),
-            (
-                "init_attitude_sigma_deg",
-                self.init_attitude_sigma_deg,
-                90.0,
-                "°",
-            ),
-        ] {
-            if !(INIT_SIGMA_MIN..=hi).contains(&v) {
-                return bad(format!(
-                    "tracker {name} = {} must be {INIT_SIGMA_MIN} to {hi} {unit}",
-                    num(v)
-                ));
-            }
-        }
+        self.validate_start()?;
         let [lo, hi] = self.x_range;
         if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
             return bad(format!(
@@ -108,6 +84,37 @@ impl TrackerConfig {
                 num(self.reading_check_s)
             ));
         }
+        self.validate_sensor_models()
+    }
+
+    /// The start-up's doubts (part of `validate`).
+    fn validate_start(&self) -> Result<(), ModelError> {
+        let bad = |m: String| Err(ModelError::Config(m));
+        // The start-up's doubts past what any vehicle does (or so small
+        // that the covariance underflows) made every pose `diverged`,
+        // without a word (an audit: 1e300 and 1e-300).
+        for (name, v, hi, unit) in [
+            ("init_velocity_sigma", self.init_velocity_sigma, 10.0, "m/s"),
+            (
+                "init_rate_sigma_deg",
+                self.init_rate_sigma_deg,
+                1000.0,
+                "°/s",
+            ),
+            (
+                "init_attitude_sigma_deg",
+                self.init_attitude_sigma_deg,
+                90.0,
+                "°",
+            ),
+        ] {
+            if !(INIT_SIGMA_MIN..=hi).contains(&v) {
+                return bad(format!(
+                    "tracker {name} = {} must be {INIT_SIGMA_MIN} to {hi} {unit}",
+                    num(v)
+                ));
+            }
+        }
         if let Some(v) = self.init_lateral_sigma_deg {
             if !(v.is_finite() && v > 0.0 && v < 80.0) {
                 return bad(format!(
@@ -116,7 +123,7 @@ impl TrackerConfig {
                 ));
             }
         }
-        self.validate_sensor_models()
+        Ok(())
     }
 
     /// The water's settings: K_D's doubt, the temperature's, and the water
