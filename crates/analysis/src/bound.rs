@@ -11,6 +11,7 @@
 //! pipeline's `CrbScene`.
 
 use lightpose_core::{Attitude, Pose};
+use lightpose_pipeline::model::bound_light::{BoundDaylight, BoundLight};
 use lightpose_pipeline::model::crb::{crb_along, CrbBound, CrbScene};
 use lightpose_pipeline::model::tracker::{TrackBound, TrackBoundScene, TrackPoint};
 use lightpose_pipeline::model::{SensorModel, Tracker};
@@ -45,6 +46,48 @@ pub fn crb_scene(s: &Scene) -> CrbScene {
         depth_sigma: s.depth.map(|d| d.sigma_m),
         // Spec v3: a scene whose sensor reads roll; else roll as known.
         roll_sigma: s.attitude.and_then(|n| n.sigma_roll),
+        light: bound_light(s),
+    }
+}
+
+/// How `s`'s frames carry the light to an estimator (spec v3): a blinking
+/// beacon's amplitudes over the frame's samples, or counts; and the sun's
+/// mean, whose flicker common to every detector is in its unknown level
+/// and whose own part per detector is a noise.
+pub fn bound_light(s: &Scene) -> BoundLight {
+    let mod_hz = s.beacons.first().map_or(s.blink.mod_hz, |b| b.mod_hz());
+    let n = s.adc.samples_per_frame();
+    BoundLight {
+        blink_samples: (mod_hz > 0.0 && n > 1).then(|| u32::try_from(n).unwrap_or(u32::MAX)),
+        daylight: s.daylight.as_ref().map(|d| BoundDaylight {
+            surface_v: d.surface_v,
+            origin_depth_m: d.origin_depth_m,
+            upwelling: d.upwelling,
+            own_flicker: d.random_std * d.spatial.sqrt(),
+            flicker_depth_m: d.flicker_depth_m,
+        }),
+    }
+}
+
+/// What the bound reads a v3 scene's frames as, in words (`None` for
+/// v1/v2's counts of a steady beacon without daylight).
+pub fn describe_light(l: &BoundLight) -> Option<String> {
+    let sun = |d: &BoundDaylight| {
+        format!(
+            "daylight {} V at the surface ({} m above B's origin)",
+            d.surface_v, d.origin_depth_m
+        )
+    };
+    match (l.blink_samples, &l.daylight) {
+        (None, None) => None,
+        (Some(n), d) => Some(format!(
+            "light: a blinking beacon's amplitudes, {n} samples a channel a frame, at the white-noise limit (no demodulator's search, no model error){}",
+            d.map_or(String::new(), |d| format!("; {}: its shot noise only", sun(&d)))
+        )),
+        (None, Some(d)) => Some(format!(
+            "light: a steady beacon's counts; {}: its level unknown each frame, each detector's own flicker a noise",
+            sun(d)
+        )),
     }
 }
 
@@ -103,6 +146,7 @@ pub fn track_bound_along(
         attitude: s.attitude.map(|a| (a.sigma_pitch.rad(), a.sigma_yaw.rad())),
         depth: s.depth.map(|d| d.sigma_m),
         dvl: s.dvl.map(|d| d.sigma_mps),
+        light: bound_light(s),
     };
     Ok(tracker.track_bound(&track, &sc))
 }

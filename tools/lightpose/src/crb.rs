@@ -5,7 +5,7 @@
 use crate::guard;
 use crate::stdout::out;
 use anyhow::Context;
-use lightpose_analysis::bound::{along_trajectory, track_bound_along};
+use lightpose_analysis::bound::{along_trajectory, bound_light, describe_light, track_bound_along};
 use lightpose_analysis::sensors;
 use lightpose_analysis::trade::{num, Z95};
 use lightpose_pipeline::settings::TrackerConfig;
@@ -92,6 +92,9 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
         scene.montecarlo.sigma_k_d,
         scene.montecarlo.sigma_temp_c,
     );
+    if let Some(light) = describe_light(&bound_light(&scene)) {
+        let _ = writeln!(out, "{light}");
+    }
     if track.is_some() {
         let _ = writeln!(
             out,

@@ -281,6 +281,52 @@ fn crb_prints_the_bound_along_the_trajectory() {
     assert_eq!(err.trim().lines().count(), 1, "{err}");
 }
 
+/// Spec v3 scenes: the bound reads a blinking beacon's amplitudes (and
+/// says so), which bound the harbour approach at or below the steady
+/// beacon's counts by day at every frame; a v2 scene prints as before.
+#[test]
+fn crb_reads_a_blinking_beacon_s_amplitudes_and_a_steady_one_s_sun() {
+    let traj = root().join("tests/data/v3/harbour-approach.csv");
+    let run = |scene: &str| -> (String, Vec<Vec<f64>>) {
+        let scene = root().join(scene);
+        let (ok, out, err) = lightpose(&["crb", "--scene", s(&scene), "--trajectory", s(&traj)]);
+        assert!(ok, "{err}");
+        let rows = out
+            .lines()
+            .filter(|l| l.starts_with("| ") && !l.starts_with("| t "))
+            .map(|l| {
+                l.trim_matches('|')
+                    .split('|')
+                    .map(|c| c.trim().parse::<f64>().expect("number"))
+                    .collect()
+            })
+            .collect();
+        (out, rows)
+    };
+    let (blink_out, blink) = run("tests/data/v3/harbour-day.toml");
+    let (steady_out, steady) = run("tests/data/v3/harbour-steady.toml");
+    assert!(
+        blink_out.contains("a blinking beacon's amplitudes, 200 samples"),
+        "{blink_out}"
+    );
+    assert!(
+        steady_out.contains("its level unknown each frame"),
+        "{steady_out}"
+    );
+    assert_eq!(blink.len(), steady.len());
+    assert!(!blink.is_empty());
+    for (b, st) in blink.iter().zip(&steady) {
+        // Bound x, y, z in columns 6, 7, 8.
+        for c in 6..9 {
+            assert!(b[c] <= st[c] + 1e-9, "column {c}: {b:?} {st:?}");
+        }
+    }
+    let tank = root().join("config/scenes/tank.toml");
+    let dive = root().join("config/trajectories/dive.csv");
+    let (ok, out, _) = lightpose(&["crb", "--scene", s(&tank), "--trajectory", s(&dive)]);
+    assert!(ok && !out.contains("light:"), "{out}");
+}
+
 /// Told that the water may be far from the calibration's (`k_d_sigma =
 /// 0.3`, a bank of waters), the tracker learns the water of a log flown in
 /// murkier water than the tank's (K_D 0.19 against 0.09, a minute of

@@ -11,6 +11,9 @@
 //! Spec v3: the pose's roll is where the light is evaluated, and roll is a
 //! nuisance parameter too when the scene says how well it is known (the
 //! attitude sensor's roll σ, or a prior), as the estimators consider it.
+//! A blinking beacon's frame is its amplitudes with their white-noise
+//! variance, and a steady beacon by day pays for the sun's unknown level
+//! (`bound_light`).
 //!
 //! A DVL adds nothing here: it measures velocity, and one frame's bound
 //! has no velocity in it. What the DVL buys is the tie between frames,
@@ -23,14 +26,15 @@
 #![allow(clippy::needless_range_loop)]
 
 use lightpose_core::light::temperature_gain;
-use lightpose_core::{Angle, Pose, NDET};
+use lightpose_core::{Angle, Pose};
 use nalgebra::{SMatrix, SVector};
 
-use super::light::{from_pose, predict_with_grad_rolled};
+use super::bound_light::{channels, BoundLight, NG};
+use super::light::from_pose;
 use super::SensorModel;
 
 /// Parameters: x, y, z, θ, ψ, K_D, common gain, roll.
-const NP: usize = 8;
+const NP: usize = NG;
 
 /// A scene as the bound needs it.
 #[derive(Debug, Clone, PartialEq)]
@@ -54,6 +58,9 @@ pub struct CrbScene {
     /// sensor's roll, or a prior without one); `None`: roll known exactly
     /// (spec v1/v2, and the bound is v2's bit for bit).
     pub roll_sigma: Option<Angle>,
+    /// Spec v3: counts or a blinking beacon's amplitudes, and the sun
+    /// (`bound_light`); the default is v1/v2's.
+    pub light: BoundLight,
 }
 
 impl CrbScene {
@@ -68,6 +75,7 @@ impl CrbScene {
             attitude_sigma: None,
             depth_sigma: None,
             roll_sigma: None,
+            light: BoundLight::default(),
         }
     }
 }
@@ -93,23 +101,11 @@ pub fn fisher(scene: &CrbScene, pose: &Pose) -> SMatrix<f64, NP, NP> {
     let m = &scene.model;
     let gt = temperature_gain(scene.temp_c);
     let q = from_pose(pose);
-    let (pred, irr, jac, jr) = predict_with_grad_rolled(m, &q, pose.roll.rad(), m.light.k_d, gt);
-    let fs = m.full_scale();
-    let cpv = m.counts_per_volt();
+    let ch = channels(m, &scene.light, &q, pose.roll.rad(), m.light.k_d, gt);
     let mut f = SMatrix::<f64, NP, NP>::zeros();
-    for k in 0..NDET {
-        if !(pred[k] < fs - 0.5 && pred[k] > 0.5) {
-            continue;
-        }
-        let var = m.count_variance(irr[k] * m.gain[k] * gt);
-        let mut row = SVector::<f64, NP>::zeros();
-        for j in 0..6 {
-            row[j] = jac[(k, j)];
-        }
-        // ∂count/∂(relative gain): the light part of the count.
-        row[6] = m.gain[k] * gt * irr[k] * cpv;
-        row[7] = jr[k];
-        f += row * row.transpose() / var;
+    for c in ch.iter().filter(|c| c.used) {
+        let row = SVector::<f64, NP>::from_column_slice(&c.grad);
+        f += row * row.transpose() / c.var;
     }
     let mut fix = |i: usize, sigma: Option<f64>| match sigma {
         Some(s) if s > 0.0 && s.is_finite() => f[(i, i)] += 1.0 / (s * s),
@@ -279,6 +275,93 @@ mod tests {
             assert!(b.roll_deg > 4.9 && b.roll_deg <= 5.0 + 1e-9, "{b:?}");
         }
         assert_eq!(v2.roll_deg, 0.0);
+    }
+
+    /// Spec v3 in the bound: a blinking beacon's amplitudes over N samples
+    /// bound far below one count per frame, and the sun only adds its
+    /// shot noise to them; a steady beacon by day pays for the sun's
+    /// unknown level with a wider bound, most on the axes its shape over
+    /// the dome resembles, never a narrower one.
+    #[test]
+    fn amplitudes_and_daylight_in_the_bound() {
+        use super::super::bound_light::BoundDaylight;
+        // Shot noise on (κ), so that the sun costs the amplitudes; the
+        // water known, so that the light's own information shows rather
+        // than the K_D and temperature priors'.
+        let model = SensorModel {
+            adc_bits: 12,
+            kappa_v: 1e-3,
+            ..SensorModel::default()
+        };
+        let mut scene = CrbScene::montecarlo(model);
+        scene.sigma_k_d = None;
+        scene.sigma_temp_c = None;
+        scene.attitude_sigma = Some((Angle::from_deg(0.3), Angle::from_deg(1.5)));
+        let day = BoundDaylight {
+            surface_v: 5.0,
+            origin_depth_m: 4.0,
+            upwelling: 0.02,
+            own_flicker: 0.3 * 0.3f64.sqrt(),
+            flicker_depth_m: 3.0,
+        };
+        let p = [Pose::new(
+            6.5,
+            0.3,
+            -0.2,
+            Angle::from_deg(3.0),
+            Angle::from_deg(-4.0),
+        )];
+        let mut at = |blink_samples, daylight| {
+            scene.light = BoundLight {
+                blink_samples,
+                daylight,
+            };
+            crb_along(&scene, &p)[0]
+        };
+        let steady_night = at(None, None);
+        let steady_day = at(None, Some(day));
+        let blink_night = at(Some(200), None);
+        let blink_day = at(Some(200), Some(day));
+        eprintln!(
+            "steady night {steady_night:?}\nsteady day   {steady_day:?}\nblink night  {blink_night:?}\nblink day    {blink_day:?}"
+        );
+        let xyz = |b: &CrbBound| [b.x, b.y, b.z];
+        // y and z lean on the attitude's prior and x on them (the beam
+        // factor off axis): the amplitudes narrow every axis, none 7×.
+        assert!(blink_night.x < 0.8 * steady_night.x && blink_night.z < 0.7 * steady_night.z);
+        for i in 0..3 {
+            assert!(xyz(&blink_night)[i] < xyz(&steady_night)[i], "{i}");
+            assert!(
+                xyz(&blink_day)[i] >= xyz(&blink_night)[i] * (1.0 - 1e-9),
+                "{i}"
+            );
+            assert!(
+                xyz(&steady_day)[i] >= xyz(&steady_night)[i] * (1.0 - 1e-9),
+                "{i}"
+            );
+        }
+        // The sun's level costs a steady beacon real precision somewhere.
+        assert!(steady_day.x > 1.2 * steady_night.x || steady_day.z > 1.2 * steady_night.z);
+        // Without shot noise, 100 on and 100 off samples carry N/4 = 50×
+        // one count's information on every channel: x's, which no prior
+        // touches, exactly so.
+        let mut quiet = scene.clone();
+        quiet.model.kappa_v = 0.0;
+        quiet.light = BoundLight::default();
+        let f1 = fisher(&quiet, &p[0]);
+        quiet.light.blink_samples = Some(200);
+        let f200 = fisher(&quiet, &p[0]);
+        assert!(
+            (f200[(0, 0)] / f1[(0, 0)] - 50.0).abs() < 1e-9,
+            "{}",
+            f200[(0, 0)] / f1[(0, 0)]
+        );
+        // Only its shot noise touches the amplitudes.
+        assert!(blink_day.x > blink_night.x, "{blink_day:?} {blink_night:?}");
+        assert!(
+            blink_day.x < 2.0 * blink_night.x,
+            "{blink_day:?} {blink_night:?}"
+        );
     }
 
     #[test]

@@ -19,6 +19,7 @@
 // Channel loops index several parallel per-detector arrays at once.
 #![allow(clippy::needless_range_loop)]
 
+pub mod bound_light;
 pub mod crb;
 pub mod daylight;
 pub(crate) mod findings;

@@ -24,7 +24,8 @@ use nalgebra::{SMatrix, SVector};
 
 use super::state::{Ms, State, Vs, KD, NS, VEL};
 use super::Tracker;
-use crate::model::light::{from_pose, predict_with_grad_rolled, PoseVec};
+use crate::model::bound_light::{channels, BoundLight};
+use crate::model::light::{from_pose, PoseVec};
 
 /// The bound's state: the tracker's and the common gain.
 const NB: usize = NS + 1;
@@ -54,6 +55,9 @@ pub struct TrackBoundScene {
     pub attitude: Option<(f64, f64)>,
     pub depth: Option<f64>,
     pub dvl: Option<f64>,
+    /// Spec v3: counts or a blinking beacon's amplitudes, and the sun
+    /// (`bound_light`); the default is v1/v2's.
+    pub light: BoundLight,
 }
 
 /// Lower bounds (1σ) at one frame; angles in degrees.
@@ -152,29 +156,24 @@ impl Tracker {
         x
     }
 
-    /// Add one frame's information: the counts (uncensored channels of
-    /// the true image) and the own sensors' readings.
+    /// Add one frame's information: the light (uncensored channels of
+    /// the true image, `bound_light`) and the own sensors' readings.
     /// Spec v3: the light is the true pose's, rolled by `roll` (rad; taken
     /// as known, as its reading gives it to the tracker to 0.3°).
     fn inform_frame(&self, p: &mut Mb, x: &Vs, roll: f64, sc: &TrackBoundScene) {
         let m = &self.model;
         let gt = lightpose_core::light::temperature_gain(sc.temp_c);
         let q = PoseVec::from_fn(|i, _| x[i]);
-        let (pred, irr, jac, _) = predict_with_grad_rolled(m, &q, roll, x[KD], gt);
-        let fs = m.full_scale();
-        let cpv = m.counts_per_volt();
+        let ch = channels(m, &sc.light, &q, roll, x[KD], gt);
         let mut h = SMatrix::<f64, NDET, NB>::zeros();
         let mut r = SVector::<f64, NDET>::from_element(1.0);
-        for k in 0..NDET {
-            if !(pred[k] > 0.5 && pred[k] < fs - 0.5) {
-                continue;
-            }
+        for (k, c) in ch.iter().enumerate().filter(|(_, c)| c.used) {
             for j in 0..5 {
-                h[(k, j)] = jac[(k, j)];
+                h[(k, j)] = c.grad[j];
             }
-            h[(k, KD)] = jac[(k, 5)];
-            h[(k, GAIN)] = m.gain[k] * gt * irr[k] * cpv;
-            r[k] = m.count_variance(irr[k] * m.gain[k] * gt);
+            h[(k, KD)] = c.grad[5];
+            h[(k, GAIN)] = c.grad[6];
+            r[k] = c.var;
         }
         inform(p, &h, &r);
         if let Some((sp, sy)) = sc.attitude {
@@ -291,6 +290,7 @@ mod tests {
             attitude: Some((0.3f64.to_radians(), 1.5f64.to_radians())),
             depth: None,
             dvl: None,
+            light: BoundLight::default(),
         };
         let track = approach();
         let att = tr.track_bound(&track, &base);
@@ -327,6 +327,7 @@ mod tests {
             attitude: None,
             depth: None,
             dvl: None,
+            light: BoundLight::default(),
         };
         for x in [4.0, 5.0, 6.0, 7.0, 8.5] {
             let pose = Pose::new(x, 0.0, 0.0, Angle::ZERO, Angle::ZERO);
@@ -370,6 +371,7 @@ mod tests {
             attitude,
             depth: Some(0.02),
             dvl: Some(0.02),
+            light: BoundLight::default(),
         };
         let track = approach();
         let bound = |cfg: &TrackerConfig, att| {
