@@ -194,6 +194,7 @@ pub async fn supervise_to_end(
         rec: d.rec_stats.as_deref(),
         att: d.attitude.as_deref(),
         live: d.live.as_deref(),
+        web: d.web.as_deref(),
         vehicle: vehicle_hub.as_deref(),
         publisher: &d.publisher,
         source: &d.source,
@@ -231,7 +232,10 @@ pub async fn supervise_to_end(
     // Aborted, and awaited (an abort ends them at their next poll; bounded
     // all the same, as the vehicle's stop is): their logs tell what is
     // pending as they are dropped (at stop), before the summary.
-    for h in [d.listener.take(), d.live_server.take()]
+    if let Some(w) = &d.web {
+        w.close();
+    }
+    for h in [d.listener.take(), d.live_server.take(), d.web_server.take()]
         .into_iter()
         .flatten()
     {
