@@ -426,7 +426,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
 
     let web = match &cfg.web {
         Some(w) => Some(
-            web::start(w)
+            web::start(w, cfg.recording.as_ref().map(|r| r.dir.clone()))
                 .await
                 .map_err(|e| web_bind(cfg, w.listen, e))?,
         ),

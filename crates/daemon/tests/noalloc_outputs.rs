@@ -90,7 +90,7 @@ fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
     let live = rt.block_on(live::start(fx, &header)).expect("live view");
     rt.spawn(reader(live.hub.listen));
     let page = rt
-        .block_on(web::start(cfg.web.as_ref().expect("web")))
+        .block_on(web::start(cfg.web.as_ref().expect("web"), None))
         .expect("web page");
     rt.spawn(feed_reader(page.feed.listen));
     let t0 = Instant::now();

@@ -15,6 +15,7 @@
 //!   (the `watch` slot), never a queue.
 
 use super::assets;
+use super::control;
 use super::WebFeed;
 use bytes::Bytes;
 use std::collections::HashMap;
@@ -186,6 +187,8 @@ pub struct Request {
     pub method: String,
     /// Without its query.
     pub path: String,
+    /// The body's length, when the head says it.
+    pub content_length: Option<usize>,
 }
 
 /// Why a request head was refused.
@@ -218,14 +221,29 @@ pub fn parse_head(head: &[u8]) -> Result<Request, HeadError> {
     if !path.starts_with('/') {
         return Err(HeadError::Malformed("target is not a path"));
     }
+    let mut content_length = None;
+    for h in text.lines().skip(1) {
+        let Some((name, value)) = h.split_once(':') else {
+            continue;
+        };
+        if name.trim().eq_ignore_ascii_case("content-length") {
+            let n = value
+                .trim()
+                .parse::<usize>()
+                .map_err(|_| HeadError::Malformed("bad Content-Length"))?;
+            content_length = Some(n);
+        }
+    }
     Ok(Request {
         method: method.to_string(),
         path: path.to_string(),
+        content_length,
     })
 }
 
-/// Read until the end of the head, at most `max` bytes.
-async fn read_head(stream: &mut TcpStream, max: usize) -> Result<Vec<u8>, HeadError> {
+/// Read until the end of the head, at most `max` bytes: what was read,
+/// and where the head ends in it (a body may follow).
+async fn read_head(stream: &mut TcpStream, max: usize) -> Result<(Vec<u8>, usize), HeadError> {
     let mut buf = vec![0u8; max];
     let mut n = 0;
     loop {
@@ -243,8 +261,8 @@ async fn read_head(stream: &mut TcpStream, max: usize) -> Result<Vec<u8>, HeadEr
         let from = n.saturating_sub(3);
         n += got;
         if let Some(end) = buf[from..n].windows(4).position(|w| w == b"\r\n\r\n") {
-            buf.truncate(from + end + 4);
-            return Ok(buf);
+            buf.truncate(n);
+            return Ok((buf, from + end + 4));
         }
     }
 }
@@ -257,7 +275,7 @@ async fn connection(mut stream: TcpStream, addr: SocketAddr, feed: &Arc<WebFeed>
         read_head(&mut stream, limits.head_bytes),
     )
     .await;
-    let req = match got {
+    let (req, rest) = match got {
         Err(_) => {
             feed.counters.timed_out.fetch_add(1, Relaxed);
             return;
@@ -277,8 +295,8 @@ async fn connection(mut stream: TcpStream, addr: SocketAddr, feed: &Arc<WebFeed>
             let _ = send_error(&mut stream, code, reason, &msg, limits).await;
             return;
         }
-        Ok(Ok(h)) => match parse_head(&h) {
-            Ok(r) => r,
+        Ok(Ok((h, end))) => match parse_head(&h[..end]) {
+            Ok(r) => (r, h[end..].to_vec()),
             Err(HeadError::Malformed(why)) => {
                 feed.counters.bad_requests.fetch_add(1, Relaxed);
                 let _ = send_error(
@@ -294,7 +312,11 @@ async fn connection(mut stream: TcpStream, addr: SocketAddr, feed: &Arc<WebFeed>
             Err(_) => return,
         },
     };
-    let r = answer(&mut stream, &req, feed, limits).await;
+    let r = if control::is_control(&req) {
+        control::answer(&mut stream, &req, &rest, feed, limits).await
+    } else {
+        answer(&mut stream, &req, feed, limits).await
+    };
     if let Err(Cut::NotReading) = r {
         feed.counters.not_reading.fetch_add(1, Relaxed);
         tracing::debug!("web: {addr} stopped reading: cut");
@@ -302,12 +324,12 @@ async fn connection(mut stream: TcpStream, addr: SocketAddr, feed: &Arc<WebFeed>
 }
 
 /// Why a connection ended early.
-enum Cut {
+pub enum Cut {
     NotReading,
     Gone,
 }
 
-async fn write(stream: &mut TcpStream, bytes: &[u8], limits: &Limits) -> Result<(), Cut> {
+pub async fn write(stream: &mut TcpStream, bytes: &[u8], limits: &Limits) -> Result<(), Cut> {
     match tokio::time::timeout(limits.write_deadline, stream.write_all(bytes)).await {
         Ok(Ok(())) => Ok(()),
         Ok(Err(_)) => Err(Cut::Gone),
@@ -315,7 +337,7 @@ async fn write(stream: &mut TcpStream, bytes: &[u8], limits: &Limits) -> Result<
     }
 }
 
-async fn send(
+pub async fn send(
     stream: &mut TcpStream,
     code: u16,
     reason: &str,
@@ -333,7 +355,7 @@ async fn send(
     Ok(())
 }
 
-async fn send_error(
+pub async fn send_error(
     stream: &mut TcpStream,
     code: u16,
     reason: &str,
@@ -364,10 +386,14 @@ async fn answer(
         "GET" => true,
         "HEAD" => false,
         _ => {
-            let msg = format!(
-                "{} {}: the page is read-only ([web] control = false)",
-                req.method, req.path
-            );
+            let msg = if feed.control {
+                format!("{} {}: not a request this page takes", req.method, req.path)
+            } else {
+                format!(
+                    "{} {}: the page is read-only ([web] control = false)",
+                    req.method, req.path
+                )
+            };
             return send_error(stream, 405, "Method Not Allowed", &msg, limits).await;
         }
     };

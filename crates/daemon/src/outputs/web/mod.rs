@@ -20,6 +20,7 @@
 //! `GET /v1/status`.
 
 pub mod assets;
+pub mod control;
 pub mod event;
 pub mod http;
 
@@ -54,6 +55,11 @@ pub struct WebFeed {
     /// Where the server listens (port 0 resolved).
     pub listen: std::net::SocketAddr,
     pub control: bool,
+    /// The recording folder (`[recording] dir`), for the page's downloads.
+    pub recordings: Option<std::path::PathBuf>,
+    /// A calibration reload asked from the page (`control`): the
+    /// supervisor takes it as it takes SIGHUP.
+    pub reload: tokio::sync::Notify,
     /// The latest live event (JSON), replaced `updates_hz` times a second.
     live: watch::Sender<Bytes>,
     /// The latest STATUS (JSON).
@@ -74,10 +80,16 @@ pub struct WebFeed {
 }
 
 impl WebFeed {
-    fn new(listen: std::net::SocketAddr, control: bool) -> WebFeed {
+    fn new(
+        listen: std::net::SocketAddr,
+        control: bool,
+        recordings: Option<std::path::PathBuf>,
+    ) -> WebFeed {
         WebFeed {
             listen,
             control,
+            recordings,
+            reload: tokio::sync::Notify::new(),
             live: watch::Sender::new(Bytes::new()),
             status: watch::Sender::new(Bytes::new()),
             pose: Mutex::new(Bytes::new()),
@@ -236,11 +248,12 @@ pub struct WebParts {
     pub server: tokio::task::JoinHandle<()>,
 }
 
-/// Bind `cfg.listen` and start serving the page.
-pub async fn start(cfg: &Web) -> std::io::Result<WebParts> {
+/// Bind `cfg.listen` and start serving the page; `recordings` is the
+/// recording folder, if any.
+pub async fn start(cfg: &Web, recordings: Option<std::path::PathBuf>) -> std::io::Result<WebParts> {
     let listener = tokio::net::TcpListener::bind(cfg.listen).await?;
     let listen = listener.local_addr()?;
-    let feed = Arc::new(WebFeed::new(listen, cfg.control));
+    let feed = Arc::new(WebFeed::new(listen, cfg.control, recordings));
     let output = WebView::start(feed.clone(), cfg.updates_hz)?;
     let limits = http::Limits::new(cfg.max_clients, cfg.max_clients_per_addr);
     let server = tokio::spawn(http::serve(listener, feed.clone(), limits));

@@ -250,6 +250,49 @@ function showStatus(st) {
   }
 }
 
+// --- control ([web] control = true) ---------------------------------------------
+
+let controlShown = false;
+function showControl(st) {
+  if (!(st.web && st.web.control) || controlShown) return;
+  controlShown = true;
+  $("control-card").hidden = false;
+  $("reload").onclick = () => {
+    fetch("v1/reload", { method: "POST" })
+      .then((r) => r.json())
+      .then((v) => { $("reload-said").textContent = v.error || "asked: STATUS counts the reload"; })
+      .catch((e) => { $("reload-said").textContent = String(e); });
+  };
+  $("cfgfile").onchange = () => {
+    const f = $("cfgfile").files[0];
+    if (!f) return;
+    fetch("v1/check-config", { method: "POST", body: f })
+      .then((r) => r.json())
+      .then((v) => {
+        $("verdict").textContent = v.ok ? v.verdict : v.error;
+        $("verdict").className = "verdict " + (v.ok ? "ok" : "bad");
+      })
+      .catch((e) => { $("verdict").textContent = String(e); });
+  };
+  const list = () => fetch("v1/recordings").then((r) => r.json()).then((v) => {
+    const t = $("recordings");
+    t.innerHTML = "";
+    for (const f of v.files || []) {
+      const tr = document.createElement("tr");
+      const a = document.createElement("a");
+      a.href = "v1/recordings/" + encodeURIComponent(f.name);
+      a.download = f.name;
+      a.textContent = f.name;
+      const td1 = document.createElement("td"); td1.appendChild(a);
+      const td2 = document.createElement("td"); td2.textContent = `${(f.bytes / 1e6).toFixed(2)} MB`;
+      tr.appendChild(td1); tr.appendChild(td2); t.appendChild(tr);
+    }
+    if (!(v.files || []).length) rows("recordings", [["none", v.error || "no recording in the folder", "never"]]);
+  }).catch(() => {});
+  list();
+  setInterval(list, 5000);
+}
+
 // --- the feed ----------------------------------------------------------------
 
 let source = null;
@@ -268,7 +311,9 @@ function connect() {
   });
   source.addEventListener("status", (m) => {
     seen.status += 1;
-    showStatus(JSON.parse(m.data));
+    const st = JSON.parse(m.data);
+    showStatus(st);
+    showControl(st);
   });
   source.onerror = () => {
     $("conn").textContent = "reconnecting…";
