@@ -303,6 +303,44 @@ fn foxglove_bind(cfg: &Config, addr: SocketAddr, e: std::io::Error) -> DaemonErr
     .at(cfg.places.of(places::FOXGLOVE_LISTEN))
 }
 
+/// The web page, if `[web]` asks for it; a port that cannot be bound is
+/// said at `web.listen`'s line.
+async fn start_web(
+    cfg: &Config,
+    rec_stats: Option<&Arc<RecStats>>,
+) -> Result<Option<web::WebParts>, DaemonError> {
+    let Some(w) = &cfg.web else { return Ok(None) };
+    let parts = web::start(w, recordings(cfg, rec_stats)).await;
+    parts.map(Some).map_err(|e| web_bind(cfg, w.listen, e))
+}
+
+/// The web page's ends: its feed takes each frame (after the others) and
+/// each STATUS.
+fn plug_web(
+    engine: Engine,
+    web: Option<web::WebParts>,
+    taps: &mut Vec<Box<dyn StatusTap>>,
+) -> (Engine, Option<Arc<WebFeed>>, Option<JoinHandle<()>>) {
+    let Some(w) = web else {
+        return (engine, None, None);
+    };
+    taps.push(Box::new(w.feed.clone()));
+    (
+        engine.output(Box::new(w.output)),
+        Some(w.feed),
+        Some(w.server),
+    )
+}
+
+/// The recorder as the web page sees it (its folder, its counters).
+fn recordings(cfg: &Config, stats: Option<&Arc<RecStats>>) -> Option<web::Recordings> {
+    let (r, s) = (cfg.recording.as_ref()?, stats?);
+    Some(web::Recordings {
+        dir: r.dir.clone(),
+        stats: s.clone(),
+    })
+}
+
 /// The web page's failure to listen, at `web.listen`'s line.
 fn web_bind(cfg: &Config, addr: SocketAddr, e: std::io::Error) -> DaemonError {
     DaemonError::WebListen {
@@ -424,14 +462,7 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         None => None,
     };
 
-    let web = match &cfg.web {
-        Some(w) => Some(
-            web::start(w, cfg.recording.as_ref().map(|r| r.dir.clone()))
-                .await
-                .map_err(|e| web_bind(cfg, w.listen, e))?,
-        ),
-        None => None,
-    };
+    let web_parts = start_web(cfg, rec_stats.as_ref()).await?;
 
     let (reload_tx, reload_rx) = std::sync::mpsc::channel::<Box<dyn Estimator>>();
     let mut engine = Engine::new(source, estimator)
@@ -454,14 +485,8 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         }
         None => (None, None),
     };
-    let (web, web_server) = match web {
-        Some(w) => {
-            status_taps.push(Box::new(w.feed.clone()));
-            engine = engine.output(Box::new(w.output));
-            (Some(w.feed), Some(w.server))
-        }
-        None => (None, None),
-    };
+    let (web, web_server);
+    (engine, web, web_server) = plug_web(engine, web_parts, &mut status_taps);
     if let (Some(cell), Some(a)) = (&attitude, &cfg.attitude) {
         let max_age = a.max_age;
         engine = engine.input(Box::new(LatestAttitude::new(cell.clone(), max_age)));

@@ -2,8 +2,10 @@
 //! TCP: a calibration reload asked from the page reloads (STATUS counts
 //! it); an uploaded configuration gets `--check-config`'s one-line
 //! verdict, a bad one its `file:line: key` and one too large a 413; the
-//! recording folder is listed and a recording downloads byte for byte,
-//! while a name that would leave the folder is refused. Without
+//! recording stops from the page (its file completed), the folder is
+//! listed and that file downloads byte for byte while the daemon runs, a
+//! name that would leave the folder is refused, and recording starts again
+//! in a new file. Without
 //! `control` the same requests are refused (403) and nothing happens.
 
 mod common;
@@ -129,27 +131,34 @@ fn with_control_the_page_reloads_checks_a_config_and_downloads_a_recording() {
         "{v}"
     );
 
-    // The recording folder, and one file of it as it is on disk.
+    // Recording stopped from the page: the file is completed and closed,
+    // and downloads whole, byte for byte, while the daemon runs on.
+    let (code, v) = post(web, "/v1/recording/stop", b"");
+    assert_eq!(
+        (code, &v["recording"]),
+        (202, &Value::from("stopped")),
+        "{v}"
+    );
+    let state = |sub: &UdpSocket| status(sub, Duration::from_millis(300))["recording"].clone();
+    let t0 = Instant::now();
+    let mut rec_status = state(&sub);
+    while rec_status["state"] != "paused" && t0.elapsed() < Duration::from_secs(10) {
+        rec_status = state(&sub);
+    }
+    assert_eq!(rec_status["state"], "paused", "{rec_status}");
     let (code, list) = get(web, "/v1/recordings");
     assert_eq!(code, 200);
     let list: Value = serde_json::from_slice(&list).unwrap();
+    let files = list["files"].as_array().unwrap().len();
     let name = list["files"][0]["name"]
         .as_str()
         .expect("a recording")
         .to_string();
-    let _ = stop.send(());
-    daemon.join().expect("daemon");
-    // Stopped: the file is whole; a second daemon serves the same folder
-    // (the first one's last datagrams drained: they name its address).
-    let _ = collect(&sub, Duration::from_millis(300));
-    let (daemon, stop, web) = start(&text, &sub);
     let (code, body) = get(web, &format!("/v1/recordings/{name}"));
     assert_eq!(code, 200);
-    assert_eq!(
-        body,
-        std::fs::read(rec.join(&name)).unwrap(),
-        "{name} byte for byte"
-    );
+    let on_disk = std::fs::read(rec.join(&name)).unwrap();
+    assert_eq!(body, on_disk, "{name} byte for byte");
+    assert!(body.ends_with(b"\n"), "a whole JSON Lines file");
     for bad in [
         "..%2f..%2fetc%2fpasswd",
         "../cal.toml",
@@ -159,6 +168,14 @@ fn with_control_the_page_reloads_checks_a_config_and_downloads_a_recording() {
         let (code, _) = get(web, &format!("/v1/recordings/{bad}"));
         assert_eq!(code, 404, "{bad}");
     }
+    // Started again: a new file.
+    let (code, _) = post(web, "/v1/recording/start", b"");
+    assert_eq!(code, 202);
+    let t0 = Instant::now();
+    while state(&sub)["state"] != "recording" && t0.elapsed() < Duration::from_secs(10) {}
+    let (_, list) = get(web, "/v1/recordings");
+    let list: Value = serde_json::from_slice(&list).unwrap();
+    assert_eq!(list["files"].as_array().unwrap().len(), files + 1, "{list}");
     let s = status(&sub, Duration::from_millis(400));
     let _ = stop.send(());
     let summary = daemon.join().expect("daemon");

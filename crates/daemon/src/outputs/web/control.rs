@@ -1,5 +1,6 @@
 //! What the page may do with `[web] control = true` (issue 43, item 4):
-//! reload the calibration (as SIGHUP does), check an uploaded
+//! stop and start the recording, reload the calibration (as SIGHUP does),
+//! check an uploaded
 //! configuration (`--check-config`'s parse and validation, its one-line
 //! verdict), list the recording folder and download a file of it. Without
 //! `control` every one of these is refused (the page is read-only).
@@ -27,7 +28,11 @@ pub const MAX_UPLOAD: usize = 256 << 10;
 pub fn is_control(req: &Request) -> bool {
     matches!(
         (req.method.as_str(), req.path.as_str()),
-        ("POST", "/v1/reload") | ("POST", "/v1/check-config") | ("GET", "/v1/recordings")
+        ("POST", "/v1/reload")
+            | ("POST", "/v1/check-config")
+            | ("GET", "/v1/recordings")
+            | ("POST", "/v1/recording/start")
+            | ("POST", "/v1/recording/stop")
     ) || (req.method == "GET" && req.path.starts_with("/v1/recordings/"))
 }
 
@@ -64,6 +69,8 @@ pub async fn answer(
             .await
         }
         ("POST", "/v1/check-config") => check_config(stream, req, head_rest, limits).await,
+        ("POST", "/v1/recording/start") => recording(stream, feed, false, limits).await,
+        ("POST", "/v1/recording/stop") => recording(stream, feed, true, limits).await,
         ("GET", "/v1/recordings") => list(stream, feed, limits).await,
         _ => download(stream, req, feed, limits).await,
     }
@@ -124,6 +131,46 @@ async fn check_config(
         stream,
         200,
         "OK",
+        "application/json",
+        body.as_bytes(),
+        true,
+        limits,
+    )
+    .await
+}
+
+/// Stop (`paused`) or start the recording: a flag the frame path and the
+/// recorder thread read (the thread completes and closes the file at a
+/// stop; the next frame after a start opens a new one).
+async fn recording(
+    stream: &mut TcpStream,
+    feed: &Arc<WebFeed>,
+    pause: bool,
+    limits: &Limits,
+) -> Result<(), Cut> {
+    let Some(rec) = &feed.recorder else {
+        return http::send_error(
+            stream,
+            404,
+            "Not Found",
+            "no [recording] configured",
+            limits,
+        )
+        .await;
+    };
+    let was = rec.paused.swap(pause, std::sync::atomic::Ordering::Relaxed);
+    if was != pause {
+        tracing::info!(
+            "web: recording {} from the page",
+            if pause { "stopped" } else { "started" }
+        );
+    }
+    let body =
+        serde_json::json!({ "recording": if pause { "stopped" } else { "started" } }).to_string();
+    http::send(
+        stream,
+        202,
+        "Accepted",
         "application/json",
         body.as_bytes(),
         true,

@@ -55,8 +55,10 @@ pub struct WebFeed {
     /// Where the server listens (port 0 resolved).
     pub listen: std::net::SocketAddr,
     pub control: bool,
-    /// The recording folder (`[recording] dir`), for the page's downloads.
+    /// The recording folder (`[recording] dir`), for the page's downloads,
+    /// and the recorder's counters (its `paused`: start and stop).
     pub recordings: Option<std::path::PathBuf>,
+    pub recorder: Option<Arc<crate::outputs::recorder::RecStats>>,
     /// A calibration reload asked from the page (`control`): the
     /// supervisor takes it as it takes SIGHUP.
     pub reload: tokio::sync::Notify,
@@ -80,15 +82,13 @@ pub struct WebFeed {
 }
 
 impl WebFeed {
-    fn new(
-        listen: std::net::SocketAddr,
-        control: bool,
-        recordings: Option<std::path::PathBuf>,
-    ) -> WebFeed {
+    fn new(listen: std::net::SocketAddr, control: bool, rec: Option<Recordings>) -> WebFeed {
+        let (recordings, recorder) = rec.map_or((None, None), |r| (Some(r.dir), Some(r.stats)));
         WebFeed {
             listen,
             control,
             recordings,
+            recorder,
             reload: tokio::sync::Notify::new(),
             live: watch::Sender::new(Bytes::new()),
             status: watch::Sender::new(Bytes::new()),
@@ -248,9 +248,15 @@ pub struct WebParts {
     pub server: tokio::task::JoinHandle<()>,
 }
 
-/// Bind `cfg.listen` and start serving the page; `recordings` is the
-/// recording folder, if any.
-pub async fn start(cfg: &Web, recordings: Option<std::path::PathBuf>) -> std::io::Result<WebParts> {
+/// The recorder as the page sees it: its folder and its counters.
+pub struct Recordings {
+    pub dir: std::path::PathBuf,
+    pub stats: Arc<crate::outputs::recorder::RecStats>,
+}
+
+/// Bind `cfg.listen` and start serving the page; `recordings`, the
+/// recorder if any.
+pub async fn start(cfg: &Web, recordings: Option<Recordings>) -> std::io::Result<WebParts> {
     let listener = tokio::net::TcpListener::bind(cfg.listen).await?;
     let listen = listener.local_addr()?;
     let feed = Arc::new(WebFeed::new(listen, cfg.control, recordings));

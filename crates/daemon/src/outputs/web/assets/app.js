@@ -254,6 +254,7 @@ function showStatus(st) {
 
 let controlShown = false;
 function showControl(st) {
+  if (st.recording) $("rec-state").textContent = st.recording.state;
   if (!(st.web && st.web.control) || controlShown) return;
   controlShown = true;
   $("control-card").hidden = false;
@@ -274,6 +275,9 @@ function showControl(st) {
       })
       .catch((e) => { $("verdict").textContent = String(e); });
   };
+  for (const [id, what] of [["rec-stop", "stop"], ["rec-start", "start"]]) {
+    $(id).onclick = () => fetch(`v1/recording/${what}`, { method: "POST" }).then(() => setTimeout(list, 1500));
+  }
   const list = () => fetch("v1/recordings").then((r) => r.json()).then((v) => {
     const t = $("recordings");
     t.innerHTML = "";
