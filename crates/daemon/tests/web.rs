@@ -316,9 +316,16 @@ fn without_a_web_table_the_daemon_listens_on_no_tcp_port() {
     assert_eq!(none, Vec::<u64>::new(), "TCP ports open without [web]");
 
     // The same look finds the page's port when it is on: the check sees.
+    // (The first daemon's datagrams drained: spawn_daemon waits for POSE.)
+    let _ = collect(&sub, Duration::from_millis(300));
     let on = web_config(dest, "");
     let (mut child, _) = spawn_daemon(dir.path(), &on, &sub);
-    let one = listening_tcp(child.id());
+    let mut one = listening_tcp(child.id());
+    let t0 = Instant::now();
+    while one.is_empty() && t0.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(50));
+        one = listening_tcp(child.id());
+    }
     let _ = child.kill();
     let _ = child.wait();
     assert_eq!(one.len(), 1, "the page's one port");
