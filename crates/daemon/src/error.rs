@@ -70,6 +70,12 @@ pub enum DaemonError {
         #[source]
         source: std::io::Error,
     },
+    #[error("web.listen {addr}")]
+    WebListen {
+        addr: std::net::SocketAddr,
+        #[source]
+        source: std::io::Error,
+    },
     /// The MAVLink link could not be opened (the cause names the
     /// endpoint): a port in use, a serial device not (yet) there.
     #[error("mavlink")]
@@ -117,6 +123,7 @@ impl DaemonError {
             DaemonError::Publish(_)
             | DaemonError::AttitudeBind { .. }
             | DaemonError::FoxgloveListen { .. }
+            | DaemonError::WebListen { .. }
             | DaemonError::Mavlink(_)
             | DaemonError::Recorder(_)
             | DaemonError::Thread(_) => false,

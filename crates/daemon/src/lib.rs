@@ -12,6 +12,7 @@
 //! - [`outputs`]: where each frame and estimate go (UDP, recording, the
 //!   autopilot);
 //! - [`vehicle`]: the MAVLink and DVL tasks and their shared hub;
+//!   [`blueos`]: BlueOS's autopilot manager asked for their endpoint;
 //! - [`supervisor`]: signals, reloads, STATUS and the watchdog;
 //! - [`status`], [`stats`], [`notify`]: STATUS/VERSION, the counters
 //!   behind them, systemd;
@@ -19,6 +20,7 @@
 //! - [`bench`]: `--bench` and `--soak`.
 
 pub mod bench;
+pub mod blueos;
 pub mod config;
 pub mod engine;
 pub mod error;

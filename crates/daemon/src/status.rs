@@ -51,6 +51,8 @@ pub struct StatusCtx<'a> {
     pub att: Option<&'a AttitudeCell>,
     /// The live view, if on.
     pub live: Option<&'a Hub>,
+    /// The web page's feed, if on.
+    pub web: Option<&'a crate::outputs::web::WebFeed>,
     /// The vehicle link's hub, if `[mavlink]` or `[dvl]` is on.
     pub vehicle: Option<&'a lightpose_vehicle::Hub>,
     pub publisher: &'a Publisher,
@@ -84,6 +86,7 @@ pub fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> Value {
         "channels": channels(s),
         "outputs": outputs(c.publisher),
         "foxglove": c.live.map_or_else(|| json!({"enabled": false}), Hub::report),
+        "web": c.web.map_or_else(|| json!({"enabled": false}), crate::outputs::web::WebFeed::report),
         "vehicle": vehicle(c),
         "demodulator": demodulator(s),
     })

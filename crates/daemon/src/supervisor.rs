@@ -194,6 +194,7 @@ pub async fn supervise_to_end(
         rec: d.rec_stats.as_deref(),
         att: d.attitude.as_deref(),
         live: d.live.as_deref(),
+        web: d.web.as_deref(),
         vehicle: vehicle_hub.as_deref(),
         publisher: &d.publisher,
         source: &d.source,
@@ -203,6 +204,10 @@ pub async fn supervise_to_end(
     tokio::pin!(shutdown);
     let mut reload_open = true;
     let mut rl = Reloads::new(cfg, &d);
+    // The page's reloads (`[web] control`) beside SIGHUP's.
+    let web = d.web.clone();
+    let web_reload = page_reload(web.as_deref());
+    tokio::pin!(web_reload);
     let end = loop {
         let wake = rl.wake_at();
         tokio::select! {
@@ -217,6 +222,10 @@ pub async fn supervise_to_end(
                 None => reload_open = false,
                 Some(()) => rl.ask(),
             },
+            () = &mut web_reload => {
+                web_reload.set(page_reload(web.as_deref()));
+                rl.ask();
+            }
             () = rl.finished() => rl.start(),
             () = tokio::time::sleep_until(wake.unwrap_or_else(tokio::time::Instant::now)), if wake.is_some() => rl.start(),
             _ = tick.tick() => {
@@ -231,7 +240,10 @@ pub async fn supervise_to_end(
     // Aborted, and awaited (an abort ends them at their next poll; bounded
     // all the same, as the vehicle's stop is): their logs tell what is
     // pending as they are dropped (at stop), before the summary.
-    for h in [d.listener.take(), d.live_server.take()]
+    if let Some(w) = &d.web {
+        w.close();
+    }
+    for h in [d.listener.take(), d.live_server.take(), d.web_server.take()]
         .into_iter()
         .flatten()
     {
@@ -254,6 +266,15 @@ pub async fn supervise_to_end(
         t.stop();
     }
     (summary(&ctx, &reason), reason)
+}
+
+/// Resolves when the page asks for a calibration reload; never without
+/// the page.
+async fn page_reload(web: Option<&crate::outputs::web::WebFeed>) {
+    match web {
+        Some(w) => w.reload.notified().await,
+        None => std::future::pending().await,
+    }
 }
 
 /// A reading that stopped reaching the frames (a DVL whose reports come

@@ -13,6 +13,7 @@ use crate::outputs::live::{self, hub::Hub};
 use crate::outputs::mavlink::ToAutopilot;
 use crate::outputs::recorder::{Epoch, RecStats, Recorder};
 use crate::outputs::udp::{PoseDatagrams, PublishError, Publisher};
+use crate::outputs::web::{self, WebFeed};
 use crate::outputs::StatusTap;
 use crate::stats::Stats;
 use crate::status::version_message;
@@ -215,6 +216,10 @@ fn check_binds(cfg: &Config) -> Result<(), DaemonError> {
         Some(f) => Some(machine::try_tcp(f.listen).map_err(|e| foxglove_bind(cfg, f.listen, e))?),
         None => None,
     };
+    let web_tcp = match &cfg.web {
+        Some(w) => Some(machine::try_tcp(w.listen).map_err(|e| web_bind(cfg, w.listen, e))?),
+        None => None,
+    };
     let mav_tcp = match mavlink_endpoint(cfg) {
         Some(ep @ Endpoint::TcpIn(a)) => {
             let bound = machine::try_tcp(*a).map_err(|source| LinkError::Tcp {
@@ -225,7 +230,7 @@ fn check_binds(cfg: &Config) -> Result<(), DaemonError> {
         }
         _ => None,
     };
-    drop((udp, tcp, mav_tcp));
+    drop((udp, tcp, web_tcp, mav_tcp));
     Ok(())
 }
 
@@ -298,6 +303,53 @@ fn foxglove_bind(cfg: &Config, addr: SocketAddr, e: std::io::Error) -> DaemonErr
     .at(cfg.places.of(places::FOXGLOVE_LISTEN))
 }
 
+/// The web page, if `[web]` asks for it; a port that cannot be bound is
+/// said at `web.listen`'s line.
+async fn start_web(
+    cfg: &Config,
+    rec_stats: Option<&Arc<RecStats>>,
+) -> Result<Option<web::WebParts>, DaemonError> {
+    let Some(w) = &cfg.web else { return Ok(None) };
+    let parts = web::start(w, recordings(cfg, rec_stats)).await;
+    parts.map(Some).map_err(|e| web_bind(cfg, w.listen, e))
+}
+
+/// The web page's ends: its feed takes each frame (after the others) and
+/// each STATUS.
+fn plug_web(
+    engine: Engine,
+    web: Option<web::WebParts>,
+    taps: &mut Vec<Box<dyn StatusTap>>,
+) -> (Engine, Option<Arc<WebFeed>>, Option<JoinHandle<()>>) {
+    let Some(w) = web else {
+        return (engine, None, None);
+    };
+    taps.push(Box::new(w.feed.clone()));
+    (
+        engine.output(Box::new(w.output)),
+        Some(w.feed),
+        Some(w.server),
+    )
+}
+
+/// The recorder as the web page sees it (its folder, its counters).
+fn recordings(cfg: &Config, stats: Option<&Arc<RecStats>>) -> Option<web::Recordings> {
+    let (r, s) = (cfg.recording.as_ref()?, stats?);
+    Some(web::Recordings {
+        dir: r.dir.clone(),
+        stats: s.clone(),
+    })
+}
+
+/// The web page's failure to listen, at `web.listen`'s line.
+fn web_bind(cfg: &Config, addr: SocketAddr, e: std::io::Error) -> DaemonError {
+    DaemonError::WebListen {
+        addr,
+        source: machine::bind_refusal(addr, e),
+    }
+    .at(cfg.places.of(places::WEB_LISTEN))
+}
+
 fn mavlink_endpoint(cfg: &Config) -> Option<&Endpoint> {
     let m = cfg.vehicle.as_ref().and_then(|v| v.mavlink.as_ref());
     m.map(|m| &m.endpoint)
@@ -345,6 +397,10 @@ pub struct Running {
     /// task (aborted at stop).
     pub live: Option<Arc<Hub>>,
     pub live_server: Option<JoinHandle<()>>,
+    /// The web page's feed (STATUS, closed at stop) and its accept task
+    /// (aborted at stop).
+    pub web: Option<Arc<WebFeed>>,
+    pub web_server: Option<JoinHandle<()>>,
     /// The MAVLink and DVL tasks and their hub, stopped after the frame
     /// thread.
     pub vehicle: Option<VehicleLink>,
@@ -406,6 +462,8 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         None => None,
     };
 
+    let web_parts = start_web(cfg, rec_stats.as_ref()).await?;
+
     let (reload_tx, reload_rx) = std::sync::mpsc::channel::<Box<dyn Estimator>>();
     let mut engine = Engine::new(source, estimator)
         .stats(stats.clone())
@@ -427,6 +485,8 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         }
         None => (None, None),
     };
+    let (web, web_server);
+    (engine, web, web_server) = plug_web(engine, web_parts, &mut status_taps);
     if let (Some(cell), Some(a)) = (&attitude, &cfg.attitude) {
         let max_age = a.max_age;
         engine = engine.input(Box::new(LatestAttitude::new(cell.clone(), max_age)));
@@ -446,6 +506,8 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         status_taps,
         live,
         live_server,
+        web,
+        web_server,
         vehicle,
         source: source_desc,
         adc_bits,
@@ -502,8 +564,31 @@ async fn start_vehicle(cfg: &Config) -> Result<Option<VehicleLink>, DaemonError>
     let Some(v) = &cfg.vehicle else {
         return Ok(None);
     };
+    if let Some(b) = &v.blueos {
+        ask_blueos(b).await;
+    }
     let link = crate::vehicle::start(v).await;
     link.map(Some).map_err(|e| mavlink_at(cfg, e))
+}
+
+/// BlueOS's autopilot manager asked for the daemon's MAVLink endpoint. A
+/// manager that does not answer (BlueOS still starting, an older BlueOS)
+/// fails nothing: the link opens as configured and the line says how to
+/// add the endpoint by hand.
+async fn ask_blueos(b: &crate::blueos::BlueosEndpoint) {
+    let what = format!("{} {}:{}", b.connection_type, b.place, b.argument);
+    match crate::blueos::ask(b).await {
+        Ok(crate::blueos::Asked::Created) => {
+            tracing::info!("BlueOS: the autopilot manager at {} added the MAVLink endpoint {what}", b.url)
+        }
+        Ok(crate::blueos::Asked::Present) => {
+            tracing::info!("BlueOS: the autopilot manager at {} has the MAVLink endpoint {what} already", b.url)
+        }
+        Err(e) => tracing::warn!(
+            "BlueOS: could not ask the autopilot manager at {} for the MAVLink endpoint {what}: {e}; the link opens all the same: add the endpoint in BlueOS (Autopilot Endpoints) by hand (docs/blueos.md)",
+            b.url
+        ),
+    }
 }
 
 /// The attitude input's socket and task, if configured.

@@ -1,5 +1,6 @@
-//! The frame thread hands frames to the MCAP recorder and to the live view
-//! (with a client subscribed to every channel) without allocating: a
+//! The frame thread hands frames to the MCAP recorder, to the live view
+//! (with a client subscribed to every channel) and to the web page's feed
+//! (with a browser's feed open) without allocating: a
 //! counting allocator, counting on the frame thread only (the recorder
 //! and encoder threads allocate per chunk and per message, off the hot
 //! path), shows that the frame thread's allocations do not grow with the
@@ -16,6 +17,7 @@ use lightposed::engine::Engine;
 use lightposed::outputs::live;
 use lightposed::outputs::recorder::{Epoch, Recorder};
 use lightposed::outputs::udp::PoseDatagrams;
+use lightposed::outputs::web;
 use lightposed::Publisher;
 use std::net::UdpSocket;
 use std::path::Path;
@@ -32,7 +34,7 @@ static A: Counting = Counting::new();
 fn config(sink: &UdpSocket, rec: &Path) -> Config {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let text = format!(
-        "rate_hz = 50.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{}\"]\n[recording]\ndir = \"{}\"\nformat = \"mcap\"\nflush_s = 0.05\n[foxglove]\nlisten = \"127.0.0.1:{}\"\n",
+        "rate_hz = 50.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{}\"]\n[recording]\ndir = \"{}\"\nformat = \"mcap\"\nflush_s = 0.05\n[foxglove]\nlisten = \"127.0.0.1:{}\"\n[web]\nlisten = \"127.0.0.1:0\"\n",
         root.join("config/calibration/tank.toml").display(),
         root.join("config/scenes/tank-ahrs.toml").display(),
         root.join("config/trajectories/zigzag.csv").display(),
@@ -62,6 +64,21 @@ async fn reader(addr: std::net::SocketAddr) {
     while let Some(Ok(_)) = ws.next().await {}
 }
 
+/// A browser's live feed, read to its end.
+async fn feed_reader(addr: std::net::SocketAddr) {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
+    s.write_all(b"GET /v1/events HTTP/1.1\r\nHost: v\r\n\r\n")
+        .await
+        .unwrap();
+    let mut buf = vec![0u8; 65536];
+    while let Ok(n) = s.read(&mut buf).await {
+        if n == 0 {
+            break;
+        }
+    }
+}
+
 /// Allocations on the frame thread over `frames` frames.
 fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
     let sink = UdpSocket::bind("127.0.0.1:0").expect("sink");
@@ -72,6 +89,10 @@ fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
     let fx = cfg.foxglove.as_ref().expect("foxglove");
     let live = rt.block_on(live::start(fx, &header)).expect("live view");
     rt.spawn(reader(live.hub.listen));
+    let page = rt
+        .block_on(web::start(cfg.web.as_ref().expect("web"), None))
+        .expect("web page");
+    rt.spawn(feed_reader(page.feed.listen));
     let t0 = Instant::now();
     while !live.hub.wanted() && t0.elapsed() < Duration::from_secs(10) {
         std::thread::sleep(Duration::from_millis(5));
@@ -90,10 +111,19 @@ fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
     .max_frames(frames)
     .output(Box::new(PoseDatagrams::new(publisher)))
     .output(Box::new(recorder))
-    .output(Box::new(live.output));
+    .output(Box::new(live.output))
+    .output(Box::new(page.output));
     let (_, n) = A.this_thread(|| engine.run());
     live.server.abort();
     live.hub.close();
+    page.feed.close();
+    let handed = page.feed.handed.load(Relaxed) + page.feed.handoff_dropped.load(Relaxed);
+    assert_eq!(handed, frames, "every frame offered to the page's feed");
+    assert!(
+        page.feed.events.load(Relaxed) >= 1,
+        "the page's feed ran: {}",
+        page.feed.report()
+    );
     assert_eq!(
         rec_stats.frames.load(Relaxed),
         frames,
@@ -103,7 +133,7 @@ fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
 }
 
 #[test]
-fn handing_frames_to_the_recorder_and_the_live_view_does_not_allocate() {
+fn handing_frames_to_the_recorder_the_live_view_and_the_page_does_not_allocate() {
     // The counter counts this thread's allocations (else the test would
     // prove nothing).
     let (v, n) = A.this_thread(|| std::hint::black_box(Vec::<u8>::with_capacity(64)));

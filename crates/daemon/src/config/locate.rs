@@ -194,6 +194,10 @@ pub(super) fn within(
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub(super) enum AddrUse {
     Listen,
+    /// A listener whose port is told where it is found: port 0 takes a
+    /// free port, said in the log and STATUS (`[web] listen`: the tests
+    /// bind port 0).
+    ListenTold,
     SendTo,
 }
 
@@ -211,7 +215,7 @@ pub(super) fn socket_addr(
         let msg = format!("\"{written}\" is not an address:port (e.g. \"127.0.0.1:17150\")");
         ctx.err(v.span(), key, msg)
     })?;
-    if a.port() == 0 {
+    if a.port() == 0 && used != AddrUse::ListenTold {
         let msg = format!("{a}: port 0 is no port to send to or listen on (1..=65535)");
         return Err(ctx.err(v.span(), key, msg));
     }

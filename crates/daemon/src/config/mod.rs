@@ -6,7 +6,7 @@
 //!
 //! One validator per table, each in its own file: [`top`] (the top-level
 //! keys), [`backend`] (handed to lightpose-hal), [`temperature`],
-//! [`outputs`], [`recording`], [`attitude`], [`logging`], [`foxglove`],
+//! [`outputs`], [`recording`], [`attitude`], [`logging`], [`foxglove`], [`web`],
 //! [`vehicle`] (`[site]`, `[mavlink]`, `[dvl]`); [`across`] what involves
 //! two tables (two inputs on one port);
 //! [`locate`] turns spans into lines and [`embedded`] resolves
@@ -32,6 +32,7 @@ pub mod recording;
 pub mod temperature;
 pub mod top;
 pub mod vehicle;
+pub mod web;
 
 pub use attitude::AttitudeInput;
 pub use foxglove::Foxglove;
@@ -40,6 +41,7 @@ pub use outputs::{Multicast, Outputs};
 pub use places::Places;
 pub use recording::{RecFormat, RecSamples, Recording};
 pub use vehicle::VehicleConfig;
+pub use web::Web;
 
 use lightpose_core::textfile::{excerpt, one_line, read_text, TextError, TextSource};
 use lightpose_hal::ValidBackend;
@@ -76,6 +78,8 @@ pub struct Config {
     pub logging: Logging,
     /// The live view (Foxglove WebSocket), if configured.
     pub foxglove: Option<Foxglove>,
+    /// The web page and REST API (`[web]`), if configured.
+    pub web: Option<Web>,
     /// `[site]`: the beacon's heading and depth, if given.
     pub site: Option<lightpose_vehicle::Site>,
     /// The autopilot and DVL links (`[mavlink]`, `[dvl]`), if configured.
@@ -161,6 +165,7 @@ struct Raw {
     attitude: Option<Spanned<attitude::RawAttitude>>,
     logging: Option<logging::RawLogging>,
     foxglove: Option<Spanned<foxglove::RawFoxglove>>,
+    web: Option<Spanned<web::RawWeb>>,
     site: Option<Spanned<toml::Table>>,
     mavlink: Option<Spanned<toml::Table>>,
     dvl: Option<Spanned<toml::Table>>,
@@ -204,6 +209,7 @@ impl Config {
         let site = site.map(|s| s.0);
         let logging = logging::validate(&ctx, raw.logging.as_ref())?;
         let foxglove = foxglove::validate(&ctx, raw.foxglove.as_ref(), &mut at)?;
+        let web = web::validate(&ctx, raw.web.as_ref(), &mut at)?;
         let tables = vehicle::RawVehicle {
             mavlink: raw.mavlink.as_ref(),
             dvl: raw.dvl.as_ref(),
@@ -237,6 +243,7 @@ impl Config {
             attitude,
             logging,
             foxglove,
+            web,
             site,
             vehicle,
             places: at,

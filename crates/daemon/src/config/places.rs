@@ -20,6 +20,8 @@ pub const RECORDING_DIR: &str = "recording.dir";
 pub const ATTITUDE_LISTEN: &str = "attitude.listen";
 /// `[foxglove] listen` (the table's line when the default is taken).
 pub const FOXGLOVE_LISTEN: &str = "foxglove.listen";
+/// `[web] listen`.
+pub const WEB_LISTEN: &str = "web.listen";
 /// `[mavlink] connection`.
 pub const MAVLINK: &str = "mavlink.connection";
 /// `[outputs.multicast] group`.

@@ -25,6 +25,9 @@ pub struct VehicleConfig {
     pub dvl: Option<DvlSettings>,
     /// How old each reading may be and still go with a frame.
     pub max_age: MaxAge,
+    /// `[mavlink] blueos_endpoint = true`: the endpoint to ask BlueOS's
+    /// autopilot manager for at start (crate::blueos).
+    pub blueos: Option<crate::blueos::BlueosEndpoint>,
 }
 
 /// The link tables as written (each left whole, with its span, for the
@@ -56,10 +59,13 @@ pub(super) fn validate(
     at: &mut Places,
 ) -> Result<Option<VehicleConfig>, ConfigError> {
     let mut max_age = MaxAge::default();
+    let mut blueos = None;
     let mavlink = match raw.mavlink {
         None => None,
         Some(t) => {
-            let table: MavlinkTable = deserialize(ctx, t, "mavlink")?;
+            // The daemon's own keys, not the vehicle crate's.
+            let (ours, rest) = blueos_keys(ctx, t)?;
+            let table: MavlinkTable = deserialize_table(ctx, t.span().start, &rest, "mavlink")?;
             let Some(site) = site else {
                 return Err(ctx.at(
                     ctx.line(t.span().start),
@@ -71,6 +77,16 @@ pub(super) fn validate(
                 .validate_in(site, ctx.base_dir)
                 .map_err(|e| vehicle_error(ctx, t.span().start, &e))?;
             no_port_0(ctx, t.span().start, &s.endpoint)?;
+            if let Some(url) = ours {
+                let e = crate::blueos::BlueosEndpoint::new(&url, &s.endpoint).map_err(|msg| {
+                    ctx.at(
+                        ctx.line_of_key(t.span().start, "blueos_endpoint"),
+                        "mavlink.blueos_endpoint",
+                        msg,
+                    )
+                })?;
+                blueos = Some(e);
+            }
             // A udpin address is bound: `wiring::check` tries it.
             at.set(
                 places::MAVLINK,
@@ -98,6 +114,7 @@ pub(super) fn validate(
         mavlink,
         dvl,
         max_age,
+        blueos,
     }))
 }
 
@@ -119,6 +136,40 @@ fn no_port_0(ctx: &Ctx, start: usize, ep: &Endpoint) -> Result<(), ConfigError> 
     ))
 }
 
+/// `blueos_endpoint` and `blueos_url` taken out of `[mavlink]` (the
+/// daemon's keys: the vehicle crate knows no BlueOS): the manager's URL
+/// when the endpoint is asked for, and the rest of the table.
+fn blueos_keys(
+    ctx: &Ctx,
+    t: &Spanned<toml::Table>,
+) -> Result<(Option<String>, toml::Table), ConfigError> {
+    let start = t.span().start;
+    let mut rest = t.get_ref().clone();
+    let on = match rest.remove("blueos_endpoint") {
+        None => false,
+        Some(toml::Value::Boolean(b)) => b,
+        Some(_) => {
+            return Err(ctx.at(
+                ctx.line_of_key(start, "blueos_endpoint"),
+                "mavlink.blueos_endpoint",
+                "want true or false",
+            ))
+        }
+    };
+    let url = match rest.remove("blueos_url") {
+        None => crate::blueos::DEFAULT_URL.to_string(),
+        Some(toml::Value::String(u)) => u,
+        Some(_) => {
+            return Err(ctx.at(
+                ctx.line_of_key(start, "blueos_url"),
+                "mavlink.blueos_url",
+                "want a string, e.g. \"http://127.0.0.1/ardupilot-manager\"",
+            ))
+        }
+    };
+    Ok((on.then_some(url), rest))
+}
+
 /// A table into the vehicle crate's struct; serde's refusal (an unknown
 /// key, a wrong type) at the line of the key it is about.
 fn deserialize<T: DeserializeOwned>(
@@ -126,7 +177,15 @@ fn deserialize<T: DeserializeOwned>(
     t: &Spanned<toml::Table>,
     name: &str,
 ) -> Result<T, ConfigError> {
-    let (start, table) = (t.span().start, t.get_ref());
+    deserialize_table(ctx, t.span().start, t.get_ref(), name)
+}
+
+fn deserialize_table<T: DeserializeOwned>(
+    ctx: &Ctx,
+    start: usize,
+    table: &toml::Table,
+    name: &str,
+) -> Result<T, ConfigError> {
     T::deserialize(toml::Value::Table(table.clone())).map_err(|e: toml::de::Error| {
         let msg = e.message().trim().to_string();
         match key_of(table, &msg) {

@@ -5,7 +5,7 @@
 //!
 //! Today: POSE datagrams over UDP ([`udp`]), the recording of frames (and,
 //! in MCAP, estimates and STATUS: [`recorder`], [`recfile`]) and the live
-//! view for Foxglove ([`live`]), the pose to the autopilot over MAVLink
+//! view for Foxglove ([`live`]), the web page's feed ([`web`]), the pose to the autopilot over MAVLink
 //! ([`mavlink`]). A new output (another protocol, another recording
 //! format, a live viewer) is a file here implementing [`Output`], added to
 //! the engine in `wiring.rs`.
@@ -15,6 +15,7 @@ pub mod mavlink;
 pub mod recfile;
 pub mod recorder;
 pub mod udp;
+pub mod web;
 
 use crate::engine::Acquired;
 use lightpose_core::PoseEstimate;

@@ -49,6 +49,9 @@ pub enum RecState {
     Recording = 2,
     Error = 3,
     Closed = 4,
+    /// Stopped from the page (`[web] control`): no file open, frames not
+    /// recorded until it is started again.
+    Paused = 5,
 }
 
 impl RecState {
@@ -59,6 +62,7 @@ impl RecState {
             RecState::Recording => "recording",
             RecState::Error => "error",
             RecState::Closed => "closed",
+            RecState::Paused => "paused",
         }
     }
     fn from_u8(v: u8) -> Self {
@@ -67,6 +71,7 @@ impl RecState {
             2 => RecState::Recording,
             3 => RecState::Error,
             4 => RecState::Closed,
+            5 => RecState::Paused,
             _ => RecState::Off,
         }
     }
@@ -104,6 +109,10 @@ pub struct RecStats {
     queued: AtomicU64,
     /// Set when a stop gave up waiting: the thread writes no more.
     abandoned: AtomicBool,
+    /// Recording stopped from the page: the frame path hands nothing
+    /// over, and the recorder thread completes and closes its file; a
+    /// frame after it is cleared opens a new one.
+    pub paused: AtomicBool,
     /// Held while the counts change: a stop that gives up on a blocked
     /// recorder thread settles them under it, and the thread, unblocked
     /// later, finds `abandoned` and changes nothing more (else a flush or
@@ -223,6 +232,13 @@ impl Recorder {
     #[inline]
     pub fn record(&mut self, frame: &Frame, est: &PoseEstimate, wall_unix: f64) {
         if self.tx.is_none() {
+            return;
+        }
+        if self.stats.paused.load(Relaxed) {
+            // Its raw buffer, if any, stays pending for the next frame.
+            if let Some(pool) = self.raw.as_mut() {
+                pool.called = false;
+            }
             return;
         }
         let mut burst = None;

@@ -111,7 +111,11 @@ impl Worker {
                     if self.stats.abandoned.load(Relaxed) {
                         break;
                     }
-                    self.write(&item);
+                    // A frame handed over just before a stop from the
+                    // page: not recorded (it would open a file again).
+                    if !self.stats.paused.load(Relaxed) {
+                        self.write(&item);
+                    }
                     if let (Some(b), Some(back)) = (item.burst, &self.free) {
                         // Its buffer back to the frame thread's pool.
                         let _ = back.try_send(b);
@@ -122,6 +126,9 @@ impl Worker {
             }
             while let Ok(s) = status_rx.try_recv() {
                 self.status(&s);
+            }
+            if self.stats.paused.load(Relaxed) {
+                self.pause();
             }
             let now = Instant::now();
             // The loop wakes at least every `IDLE`: the skips' closing
@@ -152,6 +159,21 @@ impl Worker {
         // A refusing disk stays visible in the last STATUS.
         if self.stats.state() != RecState::Error {
             self.stats.set_state(RecState::Closed);
+        }
+    }
+
+    /// Stopped from the page: the open file completed and closed (whole,
+    /// downloadable), the state `paused` until a frame comes again.
+    fn pause(&mut self) {
+        if self.file.is_some() {
+            if let Some(Err(why)) = self.close() {
+                self.fail(why);
+                return;
+            }
+            tracing::info!("recording stopped from the page");
+        }
+        if self.stats.state() != RecState::Error {
+            self.stats.set_state(RecState::Paused);
         }
     }
 

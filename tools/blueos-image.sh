@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Build the lightpose BlueOS extension image (config/blueos/Dockerfile) for
+# linux/arm/v7, linux/arm64 and linux/amd64 where docker runs (not in CI:
+# CI builds the binaries it holds). The ARM binaries come from
+# tools/cross-build.sh, the amd64 one from cargo; each is stripped and put
+# in target/blueos/bin/<platform>/lightposed, then docker buildx builds the
+# three images from them.
+#
+#   tools/blueos-image.sh                 # build, tag lightpose/blueos-lightpose:VERSION
+#   PUSH=1 tools/blueos-image.sh          # and push (docker login first)
+#   BINARIES_ONLY=1 tools/blueos-image.sh # the three binaries, no docker
+set -euo pipefail
+cd "$(dirname "$0")/.."
+image="lightpose/blueos-lightpose"
+version=$(sed -n 's/^version = "\(.*\)"/\1/p' Cargo.toml | head -1)
+
+CROSS_BENCH=0 CROSS_TARGETS="armv7-unknown-linux-gnueabihf aarch64-unknown-linux-gnu" tools/cross-build.sh
+cargo build --release -p lightposed
+out=target/blueos/bin
+rm -rf "$out"
+for pair in amd64:target/release armv7:target/armv7-unknown-linux-gnueabihf/release arm64:target/aarch64-unknown-linux-gnu/release; do
+    d=${pair%%:*}
+    src=${pair#*:}/lightposed
+    mkdir -p "$out/$d"
+    cp "$src" "$out/$d/lightposed"
+done
+strip "$out/amd64/lightposed"
+arm-linux-gnueabihf-strip "$out/armv7/lightposed"
+aarch64-linux-gnu-strip "$out/arm64/lightposed"
+ls -l "$out"/*/lightposed
+if [ -n "${BINARIES_ONLY:-}" ]; then
+    exit 0
+fi
+if ! command -v docker >/dev/null; then
+    echo "blueos-image: docker not found: the binaries are in $out; build the image where docker runs" >&2
+    exit 1
+fi
+push=(--load)
+if [ -n "${PUSH:-}" ]; then push=(--push); fi
+# --load takes one platform at a time; a push takes all three at once.
+if [ -n "${PUSH:-}" ]; then
+    docker buildx build --platform linux/arm/v7,linux/arm64,linux/amd64 \
+        -f config/blueos/Dockerfile -t "$image:$version" "${push[@]}" .
+else
+    for p in linux/arm/v7 linux/arm64 linux/amd64; do
+        docker buildx build --platform "$p" -f config/blueos/Dockerfile \
+            -t "$image:$version-${p//\//-}" "${push[@]}" .
+    done
+fi
