@@ -166,7 +166,8 @@ mod tests {
         };
         for i in 0..k as usize {
             for ch in 0..c as usize {
-                b.values[i * MAX_CH + ch] = ((first as usize + i) as u16).wrapping_mul(10) + ch as u16;
+                b.values[i * MAX_CH + ch] =
+                    ((first as usize + i) as u16).wrapping_mul(10) + ch as u16;
             }
         }
         b
