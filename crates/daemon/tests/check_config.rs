@@ -497,40 +497,6 @@ fn a_board_sampling_a_beacon_is_checked_and_a_bad_mod_hz_refused_at_its_line() {
     );
 }
 
-/// `--check-config` of a board sampling a beacon runs the demodulator's
-/// own check, as a start does (it used to run only at the start): a 20 Hz
-/// beacon sampled at 1 kHz in 10 Hz frames passes MODEL.md's rules (50
-/// samples a period, 2 periods a frame) and hal's, but lies in what the
-/// demodulator takes for daylight (it follows light up to 41.4 Hz over a
-/// 0.1 s frame), so it is refused at the `beacons` line, naming the beacon.
-#[test]
-fn check_config_runs_the_demodulators_check_of_a_board() {
-    let (_, _, cal) = shipped();
-    let example =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/examples/mcp3008-beacon.toml");
-    let text = std::fs::read_to_string(example)
-        .expect("read the example")
-        .replace(
-            "\"/etc/lightpose/calibration.toml\"",
-            &format!("\"{}\"", cal.display()),
-        )
-        .replace("mod_hz = 250.0", "mod_hz = 20.0");
-    let dir = tempfile::tempdir().expect("tempdir");
-    let bad = write(dir.path(), "slow.toml", &text);
-    let said = refused(
-        &bad,
-        2,
-        line_of(&text, "beacons = ["),
-        &[
-            "backend.beacons",
-            "the demodulator cannot take this sampling",
-            "beacon \"beacon\": mod_hz = 20",
-            "daylight",
-        ],
-    );
-    assert!(said.contains("41.4 Hz"), "{said}");
-}
-
 /// The serial example sampling a beacon (config/examples/
 /// serial-beacon.toml: LPBST bursts at 500 Hz on two boards at 1 000 000
 /// baud) passes `--check-config`, demodulator included; on lines of

@@ -17,12 +17,6 @@ pub fn degree_for(max_hz: f64, frame_s: f64) -> usize {
     (omega.ceil() as usize + 6).max(1)
 }
 
-/// The degree a frame's slow part is fitted to: [`degree_for`] over the
-/// frame's N samples, at most what N leaves beside the beacons.
-pub fn frame_degree(flicker_max_hz: f64, n: usize, sample_hz: f64, beacons: usize) -> usize {
-    degree_for(flicker_max_hz, n as f64 / sample_hz).min(n.saturating_sub(beacons + 2).max(1) - 1)
-}
-
 /// Orthonormal polynomials of degree 0..=d on the samples' times, as a
 /// (d + 1) × N row-major table: `row(j)[i]` is p_j at sample i, and
 /// Σ_i p_j p_l = δ_jl.

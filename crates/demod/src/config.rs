@@ -89,7 +89,6 @@ impl DemodConfig {
         }
         let half_periods = check_frequencies(self.sample_hz, self.rate_hz, &self.beacons)?;
         let n = n as usize;
-        above_daylight(self, n)?;
         let mut beacons = Vec::with_capacity(self.beacons.len());
         for (b, m) in self.beacons.iter().zip(half_periods) {
             beacons.push(ValidBeacon {
@@ -157,36 +156,9 @@ pub enum ConfigError {
     DuplicateId { a: String, b: String },
     #[error("beacon {id:?}: mod_hz = {mod_hz}: a steady beacon (or not a frequency) cannot be demodulated; give it a blink frequency")]
     Steady { id: String, mod_hz: f64 },
-    #[error("beacon {id:?}: mod_hz = {mod_hz} lies in what the demodulator takes for daylight and its flicker: polynomials of degree {degree} over a frame follow light up to about {follows_hz:.1} Hz, so the blinking would be removed with the daylight; blink it faster than that")]
-    InDaylight {
-        id: String,
-        mod_hz: f64,
-        degree: usize,
-        follows_hz: f64,
-    },
     /// MODEL.md's frequency rules (lightpose-core's check).
     #[error(transparent)]
     Rules(#[from] ModulationError),
-}
-
-/// Every beacon blinks above what the frame's slow part follows: the
-/// polynomials of degree D over a frame of T s (`basis::frame_degree`)
-/// follow a sinusoid up to about ω = π·f·T = D, so a beacon at or below
-/// f = D / (π·T) would be taken for daylight (MODEL.md admits it; the
-/// physics of the fit does not; docs/spec-notes.md).
-fn above_daylight(cfg: &DemodConfig, n: usize) -> Result<(), ConfigError> {
-    let degree =
-        crate::basis::frame_degree(cfg.flicker_max_hz, n, cfg.sample_hz, cfg.beacons.len());
-    let follows_hz = degree as f64 * cfg.sample_hz / (std::f64::consts::PI * n as f64);
-    match cfg.beacons.iter().find(|b| b.mod_hz <= follows_hz) {
-        Some(b) => Err(ConfigError::InDaylight {
-            id: b.id.clone(),
-            mod_hz: b.mod_hz,
-            degree,
-            follows_hz,
-        }),
-        None => Ok(()),
-    }
 }
 
 fn positive(key: &'static str, value: f64) -> Result<(), ConfigError> {
@@ -279,18 +251,6 @@ mod tests {
         assert!(err(2000.0, 8.0, &[("a", 100.0)])
             .contains("periods per frame at rate_hz = 8, not a whole number"));
         assert!(err(2000.0, 5.0, &[]).starts_with("no beacons"));
-        // 1 kHz at 10 Hz frames: degree 13 follows up to 41.4 Hz; a 20 Hz
-        // beacon passes MODEL.md's rules and is taken for daylight.
-        let e = err(1000.0, 10.0, &[("a", 20.0)]);
-        assert!(
-            e.starts_with(
-                "beacon \"a\": mod_hz = 20 lies in what the demodulator takes for daylight"
-            ) && e.contains("degree 13")
-                && e.contains("41.4 Hz"),
-            "{e}"
-        );
-        let ok = DemodConfig::new(1000.0, 10.0, vec![BeaconSpec::new("a", 50.0)]);
-        assert!(ok.validate().is_ok());
         assert!(err(2000.0, 5.0, &[("a", 250.0), ("a", 500.0)])
             .starts_with("beacons \"a\" and \"a\": the same id"));
     }

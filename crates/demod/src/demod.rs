@@ -4,7 +4,7 @@
 // Channels, beacons and matrix rows are indices into several arrays at once.
 #![allow(clippy::needless_range_loop)]
 
-use crate::basis::{frame_degree, Basis};
+use crate::basis::{degree_for, Basis};
 use crate::config::{ValidConfig, MAX_BEACONS};
 use crate::runs::{on_runs, overlap, turns};
 use crate::scan::{Cell, Scan, Signal, Window};
@@ -113,7 +113,8 @@ impl Choice {
 impl Demodulator {
     pub fn new(cfg: ValidConfig) -> Self {
         let n = cfg.n;
-        let degree = frame_degree(cfg.flicker_max_hz, n, cfg.sample_hz, cfg.beacons.len());
+        let degree = degree_for(cfg.flicker_max_hz, n as f64 / cfg.sample_hz)
+            .min(n.saturating_sub(cfg.beacons.len() + 2).max(1) - 1);
         let basis = Basis::new(n, degree);
         let tracks = cfg
             .beacons
