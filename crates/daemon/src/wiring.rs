@@ -19,7 +19,8 @@ use crate::stats::Stats;
 use crate::status::version_message;
 use crate::vehicle::VehicleLink;
 use lightpose_core::{Estimator, LogHeader};
-use lightpose_hal::{FrameSource, HalError, Stop, ValidBackend};
+use lightpose_demod::ConfigError;
+use lightpose_hal::{FrameSource, HalError, Sampling, Stop, ValidBackend};
 use lightpose_pipeline::Calibration;
 use lightpose_vehicle::mav::link::LinkError;
 use lightpose_vehicle::{Endpoint, MissingStd};
@@ -166,6 +167,11 @@ fn checked_adc_bits(cfg: &Config) -> Result<u8, DaemonError> {
         | ValidBackend::Ads7828 { common, .. }
         | ValidBackend::Serial { common, .. } => {
             lightpose_hal::check(&cfg.backend).map_err(|e| backend_error(cfg, e))?;
+            // The sampling the opened bank would report (`sampling()`):
+            // its demodulator is checked here as a start checks it, not
+            // first met when the daemon starts.
+            let rate = common.rate_hz.unwrap_or(cfg.rate_hz);
+            sampling_demodulates(cfg, common.sampling().as_ref(), rate)?;
             Ok(common.bits)
         }
     }
@@ -176,17 +182,35 @@ fn checked_adc_bits(cfg: &Config) -> Result<u8, DaemonError> {
 /// fits a frame), refused at the key that names what it samples: the
 /// scene, the replayed log, the board's `sample_hz`.
 fn demodulates(cfg: &Config, source: &dyn FrameSource) -> Result<(), DaemonError> {
-    let Some(s) = source.sampling() else {
-        return Ok(());
-    };
     let rate = source.rate_hz().unwrap_or(cfg.rate_hz);
-    let Err(e) = crate::engine::demod::demodulator(&s, rate) else {
+    sampling_demodulates(cfg, source.sampling().as_ref(), rate)
+}
+
+/// [`demodulates`] of a sampling at frames of `rate` Hz: a board's from
+/// its validated config (no device opened), a source's as it reports it.
+/// A board's refusal is said at the key it is about: a beacon's at
+/// `beacons`, the channels' skew at `channel_skew_s` where the config gives
+/// it (a serial board), the rest at `sample_hz`.
+fn sampling_demodulates(
+    cfg: &Config,
+    sampling: Option<&Sampling>,
+    rate: f64,
+) -> Result<(), DaemonError> {
+    let Some(s) = sampling else {
         return Ok(());
     };
-    let key = match &cfg.backend {
-        ValidBackend::Sim(_) => places::SCENE,
-        ValidBackend::Replay(_) => places::LOG,
-        _ => "backend.sample_hz",
+    let Err(e) = crate::engine::demod::demodulator(s, rate) else {
+        return Ok(());
+    };
+    let key = match (&cfg.backend, &e) {
+        (ValidBackend::Sim(_), _) => places::SCENE,
+        (ValidBackend::Replay(_), _) => places::LOG,
+        (ValidBackend::Serial { .. }, ConfigError::Skew { .. }) => "backend.channel_skew_s",
+        (
+            _,
+            ConfigError::Skew { .. } | ConfigError::NotPositive { .. } | ConfigError::Range { .. },
+        ) => "backend.sample_hz",
+        _ => "backend.beacons",
     };
     let msg = format!(
         "the demodulator cannot take this sampling ({} Hz, {} samples a frame at {rate} Hz): {e}",

@@ -496,3 +496,36 @@ fn a_board_sampling_a_beacon_is_checked_and_a_bad_mod_hz_refused_at_its_line() {
         &["backend.beacons", "beacon \"beacon\"", "mod_hz = 300"],
     );
 }
+
+/// The serial example sampling a beacon (config/examples/
+/// serial-beacon.toml: LPBST bursts at 500 Hz on two boards at 1 000 000
+/// baud) passes `--check-config`, demodulator included; on lines of
+/// 115 200 baud it is refused, with the figure.
+#[test]
+fn a_serial_board_sampling_a_beacon_is_checked_with_its_baud() {
+    let (_, _, cal) = shipped();
+    let example =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/examples/serial-beacon.toml");
+    let text = std::fs::read_to_string(example)
+        .expect("read the example")
+        .replace(
+            "\"/etc/lightpose/calibration.toml\"",
+            &format!("\"{}\"", cal.display()),
+        );
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ok = write(dir.path(), "serial.toml", &text);
+    let (code, err) = run("--check-config", &ok);
+    assert_eq!(code, Some(0), "{err}");
+    let slow = write(
+        dir.path(),
+        "slow.toml",
+        &text.replace("baud = 1000000", "baud = 115200"),
+    );
+    let (code, err) = run("--check-config", &slow);
+    assert_eq!(code, Some(2), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("boards.m0.baud") && err.contains("at most 441 Hz fits"),
+        "{err}"
+    );
+}

@@ -61,6 +61,23 @@ pub trait Bank: Send {
     fn sampled_at(&self) -> Option<f64> {
         None
     }
+    /// Whether the boards sample on their own clock and send bursts (a
+    /// serial bank in burst mode): a burst is then [`Bank::take_burst`]
+    /// and [`Bank::burst_sample`], not reads paced here.
+    fn samples_itself(&self) -> bool {
+        false
+    }
+    /// Wait for the boards' next whole frame of samples (the channels of
+    /// `wanted`) and take it; returns when its first sample was taken
+    /// ([`crate::clock::monotonic_s`]).
+    fn take_burst(&mut self, wanted: &[u16]) -> Result<f64, SourceError> {
+        let _ = wanted;
+        Err(no_board())
+    }
+    /// Sample `i` of the frame [`Bank::take_burst`] took, into `raw`.
+    fn burst_sample(&self, i: usize, raw: &mut [RawBoard]) {
+        let _ = (i, raw);
+    }
     /// Wait until `until` (the next frame's time), ending early on `stop`.
     /// A bank that can use the time does (a serial bank stamps its boards'
     /// lines as they arrive); the others sleep.
@@ -631,6 +648,9 @@ impl<B: Bank> BoardSource<B> {
         if burst.n() != n {
             burst.resize(n);
         }
+        if self.bank.samples_itself() {
+            return self.take_own_burst(n, burst);
+        }
         if let Some(until) = self.pacer.due() {
             self.bank.idle(until, self.pacer.stop());
         }
@@ -662,6 +682,31 @@ impl<B: Bank> BoardSource<B> {
                 samples[k * n + i] = c;
             }
         }
+        self.stamp_burst(seq, t0, burst);
+        Ok(())
+    }
+    /// A burst the boards sampled on their own clock: sample i of every
+    /// channel through the map, `t` the first sample's time. The boards
+    /// pace the frames: the pacer does not wait.
+    fn take_own_burst(&mut self, n: usize, burst: &mut Burst) -> Result<(), SourceError> {
+        let seq = self.seq;
+        self.seq += 1;
+        let t0 = self.bank.take_burst(&self.wanted)?;
+        let mut counts = [0u16; NDET];
+        for i in 0..n {
+            self.bank.burst_sample(i, &mut self.raw);
+            self.map.apply(&self.raw, &mut counts);
+            let samples = burst.samples_mut();
+            for (k, &c) in counts.iter().enumerate() {
+                samples[k * n + i] = c;
+            }
+        }
+        self.stamp_burst(seq, t0, burst);
+        Ok(())
+    }
+
+    /// A burst's header: its `seq`, `t` (never back), ADC and temperature.
+    fn stamp_burst(&mut self, seq: u64, t0: f64, burst: &mut Burst) {
         let t = t0.max(self.last_t + 1e-6);
         self.last_t = t;
         burst.seq = seq;
@@ -672,8 +717,8 @@ impl<B: Bank> BoardSource<B> {
         burst.attitude = None;
         burst.depth = None;
         burst.velocity = None;
-        Ok(())
     }
+
     pub fn into_bank(self) -> B {
         self.bank
     }

@@ -12,7 +12,8 @@
 //!   of kinds;
 //! - [`drivers`]: MCP3008/MCP3208 (SPI), ADS1115 and ADS7828 (I²C), generic
 //!   over embedded-hal 1.0;
-//! - [`serial`]: the `$LPADC` line protocol of microcontroller boards;
+//! - [`serial`]: the `$LPADC` line protocol of microcontroller boards, and
+//!   their LPBST bursts for a blinking beacon;
 //! - [`chanmap`]: which board channel feeds which detector;
 //! - [`bank`]: boards read together into one frame, paced ([`pace`]),
 //!   stamped on the machine's monotonic clock ([`clock`]);
@@ -94,7 +95,13 @@ pub struct SourceHealth {
     /// same board came first (the board streams faster than frames are
     /// taken; not an error, but bandwidth spent for nothing).
     pub superseded_lines: u64,
-    /// The last bad line's error.
+    /// Serial bursts (LPBST): breaks in a board's sample index (a packet
+    /// lost, damaged or cut short).
+    pub burst_gaps: u64,
+    /// Serial bursts: frames begun and dropped unfinished (a gap, a board
+    /// reset): never handed on as part of a burst.
+    pub bursts_dropped: u64,
+    /// The last bad line's (or packet's) error.
     pub last_bad_line: Option<String>,
     /// Devices reopened after a failure.
     pub reopens: u64,
@@ -284,14 +291,25 @@ pub fn open(cfg: &ValidBackend, stop: &Stop) -> Result<Box<dyn FrameSource>, Hal
             timeout,
             common,
         } => {
-            let bank = serial::SerialBank::new(boards.clone(), common.bits, *timeout)
+            let mut bank = serial::SerialBank::new(boards.clone(), common.bits, *timeout)
                 .stoppable(stop.clone());
-            Ok(Box::new(BoardSource::new(
-                bank,
-                common.map,
-                common.temp.clone().start(),
-                common.pacer(stop),
-            )))
+            let sampling = common.sampling();
+            if let Some(s) = &sampling {
+                // The boards sample and send bursts (docs/serial-protocol.md).
+                bank = bank.with_bursts(serial::BurstPlan {
+                    samples_per_frame: s.samples_per_frame,
+                    sample_hz: s.sample_hz,
+                });
+            }
+            Ok(Box::new(
+                BoardSource::new(
+                    bank,
+                    common.map,
+                    common.temp.clone().start(),
+                    common.pacer(stop),
+                )
+                .with_sampling(sampling),
+            ))
         }
         ValidBackend::Replay(plan) => Ok(Box::new(replay::ReplaySource::open(plan, stop)?)),
         #[cfg(feature = "sim")]

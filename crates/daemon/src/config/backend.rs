@@ -53,11 +53,15 @@ pub(super) fn validate(
     let (start, table) = (b.span().start, b.get_ref());
     check_kind(ctx, table, start)?;
     // The files hal reads: their refusals (no such file, a bad line) are
-    // said at these keys (`wiring::check`).
+    // said at these keys (`wiring::check`), and so are a board's sampling's
+    // that the demodulator refuses.
     for (key, name) in [
         (places::SCENE, "scene"),
         (places::TRAJECTORY, "trajectory"),
         (places::LOG, "log"),
+        ("backend.sample_hz", "sample_hz"),
+        ("backend.beacons", "beacons"),
+        ("backend.channel_skew_s", "channel_skew_s"),
     ] {
         at.set(key, ctx.line_of_key(start, name));
     }

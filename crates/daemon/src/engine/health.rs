@@ -12,8 +12,10 @@ use std::time::Instant;
 /// Lines a board sent faster than frames take them (superseded) are no
 /// fault: said once when first seen (by the engine), then only named in
 /// the line the faults make.
-const SKIPS: [(&str, bool); 5] = [
+const SKIPS: [(&str, bool); 7] = [
     ("bad lines", true),
+    ("gaps in a board's bursts", true),
+    ("burst frames dropped unfinished", true),
     ("lines of another board", true),
     ("glitches in seq or t", true),
     ("malformed readings", true),
@@ -23,6 +25,8 @@ const SKIPS: [(&str, bool); 5] = [
 fn counts(h: &SourceHealth) -> [u64; SKIPS.len()] {
     [
         h.bad_lines,
+        h.burst_gaps,
+        h.bursts_dropped,
         h.wrong_board_lines,
         h.glitches,
         h.bad_readings,

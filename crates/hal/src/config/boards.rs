@@ -35,6 +35,9 @@ fn eight() -> u8 {
 fn ten_bits() -> u8 {
     10
 }
+fn block_default() -> u16 {
+    16
+}
 fn timeout_default() -> u64 {
     1000
 }
@@ -182,10 +185,27 @@ pub struct Ads7828Config {
 pub struct SerialConfig {
     #[serde(default)]
     pub rate_hz: Option<f64>,
-    /// One sample per frame only: the `$LPADC` line carries one value of
-    /// each channel (docs/serial-protocol.md); more is refused.
+    /// Samples of every channel per second. Absent: one `$LPADC` line a
+    /// frame. Above `rate_hz` (a whole multiple N, for a blinking beacon)
+    /// the boards send LPBST bursts sampled on their own timer
+    /// (docs/serial-protocol.md, "Bursts"), refused where a board's baud
+    /// cannot carry them.
     #[serde(default)]
     pub sample_hz: Option<f64>,
+    /// Spec v3: the beacons the samples carry, as for the SPI and I²C
+    /// boards (`beacons = [{ id = "beacon", mod_hz = 250.0 }]`). Needed
+    /// with `sample_hz`; refused without it.
+    #[serde(default)]
+    pub beacons: Vec<BeaconConfig>,
+    /// Bursts: between consecutive channels' conversions, s, as the
+    /// boards' firmware spaces them (lpadc.ino `SPACING_US`; MODEL.md
+    /// `channel_skew_s`). Needed with `sample_hz`.
+    #[serde(default)]
+    pub channel_skew_s: Option<f64>,
+    /// Bursts: samples a packet holds (lpadc.ino `BLOCK`), for the
+    /// bandwidth check only: packets of any size are read.
+    #[serde(default = "block_default")]
+    pub block_samples: u16,
     /// Resolution every line must declare.
     #[serde(default = "ten_bits")]
     pub adc_bits: u8,
@@ -711,13 +731,16 @@ pub(super) fn serial(c: &SerialConfig, env: &dyn Env) -> Result<ValidBackend, Ha
         v_ref: positive_to("v_ref", c.v_ref, MAX_V, " V")?,
         supply: DividerSupply::IsRef,
     };
-    let common = common(shared, specs, env)?;
+    let mut common = common(shared, specs, env)?;
     if common.samples_per_frame > 1 {
+        super::serial_bursts::check(c, &boards, &mut common)?;
+    } else if c.channel_skew_s.is_some() {
         return Err(err(
-            "sample_hz",
-            "a serial board sends one sample of each channel a line ($LPADC, docs/serial-protocol.md): sample_hz above rate_hz needs a board that sends bursts",
+            "channel_skew_s",
+            "given without sample_hz above rate_hz: one $LPADC line a frame has no bursts to space",
         ));
     }
+    with_beacons(&mut common, &c.beacons)?;
     Ok(ValidBackend::Serial {
         boards,
         timeout: Duration::from_millis(c.timeout_ms),

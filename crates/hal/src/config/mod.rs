@@ -19,6 +19,7 @@
 
 pub mod boards;
 pub mod replay;
+pub mod serial_bursts;
 pub mod sim;
 pub mod temp;
 pub mod timing;

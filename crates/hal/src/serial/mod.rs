@@ -13,8 +13,14 @@
 //! swapped, or a board flashed with the wrong id) does not just time out:
 //! its frame fails naming the id seen and the id expected, and the health
 //! report's last bad line says the same.
+//!
+//! In burst mode ([`SerialBank::with_bursts`], spec v3) the boards send
+//! binary LPBST blocks of samples instead ([`burst`], [`bursts`]).
 
+pub mod burst;
+mod bursts;
 mod device;
+mod frames;
 pub mod protocol;
 mod seqclock;
 
@@ -29,6 +35,7 @@ use crate::chanmap::{BoardSpec, RawBoard};
 use crate::pace::Stop;
 use crate::text::{Recent, Text};
 use crate::{SourceError, SourceHealth};
+pub use bursts::{BlockRefusal, BurstPlan};
 use device::Device;
 use protocol::{parse_line, LineAssembler, LineError, Sample};
 use seqclock::SeqClock;
@@ -68,6 +75,8 @@ pub enum BadLine {
     Parse { port: usize, error: LineError },
     /// A good line carrying board id `seen`, not the port's.
     WrongBoard { port: usize, seen: u8 },
+    /// Burst mode: bytes that made no packet, or a packet refused.
+    Packet { port: usize, error: BlockRefusal },
 }
 
 struct Port {
@@ -91,6 +100,8 @@ struct Port {
     /// Why the port closed between frames (`idle`), told when it reopens:
     /// no frame failed, so nothing else would say it.
     closed_by: Option<SourceError>,
+    /// Burst mode: its packets and frames.
+    bursts: Option<Box<bursts::PortBursts>>,
 }
 
 /// The longest a serial bank's idle listens to its ports before it looks
@@ -111,6 +122,8 @@ pub struct SerialBank {
     /// The words of a failure that repeats (a port that cannot be opened,
     /// lines of another board), built only when they change.
     recent: Recent,
+    /// Burst mode, when set.
+    plan: Option<BurstPlan>,
 }
 
 impl SerialBank {
@@ -132,6 +145,7 @@ impl SerialBank {
                     fresh: false,
                     foreign: None,
                     closed_by: None,
+                    bursts: None,
                 })
                 .collect(),
             bits,
@@ -141,6 +155,7 @@ impl SerialBank {
             sampled_at: None,
             stop: Stop::new(),
             recent: Recent::default(),
+            plan: None,
         }
     }
 
@@ -204,6 +219,10 @@ impl SerialBank {
         // period for the newest: the board's steady rate and the lines'
         // seq take it off (`seqclock`, docs/hardware.md).
         let read_s = crate::clock::monotonic_s();
+        if p.bursts.is_some() {
+            bursts::feed(p, port, &buf[..n], counters, read_s);
+            return Ok(());
+        }
         let s_per_byte = 10.0 / f64::from(p.cfg.baud.max(1));
         let id = p.cfg.id;
         let clock = &mut p.clock;
@@ -275,6 +294,9 @@ impl SerialBank {
         p.clock.reset();
         p.fresh = false;
         p.foreign = None;
+        if let Some(b) = p.bursts.as_deref_mut() {
+            b.reset();
+        }
         Ok(())
     }
 
@@ -351,6 +373,10 @@ impl SerialBank {
                 let said = wrong_board(&self.ports, p, seen);
                 Some(format!("{}: {said}", p.cfg.path))
             }
+            BadLine::Packet { port, error } => {
+                let p = self.ports.get(port)?;
+                Some(format!("{}: {error}", p.cfg.path))
+            }
         }
     }
 }
@@ -410,7 +436,19 @@ impl Bank for SerialBank {
         self.bits
     }
     fn describe(&self) -> String {
-        format!("{} serial LPADC board(s)", self.ports.len())
+        match self.plan {
+            Some(_) => format!("{} serial LPBST burst board(s)", self.ports.len()),
+            None => format!("{} serial LPADC board(s)", self.ports.len()),
+        }
+    }
+    fn samples_itself(&self) -> bool {
+        self.plan.is_some()
+    }
+    fn take_burst(&mut self, wanted: &[u16]) -> Result<f64, SourceError> {
+        self.take_frame(wanted)
+    }
+    fn burst_sample(&self, i: usize, raw: &mut [RawBoard]) {
+        self.frame_sample(i, raw);
     }
 
     fn read(&mut self, wanted: &[u16], raw: &mut [RawBoard]) -> Result<(), SourceError> {
@@ -508,6 +546,10 @@ impl Bank for SerialBank {
         h.wrong_board_lines += self.counters.wrong_board;
         h.superseded_lines += self.counters.superseded;
         h.reopens += self.counters.reopens;
+        let (gaps, dropped, superseded) = self.burst_counts();
+        h.burst_gaps += gaps;
+        h.bursts_dropped += dropped;
+        h.superseded_lines += superseded;
         if let Some(said) = self.counters.last_bad.and_then(|b| self.describe_bad(b)) {
             h.last_bad_line = Some(said);
         }
