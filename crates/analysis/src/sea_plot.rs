@@ -152,6 +152,14 @@ fn panel<DB: DrawingBackend>(
                 String::new()
             }
         })
+        // A log axis' own labels print 0.7000000000000001 and crowd.
+        .y_labels(6)
+        .y_label_formatter(&|v| {
+            format!("{v:.3}")
+                .trim_end_matches('0')
+                .trim_end_matches('.')
+                .to_string()
+        })
         .label_style(font(13.0))
         .axis_desc_style(font(13.0))
         .disable_x_mesh()
