@@ -13,7 +13,8 @@
 //! - [`plot`]: Figures 6–8 style plots, PNG and SVG, with a bundled font;
 //! - [`bound`]: a scene's Cramér–Rao bound along a trajectory;
 //! - [`sensors`]: which own sensors (attitude, depth, DVL) a run carries;
-//! - [`trade`]: the trade table of every estimator and sensor set.
+//! - [`trade`]: the trade table of every estimator and sensor set;
+//! - [`sea`]: its open sea (spec v3): blinking or steady, night or day.
 
 pub mod axis;
 pub mod bound;
@@ -21,6 +22,8 @@ pub mod montecarlo;
 pub mod paper;
 pub mod plot;
 pub mod report;
+pub mod sea;
+pub mod sea_plot;
 pub mod sensors;
 pub mod stats;
 pub mod trade;

@@ -83,6 +83,13 @@ pub struct McResult {
     /// Every estimate, run-major (`[run][step][axis]`), NaN where the
     /// estimator gave none: kept for trade tables and tests.
     samples: Vec<f64>,
+    /// Per estimate (`[run][step]`): its status was `ok`. The open sea's
+    /// rows judge only the poses the estimator vouched for.
+    oks: Vec<bool>,
+    /// Per estimate and axis (`[run][step][axis]`): |error| / the
+    /// estimator's own σ, NaN where it gave no value or no σ (∞ for an
+    /// error with σ 0). The open sea's rows count poses beyond 3σ.
+    zscores: Vec<f64>,
     /// Wall time of the realizations (not of the statistics).
     pub elapsed: Duration,
     pub threads: usize,
@@ -98,6 +105,26 @@ impl McResult {
             .filter(|v| v.is_finite())
     }
 
+    /// Whether the estimate at `step` of realization `run` had status
+    /// `ok` (false for a step or run out of range).
+    pub fn ok(&self, run: usize, step: usize) -> bool {
+        let n = self.times.len();
+        step < n && self.oks.get(run * n + step).copied().unwrap_or(false)
+    }
+
+    /// |error| / σ of `axis` at `step` in realization `run`, if the
+    /// estimate gave both a value and a σ.
+    pub fn zscore(&self, run: usize, step: usize, axis: Axis) -> Option<f64> {
+        let n = self.times.len();
+        if step >= n {
+            return None;
+        }
+        self.zscores
+            .get((run * n + step) * NAXES + axis.index())
+            .copied()
+            .filter(|v| !v.is_nan())
+    }
+
     /// Realizations per second of wall time.
     pub fn rate(&self) -> f64 {
         self.runs as f64 / self.elapsed.as_secs_f64().max(1e-9)
@@ -111,6 +138,8 @@ impl McResult {
             && self.estimator == o.estimator
             && self.draws == o.draws
             && bits(&self.samples) == bits(&o.samples)
+            && self.oks == o.oks
+            && bits(&self.zscores) == bits(&o.zscores)
             && self.steps == o.steps
             && self.coverage == o.coverage
     }
@@ -212,6 +241,7 @@ where
     let mut samples = vec![f64::NAN; cfg.runs * per_run];
     let mut ok = vec![false; cfg.runs * nsteps];
     let mut cov = vec![COV_NONE; cfg.runs * per_run];
+    let mut zscores = vec![f64::NAN; cfg.runs * per_run];
     let mut draws = vec![Draw::default(); cfg.runs];
     let failure: Mutex<Option<String>> = Mutex::new(None);
 
@@ -220,13 +250,14 @@ where
         .par_chunks_mut(per_run)
         .zip(ok.par_chunks_mut(nsteps))
         .zip(cov.par_chunks_mut(per_run))
+        .zip(zscores.par_chunks_mut(per_run))
         .zip(draws.par_iter_mut())
         .enumerate()
         // Few, long jobs: each rayon job builds one estimator.
         .with_min_len(8)
         .for_each_init(
             || factory().map_err(|e| e.to_string()),
-            |est, (i, (((vals, oks), covs), draw))| {
+            |est, (i, ((((vals, oks), covs), zs), draw))| {
                 match est {
                     Ok(est) => {
                         *draw = realization(
@@ -235,9 +266,12 @@ where
                             &starts,
                             &truth,
                             est.as_mut(),
-                            vals,
-                            oks,
-                            covs,
+                            Slots {
+                                vals,
+                                oks,
+                                covs,
+                                zs,
+                            },
                         );
                     }
                     Err(msg) => {
@@ -270,25 +304,38 @@ where
         steps,
         coverage,
         samples,
+        oks: ok,
+        zscores,
         elapsed,
         threads: rayon::current_num_threads(),
     })
 }
 
+/// One realization's slots of the ensemble's buffers.
+struct Slots<'a> {
+    vals: &'a mut [f64],
+    oks: &'a mut [bool],
+    covs: &'a mut [u8],
+    zs: &'a mut [f64],
+}
+
 /// One realization, written into its own slots. Everything random comes
 /// from ChaCha8(seed, stream = index), drawn in a fixed order: T, K_D, then
 /// the simulator's seed.
-#[allow(clippy::too_many_arguments)]
 fn realization(
     cfg: &McConfig,
     index: u64,
     starts: &[f64],
     truth: &[[f64; NAXES]],
     est: &mut dyn Estimator,
-    vals: &mut [f64],
-    oks: &mut [bool],
-    covs: &mut [u8],
+    out: Slots<'_>,
 ) -> Draw {
+    let Slots {
+        vals,
+        oks,
+        covs,
+        zs,
+    } = out;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     rng.set_stream(index);
     let nominal = &cfg.scene;
@@ -338,6 +385,7 @@ fn realization(
                         // Yaw is an angle: an error of 359° is −1°.
                         err = (err + 180.0).rem_euclid(360.0) - 180.0;
                     }
+                    zs[k] = if err == 0.0 { 0.0 } else { err.abs() / s };
                     if err.abs() <= 2.0 * s {
                         COV_IN
                     } else {

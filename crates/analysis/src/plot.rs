@@ -27,7 +27,7 @@ const MEAN: RGBColor = RGBColor(31, 90, 180);
 const BAND: RGBColor = RGBColor(150, 150, 150);
 
 /// Register the bundled font once per process.
-fn font_ready() -> Result<(), String> {
+pub(crate) fn font_ready() -> Result<(), String> {
     static DONE: OnceLock<Result<(), String>> = OnceLock::new();
     DONE.get_or_init(|| {
         plotters::style::register_font(FAMILY, FontStyle::Normal, DEJAVU_SANS)
@@ -36,7 +36,7 @@ fn font_ready() -> Result<(), String> {
     .clone()
 }
 
-fn plot_err(path: &Path, msg: impl ToString) -> McError {
+pub(crate) fn plot_err(path: &Path, msg: impl ToString) -> McError {
     McError::Plot {
         path: path.display().to_string(),
         msg: msg.to_string(),
@@ -59,7 +59,7 @@ pub fn render_svg(r: &McResult, title: &str, path: &Path) -> Result<(), McError>
     root.present().map_err(|e| plot_err(path, e))
 }
 
-fn font(size: f64) -> TextStyle<'static> {
+pub(crate) fn font(size: f64) -> TextStyle<'static> {
     (FAMILY, size).into_font().into()
 }
 

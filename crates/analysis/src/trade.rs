@@ -33,11 +33,12 @@ use std::time::Instant;
 /// z of a 95 % two-sided interval: σ → half-width.
 pub const Z95: f64 = 1.959964;
 
-/// One of the paper's cases and its files under config/.
+/// A case and its files under config/: one of the paper's (its figures
+/// beside the rows), or one it never ran (the open sea, [`crate::sea`]).
 #[derive(Debug)]
 pub struct Case {
     pub name: &'static str,
-    pub paper: PaperCase,
+    pub paper: Option<PaperCase>,
     pub scene: &'static str,
     pub trajectory: &'static str,
     pub calibration: &'static str,
@@ -46,21 +47,21 @@ pub struct Case {
 pub const CASES: [Case; 3] = [
     Case {
         name: PaperCase::DiveClear.scene_name(),
-        paper: PaperCase::DiveClear,
+        paper: Some(PaperCase::DiveClear),
         scene: "config/scenes/tank.toml",
         trajectory: "config/trajectories/dive.csv",
         calibration: "config/calibration/tank.toml",
     },
     Case {
         name: PaperCase::ZigzagClear.scene_name(),
-        paper: PaperCase::ZigzagClear,
+        paper: Some(PaperCase::ZigzagClear),
         scene: "config/scenes/tank.toml",
         trajectory: "config/trajectories/zigzag.csv",
         calibration: "config/calibration/tank.toml",
     },
     Case {
         name: PaperCase::ZigzagTurbid.scene_name(),
-        paper: PaperCase::ZigzagTurbid,
+        paper: Some(PaperCase::ZigzagTurbid),
         scene: "config/scenes/harbour.toml",
         trajectory: "config/trajectories/zigzag.csv",
         calibration: "config/calibration/harbour.toml",
@@ -68,11 +69,14 @@ pub const CASES: [Case; 3] = [
 ];
 
 impl Case {
-    /// The case called `name`, in either spelling (`dive-tank` or the
-    /// paper case's `dive-clear`, [`PaperCase::named`]).
+    /// The case called `name`: a paper case in either spelling
+    /// (`dive-tank` or the paper case's `dive-clear`,
+    /// [`PaperCase::named`]), or an open-sea case by its name.
     pub fn named(name: &str) -> Option<&'static Case> {
-        let paper = PaperCase::named(name)?;
-        CASES.iter().find(|c| c.paper == paper)
+        if let Some(paper) = PaperCase::named(name) {
+            return CASES.iter().find(|c| c.paper == Some(paper));
+        }
+        crate::sea::SEA_CASES.iter().find(|c| c.name == name)
     }
 }
 
@@ -101,6 +105,11 @@ pub enum TradeError {
         case: &'static str,
         name: String,
         err: BuildError,
+    },
+    #[error("case {case}: {err}")]
+    Demodulator {
+        case: &'static str,
+        err: lightpose_demod::ConfigError,
     },
     #[error("case {case}, estimator {name}: {err}")]
     MonteCarlo {
@@ -333,11 +342,12 @@ fn crb_of(b: &CrbBound, a: Axis) -> Option<f64> {
     }
 }
 
-/// The paper's published 95 % half-widths of `a`, "start → end".
-fn paper_cell(case: PaperCase, a: Axis) -> String {
-    if a == Axis::Surge {
+/// The paper's published 95 % half-widths of `a`, "start → end" (— for
+/// a case the paper did not run).
+fn paper_cell(case: Option<PaperCase>, a: Axis) -> String {
+    let Some(case) = case.filter(|_| a != Axis::Surge) else {
         return "—".into();
-    }
+    };
     let fig = case.figures();
     let i = a.index();
     let f = |x: Option<Figure>| x.map_or("—".to_string(), |f| format!("±{f}"));
@@ -504,9 +514,14 @@ mod tests {
     #[test]
     fn cases_take_montecarlos_spelling_too() {
         for c in &CASES {
-            assert_eq!(c.name, c.paper.scene_name());
-            let by_paper = Case::named(c.paper.as_str()).map(|k| k.name);
+            let paper = c.paper.expect("a paper case");
+            assert_eq!(c.name, paper.scene_name());
+            let by_paper = Case::named(paper.as_str()).map(|k| k.name);
             assert_eq!(by_paper, Some(c.name));
+        }
+        for c in &crate::sea::SEA_CASES {
+            assert!(c.paper.is_none());
+            assert_eq!(Case::named(c.name).map(|k| k.name), Some(c.name));
         }
         assert_eq!(
             Case::named("zigzag-turbid").map(|c| c.name),

@@ -1,11 +1,14 @@
 //! `lightpose bench`: the speed-for-accuracy trade table — every estimator
 //! on the paper's three Monte Carlo cases, with each set of the vehicle's
-//! own sensors. Thin: the table is `lightpose_analysis::trade`.
+//! own sensors, and on the open sea (spec v3: a harbour approach with the
+//! beacon blinking or steady, at night or by day). Thin: the tables are
+//! `lightpose_analysis::trade` and `lightpose_analysis::sea`.
 
 use crate::guard;
 use crate::stdout::out;
 use anyhow::Context;
 use lightpose_analysis::montecarlo::progress_bar;
+use lightpose_analysis::sea::{self, SEA_CASES};
 use lightpose_analysis::sensors::SensorSet;
 use lightpose_analysis::trade::{self, Case, TradeOptions, CASES};
 use std::path::PathBuf;
@@ -22,10 +25,14 @@ pub struct BenchArgs {
     /// Seed of the realizations.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Cases, comma separated (or the flag repeated): all, or any of
-    /// dive-tank, zigzag-tank, zigzag-harbour (aliases: dive-clear,
-    /// zigzag-clear, zigzag-turbid, as `montecarlo --case` names them).
-    #[arg(long = "case", default_value = "all", value_delimiter = ',')]
+    /// Cases, comma separated (or the flag repeated): paper (the paper's
+    /// three: dive-tank, zigzag-tank, zigzag-harbour, aliases dive-clear,
+    /// zigzag-clear, zigzag-turbid as `montecarlo --case` names them), sea
+    /// (the open sea's four: approach-blinking-night, approach-blinking-day,
+    /// approach-steady-night, approach-steady-day), all (both), or any of
+    /// those names. The open sea runs with its scenes' own sensors (an
+    /// AHRS with roll): --sensors does not apply to it.
+    #[arg(long = "case", default_value = "paper", value_delimiter = ',')]
     cases: Vec<String>,
     /// Estimators, comma separated.
     #[arg(long, default_value = "moments,model,tracker", value_delimiter = ',')]
@@ -49,6 +56,29 @@ pub struct BenchArgs {
     /// Also write the tables (Markdown) here.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write the open sea's plots (PNG: p95 per estimator, blinking or
+    /// steady, night or day) into this directory.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+}
+
+const KNOWN_CASES: &str = "known: paper, sea, all, dive-tank, zigzag-tank, zigzag-harbour, their aliases dive-clear, zigzag-clear, zigzag-turbid, approach-blinking-night, approach-blinking-day, approach-steady-night, approach-steady-day";
+
+/// The cases `words` name, in order (`paper`, `sea` and `all` stand for
+/// their groups).
+fn cases_named(words: &[String]) -> anyhow::Result<Vec<&'static Case>> {
+    let mut cases: Vec<&'static Case> = Vec::new();
+    for c in words {
+        match c.as_str() {
+            "paper" => cases.extend(CASES.iter()),
+            "sea" => cases.extend(SEA_CASES.iter()),
+            "all" => cases.extend(CASES.iter().chain(SEA_CASES.iter())),
+            _ => cases.push(
+                Case::named(c).with_context(|| format!("unknown case \"{c}\" ({KNOWN_CASES})"))?,
+            ),
+        }
+    }
+    Ok(cases)
 }
 
 /// `v` with each item's later repeats left out, in order.
@@ -75,16 +105,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         MAX_TIMING_RUNS,
         "their frames are simulated up front",
     )?;
-    let all = a.cases.iter().any(|c| c == "all");
-    let mut cases: Vec<&'static Case> = Vec::new();
-    for c in a.cases.iter().filter(|c| *c != "all") {
-        cases.push(Case::named(c).with_context(|| {
-            format!("unknown case \"{c}\" (known: all, dive-tank, zigzag-tank, zigzag-harbour, or their aliases dive-clear, zigzag-clear, zigzag-turbid)")
-        })?);
-    }
-    if all {
-        cases = CASES.iter().collect();
-    }
+    let cases = cases_named(&a.cases)?;
     let sets = a
         .sensors
         .iter()
@@ -105,6 +126,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     if let Some(p) = &a.out {
         guard::writable_file(p)?;
     }
+    if let Some(d) = &a.plot {
+        std::fs::create_dir_all(d)
+            .with_context(|| format!("--plot {}: cannot create", d.display()))?;
+    }
     let o = TradeOptions {
         runs: a.runs,
         seed: a.seed,
@@ -113,10 +138,28 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     };
     let mut text = String::new();
     let mut sections = Vec::new();
+    let mut seas = Vec::new();
     for case in cases {
         let loaded = trade::load(&a.root, case)?;
         let frames = loaded.trajectory.frame_count(loaded.scene.adc.rate_hz);
         guard::run_frames(format_args!("{}'s trajectory", case.name), a.runs, frames)?;
+        if case.paper.is_none() {
+            let sec = sea::run_case(&loaded, &o, &progress_bar)?;
+            for r in &sec.rows {
+                eprintln!(
+                    "bench: {}, {}: {} runs in {:.1} s, {:.2} µs/frame, {} of {} ok after 1 s",
+                    case.name,
+                    r.name,
+                    r.mc.runs,
+                    r.mc.elapsed.as_secs_f64(),
+                    r.us_per_frame,
+                    r.judged.ok,
+                    r.judged.frames
+                );
+            }
+            seas.push(sec);
+            continue;
+        }
         for &set in &sets {
             let sec = trade::run_section(&loaded, set, &o, &progress_bar)?;
             for r in &sec.rows {
@@ -134,7 +177,17 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
             sections.push(sec);
         }
     }
-    text.push_str(&trade::summary(&sections));
+    if !sections.is_empty() {
+        text.push_str(&trade::summary(&sections));
+    }
+    if !seas.is_empty() {
+        text.push_str(&sea::table(&seas));
+    }
+    if let (Some(d), false) = (&a.plot, seas.is_empty()) {
+        let p = d.join(sea::PLOT_NAME);
+        sea::plot_png(&seas, &p)?;
+        eprintln!("bench: wrote {}", p.display());
+    }
     // The file first: a reader of stdout that has gone ends the program.
     if let Some(p) = &a.out {
         std::fs::write(p, &text).with_context(|| format!("writing {}", p.display()))?;
