@@ -276,7 +276,8 @@ pub struct SeaRow {
 }
 
 /// One case of the open sea: its rows, what it skipped, and the bounds
-/// at the last frame (95 % half-widths of x, y, z; the counts' noise).
+/// at the last frame (95 % half-widths of x, y, z; `model::bound_light`'s
+/// reading of the scene's light).
 pub struct SeaSection {
     pub case: &'static Case,
     pub blinking: bool,
@@ -386,7 +387,7 @@ pub fn table(secs: &[SeaSection]) -> String {
     );
     let _ = writeln!(
         o,
-        "| case | beacon | light | estimator | µs/frame (demod + estimator) | ok after 1 s | p95 x (m) | y (m) | z (m) | pitch (°) | yaw (°) | ±2σ x / y / z | beyond 3σ (x, y or z) | CRB 95% end x / y / z (counts' noise) | tracker bound 95% end x / y / z (counts' noise) |"
+        "| case | beacon | light | estimator | µs/frame (demod + estimator) | ok after 1 s | p95 x (m) | y (m) | z (m) | pitch (°) | yaw (°) | ±2σ x / y / z | beyond 3σ (x, y or z) | CRB 95% end x / y / z | tracker bound 95% end x / y / z |"
     );
     let _ = writeln!(
         o,
@@ -439,7 +440,7 @@ pub fn table(secs: &[SeaSection]) -> String {
     }
     let _ = writeln!(
         o,
-        "\nµs/frame: median over the timing runs, one thread, the frames' samples simulated up front; for a blinking beacon the demodulator on the frame's burst (25 channels × its samples) plus the estimator on the amplitudes it gives, in brackets the demodulator alone, timed apart (on a shared machine the two do not subtract exactly). p95, ±2σ and beyond 3σ: the `ok` poses after the first second, all runs. Bounds: counts' noise (one frame of counts at the scene's σ_e, no ambient; not yet the demodulator's amplitudes' σ), so for a blinking beacon they are looser than what its amplitudes allow, and by day they leave out the steady beacon's unknown ambient."
+        "\nµs/frame: median over the timing runs, one thread, the frames' samples simulated up front; for a blinking beacon the demodulator on the frame's burst (25 channels × its samples) plus the estimator on the amplitudes it gives, in brackets the demodulator alone, timed apart (on a shared machine the two do not subtract exactly). p95, ±2σ and beyond 3σ: the `ok` poses after the first second, all runs. Bounds (`model::bound_light`): a blinking beacon's amplitudes at the white-noise limit of its samples (the sun's shot noise in, no demodulator's search, no model error); a steady beacon's counts, by day with the sun's level unknown each frame and each detector's own flicker a noise."
     );
     for s in secs {
         for k in &s.skipped {

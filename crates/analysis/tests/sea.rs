@@ -105,7 +105,15 @@ fn the_open_sea_rows_blink_through_the_day_and_the_steady_beacon_copes() {
         }
     }
     assert!(text.contains("µs/frame (demod + estimator)"), "{text}");
-    assert!(text.contains("counts' noise"), "{text}");
+    assert!(text.contains("white-noise limit"), "{text}");
+    // The bounds read the light as the estimators do: a blinking beacon's
+    // amplitudes bound the approach's end at or below the steady beacon's
+    // counts, and the sun's unknown level widens the steady one's.
+    let crb = |i: usize| secs[i].crb_end.expect("a bound");
+    for a in 0..3 {
+        assert!(crb(1)[a] <= crb(3)[a] * (1.0 + 1e-9), "axis {a}");
+        assert!(crb(2)[a] <= crb(3)[a] * (1.0 + 1e-9), "axis {a}");
+    }
     // And the plot is a PNG.
     let dir = tempfile::tempdir().expect("tempdir");
     let png = dir.path().join(sea::PLOT_NAME);
