@@ -13,6 +13,7 @@
 use lightpose_core::{Attitude, Pose};
 use lightpose_pipeline::model::bound_light::{BoundDaylight, BoundLight};
 use lightpose_pipeline::model::crb::{crb_along, CrbBound, CrbScene};
+use lightpose_pipeline::model::light::{BeaconLight, Placement};
 use lightpose_pipeline::model::tracker::{TrackBound, TrackBoundScene, TrackPoint};
 use lightpose_pipeline::model::{SensorModel, Tracker};
 use lightpose_pipeline::settings::TrackerConfig;
@@ -44,10 +45,27 @@ pub fn crb_scene(s: &Scene) -> CrbScene {
         sigma_temp_c: Some(s.montecarlo.sigma_temp_c).filter(|v| *v > 0.0),
         attitude_sigma: s.attitude.map(|n| (n.sigma_pitch, n.sigma_yaw)),
         depth_sigma: s.depth.map(|d| d.sigma_m),
-        // Spec v3: a scene whose sensor reads roll; else roll as known.
-        roll_sigma: s.attitude.and_then(|n| n.sigma_roll),
+        // Spec v3: a scene whose sensor reads roll; a station sees roll
+        // itself (free without it); one beacon takes roll as known.
+        roll_sigma: s.attitude.and_then(|n| n.sigma_roll).or_else(|| {
+            (s.beacons.len() > 1).then_some(lightpose_core::Angle::from_rad(f64::INFINITY))
+        }),
         light: bound_light(s),
+        station: station_of(s),
     }
+}
+
+/// A station's beacons as the light equation sees them (empty for one
+/// `[beacon]`: the sensor model's own at D's origin).
+pub fn station_of(s: &Scene) -> Vec<BeaconLight> {
+    s.beacons
+        .iter()
+        .map(|b| BeaconLight {
+            v1: b.v1,
+            sigma_b: b.sigma_b,
+            place: Placement::new(b.position_m, b.axis_yaw, b.axis_pitch),
+        })
+        .collect()
 }
 
 /// How `s`'s frames carry the light to an estimator (spec v3): a blinking
@@ -89,6 +107,38 @@ pub fn describe_light(l: &BoundLight) -> Option<String> {
             sun(d)
         )),
     }
+}
+
+/// A station's beacons in words (`None` for one `[beacon]`).
+pub fn describe_station(s: &Scene) -> Option<String> {
+    if s.beacons.is_empty() {
+        return None;
+    }
+    let list: Vec<String> = s
+        .beacons
+        .iter()
+        .map(|b| {
+            let c = b.position_m;
+            format!(
+                "{} {} Hz at ({}, {}, {}) m",
+                b.id,
+                b.mod_hz(),
+                c[0],
+                c[1],
+                c[2]
+            )
+        })
+        .collect();
+    Some(format!(
+        "station: {} beacon(s), one image of amplitudes each, the pose in the station's frame D; roll {}: {}",
+        s.beacons.len(),
+        if s.beacons.len() > 1 && s.attitude.and_then(|a| a.sigma_roll).is_none() {
+            "from the light alone"
+        } else {
+            "as the scene's sensor or prior gives it"
+        },
+        list.join(", ")
+    ))
 }
 
 /// One frame time of a trajectory with its true pose and the bound there.
@@ -154,6 +204,7 @@ pub fn track_bound_along(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lightpose_core::Angle;
     use lightpose_sim::AttitudeNoise;
     use std::path::Path;
 
@@ -184,5 +235,83 @@ mod tests {
         }
         // Closer is better: the end of the dive (4.5 m) beats its start.
         assert!(pinned[40].bound.y < pinned[0].bound.y);
+    }
+
+    fn dock(known_water: bool) -> Scene {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/spec");
+        let mut s = Scene::load(&root.join("dock-example.toml")).expect("dock-example");
+        // Light alone.
+        s.attitude = None;
+        s.depth = None;
+        if known_water {
+            s.montecarlo.sigma_k_d = 0.0;
+            s.montecarlo.sigma_temp_c = 0.0;
+        }
+        s
+    }
+
+    fn on_axis(s: &Scene, x: f64) -> CrbBound {
+        crb_along(
+            &crb_scene(s),
+            &[Pose::new(x, 0.0, 0.0, Angle::ZERO, Angle::ZERO)],
+        )[0]
+    }
+
+    /// Issue 41's scale, one frame by light alone on dock-example.toml
+    /// (1.96σ, K_D and the temperature known): at 5 m x .05, y .14, z .17
+    /// m, pitch 2.2°, yaw 1.8°, roll 6.9°; at 3 m x .01, y .02, z .02 m.
+    /// Four beacons see roll, and one beacon's ridges are gone.
+    #[test]
+    fn a_station_s_bound_sees_the_whole_pose() {
+        let s = dock(true);
+        let z = crate::trade::Z95;
+        let b5 = on_axis(&s, 5.0);
+        let got = [b5.x, b5.y, b5.z, b5.pitch_deg, b5.yaw_deg, b5.roll_deg].map(|v| z * v);
+        let want = [0.05, 0.14, 0.17, 2.2, 1.8, 6.9];
+        for (g, w) in got.iter().zip(&want) {
+            assert!(
+                (g / w - 1.0).abs() < 0.15,
+                "at 5 m: {got:?} against {want:?}"
+            );
+        }
+        let b3 = on_axis(&s, 3.0);
+        for (g, w) in [b3.x, b3.y, b3.z].iter().zip([0.01, 0.02, 0.02]) {
+            assert!(z * g <= w * 1.1 && z * g >= w * 0.3, "at 3 m: {b3:?}");
+        }
+        // The same station with one beacon: roll unseen, the ridges back.
+        let mut one = s.clone();
+        one.beacons.truncate(1);
+        let b1 = on_axis(&one, 5.0);
+        assert!(
+            b1.y > 10.0 * b5.y && b1.yaw_deg > 10.0 * b5.yaw_deg,
+            "{b1:?}"
+        );
+        // Two beacons not in line with the vehicle: roll observable.
+        let mut two = s.clone();
+        two.beacons.truncate(2);
+        let b2 = on_axis(&two, 3.0);
+        assert!(b2.roll_deg.is_finite() && b2.roll_deg < 10.0, "{b2:?}");
+        // Not knowing K_D costs range, nothing else much.
+        let wet = on_axis(&dock(false), 5.0);
+        assert!(wet.x > b5.x && wet.yaw_deg < b5.yaw_deg * 1.01, "{wet:?}");
+    }
+
+    /// One `[[beacons]]` entry at D's origin along +x is the v2 beacon: the
+    /// station's path gives the bound of the sensor model's own beacon.
+    #[test]
+    fn a_station_of_one_beacon_at_the_origin_is_the_one_beacon_bound() {
+        let mut s = dock(true);
+        s.beacons.truncate(1);
+        s.beacons[0].position_m = [0.0; 3];
+        s.light.v1 = s.beacons[0].v1;
+        s.light.sigma_b = s.beacons[0].sigma_b;
+        let mut plain = s.clone();
+        plain.beacons.clear();
+        let pose = Pose::new(4.0, 0.2, -0.1, Angle::from_deg(3.0), Angle::from_deg(-2.0));
+        let mut cs = crb_scene(&s);
+        let mut cp = crb_scene(&plain);
+        cs.light = bound_light(&s);
+        cp.light = cs.light;
+        assert_eq!(crb_along(&cs, &[pose]), crb_along(&cp, &[pose]));
     }
 }

@@ -5,7 +5,9 @@
 use crate::guard;
 use crate::stdout::out;
 use anyhow::Context;
-use lightpose_analysis::bound::{along_trajectory, bound_light, describe_light, track_bound_along};
+use lightpose_analysis::bound::{
+    along_trajectory, bound_light, crb_scene, describe_light, describe_station, track_bound_along,
+};
 use lightpose_analysis::sensors;
 use lightpose_analysis::trade::{num, Z95};
 use lightpose_pipeline::settings::TrackerConfig;
@@ -95,57 +97,73 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
     if let Some(light) = describe_light(&bound_light(&scene)) {
         let _ = writeln!(out, "{light}");
     }
+    if let Some(station) = describe_station(&scene) {
+        let _ = writeln!(out, "{station}");
+    }
     if track.is_some() {
         let _ = writeln!(
             out,
             "Tracker bound ({what}): the whole trajectory, the tracker's default motion model as the prior between frames"
         );
     }
+    let roll = crb_scene(&scene).roll_sigma.is_some();
     let _ = writeln!(out);
-    let _ = write!(
-        out,
-        "| t (s) | x (m) | y (m) | z (m) | pitch (°) | yaw (°) | bound x (m) | bound y (m) | bound z (m) | bound pitch (°) | bound yaw (°) |"
-    );
-    if track.is_some() {
-        let _ = write!(out, " track x (m) | track y (m) | track z (m) | track pitch (°) | track yaw (°) | track surge (m/s) |");
+    let mut head = vec!["t (s)", "x (m)", "y (m)", "z (m)", "pitch (°)", "yaw (°)"];
+    if roll {
+        head.push("roll (°)");
     }
-    let _ = writeln!(out);
-    let cols = if track.is_some() { 17 } else { 11 };
-    let _ = writeln!(out, "|{}", "---|".repeat(cols));
+    head.extend([
+        "bound x (m)",
+        "bound y (m)",
+        "bound z (m)",
+        "bound pitch (°)",
+        "bound yaw (°)",
+    ]);
+    if roll {
+        head.push("bound roll (°)");
+    }
+    if track.is_some() {
+        head.extend([
+            "track x (m)",
+            "track y (m)",
+            "track z (m)",
+            "track pitch (°)",
+            "track yaw (°)",
+            "track surge (m/s)",
+        ]);
+    }
+    let _ = writeln!(out, "| {} |", head.join(" | "));
+    let _ = writeln!(out, "|{}", "---|".repeat(head.len()));
     let last = steps.len().saturating_sub(1);
     for (i, s) in steps.iter().enumerate() {
         if i % every != 0 && i != last {
             continue;
         }
         let b = &s.bound;
-        let _ = write!(
-            out,
-            "| {:.2} | {:.2} | {:.2} | {:.2} | {:.1} | {:.1} | {} | {} | {} | {} | {} |",
-            s.t,
-            s.pose.x,
-            s.pose.y,
-            s.pose.z,
-            s.pose.pitch.deg(),
-            s.pose.yaw.deg(),
-            num(Some(k * b.x)),
-            num(Some(k * b.y)),
-            num(Some(k * b.z)),
-            num(Some(k * b.pitch_deg)),
-            num(Some(k * b.yaw_deg)),
-        );
-        if let Some(tb) = track.as_ref().and_then(|v| v.get(i)) {
-            let _ = write!(
-                out,
-                " {} | {} | {} | {} | {} | {} |",
-                num(Some(k * tb.x)),
-                num(Some(k * tb.y)),
-                num(Some(k * tb.z)),
-                num(Some(k * tb.pitch_deg)),
-                num(Some(k * tb.yaw_deg)),
-                num(Some(k * tb.surge)),
-            );
+        let p = &s.pose;
+        let mut cells = vec![
+            format!("{:.2}", s.t),
+            format!("{:.2}", p.x),
+            format!("{:.2}", p.y),
+            format!("{:.2}", p.z),
+            format!("{:.1}", p.pitch.deg()),
+            format!("{:.1}", p.yaw.deg()),
+        ];
+        if roll {
+            cells.push(format!("{:.1}", p.roll.deg()));
         }
-        let _ = writeln!(out);
+        for v in [b.x, b.y, b.z, b.pitch_deg, b.yaw_deg] {
+            cells.push(num(Some(k * v)));
+        }
+        if roll {
+            cells.push(num(Some(k * b.roll_deg)));
+        }
+        if let Some(tb) = track.as_ref().and_then(|v| v.get(i)) {
+            for v in [tb.x, tb.y, tb.z, tb.pitch_deg, tb.yaw_deg, tb.surge] {
+                cells.push(num(Some(k * v)));
+            }
+        }
+        let _ = writeln!(out, "| {} |", cells.join(" | "));
     }
     out!("{out}");
     Ok(())

@@ -315,9 +315,11 @@ fn crb_reads_a_blinking_beacon_s_amplitudes_and_a_steady_one_s_sun() {
     );
     assert_eq!(blink.len(), steady.len());
     assert!(!blink.is_empty());
+    // These scenes' AHRS reads roll: the trajectory's roll and its bound
+    // are columns too, and bound x, y, z are columns 7, 8, 9.
+    assert!(blink_out.contains("| roll (°) |") && blink_out.contains("| bound roll (°) |"));
     for (b, st) in blink.iter().zip(&steady) {
-        // Bound x, y, z in columns 6, 7, 8.
-        for c in 6..9 {
+        for c in 7..10 {
             assert!(b[c] <= st[c] + 1e-9, "column {c}: {b:?} {st:?}");
         }
     }
@@ -325,6 +327,56 @@ fn crb_reads_a_blinking_beacon_s_amplitudes_and_a_steady_one_s_sun() {
     let dive = root().join("config/trajectories/dive.csv");
     let (ok, out, _) = lightpose(&["crb", "--scene", s(&tank), "--trajectory", s(&dive)]);
     assert!(ok && !out.contains("light:"), "{out}");
+}
+
+/// A docking station (spec v3, `dock-example.toml`): the bound of light
+/// alone sees roll, and four beacons bound y, z and yaw where one beacon
+/// cannot (issue 41's scale: 1.96σ at 5 m y .14, z .17 m, roll 6.9°).
+#[test]
+fn crb_of_a_docking_station_bounds_roll_and_the_ridges() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let traj = dir.path().join("dock.csv");
+    std::fs::write(
+        &traj,
+        "t,x,y,z,pitch,yaw,roll\n0,5,0,0,0,0,0\n2,1.5,0.1,0,0,0,5\n",
+    )
+    .expect("write");
+    let scene = root().join("../shared/spec/dock-example.toml");
+    let (ok, out, err) = lightpose(&[
+        "crb",
+        "--scene",
+        s(&scene),
+        "--trajectory",
+        s(&traj),
+        "--sensors",
+        "none",
+        "--half-width",
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("station: 4 beacon(s)") && out.contains("roll from the light alone"),
+        "{out}"
+    );
+    let rows: Vec<Vec<f64>> = out
+        .lines()
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| t "))
+        .map(|l| {
+            l.trim_matches('|')
+                .split('|')
+                .map(|c| c.trim().parse().expect("number"))
+                .collect()
+        })
+        .collect();
+    assert_eq!(rows.len(), 21, "{out}");
+    // Columns: t, x, y, z, pitch, yaw, roll, then the bound's x … roll.
+    let first = &rows[0];
+    assert!(
+        first[8] > 0.1 && first[8] < 0.2 && first[9] > 0.12 && first[9] < 0.25,
+        "{first:?}"
+    );
+    assert!(first[12] > 5.0 && first[12] < 9.0, "roll {first:?}");
+    let last = &rows[20];
+    assert!(last[8] < 0.01 && last[12] < 0.5, "{last:?}");
 }
 
 /// Told that the water may be far from the calibration's (`k_d_sigma =

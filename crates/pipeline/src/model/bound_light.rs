@@ -34,7 +34,9 @@
 use lightpose_core::NDET;
 
 use super::daylight::counts_per_level;
-use super::light::{predict_with_grad_rolled, PoseVec};
+#[cfg(test)]
+use super::light::predict_with_grad_rolled;
+use super::light::{predict_beacon, predict_beacon_with_grad, BeaconLight, PoseVec};
 use super::SensorModel;
 
 /// Parameters a channel's gradient is taken over: x, y, z, θ, ψ, K_D, the
@@ -97,7 +99,61 @@ pub fn channels(
     k_d: f64,
     gt: f64,
 ) -> [BoundChannel; NDET] {
-    let (pred, irr, jac, jr) = predict_with_grad_rolled(m, q, roll, k_d, gt);
+    channels_of(m, light, None, &[0.0; NDET], q, roll, k_d, gt)
+}
+
+/// A station's frame (spec v3, several blinking beacons): one image of
+/// amplitudes per beacon, each channel's gradient that beacon's light's.
+/// Each beacon's amplitude also pays the shot noise of the others' light
+/// (on half the time, so half their level on both of its halves), and a
+/// channel whose samples clip with every beacon on is left out.
+pub fn station_channels(
+    m: &SensorModel,
+    light: &BoundLight,
+    beacons: &[BeaconLight],
+    q: &PoseVec,
+    roll: f64,
+    k_d: f64,
+    gt: f64,
+) -> Vec<[BoundChannel; NDET]> {
+    let volts: Vec<[f64; NDET]> = beacons
+        .iter()
+        .map(|b| {
+            let (_, irr) = predict_beacon(m, Some(b), q, roll, k_d, gt);
+            std::array::from_fn(|k| irr[k] * m.gain[k] * gt)
+        })
+        .collect();
+    beacons
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let others: [f64; NDET] = std::array::from_fn(|k| {
+                volts
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != i)
+                    .map(|(_, v)| v[k])
+                    .sum()
+            });
+            channels_of(m, light, Some(b), &others, q, roll, k_d, gt)
+        })
+        .collect()
+}
+
+/// One beacon's channels (`None`: the model's own beacon at D's origin),
+/// `others_v` the other beacons' light at the ADC (volts, all on).
+#[allow(clippy::too_many_arguments)]
+fn channels_of(
+    m: &SensorModel,
+    light: &BoundLight,
+    beacon: Option<&BeaconLight>,
+    others_v: &[f64; NDET],
+    q: &PoseVec,
+    roll: f64,
+    k_d: f64,
+    gt: f64,
+) -> [BoundChannel; NDET] {
+    let (pred, irr, jac, jr) = predict_beacon_with_grad(m, beacon, q, roll, k_d, gt);
     let fs = m.full_scale();
     let cpv = m.counts_per_volt();
     let amb = light.daylight.map(|d| Sun::at(m, &d, q, roll, k_d, gt));
@@ -119,9 +175,10 @@ pub fn channels(
                 // The on level's samples must not clip; the off level is
                 // the dark offset plus the ambient.
                 let on = pred[k] + a;
-                c.used = on < fs - 0.5 && pred[k] - g[6] + a > 0.5;
-                let on_var = m.count_variance(beacon_v + a / cpv);
-                let off_var = m.count_variance(a / cpv);
+                let others = others_v[k];
+                c.used = on + others * cpv < fs - 0.5 && pred[k] - g[6] + a > 0.5;
+                let on_var = m.count_variance(beacon_v + a / cpv + 0.5 * others);
+                let off_var = m.count_variance(a / cpv + 0.5 * others);
                 c.var = 2.0 / f64::from(n.max(2)) * (on_var + off_var);
             }
             None => {

@@ -29,8 +29,9 @@ use lightpose_core::light::temperature_gain;
 use lightpose_core::{Angle, Pose};
 use nalgebra::{SMatrix, SVector};
 
-use super::bound_light::{channels, BoundLight, NG};
+use super::bound_light::{channels, station_channels, BoundLight, NG};
 use super::light::from_pose;
+use super::light::BeaconLight;
 use super::SensorModel;
 
 /// Parameters: x, y, z, θ, ψ, K_D, common gain, roll.
@@ -61,6 +62,9 @@ pub struct CrbScene {
     /// Spec v3: counts or a blinking beacon's amplitudes, and the sun
     /// (`bound_light`); the default is v1/v2's.
     pub light: BoundLight,
+    /// Spec v3: a docking station's beacons, each an image of amplitudes;
+    /// empty: the model's one beacon at the origin (D = B).
+    pub station: Vec<BeaconLight>,
 }
 
 impl CrbScene {
@@ -76,6 +80,7 @@ impl CrbScene {
             depth_sigma: None,
             roll_sigma: None,
             light: BoundLight::default(),
+            station: Vec::new(),
         }
     }
 }
@@ -101,14 +106,22 @@ pub fn fisher(scene: &CrbScene, pose: &Pose) -> SMatrix<f64, NP, NP> {
     let m = &scene.model;
     let gt = temperature_gain(scene.temp_c);
     let q = from_pose(pose);
-    let ch = channels(m, &scene.light, &q, pose.roll.rad(), m.light.k_d, gt);
+    let (roll, k_d) = (pose.roll.rad(), m.light.k_d);
+    let images = if scene.station.is_empty() {
+        vec![channels(m, &scene.light, &q, roll, k_d, gt)]
+    } else {
+        station_channels(m, &scene.light, &scene.station, &q, roll, k_d, gt)
+    };
     let mut f = SMatrix::<f64, NP, NP>::zeros();
-    for c in ch.iter().filter(|c| c.used) {
+    for c in images.iter().flatten().filter(|c| c.used) {
         let row = SVector::<f64, NP>::from_column_slice(&c.grad);
         f += row * row.transpose() / c.var;
     }
     let mut fix = |i: usize, sigma: Option<f64>| match sigma {
         Some(s) if s > 0.0 && s.is_finite() => f[(i, i)] += 1.0 / (s * s),
+        // Unknown and without a prior: the light alone tells it (roll of
+        // a station without an attitude sensor).
+        Some(s) if s == f64::INFINITY => {}
         // Known exactly: remove the parameter from the problem.
         _ => {
             for j in 0..NP {

@@ -56,6 +56,13 @@ fn mat_vec(r: &[[f64; 3]; 3], v: &[f64; 3]) -> [f64; 3] {
     [dot(&r[0], v), dot(&r[1], v), dot(&r[2], v)]
 }
 
+#[inline]
+fn mat_mat(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let col = |j: usize| [b[0][j], b[1][j], b[2][j]];
+    let (c0, c1, c2) = (col(0), col(1), col(2));
+    a.map(|row| [dot(&row, &c0), dot(&row, &c1), dot(&row, &c2)])
+}
+
 /// R_BV and its derivatives with respect to θ, ψ and φ, in that order.
 type Rotations = [[[f64; 3]; 3]; 4];
 
@@ -122,7 +129,7 @@ pub fn predict_with_grad(
     k_d: f64,
     gt: f64,
 ) -> (SVector<f64, NDET>, [f64; NDET], PoseJacobian) {
-    let (c, e, j, _) = eval::<true, false>(m, q, 0.0, k_d, gt);
+    let (c, e, j, _) = eval::<true, false>(m, None, q, 0.0, k_d, gt);
     (c, e, j)
 }
 
@@ -138,7 +145,7 @@ pub fn predict_rolled(
     k_d: f64,
     gt: f64,
 ) -> (SVector<f64, NDET>, [f64; NDET]) {
-    let (c, e, _, _) = eval::<false, false>(m, q, roll, k_d, gt);
+    let (c, e, _, _) = eval::<false, false>(m, None, q, roll, k_d, gt);
     (c, e)
 }
 
@@ -155,7 +162,85 @@ pub fn predict_with_grad_rolled(
     PoseJacobian,
     SVector<f64, NDET>,
 ) {
-    eval::<true, true>(m, q, roll, k_d, gt)
+    eval::<true, true>(m, None, q, roll, k_d, gt)
+}
+
+/// Where one beacon of a station stands in the frame D the pose is in
+/// (spec v3, MODEL.md "Several beacons"): its position c_b and the turn
+/// from D into its beam frame, whose +x is its optical axis. One beacon at
+/// D's origin along +x_D is no placement at all (`None` below): D = B.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Placement {
+    /// c_b in D, m.
+    pub c: [f64; 3],
+    /// Rows: the beam frame's axes in D, the optical axis first, so that a
+    /// vector w of D is (row_i · w) in the beam frame. The beam is round,
+    /// so which pair is taken across the axis does not matter.
+    pub to_beam: [[f64; 3]; 3],
+}
+
+impl Placement {
+    /// A beacon at `c` whose axis is (cos θa·cos ψa, cos θa·sin ψa, sin θa).
+    pub fn new(c: [f64; 3], axis_yaw: Angle, axis_pitch: Angle) -> Self {
+        let (st, ct) = axis_pitch.sin_cos();
+        let (sp, cp) = axis_yaw.sin_cos();
+        Placement {
+            c,
+            to_beam: [
+                [ct * cp, ct * sp, st],
+                [-sp, cp, 0.0],
+                [-st * cp, -st * sp, ct],
+            ],
+        }
+    }
+
+    /// Whether this is D's origin along +x_D exactly (the v2 beacon).
+    pub fn is_origin(&self) -> bool {
+        self.c == [0.0; 3] && self.to_beam == [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    }
+}
+
+/// One beacon of a station as the light equation sees it: its own V1 and
+/// σ_b (the sensor model's σ_R, scattering and K_D are the water's and the
+/// array's, shared by every beacon), and where it stands.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BeaconLight {
+    pub v1: f64,
+    pub sigma_b: Angle,
+    pub place: Placement,
+}
+
+/// As [`predict_rolled`] for one beacon of a station (`None`: the sensor
+/// model's own beacon at D's origin, bit for bit [`predict_rolled`]).
+pub fn predict_beacon(
+    m: &SensorModel,
+    b: Option<&BeaconLight>,
+    q: &PoseVec,
+    roll: f64,
+    k_d: f64,
+    gt: f64,
+) -> (SVector<f64, NDET>, [f64; NDET]) {
+    let (c, e, _, _) = eval::<false, false>(m, b, q, roll, k_d, gt);
+    (c, e)
+}
+
+/// As [`predict_with_grad_rolled`] for one beacon of a station: the pose
+/// is the vehicle's in D, and ∂/∂φ is a column like the others (a station
+/// sees roll).
+pub fn predict_beacon_with_grad(
+    m: &SensorModel,
+    b: Option<&BeaconLight>,
+    q: &PoseVec,
+    roll: f64,
+    k_d: f64,
+    gt: f64,
+) -> (
+    SVector<f64, NDET>,
+    [f64; NDET],
+    PoseJacobian,
+    SVector<f64, NDET>,
+) {
+    eval::<true, true>(m, b, q, roll, k_d, gt)
 }
 
 /// The light equation's constants for one evaluation: the same for every
@@ -176,9 +261,10 @@ struct Beam {
 
 impl Beam {
     #[inline]
-    fn new(m: &SensorModel, k_d: f64) -> Self {
+    fn new(m: &SensorModel, b: Option<&BeaconLight>, k_d: f64) -> Self {
         let l = &m.light;
-        let sb = l.sigma_b.rad();
+        let (v1, sigma_b) = b.map_or((l.v1, l.sigma_b), |b| (b.v1, b.sigma_b));
+        let sb = sigma_b.rad();
         let sr = l.sigma_r.rad();
         let (omega, st2) = match l.scattering {
             Some(s) => (s.omega, sr * sr + s.sigma_h.rad() * s.sigma_h.rad()),
@@ -186,7 +272,7 @@ impl Beam {
         };
         let ratio = sr * sr / st2;
         Beam {
-            v1: l.v1,
+            v1,
             sb,
             sr,
             omega,
@@ -301,6 +387,7 @@ fn gradient<const ROLL: bool>(
     e: &Irradiance,
     rot: &Rotations,
     rh: f64,
+    tr: &[[f64; 3]; 3],
 ) -> ([f64; NGRAD], f64) {
     let (a, d, pk) = (e.a, s.d, s.pk);
     let (bracket, f, g_r, g_t) = (e.bracket, e.f, e.g_r, e.g_t);
@@ -333,7 +420,8 @@ fn gradient<const ROLL: bool>(
     let b_over_s = if s.s > 1e-12 { s.beta / s.s } else { 1.0 };
 
     // Derivatives of p_k and of the beam-frame normal m_k per pose
-    // coordinate: position moves p_k only; attitude turns both.
+    // coordinate: position moves p_k only (along D's axes as the beam frame
+    // sees them, `tr`); attitude turns both.
     let mt = mat_vec(&rot[1], &s.n);
     let mpsi = mat_vec(&rot[2], &s.n);
     let mphi = if ROLL {
@@ -342,9 +430,9 @@ fn gradient<const ROLL: bool>(
         [0.0; 3]
     };
     let dpk: [[f64; 3]; 6] = [
-        [1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, 0.0, 1.0],
+        tr[0],
+        tr[1],
+        tr[2],
         [rh * mt[0], rh * mt[1], rh * mt[2]],
         [rh * mpsi[0], rh * mpsi[1], rh * mpsi[2]],
         [rh * mphi[0], rh * mphi[1], rh * mphi[2]],
@@ -372,6 +460,7 @@ fn gradient<const ROLL: bool>(
 #[inline]
 fn eval<const GRAD: bool, const ROLL: bool>(
     m: &SensorModel,
+    b: Option<&BeaconLight>,
     q: &PoseVec,
     roll: f64,
     k_d: f64,
@@ -386,10 +475,26 @@ fn eval<const GRAD: bool, const ROLL: bool>(
     let mut irr = [0.0; NDET];
     let mut jac = PoseJacobian::zeros();
     let mut jac_roll = SVector::<f64, NDET>::zeros();
-    let beam = Beam::new(m, k_d);
+    let beam = Beam::new(m, b, k_d);
     let cpv = m.counts_per_volt();
-    let rot = rotations(q[3], q[4], roll);
-    let p = [q[0], q[1], q[2]];
+    let mut rot = rotations(q[3], q[4], roll);
+    let mut p = [q[0], q[1], q[2]];
+    // D's axes as the beam frame sees them: ∂p_k/∂(x, y, z).
+    let mut tr = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    if let Some(place) = b.map(|b| &b.place).filter(|pl| !pl.is_origin()) {
+        // Into the beam frame: p' = T(p − c), R' = T·R (and its derivatives).
+        let t = &place.to_beam;
+        let w = [p[0] - place.c[0], p[1] - place.c[1], p[2] - place.c[2]];
+        p = mat_vec(t, &w);
+        for r in rot.iter_mut() {
+            *r = mat_mat(t, r);
+        }
+        tr = [
+            [t[0][0], t[1][0], t[2][0]],
+            [t[0][1], t[1][1], t[2][1]],
+            [t[0][2], t[1][2], t[2][2]],
+        ];
+    }
     let rh = m.geometry.radius_m;
     for k in 0..NDET {
         let scale = m.gain[k] * gt * cpv;
@@ -406,7 +511,7 @@ fn eval<const GRAD: bool, const ROLL: bool>(
         if !GRAD || e.a == 0.0 {
             continue;
         }
-        let (de, de_roll) = gradient::<ROLL>(&beam, &s, &e, &rot, rh);
+        let (de, de_roll) = gradient::<ROLL>(&beam, &s, &e, &rot, rh, &tr);
         for j in 0..NGRAD {
             jac[(k, j)] = scale * de[j];
         }
@@ -521,6 +626,132 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A beacon of a station: off D's origin, its axis turned; what the
+    /// simulator computes (MODEL.md: d = |p_k − c_b|, α off its axis,
+    /// cos β = n·(c_b − p_k)/d) through core's light equation.
+    fn placed() -> BeaconLight {
+        BeaconLight {
+            v1: 4.0,
+            sigma_b: Angle::from_deg(20.0),
+            place: Placement::new(
+                [0.0, -0.5, 0.3],
+                Angle::from_deg(-5.0),
+                Angle::from_deg(3.0),
+            ),
+        }
+    }
+
+    #[test]
+    fn a_placed_beacon_is_the_light_equation_seen_from_it() {
+        let m = SensorModel {
+            light: LightParams {
+                k_d: 0.2,
+                ..LightParams::default()
+            },
+            ..SensorModel::default()
+        };
+        let b = placed();
+        let axis = b.place.to_beam[0];
+        let light = LightParams {
+            v1: b.v1,
+            sigma_b: b.sigma_b,
+            ..m.light
+        };
+        for pose in [
+            Pose::new(5.0, 0.1, -0.2, Angle::from_deg(4.0), Angle::from_deg(-6.0))
+                .with_roll(Angle::from_deg(7.0)),
+            Pose::new(
+                2.0,
+                -0.4,
+                0.5,
+                Angle::from_deg(-10.0),
+                Angle::from_deg(12.0),
+            ),
+        ] {
+            let (_, irr) =
+                predict_beacon(&m, Some(&b), &from_pose(&pose), pose.roll.rad(), 0.2, 1.0);
+            let att = pose.attitude();
+            let p = pose.position().0;
+            for k in 0..NDET {
+                let n = att.to_beam(&m.geometry.normal(k)).0;
+                let r = m.geometry.radius_m;
+                let w: [f64; 3] = std::array::from_fn(|i| p[i] + r * n[i] - b.place.c[i]);
+                let d = dot(&w, &w).sqrt();
+                let cross = |a: &[f64; 3], v: &[f64; 3]| {
+                    let x = [
+                        a[1] * v[2] - a[2] * v[1],
+                        a[2] * v[0] - a[0] * v[2],
+                        a[0] * v[1] - a[1] * v[0],
+                    ];
+                    dot(&x, &x).sqrt()
+                };
+                let view = lightpose_core::light::DetectorView {
+                    d,
+                    alpha: cross(&axis, &w).atan2(dot(&axis, &w)),
+                    beta: (cross(&n, &w) / d).atan2(-dot(&n, &w) / d),
+                };
+                let want = light.irradiance_at(&view);
+                assert!(
+                    (irr[k] - want).abs() <= 1e-12 * want.max(1e-9),
+                    "{k}: {} vs {want}",
+                    irr[k]
+                );
+            }
+        }
+    }
+
+    /// Every column of a placed beacon's Jacobian, roll's too, matches
+    /// central differences.
+    #[test]
+    fn a_placed_beacon_s_jacobian_matches_finite_differences() {
+        let m = SensorModel::default();
+        let b = placed();
+        let kd = m.light.k_d;
+        for (q, roll) in [
+            (PoseVec::new(5.0, 0.2, -0.1, 0.05, -0.1), 0.12),
+            (PoseVec::new(1.5, -0.3, 0.4, -0.2, 0.25), -0.3),
+        ] {
+            let (_, _, jac, jr) = predict_beacon_with_grad(&m, Some(&b), &q, roll, kd, 1.0);
+            let at =
+                |q: &PoseVec, roll: f64, kd: f64| predict_beacon(&m, Some(&b), q, roll, kd, 1.0).0;
+            for j in 0..7 {
+                let h = if j < 3 { 1e-6 } else { 1e-7 };
+                let (cp, cm) = match j {
+                    0..=4 => {
+                        let (mut qp, mut qm) = (q, q);
+                        qp[j] += h;
+                        qm[j] -= h;
+                        (at(&qp, roll, kd), at(&qm, roll, kd))
+                    }
+                    5 => (at(&q, roll, kd + h), at(&q, roll, kd - h)),
+                    _ => (at(&q, roll + h, kd), at(&q, roll - h, kd)),
+                };
+                for k in 0..NDET {
+                    let fd = (cp[k] - cm[k]) / (2.0 * h);
+                    let an = if j < 6 { jac[(k, j)] } else { jr[k] };
+                    let tol = 1e-5 * (an.abs() + fd.abs()) + 1e-5;
+                    assert!((fd - an).abs() < tol, "col {j} det {k}: {an} vs {fd}");
+                }
+            }
+        }
+    }
+
+    /// One beacon at D's origin along +x_D is the v2 beacon, bit for bit.
+    #[test]
+    fn a_beacon_at_the_origin_is_the_v2_beacon_bit_for_bit() {
+        let m = SensorModel::default();
+        let b = BeaconLight {
+            v1: m.light.v1,
+            sigma_b: m.light.sigma_b,
+            place: Placement::new([0.0; 3], Angle::ZERO, Angle::ZERO),
+        };
+        assert!(b.place.is_origin());
+        let q = PoseVec::new(6.2, 0.3, -0.2, 0.1, -0.15);
+        let a = predict_with_grad_rolled(&m, &q, 0.05, m.light.k_d, 1.0);
+        let c = predict_beacon_with_grad(&m, Some(&b), &q, 0.05, m.light.k_d, 1.0);
+        assert_eq!(a, c);
     }
 
     #[test]
