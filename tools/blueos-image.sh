@@ -1,10 +1,14 @@
 #!/usr/bin/env bash
 # Build the lightpose BlueOS extension image (config/blueos/Dockerfile) for
 # linux/arm/v7, linux/arm64 and linux/amd64 where docker runs (not in CI:
-# CI builds the binaries it holds). The ARM binaries come from
-# tools/cross-build.sh, the amd64 one from cargo; each is stripped and put
-# in target/blueos/bin/<platform>/lightposed, then docker buildx builds the
-# three images from them.
+# CI builds the three binaries it holds, BINARIES_ONLY=1). The three come
+# from one tools/cross-build.sh run (one cargo invocation for the three
+# targets, amd64 named as x86_64-unknown-linux-gnu, so the host's build
+# scripts and proc macros are built once; the armv7 one is run under qemu);
+# each is stripped and put in target/blueos/bin/<platform>/lightposed, then
+# docker buildx builds the three images from them. CARGO_TARGET_DIR is
+# honoured (CI's target/ci-cross); the bins always go to target/blueos/bin,
+# the Dockerfile's context.
 #
 #   tools/blueos-image.sh                 # build, tag lightpose/blueos-lightpose:VERSION
 #   PUSH=1 tools/blueos-image.sh          # and push (docker login first)
@@ -14,13 +18,13 @@ cd "$(dirname "$0")/.."
 image="lightpose/blueos-lightpose"
 version=$(sed -n 's/^version = "\(.*\)"/\1/p' Cargo.toml | head -1)
 
-CROSS_BENCH=0 CROSS_TARGETS="armv7-unknown-linux-gnueabihf aarch64-unknown-linux-gnu" tools/cross-build.sh
-cargo build --release -p lightposed
+CROSS_BENCH=0 CROSS_TARGETS="armv7-unknown-linux-gnueabihf aarch64-unknown-linux-gnu x86_64-unknown-linux-gnu" tools/cross-build.sh
+built=${CARGO_TARGET_DIR:-target}
 out=target/blueos/bin
 rm -rf "$out"
-for pair in amd64:target/release armv7:target/armv7-unknown-linux-gnueabihf/release arm64:target/aarch64-unknown-linux-gnu/release; do
+for pair in amd64:x86_64-unknown-linux-gnu armv7:armv7-unknown-linux-gnueabihf arm64:aarch64-unknown-linux-gnu; do
     d=${pair%%:*}
-    src=${pair#*:}/lightposed
+    src=$built/${pair#*:}/release/lightposed
     mkdir -p "$out/$d"
     cp "$src" "$out/$d/lightposed"
 done
@@ -28,6 +32,7 @@ strip "$out/amd64/lightposed"
 arm-linux-gnueabihf-strip "$out/armv7/lightposed"
 aarch64-linux-gnu-strip "$out/arm64/lightposed"
 ls -l "$out"/*/lightposed
+file "$out"/*/lightposed
 if [ -n "${BINARIES_ONLY:-}" ]; then
     exit 0
 fi
