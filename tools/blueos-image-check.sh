@@ -68,7 +68,7 @@ done
 "$py" -c "import time; print('answered /register_service %.1f s after docker run' % (time.time() - $start))"
 test -f "$folder/lightposed.toml" || { echo "blueos-image-check: the entrypoint wrote no lightposed.toml" >&2; exit 1; }
 "$py" - "$port" <<'PY'
-import json, sys, urllib.request
+import json, sys, time, urllib.request
 base = "http://127.0.0.1:%s" % sys.argv[1]
 with urllib.request.urlopen(base + "/", timeout=5) as r:
     body = r.read()
@@ -79,8 +79,20 @@ with urllib.request.urlopen(base + "/register_service", timeout=5) as r:
 assert reg["works_in_relative_paths"] is True, reg
 with urllib.request.urlopen(base + "/v1/status", timeout=5) as r:
     st = json.load(r)
-print("GET / 200 (%d bytes); register_service: %s %s; status: source %s"
-      % (len(body), reg["name"], reg["version"], json.dumps(st.get("source"))[:120]))
+# The simulated tank's pose becomes `ok` once the tracker has settled.
+deadline = time.time() + 30
+while True:
+    with urllib.request.urlopen(base + "/v1/pose", timeout=5) as r:
+        pose = json.load(r)
+    if pose.get("status") == "ok" or time.time() > deadline:
+        break
+    time.sleep(0.2)
+assert pose.get("status") == "ok", pose
+with urllib.request.urlopen(base + "/v1/status", timeout=5) as r:
+    st = json.load(r)
+print("GET / 200 (%d bytes); register_service: %s %s; status: %s frames, %s fps, web %s; pose: %s"
+      % (len(body), reg["name"], reg["version"], st["frames"], st["fps"],
+         st["web"].get("listen"), pose.get("status")))
 PY
 "$py" crates/daemon/tests/web_openapi.py config/blueos/openapi.json "http://127.0.0.1:$port"
 docker stats --no-stream --format 'container: CPU {{.CPUPerc}}, memory {{.MemUsage}}' "$name"
