@@ -9,6 +9,7 @@
 #
 #   tools/cross-build.sh            # both targets + armv7 smoke test
 #   CROSS_TARGETS=aarch64-unknown-linux-gnu tools/cross-build.sh
+#   CROSS_TARGETS="... x86_64-unknown-linux-gnu" (the host named: tools/blueos-image.sh)
 #   CROSS_CHECK_ONLY=aarch64-unknown-linux-gnu tools/cross-build.sh
 #   CROSS_BENCH=0 tools/cross-build.sh   # skip the --bench under qemu
 #       # type-check that target instead of building it (CI: the armv7
