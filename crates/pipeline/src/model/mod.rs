@@ -9,6 +9,8 @@
 //! - [`single_frame`]: the `"model"` estimator, each frame fitted on its own.
 //! - [`tracker`]: the `"tracker"` estimator, a filter over pose and rates.
 //! - [`crb`]: the Cramér–Rao bound, the best any estimator could do.
+//! - [`station_fit`]: one frame's fit of the whole pose, roll too, to a
+//!   docking station's images (spec v3, several beacons).
 //!
 //! Their settings are in [`crate::settings`]; the light model they run on
 //! is fitted by `calibration::physical_fit`. A new model-based estimator
@@ -29,6 +31,7 @@ pub mod measurement;
 pub(crate) mod normal;
 pub mod single_frame;
 pub mod solver;
+pub mod station_fit;
 #[cfg(test)]
 pub(crate) mod testutil;
 pub mod tracker;
