@@ -145,8 +145,7 @@ pub fn predict_rolled(
     k_d: f64,
     gt: f64,
 ) -> (SVector<f64, NDET>, [f64; NDET]) {
-    let (c, e, _, _) = eval::<false, false>(m, None, q, roll, k_d, gt);
-    (c, e)
+    predict_beacon(m, None, q, roll, k_d, gt)
 }
 
 /// As [`predict_rolled`], plus ∂count/∂(x, y, z, θ, ψ, K_D) and ∂count/∂φ.
@@ -162,7 +161,7 @@ pub fn predict_with_grad_rolled(
     PoseJacobian,
     SVector<f64, NDET>,
 ) {
-    eval::<true, true>(m, None, q, roll, k_d, gt)
+    predict_beacon_with_grad(m, None, q, roll, k_d, gt)
 }
 
 /// Where one beacon of a station stands in the frame D the pose is in

@@ -16,13 +16,11 @@
 
 use std::path::Path;
 
+use lightpose_analysis::bound::{crb_scene, sensor_of, station_of};
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{Angle, BeamVec, Pose};
-use lightpose_pipeline::model::bound_light::{BoundDaylight, BoundLight};
-use lightpose_pipeline::model::crb::{crb_along, CrbScene};
-use lightpose_pipeline::model::light::{BeaconLight, Placement};
+use lightpose_pipeline::model::crb::crb_along;
 use lightpose_pipeline::model::station_fit::{fit_station, Pose6, StationPriors};
-use lightpose_pipeline::model::SensorModel;
 use lightpose_sim::{EstimatorFrames, Kinematics, Scene, Simulator};
 
 fn dock() -> Scene {
@@ -32,31 +30,6 @@ fn dock() -> Scene {
     s.attitude = None;
     s.depth = None;
     s
-}
-
-fn model_of(s: &Scene) -> SensorModel {
-    SensorModel {
-        light: s.light,
-        geometry: s.geometry,
-        gain: s.gain,
-        offset_v: s.offset_v,
-        v_ref: s.adc.v_ref,
-        adc_bits: s.adc.bits,
-        sigma_e_v: s.noise.map_or(0.0, |n| n.sigma_e_v),
-        kappa_v: s.noise.map_or(0.0, |n| n.kappa_v),
-        k_d_sigma: 0.0,
-    }
-}
-
-fn station_of(s: &Scene) -> Vec<BeaconLight> {
-    s.beacons
-        .iter()
-        .map(|b| BeaconLight {
-            v1: b.v1,
-            sigma_b: b.sigma_b,
-            place: Placement::new(b.position_m, b.axis_yaw, b.axis_pitch),
-        })
-        .collect()
 }
 
 fn pose6(p: &Pose) -> Pose6 {
@@ -69,7 +42,7 @@ const NAMES: [&str; 6] = ["x", "y", "z", "pitch", "yaw", "roll"];
 /// (0.3 m, 0.1 m, 0.1 m, 3°, 3°, 5°): per axis the RMS of error/σ, the
 /// fraction within 2σ, the mean σ, and the beacons seen per frame.
 fn run(scene: &Scene, truth: &Pose, n: u64, seed: u64) -> ([f64; 6], [f64; 6], [f64; 6], Vec<u32>) {
-    let m = model_of(scene);
+    let m = sensor_of(scene);
     let station = station_of(scene);
     let mut frames = EstimatorFrames::new(Simulator::new(scene.clone(), seed)).expect("frames");
     let still = Kinematics {
@@ -109,27 +82,11 @@ fn run(scene: &Scene, truth: &Pose, n: u64, seed: u64) -> ([f64; 6], [f64; 6], [
 }
 
 fn bound(scene: &Scene, truth: &Pose) -> [f64; 6] {
-    let n = scene.adc.samples_per_frame() as u32;
-    let d = scene.daylight.as_ref().expect("daylight");
-    let cs = CrbScene {
-        sigma_k_d: None,
-        sigma_temp_c: None,
-        roll_sigma: Some(Angle::from_rad(f64::INFINITY)),
-        light: BoundLight {
-            blink_samples: Some(n),
-            daylight: Some(BoundDaylight {
-                surface_v: d.surface_v,
-                origin_depth_m: d.origin_depth_m,
-                upwelling: d.upwelling,
-                own_flicker: d.random_std * d.spatial.sqrt(),
-                flicker_depth_m: d.flicker_depth_m,
-            }),
-        },
-        station: station_of(scene),
-        temp_c: scene.temp_c,
-        ..CrbScene::montecarlo(model_of(scene))
-    };
-    let b = crb_along(&cs, &[*truth])[0];
+    // K_D and the temperature known, as the fit knows them.
+    let mut s = scene.clone();
+    s.montecarlo.sigma_k_d = 0.0;
+    s.montecarlo.sigma_temp_c = 0.0;
+    let b = crb_along(&crb_scene(&s), &[*truth])[0];
     [
         b.x,
         b.y,
@@ -221,7 +178,7 @@ fn a_beacon_switched_off_is_not_seen_and_three_keep_the_whole_pose() {
 #[test]
 fn a_fit_from_in_front_of_the_station_finds_the_pose() {
     let s = dock();
-    let m = model_of(&s);
+    let m = sensor_of(&s);
     let station = station_of(&s);
     let start = Pose6::new(4.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     let priors = StationPriors {

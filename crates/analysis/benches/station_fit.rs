@@ -7,11 +7,10 @@
 //! and from 4 m on the axis (a first frame's).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use lightpose_analysis::bound::{sensor_of, station_of};
 use lightpose_core::light::temperature_gain;
 use lightpose_core::{Amplitudes, Angle, BeamVec, Pose};
-use lightpose_pipeline::model::light::{BeaconLight, Placement};
 use lightpose_pipeline::model::station_fit::{fit_station, Pose6, StationPriors};
-use lightpose_pipeline::model::SensorModel;
 use lightpose_sim::{EstimatorFrames, Kinematics, Scene, Simulator};
 use std::path::Path;
 
@@ -25,30 +24,26 @@ fn scene(five: bool) -> Scene {
         extra.id = "centre".into();
         extra.position_m = [0.0, 0.35, 0.35];
         s.beacons.push(extra);
-        for (b, hz) in s.beacons.iter_mut().zip([800.0, 1200.0, 600.0, 300.0, 150.0]) {
+        for (b, hz) in s
+            .beacons
+            .iter_mut()
+            .zip([800.0, 1200.0, 600.0, 300.0, 150.0])
+        {
             b.blink.mod_hz = hz;
         }
     }
     s
 }
 
-fn model_of(s: &Scene) -> SensorModel {
-    SensorModel {
-        light: s.light,
-        geometry: s.geometry,
-        gain: s.gain,
-        offset_v: s.offset_v,
-        v_ref: s.adc.v_ref,
-        adc_bits: s.adc.bits,
-        sigma_e_v: s.noise.map_or(0.0, |n| n.sigma_e_v),
-        kappa_v: s.noise.map_or(0.0, |n| n.kappa_v),
-        k_d_sigma: 0.0,
-    }
-}
-
 fn frames(s: &Scene) -> (Vec<Amplitudes>, f64, Pose6) {
-    let truth = Pose::new(3.0, 0.12, -0.08, Angle::from_deg(3.0), Angle::from_deg(-4.0))
-        .with_roll(Angle::from_deg(6.0));
+    let truth = Pose::new(
+        3.0,
+        0.12,
+        -0.08,
+        Angle::from_deg(3.0),
+        Angle::from_deg(-4.0),
+    )
+    .with_roll(Angle::from_deg(6.0));
     let mut f = EstimatorFrames::new(Simulator::new(s.clone(), 5)).expect("frames");
     let still = Kinematics {
         pose: truth,
@@ -62,23 +57,22 @@ fn frames(s: &Scene) -> (Vec<Amplitudes>, f64, Pose6) {
             fr.amplitudes.expect("demodulated")
         })
         .collect();
-    let q = Pose6::new(truth.x, truth.y, truth.z, truth.pitch.rad(), truth.yaw.rad(), truth.roll.rad());
+    let q = Pose6::new(
+        truth.x,
+        truth.y,
+        truth.z,
+        truth.pitch.rad(),
+        truth.yaw.rad(),
+        truth.roll.rad(),
+    );
     (amps, gt, q)
 }
 
 fn bench(c: &mut Criterion) {
     for five in [false, true] {
         let s = scene(five);
-        let m = model_of(&s);
-        let station: Vec<BeaconLight> = s
-            .beacons
-            .iter()
-            .map(|b| BeaconLight {
-                v1: b.v1,
-                sigma_b: b.sigma_b,
-                place: Placement::new(b.position_m, b.axis_yaw, b.axis_pitch),
-            })
-            .collect();
+        let m = sensor_of(&s);
+        let station = station_of(&s);
         let (amps, gt, truth) = frames(&s);
         let priors = StationPriors {
             roll_sigma: 5f64.to_radians(),
@@ -87,21 +81,36 @@ fn bench(c: &mut Criterion) {
         let n = station.len();
         let mut i = 0;
         let mut last = truth;
-        c.bench_function(&format!("station fit, {n} beacons, from the last pose"), |b| {
-            b.iter(|| {
-                i = (i + 1) % amps.len();
-                if let Some(f) = fit_station(&m, &station, black_box(&amps[i]), gt, last, &priors) {
-                    last = f.pose;
-                }
-            })
-        });
+        c.bench_function(
+            &format!("station fit, {n} beacons, from the last pose"),
+            |b| {
+                b.iter(|| {
+                    i = (i + 1) % amps.len();
+                    if let Some(f) =
+                        fit_station(&m, &station, black_box(&amps[i]), gt, last, &priors)
+                    {
+                        last = f.pose;
+                    }
+                })
+            },
+        );
         let cold = Pose6::new(4.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-        c.bench_function(&format!("station fit, {n} beacons, from 4 m on the axis"), |b| {
-            b.iter(|| {
-                i = (i + 1) % amps.len();
-                black_box(fit_station(&m, &station, black_box(&amps[i]), gt, cold, &priors))
-            })
-        });
+        c.bench_function(
+            &format!("station fit, {n} beacons, from 4 m on the axis"),
+            |b| {
+                b.iter(|| {
+                    i = (i + 1) % amps.len();
+                    black_box(fit_station(
+                        &m,
+                        &station,
+                        black_box(&amps[i]),
+                        gt,
+                        cold,
+                        &priors,
+                    ))
+                })
+            },
+        );
     }
 }
 
