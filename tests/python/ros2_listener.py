@@ -3,6 +3,7 @@ rmw_cyclonedds), with ROS 2's own DDS type and topic names, listening to
 lightposed's node: what a ROS 2 node would receive, without a ROS install.
 
 Usage: ros2_listener.py SECONDS [DOMAIN] [NAMESPACE]
+Listens for SECONDS from the first pose heard (at most 20 s more for it).
 Prints one JSON object per received sample on stdout:
   {"topic": "pose"|"odom"|"tf"|"tf_static"|"diagnostics", "stamp": unix s,
    "xyz": [..], "q": [x, y, z, w], "cov": [36 floats], ...}
@@ -162,9 +163,15 @@ def main():
         "diagnostics": DataReader(dp, Topic(dp, "rt/diagnostics", DiagnosticArray), qos=reliable),
     }
     counts = {k: 0 for k in readers}
-    end = time.monotonic() + seconds
+    # The window opens at the first pose heard (discovery takes its time),
+    # and the wait for it is bounded.
+    end = time.monotonic() + seconds + 20.0
+    opened = False
     out = sys.stdout
     while time.monotonic() < end:
+        if not opened and counts["pose"] > 0:
+            opened = True
+            end = time.monotonic() + seconds
         for name, r in readers.items():
             for s in r.take(N=100):
                 if not isinstance(s, (PoseWithCovarianceStamped, Odometry, TFMessage, DiagnosticArray)):

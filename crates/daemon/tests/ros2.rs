@@ -76,7 +76,7 @@ fn in_own_network(test: &str) -> bool {
         "ros2 test inside the namespace failed:\n{so}\n{se}"
     );
     // What was measured inside, said outside.
-    for l in so.lines().filter(|l| l.starts_with("ros2:")) {
+    for l in so.lines().filter_map(|l| l.find("ros2: ").map(|i| &l[i..])) {
         println!("{l}");
     }
     false
@@ -93,6 +93,20 @@ fn config(dest: std::net::SocketAddr) -> String {
     format!("{text}\n[ros2]\nnetworks = [\"127.0.0.1\"]\n")
 }
 
+fn wait_child(c: &mut std::process::Child, within: Duration) -> std::process::ExitStatus {
+    let t0 = Instant::now();
+    loop {
+        if let Some(s) = c.try_wait().expect("wait") {
+            return s;
+        }
+        if t0.elapsed() > within {
+            let _ = c.kill();
+            panic!("the cyclonedds listener did not end within {within:?} of its window");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 fn finite_positive_diag(cov: &Value) -> bool {
     let c = cov.as_array().expect("36 floats");
     c.len() == 36 && (0..6).all(|i| c[i * 7].as_f64().is_some_and(|v| v.is_finite() && v > 0.0))
@@ -107,31 +121,39 @@ fn cyclone_dds_hears_pose_odom_tf_and_diagnostics() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (sub, dest) = subscriber();
     let (mut daemon, mut got) = spawn_daemon_to(dir.path(), &config(dest), &sub, Stdio::inherit());
-    let listener = Command::new(py)
+    let mut listener = Command::new(py)
         .arg(root().join("tests/python/ros2_listener.py"))
         .arg(LISTEN_S.to_string())
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()
         .expect("start the cyclonedds listener");
+    // Its output read as it comes (a full pipe would stall it).
+    let mut stdout = listener.stdout.take().expect("piped");
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        std::io::Read::read_to_string(&mut stdout, &mut s).map(|_| s)
+    });
     let t0 = Instant::now();
     let mut buf = [0u8; 65536];
-    while t0.elapsed() < Duration::from_secs_f64(LISTEN_S + 2.0) {
+    // Until the listener ends (its window opens at the first pose it hears).
+    while t0.elapsed() < Duration::from_secs_f64(LISTEN_S + 25.0) && !reader.is_finished() {
         if let Ok(n) = sub.recv(&mut buf) {
             got.push(buf[..n].to_vec());
         }
     }
-    let out = listener.wait_with_output().expect("listener ends");
+    let status = wait_child(&mut listener, Duration::from_secs(5));
+    let text = reader.join().expect("reader").expect("listener's output");
     signal(&daemon, nix::sys::signal::Signal::SIGTERM);
     assert!(wait_exit(&mut daemon, Duration::from_secs(10)).success());
-    assert!(out.status.success(), "listener failed");
+    assert!(status.success(), "listener failed: {status}");
 
     let poses: Vec<Value> = got
         .iter()
         .filter_map(|b| serde_json::from_slice::<Value>(b).ok())
         .filter(|v| v["class"] == "POSE")
         .collect();
-    let lines: Vec<Value> = String::from_utf8_lossy(&out.stdout)
+    let lines: Vec<Value> = text
         .lines()
         .map(|l| serde_json::from_str(l).expect("one JSON object a line"))
         .collect();
@@ -180,8 +202,22 @@ fn cyclone_dds_hears_pose_odom_tf_and_diagnostics() {
         (&tf["frame_id"], &tf["child"]),
         (&Value::from("lightpose_beacon"), &Value::from("base_link"))
     );
+    let ok: Vec<f64> = poses
+        .iter()
+        .filter(|p| p["status"] == "ok")
+        .filter_map(|p| p["time"].as_f64())
+        .collect();
+    let stamps: Vec<f64> = lines
+        .iter()
+        .filter(|l| l["topic"] == "pose")
+        .filter_map(|l| l["stamp"].as_f64())
+        .collect();
+    let (first, last) = (stamps[0], stamps[stamps.len() - 1]);
+    let between = ok.iter().filter(|t| (first..=last).contains(*t)).count();
     println!(
-        "ros2: counts {counts}, {} POSE datagrams, {matched} pose/odom matched",
-        poses.len()
+        "ros2: counts {counts}, {} POSE datagrams ({} ok), {between} ok between the first and last pose heard, {matched} pose/odom matched",
+        poses.len(),
+        ok.len()
     );
+    assert_eq!(stamps.len(), between, "once heard, every ok pose arrives");
 }
