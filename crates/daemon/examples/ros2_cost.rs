@@ -69,6 +69,7 @@ fn main() -> anyhow::Result<()> {
             depth: 10,
         },
         networks: vec!["127.0.0.1".parse()?],
+        imu: None,
     };
     // The listener first, so that discovery is done before the count.
     let participant = ros2_client::dds::rustdds::DomainParticipantBuilder::new(cfg.domain_id)

@@ -371,7 +371,14 @@ fn plug_ros2(
     let (out, node) =
         crate::outputs::ros2::start(r, cfg.site.as_ref()).map_err(DaemonError::Ros2)?;
     taps.push(Box::new(node.clone()));
-    Ok((engine.output(Box::new(out)), Some(node)))
+    let mut engine = engine.output(Box::new(out));
+    if let (Some(cell), Some(i)) = (&node.imu, &r.imu) {
+        engine = engine.input(Box::new(crate::inputs::attitude::LatestAttitude::new(
+            cell.clone(),
+            i.max_age,
+        )));
+    }
+    Ok((engine, Some(node)))
 }
 
 /// The recorder as the web page sees it (its folder, its counters).
@@ -534,6 +541,9 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     (engine, web, web_server) = plug_web(engine, web_parts, &mut status_taps);
     #[cfg(feature = "ros2")]
     let (mut engine, ros2) = plug_ros2(engine, cfg, &mut status_taps)?;
+    // The ROS 2 IMU is the attitude input (the config allows one).
+    #[cfg(feature = "ros2")]
+    let attitude = attitude.or_else(|| ros2.as_ref().and_then(|n| n.imu.clone()));
     if let (Some(cell), Some(a)) = (&attitude, &cfg.attitude) {
         let max_age = a.max_age;
         engine = engine.input(Box::new(LatestAttitude::new(cell.clone(), max_age)));

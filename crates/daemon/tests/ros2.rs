@@ -221,3 +221,63 @@ fn cyclone_dds_hears_pose_odom_tf_and_diagnostics() {
     );
     assert_eq!(stamps.len(), between, "once heard, every ok pose arrives");
 }
+
+/// An IMU driver's `sensor_msgs/msg/Imu` (Cyclone DDS, tests/python/ros2_imu.py)
+/// reaches the attitude input: STATUS shows readings attached to frames,
+/// and a NaN and a non-unit quaternion counted and refused while frames go
+/// on; `[site]` brings `/tf_static`.
+#[test]
+fn an_imu_from_cyclone_dds_is_the_attitude_input() {
+    if !in_own_network("an_imu_from_cyclone_dds_is_the_attitude_input") {
+        return;
+    }
+    let py = lightpose_testkit::python::python();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (sub, dest) = subscriber();
+    // The scene without its own attitude sensor: the IMU's is the frames'.
+    let text = config(dest).replace("embedded:tank-ahrs-scene", "embedded:tank-scene")
+        + "imu_topic = \"/imu/data\"\nimu_max_age_s = 0.5\n[site]\nbeacon_heading_deg = 30.0\nbeacon_depth_m = 3.0\n";
+    let (mut daemon, _) = spawn_daemon_to(dir.path(), &text, &sub, Stdio::inherit());
+    let out = Command::new(py)
+        .arg(root().join("tests/python/ros2_imu.py"))
+        .args(["4", "4"])
+        .stderr(Stdio::inherit())
+        .output()
+        .expect("run the cyclonedds IMU");
+    assert!(out.status.success(), "IMU publisher failed");
+    // The STATUS after the last reading.
+    let mut last = None;
+    let mut poses = 0;
+    let mut buf = [0u8; 65536];
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(2) {
+        if let Ok(n) = sub.recv(&mut buf) {
+            if let Ok(v) = serde_json::from_slice::<Value>(&buf[..n]) {
+                match v["class"].as_str() {
+                    Some("STATUS") => last = Some(v),
+                    Some("POSE") => poses += 1,
+                    _ => {}
+                }
+            }
+        }
+    }
+    signal(&daemon, nix::sys::signal::Signal::SIGTERM);
+    assert!(wait_exit(&mut daemon, Duration::from_secs(10)).success());
+    let status = last.expect("a STATUS");
+    let a = &status["attitude"];
+    println!(
+        "ros2: imu: {} | attitude {a}",
+        String::from_utf8_lossy(&out.stdout).trim()
+    );
+    assert_eq!(a["input"], true, "{a}");
+    assert!(a["received"].as_u64() >= Some(40), "{a}");
+    assert!(
+        a["attached"].as_u64() >= Some(10),
+        "the IMU's reading rode with frames: {a}"
+    );
+    assert_eq!(
+        a["rejected_by"]["angle"], 4,
+        "2 NaN and 2 non-unit quaternions: {a}"
+    );
+    assert!(poses >= 5, "frames went on: {poses} POSE in 2 s");
+}

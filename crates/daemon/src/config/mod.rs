@@ -215,7 +215,13 @@ impl Config {
         let logging = logging::validate(&ctx, raw.logging.as_ref())?;
         let foxglove = foxglove::validate(&ctx, raw.foxglove.as_ref(), &mut at)?;
         let web = web::validate(&ctx, raw.web.as_ref(), &mut at)?;
-        let ros2 = ros2::validate(&ctx, raw.ros2.as_ref())?;
+        let ros2 = ros2::validate(&ctx, raw.ros2.as_ref(), heading)?;
+        if let (Some(r), Some(a)) = (ros2.as_ref().and_then(|r| r.imu.as_ref()), &attitude) {
+            return Err(ctx.whole(format!(
+                "ros2.imu_topic {} and [attitude] listen {}: one attitude input at a time",
+                r.topic, a.listen
+            )));
+        }
         #[cfg(not(feature = "ros2"))]
         if ros2.is_some() {
             return Err(ctx.whole("[ros2]: this lightposed was built without its ros2 feature"));

@@ -52,6 +52,20 @@ pub struct Ros2 {
     /// The addresses DDS binds (discovery and data); empty: every
     /// interface, as ROS 2's own middlewares do.
     pub networks: Vec<IpAddr>,
+    /// `sensor_msgs/msg/Imu` whose orientation becomes the frames'
+    /// attitude (needs `[site]`: the heading is referred to the beacon's
+    /// axis through it).
+    pub imu: Option<ImuInput>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImuInput {
+    /// The topic's full name, e.g. `/imu/data`.
+    pub topic: String,
+    /// A reading older than this is not attached to a frame.
+    pub max_age: std::time::Duration,
+    /// Compass heading of the beacon's optical axis, degrees (`[site]`).
+    pub beacon_axis_heading_deg: f64,
 }
 
 #[derive(Deserialize)]
@@ -64,6 +78,8 @@ pub(super) struct RawRos2 {
     networks: Option<Vec<Spanned<String>>>,
     frames: Option<RawFrames>,
     qos: Option<RawQos>,
+    imu_topic: Option<Spanned<String>>,
+    imu_max_age_s: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -91,15 +107,46 @@ const MAX_DOMAIN: i64 = 232;
 pub(super) fn validate(
     ctx: &Ctx,
     raw: Option<&Spanned<RawRos2>>,
+    site_heading_deg: Option<f64>,
 ) -> Result<Option<Ros2>, ConfigError> {
     let Some(table) = raw else { return Ok(None) };
     let r = table.get_ref();
     // Checked when off too: switching it on must not bring a surprise.
-    let checked = check(ctx, r)?;
+    let checked = check(ctx, r, site_heading_deg)?;
     Ok(r.enabled.unwrap_or(true).then_some(checked))
 }
 
-fn check(ctx: &Ctx, r: &RawRos2) -> Result<Ros2, ConfigError> {
+fn imu(ctx: &Ctx, r: &RawRos2, heading: Option<f64>) -> Result<Option<ImuInput>, ConfigError> {
+    let Some(t) = &r.imu_topic else {
+        if let Some(a) = &r.imu_max_age_s {
+            return Err(ctx.err(a.span(), "ros2.imu_max_age_s", "without ros2.imu_topic"));
+        }
+        return Ok(None);
+    };
+    let name = t.get_ref();
+    if !(name.starts_with('/') && name[1..].split('/').all(is_token)) {
+        let msg = format!(
+            "\"{}\" is no absolute ROS 2 topic name (e.g. \"/imu/data\")",
+            lightpose_core::textfile::excerpt(name, 60)
+        );
+        return Err(ctx.err(t.span(), "ros2.imu_topic", msg));
+    }
+    let Some(heading) = heading else {
+        let msg = "needs [site] beacon_heading_deg: the IMU's heading is referred to the beacon's axis through it";
+        return Err(ctx.err(t.span(), "ros2.imu_topic", msg));
+    };
+    let max_age = match &r.imu_max_age_s {
+        Some(a) => super::locate::positive_to(ctx, a, "ros2.imu_max_age_s", 10.0, " s")?,
+        None => 0.5,
+    };
+    Ok(Some(ImuInput {
+        topic: name.clone(),
+        max_age: std::time::Duration::from_secs_f64(max_age),
+        beacon_axis_heading_deg: heading,
+    }))
+}
+
+fn check(ctx: &Ctx, r: &RawRos2, heading: Option<f64>) -> Result<Ros2, ConfigError> {
     let domain_id = match &r.domain_id {
         Some(d) if (0..=MAX_DOMAIN).contains(d.get_ref()) => *d.get_ref() as u16,
         Some(d) => {
@@ -137,6 +184,7 @@ fn check(ctx: &Ctx, r: &RawRos2) -> Result<Ros2, ConfigError> {
         frames: frames(ctx, r.frames.as_ref())?,
         qos: qos(ctx, r.qos.as_ref())?,
         networks,
+        imu: imu(ctx, r, heading)?,
     })
 }
 
@@ -354,6 +402,23 @@ mod tests {
     }
 
     #[test]
+    fn the_imu_input_takes_its_heading_from_site() {
+        let site = "[site]\nbeacon_heading_deg = 30.0\nbeacon_depth_m = 3.0\n";
+        let r = parse(&format!("{site}[ros2]\nimu_topic = \"/imu/data\"\n"))
+            .expect("valid")
+            .ros2
+            .expect("on");
+        let i = r.imu.expect("imu");
+        assert_eq!(
+            (i.topic.as_str(), i.beacon_axis_heading_deg),
+            ("/imu/data", 30.0)
+        );
+        assert_eq!(i.max_age, std::time::Duration::from_millis(500));
+        let e = parse(&format!("{site}[ros2]\nimu_topic = \"/imu/data\"\n[attitude]\nenabled = true\nlisten = \"127.0.0.1:17151\"\n")).expect_err("two inputs");
+        assert!(e.contains("one attitude input at a time"), "{e}");
+    }
+
+    #[test]
     fn bad_values_name_their_line() {
         let cases = [
             (
@@ -391,6 +456,18 @@ mod tests {
             (
                 "[ros2]\ntopic = \"x\"\n",
                 "t.toml:7: ros2.topic: unknown field `topic`",
+            ),
+            (
+                "[ros2]\nimu_topic = \"/imu/data\"\n",
+                "t.toml:7: ros2.imu_topic: needs [site] beacon_heading_deg",
+            ),
+            (
+                "[ros2]\nimu_topic = \"imu\"\n",
+                "t.toml:7: ros2.imu_topic: \"imu\" is no absolute ROS 2 topic name",
+            ),
+            (
+                "[ros2]\nimu_max_age_s = 1.0\n",
+                "t.toml:7: ros2.imu_max_age_s: without ros2.imu_topic",
             ),
         ];
         for (text, want) in cases {

@@ -17,13 +17,14 @@
 use super::{Output, StatusTap};
 use crate::config::ros2::{QosKind, Ros2};
 use crate::engine::Acquired;
+use crate::inputs::attitude::AttitudeCell;
 use lightpose_core::PoseEstimate;
 use lightpose_logs::ros2msg::{self as msg, Frames};
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{Context, MessageTypeName, Name, NodeName, NodeOptions, QosProfile};
 use serde::Serialize;
 use serde_json::{json, Value};
-use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -66,6 +67,16 @@ pub struct Ros2Node {
     status_tx: SyncSender<Item>,
     pub namespace: String,
     pub domain_id: u16,
+    /// The IMU input's cell (`imu_topic`), read by the frame thread.
+    pub imu: Option<Arc<AttitudeCell>>,
+    /// Raised when the daemon lets go of the node: the IMU thread ends.
+    closed: Arc<AtomicBool>,
+}
+
+impl Drop for Ros2Node {
+    fn drop(&mut self) {
+        self.closed.store(true, Relaxed);
+    }
 }
 
 impl Ros2Node {
@@ -160,6 +171,7 @@ struct Writers {
     tf: ros2_client::dds::Publisher<msg::TFMessage>,
     tf_static: ros2_client::dds::Publisher<msg::TFMessage>,
     diagnostics: ros2_client::dds::Publisher<msg::DiagnosticArray>,
+    imu: Option<ros2_client::dds::Subscription<msg::Imu>>,
 }
 
 fn writers(cfg: &Ros2) -> Result<Writers, Ros2Error> {
@@ -190,7 +202,18 @@ fn writers(cfg: &Ros2) -> Result<Writers, Ros2Error> {
     let (tf_t, tf_q) = topic("/", "tf", msg::TF_TYPE, q.tf, q.depth)?;
     let (st_t, st_q) = topic("/", "tf_static", msg::TF_TYPE, QosKind::TransientLocal, 1)?;
     let (d_t, d_q) = topic("/", "diagnostics", msg::DIAG_TYPE, q.diagnostics, q.depth)?;
+    let imu = match &cfg.imu {
+        Some(i) => {
+            let (ns, name) = i.topic.rsplit_once('/').unwrap_or(("/", &i.topic));
+            let ns = if ns.is_empty() { "/" } else { ns };
+            // Best effort: it matches a reliable writer too.
+            let (t, q) = topic(ns, name, msg::IMU_TYPE, QosKind::SensorData, 10)?;
+            Some(node.create_subscription(&t, Some(q)).map_err(dds("imu"))?)
+        }
+        None => None,
+    };
     Ok(Writers {
+        imu,
         pose: node
             .create_publisher(&pose_t, Some(pose_q))
             .map_err(dds("pose"))?,
@@ -238,10 +261,23 @@ pub fn start(
         stats.clone(),
         site.map(|s| site_tf(&cfg.frames, s)),
     );
+    let imu_cell = cfg.imu.as_ref().map(|_| Arc::new(AttitudeCell::default()));
+    let closed = Arc::new(AtomicBool::new(false));
+    let (cell, shut) = (imu_cell.clone(), closed.clone());
     let join = std::thread::Builder::new()
         .name("lightposed-ros2".into())
         .spawn(move || match writers(&c) {
-            Ok(w) => {
+            Ok(mut w) => {
+                let imu = match (w.imu.take(), cell, &c.imu) {
+                    (Some(sub), Some(cell), Some(i)) => {
+                        spawn_imu(sub, cell, i.beacon_axis_heading_deg, shut).map(Some)
+                    }
+                    _ => Ok(None),
+                };
+                if let Err(e) = imu {
+                    let _ = ready_tx.send(Err(Ros2Error::Thread(e)));
+                    return;
+                }
                 let _ = ready_tx.send(Ok(()));
                 run(&rx, &w, &c.frames, &st, site_msg);
             }
@@ -268,6 +304,8 @@ pub fn start(
         status_tx: tx.clone(),
         namespace: cfg.namespace.clone(),
         domain_id: cfg.domain_id,
+        imu: imu_cell,
+        closed,
     });
     let out = Ros2Out {
         tx: Some(tx),
@@ -275,6 +313,27 @@ pub fn start(
         _join: join,
     };
     Ok((out, node))
+}
+
+/// The IMU thread: each sample into the attitude cell, until `closed`.
+fn spawn_imu(
+    sub: ros2_client::dds::Subscription<msg::Imu>,
+    cell: Arc<AttitudeCell>,
+    heading_deg: f64,
+    closed: Arc<AtomicBool>,
+) -> std::io::Result<JoinHandle<()>> {
+    std::thread::Builder::new()
+        .name("lightposed-ros2-imu".into())
+        .spawn(move || {
+            while !closed.load(Relaxed) {
+                match sub.take() {
+                    Ok(Some((m, _))) => crate::inputs::ros2::take(&cell, Ok(m), heading_deg),
+                    // Polled: an IMU at 100 Hz is read within 2 ms of its sample.
+                    Ok(None) => std::thread::sleep(std::time::Duration::from_millis(2)),
+                    Err(e) => crate::inputs::ros2::take(&cell, Err(format!("{e:?}")), heading_deg),
+                }
+            }
+        })
 }
 
 fn write<M: Serialize + std::fmt::Debug>(
