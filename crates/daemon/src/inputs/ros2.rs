@@ -122,15 +122,8 @@ mod tests {
         let ned_frd = mul(mul(rz, ry), rx);
         // ENU from NED swaps rows 0, 1 and negates row 2; FLU from FRD
         // negates columns 1, 2.
-        let mut m = [[0.0; 3]; 3];
-        for i in 0..3 {
-            let src = match i {
-                0 => ned_frd[1],
-                1 => ned_frd[0],
-                _ => ned_frd[2].map(|x| -x),
-            };
-            m[i] = [src[0], -src[1], -src[2]];
-        }
+        let rows = [ned_frd[1], ned_frd[0], ned_frd[2].map(|x| -x)];
+        let m = rows.map(|src| [src[0], -src[1], -src[2]]);
         quaternion(&m)
     }
 

@@ -37,7 +37,9 @@ const HANDOFF_QUEUE: usize = 32;
 /// dropped and counted, the thread goes on.
 const RELIABLE_WAIT: std::time::Duration = std::time::Duration::from_millis(20);
 
-/// What reaches the node's thread.
+/// What reaches the node's thread. The estimate goes by value: boxing it
+/// would allocate on the frame thread.
+#[allow(clippy::large_enum_variant)]
 enum Item {
     /// All Copy: no allocation on the frame thread.
     Estimate(PoseEstimate, f64),
