@@ -80,6 +80,10 @@ pub enum DaemonError {
     /// endpoint): a port in use, a serial device not (yet) there.
     #[error("mavlink")]
     Mavlink(#[source] lightpose_vehicle::mav::link::LinkError),
+    /// The ROS 2 participant could not be made (its sockets, its thread).
+    #[cfg(feature = "ros2")]
+    #[error("cannot start the ROS 2 node")]
+    Ros2(#[source] crate::outputs::ros2::Ros2Error),
     #[error("recording: cannot start the recorder thread")]
     Recorder(#[source] std::io::Error),
     #[error("cannot start the acquisition thread")]
@@ -127,6 +131,8 @@ impl DaemonError {
             | DaemonError::Mavlink(_)
             | DaemonError::Recorder(_)
             | DaemonError::Thread(_) => false,
+            #[cfg(feature = "ros2")]
+            DaemonError::Ros2(_) => false,
         }
     }
 

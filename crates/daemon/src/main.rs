@@ -104,8 +104,14 @@ struct Logging {
 /// the watchdog kills the daemon. While the queue is full, lines are
 /// dropped and counted ([`LostWatch`]).
 fn init_logging(cfg: &Config) -> Logging {
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(&cfg.logging.level));
+    // The DDS stack logs each discovery event at info: its own warnings
+    // only, unless RUST_LOG says otherwise.
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
+        tracing_subscriber::EnvFilter::new(format!(
+            "{},rustdds=warn,ros2_client=warn",
+            cfg.logging.level
+        ))
+    });
     // Under systemd the journal stamps and colours lines itself.
     let journald = std::env::var_os("JOURNAL_STREAM").is_some();
     let (writer, flush) = NonBlockingBuilder::default()

@@ -16,7 +16,7 @@ use std::time::Instant;
 /// Version of the message set (POSE, STATUS, VERSION) on the wire.
 pub const PROTO: u32 = 1;
 
-fn unix_now() -> f64 {
+pub(crate) fn unix_now() -> f64 {
     crate::outputs::recorder::unix_now()
 }
 
@@ -53,6 +53,9 @@ pub struct StatusCtx<'a> {
     pub live: Option<&'a Hub>,
     /// The web page's feed, if on.
     pub web: Option<&'a crate::outputs::web::WebFeed>,
+    /// The ROS 2 node, if `[ros2]` is on.
+    #[cfg(feature = "ros2")]
+    pub ros2: Option<&'a crate::outputs::ros2::Ros2Node>,
     /// The vehicle link's hub, if `[mavlink]` or `[dvl]` is on.
     pub vehicle: Option<&'a lightpose_vehicle::Hub>,
     pub publisher: &'a Publisher,
@@ -89,7 +92,19 @@ pub fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> Value {
         "web": c.web.map_or_else(|| json!({"enabled": false}), crate::outputs::web::WebFeed::report),
         "vehicle": vehicle(c),
         "demodulator": demodulator(s),
+        "ros2": ros2(c),
     })
+}
+
+/// The ROS 2 node's counters; `enabled: false` without `[ros2]` (or a
+/// build without the feature).
+fn ros2(c: &StatusCtx) -> Value {
+    #[cfg(feature = "ros2")]
+    if let Some(r) = c.ros2 {
+        return r.report();
+    }
+    let _ = c;
+    json!({"enabled": false})
 }
 
 /// Spec v3: the demodulator's state (each beacon locked or not, its

@@ -195,6 +195,8 @@ pub async fn supervise_to_end(
         att: d.attitude.as_deref(),
         live: d.live.as_deref(),
         web: d.web.as_deref(),
+        #[cfg(feature = "ros2")]
+        ros2: d.ros2.as_deref(),
         vehicle: vehicle_hub.as_deref(),
         publisher: &d.publisher,
         source: &d.source,

@@ -356,6 +356,31 @@ fn plug_web(
     )
 }
 
+/// The ROS 2 node, with `[ros2]`: its participant made here (a failure
+/// exits before the frame thread, said at the table), its output after
+/// the others, its STATUS end a tap.
+#[cfg(feature = "ros2")]
+fn plug_ros2(
+    engine: Engine,
+    cfg: &Config,
+    taps: &mut Vec<Box<dyn StatusTap>>,
+) -> Result<(Engine, Option<Arc<crate::outputs::ros2::Ros2Node>>), DaemonError> {
+    let Some(r) = &cfg.ros2 else {
+        return Ok((engine, None));
+    };
+    let (out, node) =
+        crate::outputs::ros2::start(r, cfg.site.as_ref()).map_err(DaemonError::Ros2)?;
+    taps.push(Box::new(node.clone()));
+    let mut engine = engine.output(Box::new(out));
+    if let (Some(cell), Some(i)) = (&node.imu, &r.imu) {
+        engine = engine.input(Box::new(crate::inputs::attitude::LatestAttitude::new(
+            cell.clone(),
+            i.max_age,
+        )));
+    }
+    Ok((engine, Some(node)))
+}
+
 /// The recorder as the web page sees it (its folder, its counters).
 fn recordings(cfg: &Config, stats: Option<&Arc<RecStats>>) -> Option<web::Recordings> {
     let (r, s) = (cfg.recording.as_ref()?, stats?);
@@ -425,6 +450,9 @@ pub struct Running {
     /// (aborted at stop).
     pub web: Option<Arc<WebFeed>>,
     pub web_server: Option<JoinHandle<()>>,
+    /// The ROS 2 node's counters and STATUS end.
+    #[cfg(feature = "ros2")]
+    pub ros2: Option<Arc<crate::outputs::ros2::Ros2Node>>,
     /// The MAVLink and DVL tasks and their hub, stopped after the frame
     /// thread.
     pub vehicle: Option<VehicleLink>,
@@ -511,6 +539,11 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     };
     let (web, web_server);
     (engine, web, web_server) = plug_web(engine, web_parts, &mut status_taps);
+    #[cfg(feature = "ros2")]
+    let (mut engine, ros2) = plug_ros2(engine, cfg, &mut status_taps)?;
+    // The ROS 2 IMU is the attitude input (the config allows one).
+    #[cfg(feature = "ros2")]
+    let attitude = attitude.or_else(|| ros2.as_ref().and_then(|n| n.imu.clone()));
     if let (Some(cell), Some(a)) = (&attitude, &cfg.attitude) {
         let max_age = a.max_age;
         engine = engine.input(Box::new(LatestAttitude::new(cell.clone(), max_age)));
@@ -532,6 +565,8 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
         live_server,
         web,
         web_server,
+        #[cfg(feature = "ros2")]
+        ros2,
         vehicle,
         source: source_desc,
         adc_bits,

@@ -1,6 +1,7 @@
 //! The frame thread hands frames to the MCAP recorder, to the live view
-//! (with a client subscribed to every channel) and to the web page's feed
-//! (with a browser's feed open) without allocating: a
+//! (with a client subscribed to every channel), to the web page's feed
+//! (with a browser's feed open) and to the ROS 2 node (its DDS
+//! participant on loopback) without allocating: a
 //! counting allocator, counting on the frame thread only (the recorder
 //! and encoder threads allocate per chunk and per message, off the hot
 //! path), shows that the frame thread's allocations do not grow with the
@@ -34,7 +35,7 @@ static A: Counting = Counting::new();
 fn config(sink: &UdpSocket, rec: &Path) -> Config {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let text = format!(
-        "rate_hz = 50.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{}\"]\n[recording]\ndir = \"{}\"\nformat = \"mcap\"\nflush_s = 0.05\n[foxglove]\nlisten = \"127.0.0.1:{}\"\n[web]\nlisten = \"127.0.0.1:0\"\n",
+        "rate_hz = 50.0\nestimator = \"tracker\"\ncalibration = \"{}\"\n[backend]\nkind = \"sim\"\nscene = \"{}\"\ntrajectory = \"{}\"\npace = \"fast\"\n[outputs]\ndestinations = [\"{}\"]\n[recording]\ndir = \"{}\"\nformat = \"mcap\"\nflush_s = 0.05\n[foxglove]\nlisten = \"127.0.0.1:{}\"\n[web]\nlisten = \"127.0.0.1:0\"\n[ros2]\nnetworks = [\"127.0.0.1\"]\n",
         root.join("config/calibration/tank.toml").display(),
         root.join("config/scenes/tank-ahrs.toml").display(),
         root.join("config/trajectories/zigzag.csv").display(),
@@ -103,6 +104,8 @@ fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
     let recorder = Recorder::start(rec_cfg, header, epoch).expect("recorder");
     let rec_stats = recorder.stats.clone();
     let publisher = Arc::new(Publisher::open(&cfg.outputs).expect("publisher"));
+    let (ros2, node) = lightposed::outputs::ros2::start(cfg.ros2.as_ref().expect("ros2"), None)
+        .expect("ros2 node");
     let engine = Engine::new(
         source,
         lightposed::build_estimator(&cfg).expect("estimator"),
@@ -112,13 +115,29 @@ fn allocations(frames: u64, rt: &tokio::runtime::Runtime) -> u64 {
     .output(Box::new(PoseDatagrams::new(publisher)))
     .output(Box::new(recorder))
     .output(Box::new(live.output))
-    .output(Box::new(page.output));
+    .output(Box::new(page.output))
+    .output(Box::new(ros2));
     let (_, n) = A.this_thread(|| engine.run());
     live.server.abort();
     live.hub.close();
     page.feed.close();
     let handed = page.feed.handed.load(Relaxed) + page.feed.handoff_dropped.load(Relaxed);
     assert_eq!(handed, frames, "every frame offered to the page's feed");
+    let r = &node.stats;
+    let to_ros2 = r.handed.load(Relaxed) + r.handoff_dropped.load(Relaxed);
+    assert_eq!(to_ros2, frames, "every frame offered to the ROS 2 node");
+    // The node's thread publishes what it was handed, off the frame thread.
+    let t0 = Instant::now();
+    while r.published.load(Relaxed) + r.not_ok.load(Relaxed) < r.handed.load(Relaxed)
+        && t0.elapsed() < Duration::from_secs(10)
+    {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(
+        r.published.load(Relaxed) > 0,
+        "ok poses published: {}",
+        node.report()
+    );
     assert!(
         page.feed.events.load(Relaxed) >= 1,
         "the page's feed ran: {}",

@@ -37,6 +37,7 @@ pub mod foxglove;
 mod lines;
 pub mod read;
 pub mod recover;
+pub mod ros2msg;
 pub mod schema;
 pub mod sink;
 mod tap;

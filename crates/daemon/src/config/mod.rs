@@ -29,6 +29,7 @@ pub mod machine;
 pub mod outputs;
 pub mod places;
 pub mod recording;
+pub mod ros2;
 pub mod temperature;
 pub mod top;
 pub mod vehicle;
@@ -40,6 +41,7 @@ pub use logging::{LogFormat, Logging};
 pub use outputs::{Multicast, Outputs};
 pub use places::Places;
 pub use recording::{RecFormat, RecSamples, Recording};
+pub use ros2::Ros2;
 pub use vehicle::VehicleConfig;
 pub use web::Web;
 
@@ -80,6 +82,8 @@ pub struct Config {
     pub foxglove: Option<Foxglove>,
     /// The web page and REST API (`[web]`), if configured.
     pub web: Option<Web>,
+    /// The ROS 2 node (`[ros2]`), if configured.
+    pub ros2: Option<Ros2>,
     /// `[site]`: the beacon's heading and depth, if given.
     pub site: Option<lightpose_vehicle::Site>,
     /// The autopilot and DVL links (`[mavlink]`, `[dvl]`), if configured.
@@ -166,6 +170,7 @@ struct Raw {
     logging: Option<logging::RawLogging>,
     foxglove: Option<Spanned<foxglove::RawFoxglove>>,
     web: Option<Spanned<web::RawWeb>>,
+    ros2: Option<Spanned<ros2::RawRos2>>,
     site: Option<Spanned<toml::Table>>,
     mavlink: Option<Spanned<toml::Table>>,
     dvl: Option<Spanned<toml::Table>>,
@@ -210,6 +215,17 @@ impl Config {
         let logging = logging::validate(&ctx, raw.logging.as_ref())?;
         let foxglove = foxglove::validate(&ctx, raw.foxglove.as_ref(), &mut at)?;
         let web = web::validate(&ctx, raw.web.as_ref(), &mut at)?;
+        let ros2 = ros2::validate(&ctx, raw.ros2.as_ref(), heading)?;
+        if let (Some(r), Some(a)) = (ros2.as_ref().and_then(|r| r.imu.as_ref()), &attitude) {
+            return Err(ctx.whole(format!(
+                "ros2.imu_topic {} and [attitude] listen {}: one attitude input at a time",
+                r.topic, a.listen
+            )));
+        }
+        #[cfg(not(feature = "ros2"))]
+        if ros2.is_some() {
+            return Err(ctx.whole("[ros2]: this lightposed was built without its ros2 feature"));
+        }
         let tables = vehicle::RawVehicle {
             mavlink: raw.mavlink.as_ref(),
             dvl: raw.dvl.as_ref(),
@@ -244,6 +260,7 @@ impl Config {
             logging,
             foxglove,
             web,
+            ros2,
             site,
             vehicle,
             places: at,

@@ -10,6 +10,8 @@
 //! [`Input`], started in `wiring.rs`, with its counters in STATUS.
 
 pub mod attitude;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 pub mod vehicle;
 
 use lightpose_core::Frame;

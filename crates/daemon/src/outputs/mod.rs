@@ -14,6 +14,8 @@ pub mod live;
 pub mod mavlink;
 pub mod recfile;
 pub mod recorder;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 pub mod udp;
 pub mod web;
 
