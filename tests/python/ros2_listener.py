@@ -7,10 +7,15 @@ Listens for SECONDS from the first pose heard (at most 20 s more for it).
 Prints one JSON object per received sample on stdout:
   {"topic": "pose"|"odom"|"tf"|"tf_static"|"diagnostics", "stamp": unix s,
    "xyz": [..], "q": [x, y, z, w], "cov": [36 floats], ...}
-and a last line {"done": true, "counts": {...}}.
+and a last line {"done": true, "counts": {...}}. It also reads the ROS 2
+graph's `ros_discovery_info` (what `ros2 node list` reads), its GID as
+the distro has it: GID_BYTES=16 (Iron, Jazzy and later; the default) or
+24 (Humble), printing {"topic": "graph", "gid_len": n, "nodes": [[ns,
+name], ...]} per sample that decodes.
 """
 
 import json
+import os
 import sys
 import time
 from dataclasses import dataclass
@@ -148,6 +153,30 @@ class Imu(IdlStruct, typename="sensor_msgs::msg::dds_::Imu_"):
     linear_acceleration_covariance: array[float64, 9]
 
 
+GID_BYTES = int(os.environ.get("GID_BYTES", "16"))
+
+
+@dataclass
+class Gid(IdlStruct, typename="rmw_dds_common::msg::dds_::Gid_"):
+    data: array[uint8, GID_BYTES]
+
+
+@dataclass
+class NodeEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::NodeEntitiesInfo_"):
+    node_namespace: str
+    node_name: str
+    reader_gid_seq: sequence[Gid]
+    writer_gid_seq: sequence[Gid]
+
+
+@dataclass
+class ParticipantEntitiesInfo(
+    IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"
+):
+    gid: Gid
+    node_entities_info_seq: sequence[NodeEntitiesInfo]
+
+
 def stamp(h):
     return h.stamp.sec + h.stamp.nanosec * 1e-9
 
@@ -172,6 +201,8 @@ def main():
         "tf": DataReader(dp, Topic(dp, "rt/tf", TFMessage), qos=reliable),
         "tf_static": DataReader(dp, Topic(dp, "rt/tf_static", TFMessage), qos=latched),
         "diagnostics": DataReader(dp, Topic(dp, "rt/diagnostics", DiagnosticArray), qos=reliable),
+        # rmw's own: reliable, transient local, keep last 1.
+        "graph": DataReader(dp, Topic(dp, "ros_discovery_info", ParticipantEntitiesInfo), qos=latched),
     }
     counts = {k: 0 for k in readers}
     # The window opens at the first pose heard (discovery takes its time),
@@ -185,7 +216,8 @@ def main():
             end = time.monotonic() + seconds
         for name, r in readers.items():
             for s in r.take(N=100):
-                if not isinstance(s, (PoseWithCovarianceStamped, Odometry, TFMessage, DiagnosticArray)):
+                kinds = (PoseWithCovarianceStamped, Odometry, TFMessage, DiagnosticArray, ParticipantEntitiesInfo)
+                if not isinstance(s, kinds):
                     continue  # an invalid sample (a dispose), no data
                 counts[name] += 1
                 rec = {"topic": name}
@@ -216,6 +248,11 @@ def main():
                         frame_id=t.header.frame_id,
                         child=t.child_frame_id,
                         xyz=[tr.x, tr.y, tr.z],
+                    )
+                elif name == "graph":
+                    rec.update(
+                        gid_len=len(s.gid.data),
+                        nodes=[[n.node_namespace, n.node_name] for n in s.node_entities_info_seq],
                     )
                 else:
                     st = s.status[0]

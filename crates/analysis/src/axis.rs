@@ -1,5 +1,6 @@
-//! The six quantities an estimate is judged on (x, y, z, pitch, yaw,
-//! surge), their names and units, and how to read each off an estimate.
+//! The quantities an estimate is judged on (x, y, z, pitch, yaw, surge,
+//! and a station's roll), their names and units, and how to read each off
+//! an estimate.
 //!
 //! Why a module of its own: the Monte Carlo engine, its statistics, the
 //! report and the trade table all walk these axes; kept here, none of
@@ -17,9 +18,12 @@ pub enum Axis {
     Pitch,
     Yaw,
     Surge,
+    /// Spec v3: a station's estimators give it; one beacon's give none, so
+    /// their tables leave it out ([`crate::montecarlo::McResult::axes`]).
+    Roll,
 }
 
-pub const NAXES: usize = 6;
+pub const NAXES: usize = 7;
 pub const AXES: [Axis; NAXES] = [
     Axis::X,
     Axis::Y,
@@ -27,6 +31,7 @@ pub const AXES: [Axis; NAXES] = [
     Axis::Pitch,
     Axis::Yaw,
     Axis::Surge,
+    Axis::Roll,
 ];
 
 impl Axis {
@@ -39,12 +44,13 @@ impl Axis {
             Axis::Pitch => "pitch",
             Axis::Yaw => "yaw",
             Axis::Surge => "surge",
+            Axis::Roll => "roll",
         }
     }
     pub fn unit(self) -> &'static str {
         match self {
             Axis::X | Axis::Y | Axis::Z => "m",
-            Axis::Pitch | Axis::Yaw => "°",
+            Axis::Pitch | Axis::Yaw | Axis::Roll => "°",
             Axis::Surge => "m/s",
         }
     }
@@ -60,6 +66,7 @@ impl Axis {
             Axis::Pitch => e.pitch_deg,
             Axis::Yaw => e.yaw_deg,
             Axis::Surge => e.surge,
+            Axis::Roll => e.roll_deg,
         }
     }
     /// The estimate's own 1σ for this axis, if it reports one.
@@ -71,6 +78,7 @@ impl Axis {
             Axis::Pitch => e.std.pitch,
             Axis::Yaw => e.std.yaw,
             Axis::Surge => e.std.surge,
+            Axis::Roll => e.std.roll,
         }
     }
 }

@@ -176,7 +176,11 @@ pub fn track_bound_along(
     let cfg = cfg
         .clone()
         .in_water_known_to(s.montecarlo.sigma_k_d, s.montecarlo.sigma_temp_c);
-    let tracker = Tracker::new(sensor_of(s), cfg)?;
+    let mut tracker = Tracker::new(sensor_of(s), cfg)?;
+    // Spec v3: a station's tracker, roll a state and every beacon's image.
+    if s.beacons.len() > 1 {
+        tracker = tracker.with_station(station_of(s));
+    }
     let track: Vec<TrackPoint> = traj
         .frame_times(s.adc.rate_hz)
         .map(|t| {
@@ -194,6 +198,7 @@ pub fn track_bound_along(
         sigma_k_d: Some(s.montecarlo.sigma_k_d).filter(|v| *v > 0.0),
         sigma_temp_c: Some(s.montecarlo.sigma_temp_c).filter(|v| *v > 0.0),
         attitude: s.attitude.map(|a| (a.sigma_pitch.rad(), a.sigma_yaw.rad())),
+        roll: s.attitude.and_then(|a| a.sigma_roll).map(|r| r.rad()),
         depth: s.depth.map(|d| d.sigma_m),
         dvl: s.dvl.map(|d| d.sigma_mps),
         light: bound_light(s),

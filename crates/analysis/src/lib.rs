@@ -14,10 +14,14 @@
 //! - [`bound`]: a scene's Cramér–Rao bound along a trajectory;
 //! - [`sensors`]: which own sensors (attitude, depth, DVL) a run carries;
 //! - [`trade`]: the trade table of every estimator and sensor set;
-//! - [`sea`]: its open sea (spec v3): blinking or steady, night or day.
+//! - [`sea`]: its open sea (spec v3): blinking or steady, night or day;
+//! - [`dock`]: its docking station (spec v3): the whole pose, roll in;
+//! - [`dock_plot`]: a docking approach plotted (track, ±2σ, beacons seen).
 
 pub mod axis;
 pub mod bound;
+pub mod dock;
+pub mod dock_plot;
 pub mod montecarlo;
 pub mod paper;
 pub mod plot;

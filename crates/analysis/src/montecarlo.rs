@@ -125,6 +125,19 @@ impl McResult {
             .filter(|v| !v.is_nan())
     }
 
+    /// The axes its tables show: every one of [`AXES`] but roll, and roll
+    /// when some estimate gave it (a station's): one beacon's results read
+    /// as they always did.
+    pub fn axes(&self) -> Vec<Axis> {
+        let has_roll = self
+            .steps
+            .iter()
+            .any(|s| s.axes[Axis::Roll.index()].is_some());
+        AXES.into_iter()
+            .filter(|&a| a != Axis::Roll || has_roll)
+            .collect()
+    }
+
     /// Realizations per second of wall time.
     pub fn rate(&self) -> f64 {
         self.runs as f64 / self.elapsed.as_secs_f64().max(1e-9)
@@ -205,7 +218,10 @@ fn track_of(cfg: &McConfig) -> Result<Track, McError> {
         .collect();
     let truth = kinematics
         .iter()
-        .map(|k| k.pose.values_with_surge(k.surge()))
+        .map(|k| {
+            let [x, y, z, pitch, yaw, surge] = k.pose.values_with_surge(k.surge());
+            [x, y, z, pitch, yaw, surge, k.pose.roll.deg()]
+        })
         .collect();
     Ok(Track {
         times,
@@ -381,8 +397,8 @@ fn realization(
             covs[k] = match (v, a.std_of(&e).filter(|s| s.is_finite() && *s >= 0.0)) {
                 (Some(v), Some(s)) => {
                     let mut err = v - tr[a.index()];
-                    if a == Axis::Yaw {
-                        // Yaw is an angle: an error of 359° is −1°.
+                    if matches!(a, Axis::Yaw | Axis::Roll) {
+                        // An angle: an error of 359° is −1°.
                         err = (err + 180.0).rem_euclid(360.0) - 180.0;
                     }
                     zs[k] = if err == 0.0 { 0.0 } else { err.abs() / s };

@@ -83,14 +83,7 @@ fn draw<DB: DrawingBackend>(
     r: &McResult,
     title: &str,
 ) -> Result<(), String> {
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let (head, body) = root.split_vertically(44);
-    head.draw(&Text::new(
-        title.to_string(),
-        (16, 12),
-        font(19.0).color(&BLACK),
-    ))
-    .map_err(|e| e.to_string())?;
+    let body = titled(root, title, 19.0)?;
     let panels = body.split_evenly((4, 2));
     path_panel(&panels[0], r, "(a) side view: z against x", Axis::Z)?;
     path_panel(&panels[1], r, "(b) top view: y against x", Axis::Y)?;
@@ -236,14 +229,41 @@ fn series_panel<DB: DrawingBackend>(
         .label("truth")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], TRUTH.stroke_width(2)));
     if legend {
-        chart
-            .configure_series_labels()
-            .label_font(font(12.0))
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(180, 180, 180))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(|e| e.to_string())?;
+        crate::plot::legend(&mut chart)?;
     }
     Ok(())
+}
+
+/// The series' labels, top right, on a pale box (every panel's legend).
+pub(crate) fn legend<'a, DB, CT>(chart: &mut ChartContext<'a, DB, CT>) -> Result<(), String>
+where
+    DB: DrawingBackend + 'a,
+    CT: CoordTranslate,
+{
+    chart
+        .configure_series_labels()
+        .label_font(font(12.0))
+        .background_style(WHITE.mix(0.85))
+        .border_style(RGBColor(180, 180, 180))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|e| e.to_string())
+}
+
+/// A figure begun: white, `title` across its top in `size` points; the
+/// area below it, for the panels.
+pub(crate) fn titled<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    size: f64,
+) -> Result<DrawingArea<DB, Shift>, String> {
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (head, body) = root.split_vertically(44);
+    head.draw(&Text::new(
+        title.to_string(),
+        (16, 12),
+        font(size).color(&BLACK),
+    ))
+    .map_err(|e| e.to_string())?;
+    Ok(body)
 }

@@ -5,7 +5,7 @@
 //! beside the paper's own where the run is one of its cases. Both are
 //! deterministic for a seed: no timing goes into them.
 
-use crate::montecarlo::{Axis, McError, McResult, AXES};
+use crate::montecarlo::{Axis, McError, McResult};
 use crate::paper::{factor, Figure, PaperCase};
 use crate::stats::AxisStats;
 use std::fmt::Write as _;
@@ -25,10 +25,11 @@ pub const CSV_NAME: &str = "steps.csv";
 pub const SUMMARY_NAME: &str = "summary.md";
 pub const PLOT_STEM: &str = "montecarlo";
 
-/// The CSV's columns, in order.
-pub fn csv_header() -> String {
+/// The CSV's columns, in order, for a result showing `axes`
+/// ([`McResult::axes`]: roll only for a station).
+pub fn csv_header(axes: &[Axis]) -> String {
     let mut h = String::from("t,ok_fraction");
-    for a in AXES {
+    for &a in axes {
         for col in ["truth", "mean", "p025", "p975", "hw95", "std", "n"] {
             let _ = write!(h, ",{}_{col}", a.name());
         }
@@ -39,11 +40,12 @@ pub fn csv_header() -> String {
 /// The per-step CSV as text. An axis that no run estimated at a step has
 /// empty fields (never NaN).
 pub fn csv_text(r: &McResult) -> String {
-    let mut out = csv_header();
+    let axes = r.axes();
+    let mut out = csv_header(&axes);
     out.push('\n');
     for (s, truth) in r.steps.iter().zip(&r.truth) {
         let _ = write!(out, "{},{}", s.t, s.ok_fraction);
-        for a in AXES {
+        for &a in &axes {
             let _ = write!(out, ",{}", truth[a.index()]);
             match &s.axes[a.index()] {
                 Some(st) => {
@@ -68,7 +70,7 @@ pub fn csv_text(r: &McResult) -> String {
 
 fn decimals(a: Axis) -> usize {
     match a {
-        Axis::Pitch | Axis::Yaw => 2,
+        Axis::Pitch | Axis::Yaw | Axis::Roll => 2,
         _ => 3,
     }
 }
@@ -166,7 +168,7 @@ fn write_headline_table(o: &mut String, r: &McResult, info: &RunInfo) -> Vec<Str
     );
     let _ = writeln!(o, "|---|---|---|---|---|---|---|");
     let mut far = Vec::new();
-    for a in AXES {
+    for a in r.axes() {
         let d = decimals(a);
         let unit = a.unit();
         let pf = |sel: fn(&crate::paper::PaperFigures) -> [Option<Figure>; 5]| {
@@ -240,7 +242,7 @@ fn write_coverage(o: &mut String, r: &McResult) {
     );
     let _ = writeln!(o, "| axis | estimates with σ | within ±2σ |");
     let _ = writeln!(o, "|---|---|---|");
-    for a in AXES {
+    for a in r.axes() {
         match &r.coverage[a.index()] {
             Some(c) => {
                 let _ = writeln!(

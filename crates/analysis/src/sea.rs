@@ -91,7 +91,7 @@ pub struct Judged {
 }
 
 /// p95 as the harbour test takes it: the value at rank ⌈0.95·n⌉.
-fn p95(v: &mut [f64]) -> Option<f64> {
+pub(crate) fn p95(v: &mut [f64]) -> Option<f64> {
     if v.is_empty() {
         return None;
     }
@@ -189,7 +189,7 @@ fn time_bursts(bursts: &[Vec<Burst>], mut replay: impl FnMut(&[Burst])) -> f64 {
 }
 
 /// The demodulator of a blinking scene and what it writes into.
-struct Demod {
+pub(crate) struct Demod {
     d: Demodulator,
     out: Demodulated,
 }
@@ -202,8 +202,9 @@ impl Demod {
 }
 
 /// How a case's frames are timed: over frames of counts (a steady
-/// beacon), or over bursts through the demodulator (a blinking one).
-enum Timing {
+/// beacon), or over bursts through the demodulator (a blinking one; a
+/// station's too, [`crate::dock`]).
+pub(crate) enum Timing {
     Counts(Vec<Vec<lightpose_core::Frame>>),
     Bursts {
         bursts: Vec<Vec<Burst>>,
@@ -215,13 +216,19 @@ enum Timing {
 
 impl Timing {
     fn new(l: &Loaded, o: &TradeOptions) -> Result<Timing, TradeError> {
-        let (scene, traj) = (&l.scene, &l.trajectory);
+        Timing::of(&l.scene, &l.trajectory, l.case.name, o)
+    }
+
+    /// `scene`'s frames along `traj` (`case` names it in an error).
+    pub(crate) fn of(
+        scene: &Scene,
+        traj: &Trajectory,
+        case: &'static str,
+        o: &TradeOptions,
+    ) -> Result<Timing, TradeError> {
         let runs = o.timing_runs.max(1);
-        let demod =
-            demodulator_for(&scene.log_header()).map_err(|err| TradeError::Demodulator {
-                case: l.case.name,
-                err,
-            })?;
+        let demod = demodulator_for(&scene.log_header())
+            .map_err(|err| TradeError::Demodulator { case, err })?;
         let Some(d) = demod else {
             return Ok(Timing::Counts(simulate_runs(scene, traj, runs, o.seed)));
         };
@@ -242,7 +249,7 @@ impl Timing {
     }
 
     /// The demodulator alone, µs per frame (None for a steady beacon).
-    fn demod_us(&self) -> Option<f64> {
+    pub(crate) fn demod_us(&self) -> Option<f64> {
         match self {
             Timing::Counts(_) => None,
             Timing::Bursts { demod_us, .. } => Some(*demod_us),
@@ -250,7 +257,7 @@ impl Timing {
     }
 
     /// µs per frame of `est`, the demodulator included for bursts.
-    fn per_frame(&mut self, est: &mut dyn Estimator) -> f64 {
+    pub(crate) fn per_frame(&mut self, est: &mut dyn Estimator) -> f64 {
         match self {
             Timing::Counts(frames) => time_per_frame(est, frames),
             Timing::Bursts { bursts, demod, .. } => time_bursts(bursts, |run| {
@@ -369,7 +376,7 @@ pub fn run_case(
     Ok(sec)
 }
 
-fn pct(v: Option<f64>) -> String {
+pub(crate) fn pct(v: Option<f64>) -> String {
     v.map_or("—".into(), |v| format!("{:.0}", 100.0 * v))
 }
 

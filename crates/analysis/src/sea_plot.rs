@@ -47,17 +47,14 @@ fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     secs: &[SeaSection],
 ) -> Result<(), String> {
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let (head, body) = root.split_vertically(44);
     let runs = secs.first().map_or(0, |s| s.runs);
-    head.draw(&Text::new(
-        format!(
+    let body = crate::plot::titled(
+        root,
+        &format!(
             "Open sea, harbour approach: p95 of |error| of the ok poses after 1 s ({runs} runs)"
         ),
-        (16, 12),
-        font(19.0).color(&BLACK),
-    ))
-    .map_err(|e| e.to_string())?;
+        19.0,
+    )?;
     // The estimators in the order the first case ran them.
     let names: Vec<&str> = secs
         .iter()
@@ -204,14 +201,7 @@ fn panel<DB: DrawingBackend>(
         chart.draw_series(none).map_err(|e| e.to_string())?;
     }
     if legend {
-        chart
-            .configure_series_labels()
-            .label_font(font(12.0))
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(180, 180, 180))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(|e| e.to_string())?;
+        crate::plot::legend(&mut chart)?;
     }
     Ok(())
 }

@@ -76,7 +76,10 @@ impl Case {
         if let Some(paper) = PaperCase::named(name) {
             return CASES.iter().find(|c| c.paper == Some(paper));
         }
-        crate::sea::SEA_CASES.iter().find(|c| c.name == name)
+        crate::sea::SEA_CASES
+            .iter()
+            .chain(crate::dock::DOCK_CASES.iter())
+            .find(|c| c.name == name)
     }
 }
 
@@ -226,6 +229,27 @@ pub fn simulate_runs(scene: &Scene, traj: &Trajectory, runs: usize, seed: u64) -
 }
 
 /// Run every estimator of `o` on `l`'s case with the sensor set `set`;
+/// One estimator's Monte Carlo of a case, behind `bar` (cleared after).
+pub(crate) fn monte_carlo<F, E>(
+    cfg: &McConfig,
+    build: F,
+    bar: indicatif::ProgressBar,
+    case: &'static str,
+    name: &str,
+) -> Result<McResult, TradeError>
+where
+    F: Fn() -> Result<Box<dyn Estimator>, E> + Sync,
+    E: std::fmt::Display,
+{
+    let mc = montecarlo::run(cfg, build, &bar);
+    bar.finish_and_clear();
+    mc.map_err(|err| TradeError::MonteCarlo {
+        case,
+        name: name.to_string(),
+        err,
+    })
+}
+
 /// `progress` is called with the number of realizations before each
 /// Monte Carlo and must return the bar to advance.
 pub fn run_section(
@@ -291,14 +315,7 @@ pub fn run_section(
             }
         };
         let us = time_per_frame(est.as_mut(), &timing);
-        let bar = progress(o.runs as u64);
-        let mc = montecarlo::run(&cfg, build, &bar);
-        bar.finish_and_clear();
-        let mc = mc.map_err(|err| TradeError::MonteCarlo {
-            case: case.name,
-            name: name.clone(),
-            err,
-        })?;
+        let mc = monte_carlo(&cfg, build, progress(o.runs as u64), case.name, name)?;
         sec.rows.push(Row {
             name: mc.estimator.clone(),
             us_per_frame: us,
@@ -320,14 +337,16 @@ pub fn num(v: Option<f64>) -> String {
     }
 }
 
-fn track_of(b: &TrackBound, a: Axis) -> f64 {
+fn track_of(b: &TrackBound, a: Axis) -> Option<f64> {
     match a {
-        Axis::X => b.x,
-        Axis::Y => b.y,
-        Axis::Z => b.z,
-        Axis::Pitch => b.pitch_deg,
-        Axis::Yaw => b.yaw_deg,
-        Axis::Surge => b.surge,
+        Axis::X => Some(b.x),
+        Axis::Y => Some(b.y),
+        Axis::Z => Some(b.z),
+        Axis::Pitch => Some(b.pitch_deg),
+        Axis::Yaw => Some(b.yaw_deg),
+        Axis::Surge => Some(b.surge),
+        // The single-beacon track bound has no roll (one beacon cannot see it).
+        Axis::Roll => None,
     }
 }
 
@@ -339,13 +358,14 @@ fn crb_of(b: &CrbBound, a: Axis) -> Option<f64> {
         Axis::Pitch => Some(b.pitch_deg),
         Axis::Yaw => Some(b.yaw_deg),
         Axis::Surge => None,
+        Axis::Roll => Some(b.roll_deg),
     }
 }
 
 /// The paper's published 95 % half-widths of `a`, "start → end" (— for
 /// a case the paper did not run).
 fn paper_cell(case: Option<PaperCase>, a: Axis) -> String {
-    let Some(case) = case.filter(|_| a != Axis::Surge) else {
+    let Some(case) = case.filter(|_| !matches!(a, Axis::Surge | Axis::Roll)) else {
         return "—".into();
     };
     let fig = case.figures();
@@ -389,12 +409,12 @@ pub fn table(sec: &Section) -> String {
     );
     let _ = writeln!(o, "|---|---|---|---|---|---|---|---|---|---|---|");
     for r in &sec.rows {
-        for a in AXES {
+        for a in r.mc.axes() {
             let h = headline(&r.mc, a);
             let cov = r.mc.coverage[a.index()].map(|c| format!("{:.1}%", 100.0 * c.fraction()));
             let c0 = sec.crb.first().and_then(|b| crb_of(b, a)).map(|s| Z95 * s);
             let c1 = sec.crb.last().and_then(|b| crb_of(b, a)).map(|s| Z95 * s);
-            let tb = sec.track_end.map(|b| Z95 * track_of(&b, a));
+            let tb = sec.track_end.and_then(|b| track_of(&b, a)).map(|s| Z95 * s);
             let _ = writeln!(
                 o,
                 "| {} | {} | {} ({}) | {} | {} | {} | {} | {} | {} | {} | {} |",
@@ -432,7 +452,18 @@ pub fn summary(sections: &[Section]) -> String {
     let _ = writeln!(o, "\n### Summary: end 95 % half-width (±2σ coverage)\n");
     let mut head = "| case | sensors | estimator | µs/frame |".to_string();
     let mut rule = "|---|---|---|---|".to_string();
-    for a in AXES {
+    // Roll only when some row gave it (a station's).
+    let axes: Vec<Axis> = AXES
+        .into_iter()
+        .filter(|&a| {
+            a != Axis::Roll
+                || sections
+                    .iter()
+                    .flat_map(|s| &s.rows)
+                    .any(|r| r.mc.axes().contains(&Axis::Roll))
+        })
+        .collect();
+    for &a in &axes {
         let _ = write!(head, " {} ({}) |", a.name(), a.unit());
         rule.push_str("---|");
     }
@@ -447,7 +478,7 @@ pub fn summary(sections: &[Section]) -> String {
                 r.name,
                 num(Some(r.us_per_frame))
             );
-            for a in AXES {
+            for &a in &axes {
                 let h = headline(&r.mc, a).map(|h| h.2);
                 let c = r.mc.coverage[a.index()].map_or("—".to_string(), |c| {
                     format!("{:.1}%", 100.0 * c.fraction())

@@ -30,7 +30,8 @@ pub use geometry::{Attitude, BeamVec, BodyVec, Pose};
 pub use light::{LightParams, Scattering};
 pub use log::{ByteError, Cut, FrameLog, FrameOrder, LogError, LogHeader, LogReader, LogWriter};
 pub use pose::{
-    Agreement, PoseEstimate, ReadingUse, ReadingUses, Refusal, Status, StdDev, CHECKED, READINGS,
+    Agreement, PoseEstimate, ReadingUse, ReadingUses, Refusal, StationMode, StationNames,
+    StationSeen, Status, StdDev, CHECKED, READINGS,
 };
 pub use samples::{
     Amplitudes, BeaconAmplitude, BeaconInfo, Burst, Demodulated, Record, RecordKind, MAX_BEACONS,

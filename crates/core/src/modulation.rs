@@ -57,6 +57,25 @@ pub enum ModulationError {
     },
 }
 
+impl ModulationError {
+    /// The first beacon the error names (`None`: it is the ADC's rate), so
+    /// that a reader points at that beacon's line (a scene's, a station
+    /// file's).
+    pub fn beacon(&self) -> Option<&str> {
+        match self {
+            ModulationError::SamplesPerFrame { .. } | ModulationError::FastWithoutBlink { .. } => {
+                None
+            }
+            ModulationError::SamplesPerPeriod { id, .. }
+            | ModulationError::PeriodsPerFrame { id, .. }
+            | ModulationError::Steady { id } => Some(id),
+            ModulationError::SameFrequency { a, .. } | ModulationError::OddRatio { a, .. } => {
+                Some(a)
+            }
+        }
+    }
+}
+
 /// `x` as a whole number if it is one within [`WHOLE_REL`].
 pub fn whole(x: f64) -> Option<u64> {
     if !x.is_finite() || !(0.5..=1e15).contains(&x) {

@@ -211,6 +211,93 @@ pub struct ReadingUses {
     pub velocity: ReadingUse,
 }
 
+/// A docking station's name and its beacons' ids in the order of the
+/// images (spec v3): what a POSE message names (`frame`, `beacons_seen`).
+/// Interned ([`StationNames::interned`]): an estimate refers to it by a
+/// `&'static`, so that it stays Copy and the frame thread allocates nothing.
+#[derive(Debug, PartialEq, Eq)]
+pub struct StationNames {
+    pub name: String,
+    pub beacons: Vec<String>,
+}
+
+impl StationNames {
+    /// The one `&'static` copy of these names: made (and kept for the
+    /// process's life) the first time they are asked for, the same one
+    /// after. A daemon reloading its calibration keeps one per distinct
+    /// station, not one per reload.
+    pub fn interned(name: &str, beacons: &[String]) -> &'static StationNames {
+        use std::sync::Mutex;
+        static ALL: Mutex<Vec<&'static StationNames>> = Mutex::new(Vec::new());
+        let want = StationNames {
+            name: name.to_string(),
+            beacons: beacons.to_vec(),
+        };
+        let mut all = ALL.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(n) = all.iter().find(|n| ***n == want) {
+            return n;
+        }
+        let n: &'static StationNames = Box::leak(Box::new(want));
+        all.push(n);
+        n
+    }
+}
+
+/// Spec v3: which beacons of a docking station a frame saw, and how well.
+/// On the wire as POSE's `frame` and `beacons_seen` (with the station's
+/// [`StationNames`]); the SNRs are for STATUS and the tests. Copy and
+/// fixed-size, so that the frame thread fills it without allocating. The
+/// default, `station` 0, is "not a station": every single-beacon estimate.
+///
+/// How the mode is read (the status words stay those of one beacon):
+/// [`StationSeen::mode`], from how many beacons were seen this frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StationSeen {
+    /// How many beacons the station has (0: not a station).
+    pub station: u8,
+    /// The station's names, when the estimator was told them.
+    pub names: Option<&'static StationNames>,
+    /// Bit b: the station's beacon b was seen this frame (its image above
+    /// the estimator's signal-to-noise threshold) and fused.
+    pub seen: u32,
+    /// Per beacon, Σ a²/σ² over its image's usable channels (0 for a
+    /// beacon without an image this frame).
+    pub snr2: [f32; crate::MAX_BEACONS],
+}
+
+/// What a station's light gave a frame's pose, from how many of its
+/// beacons were seen ([`StationSeen::mode`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StationMode {
+    /// One beacon, no station: the single-beacon estimators.
+    NotAStation,
+    /// Three or more seen: the whole pose from the light.
+    SixDof,
+    /// Two seen: roll observable, the ridges broken.
+    RollObservable,
+    /// One seen: roll from the attitude reading or the roll prior.
+    OneBeacon,
+    /// None seen: the track predicted only (status `no_light`).
+    Dark,
+}
+
+impl StationSeen {
+    /// How many of the station's beacons were seen.
+    pub fn count(&self) -> u32 {
+        self.seen.count_ones()
+    }
+
+    pub fn mode(&self) -> StationMode {
+        match (self.station, self.count()) {
+            (0, _) => StationMode::NotAStation,
+            (_, 0) => StationMode::Dark,
+            (_, 1) => StationMode::OneBeacon,
+            (_, 2) => StationMode::RollObservable,
+            _ => StationMode::SixDof,
+        }
+    }
+}
+
 /// Names of the three readings, in [`ReadingUses::all`] order.
 pub const READINGS: [&str; 3] = ["attitude", "depth", "velocity"];
 
@@ -316,6 +403,9 @@ pub struct PoseEstimate {
     /// How the own-sensor readings have agreed with the light lately (not
     /// on the wire; the tracker's, default elsewhere).
     pub agreement: Agreement,
+    /// Spec v3: the station's beacons seen this frame (not on the wire;
+    /// the default, "not a station", for one beacon).
+    pub station: StationSeen,
 }
 
 /// Names of the six estimated fields, in message order.
@@ -353,6 +443,7 @@ impl PoseEstimate {
             excluded_channels: 0,
             agreement: Agreement::default(),
             roll_deg: None,
+            station: StationSeen::default(),
         }
     }
 
@@ -404,6 +495,28 @@ impl Serialize for StdMessage<'_> {
     }
 }
 
+/// The ids of the beacons seen (their indices where the names are not
+/// known).
+struct SeenList<'a>(&'a StationSeen);
+
+impl Serialize for SeenList<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeSeq;
+        let st = self.0;
+        let mut seq = s.serialize_seq(Some(st.count() as usize))?;
+        for b in 0..usize::from(st.station).min(32) {
+            if st.seen & (1 << b) == 0 {
+                continue;
+            }
+            match st.names.and_then(|n| n.beacons.get(b)) {
+                Some(id) => seq.serialize_element(id.as_str())?,
+                None => seq.serialize_element(&b)?,
+            }
+        }
+        seq.end()
+    }
+}
+
 impl Serialize for PoseMessage<'_> {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         let e = self.est;
@@ -430,6 +543,13 @@ impl Serialize for PoseMessage<'_> {
             m.serialize_entry("std", &StdMessage(&e.std))?;
         }
         m.serialize_entry("estimator", e.estimator)?;
+        // Spec v3: a station's pose is in its frame D, named; a single
+        // beacon's (B) says nothing, so v1/v2 POSE lines stay as they were.
+        if e.station.station > 0 {
+            let name = e.station.names.map_or("D", |n| n.name.as_str());
+            m.serialize_entry("frame", name)?;
+            m.serialize_entry("beacons_seen", &SeenList(&e.station))?;
+        }
         m.end()
     }
 }
@@ -458,6 +578,40 @@ mod tests {
         assert_eq!(v["std"]["x"], 0.2);
         assert!(v["std"].get("y").is_none());
         assert_eq!(v["time"], 1.7e9);
+    }
+
+    #[test]
+    fn a_station_pose_names_its_frame_and_the_beacons_seen() {
+        let mut e = PoseEstimate::empty(3, 0.6, Status::Ok, "tracker");
+        let mut plain = Vec::new();
+        e.write_json(None, &mut plain);
+        let v: serde_json::Value = serde_json::from_slice(&plain).unwrap();
+        assert!(v.get("frame").is_none() && v.get("beacons_seen").is_none());
+
+        let ids = ["top", "starboard", "bottom", "port"].map(String::from);
+        let names = StationNames::interned("dock", &ids);
+        assert!(std::ptr::eq(names, StationNames::interned("dock", &ids)));
+        assert!(!std::ptr::eq(names, StationNames::interned("dock2", &ids)));
+        e.station = StationSeen {
+            station: 4,
+            names: Some(names),
+            seen: 0b1011,
+            snr2: [0.0; crate::MAX_BEACONS],
+        };
+        let mut buf = Vec::new();
+        e.write_json(None, &mut buf);
+        let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
+        assert_eq!(v["frame"], "dock");
+        assert_eq!(
+            v["beacons_seen"],
+            serde_json::json!(["top", "starboard", "port"])
+        );
+        // Names not told: D and the images' indices.
+        e.station.names = None;
+        e.write_json(None, &mut buf);
+        let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
+        assert_eq!(v["frame"], "D");
+        assert_eq!(v["beacons_seen"], serde_json::json!([0, 1, 3]));
     }
 
     #[test]
@@ -503,5 +657,34 @@ mod tests {
         }
         assert_eq!(Status::parse("unobservable"), Some(Status::Unobservable));
         assert_eq!(Status::parse("bogus"), None);
+    }
+
+    /// The mode is read from the beacons seen; one beacon's estimate is
+    /// "not a station" and its POSE line is what it was.
+    #[test]
+    fn a_station_s_mode_follows_the_beacons_seen() {
+        let e = PoseEstimate::empty(1, 0.1, Status::Ok, "tracker");
+        assert_eq!(e.station.mode(), StationMode::NotAStation);
+        let mut plain = Vec::new();
+        e.write_json(None, &mut plain);
+        let mut st = e;
+        st.station.station = 4;
+        let mut with = Vec::new();
+        st.write_json(None, &mut with);
+        // A station's POSE is one beacon's with its frame and beacons
+        // after (a_station_pose_names_its_frame_and_the_beacons_seen).
+        assert!(with.starts_with(&plain[..plain.len() - 1]), "a prefix");
+        assert!(!plain.windows(7).any(|w| w == b"\"frame\""));
+        for (seen, mode) in [
+            (0b0000, StationMode::Dark),
+            (0b0100, StationMode::OneBeacon),
+            (0b1001, StationMode::RollObservable),
+            (0b1011, StationMode::SixDof),
+            (0b1111, StationMode::SixDof),
+        ] {
+            st.station.seen = seen;
+            assert_eq!(st.station.mode(), mode, "{seen:b}");
+            assert_eq!(st.station.count(), seen.count_ones());
+        }
     }
 }

@@ -38,6 +38,38 @@ pub fn line_of_key(text: &str, table: &str, key: &str) -> usize {
     header
 }
 
+/// The line of `key` in the `nth` `[[table]]` of `text` (or of that
+/// table's header when the key is not in it): a scene's `[[beacons]]`,
+/// a station file's.
+pub fn line_of_key_nth(text: &str, table: &str, nth: usize, key: &str) -> usize {
+    let mut seen = 0;
+    let mut in_table = false;
+    let mut header = 1;
+    for (i, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if l.starts_with('[') {
+            let name = l.trim_matches(|c| c == '[' || c == ']').trim();
+            in_table = false;
+            if l.starts_with("[[") && name == table {
+                in_table = seen == nth;
+                if in_table {
+                    header = i + 1;
+                }
+                seen += 1;
+            }
+            continue;
+        }
+        if in_table {
+            if let Some((k, _)) = l.split_once('=') {
+                if k.trim().trim_matches('"') == key {
+                    return i + 1;
+                }
+            }
+        }
+    }
+    header
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,6 +1,6 @@
 //! The ROS 2 output's cost (issue 42's bench row), printed as a table:
 //! the frame thread's part per estimate (`Ros2Out::emit`: a copy into the
-//! node's queue) and capture → received latency on loopback, the pose
+//! node's ring) and capture → received latency on loopback, the pose
 //! heard by a second participant in this process (an upper bound of
 //! capture → on the wire: it adds the receiving side's DDS).
 //!
@@ -70,6 +70,8 @@ fn main() -> anyhow::Result<()> {
         },
         networks: vec!["127.0.0.1".parse()?],
         imu: None,
+        depth: None,
+        dvl: None,
     };
     // The listener first, so that discovery is done before the count.
     let participant = ros2_client::dds::rustdds::DomainParticipantBuilder::new(cfg.domain_id)

@@ -39,6 +39,9 @@ pub struct BenchReport {
     pub source: String,
     /// Blinking beacons' samples through demodulation and the tracker.
     pub demod: Vec<DemodRow>,
+    /// A source that gives bursts: its own, through the frame thread's
+    /// parts one by one (`bench_source`).
+    pub source_row: Option<crate::bench_source::SourceRow>,
 }
 
 /// One row of the demodulation bench: BURST frames of 25 channels ×
@@ -87,6 +90,9 @@ impl std::fmt::Display for BenchReport {
         match self.peak_rss_kib {
             Some(k) => write!(f, "peak rss:   {:.1} MiB (VmHWM)", k as f64 / 1024.0)?,
             None => write!(f, "peak rss:   unknown (no /proc/self/status)")?,
+        }
+        if let Some(r) = &self.source_row {
+            write!(f, "\n{r}")?;
         }
         if self.demod.is_empty() {
             return Ok(());
@@ -242,9 +248,16 @@ pub fn bench(cfg: &Config, frames: u64) -> Result<BenchReport, DaemonError> {
     let cpu = cpu_seconds() - cpu0;
     drop(rig.sink);
     let n = stats.frames.load(Relaxed);
-    let demod = demod_bench(cfg)?;
+    // A source of bursts is timed on its own bursts (at its own rate,
+    // which the synthetic cases' 20 Hz may not be).
+    let source_row = crate::bench_source::source_bench(cfg)?;
+    let demod = match source_row {
+        Some(_) => Vec::new(),
+        None => demod_bench(cfg)?,
+    };
     Ok(BenchReport {
         demod,
+        source_row,
         frames: n,
         seconds: wall,
         fps: n as f64 / wall.max(1e-9),
@@ -291,6 +304,11 @@ pub fn demod_bench(cfg: &Config) -> Result<Vec<DemodRow>, DaemonError> {
                 mode: "--bench",
             })?;
     let mut source = open_source(&cfg, &Stop::new())?;
+    // A source of bursts has no frames of counts to make bursts from (its
+    // next_frame refuses, every time): its own bursts are timed instead.
+    if source.sampling().is_some() {
+        return Ok(Vec::new());
+    }
     let total = DEMOD_WARMUP + DEMOD_FRAMES;
     let mut frames = Vec::with_capacity(total);
     while frames.len() < total {
@@ -532,6 +550,7 @@ pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
     let rig = rig(cfg, "--soak", Some(SOAK_CLOCK_HZ), &stats, frames)?;
     let dir = std::env::temp_dir().join(format!("lightposed-soak-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(DaemonError::Recorder)?;
+    let rec = cfg.recording.as_ref();
     let rec_cfg = crate::config::Recording {
         samples: Default::default(),
         dir: dir.clone(),
@@ -539,17 +558,12 @@ pub fn soak(cfg: &Config, frames: u64) -> Result<SoakReport, DaemonError> {
         rotate_after: None,
         queue: 4096,
         // The configured format, so that the soak measures MCAP too.
-        format: cfg
-            .recording
-            .as_ref()
-            .map_or_else(Default::default, |r| r.format),
-        flush: cfg
-            .recording
-            .as_ref()
-            .map_or(crate::config::recording::DEFAULT_FLUSH, |r| r.flush),
+        format: rec.map_or_else(Default::default, |r| r.format),
+        flush: rec.map_or(crate::config::recording::DEFAULT_FLUSH, |r| r.flush),
         // Old files are deleted by the soak itself.
         keep_free_bytes: None,
         max_total_bytes: None,
+        bag: rec.map_or_else(Default::default, |r| r.bag.clone()),
     };
     let header = lightpose_core::LogHeader::new(rig.adc_bits, rig.rate_hz);
     let recorder = Recorder::start(&rec_cfg, header, rig.epoch).map_err(DaemonError::Recorder)?;

@@ -20,6 +20,7 @@
 //! - [`bench`]: `--bench` and `--soak`.
 
 pub mod bench;
+pub mod bench_source;
 pub mod blueos;
 pub mod config;
 pub mod engine;

@@ -29,7 +29,8 @@ pub const MIN_INTERVAL: Duration = Duration::from_secs(1);
 struct Job {
     cfg: Config,
     adc_bits: u8,
-    hub: Option<Arc<lightpose_vehicle::Hub>>,
+    /// The vehicle link's hub and the ROS 2 inputs' (each told the σ).
+    hubs: Vec<Arc<lightpose_vehicle::Hub>>,
     tx: Sender<Box<dyn Estimator>>,
     /// The calibration the running estimator was built from.
     running: Option<Calibration>,
@@ -59,11 +60,20 @@ impl Job {
         }
         // Told before the frame thread takes the estimator: a frame between
         // gets the new σ.
-        crate::wiring::assume_std(self.hub.as_deref(), est.name(), &cal);
+        for h in &self.hubs {
+            crate::wiring::assume_std(Some(h), est.name(), &cal);
+        }
         let _ = self.tx.send(est);
         self.running = Some(cal);
         Outcome::Replaced
     }
+}
+
+fn hubs(d: &Running) -> Vec<Arc<lightpose_vehicle::Hub>> {
+    let mut v: Vec<_> = d.vehicle.iter().map(|v| v.hub.clone()).collect();
+    #[cfg(feature = "ros2")]
+    v.extend(crate::wiring::ros2_hub(d.ros2.as_deref()));
+    v
 }
 
 /// The supervisor's end: SIGHUPs in, at most one reload running.
@@ -91,7 +101,7 @@ impl Reloads {
             job: Some(Job {
                 cfg: cfg.clone(),
                 adc_bits: d.adc_bits,
-                hub: d.vehicle.as_ref().map(|v| v.hub.clone()),
+                hubs: hubs(d),
                 tx: d.reload.clone(),
                 running: d.calibration.clone(),
             }),

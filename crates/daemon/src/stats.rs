@@ -304,6 +304,25 @@ pub struct Stats {
     /// Spec v3: the demodulator's state, when the source gives bursts,
     /// copied with the source's counters.
     pub demod: Mutex<Option<DemodStatus>>,
+    /// Spec v3: a docking station's beacons as the last estimate saw them.
+    pub station: StationStats,
+}
+
+/// What STATUS says of a docking station (`station`): the frame thread
+/// stores the last estimate's beacons seen and their SNRs (atomics), and
+/// the names only when the set seen changes.
+#[derive(Default)]
+pub struct StationStats {
+    /// Beacons of the station (0: one beacon, no station).
+    pub size: AtomicU8,
+    /// Bit b: beacon b seen in the last estimate.
+    pub seen_now: AtomicU64,
+    /// f64 bits of each beacon's Σ a²/σ² in the last estimate.
+    pub snr2_bits: [AtomicU64; lightpose_core::MAX_BEACONS],
+    /// Estimates by [`lightpose_core::StationMode`]: 6-DOF, roll
+    /// observable, one beacon, dark.
+    pub by_mode: [AtomicU64; 4],
+    pub names: Mutex<Option<&'static lightpose_core::StationNames>>,
 }
 
 /// What STATUS says of the demodulator (`demodulator`).

@@ -92,6 +92,7 @@ pub fn status_message(c: &StatusCtx, seq: u64, fps: f64) -> Value {
         "web": c.web.map_or_else(|| json!({"enabled": false}), crate::outputs::web::WebFeed::report),
         "vehicle": vehicle(c),
         "demodulator": demodulator(s),
+        "station": station(s),
         "ros2": ros2(c),
     })
 }
@@ -105,6 +106,37 @@ fn ros2(c: &StatusCtx) -> Value {
     }
     let _ = c;
     json!({"enabled": false})
+}
+
+/// Spec v3: a docking station's beacons as the last estimate saw them,
+/// each with its SNR (√(Σ a²/σ²) over its image), and the estimates by
+/// mode; `enabled: false` for one beacon.
+fn station(s: &Stats) -> Value {
+    let st = &s.station;
+    let size = usize::from(st.size.load(Relaxed));
+    if size == 0 {
+        return json!({"enabled": false});
+    }
+    let names = st.names.lock().ok().and_then(|n| *n);
+    let seen = st.seen_now.load(Relaxed);
+    let beacons: Vec<Value> = (0..size.min(lightpose_core::MAX_BEACONS))
+        .map(|b| {
+            let snr2 = f64::from_bits(st.snr2_bits[b].load(Relaxed));
+            json!({
+                "id": names.and_then(|n| n.beacons.get(b)).map_or_else(|| format!("#{b}"), |i| i.clone()),
+                "seen": seen & (1 << b) != 0,
+                "snr": snr2.max(0.0).sqrt(),
+            })
+        })
+        .collect();
+    let m = |i: usize| st.by_mode[i].load(Relaxed);
+    json!({
+        "enabled": true,
+        "name": names.map(|n| n.name.clone()),
+        "seen": (seen as u32).count_ones(),
+        "beacons": beacons,
+        "estimates": {"six_dof": m(0), "roll_observable": m(1), "one_beacon": m(2), "dark": m(3)},
+    })
 }
 
 /// Spec v3: the demodulator's state (each beacon locked or not, its
@@ -255,7 +287,7 @@ fn recording(rec: Option<&RecStats>) -> Value {
         None => json!({"state": "off"}),
         Some(r) => json!({
             "state": r.state().as_str(),
-            "format": crate::outputs::recfile::extension(r.format),
+            "format": r.format.as_str(),
             "synced": r.synced.load(Relaxed),
             "file": r.current.lock().ok().and_then(|g| g.clone()),
             "frames": r.frames.load(Relaxed),

@@ -378,7 +378,24 @@ fn plug_ros2(
             i.max_age,
         )));
     }
+    // Depth and DVL: a hub of their own, attached with [ros2]'s ages (the
+    // config allows no second depth or DVL input).
+    if let Some(rd) = &node.readings {
+        engine = engine.input(Box::new(VehicleReadings {
+            hub: rd.hub.clone(),
+            max_age: rd.max_age(),
+        }));
+    }
     Ok((engine, Some(node)))
+}
+
+/// The ROS 2 depth and DVL inputs' hub, if any (told the assumed σ as the
+/// vehicle link's is).
+#[cfg(feature = "ros2")]
+pub(crate) fn ros2_hub(
+    node: Option<&crate::outputs::ros2::Ros2Node>,
+) -> Option<Arc<lightpose_vehicle::Hub>> {
+    node?.readings.as_ref().map(|r| r.hub.clone())
 }
 
 /// The recorder as the web page sees it (its folder, its counters).
@@ -541,6 +558,8 @@ pub async fn start(cfg: &Config, publisher: Publisher) -> Result<Running, Daemon
     (engine, web, web_server) = plug_web(engine, web_parts, &mut status_taps);
     #[cfg(feature = "ros2")]
     let (mut engine, ros2) = plug_ros2(engine, cfg, &mut status_taps)?;
+    #[cfg(feature = "ros2")]
+    assume_std(ros2_hub(ros2.as_deref()).as_deref(), est_name, &cal);
     // The ROS 2 IMU is the attitude input (the config allows one).
     #[cfg(feature = "ros2")]
     let attitude = attitude.or_else(|| ros2.as_ref().and_then(|n| n.imu.clone()));

@@ -49,6 +49,8 @@ fn in_own_network(test: &str) -> bool {
         run("ip", &["route", "add", "224.0.0.0/4", "dev", "lo"]);
         return true;
     }
+    // The venv made out here: inside there is no network for pip.
+    lightpose_testkit::python::python();
     let exe = std::env::current_exe().expect("the test binary's path");
     let out = Command::new("unshare")
         .arg("-n")
@@ -169,6 +171,16 @@ fn cyclone_dds_hears_pose_odom_tf_and_diagnostics() {
         );
     }
     assert!(counts["diagnostics"].as_u64() >= Some(5), "{counts}");
+    // The graph (`ros2 node list`): our node in ros_discovery_info, as a
+    // Jazzy peer decodes it (16-byte GIDs; the default build's distro).
+    let graph: Vec<&Value> = lines.iter().filter(|l| l["topic"] == "graph").collect();
+    assert!(
+        graph.iter().any(|g| g["gid_len"] == 16
+            && g["nodes"]
+                .as_array()
+                .is_some_and(|n| n.iter().any(|n| n[1] == "lightposed"))),
+        "no lightposed node in ros_discovery_info: {graph:?}"
+    );
     let mut matched = 0;
     for l in lines
         .iter()
@@ -280,4 +292,130 @@ fn an_imu_from_cyclone_dds_is_the_attitude_input() {
         "2 NaN and 2 non-unit quaternions: {a}"
     );
     assert!(poses >= 5, "frames went on: {poses} POSE in 2 s");
+}
+
+/// The POSE and STATUS datagrams that came while `child` ran (and `after`
+/// more): POSEs as they came, the last STATUS.
+fn collect_while(
+    sub: &std::net::UdpSocket,
+    child: &mut std::process::Child,
+    after: Duration,
+) -> (Vec<Value>, Option<Value>) {
+    let (mut poses, mut last) = (Vec::new(), None);
+    let mut buf = [0u8; 65536];
+    let mut ended: Option<Instant> = None;
+    let t0 = Instant::now();
+    while ended.is_none_or(|e| e.elapsed() < after) {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "the publisher did not end"
+        );
+        if ended.is_none() && child.try_wait().expect("wait").is_some() {
+            ended = Some(Instant::now());
+        }
+        if let Ok(n) = sub.recv(&mut buf) {
+            if let Ok(v) = serde_json::from_slice::<Value>(&buf[..n]) {
+                match v["class"].as_str() {
+                    Some("STATUS") => last = Some(v),
+                    Some("POSE") => poses.push(v),
+                    _ => {}
+                }
+            }
+        }
+    }
+    (poses, last)
+}
+
+/// Issue 42's bad input: Cyclone DDS feeds the IMU, a depth
+/// (FluidPressure) and a DVL (TwistWithCovarianceStamped) good readings
+/// and bad ones (tests/python/ros2_bad_inputs.py): a NaN and a non-unit
+/// quaternion, a shorter type under the Imu's type name (DDS matches, the
+/// sample cannot be read), a 1 MB frame id, another type on the Imu's
+/// topic name (no match), a NaN, negative-variance and too deep pressure,
+/// a NaN and too fast twist. Each is counted in STATUS by its reason, the
+/// good ones ride with frames, and POSE datagrams kept coming at the rate.
+#[test]
+fn bad_ros2_inputs_are_counted_and_frames_go_on() {
+    if !in_own_network("bad_ros2_inputs_are_counted_and_frames_go_on") {
+        return;
+    }
+    let py = lightpose_testkit::python::python();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (sub, dest) = subscriber();
+    sub.set_read_timeout(Some(Duration::from_millis(50)))
+        .expect("timeout");
+    let text = config(dest).replace("embedded:tank-ahrs-scene", "embedded:tank-scene")
+        + "imu_topic = \"/imu/data\"\ndepth_topic = \"/depth/pressure\"\ndvl_topic = \"/dvl/twist\"\n[site]\nbeacon_heading_deg = 30.0\nbeacon_depth_m = 3.0\n";
+    let (mut daemon, _) = spawn_daemon_to(dir.path(), &text, &sub, Stdio::inherit());
+    let mut child = Command::new(py)
+        .arg(root().join("tests/python/ros2_bad_inputs.py"))
+        .arg("4")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("run the cyclonedds publisher");
+    let (poses, last) = collect_while(&sub, &mut child, Duration::from_millis(1500));
+    let mut out = String::new();
+    std::io::Read::read_to_string(&mut child.stdout.take().expect("piped"), &mut out)
+        .expect("its output");
+    assert!(child.wait().expect("wait").success(), "publisher failed");
+    signal(&daemon, nix::sys::signal::Signal::SIGTERM);
+    assert!(wait_exit(&mut daemon, Duration::from_secs(10)).success());
+    let sent: Value = serde_json::from_str(out.trim()).expect("the publisher's line");
+    let status = last.expect("a STATUS");
+    let (a, inputs) = (&status["attitude"], &status["ros2"]["inputs"]);
+    println!("ros2: bad inputs: sent {sent} | attitude {a} | inputs {inputs}");
+
+    let good = sent["good"].as_u64().expect("good");
+    assert!(a["received"].as_u64() >= Some(good * 8 / 10), "{a}");
+    assert!(a["attached"].as_u64() >= Some(10), "{a}");
+    assert_eq!(a["rejected_by"]["angle"], 4, "2 NaN, 2 non-unit: {a}");
+    // 3 unreadable samples, and the 1 MB one refused if DDS delivered it;
+    // the String samples would add 3 more had they matched.
+    let malformed = a["rejected_by"]["malformed"].as_u64().expect("malformed");
+    assert!((3..=4).contains(&malformed), "{a}");
+    for (name, want) in [
+        ("depth", &sent["sent"]["depth"]),
+        ("dvl", &sent["sent"]["dvl"]),
+    ] {
+        let i = &inputs[name];
+        for (reason, n) in i["rejected_by"].as_object().expect("reasons") {
+            assert_eq!(
+                n,
+                want.get(reason).unwrap_or(&Value::from(0)),
+                "{name} {reason}: {i}"
+            );
+        }
+        assert!(i["stored"].as_u64() >= Some(good * 8 / 10), "{name}: {i}");
+        assert!(
+            i["attached"].as_u64() >= Some(10),
+            "{name} rode with frames: {i}"
+        );
+    }
+    // The frame loop went on through the bad readings: POSEs at the rate,
+    // no gap longer than three periods.
+    let times: Vec<f64> = poses.iter().filter_map(|p| p["time"].as_f64()).collect();
+    let (from, to) = (
+        sent["bad_from"].as_f64().expect("from") - 1.0,
+        sent["bad_to"].as_f64().expect("to") + 1.0,
+    );
+    let within: Vec<f64> = times
+        .iter()
+        .copied()
+        .filter(|t| (from..=to).contains(t))
+        .collect();
+    let want = (0.8 * RATE_HZ * (to - from)) as usize;
+    assert!(
+        within.len() >= want,
+        "{} POSE in {:.1} s, want >= {want}",
+        within.len(),
+        to - from
+    );
+    let gap = within.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+    assert!(gap < 3.0 / RATE_HZ, "a {gap:.2} s gap between POSEs");
+    println!(
+        "ros2: bad inputs: {} POSE in the {:.1} s around the bad readings, longest gap {gap:.2} s, malformed {malformed}",
+        within.len(),
+        to - from
+    );
 }

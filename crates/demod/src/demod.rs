@@ -6,6 +6,7 @@
 
 use crate::basis::{degree_for, Basis};
 use crate::config::{ValidConfig, MAX_BEACONS};
+use crate::posterior::SpreadSum;
 use crate::runs::{on_runs, overlap, turns};
 use crate::scan::{Cell, Scan, Signal, Window};
 use crate::track::{wrap, Track};
@@ -365,6 +366,10 @@ impl Demodulator {
             },
             ch.pred_freq,
         );
+        // The phase's spread over the cells at every frequency tried: a
+        // frequency off by 1.5σ moves the best cell by the edges it
+        // places differently, and the track should know that it might.
+        let mut spread = SpreadSum::new();
         for step in FREQ_STEPS {
             let freq = ch.pred_freq + step * sf;
             let win = Window {
@@ -377,10 +382,12 @@ impl Demodulator {
             };
             let mut cell = self.scan.search(&sig, w, &win);
             cell.ll -= 0.5 * step * step;
+            self.scan.spread_into(&mut spread, -0.5 * step * step);
             if cell.ll > best.0.ll {
                 best = (cell, freq);
             }
         }
+        best.0.spread = spread.finish();
         self.choices[b].cell = best.0;
         self.choices[b].freq = best.1;
     }
@@ -462,12 +469,14 @@ impl Demodulator {
         let best = if used > 0 { ch.cell } else { Cell::default() };
         let detected = used > 0 && best.score > detection_threshold(used);
         let phase = if detected {
-            let cell = best.hi - best.lo;
-            let phase = ch.phase();
-            let var = cell * cell / 12.0
-                + 1.0 / (4.0 * std::f64::consts::PI.powi(2) * best.score.max(1.0));
-            self.tracks[b].update(phase, var);
-            phase
+            // The track takes the likelihood's mean and spread over the
+            // window's cells (`posterior.rs`); the fit, the best cell's
+            // template (the prior's pick).
+            let s = best.spread;
+            if s.var.is_finite() {
+                self.tracks[b].update(ch.pred_phase + s.mean, s.var);
+            }
+            ch.phase()
         } else {
             ch.pred_phase
         };

@@ -25,6 +25,7 @@ pub mod basis;
 pub mod config;
 mod demod;
 pub mod frames;
+mod posterior;
 mod runs;
 mod scan;
 pub mod track;

@@ -9,6 +9,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::basis::Basis;
+use crate::posterior::{Spread, SpreadSum};
 use crate::runs::{on_runs, turns};
 use lightpose_core::NDET;
 
@@ -25,6 +26,10 @@ pub struct Cell {
     pub score: f64,
     /// The log-likelihood gained, less the priors'.
     pub ll: f64,
+    /// The phase offset's mean and variance under the likelihood alone,
+    /// over the window's cells at every frequency tried: what the track
+    /// takes (`posterior.rs`; filled by the demodulator's search).
+    pub spread: Spread,
 }
 
 impl Default for Cell {
@@ -34,6 +39,7 @@ impl Default for Cell {
             hi: 0.5,
             score: 0.0,
             ll: 0.0,
+            spread: Spread::default(),
         }
     }
 }
@@ -78,6 +84,8 @@ pub struct Scan {
     keys: Vec<u64>,
     spare: Vec<u64>,
     turns: Vec<u32>,
+    /// The window's cells at the last search: (lo, hi, score).
+    cells: Vec<(f64, f64, f64)>,
 }
 
 impl Scan {
@@ -107,6 +115,7 @@ impl Scan {
             keys: Vec::with_capacity(2 * NDET * n),
             spare: Vec::with_capacity(2 * NDET * n),
             turns: Vec::with_capacity(n + 2),
+            cells: Vec::with_capacity(2 * NDET * n + 1),
         }
     }
 
@@ -260,7 +269,9 @@ impl Scan {
             hi: half,
             score: 0.0,
             ll: f64::NEG_INFINITY,
+            spread: Spread::default(),
         };
+        self.cells.clear();
         let mut lo = -half;
         let ordered = self
             .keys
@@ -269,12 +280,14 @@ impl Scan {
         for (at, code) in ordered.chain(std::iter::once((half, u32::MAX))) {
             if at - lo > MIN_CELL {
                 let ll = score_at(lo, at, sum);
+                self.cells.push((lo, at, sum));
                 if ll > best.ll {
                     best = Cell {
                         lo,
                         hi: at,
                         score: sum,
                         ll,
+                        spread: Spread::default(),
                     };
                 }
                 lo = at;
@@ -307,6 +320,26 @@ impl Scan {
             sum += term(k, st.c[k], st.norm[k]) - before;
         }
         best
+    }
+
+    /// The cells of the last walk into `acc`, each at the samples'
+    /// likelihood exp(score/2 + `ll`), flat within it (the prior left out:
+    /// the track has it); cells below the most likely by more than 40
+    /// (e^-40) left out, the most likely first (offsets are about it).
+    pub fn spread_into(&self, acc: &mut SpreadSum, ll: f64) {
+        let top = self
+            .cells
+            .iter()
+            .map(|c| c.2)
+            .fold(f64::NEG_INFINITY, f64::max);
+        if let Some(&(lo, hi, _)) = self.cells.iter().find(|c| c.2 == top) {
+            acc.add(lo, hi, 0.5 * top + ll);
+        }
+        for &(lo, hi, sum) in &self.cells {
+            if sum != top && 0.5 * (sum - top) >= -40.0 {
+                acc.add(lo, hi, 0.5 * sum + ll);
+            }
+        }
     }
 }
 

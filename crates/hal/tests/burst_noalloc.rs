@@ -74,18 +74,21 @@ fn reading_bursts_from_a_bank_does_not_allocate_per_frame() {
         let want = 100 * (k / 8 + 1) + k % 8;
         assert_eq!(burst.channel(k as usize), &[want; N][..], "detector {k}");
     }
-    let (ok, n) = A.everywhere(|| {
-        let mut ok = 0u32;
-        for _ in 0..BURSTS {
-            // A sample started late (the test machine busy) drops its
-            // frame without allocating either; most are taken.
+    // A sample started late (the test machine busy: CI's two cores run
+    // other tests) drops its frame without allocating either. So the
+    // bursts are read until BURSTS were taken, however many that needs
+    // (a cap only against a machine that never gives the thread 125 µs).
+    let ((ok, tries), n) = A.everywhere(|| {
+        let (mut ok, mut tries) = (0u32, 0u32);
+        while ok < BURSTS && tries < 100 * BURSTS {
+            tries += 1;
             if matches!(src.next_take(&mut burst), Ok(Take::Burst)) {
                 ok += 1;
             }
         }
-        ok
+        (ok, tries)
     });
-    eprintln!("{ok} of {BURSTS} bursts of {N} taken, {n} allocations");
-    assert!(ok >= BURSTS / 2, "{ok} of {BURSTS} bursts taken");
-    assert_eq!(n, 0, "{n} allocations for {BURSTS} bursts");
+    eprintln!("{ok} bursts of {N} taken in {tries} tries, {n} allocations");
+    assert_eq!(ok, BURSTS, "{ok} bursts taken in {tries} tries");
+    assert_eq!(n, 0, "{n} allocations for {tries} bursts tried");
 }

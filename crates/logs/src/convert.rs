@@ -75,9 +75,9 @@ enum Out {
     Mcap(Box<McapWriter<BufWriter<File>>>),
 }
 
-/// POSE lines read in step with the frames (JSONL → MCAP), each bounded
-/// as core bounds a log's lines.
-struct PoseFeed {
+/// POSE lines read in step with the frames (JSONL → MCAP, and a ROS 2
+/// bag's poses), each bounded as core bounds a log's lines.
+pub(crate) struct PoseFeed {
     src: BufReader<File>,
     file: String,
     line_no: usize,
@@ -86,7 +86,7 @@ struct PoseFeed {
     next: Option<(u64, Vec<u8>)>,
     ended: bool,
     /// Lines refused unread (too long), not yet handed to the caller.
-    refused: Vec<LogError>,
+    pub(crate) refused: Vec<LogError>,
 }
 
 #[derive(serde::Deserialize)]
@@ -96,7 +96,7 @@ struct PoseSeq {
 }
 
 impl PoseFeed {
-    fn open(path: &Path) -> Result<Self, ConvertError> {
+    pub(crate) fn open(path: &Path) -> Result<Self, ConvertError> {
         let file = path.display().to_string();
         let f = File::open(path).map_err(|err| ConvertError::File {
             file: file.clone(),
@@ -113,7 +113,8 @@ impl PoseFeed {
         })
     }
 
-    fn bad(&self, msg: impl Into<String>) -> ConvertError {
+    /// An error at the line last read.
+    pub(crate) fn bad(&self, msg: impl Into<String>) -> ConvertError {
         ConvertError::PoseLine {
             file: self.file.clone(),
             line: self.line_no,
@@ -169,17 +170,31 @@ impl PoseFeed {
         seq: Option<u64>,
         out: &mut McapWriter<BufWriter<File>>,
     ) -> Result<u64, ConvertError> {
+        self.take_through(seq, |feed, _, text| {
+            out.write_pose_line(text)
+                .map_err(|e| feed.bad(e.to_string()))
+        })
+    }
+
+    /// Hand each POSE line up to frame `seq` (all, with `None`) to `f`
+    /// with its seq; how many.
+    pub(crate) fn take_through(
+        &mut self,
+        seq: Option<u64>,
+        mut f: impl FnMut(&Self, u64, &[u8]) -> Result<(), ConvertError>,
+    ) -> Result<u64, ConvertError> {
         let mut n = 0;
         loop {
             self.fill()?;
-            match &self.next {
-                Some((s, text)) if seq.is_none_or(|limit| *s <= limit) => {
-                    out.write_pose_line(text)
-                        .map_err(|e| self.bad(e.to_string()))?;
-                    self.next = None;
+            match self.next.take() {
+                Some((s, text)) if seq.is_none_or(|limit| s <= limit) => {
+                    f(self, s, &text)?;
                     n += 1;
                 }
-                _ => return Ok(n),
+                other => {
+                    self.next = other;
+                    return Ok(n);
+                }
             }
         }
     }

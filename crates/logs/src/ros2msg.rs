@@ -11,6 +11,9 @@
 //! a rate or speed nothing observes [`UNOBSERVED_VAR`]: never 0, never NaN
 //! (robot_localization refuses the one and is broken by the other).
 
+mod diagnostics;
+pub use diagnostics::{diagnostics, LastEstimate};
+
 use lightpose_core::{Angle, Attitude, PoseEstimate, Status};
 use serde::de::{Deserializer, SeqAccess, Visitor};
 use serde::ser::{SerializeTuple, Serializer};
@@ -233,6 +236,21 @@ pub struct Imu {
     pub linear_acceleration_covariance: [f64; 9],
 }
 
+/// `sensor_msgs/msg/FluidPressure`: Pa; a variance of 0 is "unknown".
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct FluidPressure {
+    pub header: Header,
+    pub fluid_pressure: f64,
+    pub variance: f64,
+}
+
+/// A DVL's velocity as ROS 2 drivers give it (in the body frame, FLU).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct TwistWithCovarianceStamped {
+    pub header: Header,
+    pub twist: TwistWithCovariance,
+}
+
 /// A ROS 2 type: package and name (`geometry_msgs`, `PoseWithCovarianceStamped`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TypeName {
@@ -275,6 +293,39 @@ pub const IMU_TYPE: TypeName = TypeName {
     name: "Imu",
 };
 
+pub const FLUID_PRESSURE_TYPE: TypeName = TypeName {
+    package: "sensor_msgs",
+    name: "FluidPressure",
+};
+pub const TWIST_TYPE: TypeName = TypeName {
+    package: "geometry_msgs",
+    name: "TwistWithCovarianceStamped",
+};
+
+/// ROS 2's naming rules, for the config and the command line alike.
+pub mod names {
+    /// A name token: letters, digits and single `_`, not starting with a
+    /// digit.
+    pub fn is_token(s: &str) -> bool {
+        !s.is_empty()
+            && !s.starts_with(|c: char| c.is_ascii_digit())
+            && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+            && !s.contains("__")
+    }
+
+    /// `/a/b`: absolute, tokens between slashes; `/` alone is the root.
+    pub fn is_namespace(s: &str) -> bool {
+        s == "/" || (s.starts_with('/') && !s.ends_with('/') && s[1..].split('/').all(is_token))
+    }
+
+    /// A tf frame id: tf2 refuses a leading `/` and whitespace.
+    pub fn is_frame_id(s: &str) -> bool {
+        !s.is_empty()
+            && !s.starts_with('/')
+            && !s.chars().any(|c| c.is_whitespace() || c.is_control())
+    }
+}
+
 /// The frames the messages name.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Frames {
@@ -284,6 +335,13 @@ pub struct Frames {
     pub base_link: String,
     /// The world frame of `/tf_static` (ENU).
     pub map: String,
+}
+
+impl Frames {
+    /// Three different frames (tf would loop otherwise).
+    pub fn distinct(&self) -> bool {
+        self.beacon != self.base_link && self.beacon != self.map && self.base_link != self.map
+    }
 }
 
 impl Default for Frames {
@@ -369,10 +427,13 @@ pub fn base_link_in_beam(att: &Attitude) -> Quaternion {
 }
 
 /// What every message of one estimate shares: only an `ok` estimate
-/// with a complete pose has one.
+/// with a complete pose has one. `'a`: the station's name it borrows.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Solved {
+pub struct Solved<'a> {
     pub stamp: Time,
+    /// A docking station's frame D, which the pose is in (spec v3: POSE's
+    /// `frame`); `None`: the beacon's, [`Frames::beacon`].
+    pub station: Option<&'a str>,
     pub position: Vector3,
     pub orientation: Quaternion,
     pub pose_cov: Cov6,
@@ -392,7 +453,7 @@ fn var_deg(sigma_deg: Option<f64>) -> Option<f64> {
 
 /// The pose of an estimate, stamped with its capture (Unix seconds): `None`
 /// unless it is `ok` with x, y, z, pitch, yaw and their finite 1σ.
-pub fn solve(est: &PoseEstimate, capture_unix: f64) -> Option<Solved> {
+pub fn solve(est: &PoseEstimate, capture_unix: f64) -> Option<Solved<'static>> {
     if est.status != Status::Ok {
         return None;
     }
@@ -420,6 +481,7 @@ pub fn solve(est: &PoseEstimate, capture_unix: f64) -> Option<Solved> {
     let surge = est.surge.filter(|v| v.is_finite());
     Some(Solved {
         stamp: Time::from_unix(capture_unix),
+        station: est.station.names.map(|n| n.name.as_str()),
         position: Vector3 {
             x: vals[0],
             y: vals[1],
@@ -439,10 +501,15 @@ fn header(stamp: Time, frame: &str) -> Header {
     }
 }
 
-impl Solved {
+impl Solved<'_> {
+    /// The frame the pose is in: the station's, or the beacon's.
+    pub fn parent<'f>(&'f self, frames: &'f Frames) -> &'f str {
+        self.station.unwrap_or(&frames.beacon)
+    }
+
     pub fn pose(&self, frames: &Frames) -> PoseWithCovarianceStamped {
         PoseWithCovarianceStamped {
-            header: header(self.stamp, &frames.beacon),
+            header: header(self.stamp, self.parent(frames)),
             pose: self.pose_with_cov(),
         }
     }
@@ -463,7 +530,7 @@ impl Solved {
         let mut tv = [UNOBSERVED_VAR; 6];
         tv[0] = self.surge_var;
         Odometry {
-            header: header(self.stamp, &frames.beacon),
+            header: header(self.stamp, self.parent(frames)),
             child_frame_id: frames.base_link.clone(),
             pose: self.pose_with_cov(),
             twist: TwistWithCovariance {
@@ -482,7 +549,7 @@ impl Solved {
     pub fn tf(&self, frames: &Frames) -> TFMessage {
         TFMessage {
             transforms: vec![TransformStamped {
-                header: header(self.stamp, &frames.beacon),
+                header: header(self.stamp, self.parent(frames)),
                 child_frame_id: frames.base_link.clone(),
                 transform: Transform {
                     translation: self.position,
@@ -493,32 +560,50 @@ impl Solved {
     }
 }
 
-/// `/tf_static`: the beacon's frame in `map` (ENU), from the compass
-/// heading of its axis (+x_B) and its position north, east, down.
-pub fn site_tf(frames: &Frames, axis_heading: Angle, ned: [f64; 3], stamp: Time) -> TFMessage {
-    // x_B points at heading h (clockwise from north): in ENU that is a
-    // rotation about up by 90° − h; z_B is up in both.
-    let yaw = std::f64::consts::FRAC_PI_2 - axis_heading.rad();
-    let (s, c) = (yaw / 2.0).sin_cos();
-    TFMessage {
-        transforms: vec![TransformStamped {
-            header: header(stamp, &frames.map),
-            child_frame_id: frames.beacon.clone(),
-            transform: Transform {
-                translation: Vector3 {
-                    x: ned[1],
-                    y: ned[0],
-                    z: -ned[2],
+/// Where the beacon's frame B (or a station's D) is in the world: the
+/// compass heading of its +x axis and its origin north, east, down in
+/// the autopilot's frame (`[site]`), for `/tf_static`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SiteTf {
+    pub axis_heading: Angle,
+    pub ned: [f64; 3],
+}
+
+impl SiteTf {
+    /// `/tf_static`: `child` (the beacon's frame, or the station's) in
+    /// `frames.map` (ENU).
+    pub fn message(&self, frames: &Frames, child: &str, stamp: Time) -> TFMessage {
+        // x_B points at heading h (clockwise from north): in ENU that is a
+        // rotation about up by 90° − h; z_B is up in both.
+        let yaw = std::f64::consts::FRAC_PI_2 - self.axis_heading.rad();
+        let (s, c) = (yaw / 2.0).sin_cos();
+        let ned = self.ned;
+        TFMessage {
+            transforms: vec![TransformStamped {
+                header: header(stamp, &frames.map),
+                child_frame_id: child.to_string(),
+                transform: Transform {
+                    translation: Vector3 {
+                        x: ned[1],
+                        y: ned[0],
+                        z: -ned[2],
+                    },
+                    rotation: Quaternion {
+                        x: 0.0,
+                        y: 0.0,
+                        z: s,
+                        w: c,
+                    },
                 },
-                rotation: Quaternion {
-                    x: 0.0,
-                    y: 0.0,
-                    z: s,
-                    w: c,
-                },
-            },
-        }],
+            }],
+        }
     }
+}
+
+/// `/tf_static` of the beacon's frame ([`SiteTf::message`] with
+/// [`Frames::beacon`]).
+pub fn site_tf(frames: &Frames, axis_heading: Angle, ned: [f64; 3], stamp: Time) -> TFMessage {
+    SiteTf { axis_heading, ned }.message(frames, &frames.beacon, stamp)
 }
 
 #[cfg(test)]

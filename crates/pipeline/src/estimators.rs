@@ -66,6 +66,10 @@ pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimato
     };
     match resolved {
         "moments" => Ok(Box::new(MomentsEstimator::new(cal))),
+        "model" if cal.station().is_some() => Err(config(
+            "the model estimator reads one beacon's image; a station's calibration runs the tracker (estimator = \"tracker\" or \"auto\")"
+                .to_string(),
+        )),
         "model" => {
             let m = physical(cal, resolved)?.sensor_model();
             let e = ModelEstimator::new(m, settings.model).map_err(|e| config(e.to_string()))?;
@@ -73,9 +77,17 @@ pub fn build_estimator(name: &str, cal: &Calibration) -> Result<Box<dyn Estimato
         }
         "tracker" => {
             let m = physical(cal, resolved)?.sensor_model();
-            let e = Tracker::new(m, settings.tracker)
+            let mut e = Tracker::new(m, settings.tracker)
                 .map_err(|e| config(e.to_string()))?
                 .with_paper(cal);
+            // Spec v3: a station's calibration runs the tracker on every
+            // beacon's image, its estimates named by the station.
+            if let Some(st) = cal.station() {
+                let ids: Vec<String> = st.beacons.iter().map(|b| b.id.clone()).collect();
+                e = e
+                    .with_station(st.beacon_lights())
+                    .with_station_names(lightpose_core::StationNames::interned(&st.name, &ids));
+            }
             if WaterBank::wanted(&e) {
                 let bank = WaterBank::new(&e).map_err(|e| config(e.to_string()))?;
                 return Ok(Box::new(bank));

@@ -447,6 +447,9 @@ pub struct TrackerConfig {
     /// spec v1/v2 (the default, so that v1/v2 logs give what they gave).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub roll_sigma_deg: Option<f64>,
+    /// Spec v3: roll's random walk on a docking station (the state the
+    /// station's beacons estimate), (°)²/s.
+    pub roll_walk_psd_deg: f64,
     /// Use `Frame.depth` when present, with this 1σ (m) unless the reading
     /// gives its own (MODEL.md's sensor: 0.02 m).
     pub use_depth: bool,
@@ -646,6 +649,7 @@ impl Default for TrackerConfig {
             attitude_sigma_yaw_deg: 1.5,
             attitude_sigma_roll_deg: 0.3,
             roll_sigma_deg: None,
+            roll_walk_psd_deg: 1.0,
             use_depth: true,
             depth_sigma_m: 0.02,
             depth_lever_arm_m: [0.0; 3],

@@ -88,6 +88,54 @@ pub fn orientation_poses() -> Vec<Pose> {
     v
 }
 
+/// Spec v3: a docking station's translation grid, x = 1.5, 2.5, 3.5,
+/// 5, 6.5, 8 m, y and z = −0.6..0.6 step 0.3 (150 poses). Why its own: the
+/// single beacon's grid (4.5–8.5 m, z ≥ 0 by the beam's symmetry) misses
+/// the last metres of an approach, where a station is used most, and a
+/// station is not symmetric in z.
+pub fn station_translation_poses() -> Vec<Pose> {
+    let mut v = Vec::with_capacity(150);
+    for x in [15, 25, 35, 50, 65, 80] {
+        for j in -2..=2i32 {
+            for k in -2..=2i32 {
+                let (y, z) = (f64::from(3 * j) / 10.0, f64::from(3 * k) / 10.0);
+                v.push(Pose::new(
+                    f64::from(x) / 10.0,
+                    y,
+                    z,
+                    Angle::ZERO,
+                    Angle::ZERO,
+                ));
+            }
+        }
+    }
+    v
+}
+
+/// Spec v3: a station's orientation fans, pitch, yaw and roll each
+/// −15..15° step 3° with the others 0, (0, 0, 0) once, at x = 2, 4 and
+/// 6 m: 31 poses per range, 93 in all. Roll is in them because a station
+/// sees it (the truth of a sweep must span what the calibration serves).
+pub fn station_orientation_poses() -> Vec<Pose> {
+    let mut v = Vec::with_capacity(93);
+    for x in [2.0, 4.0, 6.0] {
+        v.push(Pose::new(x, 0.0, 0.0, Angle::ZERO, Angle::ZERO));
+        for axis in 0..3 {
+            for d in (-15..=15).step_by(3).filter(|d| *d != 0) {
+                let a = Angle::from_deg(f64::from(d));
+                let mut p = Pose::new(x, 0.0, 0.0, Angle::ZERO, Angle::ZERO);
+                match axis {
+                    0 => p.pitch = a,
+                    1 => p.yaw = a,
+                    _ => p.roll = a,
+                }
+                v.push(p);
+            }
+        }
+    }
+    v
+}
+
 /// What a sweep will write.
 #[derive(Debug, Clone)]
 pub struct SweepPlan {
@@ -114,6 +162,26 @@ impl SweepPlan {
             samples,
             poses,
         }
+    }
+
+    /// The sweep of `scene`: a docking station's (several `[[beacons]]`)
+    /// spans a docking approach ([`station_translation_poses`],
+    /// [`station_orientation_poses`]); one beacon's is [`SweepPlan::new`].
+    pub fn for_scene(kind: SweepKind, samples: u32, scene: &Scene) -> Self {
+        let mut plan = SweepPlan::new(kind, samples);
+        if scene.beacons.len() > 1 {
+            plan.poses = match kind {
+                SweepKind::Translation => station_translation_poses(),
+                SweepKind::Orientation => station_orientation_poses(),
+                SweepKind::Dark => Vec::new(),
+                SweepKind::All => {
+                    let mut v = station_translation_poses();
+                    v.extend(station_orientation_poses());
+                    v
+                }
+            };
+        }
+        plan
     }
 
     /// Number of frames it writes.
@@ -242,6 +310,10 @@ mod tests {
         let zs: Vec<f64> = t.iter().take(5).map(|p| p.z).collect();
         assert_eq!(zs, [0.0, 0.2, 0.4, 0.6, 0.8]);
         assert_eq!((t[124].x, t[124].y, t[124].z), (8.5, 0.6, 0.8));
+        assert_eq!(station_translation_poses().len(), 150);
+        let so = station_orientation_poses();
+        assert_eq!(so.len(), 93);
+        assert_eq!(so.iter().filter(|p| p.roll != Angle::ZERO).count(), 30);
         let o = orientation_poses();
         let zeros = o
             .iter()

@@ -7,6 +7,7 @@
 use crate::guard;
 use crate::stdout::out;
 use anyhow::Context;
+use lightpose_analysis::dock;
 use lightpose_analysis::montecarlo::progress_bar;
 use lightpose_analysis::sea::{self, SEA_CASES};
 use lightpose_analysis::sensors::SensorSet;
@@ -30,8 +31,10 @@ pub struct BenchArgs {
     /// zigzag-clear, zigzag-turbid as `montecarlo --case` names them), sea
     /// (the open sea's four: approach-blinking-night, approach-blinking-day,
     /// approach-steady-night, approach-steady-day), all (both), or any of
-    /// those names. The open sea runs with its scenes' own sensors (an
-    /// AHRS with roll): --sensors does not apply to it.
+    /// those names; dock-approach (a docking station of four beacons,
+    /// judged on all six axes over x 5 → 1.5 m). The open sea runs with
+    /// its scenes' own sensors (an AHRS with roll): --sensors does not
+    /// apply to it.
     #[arg(long = "case", default_value = "paper", value_delimiter = ',')]
     cases: Vec<String>,
     /// Estimators, comma separated.
@@ -57,12 +60,13 @@ pub struct BenchArgs {
     #[arg(long)]
     out: Option<PathBuf>,
     /// Write the open sea's plots (PNG: p95 per estimator, blinking or
-    /// steady, night or day) into this directory.
+    /// steady, night or day) into this directory, and a docking station's
+    /// approach (SVG: track from above and the side, ±2σ, beacons seen).
     #[arg(long)]
     plot: Option<PathBuf>,
 }
 
-const KNOWN_CASES: &str = "known: paper, sea, all, dive-tank, zigzag-tank, zigzag-harbour, their aliases dive-clear, zigzag-clear, zigzag-turbid, approach-blinking-night, approach-blinking-day, approach-steady-night, approach-steady-day";
+const KNOWN_CASES: &str = "known: paper, sea, all, dive-tank, zigzag-tank, zigzag-harbour, their aliases dive-clear, zigzag-clear, zigzag-turbid, approach-blinking-night, approach-blinking-day, approach-steady-night, approach-steady-day, dock-approach";
 
 /// The cases `words` name, in order (`paper`, `sea` and `all` stand for
 /// their groups).
@@ -92,7 +96,9 @@ fn once_each<T>(v: Vec<T>, same: impl Fn(&T, &T) -> bool) -> Vec<T> {
     out
 }
 
-pub fn run(a: BenchArgs) -> anyhow::Result<()> {
+/// The arguments checked: the cases, sensor sets and options to run, each
+/// once; the output file and plot folder known writable before the runs.
+fn checked(a: &BenchArgs) -> anyhow::Result<(Vec<&'static Case>, Vec<SensorSet>, TradeOptions)> {
     guard::at_most("runs", a.runs, guard::MAX_RUNS, guard::RUNS_WHY)?;
     guard::at_least_one(
         "timing-runs",
@@ -136,26 +142,40 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         timing_runs: a.timing_runs,
         estimators,
     };
+    Ok((cases, sets, o))
+}
+
+pub fn run(a: BenchArgs) -> anyhow::Result<()> {
+    let (cases, sets, o) = checked(&a)?;
     let mut text = String::new();
     let mut sections = Vec::new();
     let mut seas = Vec::new();
+    let mut docks = Vec::new();
     for case in cases {
         let loaded = trade::load(&a.root, case)?;
         let frames = loaded.trajectory.frame_count(loaded.scene.adc.rate_hz);
         guard::run_frames(format_args!("{}'s trajectory", case.name), a.runs, frames)?;
+        if dock::is_dock(case) {
+            let sec = dock::run_case(&loaded, &sets, &o, &progress_bar)?;
+            for r in &sec.rows {
+                let who = format!("{} {}, {}", case.name, r.sensors.label(), r.name);
+                let (ok, n) = (r.judged.ok, r.judged.frames);
+                tell(&who, &r.mc, r.us_per_frame, ok, n, "in the window");
+            }
+            if let Some(d) = &a.plot {
+                let p = d.join(dock::PLOT_NAME);
+                let n = dock::plot_approach(&loaded, a.seed, &p)?;
+                eprintln!("bench: wrote {} ({n} frames)", p.display());
+            }
+            docks.push(sec);
+            continue;
+        }
         if case.paper.is_none() {
             let sec = sea::run_case(&loaded, &o, &progress_bar)?;
             for r in &sec.rows {
-                eprintln!(
-                    "bench: {}, {}: {} runs in {:.1} s, {:.2} µs/frame, {} of {} ok after 1 s",
-                    case.name,
-                    r.name,
-                    r.mc.runs,
-                    r.mc.elapsed.as_secs_f64(),
-                    r.us_per_frame,
-                    r.judged.ok,
-                    r.judged.frames
-                );
+                let who = format!("{}, {}", case.name, r.name);
+                let (ok, n) = (r.judged.ok, r.judged.frames);
+                tell(&who, &r.mc, r.us_per_frame, ok, n, "after 1 s");
             }
             seas.push(sec);
             continue;
@@ -183,6 +203,9 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     if !seas.is_empty() {
         text.push_str(&sea::table(&seas));
     }
+    for d in &docks {
+        text.push_str(&dock::table(d));
+    }
     if let (Some(d), false) = (&a.plot, seas.is_empty()) {
         let p = d.join(sea::PLOT_NAME);
         sea::plot_png(&seas, &p)?;
@@ -194,4 +217,20 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     }
     out!("{text}");
     Ok(())
+}
+
+/// One row's progress line: runs, time, cost and `ok` frames `window`.
+fn tell(
+    who: &str,
+    mc: &lightpose_analysis::montecarlo::McResult,
+    us_per_frame: f64,
+    ok: usize,
+    frames: usize,
+    window: &str,
+) {
+    eprintln!(
+        "bench: {who}: {} runs in {:.1} s, {us_per_frame:.2} µs/frame, {ok} of {frames} ok {window}",
+        mc.runs,
+        mc.elapsed.as_secs_f64(),
+    );
 }

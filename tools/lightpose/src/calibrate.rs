@@ -3,12 +3,14 @@
 //! `lightpose_pipeline::calibration`; this parses arguments, names bad lines
 //! on stderr and prints what was chosen, and the light model's parameters
 //! with their standard errors (or one line saying which one the sweeps could
-//! not determine).
+//! not determine). With `--station` (spec v3) the light model is a docking
+//! station's: each beacon's, with the check of its survey.
 
 use crate::guard;
 use anyhow::Context;
 use lightpose_pipeline::calibration::{
-    calibrate_full, CalibrateOptions, ParamEstimate, PhysicalCalibration, ScatterFit,
+    calibrate_full, fit_station_sweeps, CalibrateOptions, ParamEstimate, PhysicalCalibration,
+    ScatterFit, Station, StationCalibration, StationFitOptions,
 };
 use std::path::PathBuf;
 
@@ -40,28 +42,39 @@ pub struct CalibrateArgs {
     /// Skip the light model ([physical]): the paper's coefficients only.
     #[arg(long)]
     no_physical: bool,
+    /// Spec v3: the docking station's survey (FORMATS.md "station file"):
+    /// fit each beacon's V1 and sigma_b, the gains, K_D and sigma_R from
+    /// the station's sweeps, check the survey, and carry the station in
+    /// the calibration ([station]).
+    #[arg(long, conflicts_with = "no_physical")]
+    station: Option<PathBuf>,
 }
 
 pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
     let mut inputs: Vec<(&str, &std::path::Path)> =
         a.sweeps.iter().map(|p| ("sweep", p.as_path())).collect();
     inputs.extend(a.dark.as_deref().map(|p| ("dark", p)));
+    inputs.extend(a.station.as_deref().map(|p| ("station", p)));
     guard::not_an_input(&a.out, &inputs)?;
     check_options(&a)?;
-    let mut opts = CalibrateOptions::new(a.sweeps);
+    // The survey is read before any sweep: a bad file is refused at once.
+    let station = a.station.as_deref().map(read_station).transpose()?;
+    let mut opts = CalibrateOptions::new(a.sweeps.clone());
     opts.dark = a.dark;
     opts.v_ref = a.v_ref;
     opts.default_temp_c = a.default_temp;
     opts.surge_window = a.surge_window;
     opts.created_by = format!("lightpose calibrate {}", env!("CARGO_PKG_VERSION"));
-    if a.no_physical {
+    let scattering = match a.scattering.as_str() {
+        "on" => ScatterFit::On,
+        "off" => ScatterFit::Off,
+        _ => ScatterFit::Auto,
+    };
+    if a.no_physical || station.is_some() {
+        // A station's light is fitted by its own fit, below.
         opts.physical = None;
     } else if let Some(p) = opts.physical.as_mut() {
-        p.scattering = match a.scattering.as_str() {
-            "on" => ScatterFit::On,
-            "off" => ScatterFit::Off,
-            _ => ScatterFit::Auto,
-        };
+        p.scattering = scattering;
     }
     let mut bad = 0u64;
     let out = calibrate_full(&opts, |e| {
@@ -70,9 +83,20 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
             eprintln!("lightpose: skipped {e}");
         }
     })?;
-    let cal = out.cal;
+    let mut cal = out.cal;
     if bad > 20 {
         eprintln!("lightpose: skipped {} more bad lines", bad - 20);
+    }
+    if let Some((st, text, file)) = &station {
+        let o = StationFitOptions {
+            scattering,
+            v_ref: cal.scene.v_ref,
+            ..StationFitOptions::default()
+        };
+        let (fitted, _) = fit_station_sweeps(&a.sweeps, st, text, file, &o)
+            .with_context(|| format!("calibrating station {} ({file})", st.name))?;
+        cal.physical = Some(fitted.physical);
+        cal.station = Some(fitted.station);
     }
     // The error names the file.
     cal.save(&a.out).context("writing the calibration")?;
@@ -107,7 +131,48 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
     if let Some(p) = &cal.physical {
         print_light_model(p);
     }
+    if let Some(st) = cal.station() {
+        print_station(st);
+    }
     Ok(())
+}
+
+/// The station file, its text and its name (for errors at its lines).
+fn read_station(path: &std::path::Path) -> anyhow::Result<(Station, String, String)> {
+    let file = path.display().to_string();
+    let text = lightpose_core::textfile::read_text(path)?;
+    let st = Station::parse(&text, &file)?;
+    Ok((st, text, file))
+}
+
+/// Each beacon's fitted light and the check of its survey: a suspect
+/// survey as a warning.
+fn print_station(st: &StationCalibration) {
+    let pm = |v: &ParamEstimate| format!("{:.4} ± {:.4}", v.value, v.std);
+    eprintln!(
+        "  station {} ({} beacons, {} poses, {} frames, chi2/dof {:.2}):",
+        st.name,
+        st.beacons.len(),
+        st.poses,
+        st.frames,
+        st.chi2_per_dof
+    );
+    for b in &st.beacons {
+        eprintln!(
+            "    {:<10} V1 = {} V·m²  sigma_b = {} deg",
+            b.id,
+            pm(&b.v1),
+            pm(&b.sigma_b_deg)
+        );
+    }
+    for b in &st.beacons {
+        let c = &b.survey_check;
+        if c.suspect {
+            eprintln!("lightpose: warning: {}", c.note);
+        } else {
+            eprintln!("    {}", c.note);
+        }
+    }
 }
 
 /// The fitted light model, each parameter with its standard error.

@@ -85,27 +85,7 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
     } else {
         (1.0, "1σ")
     };
-    let sensor = own_sensors(&scene);
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "Cramér–Rao bound, {what}, one frame: {}; K_D spread {} 1/m, temperature spread {} °C; {sensor}",
-        a.scene.display(),
-        scene.montecarlo.sigma_k_d,
-        scene.montecarlo.sigma_temp_c,
-    );
-    if let Some(light) = describe_light(&bound_light(&scene)) {
-        let _ = writeln!(out, "{light}");
-    }
-    if let Some(station) = describe_station(&scene) {
-        let _ = writeln!(out, "{station}");
-    }
-    if track.is_some() {
-        let _ = writeln!(
-            out,
-            "Tracker bound ({what}): the whole trajectory, the tracker's default motion model as the prior between frames"
-        );
-    }
+    let mut out = heading(&a, &scene, what, track.is_some());
     let roll = crb_scene(&scene).roll_sigma.is_some();
     let _ = writeln!(out);
     let mut head = vec!["t (s)", "x (m)", "y (m)", "z (m)", "pitch (°)", "yaw (°)"];
@@ -167,4 +147,31 @@ pub fn run(a: CrbArgs) -> anyhow::Result<()> {
     }
     out!("{out}");
     Ok(())
+}
+
+/// The lines above the table: what the bound is of, and how it reads the
+/// scene's light and station.
+fn heading(a: &CrbArgs, scene: &Scene, what: &str, track: bool) -> String {
+    let sensor = own_sensors(scene);
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "Cramér–Rao bound, {what}, one frame: {}; K_D spread {} 1/m, temperature spread {} °C; {sensor}",
+        a.scene.display(),
+        scene.montecarlo.sigma_k_d,
+        scene.montecarlo.sigma_temp_c,
+    );
+    if let Some(light) = describe_light(&bound_light(scene)) {
+        let _ = writeln!(out, "{light}");
+    }
+    if let Some(station) = describe_station(scene) {
+        let _ = writeln!(out, "{station}");
+    }
+    if track {
+        let _ = writeln!(
+            out,
+            "Tracker bound ({what}): the whole trajectory, the tracker's default motion model as the prior between frames"
+        );
+    }
+    out
 }

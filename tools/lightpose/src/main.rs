@@ -43,7 +43,8 @@ enum Cmd {
     Bench(bench::BenchArgs),
     /// Cramér–Rao bound of a scene along a trajectory, one row per frame.
     Crb(crb::CrbArgs),
-    /// Convert an intensity log between JSON Lines and MCAP.
+    /// Convert an intensity log between JSON Lines and MCAP, or with its
+    /// poses into a ROS 2 bag (--ros2).
     Convert(convert::ConvertArgs),
     /// Rewrite an MCAP cut short (kill -9, power loss) as a finished file
     /// that every reader opens, with every whole record written.

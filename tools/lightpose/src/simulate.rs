@@ -127,7 +127,7 @@ pub fn sweep(a: SweepArgs) -> anyhow::Result<()> {
         anyhow::bail!("--samples 0: need at least one frame per pose");
     }
     let scene = Scene::load(&a.scene)?;
-    let plan = SweepPlan::new(kind, a.samples);
+    let plan = SweepPlan::for_scene(kind, a.samples, &scene);
     let what = match kind {
         SweepKind::Dark => format!("--samples {}: the dark sweep", a.samples),
         _ => format!(

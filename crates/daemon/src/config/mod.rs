@@ -30,6 +30,7 @@ pub mod outputs;
 pub mod places;
 pub mod recording;
 pub mod ros2;
+pub mod ros2in;
 pub mod temperature;
 pub mod top;
 pub mod vehicle;
@@ -207,7 +208,7 @@ impl Config {
         let backend = backend::validate(&ctx, raw.backend.as_ref(), top.rate_hz, &mut at)?;
         let fallback_temp_c = temperature::validate(&ctx, raw.temperature.as_ref())?;
         let outputs = outputs::validate(&ctx, raw.outputs.as_ref(), &mut at)?;
-        let recording = recording::validate(&ctx, raw.recording.as_ref(), &mut at)?;
+        let mut recording = recording::validate(&ctx, raw.recording.as_ref(), &mut at)?;
         let site = vehicle::site(&ctx, raw.site.as_ref())?;
         let heading = site.map(|s| s.1);
         let attitude = attitude::validate(&ctx, raw.attitude.as_ref(), heading, &mut at)?;
@@ -215,7 +216,9 @@ impl Config {
         let logging = logging::validate(&ctx, raw.logging.as_ref())?;
         let foxglove = foxglove::validate(&ctx, raw.foxglove.as_ref(), &mut at)?;
         let web = web::validate(&ctx, raw.web.as_ref(), &mut at)?;
-        let ros2 = ros2::validate(&ctx, raw.ros2.as_ref(), heading)?;
+        // Off, its names still name a ROS 2 recording's topics and frames.
+        let ros2_named = ros2::validate(&ctx, raw.ros2.as_ref(), heading)?;
+        let ros2 = ros2_named.as_ref().filter(|r| r.1).map(|r| r.0.clone());
         if let (Some(r), Some(a)) = (ros2.as_ref().and_then(|r| r.imu.as_ref()), &attitude) {
             return Err(ctx.whole(format!(
                 "ros2.imu_topic {} and [attitude] listen {}: one attitude input at a time",
@@ -230,7 +233,11 @@ impl Config {
             mavlink: raw.mavlink.as_ref(),
             dvl: raw.dvl.as_ref(),
         };
+        if let Some(r) = recording.as_mut() {
+            r.bag = ros2::bag_options(ros2_named.as_ref().map(|r| &r.0), site.as_ref());
+        }
         let vehicle = vehicle::validate(&ctx, &tables, site, &mut at)?;
+        ros2in::one_of_each(&ctx, ros2.as_ref(), vehicle.as_ref())?;
         across::validate(&outputs, attitude.as_ref(), vehicle.as_ref(), &at)?;
         if let Some(why) = across::fast_source_to_autopilot(&backend, vehicle.as_ref()) {
             tracing::warn!("{file}: {why}");

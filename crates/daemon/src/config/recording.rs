@@ -46,6 +46,10 @@ pub struct Recording {
     /// Spec v3, a source that samples faster than its frames: what its
     /// frames are recorded as (`samples`).
     pub samples: RecSamples,
+    /// `format = "ros2"`: the node's namespace and frames (`[ros2]`) and
+    /// the site (`[site]`, for `/tf_static`), so that a bag holds what the
+    /// node publishes; set by [`super::Config::parse`] from those tables.
+    pub bag: lightpose_logs::Ros2BagOptions,
 }
 
 /// What a recording holds of a source that gives bursts (spec v3); a
@@ -72,6 +76,27 @@ pub enum RecFormat {
     Jsonl,
     /// MCAP: frames, estimates and STATUS, with Foxglove's channels.
     Mcap,
+    /// A ROS 2 bag (MCAP, profile `ros2`, docs/ros2.md): each `ok`
+    /// estimate as the ROS 2 node publishes it and each STATUS as
+    /// `/diagnostics`; no frames (nothing to replay or calibrate from).
+    Ros2,
+}
+
+impl RecFormat {
+    /// Whether the file is an MCAP (chunks, a summary, rotation by
+    /// default, cut back to a chunk's end).
+    pub fn is_mcap(self) -> bool {
+        matches!(self, RecFormat::Mcap | RecFormat::Ros2)
+    }
+
+    /// The config's word for it (STATUS `recording.format`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RecFormat::Jsonl => "jsonl",
+            RecFormat::Mcap => "mcap",
+            RecFormat::Ros2 => "ros2",
+        }
+    }
 }
 
 /// `flush_s` when not given.
@@ -106,7 +131,7 @@ impl Recording {
     /// hold ~260 k chunk index entries (27 MB) in memory.
     pub fn rotation(&self) -> Rotation {
         let configured = self.rotate_bytes.is_some() || self.rotate_after.is_some();
-        let mcap = self.format == RecFormat::Mcap;
+        let mcap = self.format.is_mcap();
         Rotation {
             bytes: self.rotate_bytes,
             after: if configured || !mcap {
@@ -203,6 +228,7 @@ fn check(
         keep_free_bytes,
         max_total_bytes,
         samples: r.samples.as_ref().map_or(RecSamples::Raw, |f| *f.get_ref()),
+        bag: Default::default(),
     })
 }
 

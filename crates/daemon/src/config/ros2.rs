@@ -10,36 +10,9 @@ use serde::Deserialize;
 use std::net::IpAddr;
 use toml::Spanned;
 
-/// What a topic's QoS is, by ROS 2's profile names.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum QosKind {
-    /// `sensor_data`: best effort, volatile (a late pose is worth nothing).
-    SensorData,
-    /// `reliable`: reliable, volatile (tf2's listeners ask for it).
-    Reliable,
-    /// `transient_local`: reliable, and a late joiner gets the last ones.
-    TransientLocal,
-}
-
-impl QosKind {
-    pub fn name(self) -> &'static str {
-        match self {
-            QosKind::SensorData => "sensor_data",
-            QosKind::Reliable => "reliable",
-            QosKind::TransientLocal => "transient_local",
-        }
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct TopicQos {
-    pub pose: QosKind,
-    pub odom: QosKind,
-    pub tf: QosKind,
-    pub diagnostics: QosKind,
-    /// keep-last depth of every topic.
-    pub depth: usize,
-}
+/// What a topic's QoS is, by ROS 2's profile names, and each topic's:
+/// the bag's types, one definition for the node and its recordings.
+pub use lightpose_logs::ros2bag::{Qos as QosKind, TopicQos};
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Ros2 {
@@ -56,6 +29,10 @@ pub struct Ros2 {
     /// attitude (needs `[site]`: the heading is referred to the beacon's
     /// axis through it).
     pub imu: Option<ImuInput>,
+    /// A depth (`depth_topic`: a pressure or a pose's z), config/ros2in.rs.
+    pub depth: Option<super::ros2in::DepthInput>,
+    /// A DVL's `geometry_msgs/msg/TwistWithCovarianceStamped` (`dvl_topic`).
+    pub dvl: Option<super::ros2in::DvlInput>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -80,6 +57,14 @@ pub(super) struct RawRos2 {
     qos: Option<RawQos>,
     imu_topic: Option<Spanned<String>>,
     imu_max_age_s: Option<Spanned<f64>>,
+    pub(super) depth_topic: Option<Spanned<String>>,
+    pub(super) depth_type: Option<Spanned<String>>,
+    pub(super) water_density_kg_m3: Option<Spanned<f64>>,
+    pub(super) surface_pressure_pa: Option<Spanned<f64>>,
+    pub(super) depth_max_age_s: Option<Spanned<f64>>,
+    pub(super) dvl_topic: Option<Spanned<String>>,
+    pub(super) dvl_max_age_s: Option<Spanned<f64>>,
+    pub(super) dvl_max_speed_mps: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -104,16 +89,50 @@ struct RawQos {
 /// domain whose ports fit in 16 bits (ROS 2's documentation says so).
 const MAX_DOMAIN: i64 = 232;
 
+/// Where `[site]` puts the beacon's frame for `/tf_static`: its axis
+/// heading, and its NED position (none given: straight down at its
+/// depth, the autopilot's origin above it).
+pub fn site_tf(site: &lightpose_vehicle::Site) -> lightpose_logs::ros2msg::SiteTf {
+    let n = site.beacon_ned.0;
+    let ned = if n == [0.0; 3] {
+        [0.0, 0.0, site.beacon_depth_m]
+    } else {
+        n
+    };
+    lightpose_logs::ros2msg::SiteTf {
+        axis_heading: site.axis_heading,
+        ned,
+    }
+}
+
+/// What a `format = "ros2"` recording's bag names, as the node would:
+/// `[ros2]`'s namespace and frames (its defaults without the table), and
+/// `[site]`'s `/tf_static`.
+pub(super) fn bag_options(
+    ros2: Option<&Ros2>,
+    site: Option<&lightpose_vehicle::Site>,
+) -> lightpose_logs::Ros2BagOptions {
+    let mut o = lightpose_logs::Ros2BagOptions::default();
+    if let Some(r) = ros2 {
+        o.frames = r.frames.clone();
+        o.namespace = r.namespace.clone();
+        o.qos = r.qos;
+    }
+    o.site = site.map(site_tf);
+    o
+}
+
+/// The table checked (when off too: switching it on must not bring a
+/// surprise), and whether it is on (`enabled`, default true).
 pub(super) fn validate(
     ctx: &Ctx,
     raw: Option<&Spanned<RawRos2>>,
     site_heading_deg: Option<f64>,
-) -> Result<Option<Ros2>, ConfigError> {
+) -> Result<Option<(Ros2, bool)>, ConfigError> {
     let Some(table) = raw else { return Ok(None) };
     let r = table.get_ref();
-    // Checked when off too: switching it on must not bring a surprise.
     let checked = check(ctx, r, site_heading_deg)?;
-    Ok(r.enabled.unwrap_or(true).then_some(checked))
+    Ok(Some((checked, r.enabled.unwrap_or(true))))
 }
 
 fn imu(ctx: &Ctx, r: &RawRos2, heading: Option<f64>) -> Result<Option<ImuInput>, ConfigError> {
@@ -123,14 +142,7 @@ fn imu(ctx: &Ctx, r: &RawRos2, heading: Option<f64>) -> Result<Option<ImuInput>,
         }
         return Ok(None);
     };
-    let name = t.get_ref();
-    if !(name.starts_with('/') && name[1..].split('/').all(is_token)) {
-        let msg = format!(
-            "\"{}\" is no absolute ROS 2 topic name (e.g. \"/imu/data\")",
-            lightpose_core::textfile::excerpt(name, 60)
-        );
-        return Err(ctx.err(t.span(), "ros2.imu_topic", msg));
-    }
+    let name = super::ros2in::topic(ctx, t, "ros2.imu_topic", "/imu/data")?;
     let Some(heading) = heading else {
         let msg = "needs [site] beacon_heading_deg: the IMU's heading is referred to the beacon's axis through it";
         return Err(ctx.err(t.span(), "ros2.imu_topic", msg));
@@ -140,7 +152,7 @@ fn imu(ctx: &Ctx, r: &RawRos2, heading: Option<f64>) -> Result<Option<ImuInput>,
         None => 0.5,
     };
     Ok(Some(ImuInput {
-        topic: name.clone(),
+        topic: name,
         max_age: std::time::Duration::from_secs_f64(max_age),
         beacon_axis_heading_deg: heading,
     }))
@@ -185,17 +197,14 @@ fn check(ctx: &Ctx, r: &RawRos2, heading: Option<f64>) -> Result<Ros2, ConfigErr
         qos: qos(ctx, r.qos.as_ref())?,
         networks,
         imu: imu(ctx, r, heading)?,
+        depth: super::ros2in::depth(ctx, r, heading.is_some())?,
+        dvl: super::ros2in::dvl(ctx, r)?,
     })
 }
 
 /// A ROS 2 name token: letters, digits and `_`, not starting with a digit
 /// (rcl's rule).
-fn is_token(s: &str) -> bool {
-    !s.is_empty()
-        && !s.starts_with(|c: char| c.is_ascii_digit())
-        && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
-        && !s.contains("__")
-}
+pub(super) use lightpose_logs::ros2msg::names::is_token;
 
 fn name_token(ctx: &Ctx, v: &Spanned<String>, key: &str) -> Result<(), ConfigError> {
     if is_token(v.get_ref()) {
@@ -212,9 +221,7 @@ fn name_token(ctx: &Ctx, v: &Spanned<String>, key: &str) -> Result<(), ConfigErr
 /// at the root.
 fn namespace(ctx: &Ctx, v: &Spanned<String>) -> Result<String, ConfigError> {
     let s = v.get_ref();
-    let ok =
-        s == "/" || (s.starts_with('/') && !s.ends_with('/') && s[1..].split('/').all(is_token));
-    if ok {
+    if lightpose_logs::ros2msg::names::is_namespace(s) {
         return Ok(s.clone());
     }
     let msg = format!(
@@ -235,10 +242,7 @@ fn frame(
         return Ok(default.to_string());
     };
     let s = v.get_ref();
-    if !s.is_empty()
-        && !s.starts_with('/')
-        && !s.chars().any(|c| c.is_whitespace() || c.is_control())
-    {
+    if lightpose_logs::ros2msg::names::is_frame_id(s) {
         return Ok(s.clone());
     }
     let msg = format!(
@@ -264,8 +268,7 @@ fn frames(
         )?,
         map: frame(ctx, r.map.as_ref(), "ros2.frames.map", &d.map)?,
     };
-    let names = [&f.beacon, &f.base_link, &f.map];
-    if names[0] == names[1] || names[0] == names[2] || names[1] == names[2] {
+    if !f.distinct() {
         let at = r
             .beacon
             .as_ref()

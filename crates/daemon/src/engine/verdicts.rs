@@ -19,6 +19,68 @@ pub(super) fn count(stats: &Stats, est: &PoseEstimate, frame: &Frame) {
     channels(stats, est.excluded_channels, frame.seq);
     agreement(stats, est, frame.seq);
     dvl(stats, est, frame.seq);
+    station(stats, est, frame.seq);
+}
+
+/// A docking station's beacons: which the estimate saw, into STATUS, and
+/// a line when a beacon is lost or seen again (the mode it leaves).
+fn station(stats: &Stats, est: &PoseEstimate, seq: u64) {
+    use lightpose_core::StationMode;
+    let st = &est.station;
+    if st.station == 0 {
+        return;
+    }
+    let s = &stats.station;
+    s.size.store(st.station, Relaxed);
+    for (bits, v) in s.snr2_bits.iter().zip(st.snr2) {
+        bits.store(f64::from(v).to_bits(), Relaxed);
+    }
+    let mode = match st.mode() {
+        StationMode::SixDof => 0,
+        StationMode::RollObservable => 1,
+        StationMode::OneBeacon => 2,
+        StationMode::Dark | StationMode::NotAStation => 3,
+    };
+    s.by_mode[mode].fetch_add(1, Relaxed);
+    let seen = u64::from(st.seen);
+    let before = s.seen_now.swap(seen, Relaxed);
+    if before == seen
+        && s.names
+            .lock()
+            .is_ok_and(|n| n.is_some() || st.names.is_none())
+    {
+        return;
+    }
+    if let Ok(mut n) = s.names.lock() {
+        *n = st.names;
+    }
+    let id = |b: usize| {
+        st.names
+            .and_then(|n| n.beacons.get(b).cloned())
+            .unwrap_or_else(|| format!("#{b}"))
+    };
+    let list = |mask: u64| -> Vec<String> {
+        (0..usize::from(st.station).min(32))
+            .filter(|b| mask & (1 << b) != 0)
+            .map(id)
+            .collect()
+    };
+    let (lost, back) = (list(before & !seen), list(seen & !before));
+    let what = match st.mode() {
+        StationMode::SixDof => "the whole pose from the light",
+        StationMode::RollObservable => "roll observable, the pose from two beacons",
+        StationMode::OneBeacon => "one beacon: roll from the attitude reading or its prior",
+        _ => "no beacon: the track predicted only",
+    };
+    if lost.is_empty() && back.is_empty() {
+        return;
+    }
+    tracing::info!(
+        seq,
+        "station: {} of {} beacons seen (lost {lost:?}, seen again {back:?}): {what}",
+        st.count(),
+        st.station
+    );
 }
 
 /// The DVL checks: what they last judged into STATUS, and a line when the

@@ -12,6 +12,8 @@
 pub mod attitude;
 #[cfg(feature = "ros2")]
 pub mod ros2;
+#[cfg(feature = "ros2")]
+pub mod ros2_readings;
 pub mod vehicle;
 
 use lightpose_core::Frame;

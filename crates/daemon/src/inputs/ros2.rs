@@ -8,7 +8,9 @@
 //! REP-145: the orientation is `base_link` (FLU) in ENU, yaw 0 east. Turned
 //! into the body FRD in NED (ZYX: heading, pitch, roll), its heading is
 //! referred to the beacon's axis as the UDP input does: ψ_B = heading −
-//! (axis heading + 180°); pitch and roll are B's own.
+//! (axis heading + 180°); pitch and roll are B's own. A sample with a
+//! frame id longer than any driver's (an oversized one) is refused as
+//! `malformed`.
 
 use super::attitude::{wrap180, AttitudeCell, Reason};
 use lightpose_core::{Angle, AttitudeReading};
@@ -21,6 +23,10 @@ pub const UNIT_TOLERANCE: f64 = 1e-3;
 
 /// The reading of one Imu message, or why it is refused.
 pub fn reading(m: &Imu, beacon_axis_heading_deg: f64) -> Result<AttitudeReading, Reason> {
+    // A frame id this long is no driver's: the sample is not believed.
+    if m.header.frame_id.len() > super::ros2_readings::MAX_FRAME_ID {
+        return Err(Reason::Malformed);
+    }
     let q = m.orientation;
     let v = [q.x, q.y, q.z, q.w];
     if v.iter().any(|c| !c.is_finite()) {
@@ -158,6 +164,9 @@ mod tests {
         let mut none = imu(Quaternion::default());
         none.orientation_covariance[0] = -1.0;
         assert_eq!(reading(&none, 0.0), Err(Reason::Malformed));
+        let mut long = imu(Quaternion::default());
+        long.header.frame_id = "x".repeat(1 << 20);
+        assert_eq!(reading(&long, 0.0), Err(Reason::Malformed));
         let cell = AttitudeCell::default();
         take(&cell, Ok(imu(nan)), 0.0);
         take(&cell, Err("short".into()), 0.0);

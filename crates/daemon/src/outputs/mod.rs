@@ -16,6 +16,7 @@ pub mod recfile;
 pub mod recorder;
 #[cfg(feature = "ros2")]
 pub mod ros2;
+pub mod spsc;
 pub mod udp;
 pub mod web;
 

@@ -23,7 +23,9 @@ use crate::config::RecFormat;
 use lightpose_core::samples::{Burst, Demodulated};
 use lightpose_core::{Frame, LogHeader, LogWriter, PoseEstimate};
 use lightpose_logs::foxglove::Stamp;
-use lightpose_logs::{LogSink, McapOptions, McapWriter, WriteError};
+use lightpose_logs::{
+    LogSink, McapOptions, McapWriter, Ros2Bag, Ros2BagOptions, Ros2Recording, WriteError,
+};
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
@@ -84,7 +86,7 @@ pub enum RecError {
 /// MCAP log time is the frame's t, which must be ≥ 0 (a replayed log whose
 /// epoch is not its start, say).
 pub fn unencodable(format: RecFormat, f: &Frame, est: &PoseEstimate) -> Option<WriteError> {
-    if format != RecFormat::Mcap {
+    if !format.is_mcap() {
         return None;
     }
     let time = |what, seq, t| {
@@ -140,14 +142,14 @@ pub struct RecFile {
 pub fn extension(format: RecFormat) -> &'static str {
     match format {
         RecFormat::Jsonl => "jsonl",
-        RecFormat::Mcap => "mcap",
+        RecFormat::Mcap | RecFormat::Ros2 => "mcap",
     }
 }
 
 /// Cut `file` back to `len`, a whole point, and seal an MCAP there; synced.
 fn cut_back(file: &File, format: RecFormat, len: u64) -> io::Result<()> {
     file.set_len(len)?;
-    if format == RecFormat::Mcap {
+    if format.is_mcap() {
         if let Err(e) = file.write_all_at(&lightpose_logs::mcap_end(), len) {
             // Readable up to `len` still: no half-written end.
             let _ = file.set_len(len);
@@ -165,16 +167,17 @@ fn named(path: &Path, e: impl std::fmt::Display) -> String {
 impl RecFile {
     /// Start a recording in `file`, just created at `path` (by an
     /// [`Opener`]: a new file): its header written; MCAP chunks close at
-    /// `chunk_bytes` (and on the recorder's timer). A file that could not
-    /// be started is removed.
+    /// `chunk_bytes` (and on the recorder's timer); a ROS 2 bag names what
+    /// `bag` says. A file that could not be started is removed.
     pub fn create(
         path: PathBuf,
         file: File,
         format: RecFormat,
         header: &LogHeader,
         chunk_bytes: u64,
+        bag: &Ros2BagOptions,
     ) -> Result<RecFile, String> {
-        let started = RecFile::start(path.clone(), format, header, chunk_bytes, file);
+        let started = RecFile::start(path.clone(), format, header, chunk_bytes, bag, file);
         if started.is_err() {
             let _ = std::fs::remove_file(&path);
         }
@@ -186,6 +189,7 @@ impl RecFile {
         format: RecFormat,
         header: &LogHeader,
         chunk_bytes: u64,
+        bag: &Ros2BagOptions,
         file: File,
     ) -> Result<RecFile, String> {
         let sync = file.try_clone().map_err(|e| named(&path, e))?;
@@ -212,8 +216,20 @@ impl RecFile {
                 let w = BufWriter::with_capacity(1 << 16, counted);
                 Box::new(McapWriter::new(w, header, &opts).map_err(|e| named(&path, e))?)
             }
+            RecFormat::Ros2 => {
+                let opts = Ros2BagOptions {
+                    chunk_bytes,
+                    file_name: path
+                        .file_name()
+                        .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+                    ..bag.clone()
+                };
+                let w = BufWriter::with_capacity(1 << 16, counted);
+                let bag = Ros2Bag::new(w, &opts).map_err(|e| named(&path, e))?;
+                Box::new(Ros2Recording::new(bag))
+            }
         };
-        if format == RecFormat::Mcap {
+        if format.is_mcap() {
             // The header leaves the buffer, and reaches the disk, now: a
             // file killed before its first chunk read as no MCAP at all.
             sink.flush()
@@ -300,7 +316,7 @@ impl RecFile {
     /// A metadata record (MCAP: it closes the open chunk; JSONL keeps
     /// none).
     pub fn metadata(&mut self, name: &str, pairs: BTreeMap<String, String>) -> Result<(), String> {
-        if self.format != RecFormat::Mcap {
+        if !self.format.is_mcap() {
             return Ok(());
         }
         self.sink
@@ -440,7 +456,7 @@ impl RecFile {
     pub fn chunks(&self) -> u64 {
         match self.format {
             RecFormat::Jsonl => 0,
-            RecFormat::Mcap => self.flushes + self.bytes() / self.chunk_bytes,
+            RecFormat::Mcap | RecFormat::Ros2 => self.flushes + self.bytes() / self.chunk_bytes,
         }
     }
 

@@ -384,7 +384,7 @@ struct StatusFeed {
 impl StatusTap for StatusFeed {
     fn status(&self, json: &[u8]) {
         // JSON Lines keeps no STATUS: nothing to queue.
-        if self.stats.format != RecFormat::Mcap {
+        if !self.stats.format.is_mcap() {
             return;
         }
         // Disconnected: the recorder thread ended (the daemon stops).

@@ -4,20 +4,32 @@
 //! rustdds: pure Rust, no ROS install). As for the web page, no subscriber
 //! can slow a frame:
 //! 1. the frame thread ([`Ros2Out::emit`]) copies the estimate into a
-//!    bounded queue whose slots were allocated at start; a full queue drops
-//!    it (counted, `handoff_dropped`);
-//! 2. the node's thread builds the messages and publishes them: DDS
-//!    serialization, its allocations and a reliable writer's waits happen
-//!    there.
+//!    lock-free ring whose slots were allocated at start ([`super::spsc`]),
+//!    waking nobody; a full ring drops it (counted, `handoff_dropped`);
+//! 2. the node's thread polls the ring, often when the next estimate is
+//!    due and seldom otherwise ([`spsc::Cadence`]: capture → wire p99
+//!    goal 1 ms, docs/ros2.md), builds the messages and publishes them: DDS serialization, its allocations and a
+//!    reliable writer's waits happen there. STATUS comes on a channel of
+//!    its own (the async side may block a moment, the frame thread not).
+//!
+//! The depth, DVL and IMU subscriptions are read by a thread of their own
+//! (crate::inputs::ros2_readings).
 //!
 //! Only `ok` estimates with a complete pose and finite 1σ become messages
 //! (`lightpose_logs::ros2msg::solve`); the others are counted (`not_ok`)
 //! and seen in `/diagnostics`.
 
+// `ros2` alone would be ros2-client's oldest distro (Galactic's GID).
+#[cfg(not(any(feature = "jazzy", feature = "humble")))]
+compile_error!("the ros2 feature needs its distro: --features jazzy (the default) or humble");
+
+use super::spsc;
 use super::{Output, StatusTap};
 use crate::config::ros2::{QosKind, Ros2};
+use crate::config::ros2in::DepthKind;
 use crate::engine::Acquired;
 use crate::inputs::attitude::AttitudeCell;
+use crate::inputs::ros2_readings::{DepthSub, Ros2Readings, Subs};
 use lightpose_core::PoseEstimate;
 use lightpose_logs::ros2msg::{self as msg, Frames};
 use ros2_client::qos::{Durability, History, WhenFull};
@@ -25,27 +37,24 @@ use ros2_client::{Context, MessageTypeName, Name, NodeName, NodeOptions, QosProf
 use serde::Serialize;
 use serde_json::{json, Value};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TryRecvError};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
 /// Estimates that may wait for the node's thread (a reliable writer may
-/// wait up to [`WhenFull`]'s 100 ms for its window: 10 frames at 100 Hz).
+/// wait up to [`RELIABLE_WAIT`] for its window, ×3 writers: 6 frames at
+/// 100 Hz).
 const HANDOFF_QUEUE: usize = 32;
+
+/// STATUS items that may wait (one a second).
+const STATUS_QUEUE: usize = 4;
 
 /// A reliable writer's wait for its window, at most: then the sample is
 /// dropped and counted, the thread goes on.
 const RELIABLE_WAIT: std::time::Duration = std::time::Duration::from_millis(20);
 
-/// What reaches the node's thread. The estimate goes by value: boxing it
-/// would allocate on the frame thread.
-#[allow(clippy::large_enum_variant)]
-enum Item {
-    /// All Copy: no allocation on the frame thread.
-    Estimate(PoseEstimate, f64),
-    /// A STATUS (JSON), from the async side.
-    Status(Vec<u8>),
-}
+/// What the frame thread hands over: all Copy, so no allocation there.
+type Handed = (PoseEstimate, f64);
 
 /// What the node did, for STATUS's `ros2` object.
 #[derive(Default)]
@@ -66,11 +75,14 @@ pub struct Ros2Stats {
 /// for STATUS, its thread.
 pub struct Ros2Node {
     pub stats: Arc<Ros2Stats>,
-    status_tx: SyncSender<Item>,
+    status_tx: SyncSender<Vec<u8>>,
     pub namespace: String,
     pub domain_id: u16,
     /// The IMU input's cell (`imu_topic`), read by the frame thread.
     pub imu: Option<Arc<AttitudeCell>>,
+    /// The depth and DVL inputs' hub and counters (`depth_topic`,
+    /// `dvl_topic`), attached from by the frame thread.
+    pub readings: Option<Arc<Ros2Readings>>,
     /// Raised when the daemon lets go of the node: the IMU thread ends.
     closed: Arc<AtomicBool>,
 }
@@ -87,6 +99,7 @@ impl Ros2Node {
         let s = &self.stats;
         json!({
             "enabled": true,
+            "distro": ros2_client::COMPILED_ROS_DISTRO.as_str(),
             "domain_id": self.domain_id,
             "namespace": self.namespace,
             "handed": s.handed.load(Relaxed),
@@ -95,17 +108,15 @@ impl Ros2Node {
             "not_ok": s.not_ok.load(Relaxed),
             "write_errors": s.write_errors.load(Relaxed),
             "diagnostics": s.diagnostics.load(Relaxed),
+            "status_dropped": s.status_dropped.load(Relaxed),
+            "inputs": self.readings.as_ref().map_or(json!({}), |r| r.report()),
         })
     }
 }
 
 impl StatusTap for Arc<Ros2Node> {
     fn status(&self, json: &[u8]) {
-        if self
-            .status_tx
-            .try_send(Item::Status(json.to_vec()))
-            .is_err()
-        {
+        if self.status_tx.try_send(json.to_vec()).is_err() {
             self.stats.status_dropped.fetch_add(1, Relaxed);
         }
     }
@@ -113,7 +124,7 @@ impl StatusTap for Arc<Ros2Node> {
 
 /// The frame thread's end.
 pub struct Ros2Out {
-    tx: Option<SyncSender<Item>>,
+    tx: Option<spsc::Producer<Handed>>,
     stats: Arc<Ros2Stats>,
     /// Not joined: the thread ends when the frame thread's end and the
     /// STATUS end are both dropped.
@@ -123,12 +134,10 @@ pub struct Ros2Out {
 impl Output for Ros2Out {
     #[inline]
     fn emit(&mut self, frame: &Acquired, est: &PoseEstimate) {
-        let Some(tx) = &self.tx else { return };
-        match tx.try_send(Item::Estimate(*est, frame.wall_unix)) {
+        let Some(tx) = &mut self.tx else { return };
+        match tx.push((*est, frame.wall_unix)) {
             Ok(()) => self.stats.handed.fetch_add(1, Relaxed),
-            Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) => {
-                self.stats.handoff_dropped.fetch_add(1, Relaxed)
-            }
+            Err(_) => self.stats.handoff_dropped.fetch_add(1, Relaxed),
         };
     }
 
@@ -174,6 +183,8 @@ struct Writers {
     tf_static: ros2_client::dds::Publisher<msg::TFMessage>,
     diagnostics: ros2_client::dds::Publisher<msg::DiagnosticArray>,
     imu: Option<ros2_client::dds::Subscription<msg::Imu>>,
+    depth: Option<DepthSub>,
+    dvl: Option<ros2_client::dds::Subscription<msg::TwistWithCovarianceStamped>>,
 }
 
 fn writers(cfg: &Ros2) -> Result<Writers, Ros2Error> {
@@ -204,18 +215,52 @@ fn writers(cfg: &Ros2) -> Result<Writers, Ros2Error> {
     let (tf_t, tf_q) = topic("/", "tf", msg::TF_TYPE, q.tf, q.depth)?;
     let (st_t, st_q) = topic("/", "tf_static", msg::TF_TYPE, QosKind::TransientLocal, 1)?;
     let (d_t, d_q) = topic("/", "diagnostics", msg::DIAG_TYPE, q.diagnostics, q.depth)?;
-    let imu = match &cfg.imu {
-        Some(i) => {
-            let (ns, name) = i.topic.rsplit_once('/').unwrap_or(("/", &i.topic));
-            let ns = if ns.is_empty() { "/" } else { ns };
-            // Best effort: it matches a reliable writer too.
-            let (t, q) = topic(ns, name, msg::IMU_TYPE, QosKind::SensorData, 10)?;
-            Some(node.create_subscription(&t, Some(q)).map_err(dds("imu"))?)
-        }
+    // Best effort: it matches a reliable writer too.
+    let sub = |full: &str, t: msg::TypeName| {
+        let (ns, name) = full.rsplit_once('/').unwrap_or(("/", full));
+        let ns = if ns.is_empty() { "/" } else { ns };
+        topic(ns, name, t, QosKind::SensorData, 10)
+    };
+    // The topics first (they borrow the node), then the subscriptions.
+    let imu_t = cfg
+        .imu
+        .as_ref()
+        .map(|i| sub(&i.topic, msg::IMU_TYPE))
+        .transpose()?;
+    let depth_t = match &cfg.depth {
+        Some(d) if d.kind == DepthKind::Pose => Some((sub(&d.topic, msg::POSE_TYPE)?, d.kind)),
+        Some(d) => Some((sub(&d.topic, msg::FLUID_PRESSURE_TYPE)?, d.kind)),
+        None => None,
+    };
+    let dvl_t = cfg
+        .dvl
+        .as_ref()
+        .map(|d| sub(&d.topic, msg::TWIST_TYPE))
+        .transpose()?;
+    let imu = match imu_t {
+        Some((t, q)) => Some(node.create_subscription(&t, Some(q)).map_err(dds("imu"))?),
+        None => None,
+    };
+    let depth = match depth_t {
+        Some(((t, q), DepthKind::Pose)) => Some(DepthSub::Pose(
+            node.create_subscription(&t, Some(q))
+                .map_err(dds("depth"))?,
+        )),
+        Some(((t, q), k)) => Some(DepthSub::Pressure(
+            node.create_subscription(&t, Some(q))
+                .map_err(dds("depth"))?,
+            k,
+        )),
+        None => None,
+    };
+    let dvl = match dvl_t {
+        Some((t, q)) => Some(node.create_subscription(&t, Some(q)).map_err(dds("dvl"))?),
         None => None,
     };
     Ok(Writers {
         imu,
+        depth,
+        dvl,
         pose: node
             .create_publisher(&pose_t, Some(pose_q))
             .map_err(dds("pose"))?,
@@ -236,52 +281,47 @@ fn writers(cfg: &Ros2) -> Result<Writers, Ros2Error> {
     })
 }
 
-/// The site's transform for `/tf_static`, when `[site]` is given.
-pub fn site_tf(frames: &Frames, site: &lightpose_vehicle::Site) -> msg::TFMessage {
-    let n = site.beacon_ned.0;
-    // With no position in the autopilot's frame, the beacon is at its depth.
-    let ned = if n == [0.0; 3] {
-        [0.0, 0.0, site.beacon_depth_m]
-    } else {
-        n
-    };
-    let now = msg::Time::from_unix(crate::status::unix_now());
-    msg::site_tf(frames, site.axis_heading, ned, now)
-}
-
 /// Open the participant (refused here, before the frame thread, if it
-/// cannot be) and start the node's thread.
+/// cannot be) and start the node's thread (and its input thread, with
+/// `imu_topic`, `depth_topic` or `dvl_topic`).
 pub fn start(
     cfg: &Ros2,
     site: Option<&lightpose_vehicle::Site>,
 ) -> Result<(Ros2Out, Arc<Ros2Node>), Ros2Error> {
-    let (tx, rx) = sync_channel::<Item>(HANDOFF_QUEUE);
+    let (tx, rx) = spsc::ring::<Handed>(HANDOFF_QUEUE);
+    let (status_tx, status_rx) = sync_channel::<Vec<u8>>(STATUS_QUEUE);
     let stats = Arc::new(Ros2Stats::default());
     let (ready_tx, ready_rx) = std::sync::mpsc::sync_channel::<Result<(), Ros2Error>>(1);
     let (c, st, site_msg) = (
         cfg.clone(),
         stats.clone(),
-        site.map(|s| site_tf(&cfg.frames, s)),
+        site.map(crate::config::ros2::site_tf),
     );
     let imu_cell = cfg.imu.as_ref().map(|_| Arc::new(AttitudeCell::default()));
+    let readings = Ros2Readings::new(cfg.depth.clone(), cfg.dvl.clone(), site).map(Arc::new);
     let closed = Arc::new(AtomicBool::new(false));
-    let (cell, shut) = (imu_cell.clone(), closed.clone());
+    let (cell, shut, rd) = (imu_cell.clone(), closed.clone(), readings.clone());
     let join = std::thread::Builder::new()
         .name("lightposed-ros2".into())
         .spawn(move || match writers(&c) {
             Ok(mut w) => {
-                let imu = match (w.imu.take(), cell, &c.imu) {
-                    (Some(sub), Some(cell), Some(i)) => {
-                        spawn_imu(sub, cell, i.beacon_axis_heading_deg, shut).map(Some)
-                    }
-                    _ => Ok(None),
+                let subs = Subs {
+                    imu: match (w.imu.take(), cell, &c.imu) {
+                        (Some(sub), Some(cell), Some(i)) => {
+                            Some((sub, cell, i.beacon_axis_heading_deg))
+                        }
+                        _ => None,
+                    },
+                    depth: w.depth.take(),
+                    dvl: w.dvl.take(),
+                    readings: rd,
                 };
-                if let Err(e) = imu {
+                if let Err(e) = crate::inputs::ros2_readings::spawn(subs, shut) {
                     let _ = ready_tx.send(Err(Ros2Error::Thread(e)));
                     return;
                 }
                 let _ = ready_tx.send(Ok(()));
-                run(&rx, &w, &c.frames, &st, site_msg);
+                run(rx, &status_rx, &w, &c.frames, &st, site_msg);
             }
             Err(e) => {
                 let _ = ready_tx.send(Err(e));
@@ -293,9 +333,10 @@ pub fn start(
         Err(_) => return Err(Ros2Error::Dds("node thread ended at start".into())),
     }
     tracing::info!(
-        "ros2: node {}/{} on domain {}: {}/pose, {}/odom, /tf{}, /diagnostics",
+        "ros2: node {}/{} ({}) on domain {}: {}/pose, {}/odom, /tf{}, /diagnostics",
         cfg.namespace.trim_end_matches('/'),
         cfg.node_name,
+        ros2_client::COMPILED_ROS_DISTRO,
         cfg.domain_id,
         cfg.namespace.trim_end_matches('/'),
         cfg.namespace.trim_end_matches('/'),
@@ -303,10 +344,11 @@ pub fn start(
     );
     let node = Arc::new(Ros2Node {
         stats: stats.clone(),
-        status_tx: tx.clone(),
+        status_tx,
         namespace: cfg.namespace.clone(),
         domain_id: cfg.domain_id,
         imu: imu_cell,
+        readings,
         closed,
     });
     let out = Ros2Out {
@@ -315,27 +357,6 @@ pub fn start(
         _join: join,
     };
     Ok((out, node))
-}
-
-/// The IMU thread: each sample into the attitude cell, until `closed`.
-fn spawn_imu(
-    sub: ros2_client::dds::Subscription<msg::Imu>,
-    cell: Arc<AttitudeCell>,
-    heading_deg: f64,
-    closed: Arc<AtomicBool>,
-) -> std::io::Result<JoinHandle<()>> {
-    std::thread::Builder::new()
-        .name("lightposed-ros2-imu".into())
-        .spawn(move || {
-            while !closed.load(Relaxed) {
-                match sub.take() {
-                    Ok(Some((m, _))) => crate::inputs::ros2::take(&cell, Ok(m), heading_deg),
-                    // Polled: an IMU at 100 Hz is read within 2 ms of its sample.
-                    Ok(None) => std::thread::sleep(std::time::Duration::from_millis(2)),
-                    Err(e) => crate::inputs::ros2::take(&cell, Err(format!("{e:?}")), heading_deg),
-                }
-            }
-        })
 }
 
 fn write<M: Serialize + std::fmt::Debug>(
@@ -356,142 +377,100 @@ fn write<M: Serialize + std::fmt::Debug>(
     }
 }
 
-/// The node's thread: until the frame thread's end and the STATUS end
-/// are both gone.
-fn run(
-    rx: &Receiver<Item>,
+/// `/tf_static` of the site, and the frame it placed last: the beacon's
+/// at start, a station's once its poses come (its calibration loaded).
+struct SiteStatic {
+    site: Option<msg::SiteTf>,
+    child: Option<String>,
+}
+
+impl SiteStatic {
+    /// Publish the site's transform of `child` unless it was the last.
+    fn place(&mut self, child: &str, w: &Writers, frames: &Frames, stats: &Ros2Stats) {
+        let Some(site) = self.site else { return };
+        if self.child.as_deref() == Some(child) {
+            return;
+        }
+        let now = msg::Time::from_unix(crate::status::unix_now());
+        write(&w.tf_static, site.message(frames, child, now), stats);
+        self.child = Some(child.to_string());
+    }
+}
+
+/// One estimate as pose, odom and tf (or counted as not `ok`).
+fn publish(
+    est: &PoseEstimate,
+    wall: f64,
     w: &Writers,
     frames: &Frames,
     stats: &Ros2Stats,
-    site: Option<msg::TFMessage>,
+    site: &mut SiteStatic,
 ) {
-    if let Some(s) = site {
-        write(&w.tf_static, s, stats);
-    }
-    let mut last = LastEstimate::default();
-    while let Ok(item) = rx.recv() {
-        match item {
-            Item::Estimate(est, wall) => {
-                last.observe(&est);
-                let Some(s) = msg::solve(&est, wall) else {
-                    stats.not_ok.fetch_add(1, Relaxed);
-                    continue;
-                };
-                let ok = write(&w.pose, s.pose(frames), stats)
-                    & write(&w.odom, s.odometry(frames), stats)
-                    & write(&w.tf, s.tf(frames), stats);
-                if ok {
-                    stats.published.fetch_add(1, Relaxed);
-                }
-            }
-            Item::Status(json) => {
-                if write(&w.diagnostics, diagnostics(&json, &last), stats) {
-                    stats.diagnostics.fetch_add(1, Relaxed);
-                }
-            }
-        }
-    }
-}
-
-/// The latest estimate's status, for the diagnostics' level.
-#[derive(Default)]
-struct LastEstimate {
-    status: Option<lightpose_core::Status>,
-    seq: u64,
-}
-
-impl LastEstimate {
-    fn observe(&mut self, est: &PoseEstimate) {
-        self.status = Some(est.status);
-        self.seq = est.seq;
-    }
-}
-
-/// One DiagnosticStatus from a STATUS: its scalars flattened to `a.b`
-/// keys; OK while the latest estimate is `ok`, WARN otherwise, ERROR
-/// before any frame.
-fn diagnostics(json: &[u8], last: &LastEstimate) -> msg::DiagnosticArray {
-    let mut values = Vec::new();
-    if let Ok(v) = serde_json::from_slice::<Value>(json) {
-        flatten("", &v, &mut values, 0);
-    }
-    let (level, message) = match last.status {
-        Some(lightpose_core::Status::Ok) => (msg::DIAG_OK, format!("ok (frame {})", last.seq)),
-        Some(s) => (
-            msg::DIAG_WARN,
-            format!("{} (frame {})", s.as_str(), last.seq),
-        ),
-        None => (msg::DIAG_ERROR, "no frame yet".to_string()),
+    let Some(s) = msg::solve(est, wall) else {
+        stats.not_ok.fetch_add(1, Relaxed);
+        return;
     };
-    msg::DiagnosticArray {
-        header: msg::Header {
-            stamp: msg::Time::from_unix(crate::status::unix_now()),
-            frame_id: String::new(),
-        },
-        status: vec![msg::DiagnosticStatus {
-            level,
-            name: "lightposed".into(),
-            message,
-            hardware_id: "lightpose".into(),
-            values,
-        }],
+    site.place(s.parent(frames), w, frames, stats);
+    let ok = write(&w.pose, s.pose(frames), stats)
+        & write(&w.odom, s.odometry(frames), stats)
+        & write(&w.tf, s.tf(frames), stats);
+    if ok {
+        stats.published.fetch_add(1, Relaxed);
     }
 }
 
-fn flatten(prefix: &str, v: &Value, out: &mut Vec<msg::KeyValue>, depth: usize) {
-    let key = |k: &str| {
-        if prefix.is_empty() {
-            k.to_string()
-        } else {
-            format!("{prefix}.{k}")
+/// The node's thread: polls the ring (nobody wakes it: the frame thread
+/// must not pay for a wake-up) and the STATUS channel, until the frame
+/// thread's end and the STATUS end are both gone.
+fn run(
+    mut ring: spsc::Consumer<Handed>,
+    status: &Receiver<Vec<u8>>,
+    w: &Writers,
+    frames: &Frames,
+    stats: &Ros2Stats,
+    site: Option<msg::SiteTf>,
+) {
+    let mut site = SiteStatic { site, child: None };
+    site.place(&frames.beacon, w, frames, stats);
+    let mut last = msg::LastEstimate::default();
+    let mut status_gone = false;
+    let mut cadence = spsc::Cadence::new();
+    loop {
+        // Read before the pops: an estimate pushed before the producer
+        // went is popped below, so none is lost at the end.
+        let producer_gone = ring.producer_gone();
+        let mut any = false;
+        while let Some((est, wall)) = ring.pop() {
+            cadence.came(std::time::Instant::now());
+            last.observe(&est);
+            publish(&est, wall, w, frames, stats, &mut site);
+            any = true;
         }
-    };
-    match v {
-        Value::Object(m) if depth < 3 => {
-            for (k, x) in m {
-                flatten(&key(k), x, out, depth + 1);
+        if !status_gone {
+            match status.try_recv() {
+                Ok(json) => {
+                    if write(
+                        &w.diagnostics,
+                        msg::diagnostics(
+                            &json,
+                            &last,
+                            msg::Time::from_unix(crate::status::unix_now()),
+                        ),
+                        stats,
+                    ) {
+                        stats.diagnostics.fetch_add(1, Relaxed);
+                    }
+                    any = true;
+                }
+                Err(TryRecvError::Empty) => {}
+                Err(TryRecvError::Disconnected) => status_gone = true,
             }
         }
-        Value::Object(_) | Value::Array(_) => {}
-        Value::String(s) => out.push(msg::KeyValue {
-            key: prefix.to_string(),
-            value: s.clone(),
-        }),
-        other => out.push(msg::KeyValue {
-            key: prefix.to_string(),
-            value: other.to_string(),
-        }),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn diagnostics_flatten_status_and_say_the_last_status() {
-        let status = br#"{"class":"STATUS","frames":12,"latency":{"p99_ms":0.2},"backend":{"kind":"sim"},"list":[1]}"#;
-        let mut last = LastEstimate::default();
-        let d = diagnostics(status, &last);
-        assert_eq!(d.status[0].level, msg::DIAG_ERROR);
-        last.status = Some(lightpose_core::Status::Ok);
-        last.seq = 12;
-        let d = diagnostics(status, &last);
-        let s = &d.status[0];
-        assert_eq!(
-            (s.level, s.message.as_str()),
-            (msg::DIAG_OK, "ok (frame 12)")
-        );
-        let kv: Vec<(&str, &str)> = s
-            .values
-            .iter()
-            .map(|k| (k.key.as_str(), k.value.as_str()))
-            .collect();
-        assert!(kv.contains(&("frames", "12")), "{kv:?}");
-        assert!(kv.contains(&("latency.p99_ms", "0.2")), "{kv:?}");
-        assert!(kv.contains(&("backend.kind", "sim")), "{kv:?}");
-        assert!(!kv.iter().any(|(k, _)| *k == "list"));
-        // Not JSON: no values, still a diagnostic.
-        assert!(diagnostics(b"garbage", &last).status[0].values.is_empty());
+        if producer_gone && status_gone {
+            return;
+        }
+        if !any {
+            std::thread::sleep(cadence.sleep(std::time::Instant::now()));
+        }
     }
 }

@@ -13,6 +13,8 @@
 //! estimation) travels with its calibration.
 
 use super::physical_fit::PhysicalCalibration;
+use super::station::StationCalibration;
+use crate::model::light::BeaconLight;
 use crate::settings::EstimatorSettings;
 use lightpose_core::bounds::{Within, MAX_K_D, MAX_V1_PER_V_REF, MAX_V_REF, MIN_V_REF};
 use lightpose_core::textfile::{parse_toml, read_text, TextError};
@@ -535,6 +537,11 @@ pub struct Calibration {
     /// Settings of the model-based estimators; absent means their defaults.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub estimator: Option<EstimatorSettings>,
+    /// Spec v3: the docking station this was calibrated against
+    /// (`lightpose calibrate --station`); absent for one beacon, so that a
+    /// v2 file reads and writes as before.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub station: Option<StationCalibration>,
 }
 
 impl Calibration {
@@ -688,6 +695,10 @@ impl Calibration {
             p.validate().map_err(|(k, m)| ("physical", k, m))?;
             self.physical_fits_this_adc(p)?;
         }
+        if let Some(st) = &self.station {
+            st.check()
+                .map_err(|(k, m)| ("station", "beacons", format!("{k}: {m}")))?;
+        }
         if let Some(e) = &self.estimator {
             e.model
                 .validate()
@@ -697,6 +708,20 @@ impl Calibration {
                 .map_err(|m| ("estimator", "tracker", m.to_string()))?;
         }
         Ok(())
+    }
+
+    /// The station this calibration carries (spec v3), if any.
+    pub fn station(&self) -> Option<&StationCalibration> {
+        self.station.as_ref()
+    }
+
+    /// The station's beacons as the light equation sees them (surveyed
+    /// placement, fitted V1 and σ_b), what the station's estimators take;
+    /// empty for one beacon (the sensor model's own, at D's origin).
+    pub fn beacon_lights(&self) -> Vec<BeaconLight> {
+        self.station
+            .as_ref()
+            .map_or_else(Vec::new, StationCalibration::beacon_lights)
     }
 
     /// Dark offsets as a fixed array (checked to have NDET values).
@@ -778,6 +803,7 @@ pub(crate) mod tests {
             selection: BTreeMap::new(),
             physical: None,
             estimator: None,
+            station: None,
         }
     }
 

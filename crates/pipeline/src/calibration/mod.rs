@@ -12,6 +12,9 @@
 //!   estimators run on.
 //! - [`least_squares`]: the streaming straight-line fit the paper's fit
 //!   uses.
+//! - [`station`], [`station_fit`] (spec v3): a docking station's survey
+//!   file, its `[station]` table, and the fit of each beacon's light and
+//!   the array's gains from the station's sweeps, the survey checked.
 //!
 //! The estimators' settings (the `[estimator]` table) are in
 //! [`crate::settings`], so that the estimators need nothing from here but
@@ -30,14 +33,19 @@ pub(crate) const TRUTH_TOL_M: f64 = 1e-3;
 pub(crate) const TRUTH_TOL_DEG: f64 = 0.05;
 
 /// Whether two truth poses are the same pose of a sweep (`TRUTH_TOL_M`,
-/// `TRUTH_TOL_DEG`).
+/// `TRUTH_TOL_DEG`); roll too (spec v3: a station's sweep turns it, and
+/// every v1/v2 pose's roll is 0).
 pub(crate) fn same_pose(a: &lightpose_core::Pose, b: &lightpose_core::Pose) -> bool {
     [a.x - b.x, a.y - b.y, a.z - b.z]
         .iter()
         .all(|d| d.abs() <= TRUTH_TOL_M)
-        && [a.pitch.deg() - b.pitch.deg(), a.yaw.deg() - b.yaw.deg()]
-            .iter()
-            .all(|d| d.abs() <= TRUTH_TOL_DEG)
+        && [
+            a.pitch.deg() - b.pitch.deg(),
+            a.yaw.deg() - b.yaw.deg(),
+            a.roll.deg() - b.roll.deg(),
+        ]
+        .iter()
+        .all(|d| d.abs() <= TRUTH_TOL_DEG)
 }
 /// How far from the beacon a sweep's truth may put the array: past 500 m
 /// no beacon's light reaches a photodiode even in the clearest water (a
@@ -70,8 +78,11 @@ pub(crate) fn sweep_frame_fault(f: &lightpose_core::Frame) -> Option<&'static st
 }
 
 pub mod least_squares;
+mod lm;
 pub mod paper_fit;
 pub mod physical_fit;
+pub mod station;
+pub mod station_fit;
 mod sweep_logs;
 
 pub use file::{
@@ -82,4 +93,10 @@ pub use paper_fit::{calibrate, calibrate_full, CalibrateError, CalibrateOptions,
 pub use physical_fit::{
     fit_physical, CalibError, FitOptions, ParamEstimate, PhysicalCalibration, PhysicalFitter,
     ScatterFit,
+};
+pub use station::{
+    CalibratedBeacon, Station, StationCalibration, StationError, SurveyCheck, SurveyedBeacon,
+};
+pub use station_fit::{
+    fit_station_sweeps, StationFitError, StationFitOptions, StationFitted, StationFitter,
 };

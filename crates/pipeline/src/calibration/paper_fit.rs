@@ -638,6 +638,7 @@ pub fn calibrate_full(
         selection,
         physical: None,
         estimator: None,
+        station: None,
     };
     cal.check()
         .map_err(|(t, k, m)| CalibrateError::Refused(format!("the fit gave {t}.{k}: {m}")))?;

@@ -23,8 +23,9 @@ use serde::{Deserialize, Serialize};
 use crate::model::SensorModel;
 use problem::Data;
 
-mod fisher;
+pub(crate) mod fisher;
 mod problem;
+pub(crate) use problem::{gain_estimates, gains_of, noise_line, rms_per_channel};
 
 /// A fitted value and its standard error.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -23,7 +23,7 @@
 // `!(a < b)` is deliberate: it is true for NaN, which must fail a check.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-use lightpose_core::{Amplitudes, NDET};
+use lightpose_core::{Amplitudes, BeaconAmplitude, NDET};
 use nalgebra::{SMatrix, SVector};
 
 use super::light::{predict_beacon, predict_beacon_with_grad, BeaconLight, PoseVec};
@@ -87,15 +87,21 @@ pub fn seen_beacons(station: &[BeaconLight], amps: &Amplitudes) -> u32 {
         if b >= station.len() || b >= 32 {
             continue;
         }
-        let snr2: f64 = (0..NDET)
-            .filter(|&k| amps.clipped[k] == 0 && img.std[k] > 0.0 && img.amplitude[k].is_finite())
-            .map(|k| (img.amplitude[k] / img.std[k]).powi(2))
-            .sum();
-        if snr2 >= SEEN_SNR2 {
+        if image_snr2(amps, img) >= SEEN_SNR2 {
             seen |= 1 << b;
         }
     }
     seen
+}
+
+/// Σ a²/σ² over an image's usable channels (none clipped, a σ, a finite
+/// amplitude): what [`seen_beacons`] compares with [`SEEN_SNR2`], and the
+/// per-beacon SNR an estimate reports.
+pub fn image_snr2(amps: &Amplitudes, img: &BeaconAmplitude) -> f64 {
+    (0..NDET)
+        .filter(|&k| amps.clipped[k] == 0 && img.std[k] > 0.0 && img.amplitude[k].is_finite())
+        .map(|k| (img.amplitude[k] / img.std[k]).powi(2))
+        .sum()
 }
 
 /// The normal equations at `p`: H = Σ w·j·jᵀ, g = Σ w·j·r, and the cost

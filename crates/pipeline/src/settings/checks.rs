@@ -31,6 +31,7 @@ impl TrackerConfig {
             ("attitude_sigma_pitch_deg", self.attitude_sigma_pitch_deg),
             ("attitude_sigma_yaw_deg", self.attitude_sigma_yaw_deg),
             ("attitude_sigma_roll_deg", self.attitude_sigma_roll_deg),
+            ("roll_walk_psd_deg", self.roll_walk_psd_deg),
             ("nis_gate", self.nis_gate),
             ("max_gap_s", self.max_gap_s),
             ("side_sigma", self.side_sigma),

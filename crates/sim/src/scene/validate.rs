@@ -12,9 +12,9 @@ use lightpose_core::bounds::{
     shown, Within, MAX_GAIN, MAX_K_D, MAX_K_D_DOUBT, MAX_OMEGA, MAX_RADIUS_M, MAX_SPACING_DEG,
     MAX_TEMP_DOUBT_C, MAX_V1_PER_V_REF, MAX_V_REF, MIN_V_REF, WIDTH_DEG,
 };
-use lightpose_core::modulation::{check_beacons, BeaconFreq, ModulationError};
+use lightpose_core::modulation::{check_beacons, BeaconFreq};
 use lightpose_core::textfile::parse_toml;
-use lightpose_core::textpos::line_of_key;
+use lightpose_core::textpos::{line_of_key, line_of_key_nth};
 use lightpose_core::MAX_BEACONS;
 use lightpose_core::{Angle, ArrayGeometry, LightParams, Scattering, COLS, NDET, ROWS};
 use serde::Deserialize;
@@ -146,37 +146,6 @@ struct Checker<'a> {
     /// Within an array of tables (`[[beacons]]`, `[[daylight.flicker]]`):
     /// which of them, so that a key is found in its own table.
     nth: Option<usize>,
-}
-
-/// The line of `key` in the `nth` `[[table]]` of `text` (or of that
-/// table's header when the key is not in it).
-fn line_of_key_nth(text: &str, table: &str, nth: usize, key: &str) -> usize {
-    let mut seen = 0;
-    let mut in_table = false;
-    let mut header = 1;
-    for (i, line) in text.lines().enumerate() {
-        let l = line.trim();
-        if l.starts_with('[') {
-            let name = l.trim_matches(|c| c == '[' || c == ']').trim();
-            in_table = false;
-            if l.starts_with("[[") && name == table {
-                in_table = seen == nth;
-                if in_table {
-                    header = i + 1;
-                }
-                seen += 1;
-            }
-            continue;
-        }
-        if in_table {
-            if let Some((k, _)) = l.split_once('=') {
-                if k.trim().trim_matches('"') == key {
-                    return i + 1;
-                }
-            }
-        }
-    }
-    header
 }
 
 impl Checker<'_> {

@@ -53,26 +53,25 @@
 //! nothing. A client that subscribes to anything is never evicted; with
 //! no client idle long enough the newcomer is refused as before.
 
+mod admission;
+mod requests;
+
 use super::hub::{host, Client, Hub, Refused};
+use admission::{handshake, FloodLog, Gate, Pass, Shut};
 use futures_util::{SinkExt, StreamExt};
 use lightpose_core::ratelog::{Close, RateLog};
-use lightpose_logs::schema::{MESSAGE_ENCODING, SCHEMA_ENCODING};
-use lightpose_logs::Channel;
-use serde::Deserialize;
-use serde_json::json;
-use std::borrow::Cow;
+pub use requests::greeting;
+use requests::{binary_warning, request};
 use std::collections::HashMap;
-use std::net::{IpAddr, SocketAddr};
+use std::net::SocketAddr;
 use std::sync::atomic::Ordering::Relaxed;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
 use tokio::time::{Instant, MissedTickBehavior};
-use tokio_tungstenite::tungstenite::handshake::server::{ErrorResponse, Request, Response};
-use tokio_tungstenite::tungstenite::http::{HeaderValue, StatusCode};
 use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
-use tokio_tungstenite::tungstenite::protocol::{CloseFrame, WebSocketConfig};
+use tokio_tungstenite::tungstenite::protocol::CloseFrame;
 use tokio_tungstenite::tungstenite::{Bytes, Error as WsError, Message as Ws};
 use tokio_tungstenite::WebSocketStream;
 
@@ -170,62 +169,6 @@ impl Limits {
     }
 }
 
-/// The connections in their handshake: how many, and from each address.
-struct Gate {
-    total: usize,
-    per_addr: usize,
-    held: Mutex<(usize, HashMap<IpAddr, usize>)>,
-}
-
-/// Why a connection found no place in the handshake.
-enum Shut {
-    Total,
-    Addr(IpAddr),
-}
-
-/// A place in the handshake, given back when dropped.
-struct Pass {
-    gate: Arc<Gate>,
-    ip: IpAddr,
-}
-
-impl Gate {
-    fn enter(self: &Arc<Gate>, addr: SocketAddr) -> Result<Pass, Shut> {
-        let ip = host(addr);
-        let mut held = self.held.lock().map_err(|_| Shut::Total)?;
-        let (all, by_addr) = &mut *held;
-        if *all >= self.total {
-            return Err(Shut::Total);
-        }
-        let n = by_addr.entry(ip).or_insert(0);
-        if *n >= self.per_addr {
-            return Err(Shut::Addr(ip));
-        }
-        *n += 1;
-        *all += 1;
-        Ok(Pass {
-            gate: self.clone(),
-            ip,
-        })
-    }
-}
-
-impl Drop for Pass {
-    fn drop(&mut self) {
-        let Ok(mut held) = self.gate.held.lock() else {
-            return;
-        };
-        let (all, by_addr) = &mut *held;
-        *all = all.saturating_sub(1);
-        if let Some(n) = by_addr.get_mut(&self.ip) {
-            *n = n.saturating_sub(1);
-            if *n == 0 {
-                by_addr.remove(&self.ip);
-            }
-        }
-    }
-}
-
 /// Why a session ended.
 enum End {
     /// Nothing came from the client for this long (no pong either).
@@ -303,198 +246,6 @@ pub async fn serve(listener: TcpListener, hub: Arc<Hub>, limits: Limits) {
                 tokio::time::sleep(Duration::from_millis(200)).await;
             }
         }
-    }
-}
-
-/// Connections refused for too many in their handshake, by core's rule.
-struct FloodLog {
-    log: RateLog,
-    hub: Arc<Hub>,
-}
-
-impl FloodLog {
-    /// The closing line of the refusals `when` (core's `RateLog::settle`
-    /// once they stopped, `RateLog::flush` at stop).
-    fn close(&mut self, now: std::time::Instant, when: Close) {
-        if let Some((k, last)) = self.hub.close_conn_lines(now, when) {
-            tracing::info!(
-                connections = self.hub.connections.load(Relaxed),
-                since_last_line = k,
-                "foxglove: connection events (connected, gone, turned away, a failed handshake): {when}: {k} more since the last line, the last {:.1} s ago",
-                last.as_secs_f64()
-            );
-        }
-        if let Some(k) = self.log.close(now, when) {
-            tracing::warn!(
-                handshakes_refused = self.hub.handshakes_refused.load(Relaxed),
-                since_last_line = k,
-                "foxglove: connections refused (too many in their handshake): {when}: {k} more since the last line, the last {:.1} s ago",
-                self.log.since_last(now).as_secs_f64()
-            );
-        }
-    }
-}
-
-/// The accept loop ends only by being dropped (its task aborted at stop).
-impl Drop for FloodLog {
-    fn drop(&mut self) {
-        self.close(std::time::Instant::now(), Close::AtStop);
-    }
-}
-
-/// The subprotocol to answer with, from the client's offer.
-fn choose(req: &Request) -> Option<&'static str> {
-    let offered: Vec<String> = req
-        .headers()
-        .get_all("sec-websocket-protocol")
-        .iter()
-        .filter_map(|v| v.to_str().ok())
-        .flat_map(|v| v.split(','))
-        .map(|p| p.trim().to_string())
-        .collect();
-    SUBPROTOCOLS
-        .into_iter()
-        .find(|p| offered.iter().any(|o| o == p))
-}
-
-/// The HTTP upgrade, within `deadline` in all (a client that sends its
-/// request a byte at a time does not get longer).
-async fn handshake(
-    stream: TcpStream,
-    deadline: Duration,
-) -> Result<WebSocketStream<TcpStream>, String> {
-    #[allow(clippy::result_large_err)] // tungstenite's callback signature
-    let callback = |req: &Request, mut resp: Response| -> Result<Response, ErrorResponse> {
-        let Some(p) = choose(req) else {
-            let mut e = ErrorResponse::new(Some(format!(
-                "lightposed speaks Foxglove's WebSocket protocol: offer subprotocol {}",
-                SUBPROTOCOLS.join(" or ")
-            )));
-            *e.status_mut() = StatusCode::BAD_REQUEST;
-            return Err(e);
-        };
-        resp.headers_mut()
-            .insert("sec-websocket-protocol", HeaderValue::from_static(p));
-        Ok(resp)
-    };
-    // A client's requests are a few hundred bytes: refuse a flood.
-    let limits = WebSocketConfig::default()
-        .max_message_size(Some(REQUEST_LIMIT))
-        .max_frame_size(Some(REQUEST_LIMIT));
-    let limits = limits.max_write_buffer_size(limits.write_buffer_size + WRITE_BACKLOG);
-    let accept = tokio_tungstenite::accept_hdr_async_with_config(stream, callback, Some(limits));
-    match tokio::time::timeout(deadline, accept).await {
-        Ok(Ok(ws)) => Ok(ws),
-        Ok(Err(e)) => Err(e.to_string()),
-        Err(_) => Err(format!("no WebSocket handshake within {deadline:?}")),
-    }
-}
-
-/// `serverInfo` and `advertise`, the first two messages of a session.
-pub fn greeting(session: &str) -> [String; 2] {
-    let info = json!({
-        "op": "serverInfo",
-        "name": format!("lightposed {}", env!("CARGO_PKG_VERSION")),
-        "capabilities": [],
-        "metadata": {},
-        "sessionId": session,
-    });
-    let channels: Vec<_> = Channel::ALL
-        .iter()
-        .enumerate()
-        .map(|(i, c)| {
-            json!({
-                "id": i + 1,
-                "topic": c.topic(),
-                "encoding": MESSAGE_ENCODING,
-                "schemaName": c.schema_name(),
-                "schemaEncoding": SCHEMA_ENCODING,
-                "schema": c.schema(),
-            })
-        })
-        .collect();
-    let adv = json!({"op": "advertise", "channels": channels});
-    [info.to_string(), adv.to_string()]
-}
-
-/// What a client may send (the ops a live view needs).
-#[derive(Deserialize)]
-#[serde(tag = "op", rename_all = "camelCase")]
-enum Request_ {
-    Subscribe {
-        subscriptions: Vec<Subscription>,
-    },
-    #[serde(rename_all = "camelCase")]
-    Unsubscribe {
-        subscription_ids: Vec<u32>,
-    },
-}
-
-#[derive(Deserialize)]
-#[serde(rename_all = "camelCase")]
-struct Subscription {
-    id: u32,
-    channel_id: u64,
-}
-
-/// The index of channel `id` (advertised from 1): `None` for 0 and for
-/// an id beyond `usize`, which must not wrap (on 32-bit ARM 2³² + 1 would
-/// be channel 1).
-fn channel_index(id: u64) -> Option<usize> {
-    let i = usize::try_from(id.checked_sub(1)?).ok()?;
-    (i < Channel::ALL.len()).then_some(i)
-}
-
-/// A warning `status` message for the client, its text cut to
-/// [`STATUS_TEXT`].
-fn warning(msg: &str) -> Ws {
-    let msg = clip(msg, STATUS_TEXT);
-    Ws::text(json!({"op": "status", "level": 1, "message": msg}).to_string())
-}
-
-/// `s` cut to `max` bytes (at a character), saying how much was cut.
-fn clip(s: &str, max: usize) -> Cow<'_, str> {
-    if s.len() <= max {
-        return Cow::Borrowed(s);
-    }
-    let end = (0..=max)
-        .rev()
-        .find(|&i| s.is_char_boundary(i))
-        .unwrap_or(0);
-    Cow::Owned(format!("{}… ({} bytes more)", &s[..end], s.len() - end))
-}
-
-/// The warning for a binary message: the client messages of the protocol
-/// that are binary (publishing, service calls) are not served.
-fn binary_warning(len: usize) -> Ws {
-    warning(&format!(
-        "binary message of {len} bytes not understood (lightposed takes subscribe and unsubscribe, as text)"
-    ))
-}
-
-/// Act on one text message; a reply when there is something to say.
-fn request(hub: &Hub, c: &Client, text: &str) -> Option<Ws> {
-    match serde_json::from_str::<Request_>(text) {
-        Ok(Request_::Subscribe { subscriptions }) => {
-            let unknown: Vec<u64> = subscriptions
-                .iter()
-                .filter(|s| {
-                    let index = channel_index(s.channel_id);
-                    !index.is_some_and(|i| c.subscribe(hub, s.id, i))
-                })
-                .map(|s| s.channel_id)
-                .collect();
-            (!unknown.is_empty()).then(|| warning(&format!("no channel {unknown:?}")))
-        }
-        Ok(Request_::Unsubscribe { subscription_ids }) => {
-            for id in subscription_ids {
-                c.unsubscribe(hub, id);
-            }
-            None
-        }
-        Err(e) => Some(warning(&format!(
-            "not understood (lightposed takes subscribe and unsubscribe): {e}"
-        ))),
     }
 }
 
@@ -876,7 +627,9 @@ async fn session_loop(
 
 #[cfg(test)]
 mod tests {
+    use super::requests::{channel_index, clip};
     use super::*;
+    use lightpose_logs::Channel;
 
     #[test]
     fn greeting_advertises_every_channel_with_its_schema() {

@@ -64,6 +64,7 @@ pub(super) fn cfg(dir: PathBuf, rotate_bytes: Option<u64>, queue: usize) -> Reco
         flush: Duration::from_secs(2),
         keep_free_bytes: None,
         max_total_bytes: None,
+        bag: Default::default(),
     }
 }
 
@@ -138,7 +139,7 @@ fn full_disk_mid_file_is_reported() {
     use crate::config::RecFormat;
     use std::os::fd::AsRawFd;
     let full = File::options().write(true).open("/dev/full").unwrap();
-    for format in [RecFormat::Jsonl, RecFormat::Mcap] {
+    for format in [RecFormat::Jsonl, RecFormat::Mcap, RecFormat::Ros2] {
         let dir = tempfile::tempdir().unwrap();
         let stats = Arc::new(RecStats::default());
         let mut c = cfg(dir.path().to_path_buf(), None, 1);
@@ -168,7 +169,13 @@ fn full_disk_mid_file_is_reported() {
         let files = std::fs::read_dir(dir.path()).unwrap().count();
         match format {
             RecFormat::Jsonl => assert_eq!((failed, stats.frames.load(Relaxed), files), (2, 1, 1)),
-            RecFormat::Mcap => assert_eq!((failed, stats.frames.load(Relaxed), files), (3, 0, 0)),
+            RecFormat::Mcap | RecFormat::Ros2 => {
+                assert_eq!(
+                    (failed, stats.frames.load(Relaxed), files),
+                    (3, 0, 0),
+                    "{format:?}"
+                )
+            }
         }
     }
 }

@@ -10,7 +10,7 @@ use super::names;
 use super::space::{Space, EVERY};
 use super::{Item, RecState, RecStats};
 use crate::config::recording::Rotation;
-use crate::config::{RecFormat, Recording};
+use crate::config::Recording;
 use crate::outputs::recfile::{self, extension, Closed, Opener, RecError, RecFile};
 use lightpose_core::ratelog::{Close, RateLog};
 use lightpose_core::LogHeader;
@@ -141,7 +141,7 @@ impl Worker {
                 self.check_space();
             }
             // JSON Lines has no place for a record after its header.
-            if self.file.is_some() && self.cfg.format == RecFormat::Mcap {
+            if self.file.is_some() && self.cfg.format.is_mcap() {
                 if let Some((pair, step)) = self.clock.check(now) {
                     self.clock_record(&pair, step);
                 }
@@ -408,7 +408,14 @@ impl Worker {
             .clock
             .open(item.frame.t, item.wall_unix, Instant::now());
         header.extra.insert("clock".into(), clock.header_json());
-        let mut file = RecFile::create(path, file, self.cfg.format, &header, CHUNK_BYTES)?;
+        let mut file = RecFile::create(
+            path,
+            file,
+            self.cfg.format,
+            &header,
+            CHUNK_BYTES,
+            &self.cfg.bag,
+        )?;
         let (name, pairs) = clock.metadata();
         if let Err(e) = file.metadata(name, pairs) {
             // No frame in it: removed.

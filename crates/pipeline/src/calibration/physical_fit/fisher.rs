@@ -25,14 +25,17 @@ fn param_name(i: usize, np: usize) -> String {
 
 /// Refuse a Fisher matrix that cannot determine every parameter,
 /// naming the parameter most involved in its weakest direction.
-fn check_determined(h: &DMatrix<f64>, np: usize) -> Result<DMatrix<f64>, CalibError> {
+fn check_determined(
+    h: &DMatrix<f64>,
+    param_name: &dyn Fn(usize) -> String,
+) -> Result<DMatrix<f64>, CalibError> {
     let n = h.nrows();
     let mut d = DVector::zeros(n);
     for i in 0..n {
         let v = h[(i, i)];
         if !(v > 0.0 && v.is_finite()) {
             return Err(CalibError::Undetermined {
-                parameter: param_name(i, np),
+                parameter: param_name(i),
                 reason: "no data depends on it (zero Fisher column)".into(),
             });
         }
@@ -55,7 +58,7 @@ fn check_determined(h: &DMatrix<f64>, np: usize) -> Result<DMatrix<f64>, CalibEr
             .max_by(|a, b| v[*a].abs().total_cmp(&v[*b].abs()))
             .unwrap_or(0);
         return Err(CalibError::Undetermined {
-            parameter: param_name(worst, np),
+            parameter: param_name(worst),
             reason: format!("singular or ill-conditioned Fisher matrix (condition {cond:.1e})"),
         });
     }
@@ -63,7 +66,7 @@ fn check_determined(h: &DMatrix<f64>, np: usize) -> Result<DMatrix<f64>, CalibEr
         .cholesky()
         .map(|c| c.inverse())
         .ok_or_else(|| CalibError::Undetermined {
-            parameter: param_name(imin, np),
+            parameter: param_name(imin),
             reason: "Fisher matrix is not positive definite".into(),
         })?;
     Ok(DMatrix::from_fn(n, n, |i, j| inv[(i, j)] * d[i] * d[j]))
@@ -76,7 +79,20 @@ pub(super) fn determined(
     np: usize,
     npar: usize,
 ) -> Result<DMatrix<f64>, CalibError> {
-    let cov = check_determined(h, np)?;
+    determined_named(h, p, np, npar, &|i| param_name(i, np))
+}
+
+/// As [`determined`], the parameters named by `param_name`; the first `np`
+/// are positive quantities, whose standard error must stay below their
+/// value (a station's fit: each beacon's V1 and σ_b, then the water's).
+pub(crate) fn determined_named(
+    h: &DMatrix<f64>,
+    p: &[f64],
+    np: usize,
+    npar: usize,
+    param_name: &dyn Fn(usize) -> String,
+) -> Result<DMatrix<f64>, CalibError> {
+    let cov = check_determined(h, param_name)?;
     // A parameter whose marginal variance is vastly above its variance
     // with the others held (variance inflation) is confounded with
     // them; one whose standard error exceeds its value is not measured.
@@ -84,7 +100,7 @@ pub(super) fn determined(
         let vif = cov[(i, i)] * h[(i, i)];
         if !(vif < 1e8) {
             return Err(CalibError::Undetermined {
-                parameter: param_name(i, np),
+                parameter: param_name(i),
                 reason: format!("ill-conditioned Fisher matrix (variance inflation {vif:.1e})"),
             });
         }
@@ -93,7 +109,7 @@ pub(super) fn determined(
         let se = cov[(i, i)].max(0.0).sqrt();
         if !(se < p[i].abs()) {
             return Err(CalibError::Undetermined {
-                parameter: param_name(i, np),
+                parameter: param_name(i),
                 reason: format!(
                     "standard error {se:.3e} exceeds the value {:.3e} (Fisher information too small)",
                     p[i]

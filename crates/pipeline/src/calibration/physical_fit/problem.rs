@@ -7,6 +7,8 @@
 // Channel loops index several parallel per-detector arrays at once.
 #![allow(clippy::needless_range_loop)]
 
+use crate::calibration::lm::{levenberg_marquardt, Lm};
+
 use super::{
     fisher, CalibError, FitOptions, Group, ParamEstimate, PhysicalCalibration, PhysicalFitter,
 };
@@ -35,16 +37,6 @@ pub(super) struct Data {
     bits: u8,
     frames: u64,
     v_ref: f64,
-}
-
-/// Where Levenberg–Marquardt ended: the parameters, and the normalized
-/// residuals, Jacobian and cost there.
-struct Lm {
-    p: Vec<f64>,
-    r: DVector<f64>,
-    jac: DMatrix<f64>,
-    cost: f64,
-    converged: bool,
 }
 
 /// Mean count and sample variance of channel `k` over a group's frames.
@@ -192,14 +184,7 @@ impl Data {
     }
 
     fn gains(p: &[f64], np: usize) -> [f64; NDET] {
-        let mut g = [0.0; NDET];
-        let mut s = 0.0;
-        for k in 0..NDET - 1 {
-            g[k] = p[np + k];
-            s += g[k];
-        }
-        g[NDET - 1] = NDET as f64 - s;
-        g
+        gains_of(p, np)
     }
 
     /// ∂E/∂(each light parameter) for every pose and channel: central
@@ -375,68 +360,14 @@ impl Data {
         p
     }
 
-    /// Levenberg–Marquardt from `p`, the light parameters kept positive:
-    /// stops when a step no longer lowers the cost by a relative 1e-10, or
-    /// when no damping gives a step downhill, or after `o.max_iter`.
-    fn levenberg_marquardt(&self, mut p: Vec<f64>, scat: bool, o: &FitOptions) -> Lm {
+    /// Levenberg–Marquardt from `p`, the light parameters kept positive.
+    fn levenberg_marquardt(&self, p: Vec<f64>, scat: bool, o: &FitOptions) -> Lm {
         let np = Self::nphys(scat);
-        let npar = Self::nparams(scat);
         let geom = &o.geometry;
         let positive = |p: &[f64]| p[..np].iter().all(|v| *v > 0.0 && v.is_finite());
-        let mut jac = DMatrix::zeros(self.nrows(), npar);
-        let mut r = self.eval(&p, scat, geom, Some(&mut jac));
-        let mut cost = r.norm_squared();
-        let mut lambda = 1e-3;
-        let mut converged = false;
-        for _ in 0..o.max_iter {
-            let h = jac.transpose() * &jac;
-            let g = jac.transpose() * &r;
-            let mut stepped = false;
-            for _ in 0..15 {
-                let mut a = h.clone();
-                for i in 0..npar {
-                    a[(i, i)] += lambda * h[(i, i)].max(1e-12);
-                }
-                let Some(ch) = a.cholesky() else {
-                    lambda *= 10.0;
-                    continue;
-                };
-                let delta = -ch.solve(&g);
-                let pn: Vec<f64> = p.iter().zip(delta.iter()).map(|(a, b)| a + b).collect();
-                if !positive(&pn) {
-                    lambda *= 4.0;
-                    continue;
-                }
-                let rn = self.eval(&pn, scat, geom, None);
-                let cn = rn.norm_squared();
-                if cn.is_finite() && cn <= cost {
-                    let rel = (cost - cn) / cost.max(1e-300);
-                    p = pn;
-                    cost = cn;
-                    lambda = (lambda / 3.0).max(1e-12);
-                    stepped = true;
-                    if rel < 1e-10 {
-                        converged = true;
-                    }
-                    break;
-                }
-                lambda *= 4.0;
-            }
-            if !stepped {
-                converged = true;
-            }
-            r = self.eval(&p, scat, geom, Some(&mut jac));
-            if converged {
-                break;
-            }
-        }
-        Lm {
-            p,
-            r,
-            jac,
-            cost,
-            converged,
-        }
+        levenberg_marquardt(p, self.nrows(), o.max_iter, positive, |p, jac| {
+            self.eval(p, scat, geom, jac)
+        })
     }
 
     /// The `[physical]` table from a converged fit and its covariance:
@@ -510,60 +441,89 @@ impl Data {
             ss_n[ob.k] += r[i] * r[i];
             cnt[ob.k] += 1;
         }
-        let rms = |ss: &[f64; NDET]| -> Vec<f64> {
-            (0..NDET)
-                .map(|k| {
-                    if cnt[k] > 0 {
-                        (ss[k] / cnt[k] as f64).sqrt()
-                    } else {
-                        0.0
-                    }
-                })
-                .collect()
-        };
-        (rms(&ss_c), rms(&ss_n))
+        (rms_per_channel(&ss_c, &cnt), rms_per_channel(&ss_n, &cnt))
     }
 
     /// σ_e and κ from the spread within each pose: var(count) − 1/12 =
     /// (σ_e² + κ·g·E)·cpv², a straight line in E fitted by least squares
     /// (unclipped channels only), non-negative.
     fn noise_fit(&self, e: &[[f64; NDET]], g: &[f64; NDET], _off: &[f64], cpv: f64) -> (f64, f64) {
-        let (mut s1, mut sx, mut sxx, mut sy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        let mut add = |x: f64, y: f64| {
-            s1 += 1.0;
-            sx += x;
-            sxx += x * x;
-            sy += y;
-            sxy += x * y;
-        };
-        for ob in &self.obs {
+        let points = self.obs.iter().map(|ob| {
             let x = g[ob.k] * self.gts[ob.group] * e[ob.group][ob.k];
-            let y = (self.var[ob.group][ob.k] - 1.0 / 12.0) / (cpv * cpv);
-            add(x, y);
-        }
-        if let Some(dv) = &self.dark_var {
-            for v in dv {
-                add(0.0, (v - 1.0 / 12.0) / (cpv * cpv));
-            }
-        }
-        let det = s1 * sxx - sx * sx;
-        let (a, b) = if det.abs() > 1e-300 * s1.max(1.0) && det > 0.0 {
-            ((sxx * sy - sx * sxy) / det, (s1 * sxy - sx * sy) / det)
-        } else {
-            (sy / s1.max(1.0), 0.0)
-        };
-        let (a, b) = if b < 0.0 {
-            (sy / s1.max(1.0), 0.0)
-        } else {
-            (a, b)
-        };
-        (a.max(0.0).sqrt(), b.max(0.0))
+            (x, self.var[ob.group][ob.k])
+        });
+        let dark = self.dark_var.iter().flatten().copied();
+        noise_line(points, dark, cpv)
     }
+}
+
+/// σ_e and κ (volts) from (light after gain and g_T in volts, variance of
+/// a count) points and a dark log's variances: var − 1/12 = (σ_e² + κ·x)·cpv²
+/// fitted by least squares, κ ≥ 0 (shared by the physical fit of one
+/// beacon and a station's).
+/// Each channel's root mean square from its sum of squares `ss` over
+/// `cnt` observations (0 for a channel with none).
+pub(crate) fn rms_per_channel(ss: &[f64; NDET], cnt: &[usize; NDET]) -> Vec<f64> {
+    (0..NDET)
+        .map(|k| {
+            if cnt[k] > 0 {
+                (ss[k] / cnt[k] as f64).sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+pub(crate) fn noise_line(
+    points: impl Iterator<Item = (f64, f64)>,
+    dark: impl Iterator<Item = f64>,
+    cpv: f64,
+) -> (f64, f64) {
+    let (mut s1, mut sx, mut sxx, mut sy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let mut add = |x: f64, y: f64| {
+        s1 += 1.0;
+        sx += x;
+        sxx += x * x;
+        sy += y;
+        sxy += x * y;
+    };
+    for (x, v) in points {
+        add(x, (v - 1.0 / 12.0) / (cpv * cpv));
+    }
+    for v in dark {
+        add(0.0, (v - 1.0 / 12.0) / (cpv * cpv));
+    }
+    let det = s1 * sxx - sx * sx;
+    let (a, b) = if det.abs() > 1e-300 * s1.max(1.0) && det > 0.0 {
+        ((sxx * sy - sx * sxy) / det, (s1 * sxy - sx * sy) / det)
+    } else {
+        (sy / s1.max(1.0), 0.0)
+    };
+    let (a, b) = if b < 0.0 {
+        (sy / s1.max(1.0), 0.0)
+    } else {
+        (a, b)
+    };
+    (a.max(0.0).sqrt(), b.max(0.0))
+}
+
+/// The 25 gains from the 24 free ones at `p[np..]`: the last is N − Σ
+/// others, so that the mean gain is 1 (gain and V1 are degenerate).
+pub(crate) fn gains_of(p: &[f64], np: usize) -> [f64; NDET] {
+    let mut g = [0.0; NDET];
+    let mut s = 0.0;
+    for k in 0..NDET - 1 {
+        g[k] = p[np + k];
+        s += g[k];
+    }
+    g[NDET - 1] = NDET as f64 - s;
+    g
 }
 
 /// Every gain with its standard error; the last is N − Σ others, so its
 /// variance is 1ᵀC1 over the free gains.
-fn gain_estimates(g: &[f64; NDET], cov: &DMatrix<f64>, np: usize) -> Vec<ParamEstimate> {
+pub(crate) fn gain_estimates(g: &[f64; NDET], cov: &DMatrix<f64>, np: usize) -> Vec<ParamEstimate> {
     let sd = |i: usize| cov[(i, i)].max(0.0).sqrt();
     let mut gain = Vec::with_capacity(NDET);
     for k in 0..NDET - 1 {

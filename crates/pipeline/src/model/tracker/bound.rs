@@ -14,7 +14,9 @@
 //! be tracked better than this. The state is the tracker's plus the common
 //! gain of an unknown water temperature (as in the single-frame bound);
 //! K_D is an unknown constant with its prior, whether or not a tracker
-//! estimates it.
+//! estimates it. Spec v3: a tracker on a station (`with_station`) has roll
+//! as a state; each frame adds every beacon's image, and an attitude
+//! reading's roll when it has one.
 
 // Channel loops index several parallel per-detector arrays at once.
 #![allow(clippy::needless_range_loop)]
@@ -22,9 +24,9 @@
 use lightpose_core::{BodyVec, Pose, NDET};
 use nalgebra::{SMatrix, SVector};
 
-use super::state::{Ms, State, Vs, KD, NS, VEL};
+use super::state::{Ms, State, Vs, KD, NS, ROLL, VEL};
 use super::Tracker;
-use crate::model::bound_light::{channels, BoundLight};
+use crate::model::bound_light::{channels, station_channels, BoundChannel, BoundLight};
 use crate::model::light::{from_pose, PoseVec};
 
 /// The bound's state: the tracker's and the common gain.
@@ -53,6 +55,9 @@ pub struct TrackBoundScene {
     /// 1σ of the own sensors' readings: attitude (pitch, yaw, rad), depth
     /// (m), DVL (m/s per component); None for a sensor the vehicle lacks.
     pub attitude: Option<(f64, f64)>,
+    /// Spec v3: the attitude reading's roll, 1σ rad (read by a station's
+    /// tracker only: one beacon's takes roll as known).
+    pub roll: Option<f64>,
     pub depth: Option<f64>,
     pub dvl: Option<f64>,
     /// Spec v3: counts or a blinking beacon's amplitudes, and the sun
@@ -69,6 +74,8 @@ pub struct TrackBound {
     pub pitch_deg: f64,
     pub yaw_deg: f64,
     pub surge: f64,
+    /// Spec v3: a station's roll, degrees; 0 for one beacon (known).
+    pub roll_deg: f64,
 }
 
 /// The measurement update in information form, P⁺ = (P⁻¹ + Hᵀ·R⁻¹·H)⁻¹,
@@ -122,6 +129,7 @@ impl Tracker {
     fn transition(&self, x: &Vs, dt: f64, attitude: bool) -> (Ms, Ms) {
         let mut s = State::new(*x, Ms::zeros(), 0.0);
         s.attitude_fused = attitude;
+        s.roll_free = !self.station.is_empty();
         let at = s;
         self.predict(&mut s, dt);
         let q = s.p;
@@ -153,6 +161,9 @@ impl Tracker {
             x[VEL + a] = p.velocity.0[a];
         }
         x[KD] = self.model.light.k_d;
+        if !self.station.is_empty() {
+            x[ROLL] = p.pose.roll.rad();
+        }
         x
     }
 
@@ -164,18 +175,33 @@ impl Tracker {
         let m = &self.model;
         let gt = lightpose_core::light::temperature_gain(sc.temp_c);
         let q = PoseVec::from_fn(|i, _| x[i]);
-        let ch = channels(m, &sc.light, &q, roll, x[KD], gt);
-        let mut h = SMatrix::<f64, NDET, NB>::zeros();
-        let mut r = SVector::<f64, NDET>::from_element(1.0);
-        for (k, c) in ch.iter().enumerate().filter(|(_, c)| c.used) {
-            for j in 0..5 {
-                h[(k, j)] = c.grad[j];
+        let station = !self.station.is_empty();
+        let images: Vec<[BoundChannel; NDET]> = if station {
+            station_channels(m, &sc.light, &self.station, &q, x[ROLL], x[KD], gt)
+        } else {
+            vec![channels(m, &sc.light, &q, roll, x[KD], gt)]
+        };
+        for ch in &images {
+            let mut h = SMatrix::<f64, NDET, NB>::zeros();
+            let mut r = SVector::<f64, NDET>::from_element(1.0);
+            for (k, c) in ch.iter().enumerate().filter(|(_, c)| c.used) {
+                for j in 0..5 {
+                    h[(k, j)] = c.grad[j];
+                }
+                h[(k, KD)] = c.grad[5];
+                h[(k, GAIN)] = c.grad[6];
+                if station {
+                    h[(k, ROLL)] = c.grad[7];
+                }
+                r[k] = c.var;
             }
-            h[(k, KD)] = c.grad[5];
-            h[(k, GAIN)] = c.grad[6];
-            r[k] = c.var;
+            inform(p, &h, &r);
         }
-        inform(p, &h, &r);
+        if let Some(sr) = sc.roll.filter(|_| station) {
+            let mut h = SMatrix::<f64, 1, NB>::zeros();
+            h[(0, ROLL)] = 1.0;
+            inform(p, &h, &SVector::<f64, 1>::new(sr * sr));
+        }
         if let Some((sp, sy)) = sc.attitude {
             let mut h = SMatrix::<f64, 2, NB>::zeros();
             h[(0, 3)] = 1.0;
@@ -219,6 +245,11 @@ impl Tracker {
             s * lightpose_core::light::temperature_gain_slope(sc.temp_c)
         });
         p[(GAIN, GAIN)] = sg * sg;
+        // A station's roll starts at the tracker's prior; one beacon's is
+        // known (0 variance: left out of every update).
+        if !self.station.is_empty() {
+            p[(ROLL, ROLL)] = self.station_roll_prior().powi(2);
+        }
         p
     }
 
@@ -252,6 +283,7 @@ impl Tracker {
                 pitch_deg: sd(3).to_degrees(),
                 yaw_deg: sd(4).to_degrees(),
                 surge: sd(VEL),
+                roll_deg: sd(ROLL).to_degrees(),
             });
         }
         out
@@ -288,6 +320,7 @@ mod tests {
             sigma_k_d: Some(0.015),
             sigma_temp_c: Some(3.0),
             attitude: Some((0.3f64.to_radians(), 1.5f64.to_radians())),
+            roll: None,
             depth: None,
             dvl: None,
             light: BoundLight::default(),
@@ -325,6 +358,7 @@ mod tests {
             sigma_k_d: Some(0.015),
             sigma_temp_c: Some(3.0),
             attitude: None,
+            roll: None,
             depth: None,
             dvl: None,
             light: BoundLight::default(),
@@ -369,6 +403,7 @@ mod tests {
             sigma_k_d: Some(0.015),
             sigma_temp_c: Some(3.0),
             attitude,
+            roll: None,
             depth: Some(0.02),
             dvl: Some(0.02),
             light: BoundLight::default(),

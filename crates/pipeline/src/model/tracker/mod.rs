@@ -20,6 +20,8 @@
 //! - `counts`: the update with the 25 counts (EKF, or sigma points when no
 //!   reading pins the attitude);
 //! - `start`: the start-up fit (with the readings as priors);
+//! - `station`: a docking station's light (spec v3), beacon by beacon,
+//!   roll a state;
 //! - `bound`: the bound for a tracker along a known track (posterior CRB);
 //! - `bank`: trackers in several waters, when told the water is unknown;
 //! - `water_check`: one tracker that turns into a bank when, with a DVL,
@@ -41,6 +43,7 @@ mod offsets;
 pub(crate) mod readings;
 mod start;
 mod state;
+mod station;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
@@ -63,7 +66,8 @@ pub use self::bound::{TrackBound, TrackBoundScene, TrackPoint};
 use self::counts::CountsInput;
 pub(crate) use self::dvl_check::DvlChecks;
 use self::readings::{gate_thresholds, FrameReadings, PaperReading};
-use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, VEL};
+use self::state::{beam_consider_sigma_x, ln_brightness_per_metre, State, Vs, KD, ROLL, VEL};
+pub use self::station::STATION_ROLL_PRIOR_DEG;
 pub use self::water_check::WaterWatch;
 use crate::model::findings::Found;
 use crate::model::measurement::Measurement;
@@ -128,6 +132,11 @@ pub struct Tracker {
     weighing: bool,
     /// The hypotheses of which sensor is off, while they are weighed.
     which: Option<Box<which_offset::WhichOffset>>,
+    /// Spec v3: a docking station's beacons (`with_station`); empty for
+    /// one beacon. Shared: trackers are cloned into banks.
+    station: std::sync::Arc<[crate::model::light::BeaconLight]>,
+    /// The station's names for its estimates (`with_station_names`).
+    station_names: Option<&'static lightpose_core::StationNames>,
 }
 
 /// A track lost this soon after its start was started onto something
@@ -177,6 +186,8 @@ impl Tracker {
             quick_losses: 0,
             weighing: false,
             which: None,
+            station: std::sync::Arc::from(Vec::new()),
+            station_names: None,
             cfg,
         })
     }
@@ -234,6 +245,8 @@ impl Tracker {
     fn rebuilt(&self, model: SensorModel, cfg: TrackerConfig) -> Result<Self, ModelError> {
         let mut t = Tracker::new(model, cfg)?;
         t.paper = self.paper.clone();
+        t.station = self.station.clone();
+        t.station_names = self.station_names;
         Ok(t)
     }
 
@@ -461,7 +474,10 @@ impl Tracker {
             Status::OutOfRange
         } else if n_sat > self.cfg.max_saturated {
             Status::Saturated
-        } else if self.cfg.flag_unobservable && uses[0] != ReadingUse::Used {
+        } else if self.cfg.flag_unobservable
+            && uses[0] != ReadingUse::Used
+            && s.station_seen.count() < 2
+        {
             Status::Unobservable
         } else {
             Status::Ok
@@ -541,8 +557,10 @@ impl Tracker {
         // as the reading's σ: 0.59 m in the tank) in place of the beam term
         // (the same off-axis dimming, already in that residual), and the
         // other pose axes their share of it (`paper_bias_share`).
+        // A station's beacons see y and z themselves: no one beam's term.
         let beam_x = match s.paper_x {
             Some(sm) => sm,
+            None if s.roll_free => 0.0,
             None => beam_consider_sigma_x(x, p, self.model.light.sigma_b.rad()),
         };
         let temp_x = self.temperature_bias_x(frame, x);
@@ -561,6 +579,11 @@ impl Tracker {
         e.roll_deg = s
             .roll
             .and_then(|(r, _)| lightpose_core::finite(r.to_degrees()));
+        if s.roll_free {
+            e.roll_deg = lightpose_core::finite(x[ROLL].to_degrees());
+            e.std.roll = sd(ROLL).map(f64::to_degrees);
+        }
+        e.station = s.station_seen;
         e
     }
 
@@ -666,6 +689,13 @@ impl Tracker {
         self.init.observe_channels(frame);
         let meas = Measurement::of(&self.model, frame, self.init.frozen_mask());
         let mut e = self.estimate_frame(frame, &meas);
+        // A station's estimate says what it saw even where the track has
+        // no state yet (a frame too dark to start from).
+        if e.station.station == 0 {
+            if let Some(a) = self.station_amps(frame) {
+                e.station = self.station_seen(a);
+            }
+        }
         e.excluded_channels = Censoring::excluded_mask(&meas.kinds);
         let span = (self.cfg.reading_check_s / READING_CHECK_SLOT_S).round() as usize;
         e.agreement = self.agreement.report(span, self.cfg.reading_check_limit);
@@ -769,7 +799,12 @@ impl Tracker {
         }
         // The paper law's reading of the frame, light only: the paper's
         // range and rate read it, and the DVL checks.
-        let law = self.law_reading(frame, meas);
+        // A station's images are no one beacon's spot: no paper law.
+        let amps = self.station_amps(frame);
+        let law = match amps {
+            Some(_) => None,
+            None => self.law_reading(frame, meas),
+        };
         // The DVL's and the attitude's readings as the frame gives them,
         // for the DVL checks after the update (refused or not).
         let dvl_seen = self.dvl_sample(frame.t, &readings, law);
@@ -794,6 +829,11 @@ impl Tracker {
         let (uses, innov) = self.update_readings(&mut s, &readings);
         self.agreement.push(&innov, &uses, frame.t);
         s.attitude_fused = uses[0] == ReadingUse::Used;
+        if let Some(a) = amps {
+            s.station_seen = self.station_seen(a);
+            let fused = s.attitude_fused;
+            self.station_roll_readings(&mut s, frame, fused);
+        }
         if !s.attitude_fused {
             self.bound_unmeasured_attitude(&mut s);
         }
@@ -815,10 +855,16 @@ impl Tracker {
         let lost = self.lost_to_readings(&mut s, &uses);
         // A frame without light says nothing of pose; the readings still
         // keep the filter on course.
-        if !self.init.has_light(frame) {
+        let dark = match amps {
+            Some(_) => s.station_seen.seen == 0,
+            None => !self.init.has_light(frame),
+        };
+        if dark {
+            let seen = s.station_seen;
             self.keep(s);
             let mut e = PoseEstimate::empty(frame.seq, frame.t, Status::NoLight, Self::NAME);
             e.readings = verdicts(uses);
+            e.station = seen;
             return e;
         }
         let gt = gain_of(frame);
@@ -833,7 +879,13 @@ impl Tracker {
             ambient: self.init.ambient_for(frame),
             pinned: uses[0] == ReadingUse::Used,
         };
-        let applied = self.update_counts(&mut s, &inp);
+        let applied = match amps {
+            Some(a) => {
+                let seen = s.station_seen.seen;
+                self.update_station(&mut s, a, gt, seen).applied
+            }
+            None => self.update_counts(&mut s, &inp),
+        };
         if self.jumped(&s) {
             // The track is not the vehicle's: start again from this frame,
             // as when the filter has lost it (its `initialising` frames
@@ -891,7 +943,11 @@ impl Tracker {
             }
         }
         s.frames = s.frames.saturating_add(1);
-        let sane = s.is_finite() && s.x[0] > 0.0 && s.x[3].abs() < 1.4 && s.x[4].abs() < 1.4;
+        let sane = s.is_finite()
+            && s.x[0] > 0.0
+            && s.x[3].abs() < 1.4
+            && s.x[4].abs() < 1.4
+            && s.x[ROLL].abs() < 1.4;
         if !sane {
             self.state = None;
             let status = unusable(n_sat, self.cfg.max_saturated);

@@ -3,7 +3,7 @@
 //! world model (constant velocity in B).
 
 use super::offsets::Offset;
-use super::state::{Ms, State, KD, VEL};
+use super::state::{Ms, State, KD, ROLL, VEL};
 use super::Tracker;
 use crate::settings::Motion;
 
@@ -26,6 +26,11 @@ impl Tracker {
             // The walk's density is in K_D, the state in ln K_D.
             let k = super::state::k_d_of(&s.x);
             s.p[(KD, KD)] += self.cfg.k_d_walk_psd * dt / (k * k).max(1e-18);
+        }
+        if s.roll_free {
+            // A station's roll: a random walk (no rate of its own).
+            let q = self.cfg.roll_walk_psd_deg * (std::f64::consts::PI / 180.0).powi(2);
+            s.p[(ROLL, ROLL)] += q * dt;
         }
         for o in Offset::ALL {
             if self.offsets.told(o, &self.cfg) {

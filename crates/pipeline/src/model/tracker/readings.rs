@@ -252,6 +252,22 @@ fn fuse<const M: usize>(
     fuse_into(s, r, lin, wrap, gate, &[true; NS])
 }
 
+/// [`fuse`] of a reading of state component `i` alone (`value` ± `sd`,
+/// an angle: the innovation wrapped). A station's roll (`station`).
+pub(super) fn fuse_scalar(s: &mut State, i: usize, value: f64, sd: f64, gate: f64) -> ReadingUse {
+    let mut jac = SMatrix::<f64, 1, NS>::zeros();
+    jac[(0, i)] = 1.0;
+    let lin = Linear {
+        h: SVector::<f64, 1>::new(s.x[i]),
+        jac,
+    };
+    let c = Checked {
+        z: SVector::<f64, 1>::new(value),
+        sigma: SVector::<f64, 1>::new(sd),
+    };
+    fuse(s, &c, &lin, [true], gate)
+}
+
 /// [`fuse`], and each component's normalized innovation ν_i/√S_ii
 /// against `s` into `innov` (for the reading check, `agreement.rs`),
 /// formed before the gate.
@@ -672,11 +688,12 @@ mod tests {
         // K_D 0.14 ± 0.01 (the state holds ln K_D).
         let (ln_k, sd_ln_k) = (0.14f64.ln(), 0.01 / 0.14);
         x.copy_from_slice(&[
-            6.0, 0.1, 0.2, 0.05, 0.02, 0.4, 0.0, 0.0, 0.0, 0.0, ln_k, 0.0, 0.0,
+            6.0, 0.1, 0.2, 0.05, 0.02, 0.4, 0.0, 0.0, 0.0, 0.0, ln_k, 0.0, 0.0, 0.0,
         ]);
-        // The sensors' offsets held at 0 with no doubt (the default).
+        // The sensors' offsets and roll held at 0 with no doubt (the
+        // default).
         let sd = [
-            0.3, 0.2, 0.2, 0.1, 0.1, 0.15, 0.05, 0.05, 0.05, 0.05, sd_ln_k, 0.0, 0.0,
+            0.3, 0.2, 0.2, 0.1, 0.1, 0.15, 0.05, 0.05, 0.05, 0.05, sd_ln_k, 0.0, 0.0, 0.0,
         ];
         let p = Ms::from_diagonal(&Vs::from_iterator(sd.iter().map(|s| s * s)));
         State::new(x, p, 0.6)

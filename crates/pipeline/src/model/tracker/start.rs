@@ -98,7 +98,7 @@ impl Tracker {
         (s.x[2] - want).powi(2) > 25.0 * sd2
     }
 
-    fn dome_z_of_depth(&self, zd: f64, theta: f64) -> f64 {
+    pub(super) fn dome_z_of_depth(&self, zd: f64, theta: f64) -> f64 {
         let [lf, _, ld] = self.cfg.depth_lever_arm_m;
         let (st, ct) = theta.sin_cos();
         zd - (lf * st - ld * ct)
@@ -181,13 +181,17 @@ impl Tracker {
     }
 
     /// Start from `frame`: the filter's state and what became of the
-    /// frame's readings, or why no start was possible.
+    /// frame's readings, or why no start was possible. A station's frame
+    /// starts from its 6-DOF fit (`station`).
     pub(super) fn start(
         &self,
         frame: &Frame,
         r: &FrameReadings,
         paper_x: Option<&Checked<1>>,
     ) -> Result<(State, [ReadingUse; 3]), Status> {
+        if let Some(amps) = self.station_amps(frame) {
+            return self.start_station(frame, r, amps);
+        }
         if !self.init.has_light(frame) {
             return Err(Status::NoLight);
         }
@@ -208,10 +212,29 @@ impl Tracker {
                 p_fit[(i, j)] = fit.cov[(i, j)];
             }
         }
-        // A model that fits worse than its noise says: widen, don't lie.
         let red = fit.chi2 / (fit.n_data.saturating_sub(5).max(1)) as f64;
+        let s = self.started_state(frame, r, x, p_fit, red, roll, paper_x)?;
+        Ok((s, uses_of(r)))
+    }
+
+    /// The state a start fit gives: its pose `x` and covariance `p_fit`
+    /// (widened by a reduced χ² `red` above 1), the velocity, rates, K_D
+    /// and offsets' start doubts around it.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn started_state(
+        &self,
+        frame: &Frame,
+        r: &FrameReadings,
+        mut x: Vs,
+        p_fit: Ms,
+        red: f64,
+        roll: Option<(f64, f64)>,
+        paper_x: Option<&Checked<1>>,
+    ) -> Result<State, Status> {
+        // A model that fits worse than its noise says: widen, don't lie.
         let mut p = if red > 1.0 { p_fit * red } else { p_fit };
-        self.start_velocity(&mut x, &mut p, r, roll.map_or(0.0, |(r, _)| r));
+        let roll_now = roll.map_or(x[super::state::ROLL], |(r, _)| r);
+        self.start_velocity(&mut x, &mut p, r, roll_now);
         let c = &self.cfg;
         for i in 8..10 {
             p[(i, i)] = c.init_rate_sigma_deg.to_radians().powi(2);
@@ -228,13 +251,8 @@ impl Tracker {
         if !s.is_finite() {
             return Err(Status::Diverged);
         }
-        let uses = [
-            r.attitude.if_fused(),
-            r.depth.if_fused(),
-            r.velocity.if_fused(),
-        ];
-        s.attitude_fused = uses[0] == ReadingUse::Used;
-        Ok((s, uses))
+        s.attitude_fused = r.attitude.ready().is_some();
+        Ok(s)
     }
 
     /// The start's velocity: the DVL's reading when there is one, else
@@ -277,4 +295,14 @@ impl Tracker {
             }
         }
     }
+}
+
+/// What became of a start's readings: each ready one fused (as the start
+/// fit's prior).
+pub(super) fn uses_of(r: &FrameReadings) -> [ReadingUse; 3] {
+    [
+        r.attitude.if_fused(),
+        r.depth.if_fused(),
+        r.velocity.if_fused(),
+    ]
 }

@@ -6,8 +6,9 @@ use nalgebra::{SMatrix, SVector};
 
 /// State: x, y, z, θ, ψ, three velocities (body model: surge u, sideslip
 /// right v and down w; world model: ẋ, ẏ, ż), θ̇, ψ̇, ln K_D, the depth
-/// sensor's offset, the attitude sensor's pitch offset.
-pub(super) const NS: usize = 13;
+/// sensor's offset, the attitude sensor's pitch offset, and (spec v3, last
+/// so that every index before it stays) roll.
+pub(super) const NS: usize = 14;
 /// Index of the first velocity component.
 pub(super) const VEL: usize = 5;
 /// Paper ranges kept for their change over `paper_rate_frames`.
@@ -27,6 +28,11 @@ pub(super) const DOFF: usize = 11;
 /// Index of the attitude sensor's pitch offset (rad; the same for
 /// `pitch_offset_sigma_deg`).
 pub(super) const POFF: usize = 12;
+/// Index of roll φ (rad). A state only on a docking station's light
+/// (`State::roll_free`, see `station`): one beacon barely sees roll, so
+/// there it is held at 0 with no doubt and roll is the consider
+/// parameter `State::roll`, exactly as before the state had it.
+pub(super) const ROLL: usize = 13;
 
 /// The least K_D the state holds, m⁻¹: clearer than any natural water
 /// (the clearest ocean's is ~0.02), so that a calibration's K_D of 0 still
@@ -128,6 +134,12 @@ pub(super) struct State {
     /// update carries into every other axis (`counts`). None: roll exactly
     /// 0, spec v1/v2's filter bit for bit.
     pub roll: Option<(f64, f64)>,
+    /// Spec v3: roll is the state's `ROLL`, estimated from a station's
+    /// beacons (`roll` is then unused). False for one beacon.
+    pub roll_free: bool,
+    /// Spec v3: the station's beacons this frame saw (the default, "not a
+    /// station", for one beacon).
+    pub station_seen: lightpose_core::StationSeen,
 }
 
 impl State {
@@ -152,11 +164,16 @@ impl State {
             readings_ll: 0.0,
             water_nis: Default::default(),
             roll: None,
+            roll_free: false,
+            station_seen: Default::default(),
         }
     }
 
     /// The roll the light model is evaluated at (rad): 0 without one.
     pub fn roll_rad(&self) -> f64 {
+        if self.roll_free {
+            return self.x[ROLL];
+        }
         self.roll.map_or(0.0, |(r, _)| r)
     }
 
@@ -210,7 +227,11 @@ impl State {
         if !self.k_d_free {
             k.row_mut(KD).fill(0.0);
         }
-        for (i, free) in [DOFF, POFF].into_iter().zip(self.offset_free) {
+        for (i, free) in [DOFF, POFF, ROLL].into_iter().zip([
+            self.offset_free[0],
+            self.offset_free[1],
+            self.roll_free,
+        ]) {
             if !free {
                 k.row_mut(i).fill(0.0);
             }

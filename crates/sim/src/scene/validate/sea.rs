@@ -194,16 +194,10 @@ pub(super) fn check_frequencies(
     let Err(e) = check_beacons(adc.rate_hz, adc.sample_hz, freqs) else {
         return Ok(());
     };
-    let id = match &e {
-        ModulationError::SamplesPerFrame { .. } | ModulationError::FastWithoutBlink { .. } => {
-            return Err(c.err("adc", "sample_hz", e))
-        }
-        ModulationError::SamplesPerPeriod { id, .. }
-        | ModulationError::PeriodsPerFrame { id, .. }
-        | ModulationError::Steady { id } => id,
-        ModulationError::SameFrequency { a, .. } | ModulationError::OddRatio { a, .. } => a,
+    let Some(id) = e.beacon() else {
+        return Err(c.err("adc", "sample_hz", e));
     };
-    match beacons.iter().position(|b| &b.id == id) {
+    match beacons.iter().position(|b| b.id == id) {
         Some(i) => Err(c.nth(i).err("beacons", "mod_hz", e)),
         None => Err(c.err("beacon", "mod_hz", e)),
     }

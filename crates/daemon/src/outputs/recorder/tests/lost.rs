@@ -90,7 +90,15 @@ fn a_failed_sync_keeps_only_what_the_last_good_sync_holds() {
     let path = dir.path().join("r.jsonl");
     let file = create_new(&path).unwrap();
     let header = LogHeader::new(10, 5.0);
-    let mut f = RecFile::create(path.clone(), file, RecFormat::Jsonl, &header, 1 << 16).unwrap();
+    let mut f = RecFile::create(
+        path.clone(),
+        file,
+        RecFormat::Jsonl,
+        &header,
+        1 << 16,
+        &Default::default(),
+    )
+    .unwrap();
     for s in 0..3 {
         f.write(&frame(s), &est(s), 1.7e9).unwrap();
     }
