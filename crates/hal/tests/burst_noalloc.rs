@@ -1,7 +1,7 @@
 //! A board bank reading bursts (N samples of every channel a frame into the
 //! caller's `Burst`) allocates nothing per frame once the burst has its
-//! size. A counting global allocator shows it (its own test binary: the
-//! count is the whole process's). The chips are MCP3008 drivers on an SPI
+//! size. A counting global allocator shows it (the calling thread's count:
+//! the bank reads on it). The chips are MCP3008 drivers on an SPI
 //! device that answers every conversion with its channel's counts: the
 //! mock of embedded-hal-mock records, so it allocates itself.
 
@@ -78,7 +78,10 @@ fn reading_bursts_from_a_bank_does_not_allocate_per_frame() {
     // other tests) drops its frame without allocating either. So the
     // bursts are read until BURSTS were taken, however many that needs
     // (a cap only against a machine that never gives the thread 125 µs).
-    let ((ok, tries), n) = A.everywhere(|| {
+    // The bank reads on the calling thread, so its allocations are this
+    // thread's: the test harness's own threads allocate now and then on a
+    // loaded machine (4 in 121 tries seen), and are no frame's.
+    let ((ok, tries), n) = A.this_thread(|| {
         let (mut ok, mut tries) = (0u32, 0u32);
         while ok < BURSTS && tries < 100 * BURSTS {
             tries += 1;
