@@ -24,18 +24,9 @@ if [ "$which" = dock ]; then
 # chi2/dof 1.01 and 1.36 and survey warnings on a true survey, the open
 # seed-dependent misfit docs/docking.md "What is not built yet" names.
 $L sweep --scene config/scenes/dock-20hz.toml --samples 3 --seed 3 --out "$dir/dock-20hz-sweep.jsonl"
-$L calibrate --station config/stations/dock-20hz.toml --sweep "$dir/dock-20hz-sweep.jsonl" --out "$dir/dock-20hz.toml"
-{
-    cat "$dir/dock-20hz.toml"
-    cat <<'EOT'
-
-# Docking: the tracker's poses from 1 m out (its default range starts at
-# 3 m, where a single beacon's approach ends, and would call the last 2 m
-# of a docking out_of_range). Appended by tools/make-calibration.sh dock.
-[estimator.tracker]
-x_range = [1.0, 12.0]
-EOT
-} > config/calibration/dock-20hz.toml
+# calibrate --station writes the estimators' x_range from the sweeps'
+# span (1.5–8 m, a tenth wider): a docking's last metres are in range.
+$L calibrate --station config/stations/dock-20hz.toml --sweep "$dir/dock-20hz-sweep.jsonl" --out config/calibration/dock-20hz.toml
 exit 0
 fi
 if [ "$which" != sea ]; then

@@ -110,8 +110,14 @@ fn calibrate(scene: &Scene, seed: u64) -> StationFitted {
 /// calibration: the fitted array and water, the survey's placements with
 /// the fitted V1 and σ_b.
 fn tracker_of(f: &StationFitted) -> Tracker {
+    // The range `calibrate --station` writes: the sweeps' span.
+    assert!(
+        f.x_span[0] < 1.5 && f.x_span[1] > 8.0,
+        "the sweeps cover the approach: {:?}",
+        f.x_span
+    );
     let cfg = TrackerConfig {
-        x_range: [1.0, 12.0],
+        x_range: f.x_span,
         ..TrackerConfig::default()
     };
     Tracker::new(f.physical.sensor_model(), cfg)

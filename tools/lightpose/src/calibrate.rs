@@ -97,6 +97,16 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
             .with_context(|| format!("calibrating station {} ({file})", st.name))?;
         cal.physical = Some(fitted.physical);
         cal.station = Some(fitted.station);
+        // The estimators are `ok` where the light was calibrated: a
+        // docking ends far inside the single beacon's default [3, 12] m.
+        let mut e = cal.estimator.take().unwrap_or_default();
+        e.model.x_range = fitted.x_span;
+        e.tracker.x_range = fitted.x_span;
+        cal.estimator = Some(e);
+        eprintln!(
+            "  x_range: [{:.2}, {:.2}] m (the sweeps' span, for the model and the tracker)",
+            fitted.x_span[0], fitted.x_span[1]
+        );
     }
     // The error names the file.
     cal.save(&a.out).context("writing the calibration")?;

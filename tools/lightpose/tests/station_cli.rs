@@ -89,7 +89,20 @@ fn a_station_is_calibrated_from_its_sweep() {
         !err.contains("warning"),
         "a true survey is consistent: {err}"
     );
+    // The estimators are ok where the sweeps went (1.5–8 m, a tenth
+    // wider), not the single beacon's default [3, 12] m.
+    assert!(
+        err.contains("x_range: [1.36, 8.80] m (the sweeps' span"),
+        "{err}"
+    );
     let text = std::fs::read_to_string(&cal).expect("calibration");
+    let table: toml::Table = text.parse().expect("calibration TOML");
+    for part in ["model", "tracker"] {
+        let r = &table["estimator"][part]["x_range"];
+        assert_eq!(r.as_array().map(Vec::len), Some(2), "{part}: {r}");
+        let lo = r[0].as_float().unwrap_or(f64::NAN);
+        assert!((lo - 1.5 / 1.1).abs() < 1e-9, "{part}: {r}");
+    }
     for t in [
         "[physical]",
         "[station]",

@@ -1,13 +1,16 @@
 //! The ROS 2 output's cost (issue 42's bench row), printed as a table:
 //! the frame thread's part per estimate (`Ros2Out::emit`: a copy into the
-//! node's ring) and capture → received latency on loopback, the pose
-//! heard by a second participant in this process (an upper bound of
-//! capture → on the wire: it adds the receiving side's DDS).
+//! node's ring); capture → on the wire, the pose's RTPS DATA as the
+//! kernel timestamps it on loopback (a packet socket: needs root, as in
+//! `unshare -n`); and capture → received, the pose heard by a second
+//! participant in this process (that adds the receiving side's DDS).
 //!
 //! `cargo run --release -p lightposed --example ros2_cost [-- ESTIMATES [HZ]]`
 //! (default 2000 estimates at 200 Hz). Run where DDS may bind 127.0.0.1
 //! with multicast (a host's loopback, or `unshare -n` with lo set up as
 //! tests/ros2.rs does).
+
+mod wire;
 
 use lightpose_core::{Frame, PoseEstimate, Status, StdDev, NDET};
 use lightpose_logs::ros2msg::{Frames, PoseWithCovarianceStamped, POSE_TYPE};
@@ -97,6 +100,14 @@ fn main() -> anyhow::Result<()> {
     let sub = node
         .create_subscription::<PoseWithCovarianceStamped>(&topic, Some(qos))
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let sniffer = wire::Sniffer::open(&cfg.frames.beacon);
+    if let Err(e) = &sniffer {
+        eprintln!("no packet socket ({e}): capture → on the wire not measured (needs root)");
+    }
+    let sniffed = sniffer.ok().map(|s| {
+        let secs = n as f64 / hz + 4.0;
+        std::thread::spawn(move || s.collect(Duration::from_secs_f64(secs)))
+    });
     let (mut out, node_out) = lightposed::outputs::ros2::start(&cfg, None)?;
     let listener = std::thread::spawn(move || {
         let mut lat = Vec::new();
@@ -110,7 +121,10 @@ fn main() -> anyhow::Result<()> {
         lat
     });
     std::thread::sleep(Duration::from_secs(2)); // discovery
+                                                // Paced as the daemon's pacer paces frames: on a fixed schedule, so
+                                                // that the rate does not drift with the time a frame takes.
     let period = Duration::from_secs_f64(1.0 / hz);
+    let t0 = Instant::now();
     let mut cost = Vec::with_capacity(n as usize);
     for seq in 0..n {
         let acq = Acquired {
@@ -123,11 +137,16 @@ fn main() -> anyhow::Result<()> {
         let t = Instant::now();
         out.emit(&acq, &est);
         cost.push(t.elapsed().as_secs_f64() * 1e6);
-        std::thread::sleep(period);
+        let due = t0 + period * (seq as u32 + 1);
+        std::thread::sleep(due.saturating_duration_since(Instant::now()));
     }
     let mut lat = listener
         .join()
         .map_err(|_| anyhow::anyhow!("listener panicked"))?;
+    let wire = match sniffed {
+        Some(h) => h.join().map_err(|_| anyhow::anyhow!("sniffer panicked"))?,
+        None => Vec::new(),
+    };
     let s = &node_out.stats;
     println!("| ros2 output ({n} estimates at {hz} Hz) | median | p99 | max |");
     println!("|---|---|---|---|");
@@ -137,6 +156,13 @@ fn main() -> anyhow::Result<()> {
         pct(&mut cost, 1.0),
     );
     println!("| frame thread per estimate (µs) | {m:.2} | {p:.2} | {x:.2} |");
+    if wire.is_empty() {
+        println!("| capture → on the wire (µs) | not seen | | |");
+    } else {
+        let mut w = wire.clone();
+        let (m, p, x) = (pct(&mut w, 0.5), pct(&mut w, 0.99), pct(&mut w, 1.0));
+        println!("| capture → on the wire (µs) | {m:.0} | {p:.0} | {x:.0} |");
+    }
     if lat.is_empty() {
         println!("| capture → received (µs) | none received | | |");
     } else {
@@ -144,11 +170,13 @@ fn main() -> anyhow::Result<()> {
         println!("| capture → received (µs) | {m:.0} | {p:.0} | {x:.0} |");
     }
     println!(
-        "received {} of {n}; handed {}, dropped {}, published {}",
+        "on the wire {} of {n}, received {} of {n}; handed {}, dropped {}, published {}, node woken {}",
+        wire.len(),
         lat.len(),
         s.handed.load(Relaxed),
         s.handoff_dropped.load(Relaxed),
-        s.published.load(Relaxed)
+        s.published.load(Relaxed),
+        s.woken.load(Relaxed)
     );
     Ok(())
 }

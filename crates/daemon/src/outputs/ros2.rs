@@ -5,11 +5,13 @@
 //! can slow a frame:
 //! 1. the frame thread ([`Ros2Out::emit`]) copies the estimate into a
 //!    lock-free ring whose slots were allocated at start ([`super::spsc`]),
-//!    waking nobody; a full ring drops it (counted, `handoff_dropped`);
+//!    waking the node only when it finds it in a long sleep (counted,
+//!    `woken`); a full ring drops it (counted, `handoff_dropped`);
 //! 2. the node's thread polls the ring, often when the next estimate is
-//!    due and seldom otherwise ([`spsc::Cadence`]: capture → wire p99
-//!    goal 1 ms, docs/ros2.md), builds the messages and publishes them: DDS serialization, its allocations and a
-//!    reliable writer's waits happen there. STATUS comes on a channel of
+//!    due and sleeps otherwise ([`spsc::Cadence`]; capture → wire p99
+//!    goal 1 ms, docs/ros2.md), builds the messages and publishes them:
+//!    DDS serialization, its allocations and a reliable writer's waits
+//!    happen there. STATUS comes on a channel of
 //!    its own (the async side may block a moment, the frame thread not).
 //!
 //! The depth, DVL and IMU subscriptions are read by a thread of their own
@@ -69,6 +71,9 @@ pub struct Ros2Stats {
     pub write_errors: AtomicU64,
     pub diagnostics: AtomicU64,
     pub status_dropped: AtomicU64,
+    /// Estimates that found the node asleep away from their cadence and
+    /// woke it (the frame thread paid a wake-up: a few in a thousand).
+    pub woken: AtomicU64,
 }
 
 /// The node as the daemon holds it: its counters, its queue's sending end
@@ -109,6 +114,7 @@ impl Ros2Node {
             "write_errors": s.write_errors.load(Relaxed),
             "diagnostics": s.diagnostics.load(Relaxed),
             "status_dropped": s.status_dropped.load(Relaxed),
+            "woken": s.woken.load(Relaxed),
             "inputs": self.readings.as_ref().map_or(json!({}), |r| r.report()),
         })
     }
@@ -419,9 +425,9 @@ fn publish(
     }
 }
 
-/// The node's thread: polls the ring (nobody wakes it: the frame thread
-/// must not pay for a wake-up) and the STATUS channel, until the frame
-/// thread's end and the STATUS end are both gone.
+/// The node's thread: polls the ring where an estimate is due (the frame
+/// thread wakes it only out of a sleep elsewhere) and the STATUS channel,
+/// until the frame thread's end and the STATUS end are both gone.
 fn run(
     mut ring: spsc::Consumer<Handed>,
     status: &Receiver<Vec<u8>>,
@@ -430,6 +436,8 @@ fn run(
     stats: &Ros2Stats,
     site: Option<msg::SiteTf>,
 ) {
+    // Its sleeps end when asked, not up to the default 50 µs later.
+    let _ = nix::sys::prctl::set_timerslack(1_000);
     let mut site = SiteStatic { site, child: None };
     site.place(&frames.beacon, w, frames, stats);
     let mut last = msg::LastEstimate::default();
@@ -470,7 +478,9 @@ fn run(
             return;
         }
         if !any {
-            std::thread::sleep(cadence.sleep(std::time::Instant::now()));
+            if ring.wait(cadence.sleep(std::time::Instant::now())) {
+                stats.woken.fetch_add(1, Relaxed);
+            }
         }
     }
 }

@@ -277,6 +277,18 @@ impl StationFitter {
         Ok(())
     }
 
+    /// The sweeps' span of x (m) over the poses added, widened by a
+    /// tenth each way (see [`StationFitted::x_span`]).
+    fn x_span(&self) -> [f64; 2] {
+        let [lo, hi] = self
+            .groups
+            .iter()
+            .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], g| {
+                [lo.min(g.pose.x), hi.max(g.pose.x)]
+            });
+        [lo / 1.1, hi * 1.1]
+    }
+
     /// Fit the station's light to everything added, against `station`'s
     /// survey: the `[station]` table, and the `[physical]` one the
     /// estimators build their sensor model from (the shared water and
@@ -304,6 +316,7 @@ impl StationFitter {
         Ok(StationFitted {
             station: survey::calibration(&data, station, &fit, o),
             physical: data.physical_of(&fit, o),
+            x_span: self.x_span(),
         })
     }
 }
@@ -313,4 +326,11 @@ impl StationFitter {
 pub struct StationFitted {
     pub station: StationCalibration,
     pub physical: super::PhysicalCalibration,
+    /// The estimators' `x_range` (m): the nearest and farthest distance
+    /// along the station's axis that the sweeps covered, where the fitted
+    /// light is known, widened by a tenth each way so that an approach
+    /// that starts or ends at a sweep's edge does not flicker
+    /// `out_of_range` on its noise (a docking ends far inside a single
+    /// beacon's default 3 m).
+    pub x_span: [f64; 2],
 }
