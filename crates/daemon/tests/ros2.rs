@@ -374,6 +374,14 @@ fn bad_ros2_inputs_are_counted_and_frames_go_on() {
     // the String samples would add 3 more had they matched.
     let malformed = a["rejected_by"]["malformed"].as_u64().expect("malformed");
     assert!((3..=4).contains(&malformed), "{a}");
+    // The String writer is never matched (Cyclone compares type names),
+    // but discovery names it.
+    let other = &status["ros2"]["other_type_writers"];
+    assert_eq!(
+        other,
+        &serde_json::json!(["rt/imu/data: std_msgs::msg::dds_::String_"]),
+        "{other}"
+    );
     for (name, want) in [
         ("depth", &sent["sent"]["depth"]),
         ("dvl", &sent["sent"]["dvl"]),

@@ -70,7 +70,7 @@ impl Sniffer {
         };
         // SAFETY: SIOCGSTAMPNS writes one timespec.
         let r = unsafe { libc::ioctl(self.sock.as_raw_fd(), SIOCGSTAMPNS, &mut ts) };
-        (r == 0).then(|| ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9)
+        (r == 0).then_some(ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9)
     }
 
     /// The stamps of the poses in one loopback frame (Ethernet, IPv4,

@@ -277,6 +277,8 @@ pub enum DepthSub {
 
 /// What the node's input thread reads.
 pub struct Subs {
+    /// Writers of another type on these topics, looked for in discovery.
+    pub watch: Option<OtherTypes>,
     /// The IMU, its attitude cell and the beacon axis' heading (degrees).
     pub imu: Option<(Sub<lightpose_logs::ros2msg::Imu>, Arc<AttitudeCell>, f64)>,
     pub depth: Option<DepthSub>,
@@ -349,9 +351,50 @@ fn round(s: &Subs) -> bool {
     any
 }
 
+/// Writers on an input's topic whose type is not the input's. Cyclone,
+/// Fast DDS and Connext match by type name and send such a reader
+/// nothing, so no sample shows them; discovery (SEDP) does: each one is
+/// logged once and named in STATUS `ros2.other_type_writers`.
+pub struct OtherTypes {
+    pub participant: ros2_client::dds::rustdds::DomainParticipant,
+    /// (DDS topic name, the DDS type name the input reads).
+    pub topics: Vec<(String, String)>,
+    /// "rt/imu/data: std_msgs::msg::dds_::String_", each once.
+    pub found: Arc<std::sync::Mutex<Vec<String>>>,
+}
+
+impl OtherTypes {
+    /// The input topic `ros_name` (absolute) read as `t`.
+    pub fn topic(ros_name: &str, t: lightpose_logs::ros2msg::TypeName) -> (String, String) {
+        (format!("rt{ros_name}"), t.dds())
+    }
+
+    fn look(&self) {
+        for w in self.participant.discovered_writers() {
+            let d = &w.publication_topic_data;
+            let Some((_, want)) = self.topics.iter().find(|(n, _)| *n == d.topic_name) else {
+                continue;
+            };
+            if d.type_name == *want {
+                continue;
+            }
+            let seen = format!("{}: {}", d.topic_name, d.type_name);
+            let mut found = self.found.lock().unwrap_or_else(|p| p.into_inner());
+            if !found.contains(&seen) {
+                tracing::warn!(
+                    "ros2: a writer of {} on {} (the input reads {want}): not matched, its samples never arrive",
+                    d.type_name,
+                    d.topic_name
+                );
+                found.push(seen);
+            }
+        }
+    }
+}
+
 /// The input thread, when any input is configured: every topic polled
-/// each 2 ms (an IMU at 100 Hz is read within 2 ms of its sample), until
-/// `closed`.
+/// each 2 ms (an IMU at 100 Hz is read within 2 ms of its sample), and
+/// discovery once a second for writers of another type, until `closed`.
 pub fn spawn(subs: Subs, closed: Arc<AtomicBool>) -> std::io::Result<Option<JoinHandle<()>>> {
     if !subs.any() {
         return Ok(None);
@@ -359,7 +402,14 @@ pub fn spawn(subs: Subs, closed: Arc<AtomicBool>) -> std::io::Result<Option<Join
     std::thread::Builder::new()
         .name("lightposed-ros2-in".into())
         .spawn(move || {
+            let mut looked: Option<Instant> = None;
             while !closed.load(Relaxed) {
+                if let Some(w) = &subs.watch {
+                    if looked.is_none_or(|t| t.elapsed() >= Duration::from_secs(1)) {
+                        w.look();
+                        looked = Some(Instant::now());
+                    }
+                }
                 if !round(&subs) {
                     std::thread::sleep(Duration::from_millis(2));
                 }

@@ -31,7 +31,7 @@ use crate::config::ros2::{QosKind, Ros2};
 use crate::config::ros2in::DepthKind;
 use crate::engine::Acquired;
 use crate::inputs::attitude::AttitudeCell;
-use crate::inputs::ros2_readings::{DepthSub, Ros2Readings, Subs};
+use crate::inputs::ros2_readings::{DepthSub, OtherTypes, Ros2Readings, Subs};
 use lightpose_core::PoseEstimate;
 use lightpose_logs::ros2msg::{self as msg, Frames};
 use ros2_client::qos::{Durability, History, WhenFull};
@@ -74,6 +74,8 @@ pub struct Ros2Stats {
     /// Estimates that found the node asleep away from their cadence and
     /// woke it (the frame thread paid a wake-up: a few in a thousand).
     pub woken: AtomicU64,
+    /// Writers of another type on an input's topic (discovery's names).
+    pub other_type_writers: Arc<std::sync::Mutex<Vec<String>>>,
 }
 
 /// The node as the daemon holds it: its counters, its queue's sending end
@@ -115,6 +117,10 @@ impl Ros2Node {
             "diagnostics": s.diagnostics.load(Relaxed),
             "status_dropped": s.status_dropped.load(Relaxed),
             "woken": s.woken.load(Relaxed),
+            "other_type_writers": s
+                .other_type_writers
+                .lock()
+                .map_or_else(|p| p.into_inner().clone(), |v| v.clone()),
             "inputs": self.readings.as_ref().map_or(json!({}), |r| r.report()),
         })
     }
@@ -181,7 +187,7 @@ fn profile(kind: QosKind, depth: usize) -> QosProfile {
 /// The participant, its node and its writers, owned by the node's thread.
 struct Writers {
     // Kept: dropping them ends the participant.
-    _context: Context,
+    context: Context,
     _node: ros2_client::dds::Node,
     pose: ros2_client::dds::Publisher<msg::PoseWithCovarianceStamped>,
     odom: ros2_client::dds::Publisher<msg::Odometry>,
@@ -283,8 +289,28 @@ fn writers(cfg: &Ros2) -> Result<Writers, Ros2Error> {
             .create_publisher(&d_t, Some(d_q))
             .map_err(dds("diagnostics"))?,
         _node: node,
-        _context: context,
+        context,
     })
+}
+
+/// The input topics and the types they are read as (DDS names).
+fn input_topics(cfg: &Ros2) -> Vec<(String, String)> {
+    let mut v = Vec::new();
+    if let Some(i) = &cfg.imu {
+        v.push(OtherTypes::topic(&i.topic, msg::IMU_TYPE));
+    }
+    if let Some(d) = &cfg.depth {
+        let t = if d.kind == DepthKind::Pose {
+            msg::POSE_TYPE
+        } else {
+            msg::FLUID_PRESSURE_TYPE
+        };
+        v.push(OtherTypes::topic(&d.topic, t));
+    }
+    if let Some(d) = &cfg.dvl {
+        v.push(OtherTypes::topic(&d.topic, msg::TWIST_TYPE));
+    }
+    v
 }
 
 /// Open the participant (refused here, before the frame thread, if it
@@ -311,7 +337,13 @@ pub fn start(
         .name("lightposed-ros2".into())
         .spawn(move || match writers(&c) {
             Ok(mut w) => {
+                let watch = input_topics(&c);
                 let subs = Subs {
+                    watch: (!watch.is_empty()).then(|| OtherTypes {
+                        participant: w.context.domain_participant(),
+                        topics: watch,
+                        found: st.other_type_writers.clone(),
+                    }),
                     imu: match (w.imu.take(), cell, &c.imu) {
                         (Some(sub), Some(cell), Some(i)) => {
                             Some((sub, cell, i.beacon_axis_heading_deg))
@@ -477,10 +509,8 @@ fn run(
         if producer_gone && status_gone {
             return;
         }
-        if !any {
-            if ring.wait(cadence.sleep(std::time::Instant::now())) {
-                stats.woken.fetch_add(1, Relaxed);
-            }
+        if !any && ring.wait(cadence.sleep(std::time::Instant::now())) {
+            stats.woken.fetch_add(1, Relaxed);
         }
     }
 }
