@@ -240,8 +240,7 @@ fn writers(cfg: &Ros2) -> Result<Writers, Ros2Error> {
         .map(|i| sub(&i.topic, msg::IMU_TYPE))
         .transpose()?;
     let depth_t = match &cfg.depth {
-        Some(d) if d.kind == DepthKind::Pose => Some((sub(&d.topic, msg::POSE_TYPE)?, d.kind)),
-        Some(d) => Some((sub(&d.topic, msg::FLUID_PRESSURE_TYPE)?, d.kind)),
+        Some(d) => Some((sub(&d.topic, depth_type(d.kind))?, d.kind)),
         None => None,
     };
     let dvl_t = cfg
@@ -293,6 +292,14 @@ fn writers(cfg: &Ros2) -> Result<Writers, Ros2Error> {
     })
 }
 
+/// The message a depth input reads.
+fn depth_type(kind: DepthKind) -> msg::TypeName {
+    match kind {
+        DepthKind::Pose => msg::POSE_TYPE,
+        DepthKind::FluidPressure { .. } => msg::FLUID_PRESSURE_TYPE,
+    }
+}
+
 /// The input topics and the types they are read as (DDS names).
 fn input_topics(cfg: &Ros2) -> Vec<(String, String)> {
     let mut v = Vec::new();
@@ -300,12 +307,7 @@ fn input_topics(cfg: &Ros2) -> Vec<(String, String)> {
         v.push(OtherTypes::topic(&i.topic, msg::IMU_TYPE));
     }
     if let Some(d) = &cfg.depth {
-        let t = if d.kind == DepthKind::Pose {
-            msg::POSE_TYPE
-        } else {
-            msg::FLUID_PRESSURE_TYPE
-        };
-        v.push(OtherTypes::topic(&d.topic, t));
+        v.push(OtherTypes::topic(&d.topic, depth_type(d.kind)));
     }
     if let Some(d) = &cfg.dvl {
         v.push(OtherTypes::topic(&d.topic, msg::TWIST_TYPE));
