@@ -64,6 +64,7 @@ pub fn station_of(s: &Scene) -> Vec<BeaconLight> {
             v1: b.v1,
             sigma_b: b.sigma_b,
             place: Placement::new(b.position_m, b.axis_yaw, b.axis_pitch),
+            model_rel: lightpose_pipeline::model::measurement::AMPLITUDE_MODEL_REL,
         })
         .collect()
 }

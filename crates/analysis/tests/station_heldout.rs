@@ -7,7 +7,7 @@
 //! tracker built from that calibration — not from the scene — flies the
 //! approach of `station_track.rs` (8 → 1.5 m with roll, pitch, yaw and y/z
 //! offsets), simulated sample by sample and demodulated, light alone and
-//! with the attitude and depth sensors. p95 and ±2σ coverage per axis over
+//! with the attitude and depth sensors, each eight runs. p95 and ±2σ coverage per axis over
 //! x 5 → 1.5 m against issue 41's goals, printed with `--nocapture`;
 //! docs/docking.md has the table and what is not met.
 
@@ -25,6 +25,11 @@ use lightpose_pipeline::calibration::{
 use lightpose_pipeline::model::tracker::Tracker;
 use lightpose_pipeline::settings::TrackerConfig;
 use lightpose_sim::{Scene, SweepKind, SweepPlan};
+
+/// Runs per sensor set (HELDOUT_RUNS=20 for a longer measure): each has
+/// ~70 frames in the window, strongly correlated, and three runs put a
+/// coverage of 96 % anywhere in 93–99 %.
+const RUNS: u64 = 8;
 
 fn dock_example() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -135,14 +140,26 @@ fn a_held_out_station_calibrated_from_its_logs_docks_on_that_calibration() {
     );
     for (b, t) in f.station.beacons.iter().zip(&sweep_scene.beacons) {
         println!(
-            "  {}: V1 {:.4} ± {:.4} (truth {:.4} before the gains' mean), σ_b {:.3}° ± {:.3}° (truth {})",
+            "  {}: V1 {:.4} ± {:.4} (truth {:.4} before the gains' mean), σ_b {:.3}° ± {:.3}° (truth {}), model error {:.2} %",
             b.id,
             b.v1.value,
             b.v1.std,
             t.v1,
             b.sigma_b_deg.value,
             b.sigma_b_deg.std,
-            t.sigma_b.deg()
+            t.sigma_b.deg(),
+            100.0 * b.model_rel
+        );
+    }
+    // The simulator's light is the model's: what the fit finds wrong is
+    // the noise's chance and what it does not know, well under the fixed
+    // 2 % it replaces.
+    for b in &f.station.beacons {
+        assert!(
+            b.model_rel > 0.0 && b.model_rel < 0.012,
+            "{}: {}",
+            b.id,
+            b.model_rel
         );
     }
     assert!(
@@ -162,7 +179,13 @@ fn a_held_out_station_calibrated_from_its_logs_docks_on_that_calibration() {
     ];
     for (what, sensors, goals, seed) in cases {
         let s = held_out(sensors);
-        let runs: Vec<_> = (0..3).map(|k| fly(&s, seed + k, tracker_of(&f))).collect();
+        let nruns: u64 = std::env::var("HELDOUT_RUNS")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(RUNS);
+        let runs: Vec<_> = (0..nruns)
+            .map(|k| fly(&s, seed + k, tracker_of(&f)))
+            .collect();
         let (p95, cover, ok) = measure(&runs);
         table(
             &format!("held-out station on its calibration, {what}"),
@@ -174,11 +197,16 @@ fn a_held_out_station_calibrated_from_its_logs_docks_on_that_calibration() {
         assert!(ok > 0.9, "{what}: ok {ok}");
         for i in 0..6 {
             assert!(p95[i] <= goals[i], "{what} {}: p95 {}", NAMES[i], p95[i]);
-            // The goal's 90–98 %: met from below; above 98 % on some axes
-            // (the σ a little wide near the dock, where the 2 % model
-            // error outweighs the noise, as on dock-example's own model:
-            // docs/docking.md), which is reported, not asserted away.
-            assert!(cover[i] >= 0.9, "{what} {}: ±2σ {}", NAMES[i], cover[i]);
+            // The goal's 90–98 %, now every axis is observed: the σ
+            // rests on each beacon's model error as its calibration
+            // measured it (with the fixed 2 % it was 98.5–99.1 % over 20
+            // runs on five axes: docs/docking.md).
+            assert!(
+                (0.9..=0.98).contains(&cover[i]),
+                "{what} {}: ±2σ {}",
+                NAMES[i],
+                cover[i]
+            );
         }
     }
 }

@@ -226,6 +226,21 @@ fn a_survey_error_is_reported_not_absorbed() {
         let b = by_id(id);
         assert!(!b.survey_check.suspect, "{}", b.survey_check.note);
     }
+    // The error the estimators will carry for each beacon: a wrong survey
+    // is a model error of that beacon's images (the survey unchanged), so
+    // the two surveyed wrong carry more than the two surveyed right.
+    for b in &f.station.beacons {
+        eprintln!("{}: model error {:.2} %", b.id, 100.0 * b.model_rel);
+    }
+    let right = by_id("top").model_rel.max(by_id("port").model_rel);
+    for b in [star, bottom] {
+        assert!(
+            b.model_rel > 2.0 * right,
+            "{}: {} vs {right}",
+            b.id,
+            b.model_rel
+        );
+    }
 }
 
 #[test]

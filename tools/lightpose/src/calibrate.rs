@@ -169,10 +169,11 @@ fn print_station(st: &StationCalibration) {
     );
     for b in &st.beacons {
         eprintln!(
-            "    {:<10} V1 = {} V·m²  sigma_b = {} deg",
+            "    {:<10} V1 = {} V·m²  sigma_b = {} deg  model error {:.2} %",
             b.id,
             pm(&b.v1),
-            pm(&b.sigma_b_deg)
+            pm(&b.sigma_b_deg),
+            100.0 * b.model_rel
         );
     }
     for b in &st.beacons {

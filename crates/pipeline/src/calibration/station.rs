@@ -236,6 +236,17 @@ pub struct CalibratedBeacon {
     pub v1: ParamEstimate,
     pub sigma_b_deg: ParamEstimate,
     pub survey_check: SurveyCheck,
+    /// The relative model error of this beacon's images that the fit's
+    /// residuals allow (`station_fit::model_error`), which the estimators
+    /// add beside the demodulator's σ. A calibration written before it
+    /// was measured reads as the fixed 2 %
+    /// (`measurement::AMPLITUDE_MODEL_REL`).
+    #[serde(default = "unmeasured_model_rel")]
+    pub model_rel: f64,
+}
+
+fn unmeasured_model_rel() -> f64 {
+    crate::model::measurement::AMPLITUDE_MODEL_REL
 }
 
 /// The calibration file's `[station]` table.
@@ -281,12 +292,14 @@ impl StationCalibration {
                 v1: b.v1.value,
                 sigma_b: Angle::from_deg(b.sigma_b_deg.value),
                 place: s.placement(),
+                model_rel: b.model_rel,
             })
             .collect()
     }
 
     /// A loaded table: the survey's checks, and fitted values that a light
-    /// equation can take (V1 > 0, σ_b a width, σ finite ≥ 0); (key, why).
+    /// equation can take (V1 > 0, σ_b a width, σ finite ≥ 0, a model
+    /// error in [0, 1]); (key, why).
     pub fn check(&self) -> Result<(), (String, String)> {
         self.survey().check().map_err(|(nth, k, m)| match nth {
             Some(i) => (format!("beacons #{} {k}", i + 1), m),
@@ -303,6 +316,12 @@ impl StationCalibration {
                 return Err((
                     key("sigma_b_deg"),
                     format!("{:?} is not a beam width ± σ", b.sigma_b_deg),
+                ));
+            }
+            if !(0.0..=1.0).contains(&b.model_rel) {
+                return Err((
+                    key("model_rel"),
+                    format!("{} is not a relative error in [0, 1]", b.model_rel),
                 ));
             }
         }

@@ -24,6 +24,7 @@ use super::physical_fit::{CalibError, ScatterFit};
 use super::station::{Station, StationCalibration};
 use crate::model::measurement::AMPLITUDE_MODEL_REL;
 
+mod model_error;
 mod problem;
 mod survey;
 

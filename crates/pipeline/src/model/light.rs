@@ -201,12 +201,20 @@ impl Placement {
 
 /// One beacon of a station as the light equation sees it: its own V1 and
 /// σ_b (the sensor model's σ_R, scattering and K_D are the water's and the
-/// array's, shared by every beacon), and where it stands.
+/// array's, shared by every beacon), where it stands, and how far its
+/// image may be off the light equation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BeaconLight {
     pub v1: f64,
     pub sigma_b: Angle,
     pub place: Placement,
+    /// The image's model error relative to the light predicted for it
+    /// (what the estimators add beside the demodulator's σ): what the
+    /// station's calibration measured from its residuals
+    /// (`CalibratedBeacon::model_rel`), or
+    /// [`AMPLITUDE_MODEL_REL`](crate::model::measurement::AMPLITUDE_MODEL_REL)
+    /// where nothing measured it (a scene's own beacons).
+    pub model_rel: f64,
 }
 
 /// As [`predict_rolled`] for one beacon of a station (`None`: the sensor
@@ -639,6 +647,7 @@ mod tests {
                 Angle::from_deg(-5.0),
                 Angle::from_deg(3.0),
             ),
+            model_rel: crate::model::measurement::AMPLITUDE_MODEL_REL,
         }
     }
 
@@ -745,6 +754,7 @@ mod tests {
             v1: m.light.v1,
             sigma_b: m.light.sigma_b,
             place: Placement::new([0.0; 3], Angle::ZERO, Angle::ZERO),
+            model_rel: crate::model::measurement::AMPLITUDE_MODEL_REL,
         };
         assert!(b.place.is_origin());
         let q = PoseVec::new(6.2, 0.3, -0.2, 0.1, -0.15);

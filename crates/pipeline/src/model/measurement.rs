@@ -30,8 +30,10 @@ pub const BEACON: u8 = 0;
 /// it; an amplitude is about 7× less noisy, and without it the tracker on
 /// a blinking beacon claimed σ it did not have (held-out harbour approach:
 /// ±2σ coverage x 66 %, y 79 %, 14.6 % of `ok` poses beyond 3σ; with 2 %:
-/// 93 / 96 %, 0.8 %, and p95 no worse). Set on that run: a calibration's own
-/// residuals would be the better source.
+/// 93 / 96 %, 0.8 %, and p95 no worse). Set on that run; a station's
+/// calibration measures each beacon's own from its residuals
+/// (`BeaconLight::model_rel`), and this is what is assumed where nothing
+/// measured it (one beacon, a scene's own station, an older calibration).
 pub const AMPLITUDE_MODEL_REL: f64 = 0.02;
 
 #[derive(Debug, Clone, Copy, PartialEq)]

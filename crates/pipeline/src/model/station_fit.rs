@@ -8,7 +8,7 @@
 //! does not see in line make roll observable, three give the whole pose
 //! from one frame. The fit is weighted Levenberg–Marquardt over the six
 //! coordinates on every seen beacon's image, with the demodulator's σ and
-//! the amplitude's model error (`measurement::AMPLITUDE_MODEL_REL`), and
+//! each beacon's model error (`BeaconLight::model_rel`), and
 //! the vehicle's own readings (attitude, depth) as priors when it has
 //! them. Nothing is allocated: the normal equations are 6 × 6.
 //!
@@ -27,7 +27,6 @@ use lightpose_core::{Amplitudes, BeaconAmplitude, NDET};
 use nalgebra::{SMatrix, SVector};
 
 use super::light::{predict_beacon, predict_beacon_with_grad, BeaconLight, PoseVec};
-use super::measurement::AMPLITUDE_MODEL_REL;
 use super::SensorModel;
 
 /// The fit's coordinates: x, y, z (m), θ, ψ, φ (rad).
@@ -159,7 +158,7 @@ fn normal<const GRAD: bool>(
             }
             // The prediction's amplitude: the count less the dark level.
             let model = pred[k] - m.offset_v[k] * cpv;
-            let e = AMPLITUDE_MODEL_REL * model;
+            let e = beacon.model_rel * model;
             let w = 1.0 / (s * s + e * e);
             let r = a - model;
             n.cost += w * r * r;

@@ -37,6 +37,9 @@ pub(super) struct Obs {
     pub se: f64,
     /// The demodulator's variance of one frame's amplitude (counts²).
     var: f64,
+    /// The mean's variance from that noise alone (`se` less the model's
+    /// error).
+    pub noise_var: f64,
 }
 
 /// The fit's data: per-pose means and the survey they are fitted against.
@@ -58,6 +61,9 @@ pub(super) struct Fitted {
     pub p: Vec<f64>,
     pub r: DVector<f64>,
     pub cov: DMatrix<f64>,
+    /// Each observation's predicted amplitude's variance from `cov`
+    /// (counts²): what the fitted parameters do not know there.
+    pub pred_var: DVector<f64>,
     pub cost: f64,
     pub chi2_per_dof: f64,
 }
@@ -130,6 +136,7 @@ impl Data {
                         mean,
                         se: standard_error(var, n, mean, o.model_rel),
                         var,
+                        noise_var: standard_error(var, n, mean, 0.0).powi(2),
                     });
                 }
             }
@@ -213,6 +220,8 @@ impl Data {
             v1: p[l.v1(b)],
             sigma_b: Angle::from_rad(p[l.sigma_b(b)]),
             place,
+            // The fit weighs its means by `StationFitOptions::model_rel`.
+            model_rel: 0.0,
         }
     }
 
@@ -433,11 +442,21 @@ impl Data {
         if chi2_per_dof > 1.0 {
             cov *= chi2_per_dof;
         }
+        // J·C·Jᵀ's diagonal, J's rows in units of each observation's σ.
+        let jc = &lm.jac * &cov;
+        let pred_var = DVector::from_iterator(
+            self.obs.len(),
+            self.obs
+                .iter()
+                .enumerate()
+                .map(|(i, ob)| jc.row(i).dot(&lm.jac.row(i)) * ob.se * ob.se),
+        );
         Ok(Fitted {
             scat,
             p: lm.p,
             r: lm.r,
             cov,
+            pred_var,
             cost: lm.cost,
             chi2_per_dof,
         })

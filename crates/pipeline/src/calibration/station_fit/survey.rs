@@ -36,6 +36,7 @@ pub(super) fn calibration(
             v1: Data::estimate(f, l.v1(b), 1.0),
             sigma_b_deg: Data::estimate(f, l.sigma_b(b), deg),
             survey_check: check(data, f, b, &s.id, diag.as_ref()),
+            model_rel: super::model_error::model_rel(data, f, b),
         })
         .collect();
     StationCalibration {

@@ -35,7 +35,6 @@ use super::readings::FrameReadings;
 use super::state::{k_d_of, Ms, State, Vs, KD, NS, ROLL};
 use super::Tracker;
 use crate::model::light::{predict_beacon_with_grad, BeaconLight, PoseVec};
-use crate::model::measurement::AMPLITUDE_MODEL_REL;
 use crate::model::station_fit::{fit_station, image_snr2, seen_beacons, Pose6, StationPriors};
 
 /// Roll's 1σ about level (degrees) when fewer than two beacons are seen,
@@ -179,7 +178,7 @@ impl Tracker {
             // The prediction's amplitude: the count less the dark level,
             // with the light model's own error beside the demodulator's σ.
             let model = pred[k] - m.offset_v[k] * cpv;
-            let e = AMPLITUDE_MODEL_REL * model;
+            let e = b.model_rel * model;
             r[(k, k)] = sd * sd + e * e;
             y[k] = a - model;
             for j in 0..5 {
