@@ -249,8 +249,14 @@ fn framing_for_subscribed_clients_does_not_allocate_per_message() {
     live.hub.close();
     eprintln!("hub: {few} allocations for 200 messages to 3 clients, {many} for 2000; {r}");
     assert!(r["sent"].as_u64() > Some(3000), "{r}");
+    // Framed messages share 64 KiB blocks; one is taken back once its
+    // clients have written every message in it. A client that lags (its
+    // task starved on a loaded host) holds its blocks, and the next is then
+    // new: at most one allocation per block filled (about 30 here, 8–11
+    // seen under load), never one per message (6000 here).
+    let blocks = (2000 * 3 * (13 + data.len() as u64)).div_ceil(64 << 10);
     assert!(
-        many <= few + 8,
-        "{few} allocations for 200 messages, {many} for 2000"
+        many <= few + blocks,
+        "{few} allocations for 200 messages, {many} for 2000 ({blocks} blocks filled)"
     );
 }
