@@ -23,7 +23,7 @@ use lightpose_pipeline::calibration::{
     fit_station_sweeps, Station, StationFitOptions, StationFitted,
 };
 use lightpose_pipeline::model::tracker::Tracker;
-use lightpose_pipeline::settings::TrackerConfig;
+use lightpose_pipeline::settings::EstimatorSettings;
 use lightpose_sim::{Scene, SweepKind, SweepPlan};
 
 /// Runs per sensor set (HELDOUT_RUNS=20 for a longer measure): each has
@@ -115,16 +115,13 @@ fn calibrate(scene: &Scene, seed: u64) -> StationFitted {
 /// calibration: the fitted array and water, the survey's placements with
 /// the fitted V1 and σ_b.
 fn tracker_of(f: &StationFitted) -> Tracker {
-    // The range `calibrate --station` writes: the sweeps' span.
+    // The settings `calibrate --station` writes (the sweeps' span).
     assert!(
         f.x_span[0] < 1.5 && f.x_span[1] > 8.0,
         "the sweeps cover the approach: {:?}",
         f.x_span
     );
-    let cfg = TrackerConfig {
-        x_range: f.x_span,
-        ..TrackerConfig::default()
-    };
+    let cfg = f.estimator_settings(EstimatorSettings::default()).tracker;
     Tracker::new(f.physical.sensor_model(), cfg)
         .expect("tracker")
         .with_station(f.station.beacon_lights())

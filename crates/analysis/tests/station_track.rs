@@ -94,6 +94,51 @@ fn a_docking_approach_with_attitude_and_depth() {
     }
 }
 
+/// Water other than the calibration's (K_D 0.2 + 0.01), the tracker told
+/// a doubt of 0.015 (MODEL.md's Monte Carlo spread), with attitude and
+/// depth: a station's tracker learns K_D from its light (the beacons'
+/// geometry gives the range), so its σ covers the water's error on every
+/// axis and x, y stay within the light-alone goals. The sensors' own goals
+/// (x .05, y .03 m) are not asked here: in water known only to ±0.015 the
+/// track bound at 5 m is 0.088 and 0.051 m (docs/docking.md). Held as a
+/// consider doubt instead (tried): x p95 0.083, y 0.056 m, yaw 0.78°;
+/// learnt 0.072, 0.045 m, 0.49°.
+#[test]
+fn in_other_water_the_station_s_tracker_learns_k_d() {
+    let truth = {
+        let mut s = dock(true);
+        s.light.k_d += 0.01;
+        s
+    };
+    let told = |scene: &Scene| {
+        let cfg = TrackerConfig {
+            x_range: [1.0, 12.0],
+            k_d_sigma: Some(0.015),
+            ..TrackerConfig::default()
+        };
+        Tracker::new(sensor_of(scene), cfg)
+            .expect("tracker")
+            .with_station(station_of(scene))
+    };
+    let runs: Vec<_> = (0..3)
+        .map(|k| approach::fly(&truth, 300 + k, told(&dock(true))))
+        .collect();
+    let (p95, cover, ok) = measure(&runs);
+    let goals = [0.1, 0.05, 0.05, 1.0, 1.0, 1.0];
+    table(
+        "other water (K_D +0.01), told ±0.015, with attitude and depth",
+        &p95,
+        &cover,
+        &goals,
+        ok,
+    );
+    assert!(ok > 0.9, "ok {ok}");
+    for i in 0..6 {
+        assert!(p95[i] <= goals[i], "{}: p95 {}", NAMES[i], p95[i]);
+        assert!(cover[i] >= 0.9, "{}: ±2σ {}", NAMES[i], cover[i]);
+    }
+}
+
 /// "bottom" off from 6 to 9 s (x 5 → 3.5 m): three seen meanwhile, no
 /// step of the track beyond 3σ of the truth's step, four again after and
 /// the whole pose.

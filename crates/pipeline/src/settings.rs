@@ -305,7 +305,10 @@ pub struct TrackerConfig {
     /// The tracker holds ln K_D, with this doubt as σ/K_D (its first-order
     /// spread), so no sigma point is a water with K_D < 0; a doubt wider
     /// than a quarter of K_D is a bank of waters (`water_bank`) spread
-    /// over ±2 ln(1 + σ/K_D), which reaches K_D + σ at +1σ.
+    /// over ±2 ln(1 + σ/K_D), which reaches K_D + σ at +1σ. On a
+    /// docking station's light a doubt wider than the calibration's is
+    /// estimated, as `estimate_k_d` does: the beacons' geometry gives the
+    /// range, so the light tells K_D (docs/docking.md).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub k_d_sigma: Option<f64>,
     /// 1σ by which the frames' temperature may be off the photodiodes'

@@ -95,14 +95,10 @@ pub fn run(a: CalibrateArgs) -> anyhow::Result<()> {
         };
         let (fitted, _) = fit_station_sweeps(&a.sweeps, st, text, file, &o)
             .with_context(|| format!("calibrating station {} ({file})", st.name))?;
+        let e = fitted.estimator_settings(cal.estimator.take().unwrap_or_default());
+        cal.estimator = Some(e);
         cal.physical = Some(fitted.physical);
         cal.station = Some(fitted.station);
-        // The estimators are `ok` where the light was calibrated: a
-        // docking ends far inside the single beacon's default [3, 12] m.
-        let mut e = cal.estimator.take().unwrap_or_default();
-        e.model.x_range = fitted.x_span;
-        e.tracker.x_range = fitted.x_span;
-        cal.estimator = Some(e);
         eprintln!(
             "  x_range: [{:.2}, {:.2}] m (the sweeps' span, for the model and the tracker)",
             fitted.x_span[0], fitted.x_span[1]

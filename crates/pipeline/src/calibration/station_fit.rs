@@ -335,3 +335,19 @@ pub struct StationFitted {
     /// beacon's default 3 m).
     pub x_span: [f64; 2],
 }
+
+impl StationFitted {
+    /// The estimators' settings for this station, from `base` (the
+    /// calibration's, or the defaults): `x_range` the sweeps' span
+    /// ([`Self::x_span`]), so that they are `ok` where the light was
+    /// calibrated (a docking ends far inside a single beacon's default
+    /// [3, 12] m).
+    pub fn estimator_settings(
+        &self,
+        mut base: crate::settings::EstimatorSettings,
+    ) -> crate::settings::EstimatorSettings {
+        base.model.x_range = self.x_span;
+        base.tracker.x_range = self.x_span;
+        base
+    }
+}

@@ -113,6 +113,10 @@ pub struct Tracker {
     paper: Option<PaperRange>,
     /// K_D's doubt in use: the setting, else the model's own.
     k_d_sigma: f64,
+    /// The setting's doubt is wider than the calibration's own (the water
+    /// is said to differ from the sweep's): a station's tracker then
+    /// estimates K_D (`start::started_state`).
+    k_d_told_wider: bool,
     state: Option<State>,
     /// The reading check's windows (about the sensors: kept across
     /// restarts).
@@ -157,6 +161,7 @@ impl Tracker {
                     .into(),
             ));
         }
+        let k_d_told_wider = cfg.k_d_sigma.is_some_and(|s| s > model.k_d_sigma);
         let k_d_sigma = *cfg.k_d_sigma.get_or_insert(model.k_d_sigma);
         cfg.validate()?;
         let init_cfg = ModelConfig {
@@ -178,6 +183,7 @@ impl Tracker {
             init,
             paper: None,
             k_d_sigma,
+            k_d_told_wider,
             state: None,
             agreement: Default::default(),
             offsets: offsets::Offsets::new(&cfg),
