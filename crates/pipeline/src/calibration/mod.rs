@@ -21,6 +21,7 @@
 //! the numbers.
 
 mod dark;
+mod feature;
 pub mod file;
 
 /// How far apart two truth values may be and still be the same pose of a

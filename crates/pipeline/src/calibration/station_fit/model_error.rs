@@ -20,6 +20,9 @@
 //!   uncertainty carried into the prediction (J·C·Jᵀ), relative to the
 //!   light, weighted by it (the bright channels are those a pose leans on).
 
+// `!(a > b)` is deliberate: it is true for NaN, which must give 0.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use super::problem::{Data, Fitted};
 
 /// ρ of beacon `b` in fit `f` (at most 1).
