@@ -9,6 +9,7 @@ pub mod inbound;
 pub mod link;
 pub mod outbound;
 pub mod scan;
+mod sender;
 pub mod signing;
 mod skips;
 pub mod task;

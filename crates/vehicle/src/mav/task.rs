@@ -7,19 +7,15 @@ use super::counters::{AutopilotId, LastError, NetOp, SigningStatus};
 use super::inbound::{
     interpret, is_autopilot_heartbeat, origin, Input, InputConfig, Refusal, Refused,
 };
-use super::link::{Endpoint, Link, PeerChange, Sent, PEER_SILENCE};
-use super::outbound::{
-    heartbeat, monotonic_ns, timesync_reply, vision_position, vision_speed, Encoder, OutputConfig,
-    Skip,
-};
+use super::link::{Endpoint, Link, PeerChange, PEER_SILENCE};
+use super::outbound::{heartbeat, monotonic_ns, timesync_reply, OutputConfig};
 use super::scan::{Framing, RawFrame, Scanned, Scanner};
+use super::sender::Sender;
 use super::signing::{Rejected, Signer, SigningConfig};
-use super::skips::SkipLog;
 use crate::backoff::Backoff;
 use crate::ned::Site;
 use crate::Hub;
 use lightpose_core::ratelog::{Close, RateLog};
-use mavlink::dialects::ardupilotmega::MavMessage;
 use std::future::Future;
 use std::io;
 use std::net::SocketAddr;
@@ -583,125 +579,6 @@ fn take(
     // Before the system is known only a HEARTBEAT passes `origin`, and
     // one of a GCS or a companion is not the autopilot's.
     ap.system.is_some()
-}
-
-/// The sending side: the encoder with its sequence numbers, the rate
-/// limit's memory, the outbox version last taken and the skips' log.
-struct Sender {
-    enc: Encoder,
-    seen: u64,
-    last_pos_t: Option<f64>,
-    last_sent: Option<Instant>,
-    pos_skips: SkipLog,
-    speed_skips: SkipLog,
-    /// UDP send errors (an autopilot gone: ICMP port unreachable), by the
-    /// rule for repeated lines; before, counted in STATUS alone.
-    send_log: RateLog,
-}
-
-impl Sender {
-    fn new(s: &MavlinkSettings) -> Self {
-        Sender {
-            enc: Encoder::new(s.system_id, s.component_id).signed(s.signing.clone()),
-            seen: 0,
-            last_pos_t: None,
-            last_sent: None,
-            pos_skips: SkipLog::new(false),
-            speed_skips: SkipLog::new(true),
-            send_log: RateLog::new(),
-        }
-    }
-
-    /// Within the position rate limit of the last pose sent? (Capture
-    /// time, so that a replay at any pace decimates alike; a step back in
-    /// time starts over.)
-    fn decimated(&self, t: f64, rate_hz: Option<f64>) -> bool {
-        match (rate_hz, self.last_pos_t) {
-            (Some(r), Some(last)) if t >= last => t - last < (1.0 - 1e-6) / r,
-            _ => false,
-        }
-    }
-
-    async fn poses(&mut self, link: &mut Link, s: &MavlinkSettings, hub: &Hub) -> io::Result<()> {
-        let c = &hub.mavlink;
-        let Some(o) = hub.outbox.take_new(&mut self.seen) else {
-            return Ok(());
-        };
-        if self.decimated(o.t, s.output.position_rate_hz) {
-            c.skipped[Skip::Decimated.index()].fetch_add(1, Relaxed);
-            return Ok(());
-        }
-        let msg = match vision_position(&o, &s.site, &s.output).and_then(|v| v.message()) {
-            Ok(m) => m,
-            Err(k) => {
-                let n = c.skipped[k.index()].fetch_add(1, Relaxed) + 1;
-                self.pos_skips.note(&o, k, n);
-                return Ok(());
-            }
-        };
-        // Only a pose that went out takes the rate limit's slot: one not
-        // sent (no peer yet, a UDP error) must not decimate the next.
-        if self.send(link, hub, &msg, 0).await? {
-            self.last_pos_t = Some(o.t);
-            self.last_sent = Some(Instant::now());
-        }
-        if s.output.speed && o.surge.is_some() {
-            match vision_speed(&o, &s.site, &s.output).and_then(|v| v.message()) {
-                Ok(m) => {
-                    self.send(link, hub, &m, 1).await?;
-                }
-                Err(k) => {
-                    let n = c.speed_skipped[k.index()].fetch_add(1, Relaxed) + 1;
-                    self.speed_skips.note(&o, k, n);
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// Send one message: whether it went out. An error is returned only
-    /// when the link is lost (serial); a UDP send error is counted.
-    async fn send(
-        &mut self,
-        link: &mut Link,
-        hub: &Hub,
-        msg: &MavMessage,
-        kind: usize,
-    ) -> io::Result<bool> {
-        let c = &hub.mavlink;
-        let framing = link.framing();
-        // Nowhere to send (udpin before the autopilot spoke): nothing is
-        // framed, so no sequence number or signing timestamp is spent on
-        // it (a timestamp moved by unsent frames could leave an autopilot
-        // whose clock is behind ours refused before it ever heard us).
-        if !link.has_peer() {
-            c.no_peer.fetch_add(1, Relaxed);
-            return Ok(false);
-        }
-        match link.send(self.enc.encode(msg)).await {
-            Ok(Sent::Yes) => {
-                c.sent[kind].fetch_add(1, Relaxed);
-                Ok(true)
-            }
-            Ok(Sent::NoPeer) => {
-                c.no_peer.fetch_add(1, Relaxed);
-                Ok(false)
-            }
-            Err(e) if framing == Framing::Stream => Err(e),
-            Err(e) => {
-                let n = c.send_errors.fetch_add(1, Relaxed) + 1;
-                c.set_error(LastError::net(NetOp::Send, &e));
-                if let Some(k) = self.send_log.tick(Instant::now()) {
-                    tracing::warn!(
-                        send_errors = n,
-                        since_last_line = k,
-                        "mavlink: send failed: {e}"
-                    );
-                }
-                Ok(false)
-            }
-        }
-    }
 }
 
 #[cfg(test)]
