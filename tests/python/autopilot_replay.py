@@ -6,8 +6,8 @@ It reads the truth of a frame log (FORMATS.md: one JSON object per line,
 udpin:127.0.0.1:PORT and, every 20 ms, sends ATTITUDE, GLOBAL_POSITION_INT
 (relative_alt, the daemon's default depth), VFR_HUD (as ArduSub with an EKF
 origin at sea level) and SCALED_PRESSURE2 computed from the truth at the
-log time the daemon is
-capturing, plus a HEARTBEAT every second. The log time is read off the
+log time the daemon is capturing, plus a HEARTBEAT every second (before
+every batch until the daemon answers). The log time is read off the
 daemon's own messages: the least (arrival - usec) over its
 VISION_POSITION_ESTIMATEs (each arrives after its frame's capture, so the
 least is the closest); before the first of them the arrival of its first
@@ -116,7 +116,7 @@ def run(args, truth):
     rx = apm.MAVLink(None)
     rx.robust_parsing = True
     tx = apm.MAVLink(None, srcSystem=1, srcComponent=1)
-    heard = {"vpe": [], "counts": {}, "bad": 0, "v1": 0}
+    heard = {"vpe": [], "counts": {}, "bad": 0, "v1": 0, "arrival": {}}
     origin, last_rx, next_send, next_beat = None, None, 0.0, 0.0
     start = time.monotonic()
     while time.monotonic() - start < args["deadline"]:
@@ -141,20 +141,28 @@ def run(args, truth):
                     o = now - m.usec / 1e6
                     origin = o if origin is None else min(origin, o)
                     heard["vpe"].append(m)
+                    heard["arrival"][m.usec] = now - start
                 elif kind == "HEARTBEAT" and origin is None:
                     origin = now
         if now >= next_send:
             next_send = now + 0.02
+            # A HEARTBEAT every second, as ArduSub sends it; until the
+            # daemon answers, one before every batch. The daemon takes
+            # readings only from an autopilot it has heard, and answers
+            # only then: a first HEARTBEAT lost to a daemon not yet bound
+            # would otherwise leave its first second without readings and
+            # this clock a second behind the replay.
+            if origin is None or now >= next_beat:
+                next_beat = now + 1.0
+                hb = tx.heartbeat_encode(
+                    apm.MAV_TYPE_SUBMARINE, apm.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 19, apm.MAV_STATE_ACTIVE
+                )
+                sock.sendto(hb.pack(tx), daemon)
             t = 0.0 if origin is None else now - origin
             ms = int((now - start) * 1000) & 0xFFFFFFFF
             for m in sensor_messages(tx, truth_at(truth, t), args, ms):
                 sock.sendto(m.pack(tx), daemon)
-        if now >= next_beat:
-            next_beat = now + 1.0
-            hb = tx.heartbeat_encode(
-                apm.MAV_TYPE_SUBMARINE, apm.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 19, apm.MAV_STATE_ACTIVE
-            )
-            sock.sendto(hb.pack(tx), daemon)
+    heard["origin"] = None if origin is None else origin - start
     return heard
 
 
@@ -164,15 +172,24 @@ def judge(args, truth, heard):
     cover = [t for t, _ in truth if t >= t0 + args["cover_after"]]
     covered = sum(1 for t in cover if round(t * 1e6) in by_usec)
     errs = [[] for _ in range(5)]
+    # Each judged frame's log time, how late its estimate arrived against
+    # the least (the stand-in's clock), and its errors: the worst of them
+    # are printed, so that a failure says when and how.
+    frames = []
     for t, pose in truth:
         m = by_usec.get(round(t * 1e6))
         if t < t0 + args["p95_after"] or m is None:
             continue
         want = to_ned(pose, args["h"])
         got = (m.x, m.y, m.z, math.degrees(m.pitch), math.degrees(m.yaw))
+        e = []
         for k in range(5):
             d = got[k] - want[k]
-            errs[k].append(wrap180(d) if k == 4 else d)
+            e.append(wrap180(d) if k == 4 else d)
+            errs[k].append(e[-1])
+        late = heard["arrival"][m.usec] - m.usec / 1e6 - (heard["origin"] or 0.0)
+        frames.append({"t": t, "late_s": round(late, 4), "err": [round(v, 3) for v in e]})
+    worst = sorted(frames, key=lambda f: -max(abs(f["err"][0]), abs(f["err"][1])))[:8]
     finite = all(
         all(math.isfinite(c) for c in m.covariance) and not math.isnan(m.covariance[0])
         for m in heard["vpe"]
@@ -188,6 +205,7 @@ def judge(args, truth, heard):
         "covered": covered,
         "judged": len(errs[0]),
         "p95": {n: p95(e) for n, e in zip(names, errs)},
+        "worst": worst,
     }
 
 

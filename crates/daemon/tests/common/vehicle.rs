@@ -111,7 +111,8 @@ pub struct Heard {
 /// address) or, when `None`, to whoever sends to it first (a daemon on
 /// `udpout`). Every 20 ms it sends ATTITUDE, GLOBAL_POSITION_INT (the
 /// daemon's default depth) and SCALED_PRESSURE2 of the truth at the log
-/// time the daemon is capturing, and an autopilot HEARTBEAT every second. The log's time is read off the daemon's own
+/// time the daemon is capturing, and an autopilot HEARTBEAT every second
+/// (before every batch until the daemon answers). The log's time is read off the daemon's own
 /// messages: the least (arrival − usec) of its VISION_POSITION_ESTIMATEs
 /// (each arrives after its capture, so the least is the closest), before
 /// the first of them its first heartbeat (sent as it starts), and before
@@ -189,16 +190,21 @@ pub fn stand_in_signed(
         let now = Instant::now();
         if now >= next_send {
             next_send = now + Duration::from_millis(20);
+            // A heartbeat every second, and before every batch until the
+            // daemon answers: it takes readings only from an autopilot it
+            // has heard and answers only then, so a first heartbeat lost
+            // to a daemon not yet bound would leave its first second
+            // without readings and this clock a second behind the replay.
+            if origin.is_none() || now >= next_beat {
+                next_beat = now + Duration::from_secs(1);
+                let _ = sock.send_to(enc.encode(&autopilot_heartbeat()), to);
+            }
             let t = origin.map_or(0.0, |o| now.saturating_duration_since(o).as_secs_f64());
             let state = SensorState::of(&site, &truth_at(truth, t), Some(WATER_C));
             let ms = start.elapsed().as_millis() as u32;
             for m in autopilot_messages(&state, DepthSource::GlobalPositionInt, ms) {
                 let _ = sock.send_to(enc.encode(&m), to);
             }
-        }
-        if now >= next_beat {
-            next_beat = now + Duration::from_secs(1);
-            let _ = sock.send_to(enc.encode(&autopilot_heartbeat()), to);
         }
     }
     heard
